@@ -1,0 +1,1 @@
+//! Geometry: rays, boxes, triangles and the bit-exact intersection tests.

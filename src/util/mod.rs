@@ -1,0 +1,2 @@
+//! Small helpers shared by the whole crate.
+pub mod rng;
