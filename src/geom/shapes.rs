@@ -1,0 +1,206 @@
+//! Closed, watertight meshes for built-in scenes and leak tests.
+//!
+//! Every vertex is computed once into a table and triangles copy from the table,
+//! so vertices shared by neighbouring triangles are bit-identical (what the
+//! watertight triangle test needs to close the mesh). Trigonometry uses a
+//! fixed-order f64 polynomial instead of the platform libm, so the meshes are
+//! the same on every machine. Winding is counter-clockwise seen from outside.
+
+use glam::Vec3;
+
+use super::triangle::Triangle;
+
+/// (sin x, cos x) for |x| <= ~8 using only IEEE f64 add/mul in a fixed order:
+/// reduce by the nearest multiple of pi/2, then Taylor series to degree 21/22
+/// (|r| <= pi/4, truncation < 1e-20). Deterministic, unlike libm.
+fn sin_cos(x: f64) -> (f64, f64) {
+    let half_pi = std::f64::consts::FRAC_PI_2;
+    let q = (x / half_pi).round();
+    let r = x - q * half_pi;
+    let r2 = r * r;
+    // Horner from the highest term: sin r = r(1 - r2/(2*3)(1 - r2/(4*5)(...)))
+    let mut s = 1.0f64;
+    let mut c = 1.0f64;
+    let mut k = 11.0f64;
+    while k >= 1.0 {
+        s = 1.0 - r2 / ((2.0 * k) * (2.0 * k + 1.0)) * s;
+        c = 1.0 - r2 / ((2.0 * k - 1.0) * (2.0 * k)) * c;
+        k -= 1.0;
+    }
+    let s = r * s;
+    match (q as i64).rem_euclid(4) {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// `center + radius * unit`, computed in f64 and rounded once to f32.
+fn place(center: Vec3, radius: f32, unit: [f64; 3]) -> Vec3 {
+    let r = radius as f64;
+    Vec3::new(
+        (center.x as f64 + r * unit[0]) as f32,
+        (center.y as f64 + r * unit[1]) as f32,
+        (center.z as f64 + r * unit[2]) as f32,
+    )
+}
+
+/// A closed UV sphere: `stacks` bands from the +y pole to the -y pole and
+/// `slices` columns around y (clamped to at least 2 and 3). Poles are single
+/// vertices; the seam column reuses column 0. Produces
+/// `2 * slices * (stacks - 1)` triangles. Far from the origin or for tiny radii
+/// some triangles may round to zero area; the mesh stays closed regardless.
+pub fn uv_sphere(center: Vec3, radius: f32, stacks: u32, slices: u32) -> Vec<Triangle> {
+    let stacks = stacks.max(2) as usize;
+    let slices = slices.max(3) as usize;
+    let pi = std::f64::consts::PI;
+    let top = place(center, radius, [0.0, 1.0, 0.0]);
+    let bottom = place(center, radius, [0.0, -1.0, 0.0]);
+    // rings[i - 1][j] is the vertex at polar angle pi*i/stacks, azimuth 2pi*j/slices.
+    let rings: Vec<Vec<Vec3>> = (1..stacks)
+        .map(|i| {
+            let (st, ct) = sin_cos(pi * i as f64 / stacks as f64);
+            (0..slices)
+                .map(|j| {
+                    let (sp, cp) = sin_cos(2.0 * pi * j as f64 / slices as f64);
+                    place(center, radius, [st * cp, ct, st * sp])
+                })
+                .collect()
+        })
+        .collect();
+    let mut tris = Vec::with_capacity(2 * slices * (stacks - 1));
+    for j in 0..slices {
+        let jn = (j + 1) % slices;
+        let first = &rings[0];
+        tris.push(Triangle::new(top, first[jn], first[j]));
+        for i in 0..stacks - 2 {
+            let (up, dn) = (&rings[i], &rings[i + 1]);
+            tris.extend(quad(up[j], up[jn], dn[jn], dn[j]));
+        }
+        let last = &rings[stacks - 2];
+        tris.push(Triangle::new(bottom, last[j], last[jn]));
+    }
+    tris
+}
+
+/// Two triangles `(a, b, c)` and `(a, c, d)` split along the a-c diagonal; the
+/// diagonal's endpoints are the same values in both.
+pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> [Triangle; 2] {
+    [Triangle::new(a, b, c), Triangle::new(a, c, d)]
+}
+
+/// The 12 triangles of the closed box `[min, max]` (outward winding). Corners
+/// are taken from one 8-entry table, so shared corners are bit-identical.
+pub fn box_mesh(min: Vec3, max: Vec3) -> Vec<Triangle> {
+    // Corner index bits: 1 -> x, 2 -> y, 4 -> z take the max coordinate.
+    let p = |i: usize| {
+        Vec3::new(
+            if i & 1 != 0 { max.x } else { min.x },
+            if i & 2 != 0 { max.y } else { min.y },
+            if i & 4 != 0 { max.z } else { min.z },
+        )
+    };
+    // Faces as corner quads, counter-clockwise seen from outside.
+    const FACES: [[usize; 4]; 6] = [
+        [0, 4, 6, 2], // -x
+        [1, 3, 7, 5], // +x
+        [0, 1, 5, 4], // -y
+        [2, 6, 7, 3], // +y
+        [0, 2, 3, 1], // -z
+        [4, 5, 7, 6], // +z
+    ];
+    FACES
+        .iter()
+        .flat_map(|f| quad(p(f[0]), p(f[1]), p(f[2]), p(f[3])))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashMap;
+
+    /// Every undirected edge (by vertex bit patterns) must be used by exactly two
+    /// triangles, once in each direction: a closed, consistently wound mesh.
+    fn assert_closed(tris: &[Triangle]) {
+        let key = |v: Vec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()];
+        let mut edges: HashMap<([u32; 3], [u32; 3]), i32> = HashMap::new();
+        for t in tris {
+            let vs = [t.v0, t.v1, t.v2];
+            for k in 0..3 {
+                let (p, q) = (key(vs[k]), key(vs[(k + 1) % 3]));
+                if p == q {
+                    continue; // collapsed edge of a zero-area triangle
+                }
+                let (lo, hi, s) = if p < q { (p, q, 1) } else { (q, p, -1) };
+                *edges.entry((lo, hi)).or_insert(0) += s;
+            }
+        }
+        assert!(
+            edges.values().all(|&n| n == 0),
+            "open or inconsistently wound edge"
+        );
+    }
+
+    fn assert_outward(tris: &[Triangle], center: Vec3) {
+        for t in tris {
+            if t.is_degenerate() {
+                continue;
+            }
+            let n = t.normal();
+            let g = (t.v0 + t.v1 + t.v2) / 3.0 - center;
+            assert!(
+                n.x * g.x + n.y * g.y + n.z * g.z > 0.0,
+                "inward triangle {t:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn sin_cos_is_accurate() {
+        for i in 0..=64 {
+            let x = std::f64::consts::PI * 2.0 * i as f64 / 64.0;
+            let (s, c) = sin_cos(x);
+            assert!(
+                (s - x.sin()).abs() < 1e-15 && (c - x.cos()).abs() < 1e-15,
+                "{x}"
+            );
+        }
+        assert_eq!(sin_cos(0.0), (0.0, 1.0));
+    }
+
+    #[test]
+    fn sphere_is_closed_and_outward() {
+        let c = Vec3::new(1.0, -2.0, 3.0);
+        let s = uv_sphere(c, 2.0, 8, 12);
+        assert_eq!(s.len(), 2 * 12 * 7);
+        assert_closed(&s);
+        assert_outward(&s, c);
+        for t in &s {
+            for v in [t.v0, t.v1, t.v2] {
+                assert!(((v - c).length() - 2.0).abs() < 1e-5);
+            }
+        }
+        // Far from the origin and tiny: still closed (some triangles collapse).
+        assert_closed(&uv_sphere(
+            Vec3::new(148376.0, 1234.0, -223423.0),
+            1.0,
+            32,
+            64,
+        ));
+        assert_eq!(uv_sphere(c, 1.0, 0, 0).len(), 2 * 3);
+    }
+
+    #[test]
+    fn box_is_closed_and_outward() {
+        let (lo, hi) = (Vec3::new(-1.0, 2.0, -3.0), Vec3::new(4.0, 5.0, 6.0));
+        let b = box_mesh(lo, hi);
+        assert_eq!(b.len(), 12);
+        assert_closed(&b);
+        assert_outward(&b, (lo + hi) * 0.5);
+        let q = quad(Vec3::ZERO, Vec3::X, Vec3::ONE, Vec3::Y);
+        assert_eq!(q[0].v2, q[1].v1);
+        assert_eq!(q[0].v0, q[1].v0);
+    }
+}
