@@ -1,4 +1,10 @@
 //! dualstream: an RTL-style, cycle-level model of the Dual Streaming ray-tracing
 //! hardware (Shkurko et al., HPG 2017).
+pub mod bench;
+pub mod config;
 pub mod geom;
+pub mod rtl;
+#[path = "../testbench/mod.rs"]
+pub mod testbench;
+pub mod units;
 pub mod util;

@@ -1,0 +1,186 @@
+//! The configuration: every latency, interval, size and clock of the model. The
+//! defaults are the paper's Table 1 and section 5.1 (Shkurko et al. 2017); each
+//! default names its source. Loaded from TOML; unknown keys are errors.
+
+use serde::{Deserialize, Serialize};
+
+use crate::rtl::LinkCfg;
+
+/// Clock domains on the common picosecond time base.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClockCfg {
+    /// Core clock period: 1 GHz [DS17 Table 1].
+    pub core_ps: u64,
+    /// DRAM command clock period: GDDR5 at 8 Gb/s per pin has CK = 2 GHz
+    /// (hardware reference sheet, conventions). tCK = 0.667 ns is 667.
+    pub dram_ps: u64,
+}
+
+impl Default for ClockCfg {
+    fn default() -> Self {
+        ClockCfg {
+            core_ps: 1000,
+            dram_ps: 500,
+        }
+    }
+}
+
+/// A fixed-latency pipelined unit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PipeCfg {
+    /// Cycles from acceptance of a request to the result being visible to the
+    /// requester, including the output link register.
+    pub latency: u32,
+    /// Initiation interval: cycles between two acceptances.
+    pub interval: u32,
+}
+
+/// Links between units.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LinksCfg {
+    /// Request and response links inside a TM (TP <-> shared pipelines). One
+    /// register stage (delay 1) and two entries so a pipeline with interval 1 is
+    /// never throttled by its links.
+    pub tm: LinkCfg,
+}
+
+impl Default for LinksCfg {
+    fn default() -> Self {
+        LinksCfg {
+            tm: LinkCfg { depth: 2, delay: 1 },
+        }
+    }
+}
+
+/// The whole model configuration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    pub clocks: ClockCfg,
+    pub links: LinksCfg,
+    /// Ray-box pipeline: initiation interval 1, latency 8 [DS17 §5.1]. One issue
+    /// tests one box (the TP issues the two children of a BVH2 node back to back).
+    pub box_pipe: PipeCfg,
+    /// Ray-triangle pipeline (Plücker test): interval 18, latency 31 [DS17 §5.1].
+    pub tri_pipe: PipeCfg,
+    /// TM-shared divider for the inverse ray direction. simtrax's 65 nm FPINV has a
+    /// 16-cycle latency, one per TM (hardware reference §1.2). Pipelined with one
+    /// divide issued per cycle, the three components of a direction take 3 issue
+    /// cycles: interval 3, and the last component is done 16 + 2 = 18 cycles after
+    /// the first was accepted.
+    pub divider: PipeCfg,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            clocks: ClockCfg::default(),
+            links: LinksCfg::default(),
+            box_pipe: PipeCfg {
+                latency: 8,
+                interval: 1,
+            },
+            tri_pipe: PipeCfg {
+                latency: 31,
+                interval: 18,
+            },
+            divider: PipeCfg {
+                latency: 18,
+                interval: 3,
+            },
+        }
+    }
+}
+
+impl Config {
+    /// Parses TOML; missing keys take their defaults, unknown keys are errors.
+    pub fn from_toml(text: &str) -> Result<Config, String> {
+        let c: Config = toml::from_str(text).map_err(|e| format!("config: {e}"))?;
+        c.validate()?;
+        Ok(c)
+    }
+
+    pub fn load(path: &std::path::Path) -> Result<Config, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            format!(
+                "cannot read config '{}': {e}; check the path given to --config",
+                path.display()
+            )
+        })?;
+        Config::from_toml(&text).map_err(|e| format!("{} ({})", e, path.display()))
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("config serialises")
+    }
+
+    /// Rejects impossible configurations with a message naming the key and the fix.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.clocks.core_ps == 0 || self.clocks.dram_ps == 0 {
+            return Err("clocks: a clock period of 0 ps is impossible; give a positive period (core_ps = 1000 is 1 GHz)".into());
+        }
+        self.links.tm.validate("links.tm")?;
+        for (name, p) in [
+            ("box_pipe", &self.box_pipe),
+            ("tri_pipe", &self.tri_pipe),
+            ("divider", &self.divider),
+        ] {
+            validate_pipe(name, p, &self.links.tm)?;
+        }
+        Ok(())
+    }
+}
+
+fn validate_pipe(name: &str, p: &PipeCfg, out_link: &LinkCfg) -> Result<(), String> {
+    if p.latency == 0 {
+        return Err(format!(
+            "{name}.latency = 0 is impossible: a registered unit needs at least one cycle; set latency >= {}",
+            out_link.delay + 1
+        ));
+    }
+    if p.latency <= out_link.delay {
+        return Err(format!(
+            "{name}.latency = {} does not exceed the output link delay ({}, links.tm.delay), which is part of it; set latency >= {}",
+            p.latency,
+            out_link.delay,
+            out_link.delay + 1
+        ));
+    }
+    if p.interval == 0 {
+        return Err(format!(
+            "{name}.interval = 0 is impossible: at most one request per cycle; set interval >= 1"
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_is_the_paper_and_round_trips() {
+        let c = Config::default();
+        assert_eq!((c.box_pipe.latency, c.box_pipe.interval), (8, 1));
+        assert_eq!((c.tri_pipe.latency, c.tri_pipe.interval), (31, 18));
+        let back = Config::from_toml(&c.to_toml()).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn impossible_configs_are_named() {
+        let e = Config::from_toml("[box_pipe]\nlatency = 0\ninterval = 1\n").unwrap_err();
+        assert!(e.contains("box_pipe.latency = 0"), "{e}");
+        let e = Config::from_toml("[tri_pipe]\nlatency = 31\ninterval = 0\n").unwrap_err();
+        assert!(e.contains("tri_pipe.interval = 0"), "{e}");
+        let e = Config::from_toml("[links.tm]\ndepth = 2\ndelay = 0\n").unwrap_err();
+        assert!(e.contains("combinational"), "{e}");
+        let e = Config::from_toml("[clocks]\ncore_ps = 0\n").unwrap_err();
+        assert!(e.contains("period of 0"), "{e}");
+        let e = Config::from_toml("[box_pipe]\nlatncy = 3\ninterval = 1\n").unwrap_err();
+        assert!(e.contains("latncy"), "{e}");
+    }
+}

@@ -1,0 +1,270 @@
+//! Bit-level view of payloads and register values.
+//!
+//! Every value that crosses a port or sits in a register has a fixed bit width, as it
+//! would in hardware. The width is what the Verilog skeleton declares and what the VCD
+//! trace shows; `pack` lays the value out LSB-first (the first field packed is in the
+//! lowest bits), the way a SystemVerilog `{..}` concatenation reads right to left.
+
+use glam::Vec3;
+
+/// A growable little-endian bit vector used to pack values for tracing.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Bits {
+    words: Vec<u64>,
+    len: u32,
+}
+
+impl Bits {
+    pub fn new() -> Self {
+        Bits::default()
+    }
+
+    pub fn clear(&mut self) {
+        self.words.clear();
+        self.len = 0;
+    }
+
+    pub fn len(&self) -> u32 {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    pub fn words(&self) -> &[u64] {
+        &self.words
+    }
+
+    /// Appends the low `width` bits of `value` (width <= 64).
+    pub fn push(&mut self, value: u64, width: u32) {
+        debug_assert!(width <= 64);
+        if width == 0 {
+            return;
+        }
+        let value = if width == 64 {
+            value
+        } else {
+            value & ((1u64 << width) - 1)
+        };
+        let off = self.len % 64;
+        if off == 0 {
+            self.words.push(value);
+        } else {
+            *self.words.last_mut().expect("non-empty when off > 0") |= value << off;
+            if off + width > 64 {
+                self.words.push(value >> (64 - off));
+            }
+        }
+        self.len += width;
+    }
+
+    /// Bit `i` (0 = LSB).
+    pub fn bit(&self, i: u32) -> bool {
+        (self.words[(i / 64) as usize] >> (i % 64)) & 1 == 1
+    }
+
+    /// Reads `width` bits starting at bit `at` (for unpacking in tests).
+    pub fn get(&self, at: u32, width: u32) -> u64 {
+        let mut v = 0u64;
+        for k in 0..width {
+            if self.bit(at + k) {
+                v |= 1 << k;
+            }
+        }
+        v
+    }
+}
+
+/// A value with a fixed hardware bit width.
+pub trait Payload: Clone + std::fmt::Debug + PartialEq + 'static {
+    /// Width in bits of the packed value (the Verilog vector width).
+    const BITS: u32;
+    /// Appends exactly `BITS` bits to `out`.
+    fn pack(&self, out: &mut Bits);
+    /// Names of the encodings of an enumerated (FSM state) value, listed in the VCD
+    /// header so a waveform viewer user can read the integers.
+    fn enum_names() -> Option<&'static [&'static str]> {
+        None
+    }
+    /// Bit-exact equality (NaN payloads equal themselves, +0 and -0 differ), which is
+    /// what "the value did not change" means for hardware.
+    fn same_bits(&self, other: &Self) -> bool {
+        let (mut a, mut b) = (Bits::new(), Bits::new());
+        self.pack(&mut a);
+        other.pack(&mut b);
+        a == b
+    }
+}
+
+macro_rules! uint_payload {
+    ($($t:ty),*) => {$(
+        impl Payload for $t {
+            const BITS: u32 = <$t>::BITS;
+            fn pack(&self, out: &mut Bits) {
+                out.push(*self as u64, Self::BITS);
+            }
+        }
+    )*};
+}
+uint_payload!(u8, u16, u32, u64);
+
+impl Payload for bool {
+    const BITS: u32 = 1;
+    fn pack(&self, out: &mut Bits) {
+        out.push(*self as u64, 1);
+    }
+}
+
+impl Payload for f32 {
+    const BITS: u32 = 32;
+    fn pack(&self, out: &mut Bits) {
+        out.push(self.to_bits() as u64, 32);
+    }
+}
+
+impl Payload for Vec3 {
+    const BITS: u32 = 96;
+    fn pack(&self, out: &mut Bits) {
+        self.x.pack(out);
+        self.y.pack(out);
+        self.z.pack(out);
+    }
+}
+
+impl<T: Payload> Payload for Option<T> {
+    // A valid bit in the LSB, then the payload (zeros when absent).
+    const BITS: u32 = 1 + T::BITS;
+    fn pack(&self, out: &mut Bits) {
+        match self {
+            Some(v) => {
+                out.push(1, 1);
+                v.pack(out);
+            }
+            None => {
+                out.push(0, 1);
+                let mut left = T::BITS;
+                while left > 0 {
+                    let w = left.min(64);
+                    out.push(0, w);
+                    left -= w;
+                }
+            }
+        }
+    }
+}
+
+/// Declares a struct payload whose width is the sum of its fields' widths and whose
+/// packing is the fields in declaration order (first field in the lowest bits).
+#[macro_export]
+macro_rules! payload_struct {
+    ($(#[$m:meta])* $vis:vis struct $name:ident { $($(#[$fm:meta])* $fvis:vis $f:ident : $t:ty),* $(,)? }) => {
+        $(#[$m])*
+        #[derive(Clone, Debug, PartialEq)]
+        $vis struct $name { $($(#[$fm])* $fvis $f: $t),* }
+        impl $crate::rtl::bits::Payload for $name {
+            const BITS: u32 = 0 $(+ <$t as $crate::rtl::bits::Payload>::BITS)*;
+            fn pack(&self, out: &mut $crate::rtl::bits::Bits) {
+                $($crate::rtl::bits::Payload::pack(&self.$f, out);)*
+            }
+        }
+    };
+}
+
+/// Declares an FSM state enum: encoded as its index, width = enough bits for all
+/// states, names listed for waveform viewers.
+#[macro_export]
+macro_rules! fsm_states {
+    ($(#[$m:meta])* $vis:vis enum $name:ident { $first:ident $(, $rest:ident)* $(,)? }) => {
+        $(#[$m])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+        #[repr(u8)]
+        $vis enum $name { #[default] $first $(, $rest)* }
+        impl $crate::rtl::bits::Payload for $name {
+            const BITS: u32 = $crate::rtl::bits::clog2_u32([stringify!($first) $(, stringify!($rest))*].len() as u32);
+            fn pack(&self, out: &mut $crate::rtl::bits::Bits) {
+                out.push(*self as u64, Self::BITS);
+            }
+            fn enum_names() -> Option<&'static [&'static str]> {
+                Some(&[stringify!($first) $(, stringify!($rest))*])
+            }
+        }
+    };
+}
+
+/// Bits needed to encode `n` distinct values (at least 1).
+pub const fn clog2_u32(n: u32) -> u32 {
+    if n <= 2 {
+        1
+    } else {
+        32 - (n - 1).leading_zeros()
+    }
+}
+
+/// Packs a value into a fresh bit vector.
+pub fn packed<T: Payload>(v: &T) -> Bits {
+    let mut b = Bits::new();
+    v.pack(&mut b);
+    debug_assert_eq!(
+        b.len(),
+        T::BITS,
+        "pack() of {} wrote the wrong width",
+        std::any::type_name::<T>()
+    );
+    b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    crate::payload_struct! {
+        struct Pair { a: u8, b: f32, c: bool }
+    }
+
+    crate::fsm_states! {
+        enum Five { A, B, C, D, E }
+    }
+
+    #[test]
+    fn struct_width_is_sum_and_fields_pack_lsb_first() {
+        assert_eq!(Pair::BITS, 41);
+        let p = Pair {
+            a: 0xA5,
+            b: 1.0,
+            c: true,
+        };
+        let bits = packed(&p);
+        assert_eq!(bits.len(), 41);
+        assert_eq!(bits.get(0, 8), 0xA5);
+        assert_eq!(bits.get(8, 32), 1.0f32.to_bits() as u64);
+        assert!(bits.bit(40));
+    }
+
+    #[test]
+    fn push_across_word_boundaries() {
+        let mut b = Bits::new();
+        b.push(0x1, 60);
+        b.push(0xFF, 8);
+        b.push(u64::MAX, 64);
+        assert_eq!(b.len(), 132);
+        assert_eq!(b.get(60, 8), 0xFF);
+        assert_eq!(b.get(68, 64), u64::MAX);
+        assert_eq!(b.get(0, 60), 1);
+    }
+
+    #[test]
+    fn fsm_width_and_names() {
+        assert_eq!(Five::BITS, 3);
+        assert_eq!(Five::enum_names().unwrap()[4], "E");
+        assert_eq!(packed(&Five::E).get(0, 3), 4);
+        let all = [Five::A, Five::B, Five::C, Five::D, Five::E];
+        assert_eq!(all.len(), 5);
+        assert_eq!(clog2_u32(1), 1);
+        assert_eq!(clog2_u32(2), 1);
+        assert_eq!(clog2_u32(3), 2);
+        assert_eq!(clog2_u32(16), 4);
+        assert_eq!(clog2_u32(17), 5);
+        assert_eq!(<Option<u16>>::BITS, 17);
+    }
+}

@@ -1,0 +1,151 @@
+//! Declarations: what a unit *is* (parameters, ports, registers, memories), separate
+//! from what it *does*. One `unit!` declaration produces the Rust fields and this
+//! description; the VCD tracer, the Verilog emitter and the state inventory all read
+//! the description, so they can never disagree with the struct.
+
+use super::link::LinkId;
+
+/// Direction of a port, seen from the unit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PortDir {
+    /// The unit consumes from a link: `x_valid`, `x_data` in, `x_ready` out.
+    In,
+    /// The unit produces into a link: `x_valid`, `x_data` out, `x_ready` in.
+    Out,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PortDecl {
+    pub name: &'static str,
+    pub dir: PortDir,
+    /// Payload width in bits (the `x_data` vector).
+    pub width: u32,
+    pub link: LinkId,
+}
+
+/// One piece of clocked state as the Verilog skeleton and the trace see it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StateDecl {
+    pub name: String,
+    pub width: u32,
+    /// `None` for a register (traced as one VCD signal); `Some(depth)` for a memory
+    /// array (`reg [w-1:0] name [0:depth-1]`), which is not traced: a waveform of a
+    /// 4 MB buffer helps nobody and costs everything.
+    pub depth: Option<u32>,
+    /// FSM encodings, for the VCD header comment.
+    pub enum_names: Option<&'static [&'static str]>,
+}
+
+impl StateDecl {
+    pub fn reg(name: impl Into<String>, width: u32) -> Self {
+        StateDecl {
+            name: name.into(),
+            width,
+            depth: None,
+            enum_names: None,
+        }
+    }
+    pub fn array(name: impl Into<String>, width: u32, depth: u32) -> Self {
+        StateDecl {
+            name: name.into(),
+            width,
+            depth: Some(depth),
+            enum_names: None,
+        }
+    }
+    pub fn bits(&self) -> u64 {
+        self.width as u64 * self.depth.unwrap_or(1) as u64
+    }
+    pub fn traced(&self) -> bool {
+        self.depth.is_none()
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ParamDecl {
+    /// Verilog name (upper case by convention).
+    pub name: &'static str,
+    pub value: u64,
+}
+
+/// The full declaration of one unit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnitDecl {
+    /// Verilog module name, also the default instance name.
+    pub module: &'static str,
+    /// Rust source file that holds the declaration (named in the Verilog comment).
+    pub source: &'static str,
+    /// First line of the unit's doc comment.
+    pub doc: &'static str,
+    pub params: Vec<ParamDecl>,
+    pub ports: Vec<PortDecl>,
+    pub state: Vec<StateDecl>,
+}
+
+/// A signal as it appears in a unit's VCD scope and as a Verilog port/reg.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SignalDecl {
+    pub name: String,
+    pub width: u32,
+    pub enum_names: Option<&'static [&'static str]>,
+}
+
+impl UnitDecl {
+    /// Bits of clocked state (registers and memories), excluding link FIFOs, which
+    /// belong to the interconnect.
+    pub fn state_bits(&self) -> u64 {
+        self.state.iter().map(StateDecl::bits).sum()
+    }
+
+    /// The traced signals in order: for each port `valid`, `ready`, `data`; then each
+    /// register. This is the contract between the VCD scope and the Verilog module.
+    pub fn signals(&self) -> Vec<SignalDecl> {
+        let mut v = Vec::new();
+        for p in &self.ports {
+            for (suffix, w) in [("valid", 1), ("ready", 1), ("data", p.width)] {
+                v.push(SignalDecl {
+                    name: format!("{}_{}", p.name, suffix),
+                    width: w,
+                    enum_names: None,
+                });
+            }
+        }
+        for s in self.state.iter().filter(|s| s.traced()) {
+            v.push(SignalDecl {
+                name: s.name.clone(),
+                width: s.width,
+                enum_names: s.enum_names,
+            });
+        }
+        v
+    }
+}
+
+/// Collects state declarations; each state primitive adds its own entries.
+#[derive(Default)]
+pub struct StateList {
+    pub items: Vec<StateDecl>,
+}
+
+/// Reused buffer of sampled signal values (one `Bits` per traced signal, in order).
+#[derive(Default)]
+pub struct Samples {
+    pub vals: Vec<super::bits::Bits>,
+    pub n: usize,
+}
+
+impl Samples {
+    pub fn begin(&mut self) {
+        self.n = 0;
+    }
+    /// The next slot, cleared, to pack one signal's value into.
+    pub fn slot(&mut self) -> &mut super::bits::Bits {
+        if self.n == self.vals.len() {
+            self.vals.push(super::bits::Bits::new());
+        }
+        let b = &mut self.vals[self.n];
+        b.clear();
+        self.n += 1;
+        b
+    }
+}

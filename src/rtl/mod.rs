@@ -1,0 +1,21 @@
+//! The clocked-simulation kernel: registers, RAMs, fixed-latency pipelines, registered
+//! links, the unit declaration, the lock-step simulator, VCD tracing and Verilog
+//! emission.
+pub mod bits;
+pub mod decl;
+pub mod link;
+pub mod pipe;
+pub mod sim;
+pub mod state;
+pub mod trace;
+pub mod unit;
+pub mod verilog;
+
+pub use bits::{Bits, Payload};
+pub use decl::{PortDecl, PortDir, SignalDecl, StateDecl, UnitDecl};
+pub use link::{In, LinkCfg, LinkEvent, LinkId, Out};
+pub use pipe::FixedPipe;
+pub use sim::{ClockId, Ctx, RunEnd, Sim, SimError, SimOptions, Time, UnitId, UnitStats};
+pub use state::{Ram, Reg, State};
+pub use trace::{TraceSpec, TraceStats, Tracer};
+pub use unit::{Declared, Logic, Next, Status, Unit};

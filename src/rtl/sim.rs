@@ -1,0 +1,773 @@
+//! The lock-step simulator.
+//!
+//! Time is an integer number of picoseconds, shared by every clock domain (and used
+//! as the VCD timescale). A step at time `t` evaluates every unit that is due at `t`
+//! (in any order: the result cannot depend on it, see `link.rs`), then commits all of
+//! them and every link they touched: the clock edge.
+//!
+//! Units sleep: after its evaluation a unit says when it next needs to run
+//! ([`Next`]); a push wakes the consumer when the payload becomes visible, and a pop
+//! from a full link wakes the producer. Sleeping units cost nothing, and when all
+//! sleep, time jumps to the next wake-up. With `sleep: false` every unit is evaluated
+//! at every edge of its clock; with `shadow: true` the extra evaluations must change
+//! nothing (no register, link, status or counter), which checks the sleep contract.
+
+use std::any::Any;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::fmt;
+
+use super::bits::Payload;
+use super::link::{In, Link, LinkCfg, LinkDyn, LinkEvent, LinkId, LinkStats, Out, Violation};
+use super::trace::Tracer;
+use super::unit::{Next, Status, Unit};
+use crate::util::rng::Rng;
+
+/// Simulation time in picoseconds.
+pub type Time = u64;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct UnitId(pub u32);
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClockId(pub u16);
+
+#[derive(Clone, Debug)]
+pub struct Clock {
+    pub name: String,
+    pub period_ps: Time,
+}
+
+/// How to run.
+#[derive(Clone, Debug)]
+pub struct SimOptions {
+    /// Skip units that sleep (the fast, normal mode).
+    pub sleep: bool,
+    /// Evaluate sleeping units too and fail if that would change anything.
+    pub shadow: bool,
+    /// Evaluate the units of each step in a seeded random order (tests).
+    pub shuffle_seed: Option<u64>,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            sleep: true,
+            shadow: false,
+            shuffle_seed: None,
+        }
+    }
+}
+
+/// Why a run stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunEnd {
+    /// Every unit sleeps with nothing scheduled.
+    Idle,
+    /// The time limit was reached.
+    Limit,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SimError {
+    /// A link monitor saw a protocol violation (a bug in a unit).
+    Protocol(Vec<Violation>),
+    /// A sleeping unit would have changed something if evaluated (a sleep bug).
+    Shadow {
+        unit: String,
+        at: Time,
+        what: String,
+    },
+    /// The netlist is not well formed.
+    Elaboration(String),
+}
+
+impl fmt::Display for SimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SimError::Protocol(v) => {
+                write!(f, "link protocol violation")?;
+                for x in v {
+                    write!(f, "; link '{}' at {} ps: {}", x.link, x.at, x.what)?;
+                }
+                Ok(())
+            }
+            SimError::Shadow { unit, at, what } => {
+                write!(
+                    f,
+                    "sleeping unit '{unit}' at {at} ps would change {what} if evaluated: it must not sleep here"
+                )
+            }
+            SimError::Elaboration(s) => write!(f, "netlist error: {s}"),
+        }
+    }
+}
+impl std::error::Error for SimError {}
+
+struct Slot {
+    unit: Box<dyn Unit>,
+    path: String,
+    clock: ClockId,
+    period: Time,
+    status: Status,
+    since: Time,
+    status_ps: [Time; 4],
+    /// Last wake-up time pushed onto the heap (skips immediate duplicates).
+    last_wake: Time,
+    /// Time of the last evaluation (skips duplicate heap entries).
+    last_eval: Time,
+    evals: u64,
+    out_links: Vec<LinkId>,
+}
+
+/// Statistics of one unit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnitStats {
+    pub path: String,
+    pub module: &'static str,
+    /// Cycles (of the unit's clock) spent in each [`Status`], indexed by its value.
+    pub status_cycles: [u64; 4],
+    pub counters: Vec<(&'static str, u64)>,
+}
+
+/// What a unit sees while it is evaluated: the time, its links, and its status.
+pub struct Ctx<'a> {
+    now: Time,
+    period: Time,
+    unit: UnitId,
+    links: &'a mut [Box<dyn LinkDyn>],
+    touched: &'a mut Vec<LinkId>,
+    wakes: &'a mut Vec<(UnitId, Time)>,
+    new_status: Option<Status>,
+    link_ops: u32,
+}
+
+impl<'a> Ctx<'a> {
+    #[inline]
+    pub fn now(&self) -> Time {
+        self.now
+    }
+    /// The current cycle of the unit's own clock.
+    #[inline]
+    pub fn cycle(&self) -> u64 {
+        self.now / self.period
+    }
+    #[inline]
+    pub fn period(&self) -> Time {
+        self.period
+    }
+    pub fn unit(&self) -> UnitId {
+        self.unit
+    }
+
+    #[inline]
+    fn link<T: Payload>(&mut self, id: LinkId) -> &mut Link<T> {
+        let l: &mut dyn LinkDyn = &mut *self.links[id.0 as usize];
+        (l as &mut dyn Any)
+            .downcast_mut::<Link<T>>()
+            .expect("link payload type matches its handle")
+    }
+
+    #[inline]
+    fn mark(&mut self, id: LinkId, was_touched: bool) {
+        if !was_touched {
+            self.touched.push(id);
+        }
+    }
+
+    /// The payload at the head of an input link, if one is visible this cycle.
+    #[inline]
+    pub fn peek<T: Payload>(&mut self, port: &In<T>) -> Option<&T> {
+        let now = self.now;
+        self.link::<T>(port.id).peek(now)
+    }
+
+    /// Takes the head of an input link (at most one per link per cycle).
+    #[inline]
+    pub fn pop<T: Payload>(&mut self, port: &In<T>) -> Option<T> {
+        let now = self.now;
+        let me = self.unit;
+        let l = self.link::<T>(port.id);
+        let was = l.touched;
+        debug_assert_eq!(l.consumer, Some(me), "unit pops a link it does not consume");
+        let v = l.pop(now);
+        let t = l.touched;
+        self.link_ops += v.is_some() as u32;
+        self.mark(port.id, was || !t);
+        v
+    }
+
+    /// Whether the output link can take a payload this cycle (registered ready).
+    #[inline]
+    pub fn can_push<T: Payload>(&mut self, port: &Out<T>) -> bool {
+        self.link::<T>(port.id).can_push()
+    }
+
+    /// Pushes onto an output link; pushing without `can_push` is a protocol violation.
+    #[inline]
+    pub fn push<T: Payload>(&mut self, port: &Out<T>, v: T) {
+        let now = self.now;
+        let l = self.link::<T>(port.id);
+        let was = l.touched;
+        let consumer = l.consumer;
+        let vis = l.push(now, v);
+        self.link_ops += 1;
+        self.mark(port.id, was);
+        if let (Some(vis), Some(c)) = (vis, consumer) {
+            self.wakes.push((c, vis));
+        }
+    }
+
+    /// Offers a payload: pushed if ready, else held by the link monitor, and the unit
+    /// must offer the same payload again until it is taken. Returns whether taken.
+    #[inline]
+    pub fn offer<T: Payload>(&mut self, port: &Out<T>, v: T) -> bool {
+        let now = self.now;
+        let l = self.link::<T>(port.id);
+        let was = l.touched;
+        let consumer = l.consumer;
+        let held = l.is_stalled();
+        let vis = l.offer(now, v);
+        // Repeating a refused offer (the payload held while stalled) changes nothing.
+        if vis.is_some() || !held {
+            self.link_ops += 1;
+        }
+        self.mark(port.id, was);
+        match (vis, consumer) {
+            (Some(vis), Some(c)) => {
+                self.wakes.push((c, vis));
+                true
+            }
+            (Some(_), None) => true,
+            _ => false,
+        }
+    }
+
+    /// Declares what the unit is doing from this cycle on (for stall statistics).
+    #[inline]
+    pub fn set_status(&mut self, s: Status) {
+        self.new_status = Some(s);
+    }
+}
+
+/// The simulator.
+pub struct Sim {
+    clocks: Vec<Clock>,
+    slots: Vec<Slot>,
+    links: Vec<Box<dyn LinkDyn>>,
+    now: Time,
+    /// Whether the step at `now` has been processed.
+    stepped: bool,
+    heap: BinaryHeap<Reverse<(Time, u32)>>,
+    opts: SimOptions,
+    rng: Option<Rng>,
+    elaborated: bool,
+    touched: Vec<LinkId>,
+    wakes: Vec<(UnitId, Time)>,
+    due: Vec<(u32, bool)>,
+    nexts: Vec<(u32, Next)>,
+    tracer: Option<Tracer>,
+    /// Unit evaluations so far (due ones, not shadow ones).
+    pub evals: u64,
+    /// Steps (distinct times) processed so far.
+    pub steps: u64,
+}
+
+impl Default for Sim {
+    fn default() -> Self {
+        Sim::new(SimOptions::default())
+    }
+}
+
+impl Sim {
+    pub fn new(opts: SimOptions) -> Self {
+        let rng = opts.shuffle_seed.map(Rng::new);
+        Sim {
+            clocks: Vec::new(),
+            slots: Vec::new(),
+            links: Vec::new(),
+            now: 0,
+            stepped: false,
+            heap: BinaryHeap::new(),
+            opts,
+            rng,
+            elaborated: false,
+            touched: Vec::new(),
+            wakes: Vec::new(),
+            due: Vec::new(),
+            nexts: Vec::new(),
+            tracer: None,
+            evals: 0,
+            steps: 0,
+        }
+    }
+
+    pub fn options(&self) -> &SimOptions {
+        &self.opts
+    }
+
+    /// Adds a clock domain. Its edges are at every multiple of `period_ps`.
+    pub fn clock(&mut self, name: &str, period_ps: Time) -> Result<ClockId, SimError> {
+        if period_ps == 0 {
+            return Err(SimError::Elaboration(format!(
+                "clock '{name}' has period 0 ps; give a positive period"
+            )));
+        }
+        self.clocks.push(Clock {
+            name: name.into(),
+            period_ps,
+        });
+        Ok(ClockId(self.clocks.len() as u16 - 1))
+    }
+
+    pub fn clocks(&self) -> &[Clock] {
+        &self.clocks
+    }
+
+    /// Creates a link; hand its ends to the producer and the consumer.
+    pub fn link<T: Payload>(&mut self, name: &str, cfg: LinkCfg) -> (Out<T>, In<T>) {
+        let id = LinkId(self.links.len() as u32);
+        self.links
+            .push(Box::new(Link::<T>::new(name.to_string(), cfg)));
+        self.elaborated = false;
+        (Out::new(id), In::new(id))
+    }
+
+    /// Adds a unit instance under a hierarchical path such as `chip.tm3.box_pipe`.
+    pub fn add<U: Unit>(&mut self, path: &str, clock: ClockId, unit: U) -> UnitId {
+        let period = self.clocks[clock.0 as usize].period_ps;
+        self.slots.push(Slot {
+            unit: Box::new(unit),
+            path: path.to_string(),
+            clock,
+            period,
+            status: Status::WaitInput,
+            since: 0,
+            status_ps: [0; 4],
+            last_wake: Time::MAX,
+            last_eval: Time::MAX,
+            evals: 0,
+            out_links: Vec::new(),
+        });
+        self.elaborated = false;
+        UnitId(self.slots.len() as u32 - 1)
+    }
+
+    /// Binds every link to its producer and consumer and checks the netlist.
+    pub fn elaborate(&mut self) -> Result<(), SimError> {
+        if self.elaborated {
+            return Ok(());
+        }
+        let mut seen = std::collections::HashSet::new();
+        for s in &self.slots {
+            if !seen.insert(s.path.clone()) {
+                return Err(SimError::Elaboration(format!(
+                    "two units are named '{}'; instance paths must be unique",
+                    s.path
+                )));
+            }
+        }
+        let mut ends: Vec<(Option<UnitId>, Option<UnitId>)> = vec![(None, None); self.links.len()];
+        for (i, s) in self.slots.iter_mut().enumerate() {
+            s.out_links.clear();
+            for p in s.unit.ports() {
+                let e = &mut ends[p.link.0 as usize];
+                let lname = self.links[p.link.0 as usize].name().to_string();
+                let (slot, role) = match p.dir {
+                    super::decl::PortDir::Out => (&mut e.0, "producer"),
+                    super::decl::PortDir::In => (&mut e.1, "consumer"),
+                };
+                if let Some(other) = slot {
+                    return Err(SimError::Elaboration(format!(
+                        "link '{lname}' has two {role}s ('{}' and unit #{}); a link connects exactly one producer to one consumer",
+                        s.path, other.0
+                    )));
+                }
+                *slot = Some(UnitId(i as u32));
+                if p.dir == super::decl::PortDir::Out {
+                    s.out_links.push(p.link);
+                }
+            }
+        }
+        for (l, (p, c)) in self.links.iter_mut().zip(&ends) {
+            l.cfg()
+                .validate(&format!("link '{}'", l.name()))
+                .map_err(SimError::Elaboration)?;
+            let (Some(p), Some(_)) = (p, c) else {
+                return Err(SimError::Elaboration(format!(
+                    "link '{}' has no {}; connect it to a unit (a testbench driver or sink if nothing else)",
+                    l.name(),
+                    if p.is_none() { "producer" } else { "consumer" }
+                )));
+            };
+            l.set_ends(Some(*p), *c);
+            l.set_delay_ps(l.cfg().delay as Time * self.slots[p.0 as usize].period);
+        }
+        self.elaborated = true;
+        self.reset();
+        Ok(())
+    }
+
+    /// Synchronous reset: every register to its reset value, links empty, time 0,
+    /// every unit evaluated at time 0.
+    pub fn reset(&mut self) {
+        self.now = 0;
+        self.stepped = false;
+        self.heap.clear();
+        self.evals = 0;
+        self.steps = 0;
+        for l in &mut self.links {
+            l.reset();
+        }
+        self.touched.clear();
+        self.wakes.clear();
+        for (i, s) in self.slots.iter_mut().enumerate() {
+            s.unit.reset();
+            s.status = Status::WaitInput;
+            s.since = 0;
+            s.status_ps = [0; 4];
+            s.evals = 0;
+            s.last_wake = 0;
+            s.last_eval = Time::MAX;
+            self.heap.push(Reverse((0, i as u32)));
+        }
+    }
+
+    pub fn now(&self) -> Time {
+        self.now
+    }
+
+    /// Current cycle of a clock.
+    pub fn cycle(&self, clock: ClockId) -> u64 {
+        self.now / self.clocks[clock.0 as usize].period_ps
+    }
+
+    /// Every wake-up is kept (a unit may be woken by a link before the time it asked
+    /// for, and must still run at that time); duplicates of one time are skipped.
+    #[inline]
+    fn schedule(slots: &mut [Slot], heap: &mut BinaryHeap<Reverse<(Time, u32)>>, u: u32, t: Time) {
+        let s = &mut slots[u as usize];
+        let p = s.period;
+        let t = t.div_ceil(p) * p;
+        if t != s.last_wake {
+            s.last_wake = t;
+            heap.push(Reverse((t, u)));
+        }
+    }
+
+    /// Wakes a unit at its next clock edge (for testbenches that poke a unit's queue
+    /// between runs).
+    pub fn wake(&mut self, u: UnitId) {
+        let t = if self.stepped { self.now + 1 } else { self.now };
+        Self::schedule(&mut self.slots, &mut self.heap, u.0, t);
+    }
+
+    /// Time of the next step, if any unit is scheduled.
+    fn next_time(&mut self) -> Option<Time> {
+        let Reverse((mut t, _)) = *self.heap.peek()?;
+        let after = if self.stepped { self.now + 1 } else { self.now };
+        let edge_after = |p: Time| after.div_ceil(p) * p;
+        if !self.opts.sleep {
+            for c in &self.clocks {
+                t = t.min(edge_after(c.period_ps));
+            }
+        }
+        if let Some(tr) = &self.tracer
+            && let Some(te) = tr.next_sample_time(after, &self.clocks)
+        {
+            t = t.min(te);
+        }
+        Some(t)
+    }
+
+    /// Runs until time `limit` (ps), which becomes the current time even if every
+    /// unit went to sleep before (so statistics do not depend on which edges
+    /// happened to be processed). Returns `Idle` if nothing is scheduled any more.
+    pub fn run(&mut self, limit: Time) -> Result<RunEnd, SimError> {
+        self.run_inner(limit, false)
+    }
+
+    fn run_inner(&mut self, limit: Time, stop_when_idle: bool) -> Result<RunEnd, SimError> {
+        self.elaborate()?;
+        loop {
+            match self.next_time() {
+                None => {
+                    if !stop_when_idle && limit > self.now {
+                        self.now = limit;
+                        self.stepped = false;
+                    }
+                    return Ok(RunEnd::Idle);
+                }
+                Some(t) if t > limit => {
+                    if limit > self.now {
+                        self.now = limit;
+                        self.stepped = false;
+                    }
+                    return Ok(RunEnd::Limit);
+                }
+                Some(t) => self.step_at(t)?,
+            }
+        }
+    }
+
+    /// Runs `n` cycles of `clock` from now.
+    pub fn run_cycles(&mut self, clock: ClockId, n: u64) -> Result<RunEnd, SimError> {
+        let p = self.clocks[clock.0 as usize].period_ps;
+        let limit = (self.now / p + n) * p;
+        self.run(limit)
+    }
+
+    /// Runs until idle, failing if that takes longer than `limit` ps.
+    pub fn run_to_idle(&mut self, limit: Time) -> Result<Time, SimError> {
+        match self.run_inner(limit, true)? {
+            RunEnd::Idle => Ok(self.now),
+            RunEnd::Limit => Err(SimError::Elaboration(format!(
+                "the design was still busy after {limit} ps; raise the limit or look for a unit that never sleeps"
+            ))),
+        }
+    }
+
+    fn step_at(&mut self, t: Time) -> Result<(), SimError> {
+        self.now = t;
+        self.stepped = true;
+        self.steps += 1;
+        // Units that are due (scheduled for t).
+        self.due.clear();
+        while let Some(Reverse((ht, u))) = self.heap.peek().copied() {
+            if ht != t {
+                break;
+            }
+            self.heap.pop();
+            let s = &mut self.slots[u as usize];
+            if s.last_eval != t {
+                s.last_eval = t;
+                self.due.push((u, true));
+            }
+        }
+        // Sleep off: every unit whose clock has an edge now, due or not.
+        if !self.opts.sleep {
+            for (i, s) in self.slots.iter().enumerate() {
+                if t.is_multiple_of(s.period) && s.last_eval != t {
+                    self.due.push((i as u32, false));
+                }
+            }
+        }
+        if let Some(rng) = &mut self.rng {
+            rng.shuffle(&mut self.due);
+        }
+        self.nexts.clear();
+        let due = std::mem::take(&mut self.due);
+        for &(u, is_due) in &due {
+            self.eval_unit(u, is_due)?;
+        }
+        if let Some(tr) = &mut self.tracer {
+            let slots = &self.slots;
+            tr.sample(t, &|i| &*slots[i].unit, &self.links);
+        }
+        // Clock edge.
+        for &(u, _) in &due {
+            self.slots[u as usize].unit.commit();
+        }
+        self.due = due;
+        let mut violations = Vec::new();
+        for &l in &self.touched {
+            let link = &mut self.links[l.0 as usize];
+            violations.extend(link.take_violations());
+            if link.commit() {
+                let (p, _) = link.ends();
+                let p = p.expect("elaborated link has a producer");
+                self.wakes.push((p, t + 1));
+            }
+        }
+        self.touched.clear();
+        if !violations.is_empty() {
+            return Err(SimError::Protocol(violations));
+        }
+        for i in 0..self.nexts.len() {
+            let (u, n) = self.nexts[i];
+            let s = &self.slots[u as usize];
+            let at = match n {
+                Next::Cycle => t + s.period,
+                Next::AtCycle(c) => {
+                    assert!(
+                        c * s.period > t,
+                        "unit '{}' asked to wake at cycle {c}, which is not in the future",
+                        s.path
+                    );
+                    c * s.period
+                }
+                Next::Idle => continue,
+            };
+            Self::schedule(&mut self.slots, &mut self.heap, u, at);
+        }
+        for (u, w) in self.wakes.drain(..) {
+            Self::schedule(&mut self.slots, &mut self.heap, u.0, w);
+        }
+        Ok(())
+    }
+
+    fn eval_unit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
+        let t = self.now;
+        let slot = &mut self.slots[u as usize];
+        let shadow = !is_due && self.opts.shadow;
+        let before = if shadow {
+            Some(slot.unit.counters())
+        } else {
+            None
+        };
+        let mut ctx = Ctx {
+            now: t,
+            period: slot.period,
+            unit: UnitId(u),
+            links: &mut self.links,
+            touched: &mut self.touched,
+            wakes: &mut self.wakes,
+            new_status: None,
+            link_ops: 0,
+        };
+        let next = slot.unit.eval(&mut ctx);
+        let (new_status, link_ops) = (ctx.new_status, ctx.link_ops);
+        for &l in &slot.out_links {
+            if self.links[l.0 as usize].check_offer_held(t) {
+                self.touched.push(l);
+            }
+        }
+        if shadow {
+            let what = if link_ops > 0 {
+                Some("a link (it pushed, popped or offered)".to_string())
+            } else if slot.unit.state_pending() {
+                Some("its registers".to_string())
+            } else if new_status.is_some_and(|s| s != slot.status) {
+                Some(format!(
+                    "its status ({} -> {})",
+                    slot.status.name(),
+                    new_status.unwrap().name()
+                ))
+            } else if before.as_ref() != Some(&slot.unit.counters()) {
+                Some("its counters".to_string())
+            } else {
+                None
+            };
+            if let Some(what) = what {
+                return Err(SimError::Shadow {
+                    unit: slot.path.clone(),
+                    at: t,
+                    what,
+                });
+            }
+            return Ok(());
+        }
+        if let Some(s) = new_status
+            && s != slot.status
+        {
+            slot.status_ps[slot.status as usize] += t - slot.since;
+            slot.status = s;
+            slot.since = t;
+        }
+        if is_due {
+            slot.evals += 1;
+            self.evals += 1;
+            self.nexts.push((u, next));
+        }
+        Ok(())
+    }
+
+    pub fn unit_count(&self) -> usize {
+        self.slots.len()
+    }
+
+    pub fn unit_path(&self, u: UnitId) -> &str {
+        &self.slots[u.0 as usize].path
+    }
+
+    pub fn unit_id(&self, path: &str) -> Option<UnitId> {
+        self.slots
+            .iter()
+            .position(|s| s.path == path)
+            .map(|i| UnitId(i as u32))
+    }
+
+    pub fn unit(&self, u: UnitId) -> &dyn Unit {
+        &*self.slots[u.0 as usize].unit
+    }
+
+    /// Typed access to a unit between steps (testbenches). Wake it after changing it.
+    pub fn unit_mut<U: Unit>(&mut self, u: UnitId) -> &mut U {
+        super::unit::downcast_mut::<U>(&mut *self.slots[u.0 as usize].unit)
+            .expect("unit type matches")
+    }
+
+    pub fn unit_ref<U: Unit>(&self, u: UnitId) -> &U {
+        super::unit::downcast_ref::<U>(&*self.slots[u.0 as usize].unit).expect("unit type matches")
+    }
+
+    pub fn unit_clock(&self, u: UnitId) -> ClockId {
+        self.slots[u.0 as usize].clock
+    }
+
+    /// Status cycles integrated up to now, and the unit's counters.
+    pub fn unit_stats(&self, u: UnitId) -> UnitStats {
+        let s = &self.slots[u.0 as usize];
+        let mut ps = s.status_ps;
+        ps[s.status as usize] += self.now - s.since;
+        UnitStats {
+            path: s.path.clone(),
+            module: s.unit.decl().module,
+            status_cycles: ps.map(|x| x / s.period),
+            counters: s.unit.counters(),
+        }
+    }
+
+    pub fn all_stats(&self) -> Vec<UnitStats> {
+        (0..self.slots.len())
+            .map(|i| self.unit_stats(UnitId(i as u32)))
+            .collect()
+    }
+
+    pub fn link_stats(&self) -> Vec<(String, LinkStats)> {
+        self.links
+            .iter()
+            .map(|l| (l.name().to_string(), l.stats()))
+            .collect()
+    }
+
+    pub fn link_occupancy(&self, id: LinkId) -> u32 {
+        self.links[id.0 as usize].occupancy()
+    }
+
+    /// Turns on the transfer log of a link (testbenches check latencies with it).
+    pub fn log_link(&mut self, id: LinkId, on: bool) {
+        self.links[id.0 as usize].set_log(on);
+    }
+
+    pub fn link_log(&self, id: LinkId) -> &[LinkEvent] {
+        self.links[id.0 as usize].log()
+    }
+
+    /// Attaches a VCD tracer (see [`super::trace`]).
+    pub fn attach_tracer(&mut self, mut tracer: Tracer) -> Result<(), SimError> {
+        self.elaborate()?;
+        let units: Vec<(&str, &dyn Unit, &Clock)> = self
+            .slots
+            .iter()
+            .map(|s| (s.path.as_str(), &*s.unit, &self.clocks[s.clock.0 as usize]))
+            .collect();
+        tracer.bind(&units).map_err(SimError::Elaboration)?;
+        self.tracer = Some(tracer);
+        Ok(())
+    }
+
+    /// Detaches the tracer, flushing its output.
+    pub fn finish_trace(&mut self) -> Option<std::io::Result<super::trace::TraceStats>> {
+        let now = self.now;
+        self.tracer.take().map(|t| t.finish(now))
+    }
+
+    /// Every unit's declaration with its instance path (for hdl emission and reports).
+    pub fn decls(&self) -> Vec<(String, super::decl::UnitDecl)> {
+        self.slots
+            .iter()
+            .map(|s| (s.path.clone(), s.unit.decl()))
+            .collect()
+    }
+}

@@ -1,0 +1,192 @@
+//! Clocked state primitives: registers and RAMs. Both follow the two-phase rule:
+//! `eval` reads the current value and schedules the next; `commit` (the clock edge)
+//! makes it current. A RAM applies only the written words at the edge, so a large
+//! memory is never copied per cycle.
+
+use super::bits::Payload;
+use super::decl::{Samples, StateDecl, StateList};
+
+/// Behaviour shared by every piece of declared unit state.
+pub trait State {
+    /// Adds this state's declarations, named after the field.
+    fn declare(&self, name: &str, out: &mut StateList);
+    /// Packs the traced signals, in the order `declare` listed them, as they are
+    /// during the current cycle `cycle` (of the unit's clock).
+    fn sample(&self, cycle: u64, out: &mut Samples);
+    /// Clock edge.
+    fn commit(&mut self);
+    /// Back to the reset value.
+    fn reset(&mut self);
+    /// Whether the pending edge would change anything (used by shadow evaluation).
+    fn pending_change(&self) -> bool;
+}
+
+/// A register: `get` is the value this cycle, `set` takes effect at the edge.
+#[derive(Clone, Debug)]
+pub struct Reg<T: Payload> {
+    cur: T,
+    next: Option<T>,
+    init: T,
+}
+
+impl<T: Payload> Reg<T> {
+    pub fn new(init: T) -> Self {
+        Reg {
+            cur: init.clone(),
+            next: None,
+            init,
+        }
+    }
+    #[inline]
+    pub fn get(&self) -> &T {
+        &self.cur
+    }
+    #[inline]
+    pub fn set(&mut self, v: T) {
+        self.next = Some(v);
+    }
+    /// The value that will be current after the edge (the last `set`, else current).
+    pub fn next(&self) -> &T {
+        self.next.as_ref().unwrap_or(&self.cur)
+    }
+}
+
+impl<T: Payload + Copy> Reg<T> {
+    #[inline]
+    pub fn val(&self) -> T {
+        self.cur
+    }
+}
+
+impl<T: Payload> State for Reg<T> {
+    fn declare(&self, name: &str, out: &mut StateList) {
+        let mut d = StateDecl::reg(name, T::BITS);
+        d.enum_names = T::enum_names();
+        out.items.push(d);
+    }
+    fn sample(&self, _cycle: u64, out: &mut Samples) {
+        self.cur.pack(out.slot());
+    }
+    #[inline]
+    fn commit(&mut self) {
+        if let Some(v) = self.next.take() {
+            self.cur = v;
+        }
+    }
+    fn reset(&mut self) {
+        self.cur = self.init.clone();
+        self.next = None;
+    }
+    fn pending_change(&self) -> bool {
+        self.next.as_ref().is_some_and(|n| !n.same_bits(&self.cur))
+    }
+}
+
+/// A RAM (register file, buffer, cache data array) of `depth` words with at most
+/// `write_ports` writes per cycle, applied at the edge. Reads see the current contents.
+#[derive(Clone, Debug)]
+pub struct Ram<T: Payload> {
+    data: Vec<T>,
+    init: T,
+    writes: Vec<(u32, T)>,
+    write_ports: u32,
+}
+
+impl<T: Payload> Ram<T> {
+    pub fn new(depth: u32, write_ports: u32, init: T) -> Self {
+        assert!(
+            depth > 0 && write_ports > 0,
+            "RAM needs depth and write ports"
+        );
+        Ram {
+            data: vec![init.clone(); depth as usize],
+            init,
+            writes: Vec::with_capacity(write_ports as usize),
+            write_ports,
+        }
+    }
+    pub fn depth(&self) -> u32 {
+        self.data.len() as u32
+    }
+    #[inline]
+    pub fn read(&self, addr: u32) -> &T {
+        &self.data[addr as usize]
+    }
+    /// Schedules a write for the edge. Exceeding the write ports or the depth is a
+    /// modelling error, not an input error, so it panics with the reason.
+    pub fn write(&mut self, addr: u32, v: T) {
+        assert!(
+            addr < self.depth(),
+            "RAM write to {addr} beyond depth {}",
+            self.depth()
+        );
+        assert!(
+            (self.writes.len() as u32) < self.write_ports,
+            "RAM has {} write ports; a unit wrote more in one cycle",
+            self.write_ports
+        );
+        self.writes.push((addr, v));
+    }
+}
+
+impl<T: Payload> State for Ram<T> {
+    fn declare(&self, name: &str, out: &mut StateList) {
+        out.items
+            .push(StateDecl::array(name, T::BITS, self.depth()));
+    }
+    fn sample(&self, _cycle: u64, _out: &mut Samples) {}
+    fn commit(&mut self) {
+        for (a, v) in self.writes.drain(..) {
+            self.data[a as usize] = v;
+        }
+    }
+    fn reset(&mut self) {
+        self.data.iter_mut().for_each(|d| *d = self.init.clone());
+        self.writes.clear();
+    }
+    fn pending_change(&self) -> bool {
+        self.writes
+            .iter()
+            .any(|(a, v)| !self.data[*a as usize].same_bits(v))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reg_changes_only_at_the_edge() {
+        let mut r = Reg::new(3u8);
+        r.set(5);
+        assert_eq!(r.val(), 3);
+        assert!(r.pending_change());
+        r.commit();
+        assert_eq!(r.val(), 5);
+        assert!(!r.pending_change());
+        r.set(5);
+        assert!(
+            !r.pending_change(),
+            "writing the same value changes nothing"
+        );
+        r.reset();
+        assert_eq!(r.val(), 3);
+    }
+
+    #[test]
+    fn ram_writes_apply_at_the_edge() {
+        let mut m = Ram::new(4, 1, 0u32);
+        m.write(2, 9);
+        assert_eq!(*m.read(2), 0);
+        m.commit();
+        assert_eq!(*m.read(2), 9);
+    }
+
+    #[test]
+    #[should_panic(expected = "write ports")]
+    fn ram_rejects_too_many_writes_per_cycle() {
+        let mut m = Ram::new(4, 1, 0u32);
+        m.write(0, 1);
+        m.write(1, 1);
+    }
+}
