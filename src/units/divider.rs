@@ -1,0 +1,71 @@
+//! The TM-shared divider (paper §5.1): each TP obtains the inverse of its ray's
+//! direction here right after fetching the ray, for the box tests of a whole segment.
+//! The result is `geom::inverse_dir`: exact IEEE reciprocals, ±0 giving ±inf.
+
+use glam::Vec3;
+
+use super::Tag;
+use crate::config::PipeCfg;
+use crate::geom::inverse_dir;
+use crate::rtl::{Ctx, FixedPipe, In, Logic, Next, Out};
+
+crate::payload_struct! {
+    /// A direction to invert.
+    pub struct DivReq {
+        pub dir: Vec3,
+        pub tag: Tag,
+    }
+}
+
+crate::payload_struct! {
+    /// Its component-wise reciprocal.
+    pub struct DivResp {
+        pub inv_dir: Vec3,
+        pub tag: Tag,
+    }
+}
+
+/// The function the divider computes.
+pub fn div(r: &DivReq) -> DivResp {
+    DivResp {
+        inv_dir: inverse_dir(r.dir),
+        tag: r.tag,
+    }
+}
+
+crate::unit! {
+    /// Shared reciprocal unit: inverse ray direction, three divides per request.
+    pub struct Divider : "divider" {
+        params { latency: u32 => "LATENCY", interval: u32 => "II" }
+        inputs { req: DivReq }
+        outputs { resp: DivResp }
+        state { pipe: FixedPipe<DivReq> }
+        extra { }
+    }
+}
+
+impl Divider {
+    /// `out_delay` is the delay of the `resp` link, which counts toward the latency.
+    pub fn new(cfg: &PipeCfg, out_delay: u32, req: In<DivReq>, resp: Out<DivResp>) -> Self {
+        Divider {
+            latency: cfg.latency,
+            interval: cfg.interval,
+            req,
+            resp,
+            pipe: FixedPipe::new(cfg.latency - out_delay, cfg.interval),
+        }
+    }
+}
+
+impl Logic for Divider {
+    #[inline]
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        self.pipe.step(ctx, &self.req, &self.resp, div)
+    }
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("divides", self.pipe.accepted() * 3),
+            ("results", self.pipe.emitted()),
+        ]
+    }
+}

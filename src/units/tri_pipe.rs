@@ -1,0 +1,101 @@
+//! A ray-triangle pipeline of a TM (paper §5.1: two per TM, initiation interval 18,
+//! latency 31). The test is `geom::ray_triangle`: Plücker coordinates with the
+//! division deferred until a hit, watertight, shared with the software reference.
+
+use glam::Vec3;
+
+use super::Tag;
+use crate::config::PipeCfg;
+use crate::geom::{Triangle, ray_triangle};
+use crate::rtl::{Ctx, FixedPipe, In, Logic, Next, Out};
+
+crate::payload_struct! {
+    /// A triangle test request.
+    pub struct TriReq {
+        pub origin: Vec3,
+        pub dir: Vec3,
+        pub t_min: f32,
+        pub t_max: f32,
+        pub v0: Vec3,
+        pub v1: Vec3,
+        pub v2: Vec3,
+        pub tri_id: u32,
+        pub tag: Tag,
+    }
+}
+
+crate::payload_struct! {
+    /// A triangle test result: on a hit, distance and barycentrics (u for v1, v for v2).
+    pub struct TriResp {
+        pub hit: bool,
+        pub t: f32,
+        pub u: f32,
+        pub v: f32,
+        pub tri_id: u32,
+        pub tag: Tag,
+    }
+}
+
+/// The function the pipeline computes.
+pub fn tri_test(r: &TriReq) -> TriResp {
+    let tri = Triangle {
+        v0: r.v0,
+        v1: r.v1,
+        v2: r.v2,
+    };
+    match ray_triangle(r.origin, r.dir, r.t_min, r.t_max, &tri) {
+        Some(h) => TriResp {
+            hit: true,
+            t: h.t,
+            u: h.u,
+            v: h.v,
+            tri_id: r.tri_id,
+            tag: r.tag,
+        },
+        None => TriResp {
+            hit: false,
+            t: 0.0,
+            u: 0.0,
+            v: 0.0,
+            tri_id: r.tri_id,
+            tag: r.tag,
+        },
+    }
+}
+
+crate::unit! {
+    /// Ray-triangle intersection pipeline (Plücker test, division deferred to a hit).
+    pub struct TriPipe : "tri_pipe" {
+        params { latency: u32 => "LATENCY", interval: u32 => "II" }
+        inputs { req: TriReq }
+        outputs { resp: TriResp }
+        state { pipe: FixedPipe<TriReq> }
+        extra { }
+    }
+}
+
+impl TriPipe {
+    /// `out_delay` is the delay of the `resp` link, which counts toward the latency.
+    pub fn new(cfg: &PipeCfg, out_delay: u32, req: In<TriReq>, resp: Out<TriResp>) -> Self {
+        TriPipe {
+            latency: cfg.latency,
+            interval: cfg.interval,
+            req,
+            resp,
+            pipe: FixedPipe::new(cfg.latency - out_delay, cfg.interval),
+        }
+    }
+}
+
+impl Logic for TriPipe {
+    #[inline]
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        self.pipe.step(ctx, &self.req, &self.resp, tri_test)
+    }
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("tests", self.pipe.accepted()),
+            ("results", self.pipe.emitted()),
+        ]
+    }
+}

@@ -1,0 +1,469 @@
+//! The simulation kernel's contract: evaluation order and sleeping never change a
+//! result (cycles, statistics, waveform), the link monitors catch protocol bugs,
+//! shadow evaluation catches sleep bugs, and clock domains share one time base.
+
+use std::io::Write;
+use std::sync::{Arc, Mutex};
+
+use dualstream::config::Config;
+use dualstream::rtl::{
+    Ctx, Declared, In, LinkCfg, Logic, Next, Out, Reg, RunEnd, Sim, SimError, SimOptions, Status,
+    TraceSpec, Tracer,
+};
+use dualstream::testbench::{Driver, Sink};
+use dualstream::units::box_pipe::{BoxPipe, BoxReq};
+use dualstream::units::divider::{DivReq, Divider};
+use dualstream::units::tri_pipe::{TriPipe, TriReq};
+use dualstream::util::rng::Rng;
+use glam::Vec3;
+
+/// A `Write` into shared memory, so a test can hash the whole VCD.
+#[derive(Clone, Default)]
+struct Buf(Arc<Mutex<Vec<u8>>>);
+impl Write for Buf {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+fn fnv(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x100000001b3)
+    })
+}
+
+/// Everything a run produces that must not depend on evaluation order or sleeping.
+#[derive(Debug, PartialEq)]
+struct Outcome {
+    end_ps: u64,
+    stats: Vec<dualstream::rtl::UnitStats>,
+    links: Vec<(String, dualstream::rtl::link::LinkStats)>,
+    vcd_hash: u64,
+    vcd_len: usize,
+}
+
+/// Two TMs' worth of shared units (box pipe, two triangle pipes, divider) with
+/// drivers and back-pressuring sinks, a second clock domain, and random stimulus.
+fn design(opts: SimOptions, seed: u64) -> Outcome {
+    let cfg = Config::default();
+    let mut sim = Sim::new(opts);
+    let core = sim.clock("core", 1000).unwrap();
+    let fast = sim.clock("dram", 500).unwrap();
+    let link = cfg.links.tm;
+    let mut rng = Rng::new(seed);
+    let mut drivers = Vec::new();
+    for tm in 0..2 {
+        let (o, i) = sim.link::<BoxReq>(&format!("tm{tm}.box_req"), link);
+        let (ro, ri) = sim.link(&format!("tm{tm}.box_resp"), link);
+        let d = sim.add(&format!("chip.tm{tm}.box_driver"), core, Driver::new(o));
+        sim.add(
+            &format!("chip.tm{tm}.box_pipe"),
+            core,
+            BoxPipe::new(&cfg.box_pipe, link.delay, i, ro),
+        );
+        sim.add(
+            &format!("chip.tm{tm}.box_sink"),
+            core,
+            Sink::new(ri, 0.7, seed + tm),
+        );
+        drivers.push((d, 0));
+        for k in 0..2 {
+            let (o, i) = sim.link::<TriReq>(&format!("tm{tm}.tri{k}_req"), link);
+            let (ro, ri) = sim.link(&format!("tm{tm}.tri{k}_resp"), link);
+            let d = sim.add(&format!("chip.tm{tm}.tri_driver{k}"), core, Driver::new(o));
+            sim.add(
+                &format!("chip.tm{tm}.tri_pipe{k}"),
+                core,
+                TriPipe::new(&cfg.tri_pipe, link.delay, i, ro),
+            );
+            sim.add(
+                &format!("chip.tm{tm}.tri_sink{k}"),
+                core,
+                Sink::new(ri, 0.5, seed * 7 + k),
+            );
+            drivers.push((d, 1));
+        }
+        // The divider's consumer runs on the 2 GHz clock: a cross-domain link.
+        let (o, i) = sim.link::<DivReq>(&format!("tm{tm}.div_req"), link);
+        let (ro, ri) = sim.link(&format!("tm{tm}.div_resp"), LinkCfg { depth: 3, delay: 2 });
+        let d = sim.add(&format!("chip.tm{tm}.div_driver"), core, Driver::new(o));
+        sim.add(
+            &format!("chip.tm{tm}.divider"),
+            core,
+            Divider::new(&cfg.divider, 2, i, ro),
+        );
+        sim.add(
+            &format!("chip.tm{tm}.div_sink"),
+            fast,
+            Sink::new(ri, 0.3, seed ^ 99),
+        );
+        drivers.push((d, 2));
+    }
+    let buf = Buf::default();
+    sim.attach_tracer(Tracer::new(Box::new(buf.clone()), TraceSpec::all()).unwrap())
+        .unwrap();
+    for &(d, kind) in &drivers {
+        for n in 0..60u64 {
+            let at = rng.below(400);
+            let p = Vec3::new(
+                rng.range_f32(-2.0, 2.0),
+                rng.range_f32(-2.0, 2.0),
+                rng.range_f32(-2.0, 2.0),
+            );
+            match kind {
+                0 => sim.unit_mut::<Driver<BoxReq>>(d).send(
+                    at + n,
+                    BoxReq {
+                        origin: p * 3.0,
+                        inv_dir: Vec3::ONE / (-p),
+                        t_min: 0.0,
+                        t_max: 100.0,
+                        bmin: Vec3::splat(-1.0),
+                        bmax: Vec3::splat(1.0),
+                        tag: n as u16,
+                    },
+                ),
+                1 => sim.unit_mut::<Driver<TriReq>>(d).send(
+                    at + n,
+                    TriReq {
+                        origin: p * 3.0,
+                        dir: -p,
+                        t_min: 0.0,
+                        t_max: 100.0,
+                        v0: Vec3::new(-1.0, -1.0, 0.0),
+                        v1: Vec3::new(1.0, -1.0, 0.0),
+                        v2: Vec3::new(0.0, 1.0, 0.0),
+                        tri_id: n as u32,
+                        tag: n as u16,
+                    },
+                ),
+                _ => sim.unit_mut::<Driver<DivReq>>(d).send(
+                    at + n,
+                    DivReq {
+                        dir: p,
+                        tag: n as u16,
+                    },
+                ),
+            }
+        }
+        sim.wake(d);
+    }
+    sim.run_to_idle(10_000_000_000).expect("runs clean");
+    sim.finish_trace().unwrap().unwrap();
+    let vcd = buf.0.lock().unwrap().clone();
+    Outcome {
+        end_ps: sim.now(),
+        stats: sim.all_stats(),
+        links: sim.link_stats(),
+        vcd_hash: fnv(&vcd),
+        vcd_len: vcd.len(),
+    }
+}
+
+#[test]
+fn order_and_sleeping_change_nothing() {
+    let base = design(SimOptions::default(), 5);
+    assert!(base.end_ps > 1_000_000, "the design did real work");
+    assert!(base.vcd_len > 10_000);
+    let modes = [
+        SimOptions {
+            sleep: false,
+            shadow: false,
+            shuffle_seed: None,
+        },
+        SimOptions {
+            sleep: false,
+            shadow: true,
+            shuffle_seed: None,
+        },
+        SimOptions {
+            sleep: true,
+            shadow: false,
+            shuffle_seed: Some(1),
+        },
+        SimOptions {
+            sleep: true,
+            shadow: false,
+            shuffle_seed: Some(2),
+        },
+        SimOptions {
+            sleep: false,
+            shadow: true,
+            shuffle_seed: Some(3),
+        },
+    ];
+    for m in modes {
+        let o = design(m.clone(), 5);
+        assert_eq!(o, base, "mode {m:?} changed the outcome");
+    }
+    // And the check has teeth: different stimulus gives a different outcome.
+    assert_ne!(design(SimOptions::default(), 6).vcd_hash, base.vcd_hash);
+}
+
+// ---- deliberately broken units, to show the monitors catch them ----
+
+dualstream::unit! {
+    /// Pushes every cycle without looking at ready.
+    pub struct Pusher : "pusher" {
+        params { }
+        inputs { }
+        outputs { out: u32 }
+        state { n: Reg<u32> }
+        extra { change_payload: bool, drop_valid: bool }
+    }
+}
+
+impl Logic for Pusher {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let n = self.n.val();
+        if self.change_payload || self.drop_valid {
+            // Offer n; when refused, misbehave on the next cycle.
+            if self.drop_valid && n % 2 == 1 {
+                self.n.set(n + 1);
+                return Next::Cycle; // valid dropped while the link was stalled
+            }
+            // A new payload every cycle: changes a refused payload while stalled.
+            ctx.offer(&self.out, n);
+            self.n.set(n + 1);
+        } else {
+            ctx.push(&self.out, n);
+            self.n.set(n + 1);
+        }
+        Next::Cycle
+    }
+}
+
+dualstream::unit! {
+    /// Never takes anything.
+    pub struct Deaf : "deaf" {
+        params { }
+        inputs { inp: u32 }
+        outputs { }
+        state { }
+        extra { }
+    }
+}
+impl Logic for Deaf {
+    fn eval(&mut self, _ctx: &mut Ctx) -> Next {
+        Next::Idle
+    }
+}
+
+fn broken(change_payload: bool, drop_valid: bool) -> Result<RunEnd, SimError> {
+    let mut sim = Sim::default();
+    let c = sim.clock("core", 1000).unwrap();
+    let (o, i) = sim.link::<u32>("l", LinkCfg { depth: 2, delay: 1 });
+    sim.add(
+        "p",
+        c,
+        Pusher {
+            out: o,
+            n: Reg::new(0),
+            change_payload,
+            drop_valid,
+        },
+    );
+    sim.add("d", c, Deaf { inp: i });
+    sim.run(20_000)
+}
+
+#[test]
+fn monitor_catches_push_into_full_link() {
+    match broken(false, false) {
+        Err(SimError::Protocol(v)) => assert!(v[0].what.contains("full"), "{v:?}"),
+        other => panic!("expected a protocol violation, got {other:?}"),
+    }
+}
+
+#[test]
+fn monitor_catches_payload_change_while_stalled() {
+    match broken(true, false) {
+        Err(SimError::Protocol(v)) => assert!(v[0].what.contains("changed while stalled"), "{v:?}"),
+        other => panic!("expected a protocol violation, got {other:?}"),
+    }
+}
+
+#[test]
+fn monitor_catches_valid_dropped_while_stalled() {
+    match broken(false, true) {
+        Err(SimError::Protocol(v)) => {
+            assert!(v.iter().any(|x| x.what.contains("valid dropped")), "{v:?}")
+        }
+        other => panic!("expected a protocol violation, got {other:?}"),
+    }
+}
+
+dualstream::unit! {
+    /// Counts every evaluation but claims to be idle: a sleep bug.
+    pub struct Sleeper : "sleeper" {
+        params { }
+        inputs { }
+        outputs { }
+        state { count: Reg<u32> }
+        extra { }
+    }
+}
+impl Logic for Sleeper {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        self.count.set(self.count.val() + 1);
+        ctx.set_status(Status::Busy);
+        Next::AtCycle(ctx.cycle() + 10)
+    }
+}
+
+#[test]
+fn shadow_evaluation_catches_a_sleep_bug() {
+    let run = |shadow: bool| {
+        let mut sim = Sim::new(SimOptions {
+            sleep: !shadow,
+            shadow,
+            shuffle_seed: None,
+        });
+        let c = sim.clock("core", 1000).unwrap();
+        sim.add("s", c, Sleeper { count: Reg::new(0) });
+        sim.run(50_000)
+    };
+    assert_eq!(
+        run(false),
+        Ok(RunEnd::Limit),
+        "without shadow the bug goes unnoticed"
+    );
+    match run(true) {
+        Err(SimError::Shadow { unit, what, .. }) => {
+            assert_eq!(unit, "s");
+            assert!(what.contains("registers"), "{what}");
+        }
+        other => panic!("expected a shadow error, got {other:?}"),
+    }
+}
+
+#[test]
+fn netlist_errors_are_named() {
+    let mut sim = Sim::default();
+    let c = sim.clock("core", 1000).unwrap();
+    let (o, _i) = sim.link::<u32>("dangling", LinkCfg::default());
+    sim.add(
+        "p",
+        c,
+        Pusher {
+            out: o,
+            n: Reg::new(0),
+            change_payload: false,
+            drop_valid: false,
+        },
+    );
+    let e = sim.run(1000).unwrap_err().to_string();
+    assert!(e.contains("dangling") && e.contains("no consumer"), "{e}");
+
+    let mut sim = Sim::default();
+    let c = sim.clock("core", 1000).unwrap();
+    let (o, i) = sim.link::<u32>("zero", LinkCfg { depth: 1, delay: 0 });
+    sim.add(
+        "p",
+        c,
+        Pusher {
+            out: o,
+            n: Reg::new(0),
+            change_payload: false,
+            drop_valid: false,
+        },
+    );
+    sim.add("d", c, Deaf { inp: i });
+    let e = sim.run(1000).unwrap_err().to_string();
+    assert!(e.contains("combinational"), "{e}");
+
+    assert!(Sim::default().clock("bad", 0).is_err());
+}
+
+dualstream::unit! {
+    /// Sends its cycle number once per `every` cycles.
+    pub struct Ticker : "ticker" {
+        params { }
+        inputs { }
+        outputs { out: u64 }
+        state { }
+        extra { every: u64, left: u64 }
+    }
+}
+impl Logic for Ticker {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        if self.left == 0 {
+            return Next::Idle;
+        }
+        if ctx.cycle().is_multiple_of(self.every) && ctx.can_push(&self.out) {
+            ctx.push(&self.out, ctx.now());
+            self.left -= 1;
+        }
+        Next::AtCycle((ctx.cycle() / self.every + 1) * self.every)
+    }
+}
+
+#[test]
+fn clock_domains_share_one_time_base() {
+    // A 1.5 GHz-ish DRAM clock (tCK = 667 ps) feeding a 1 GHz consumer through a
+    // 2-stage link: the payload is visible 2 producer cycles later and taken at the
+    // consumer's first edge from then on.
+    let mut sim = Sim::default();
+    let dram = sim.clock("dram", 667).unwrap();
+    let core = sim.clock("core", 1000).unwrap();
+    let (o, i) = sim.link::<u64>("x", LinkCfg { depth: 4, delay: 2 });
+    sim.add(
+        "t",
+        dram,
+        Ticker {
+            out: o,
+            every: 3,
+            left: 5,
+        },
+    );
+    let s = sim.add("s", core, Sink::new(i, 1.0, 0));
+    sim.run_to_idle(1_000_000).unwrap();
+    let got = &sim.unit_ref::<Sink<u64>>(s).got;
+    assert_eq!(got.len(), 5);
+    for (cycle, sent_ps) in got {
+        let visible = sent_ps + 2 * 667;
+        assert_eq!(*cycle, visible.div_ceil(1000), "sent at {sent_ps} ps");
+    }
+}
+
+#[test]
+fn stall_counters_integrate_absolute_time() {
+    // A pipeline fed once: busy for its latency, then waiting; the totals must add up
+    // to the elapsed cycles however few times it was evaluated.
+    let cfg = Config::default();
+    let mut sim = Sim::default();
+    let c = sim.clock("core", 1000).unwrap();
+    let (o, i) = sim.link::<BoxReq>("req", cfg.links.tm);
+    let (ro, ri) = sim.link("resp", cfg.links.tm);
+    let d = sim.add("drv", c, Driver::new(o));
+    let p = sim.add("box", c, BoxPipe::new(&cfg.box_pipe, 1, i, ro));
+    sim.add("sink", c, Sink::new(ri, 1.0, 0));
+    let r = BoxReq {
+        origin: Vec3::ZERO,
+        inv_dir: Vec3::ONE,
+        t_min: 0.0,
+        t_max: 1.0,
+        bmin: Vec3::ONE,
+        bmax: Vec3::ONE,
+        tag: 0,
+    };
+    sim.unit_mut::<Driver<BoxReq>>(d).send(0, r);
+    sim.wake(d);
+    sim.run(100_000).unwrap();
+    let st = sim.unit_stats(p);
+    assert_eq!(st.status_cycles.iter().sum::<u64>(), 100, "{st:?}");
+    // Accepted at cycle 1, pushed at cycle 8 (latency 8 includes the link): busy 7.
+    assert_eq!(st.status_cycles[0], 7, "{st:?}");
+    assert!(
+        sim.evals < 20,
+        "sleeping units cost nothing: {} evaluations",
+        sim.evals
+    );
+    let _ = Pusher::decl;
+    let _: Option<In<u8>> = None;
+    let _: Option<Out<u8>> = None;
+}
