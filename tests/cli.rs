@@ -1,0 +1,180 @@
+//! The command line as a user meets it: the main commands work, and bad input gets
+//! a clear error naming the problem and the fix, a non-zero exit, and no panic.
+
+use std::process::{Command, Output};
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dualstream"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn fails_with(args: &[&str], needles: &[&str]) {
+    let o = run(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{args:?} should fail");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    for n in needles {
+        assert!(
+            err.contains(n),
+            "{args:?}: error should mention '{n}': {err}"
+        );
+    }
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    std::env::temp_dir().join(format!("dualstream-cli-{}-{name}", std::process::id()))
+}
+
+#[test]
+fn tb_runs_and_writes_a_vcd() {
+    let vcd = tmp("box.vcd");
+    let o = run(&[
+        "tb",
+        "box_pipe",
+        "--cycles",
+        "500",
+        "--seed",
+        "1",
+        "--vcd",
+        vcd.to_str().unwrap(),
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(out.contains("PASS") && out.contains("gtkwave"), "{out}");
+    let text = std::fs::read_to_string(&vcd).unwrap();
+    assert!(text.contains("$scope module box_pipe $end"));
+}
+
+#[test]
+fn same_seed_same_waveform() {
+    let (a, b, c) = (tmp("a.vcd"), tmp("b.vcd"), tmp("c.vcd"));
+    for (p, seed) in [(&a, "4"), (&b, "4"), (&c, "5")] {
+        assert!(
+            run(&[
+                "tb",
+                "tri_pipe",
+                "--cycles",
+                "300",
+                "--seed",
+                seed,
+                "--vcd",
+                p.to_str().unwrap()
+            ])
+            .status
+            .success()
+        );
+    }
+    let read = |p: &std::path::Path| std::fs::read(p).unwrap();
+    assert_eq!(read(&a), read(&b));
+    assert_ne!(read(&a), read(&c));
+}
+
+#[test]
+fn unknown_unit() {
+    fails_with(
+        &["tb", "warp_drive"],
+        &["unknown unit 'warp_drive'", "box_pipe"],
+    );
+}
+
+#[test]
+fn impossible_config() {
+    let cfg = tmp("bad.toml");
+    std::fs::write(&cfg, "[box_pipe]\nlatency = 0\ninterval = 1\n").unwrap();
+    fails_with(
+        &["--config", cfg.to_str().unwrap(), "tb", "box_pipe"],
+        &["box_pipe.latency = 0", "set latency"],
+    );
+    std::fs::write(&cfg, "[tri_pipe]\nlatency = 31\ninterval = 0\n").unwrap();
+    fails_with(
+        &["--config", cfg.to_str().unwrap(), "tb", "tri_pipe"],
+        &["interval = 0"],
+    );
+    std::fs::write(&cfg, "[box_pipe\n").unwrap();
+    fails_with(
+        &["--config", cfg.to_str().unwrap(), "tb", "box_pipe"],
+        &["config"],
+    );
+    fails_with(
+        &["--config", "/nonexistent/x.toml", "tb", "box_pipe"],
+        &["cannot read config", "/nonexistent/x.toml"],
+    );
+}
+
+#[test]
+fn unwritable_outputs() {
+    fails_with(
+        &["tb", "box_pipe", "--vcd", "/nonexistent-dir/out.vcd"],
+        &["cannot write the VCD", "--vcd"],
+    );
+    fails_with(&["hdl", "--out", "/proc/forbidden"], &["--out"]);
+}
+
+#[test]
+fn trace_window_and_filter() {
+    let vcd = tmp("w.vcd");
+    let v = vcd.to_str().unwrap();
+    fails_with(
+        &[
+            "tb",
+            "box_pipe",
+            "--vcd",
+            v,
+            "--trace-from",
+            "50",
+            "--trace-to",
+            "10",
+        ],
+        &["before it starts"],
+    );
+    fails_with(
+        &["tb", "box_pipe", "--vcd", v, "--trace", "nosuchunit"],
+        &["no unit matches", "tb.box_pipe"],
+    );
+    fails_with(&["tb", "box_pipe", "--cycles", "0"], &["--cycles 0"]);
+    fails_with(&["tb", "box_pipe", "--ready", "0"], &["probabilities"]);
+    // A window and a filter limit what is written.
+    let o = run(&[
+        "tb",
+        "box_pipe",
+        "--cycles",
+        "400",
+        "--vcd",
+        v,
+        "--trace",
+        "box_pipe",
+        "--trace-from",
+        "100",
+        "--trace-to",
+        "120",
+    ]);
+    assert!(o.status.success());
+    let text = std::fs::read_to_string(&vcd).unwrap();
+    assert!(!text.contains("module driver"));
+    let times: Vec<u64> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix('#'))
+        .map(|t| t.parse().unwrap())
+        .collect();
+    assert!(
+        times.iter().all(|&t| (100_000..=120_000).contains(&t)),
+        "{times:?}"
+    );
+}
+
+#[test]
+fn prints_the_default_config() {
+    let o = run(&["config", "--print-default"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success());
+    assert!(
+        out.contains("[box_pipe]") && out.contains("latency = 8"),
+        "{out}"
+    );
+}
