@@ -1,7 +1,9 @@
 //! dualstream: an RTL-style, cycle-level model of the Dual Streaming ray-tracing
 //! hardware (Shkurko et al., HPG 2017).
+pub mod accel;
 pub mod bench;
 pub mod config;
+pub mod contract;
 pub mod geom;
 pub mod rtl;
 #[path = "../testbench/mod.rs"]

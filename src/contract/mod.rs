@@ -1,0 +1,417 @@
+//! The data contract: every byte the chip reads and writes in simulated DRAM.
+//! `docs/data-contract.md` is the prose version of this file; the two must agree
+//! (the byte offsets below are the single source of truth, little-endian).
+
+pub mod memmap;
+pub mod sparse;
+
+pub use memmap::{MemoryMap, MemoryMapCfg};
+pub use sparse::SparseMem;
+
+use glam::Vec3;
+
+/// One cache line / DRAM burst.
+pub const LINE_BYTES: u64 = 64;
+
+// ---- scene stream: segments (treelets) ----
+
+/// Segment header: magic, id, node count, triangle count, byte size; rest zero.
+pub const SEGMENT_HEADER_BYTES: u32 = 64;
+/// "SEG1" little-endian.
+pub const SEGMENT_MAGIC: u32 = u32::from_le_bytes(*b"SEG1");
+/// BVH2 inner node: both children's boxes, references and segments (one line).
+pub const NODE_BYTES: u32 = 64;
+/// Triangle: three vertices, scene triangle id, material id, reserved.
+pub const TRI_BYTES: u32 = 48;
+
+/// Reference to a node or leaf inside a segment (see `docs/data-contract.md`).
+pub const REF_NONE: u32 = u32::MAX;
+/// In a node's segment word: the child is in this same segment.
+pub const SEG_SAME: u32 = u32::MAX;
+const LEAF_BIT: u32 = 1 << 31;
+pub const MAX_LEAF_TRIS: u32 = 128;
+pub const MAX_REF_INDEX: u32 = (1 << 24) - 1;
+
+/// A decoded reference.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ref {
+    /// Inner node: index in the segment's node array.
+    Node(u32),
+    /// Leaf: first index in the segment's triangle array and count (1..=128).
+    Leaf {
+        first: u32,
+        count: u32,
+    },
+    None,
+}
+
+impl Ref {
+    pub fn encode(self) -> u32 {
+        match self {
+            Ref::Node(i) => {
+                assert!(i <= MAX_REF_INDEX, "node index fits 24 bits");
+                i
+            }
+            Ref::Leaf { first, count } => {
+                assert!(
+                    first <= MAX_REF_INDEX && (1..=MAX_LEAF_TRIS).contains(&count),
+                    "leaf fits its encoding"
+                );
+                LEAF_BIT | ((count - 1) << 24) | first
+            }
+            Ref::None => REF_NONE,
+        }
+    }
+    pub fn decode(w: u32) -> Ref {
+        if w == REF_NONE {
+            Ref::None
+        } else if w & LEAF_BIT != 0 {
+            Ref::Leaf {
+                first: w & MAX_REF_INDEX,
+                count: ((w >> 24) & 0x7F) + 1,
+            }
+        } else {
+            Ref::Node(w & MAX_REF_INDEX)
+        }
+    }
+}
+
+/// Node record (64 B).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeRec {
+    pub bmin: [Vec3; 2],
+    pub bmax: [Vec3; 2],
+    pub child: [u32; 2],
+    /// `SEG_SAME`, or the segment that holds the child (an exit).
+    pub seg: [u32; 2],
+}
+
+/// Triangle record (48 B).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriRec {
+    pub v: [Vec3; 3],
+    pub tri_id: u32,
+    pub material: u32,
+}
+
+// ---- ray stream ----
+
+pub const RAY_BYTES: u32 = 32;
+pub const BUCKET_HEADER_BYTES: u32 = 32;
+/// Bit of the ray id that marks a shadow (any-hit) ray.
+pub const SHADOW_BIT: u32 = 1 << 31;
+
+/// Ray record (32 B): origin, direction, ray id, entry reference.
+/// Shadow rays have no t_max: their direction is unnormalised and t = 1 is the light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayRec {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    /// bit 31: shadow; bits 0..30: pixel index (y * width + x).
+    pub ray_id: u32,
+    /// Where the ray enters the segment whose queue holds it (an encoded `Ref`).
+    pub entry: u32,
+}
+
+impl RayRec {
+    pub fn is_shadow(&self) -> bool {
+        self.ray_id & SHADOW_BIT != 0
+    }
+    pub fn pixel(&self) -> u32 {
+        self.ray_id & !SHADOW_BIT
+    }
+    /// Index of the ray's hit record: two per pixel, bounce then shadow.
+    pub fn hit_index(&self) -> u64 {
+        self.pixel() as u64 * 2 + self.is_shadow() as u64
+    }
+    pub fn t_max(&self) -> f32 {
+        if self.is_shadow() { 1.0 } else { f32::INFINITY }
+    }
+}
+
+/// Ray bucket header (32 B at the start of each bucket).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BucketHeader {
+    /// Address of the next bucket of the same queue, 0 if none (address 0 is the
+    /// segment table, never a bucket).
+    pub next: u64,
+    pub count: u32,
+    pub segment: u32,
+}
+
+// ---- hit records and path state ----
+
+pub const HIT_BYTES: u32 = 8;
+/// t = +inf and id = !0: no hit.
+pub const HIT_NONE_ID: u32 = u32::MAX;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HitRec {
+    pub t: f32,
+    pub tri_id: u32,
+}
+
+impl HitRec {
+    pub const NONE: HitRec = HitRec {
+        t: f32::INFINITY,
+        tri_id: HIT_NONE_ID,
+    };
+    pub fn is_hit(&self) -> bool {
+        self.tri_id != HIT_NONE_ID
+    }
+    /// Closest-hit order: the pair (t, triangle id).
+    pub fn closer_than(&self, o: &HitRec) -> bool {
+        self.t < o.t || (self.t == o.t && self.tri_id < o.tri_id)
+    }
+}
+
+pub const PATH_BYTES: u32 = 64;
+pub const PATH_BOUNCE_IN_FLIGHT: u32 = 1;
+pub const PATH_SHADOW_IN_FLIGHT: u32 = 2;
+
+/// Per-pixel path state (64 B, one line).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathRec {
+    pub throughput: Vec3,
+    /// Radiance the in-flight shadow ray adds if it reaches the light.
+    pub pending: Vec3,
+    pub radiance: Vec3,
+    /// Hit points so far.
+    pub depth: u32,
+    pub rng: u64,
+    pub flags: u32,
+}
+
+// ---- segment table ----
+
+pub const SEG_ENTRY_BYTES: u32 = 32;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SegEntry {
+    pub base: u64,
+    pub bytes: u32,
+    pub nodes: u32,
+    pub tris: u32,
+    /// `SEG_SAME` (all ones) for the root segment.
+    pub parent: u32,
+    pub first_child: u32,
+    pub child_count: u32,
+}
+
+// ---- codecs over the sparse DRAM image ----
+
+fn put_vec3(m: &mut SparseMem, a: u64, v: Vec3) {
+    m.write_f32(a, v.x);
+    m.write_f32(a + 4, v.y);
+    m.write_f32(a + 8, v.z);
+}
+fn get_vec3(m: &SparseMem, a: u64) -> Vec3 {
+    Vec3::new(m.read_f32(a), m.read_f32(a + 4), m.read_f32(a + 8))
+}
+
+impl NodeRec {
+    pub fn write(&self, m: &mut SparseMem, a: u64) {
+        for s in 0..2 {
+            put_vec3(m, a + 24 * s as u64, self.bmin[s]);
+            put_vec3(m, a + 24 * s as u64 + 12, self.bmax[s]);
+            m.write_u32(a + 48 + 4 * s as u64, self.child[s]);
+            m.write_u32(a + 56 + 4 * s as u64, self.seg[s]);
+        }
+    }
+    pub fn read(m: &SparseMem, a: u64) -> NodeRec {
+        let mut n = NodeRec {
+            bmin: [Vec3::ZERO; 2],
+            bmax: [Vec3::ZERO; 2],
+            child: [0; 2],
+            seg: [0; 2],
+        };
+        for s in 0..2 {
+            n.bmin[s] = get_vec3(m, a + 24 * s as u64);
+            n.bmax[s] = get_vec3(m, a + 24 * s as u64 + 12);
+            n.child[s] = m.read_u32(a + 48 + 4 * s as u64);
+            n.seg[s] = m.read_u32(a + 56 + 4 * s as u64);
+        }
+        n
+    }
+}
+
+impl TriRec {
+    pub fn write(&self, m: &mut SparseMem, a: u64) {
+        for k in 0..3 {
+            put_vec3(m, a + 12 * k as u64, self.v[k]);
+        }
+        m.write_u32(a + 36, self.tri_id);
+        m.write_u32(a + 40, self.material);
+        m.write_u32(a + 44, 0);
+    }
+    pub fn read(m: &SparseMem, a: u64) -> TriRec {
+        TriRec {
+            v: [get_vec3(m, a), get_vec3(m, a + 12), get_vec3(m, a + 24)],
+            tri_id: m.read_u32(a + 36),
+            material: m.read_u32(a + 40),
+        }
+    }
+}
+
+impl RayRec {
+    pub fn write(&self, m: &mut SparseMem, a: u64) {
+        put_vec3(m, a, self.origin);
+        put_vec3(m, a + 12, self.dir);
+        m.write_u32(a + 24, self.ray_id);
+        m.write_u32(a + 28, self.entry);
+    }
+    pub fn read(m: &SparseMem, a: u64) -> RayRec {
+        RayRec {
+            origin: get_vec3(m, a),
+            dir: get_vec3(m, a + 12),
+            ray_id: m.read_u32(a + 24),
+            entry: m.read_u32(a + 28),
+        }
+    }
+}
+
+impl BucketHeader {
+    pub fn write(&self, m: &mut SparseMem, a: u64) {
+        m.write_u64(a, self.next);
+        m.write_u32(a + 8, self.count);
+        m.write_u32(a + 12, self.segment);
+    }
+    pub fn read(m: &SparseMem, a: u64) -> BucketHeader {
+        BucketHeader {
+            next: m.read_u64(a),
+            count: m.read_u32(a + 8),
+            segment: m.read_u32(a + 12),
+        }
+    }
+}
+
+impl HitRec {
+    pub fn write(&self, m: &mut SparseMem, a: u64) {
+        m.write_f32(a, self.t);
+        m.write_u32(a + 4, self.tri_id);
+    }
+    pub fn read(m: &SparseMem, a: u64) -> HitRec {
+        HitRec {
+            t: m.read_f32(a),
+            tri_id: m.read_u32(a + 4),
+        }
+    }
+}
+
+impl PathRec {
+    pub fn write(&self, m: &mut SparseMem, a: u64) {
+        put_vec3(m, a, self.throughput);
+        put_vec3(m, a + 12, self.pending);
+        put_vec3(m, a + 24, self.radiance);
+        m.write_u32(a + 36, self.depth);
+        m.write_u64(a + 40, self.rng);
+        m.write_u32(a + 48, self.flags);
+    }
+    pub fn read(m: &SparseMem, a: u64) -> PathRec {
+        PathRec {
+            throughput: get_vec3(m, a),
+            pending: get_vec3(m, a + 12),
+            radiance: get_vec3(m, a + 24),
+            depth: m.read_u32(a + 36),
+            rng: m.read_u64(a + 40),
+            flags: m.read_u32(a + 48),
+        }
+    }
+}
+
+impl SegEntry {
+    pub fn write(&self, m: &mut SparseMem, a: u64) {
+        m.write_u64(a, self.base);
+        m.write_u32(a + 8, self.bytes);
+        m.write_u32(a + 12, self.nodes);
+        m.write_u32(a + 16, self.tris);
+        m.write_u32(a + 20, self.parent);
+        m.write_u32(a + 24, self.first_child);
+        m.write_u32(a + 28, self.child_count);
+    }
+    pub fn read(m: &SparseMem, a: u64) -> SegEntry {
+        SegEntry {
+            base: m.read_u64(a),
+            bytes: m.read_u32(a + 8),
+            nodes: m.read_u32(a + 12),
+            tris: m.read_u32(a + 16),
+            parent: m.read_u32(a + 20),
+            first_child: m.read_u32(a + 24),
+            child_count: m.read_u32(a + 28),
+        }
+    }
+}
+
+/// Number of 64 B lines touched by the byte range `[addr, addr + len)`.
+pub fn lines_touched(addr: u64, len: u64) -> u64 {
+    if len == 0 {
+        return 0;
+    }
+    (addr + len - 1) / LINE_BYTES - addr / LINE_BYTES + 1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refs_round_trip() {
+        for r in [
+            Ref::Node(0),
+            Ref::Node(MAX_REF_INDEX),
+            Ref::Leaf { first: 7, count: 1 },
+            Ref::Leaf {
+                first: 99,
+                count: 128,
+            },
+            Ref::None,
+        ] {
+            assert_eq!(Ref::decode(r.encode()), r);
+        }
+        assert_eq!(Ref::Leaf { first: 3, count: 2 }.encode(), 0x8100_0003);
+    }
+
+    #[test]
+    fn records_round_trip_at_their_offsets() {
+        let mut m = SparseMem::new(1 << 20);
+        let n = NodeRec {
+            bmin: [Vec3::new(1.0, 2.0, 3.0), Vec3::splat(-1.0)],
+            bmax: [Vec3::new(4.0, 5.0, 6.0), Vec3::splat(1.0)],
+            child: [
+                Ref::Node(5).encode(),
+                Ref::Leaf { first: 2, count: 1 }.encode(),
+            ],
+            seg: [SEG_SAME, 17],
+        };
+        n.write(&mut m, 128);
+        assert_eq!(NodeRec::read(&m, 128), n);
+        assert_eq!(m.read_u32(128 + 60), 17, "seg of child 1 at byte 60");
+        let r = RayRec {
+            origin: Vec3::X,
+            dir: -Vec3::Y,
+            ray_id: 5 | SHADOW_BIT,
+            entry: 3,
+        };
+        r.write(&mut m, 4096);
+        assert_eq!(RayRec::read(&m, 4096), r);
+        assert!(r.is_shadow() && r.pixel() == 5 && r.hit_index() == 11);
+        let p = PathRec {
+            throughput: Vec3::ONE,
+            pending: Vec3::ZERO,
+            radiance: Vec3::splat(0.5),
+            depth: 3,
+            rng: 0xDEAD_BEEF_0123_4567,
+            flags: 3,
+        };
+        p.write(&mut m, 8192);
+        assert_eq!(PathRec::read(&m, 8192), p);
+    }
+
+    #[test]
+    fn lines() {
+        assert_eq!(lines_touched(0, 64), 1);
+        assert_eq!(lines_touched(48, 48), 2);
+        assert_eq!(lines_touched(64, 1), 1);
+        assert_eq!(lines_touched(0, 0), 0);
+    }
+}
