@@ -4,6 +4,7 @@ pub mod bench;
 pub mod config;
 pub mod geom;
 pub mod rtl;
+pub mod scene;
 #[path = "../testbench/mod.rs"]
 pub mod testbench;
 pub mod units;
