@@ -74,3 +74,22 @@ fn dabrovic_sponza() {
     );
     assert!(s.bounds().contains(s.camera.eye));
 }
+
+#[test]
+#[ignore = "needs shared/scenes beside the repository; parses ~2M triangles"]
+fn every_shared_obj_loads_bare() {
+    let dir = format!("{}/../shared/scenes", env!("CARGO_MANIFEST_DIR"));
+    let mut names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "obj"))
+        .collect();
+    names.sort();
+    assert!(names.len() >= 10, "{names:?}");
+    for p in names {
+        let s = scene::load(p.to_str().unwrap()).unwrap_or_else(|e| panic!("{e}"));
+        s.validate().unwrap();
+        println!("{}: {} triangles", s.name, s.triangles.len());
+        assert!(s.warnings.iter().any(|w| w.contains("[camera]")));
+    }
+}

@@ -5,8 +5,6 @@
 //! offending line; the fast path reads it once.
 
 use std::cell::RefCell;
-use std::fs::File;
-use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
@@ -31,19 +29,55 @@ pub(crate) fn load_into(
     albedo: Option<Vec3>,
 ) -> Result<usize, String> {
     let shown = path.display();
-    let file = File::open(path).map_err(|e| {
+    let bytes = std::fs::read(path).map_err(|e| {
         format!("cannot open OBJ file '{shown}' ({e}); check the path (paths in a scene file are relative to that file)")
     })?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        format!(
+            "{shown}: not UTF-8 text (bad byte at offset {}); save it as ASCII/UTF-8",
+            e.utf8_error().valid_up_to()
+        )
+    })?;
+    // tobj indexes texture coordinates and normals without overflow checks (a
+    // bad `vt`/`vn` index panics in debug builds) and the model uses neither,
+    // so those lines are blanked (kept as empty lines: numbering unchanged).
+    let geometry: String = text
+        .lines()
+        .map(|l| match l.split_whitespace().next() {
+            Some("vt" | "vn") => "",
+            _ => l,
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    drop(text);
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    // Which material libraries the file asked for and whether they loaded.
+    // Which material libraries the file asked for, whether they loaded, and
+    // syntax errors in them (tobj panics on a short `Kd` line, so they are
+    // checked here first).
     let libs: RefCell<Vec<(PathBuf, Option<String>)>> = RefCell::new(Vec::new());
-    let loaded = tobj::load_obj_buf(&mut BufReader::new(file), &OPTIONS, |p| {
+    let bad_mtl: RefCell<Option<String>> = RefCell::new(None);
+    let loaded = tobj::load_obj_buf(&mut geometry.as_bytes(), &OPTIONS, |p| {
         let full = dir.join(p);
-        let r = tobj::load_mtl(&full);
-        let err = r.as_ref().err().map(|e| e.to_string());
-        libs.borrow_mut().push((full, err));
-        r
+        let r = match std::fs::read_to_string(&full) {
+            Err(e) => Err((tobj::LoadError::OpenFileFailed, e.to_string())),
+            Ok(src) => match check_mtl(&full, &src) {
+                Err(msg) => {
+                    bad_mtl.borrow_mut().get_or_insert(msg);
+                    Err((
+                        tobj::LoadError::MaterialParseError,
+                        "syntax error".to_string(),
+                    ))
+                }
+                Ok(()) => tobj::load_mtl_buf(&mut src.as_bytes()).map_err(|e| (e, e.to_string())),
+            },
+        };
+        libs.borrow_mut()
+            .push((full, r.as_ref().err().map(|e| e.1.clone())));
+        r.map_err(|e| e.0)
     });
+    if let Some(msg) = bad_mtl.into_inner() {
+        return Err(msg);
+    }
     let (models, mats) = loaded.map_err(|e| diagnose(path, &e))?;
     // tobj returns the readable libraries' materials, numbered in file order.
     let mats = mats.unwrap_or_default();
@@ -182,6 +216,25 @@ pub(crate) fn load_bare(path: &Path) -> Result<Scene, String> {
         settings,
         warnings: b.warnings,
     })
+}
+
+/// tobj panics on `Ka`/`Kd`/`Ks`/`Ke`/`Tf` lines with fewer than three values;
+/// find them first and say where.
+fn check_mtl(path: &Path, src: &str) -> Result<(), String> {
+    for (n, line) in src.lines().enumerate() {
+        let mut w = line.split_whitespace();
+        if let Some(k @ ("Ka" | "Kd" | "Ks" | "Ke" | "Tf")) = w.next()
+            && w.take(3).count() < 3
+        {
+            return Err(format!(
+                "{}:{}: `{k}` needs three numbers r g b, got '{}'; fix the material library",
+                path.display(),
+                n + 1,
+                line.trim()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Lines of the file, lossily decoded (only used on the error path).

@@ -491,6 +491,17 @@ fn obj_index_errors_name_the_line() {
             "{text}: {e}"
         );
     }
+    // Bad texture/normal indices (tobj would overflow on them) are ignored:
+    // the model uses positions only.
+    let s = load_obj(
+        "vtvn",
+        &[(
+            "t.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/0/0 2/-9/-9 3/5/5\n",
+        )],
+    )
+    .unwrap();
+    assert_eq!(s.triangles.len(), 1);
     // Negative (relative) indices that are in range are fine.
     let s = load_obj(
         "rel",
@@ -583,6 +594,13 @@ fn obj_materials_from_mtl_and_missing_mtl_warns() {
         s.warnings
     );
 
+    // A short Kd line (tobj itself would panic) is an error naming the line.
+    let e = load_obj(
+        "shortkd",
+        &[("m.obj", &obj), ("m.mtl", "newmtl red\nKa 1 1 1\nKd 0.5\n")],
+    )
+    .unwrap_err();
+    assert!(e.contains("m.mtl:3:") && e.contains("Kd"), "{e}");
     // Kd NaN in the .mtl is an error naming the material.
     let e = load_obj(
         "nanmtl",
