@@ -45,7 +45,7 @@ pub struct PointLight {
 pub struct RenderSettings {
     pub width: u32,
     pub height: u32,
-    /// Hit points per path (primary hit + bounces - 1), 1..=MAX_BOUNCES.
+    /// Hit points per path (the paper renders 5), 1..=MAX_BOUNCES.
     pub bounces: u32,
     pub seed: u64,
 }
