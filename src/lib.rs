@@ -6,6 +6,7 @@ pub mod config;
 pub mod contract;
 pub mod geom;
 pub mod rtl;
+pub mod scene;
 #[path = "../testbench/mod.rs"]
 pub mod testbench;
 pub mod units;

@@ -1,0 +1,353 @@
+//! Scenes: triangles in world space, Lambertian materials, a pinhole camera and
+//! one point light, from a builtin procedural scene, a scene description
+//! (.toml) or a bare Wavefront .obj.
+//!
+//! Everything here is deterministic (no libm trigonometry, fixed iteration
+//! order), so the same spec gives bit-identical triangles on every machine.
+//! Bad input is reported as an error string that names the problem and the fix;
+//! loading never panics.
+
+mod builtin;
+mod camera;
+mod desc;
+mod obj;
+
+use glam::Vec3;
+
+use crate::geom::shapes::sin_cos;
+use crate::geom::{Aabb, Triangle};
+
+pub use camera::Camera;
+
+/// Lambertian (diffuse) material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    pub albedo: Vec3,
+}
+
+/// Albedo used when a mesh has no material (no .mtl, or no `Kd`).
+pub const DEFAULT_ALBEDO: f32 = 0.7;
+
+/// Radiance of a miss when a scene does not say (dim grey, so open scenes such
+/// as a bare OBJ are not lit by the point light alone).
+pub const DEFAULT_SKY: f32 = 0.1;
+
+/// Isotropic point light; `intensity` is radiant intensity (W/sr per channel),
+/// so a surface at distance D facing the light receives irradiance I / D^2 and
+/// a Lambertian surface reflects radiance albedo / pi * I / D^2.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointLight {
+    pub position: Vec3,
+    pub intensity: Vec3,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Hit points per path (the paper renders 5), 1..=MAX_BOUNCES.
+    pub bounces: u32,
+    pub seed: u64,
+}
+
+pub const MAX_BOUNCES: u32 = 16;
+pub const MAX_IMAGE_SIZE: u32 = 16384;
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 256,
+            height: 256,
+            bounces: 5,
+            seed: 1,
+        }
+    }
+}
+
+impl RenderSettings {
+    pub fn validate(&self) -> Result<(), String> {
+        for (name, v) in [("width", self.width), ("height", self.height)] {
+            if !(1..=MAX_IMAGE_SIZE).contains(&v) {
+                return Err(format!(
+                    "render {name} = {v} is outside 1..={MAX_IMAGE_SIZE}; choose a size in that range"
+                ));
+            }
+        }
+        if !(1..=MAX_BOUNCES).contains(&self.bounces) {
+            return Err(format!(
+                "render bounces = {} is outside 1..={MAX_BOUNCES} (hit points per path); \
+                 use e.g. 5 as in the paper",
+                self.bounces
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    pub name: String,
+    /// World space; degenerate triangles already dropped.
+    pub triangles: Vec<Triangle>,
+    /// Index into `materials`, one per triangle.
+    pub tri_material: Vec<u32>,
+    pub materials: Vec<Material>,
+    pub camera: Camera,
+    pub light: PointLight,
+    /// Radiance of a miss.
+    pub sky: Vec3,
+    pub settings: RenderSettings,
+    /// Things the loader changed or assumed, e.g. "dropped 12 degenerate triangles".
+    pub warnings: Vec<String>,
+}
+
+fn finite(v: Vec3) -> bool {
+    v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
+}
+
+fn non_negative(v: Vec3) -> bool {
+    finite(v) && v.x >= 0.0 && v.y >= 0.0 && v.z >= 0.0
+}
+
+impl Scene {
+    /// Bounds of all triangles (empty for no triangles).
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(self.triangles.iter().flat_map(|t| [t.v0, t.v1, t.v2]))
+    }
+
+    /// Checks the invariants consumers rely on.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.triangles.is_empty() {
+            return Err("scene has no triangles; add a mesh".to_string());
+        }
+        if self.triangles.len() > u32::MAX as usize {
+            return Err("scene has more than 2^32 triangles; use a smaller mesh".to_string());
+        }
+        if self.tri_material.len() != self.triangles.len() {
+            return Err(format!(
+                "scene has {} triangles but {} material indices; give one per triangle",
+                self.triangles.len(),
+                self.tri_material.len()
+            ));
+        }
+        if let Some(i) = self.triangles.iter().position(|t| t.is_degenerate()) {
+            return Err(format!(
+                "triangle {i} is degenerate or not finite; drop it before building the scene"
+            ));
+        }
+        if let Some(i) = self
+            .tri_material
+            .iter()
+            .position(|&m| m as usize >= self.materials.len())
+        {
+            return Err(format!(
+                "triangle {i} uses material {} but there are {} materials",
+                self.tri_material[i],
+                self.materials.len()
+            ));
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            let a = m.albedo;
+            if !(non_negative(a) && a.x <= 1.0 && a.y <= 1.0 && a.z <= 1.0) {
+                return Err(format!(
+                    "material {i} albedo {a:?} is outside [0, 1]; an albedo above 1 creates energy"
+                ));
+            }
+        }
+        self.camera.validate()?;
+        if !finite(self.light.position) || !non_negative(self.light.intensity) {
+            return Err(format!(
+                "light {:?} needs a finite position and a finite, non-negative intensity",
+                self.light
+            ));
+        }
+        if !non_negative(self.sky) {
+            return Err(format!(
+                "sky {:?} must be finite and non-negative",
+                self.sky
+            ));
+        }
+        self.settings.validate()
+    }
+}
+
+/// Builtin procedural scenes (no files needed).
+pub const BUILTINS: &[&str] = builtin::NAMES;
+pub const DEFAULT_SCENE: &str = "cornell";
+
+/// `spec` is a builtin name, a path to a scene description (.toml) or a path to
+/// a Wavefront .obj.
+pub fn load(spec: &str) -> Result<Scene, String> {
+    if let Some(s) = builtin::build(spec) {
+        return Ok(s);
+    }
+    let path = std::path::Path::new(spec);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let scene = match ext.as_deref() {
+        Some("toml") => desc::load(path)?,
+        Some("obj") => obj::load_bare(path)?,
+        _ => {
+            return Err(format!(
+                "unknown scene '{spec}': give a builtin ({}) or a path ending in .toml or .obj",
+                BUILTINS.join(", ")
+            ));
+        }
+    };
+    scene.validate().map_err(|e| format!("{spec}: {e}"))?;
+    Ok(scene)
+}
+
+/// Scale, then rotate about +y, then translate; computed in f64 and rounded
+/// once, a function of the vertex value only, so bit-identical shared vertices
+/// stay bit-identical (closed meshes stay closed).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Xform {
+    pub scale: f32,
+    pub rotate_y_deg: f32,
+    pub translate: Vec3,
+}
+
+impl Xform {
+    pub const IDENTITY: Xform = Xform {
+        scale: 1.0,
+        rotate_y_deg: 0.0,
+        translate: Vec3::ZERO,
+    };
+
+    pub fn apply(&self, tris: &mut [Triangle]) {
+        if *self == Xform::IDENTITY {
+            return;
+        }
+        // Reduce first: sin_cos is accurate only for small arguments.
+        let deg = (self.rotate_y_deg as f64).rem_euclid(360.0);
+        let (s, c) = sin_cos(deg * (std::f64::consts::PI / 180.0));
+        let k = self.scale as f64;
+        let t = self.translate;
+        let f = |p: Vec3| {
+            let (x, y, z) = (p.x as f64 * k, p.y as f64 * k, p.z as f64 * k);
+            // Right-handed rotation about +y: x' = c x + s z, z' = -s x + c z.
+            Vec3::new(
+                (c * x + s * z + t.x as f64) as f32,
+                (y + t.y as f64) as f32,
+                (c * z - s * x + t.z as f64) as f32,
+            )
+        };
+        for tri in tris {
+            *tri = Triangle::new(f(tri.v0), f(tri.v1), f(tri.v2));
+        }
+    }
+}
+
+/// Accumulates meshes into a scene.
+#[derive(Default)]
+pub(crate) struct Builder {
+    pub triangles: Vec<Triangle>,
+    pub tri_material: Vec<u32>,
+    pub materials: Vec<Material>,
+    pub warnings: Vec<String>,
+}
+
+impl Builder {
+    pub fn material(&mut self, albedo: Vec3) -> u32 {
+        if let Some(i) = self.materials.iter().position(|m| m.albedo == albedo) {
+            return i as u32;
+        }
+        self.materials.push(Material { albedo });
+        (self.materials.len() - 1) as u32
+    }
+
+    /// Adds triangles with one material each, dropping degenerate ones (with a
+    /// warning naming `source`).
+    pub fn add(&mut self, source: &str, tris: impl IntoIterator<Item = (Triangle, u32)>) {
+        let mut dropped = 0usize;
+        for (t, m) in tris {
+            if t.is_degenerate() {
+                dropped += 1;
+            } else {
+                self.triangles.push(t);
+                self.tri_material.push(m);
+            }
+        }
+        if dropped > 0 {
+            self.warnings.push(format!(
+                "{source}: dropped {dropped} degenerate triangles (zero area)"
+            ));
+        }
+    }
+
+    pub fn add_mesh(&mut self, source: &str, tris: Vec<Triangle>, albedo: Vec3) {
+        let m = self.material(albedo);
+        self.add(source, tris.into_iter().map(|t| (t, m)));
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(self.triangles.iter().flat_map(|t| [t.v0, t.v1, t.v2]))
+    }
+
+    /// Camera and light framing the bounds, with a warning giving them as TOML
+    /// so the user can copy them into a scene file.
+    pub fn auto_view(
+        &mut self,
+        aspect: f32,
+        need_camera: bool,
+        need_light: bool,
+    ) -> (Camera, PointLight) {
+        let b = self.bounds();
+        let cam = Camera::frame(&b, 45.0, aspect);
+        let r = (b.extent().length() * 0.5).max(1e-6);
+        let c = b.centroid();
+        // Above and in front of the object, so the faces the camera sees are lit.
+        let pos = Vec3::new(c.x, c.y + 2.0 * r, c.z + r);
+        // Direct radiance ~ albedo/pi * I / D^2 with D^2 = 5 r^2 to the centre:
+        // I = 8 r^2 gives ~0.35 for albedo 0.7 (reasonably exposed).
+        let i = 8.0 * r * r;
+        let light = PointLight {
+            position: pos,
+            intensity: Vec3::splat(i),
+        };
+        let mut toml = String::new();
+        if need_camera {
+            toml += &format!(
+                "[camera]\neye = {}\nlook_at = {}\nup = {}\nvfov = {:?}\n",
+                arr(cam.eye),
+                arr(cam.look_at),
+                arr(cam.up),
+                cam.vfov_deg
+            );
+        }
+        if need_light {
+            toml += &format!(
+                "[light]\nposition = {}\nintensity = {}\n",
+                arr(light.position),
+                arr(light.intensity)
+            );
+        }
+        if !toml.is_empty() {
+            self.warnings.push(format!(
+                "no camera/light given: framed the bounds automatically; to keep or \
+                 edit them, put this in a scene file:\n{toml}"
+            ));
+        }
+        (cam, light)
+    }
+}
+
+/// `[x, y, z]` with round-trip float formatting, for TOML snippets.
+fn arr(v: Vec3) -> String {
+    format!("[{:?}, {:?}, {:?}]", v.x, v.y, v.z)
+}
+
+/// 1-based line of byte offset `pos` in `src`.
+pub(crate) fn line_of(src: &str, pos: usize) -> usize {
+    src.as_bytes()[..pos.min(src.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
+}
+
+#[cfg(test)]
+mod tests;
