@@ -72,6 +72,10 @@ pub struct Config {
     /// cycles: interval 3, and the last component is done 16 + 2 = 18 cycles after
     /// the first was accepted.
     pub divider: PipeCfg,
+    /// BVH build and segment (treelet) formation.
+    pub accel: crate::accel::AccelCfg,
+    /// The DRAM image: capacity, row, buckets.
+    pub memory: crate::contract::MemoryMapCfg,
 }
 
 impl Default for Config {
@@ -91,6 +95,8 @@ impl Default for Config {
                 latency: 18,
                 interval: 3,
             },
+            accel: crate::accel::AccelCfg::default(),
+            memory: crate::contract::MemoryMapCfg::default(),
         }
     }
 }
@@ -130,6 +136,8 @@ impl Config {
         ] {
             validate_pipe(name, p, &self.links.tm)?;
         }
+        self.memory.validate()?;
+        self.accel.validate(self.memory.row_bytes)?;
         Ok(())
     }
 }

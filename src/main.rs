@@ -59,6 +59,37 @@ enum Cmd {
         #[arg(long)]
         shadow: bool,
     },
+    /// Render a frame: dual streaming (functional) or the reference traversal.
+    Render {
+        /// Builtin scene name, scene description (.toml) or Wavefront .obj.
+        #[arg(long, default_value = dualstream::scene::DEFAULT_SCENE)]
+        scene: String,
+        /// Resolution WIDTHxHEIGHT (default: the scene's).
+        #[arg(long)]
+        res: Option<String>,
+        /// functional (dual streaming, no clock) or reference.
+        #[arg(long, default_value = "functional")]
+        mode: String,
+        /// Hit points per path (default: the scene's, 5 as in the paper).
+        #[arg(long)]
+        bounces: Option<u32>,
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Output image (PNG).
+        #[arg(long, default_value = "render.png")]
+        out: PathBuf,
+        /// Write the statistics as JSON here.
+        #[arg(long)]
+        stats: Option<PathBuf>,
+        /// Check every ray against the reference traversal.
+        #[arg(long)]
+        verify: bool,
+    },
+    /// Scene tools.
+    Scene {
+        #[command(subcommand)]
+        cmd: SceneCmd,
+    },
     /// Write the Verilog skeleton of every unit.
     Hdl {
         #[arg(long, default_value = "hdl")]
@@ -78,6 +109,32 @@ enum Cmd {
         #[arg(long)]
         print_default: bool,
     },
+}
+
+#[derive(Subcommand)]
+enum SceneCmd {
+    /// Triangles, BVH nodes and depth, segments, bytes, children per segment, build time.
+    Info {
+        /// Builtin scene name, scene description (.toml) or Wavefront .obj.
+        scene: String,
+    },
+}
+
+fn parse_res(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("--res '{s}' is not WIDTHxHEIGHT (e.g. 256x256)");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    Ok((
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    ))
+}
+
+fn render_cfg(config: &Config) -> dualstream::render::RenderCfg {
+    dualstream::render::RenderCfg {
+        accel: config.accel.clone(),
+        memory: config.memory.clone(),
+        verify: false,
+    }
 }
 
 fn load_config(path: &Option<PathBuf>) -> Result<Config, String> {
@@ -144,6 +201,107 @@ fn run(cli: Cli) -> Result<(), String> {
                     rep.errors.len()
                 ));
             }
+            Ok(())
+        }
+        Cmd::Render {
+            scene,
+            res,
+            mode,
+            bounces,
+            seed,
+            out,
+            stats,
+            verify,
+        } => {
+            use dualstream::render::{self, Mode, output};
+            let mode = match mode.as_str() {
+                "functional" => Mode::Functional,
+                "reference" => Mode::Reference,
+                "cycle" => return Err("--mode cycle needs the cycle-level chip, which is not built yet; use functional or reference".into()),
+                m => return Err(format!("unknown --mode '{m}'; use functional or reference")),
+            };
+            let mut sc = dualstream::scene::load(&scene)?;
+            for w in &sc.warnings {
+                eprintln!("warning: {w}");
+            }
+            if let Some(r) = res {
+                (sc.settings.width, sc.settings.height) = parse_res(&r)?;
+            }
+            if let Some(b) = bounces {
+                sc.settings.bounces = b;
+            }
+            if let Some(s) = seed {
+                sc.settings.seed = s;
+            }
+            sc.settings.validate()?;
+            // Fail on an unwritable output before spending minutes on the frame.
+            for (p, what) in [(Some(&out), "--out"), (stats.as_ref(), "--stats")] {
+                if let Some(p) = p {
+                    std::fs::OpenOptions::new()
+                        .create(true)
+                        .append(true)
+                        .open(p)
+                        .map_err(|e| {
+                            format!(
+                                "cannot write '{}': {e}; choose a writable {what}",
+                                p.display()
+                            )
+                        })?;
+                }
+            }
+            let mut rc = render_cfg(&config);
+            rc.verify = verify;
+            let start = std::time::Instant::now();
+            let frame = render::render(&sc, mode, &rc, |wave, rays| {
+                eprint!(
+                    "\rwavefront {wave}: {rays} rays, {:.1} s elapsed   ",
+                    start.elapsed().as_secs_f64()
+                );
+            })?;
+            eprintln!();
+            output::write_png(&frame, &out)?;
+            print!("{}", output::summary(&frame));
+            println!("image: {}", out.display());
+            if let Some(p) = stats {
+                output::write_json(&frame, &p)?;
+                println!("statistics: {}", p.display());
+            }
+            Ok(())
+        }
+        Cmd::Scene {
+            cmd: SceneCmd::Info { scene },
+        } => {
+            let sc = dualstream::scene::load(&scene)?;
+            for w in &sc.warnings {
+                eprintln!("warning: {w}");
+            }
+            let p = dualstream::render::prepare(&sc, &render_cfg(&config))?;
+            let i = &p.info;
+            println!("scene {}", sc.name);
+            println!("  triangles            {}", i.triangles);
+            println!(
+                "  BVH nodes            {} inner, depth {}",
+                i.bvh_nodes, i.bvh_depth
+            );
+            println!("  BVH build            {:.3} s", i.bvh_build_s);
+            println!(
+                "  segments             {} (budget {} B)",
+                i.segments, config.accel.segment_bytes
+            );
+            println!("  segment build        {:.3} s", i.segment_build_s);
+            println!(
+                "  scene bytes          {} ({:.1} KB mean per segment)",
+                i.scene_bytes,
+                i.segment_bytes_mean / 1024.0
+            );
+            println!(
+                "  children per segment min {} mean {:.2} max {}",
+                i.children_min, i.children_mean, i.children_max
+            );
+            println!(
+                "  DRAM map             scene at {:#x}, buckets at {:#x}, end {:#x}",
+                p.map.scene, p.map.buckets, p.map.end
+            );
             Ok(())
         }
         Cmd::Hdl { out } => {

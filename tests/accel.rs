@@ -113,7 +113,15 @@ fn check(tris: &[Triangle], budget: u32, leaf: u32) {
     // The DRAM image.
     let cfg = MemoryMapCfg::default();
     let bytes: Vec<u32> = seg.segments.iter().map(|s| s.bytes).collect();
-    let map = MemoryMap::new(&cfg, &bytes, SceneImage::children_total(&seg), 16).unwrap();
+    let map = MemoryMap::new(
+        &cfg,
+        &bytes,
+        SceneImage::children_total(&seg),
+        tris.len() as u64,
+        1,
+        16,
+    )
+    .unwrap();
     let mut mem = SparseMem::new(map.capacity);
     let mats = vec![0u32; tris.len()];
     let img = SceneImage::write(&mut mem, &map, tris, &mats, &bvh, &seg);
@@ -158,6 +166,12 @@ fn check(tris: &[Triangle], budget: u32, leaf: u32) {
             let src = &tris[t.tri_id as usize];
             assert_eq!(t.v, [src.v0, src.v1, src.v2]);
             assert!(tri_ids.insert(t.tri_id), "each triangle stored once");
+            let at = base + 64 + e.nodes as u64 * 64 + k as u64 * 48;
+            assert_eq!(
+                map.scene + mem.read_u32(map.tri_index + t.tri_id as u64 * 4) as u64 * 16,
+                at,
+                "triangle index"
+            );
         }
     }
     assert_eq!(tri_ids.len(), tris.len());

@@ -178,3 +178,93 @@ fn prints_the_default_config() {
         "{out}"
     );
 }
+
+#[test]
+fn render_writes_image_and_statistics() {
+    let (png, json) = (tmp("r.png"), tmp("r.json"));
+    let o = run(&[
+        "render",
+        "--scene",
+        "tiny",
+        "--res",
+        "16x16",
+        "--out",
+        png.to_str().unwrap(),
+        "--stats",
+        json.to_str().unwrap(),
+        "--verify",
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        out.contains("ray duplication") && out.contains("verified"),
+        "{out}"
+    );
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(stats["total"]["rays"].as_u64().unwrap() > 256);
+    assert_eq!(stats["width"], 16);
+}
+
+#[test]
+fn render_and_scene_bad_input() {
+    fails_with(
+        &["render", "--scene", "tiny", "--res", "0x10"],
+        &["width = 0"],
+    );
+    fails_with(
+        &["render", "--scene", "tiny", "--res", "banana"],
+        &["WIDTHxHEIGHT"],
+    );
+    fails_with(
+        &["render", "--scene", "tiny", "--bounces", "17"],
+        &["bounces"],
+    );
+    fails_with(
+        &["render", "--scene", "tiny", "--mode", "warp"],
+        &["unknown --mode"],
+    );
+    fails_with(
+        &["render", "--scene", "/nonexistent/scene.obj"],
+        &["/nonexistent/scene.obj"],
+    );
+    fails_with(
+        &[
+            "render",
+            "--scene",
+            "tiny",
+            "--out",
+            "/nonexistent-dir/x.png",
+        ],
+        &["--out"],
+    );
+    fails_with(&["scene", "info", "nosuchscene"], &["nosuchscene"]);
+    let cfg = tmp("seg.toml");
+    std::fs::write(&cfg, "[accel]\nsegment_bytes = 1000\n").unwrap();
+    fails_with(
+        &["--config", cfg.to_str().unwrap(), "scene", "info", "tiny"],
+        &["segment_bytes", "multiple of the DRAM row"],
+    );
+}
+
+#[test]
+fn scene_info_prints_the_structure() {
+    let o = run(&["scene", "info", "cornell"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for k in [
+        "triangles",
+        "BVH nodes",
+        "segments",
+        "children per segment",
+        "BVH build",
+    ] {
+        assert!(out.contains(k), "{out}");
+    }
+}

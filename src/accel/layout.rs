@@ -112,6 +112,10 @@ impl SceneImage {
                             material: tri_material[id as usize],
                         }
                         .write(mem, tri_at);
+                        mem.write_u32(
+                            map.tri_index + id as u64 * 4,
+                            ((tri_at - map.scene) / 16) as u32,
+                        );
                         tri_at += TRI_BYTES as u64;
                     }
                 }

@@ -63,6 +63,11 @@ pub struct MemoryMap {
     pub seg_table: u64,
     /// Child list: u32 segment ids, indexed by `SegEntry::first_child`.
     pub child_list: u64,
+    /// Triangle index: for each scene triangle id, a u32 holding
+    /// (address of its record - `scene`) / 16, so shading can find a hit triangle.
+    pub tri_index: u64,
+    /// Material table: 16 B per material (albedo as three f32, then zero).
+    pub materials: u64,
     /// Segments, each at a row boundary.
     pub scene: u64,
     pub scene_bytes: u64,
@@ -88,13 +93,17 @@ impl MemoryMap {
         cfg: &MemoryMapCfg,
         segment_bytes: &[u32],
         children: u64,
+        triangles: u64,
+        materials: u64,
         pixels: u64,
     ) -> Result<MemoryMap, String> {
         cfg.validate()?;
         let row = cfg.row_bytes;
         let seg_table = 0;
         let child_list = align(segment_bytes.len() as u64 * SEG_ENTRY_BYTES as u64, 64);
-        let scene = align(child_list + children * 4, row);
+        let tri_index = align(child_list + children * 4, 64);
+        let mats = align(tri_index + triangles * 4, 64);
+        let scene = align(mats + materials * 16, row);
         let scene_bytes: u64 = segment_bytes.iter().map(|&b| align(b as u64, row)).sum();
         let buckets = align(scene + scene_bytes, row);
         let bucket_count = cfg.bucket_pool_bytes / cfg.bucket_bytes;
@@ -115,6 +124,8 @@ impl MemoryMap {
             bucket_bytes: cfg.bucket_bytes,
             seg_table,
             child_list,
+            tri_index,
+            materials: mats,
             scene,
             scene_bytes,
             buckets,
@@ -146,7 +157,15 @@ mod tests {
 
     #[test]
     fn regions_are_row_aligned_and_ordered() {
-        let m = MemoryMap::new(&MemoryMapCfg::default(), &[65536, 100, 8193], 2, 64 * 64).unwrap();
+        let m = MemoryMap::new(
+            &MemoryMapCfg::default(),
+            &[65536, 100, 8193],
+            2,
+            10,
+            3,
+            64 * 64,
+        )
+        .unwrap();
         for a in [m.scene, m.buckets, m.hits, m.path, m.end] {
             assert_eq!(a % 8192, 0);
         }
@@ -162,7 +181,7 @@ mod tests {
             capacity_bytes: 1 << 20,
             ..MemoryMapCfg::default()
         };
-        let e = MemoryMap::new(&cfg, &[65536], 0, 16).unwrap_err();
+        let e = MemoryMap::new(&cfg, &[65536], 0, 1, 1, 16).unwrap_err();
         assert!(e.contains("more than the configured DRAM"), "{e}");
     }
 }

@@ -141,20 +141,26 @@ pub struct BucketHeader {
 
 // ---- hit records and path state ----
 
-pub const HIT_BYTES: u32 = 8;
+pub const HIT_BYTES: u32 = 16;
 /// t = +inf and id = !0: no hit.
 pub const HIT_NONE_ID: u32 = u32::MAX;
 
+/// Hit record (16 B): distance, triangle id, and the barycentrics of the hit (the
+/// weights of v1 and v2), from which shading rebuilds the hit point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HitRec {
     pub t: f32,
     pub tri_id: u32,
+    pub u: f32,
+    pub v: f32,
 }
 
 impl HitRec {
     pub const NONE: HitRec = HitRec {
         t: f32::INFINITY,
         tri_id: HIT_NONE_ID,
+        u: 0.0,
+        v: 0.0,
     };
     pub fn is_hit(&self) -> bool {
         self.tri_id != HIT_NONE_ID
@@ -166,8 +172,8 @@ impl HitRec {
 }
 
 pub const PATH_BYTES: u32 = 64;
-pub const PATH_BOUNCE_IN_FLIGHT: u32 = 1;
-pub const PATH_SHADOW_IN_FLIGHT: u32 = 2;
+pub const PATH_BOUNCE_IN_FLIGHT: u16 = 1;
+pub const PATH_SHADOW_IN_FLIGHT: u16 = 2;
 
 /// Per-pixel path state (64 B, one line).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -176,10 +182,12 @@ pub struct PathRec {
     /// Radiance the in-flight shadow ray adds if it reaches the light.
     pub pending: Vec3,
     pub radiance: Vec3,
-    /// Hit points so far.
-    pub depth: u32,
+    /// Direction of the bounce ray in flight (shading faces the normal against it).
+    pub dir: Vec3,
     pub rng: u64,
-    pub flags: u32,
+    /// Hit points so far.
+    pub depth: u16,
+    pub flags: u16,
 }
 
 // ---- segment table ----
@@ -289,11 +297,15 @@ impl HitRec {
     pub fn write(&self, m: &mut SparseMem, a: u64) {
         m.write_f32(a, self.t);
         m.write_u32(a + 4, self.tri_id);
+        m.write_f32(a + 8, self.u);
+        m.write_f32(a + 12, self.v);
     }
     pub fn read(m: &SparseMem, a: u64) -> HitRec {
         HitRec {
             t: m.read_f32(a),
             tri_id: m.read_u32(a + 4),
+            u: m.read_f32(a + 8),
+            v: m.read_f32(a + 12),
         }
     }
 }
@@ -303,18 +315,21 @@ impl PathRec {
         put_vec3(m, a, self.throughput);
         put_vec3(m, a + 12, self.pending);
         put_vec3(m, a + 24, self.radiance);
-        m.write_u32(a + 36, self.depth);
-        m.write_u64(a + 40, self.rng);
-        m.write_u32(a + 48, self.flags);
+        put_vec3(m, a + 36, self.dir);
+        m.write_u64(a + 48, self.rng);
+        m.write_u32(a + 56, self.depth as u32 | (self.flags as u32) << 16);
+        m.write_u32(a + 60, 0);
     }
     pub fn read(m: &SparseMem, a: u64) -> PathRec {
+        let w = m.read_u32(a + 56);
         PathRec {
             throughput: get_vec3(m, a),
             pending: get_vec3(m, a + 12),
             radiance: get_vec3(m, a + 24),
-            depth: m.read_u32(a + 36),
-            rng: m.read_u64(a + 40),
-            flags: m.read_u32(a + 48),
+            dir: get_vec3(m, a + 36),
+            rng: m.read_u64(a + 48),
+            depth: w as u16,
+            flags: (w >> 16) as u16,
         }
     }
 }
@@ -399,6 +414,7 @@ mod tests {
             throughput: Vec3::ONE,
             pending: Vec3::ZERO,
             radiance: Vec3::splat(0.5),
+            dir: Vec3::Y,
             depth: 3,
             rng: 0xDEAD_BEEF_0123_4567,
             flags: 3,

@@ -13,7 +13,7 @@ use super::triangle::Triangle;
 /// (sin x, cos x) for |x| <= ~8 using only IEEE f64 add/mul in a fixed order:
 /// reduce by the nearest multiple of pi/2, then Taylor series to degree 21/22
 /// (|r| <= pi/4, truncation < 1e-20). Deterministic, unlike libm.
-pub(crate) fn sin_cos(x: f64) -> (f64, f64) {
+pub fn sin_cos(x: f64) -> (f64, f64) {
     let half_pi = std::f64::consts::FRAC_PI_2;
     let q = (x / half_pi).round();
     let r = x - q * half_pi;

@@ -1,0 +1,602 @@
+//! The wavefront path tracer over the DRAM image, with dual-streaming traversal in
+//! functional mode (no clock) or the plain reference traversal.
+//!
+//! The workload is the paper's: paths of up to `bounces` (5) hit points, Lambertian
+//! surfaces, a point light. Wavefront 0 holds the primary rays; shading a hit of
+//! depth d emits a shadow ray to the light (any-hit) and, if d + 1 < bounces, a
+//! cosine-weighted bounce ray (closest-hit), so wavefront k + 1 holds the bounce rays
+//! of depth k + 1 and the shadow rays from depth k: at most two rays per pixel per
+//! wavefront. Everything a unit would touch lives in the DRAM image laid out by the
+//! data contract; traffic is counted per stream in 64 B lines.
+
+pub mod output;
+pub mod queues;
+pub mod shade;
+pub mod traverse;
+
+use std::time::Instant;
+
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::accel::{AccelCfg, Bvh, SceneImage, Segmentation};
+use crate::contract::{
+    HitRec, LINE_BYTES, MemoryMap, MemoryMapCfg, PATH_BOUNCE_IN_FLIGHT, PATH_SHADOW_IN_FLIGHT,
+    PathRec, RayRec, SHADOW_BIT, SegEntry, SparseMem, TriRec, lines_touched,
+};
+use crate::scene::Scene;
+use queues::RayQueues;
+use shade::{cosine_sample, facing_normal, next_f32, offset_ray, pixel_seed};
+use traverse::{SegmentView, TraversalCounts, reference_trace, traverse_segment};
+
+/// How rays are traced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Dual streaming, functional: segment queues, duplication, no clock.
+    Functional,
+    /// The plain reference traversal (no streams).
+    Reference,
+}
+
+/// Everything that decides a render besides the scene.
+#[derive(Clone, Debug, Default)]
+pub struct RenderCfg {
+    pub accel: AccelCfg,
+    pub memory: MemoryMapCfg,
+    /// Check every ray's result against the reference traversal.
+    pub verify: bool,
+}
+
+/// Counts of one wavefront (or of a frame, summed).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct WaveStats {
+    pub rays: u64,
+    pub bounce_rays: u64,
+    pub shadow_rays: u64,
+    /// Rays enqueued into any segment, the initial one included.
+    pub enqueues: u64,
+    pub segments_loaded: u64,
+    pub traversal: TraversalCounts,
+    pub ray_lines_read: u64,
+    pub ray_lines_written: u64,
+    pub scene_lines: u64,
+    pub hit_lines_read: u64,
+    pub hit_lines_written: u64,
+    pub shading_lines: u64,
+    pub hits: u64,
+    pub occluded: u64,
+}
+
+impl WaveStats {
+    fn add(&mut self, o: &WaveStats) {
+        self.rays += o.rays;
+        self.bounce_rays += o.bounce_rays;
+        self.shadow_rays += o.shadow_rays;
+        self.enqueues += o.enqueues;
+        self.segments_loaded += o.segments_loaded;
+        self.traversal += o.traversal;
+        self.ray_lines_read += o.ray_lines_read;
+        self.ray_lines_written += o.ray_lines_written;
+        self.scene_lines += o.scene_lines;
+        self.hit_lines_read += o.hit_lines_read;
+        self.hit_lines_written += o.hit_lines_written;
+        self.shading_lines += o.shading_lines;
+        self.hits += o.hits;
+        self.occluded += o.occluded;
+    }
+    /// Enqueues per unique ray (the paper's ray duplication).
+    pub fn duplication(&self) -> f64 {
+        if self.rays == 0 {
+            0.0
+        } else {
+            self.enqueues as f64 / self.rays as f64
+        }
+    }
+    pub fn ray_lines(&self) -> u64 {
+        self.ray_lines_read + self.ray_lines_written
+    }
+    pub fn hit_lines(&self) -> u64 {
+        self.hit_lines_read + self.hit_lines_written
+    }
+    pub fn total_lines(&self) -> u64 {
+        self.ray_lines() + self.scene_lines + self.hit_lines() + self.shading_lines
+    }
+    /// DRAM bytes per ray (the paper's Table 3).
+    pub fn bytes_per_ray(&self) -> f64 {
+        if self.rays == 0 {
+            0.0
+        } else {
+            (self.total_lines() * LINE_BYTES) as f64 / self.rays as f64
+        }
+    }
+}
+
+/// Facts about the acceleration structure.
+#[derive(Clone, Debug, Serialize)]
+pub struct AccelInfo {
+    pub triangles: u64,
+    pub bvh_nodes: u64,
+    pub bvh_depth: u32,
+    pub segments: u64,
+    pub scene_bytes: u64,
+    pub children_min: u64,
+    pub children_mean: f64,
+    pub children_max: u64,
+    pub segment_bytes_mean: f64,
+    pub bvh_build_s: f64,
+    pub segment_build_s: f64,
+}
+
+/// A rendered frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct Frame {
+    pub scene: String,
+    pub mode: Mode,
+    pub width: u32,
+    pub height: u32,
+    #[serde(skip)]
+    pub radiance: Vec<Vec3>,
+    pub accel: AccelInfo,
+    pub waves: Vec<WaveStats>,
+    pub total: WaveStats,
+    pub duplication: f64,
+    pub bytes_per_ray: f64,
+    pub wall_s: f64,
+    pub trace_s: f64,
+    pub verified_rays: u64,
+    pub dram_resident_mb: f64,
+}
+
+/// The scene built for the chip: BVH, segments and the DRAM image.
+pub struct Prepared {
+    pub bvh: Bvh,
+    pub seg: Segmentation,
+    pub map: MemoryMap,
+    pub mem: SparseMem,
+    pub image: SceneImage,
+    pub info: AccelInfo,
+}
+
+/// Builds the BVH and the segments and writes the scene stream into a fresh image.
+pub fn prepare(scene: &Scene, cfg: &RenderCfg) -> Result<Prepared, String> {
+    cfg.memory.validate()?;
+    cfg.accel.validate(cfg.memory.row_bytes)?;
+    let bvh = Bvh::build(&scene.triangles, &cfg.accel.bvh)?;
+    let t0 = Instant::now();
+    let seg = Segmentation::build(&bvh, cfg.accel.segment_bytes)?;
+    let segment_build_s = t0.elapsed().as_secs_f64();
+    let bytes: Vec<u32> = seg.segments.iter().map(|s| s.bytes).collect();
+    let pixels = scene.settings.width as u64 * scene.settings.height as u64;
+    let map = MemoryMap::new(
+        &cfg.memory,
+        &bytes,
+        SceneImage::children_total(&seg),
+        scene.triangles.len() as u64,
+        scene.materials.len() as u64,
+        pixels,
+    )?;
+    let mut mem = SparseMem::new(map.capacity);
+    let image = SceneImage::write(
+        &mut mem,
+        &map,
+        &scene.triangles,
+        &scene.tri_material,
+        &bvh,
+        &seg,
+    );
+    for (i, m) in scene.materials.iter().enumerate() {
+        let a = map.materials + i as u64 * 16;
+        mem.write_f32(a, m.albedo.x);
+        mem.write_f32(a + 4, m.albedo.y);
+        mem.write_f32(a + 8, m.albedo.z);
+    }
+    let kids: Vec<u64> = seg
+        .segments
+        .iter()
+        .map(|s| s.children.len() as u64)
+        .collect();
+    let info = AccelInfo {
+        triangles: scene.triangles.len() as u64,
+        bvh_nodes: bvh.nodes.len() as u64,
+        bvh_depth: bvh.depth,
+        segments: seg.segments.len() as u64,
+        scene_bytes: bytes.iter().map(|&b| b as u64).sum(),
+        children_min: kids.iter().copied().min().unwrap_or(0),
+        children_mean: kids.iter().sum::<u64>() as f64 / kids.len().max(1) as f64,
+        children_max: kids.iter().copied().max().unwrap_or(0),
+        segment_bytes_mean: bytes.iter().map(|&b| b as f64).sum::<f64>()
+            / bytes.len().max(1) as f64,
+        bvh_build_s: bvh.build_time.as_secs_f64(),
+        segment_build_s,
+    };
+    Ok(Prepared {
+        bvh,
+        seg,
+        map,
+        mem,
+        image,
+        info,
+    })
+}
+
+/// Reads and updates a hit record with atomic-min semantics on (t, id).
+fn update_hit(mem: &mut SparseMem, map: &MemoryMap, idx: u64, h: HitRec, st: &mut WaveStats) {
+    let a = map.hit_addr(idx);
+    let cur = HitRec::read(mem, a);
+    st.hit_lines_read += 1;
+    if h.closer_than(&cur) {
+        h.write(mem, a);
+        st.hit_lines_written += 1;
+    }
+}
+
+/// Renders a frame. `progress(done_waves, rays_in_next)` is called per wavefront.
+pub fn render(
+    scene: &Scene,
+    mode: Mode,
+    cfg: &RenderCfg,
+    mut progress: impl FnMut(usize, u64),
+) -> Result<Frame, String> {
+    scene.settings.validate()?;
+    let start = Instant::now();
+    let mut p = prepare(scene, cfg)?;
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    let pixels = w * h;
+    let nseg = p.seg.segments.len();
+    let mut q = RayQueues::new(&p.map, nseg);
+    let root_entry = p.image.root_entry.encode();
+    let mut waves = Vec::new();
+    let mut trace_s = 0.0;
+    let mut verified = 0u64;
+    let mut rays_this_wave: Vec<RayRec> = Vec::new();
+
+    // Ray generation: path state and primary rays into the root segment's queue.
+    let mut st = WaveStats::default();
+    for pix in 0..pixels {
+        let mut rng = pixel_seed(scene.settings.seed, pix);
+        let jitter = (next_f32(&mut rng), next_f32(&mut rng));
+        let (o, d) = scene.camera.ray(pix % w, pix / w, w, h, jitter);
+        let ray = RayRec {
+            origin: o,
+            dir: d,
+            ray_id: pix,
+            entry: root_entry,
+        };
+        emit(
+            &mut p,
+            &mut q,
+            &mut st,
+            &ray,
+            cfg.verify,
+            &mut rays_this_wave,
+        )?;
+        PathRec {
+            throughput: Vec3::ONE,
+            pending: Vec3::ZERO,
+            radiance: Vec3::ZERO,
+            dir: d,
+            rng,
+            depth: 0,
+            flags: PATH_BOUNCE_IN_FLIGHT,
+        }
+        .write(&mut p.mem, p.map.path_addr(pix as u64));
+        st.shading_lines += 1;
+    }
+    let mut work: Vec<u32> = (0..pixels).collect();
+    q.close(&mut p.mem, &p.map, 0);
+
+    while !work.is_empty() {
+        progress(waves.len(), st.rays);
+        let t0 = Instant::now();
+        let (r0, w0) = (q.traffic.lines_read, q.traffic.lines_written);
+        match mode {
+            Mode::Functional => trace_functional(&mut p, &mut q, &mut st)?,
+            Mode::Reference => trace_reference(&mut p, &mut q, scene, &mut st),
+        }
+        trace_s += t0.elapsed().as_secs_f64();
+        if cfg.verify {
+            verified += verify(&p, scene, &rays_this_wave)?;
+        }
+        rays_this_wave.clear();
+        // Shading (produces the next wavefront into the root queue).
+        let mut next_work = Vec::new();
+        let mut next = WaveStats::default();
+        for &pix in &work {
+            shade_pixel(
+                &mut p,
+                &mut q,
+                scene,
+                pix,
+                &mut st,
+                &mut next,
+                cfg.verify,
+                &mut rays_this_wave,
+                &mut next_work,
+            )?;
+        }
+        q.close(&mut p.mem, &p.map, 0);
+        st.ray_lines_read += q.traffic.lines_read - r0;
+        st.ray_lines_written += q.traffic.lines_written - w0;
+        waves.push(st);
+        st = next;
+        work = next_work;
+    }
+    let mut total = WaveStats::default();
+    for wv in &waves {
+        total.add(wv);
+    }
+    let radiance = (0..pixels)
+        .map(|pix| PathRec::read(&p.mem, p.map.path_addr(pix as u64)).radiance)
+        .collect();
+    Ok(Frame {
+        scene: scene.name.clone(),
+        mode,
+        width: w,
+        height: h,
+        radiance,
+        accel: p.info.clone(),
+        duplication: total.duplication(),
+        bytes_per_ray: total.bytes_per_ray(),
+        waves,
+        total,
+        wall_s: start.elapsed().as_secs_f64(),
+        trace_s,
+        verified_rays: verified,
+        dram_resident_mb: p.mem.resident_bytes() as f64 / (1 << 20) as f64,
+    })
+}
+
+/// Puts a new ray into the root segment's queue and resets its hit record.
+fn emit(
+    p: &mut Prepared,
+    q: &mut RayQueues,
+    st: &mut WaveStats,
+    ray: &RayRec,
+    keep: bool,
+    list: &mut Vec<RayRec>,
+) -> Result<(), String> {
+    q.push(&mut p.mem, &p.map, 0, ray)?;
+    HitRec::NONE.write(&mut p.mem, p.map.hit_addr(ray.hit_index()));
+    st.hit_lines_written += 1;
+    st.rays += 1;
+    st.enqueues += 1;
+    if ray.is_shadow() {
+        st.shadow_rays += 1;
+    } else {
+        st.bounce_rays += 1;
+    }
+    if keep {
+        list.push(*ray);
+    }
+    Ok(())
+}
+
+/// Dual streaming, functional: segments in depth-first order, each loaded once if
+/// its queue has rays; every ray of the queue traverses the segment locally and is
+/// duplicated into the queue of each child segment it exits into.
+fn trace_functional(p: &mut Prepared, q: &mut RayQueues, st: &mut WaveStats) -> Result<(), String> {
+    let mut rays = Vec::new();
+    let mut stack = Vec::new();
+    let mut exits: Vec<(u32, u32)> = Vec::new();
+    for s in 0..p.seg.segments.len() as u32 {
+        if q.is_empty(s) {
+            // No rays: the segment and (since rays come only from parents) its whole
+            // subtree are skipped.
+            continue;
+        }
+        let e = SegEntry::read(&p.mem, p.map.seg_entry_addr(s));
+        let view = SegmentView::load(&p.mem, e.base, s, e.nodes, e.tris);
+        st.segments_loaded += 1;
+        st.scene_lines += lines_touched(e.base, e.bytes as u64);
+        while {
+            rays.clear();
+            q.pop_bucket(&p.mem, &p.map, s, &mut rays)
+        } {
+            for ray in &rays {
+                exits.clear();
+                let best =
+                    traverse_segment(&view, ray, &mut stack, &mut st.traversal, |seg, entry| {
+                        exits.push((seg, entry))
+                    });
+                for &(cs, entry) in &exits {
+                    q.push(&mut p.mem, &p.map, cs, &RayRec { entry, ..*ray })?;
+                    st.enqueues += 1;
+                }
+                if best.is_hit() {
+                    update_hit(&mut p.mem, &p.map, ray.hit_index(), best, st);
+                }
+            }
+        }
+        for k in 0..e.child_count {
+            let c = p
+                .mem
+                .read_u32(p.map.child_list + (e.first_child + k) as u64 * 4);
+            q.close(&mut p.mem, &p.map, c);
+        }
+    }
+    Ok(())
+}
+
+/// The reference: every ray of the root queue traced through the whole BVH.
+fn trace_reference(p: &mut Prepared, q: &mut RayQueues, scene: &Scene, st: &mut WaveStats) {
+    let mut rays = Vec::new();
+    while q.pop_bucket(&p.mem, &p.map, 0, &mut rays) {}
+    for ray in &rays {
+        let best = reference_trace(
+            &p.bvh,
+            &scene.triangles,
+            ray.origin,
+            ray.dir,
+            ray.is_shadow(),
+        );
+        if best.is_hit() {
+            update_hit(&mut p.mem, &p.map, ray.hit_index(), best, st);
+        }
+    }
+}
+
+/// Compares every hit record of the wavefront with the reference traversal:
+/// the closest (t, id) for bounce rays, occluded or not for shadow rays.
+fn verify(p: &Prepared, scene: &Scene, rays: &[RayRec]) -> Result<u64, String> {
+    for ray in rays {
+        let got = HitRec::read(&p.mem, p.map.hit_addr(ray.hit_index()));
+        let want = reference_trace(
+            &p.bvh,
+            &scene.triangles,
+            ray.origin,
+            ray.dir,
+            ray.is_shadow(),
+        );
+        let same = if ray.is_shadow() {
+            got.is_hit() == want.is_hit()
+        } else {
+            got.tri_id == want.tri_id && got.t.to_bits() == want.t.to_bits()
+        };
+        if !same {
+            return Err(format!(
+                "ray {:#x} (origin {:?}, dir {:?}): traced {:?}, reference {:?}",
+                ray.ray_id, ray.origin, ray.dir, got, want
+            ));
+        }
+    }
+    Ok(rays.len() as u64)
+}
+
+/// Shades one pixel's rays of the finished wavefront and emits its next rays.
+#[allow(clippy::too_many_arguments)]
+fn shade_pixel(
+    p: &mut Prepared,
+    q: &mut RayQueues,
+    scene: &Scene,
+    pix: u32,
+    st: &mut WaveStats,
+    next: &mut WaveStats,
+    keep: bool,
+    list: &mut Vec<RayRec>,
+    next_work: &mut Vec<u32>,
+) -> Result<(), String> {
+    let pa = p.map.path_addr(pix as u64);
+    let mut path = PathRec::read(&p.mem, pa);
+    st.shading_lines += 1;
+    // The shadow ray from the previous hit: its contribution, if the light is visible.
+    if path.flags & PATH_SHADOW_IN_FLIGHT != 0 {
+        let h = HitRec::read(&p.mem, p.map.hit_addr(pix as u64 * 2 + 1));
+        st.shading_lines += 1;
+        if h.is_hit() {
+            st.occluded += 1;
+        } else {
+            path.radiance += path.pending;
+        }
+        path.pending = Vec3::ZERO;
+        path.flags &= !PATH_SHADOW_IN_FLIGHT;
+    }
+    if path.flags & PATH_BOUNCE_IN_FLIGHT != 0 {
+        path.flags &= !PATH_BOUNCE_IN_FLIGHT;
+        let h = HitRec::read(&p.mem, p.map.hit_addr(pix as u64 * 2));
+        st.shading_lines += 1;
+        if !h.is_hit() {
+            path.radiance += path.throughput * scene.sky;
+        } else {
+            st.hits += 1;
+            let ti = p.mem.read_u32(p.map.tri_index + h.tri_id as u64 * 4);
+            let ta = p.map.scene + ti as u64 * 16;
+            let tri = TriRec::read(&p.mem, ta);
+            let ma = p.map.materials + tri.material as u64 * 16;
+            let albedo = Vec3::new(
+                p.mem.read_f32(ma),
+                p.mem.read_f32(ma + 4),
+                p.mem.read_f32(ma + 8),
+            );
+            st.shading_lines += 1 + lines_touched(ta, 48) + 1;
+            let n = facing_normal(&tri.v, path.dir);
+            // The hit point from the barycentrics, on the triangle's plane (Wächter &
+            // Binder's offset assumes a point computed this way).
+            let hitp = tri.v[0] + (tri.v[1] - tri.v[0]) * h.u + (tri.v[2] - tri.v[0]) * h.v;
+            let o = offset_ray(hitp, n);
+            let to_light = scene.light.position - o;
+            let d2 = to_light.length_squared();
+            let cos = n.dot(to_light) / d2.sqrt();
+            if cos > 0.0 && d2 > 0.0 {
+                path.pending = path.throughput
+                    * albedo
+                    * (std::f32::consts::FRAC_1_PI * cos / d2)
+                    * scene.light.intensity;
+                path.flags |= PATH_SHADOW_IN_FLIGHT;
+                let r = RayRec {
+                    origin: o,
+                    dir: to_light,
+                    ray_id: pix | SHADOW_BIT,
+                    entry: p.image.root_entry.encode(),
+                };
+                emit(p, q, next, &r, keep, list)?;
+            }
+            path.depth += 1;
+            if (path.depth as u32) < scene.settings.bounces {
+                let (u1, u2) = (next_f32(&mut path.rng), next_f32(&mut path.rng));
+                let d = cosine_sample(n, u1, u2);
+                path.throughput *= albedo;
+                path.flags |= PATH_BOUNCE_IN_FLIGHT;
+                let r = RayRec {
+                    origin: o,
+                    dir: d,
+                    ray_id: pix,
+                    entry: p.image.root_entry.encode(),
+                };
+                emit(p, q, next, &r, keep, list)?;
+                path.dir = d;
+            }
+        }
+    }
+    path.write(&mut p.mem, pa);
+    st.shading_lines += 1;
+    if path.flags != 0 {
+        next_work.push(pix);
+    }
+    Ok(())
+}
+
+/// Traces a batch of rays (origin, direction, shadow?) as one wavefront and returns
+/// their hit records, read back from the DRAM image. Ray i gets pixel id i, so the
+/// batch may hold at most one bounce and one shadow ray per index (tests use it to
+/// aim rays at shared edges and vertices).
+pub fn trace_rays(
+    scene: &Scene,
+    cfg: &RenderCfg,
+    mode: Mode,
+    rays: &[(Vec3, Vec3, bool)],
+) -> Result<(Vec<HitRec>, WaveStats), String> {
+    let mut sc = scene.clone();
+    // Room for one hit-record pair per ray.
+    sc.settings.width = rays.len().max(1) as u32;
+    sc.settings.height = 1;
+    let mut p = prepare(&sc, cfg)?;
+    let mut q = RayQueues::new(&p.map, p.seg.segments.len());
+    let mut st = WaveStats::default();
+    let root = p.image.root_entry.encode();
+    let recs: Vec<RayRec> = rays
+        .iter()
+        .enumerate()
+        .map(|(i, &(o, d, sh))| RayRec {
+            origin: o,
+            dir: d,
+            ray_id: i as u32 | if sh { SHADOW_BIT } else { 0 },
+            entry: root,
+        })
+        .collect();
+    let mut unused = Vec::new();
+    for r in &recs {
+        emit(&mut p, &mut q, &mut st, r, false, &mut unused)?;
+    }
+    q.close(&mut p.mem, &p.map, 0);
+    match mode {
+        Mode::Functional => trace_functional(&mut p, &mut q, &mut st)?,
+        Mode::Reference => trace_reference(&mut p, &mut q, &sc, &mut st),
+    }
+    Ok((
+        recs.iter()
+            .map(|r| HitRec::read(&p.mem, p.map.hit_addr(r.hit_index())))
+            .collect(),
+        st,
+    ))
+}

@@ -1,0 +1,135 @@
+//! What a render gives the user: the PNG, the Table-2-style summary, the JSON.
+
+use std::path::Path;
+
+use super::Frame;
+
+/// Display transform: clamp to [0, 1] and encode with the sRGB curve.
+fn encode(x: f32) -> u8 {
+    let x = if x.is_finite() {
+        x.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let s = if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}
+
+pub fn write_png(frame: &Frame, path: &Path) -> Result<(), String> {
+    let mut buf = Vec::with_capacity(frame.radiance.len() * 3);
+    for c in &frame.radiance {
+        buf.extend_from_slice(&[encode(c.x), encode(c.y), encode(c.z)]);
+    }
+    image::save_buffer(
+        path,
+        &buf,
+        frame.width,
+        frame.height,
+        image::ColorType::Rgb8,
+    )
+    .map_err(|e| {
+        format!(
+            "cannot write the image '{}': {e}; choose a writable --out",
+            path.display()
+        )
+    })
+}
+
+pub fn write_json(frame: &Frame, path: &Path) -> Result<(), String> {
+    let text = serde_json::to_string_pretty(frame).expect("stats serialise");
+    std::fs::write(path, text).map_err(|e| {
+        format!(
+            "cannot write the statistics '{}': {e}; choose a writable --stats",
+            path.display()
+        )
+    })
+}
+
+fn m(x: u64) -> String {
+    format!("{:.3}", x as f64 / 1e6)
+}
+
+/// The paper's Table 2 rows that functional mode can give (no time or energy yet).
+pub fn summary(f: &Frame) -> String {
+    let t = &f.total;
+    let mut s = String::new();
+    s += &format!(
+        "scene {} ({} triangles), {}x{}, mode {:?}\n",
+        f.scene, f.accel.triangles, f.width, f.height, f.mode
+    );
+    s += &format!(
+        "  BVH: {} nodes, depth {}, built in {:.2} s; {} segments ({:.1} KB mean), children per segment min/mean/max {}/{:.1}/{}\n",
+        f.accel.bvh_nodes,
+        f.accel.bvh_depth,
+        f.accel.bvh_build_s,
+        f.accel.segments,
+        f.accel.segment_bytes_mean / 1024.0,
+        f.accel.children_min,
+        f.accel.children_mean,
+        f.accel.children_max
+    );
+    s += &format!("  wavefronts {}\n", f.waves.len());
+    s += &format!("  {:<34} {:>12}\n", "rays traced (M)", m(t.rays));
+    s += &format!(
+        "  {:<34} {:>12}\n",
+        "  of which shadow rays (M)",
+        m(t.shadow_rays)
+    );
+    s += &format!("  {:<34} {:>12.2}\n", "ray duplication", f.duplication);
+    s += &format!(
+        "  {:<34} {:>12}\n",
+        "$ lines transferred (M)",
+        m(t.total_lines())
+    );
+    s += &format!(
+        "  {:<34} {:>12}\n",
+        "  ray stream $ lines (M)",
+        m(t.ray_lines())
+    );
+    s += &format!(
+        "  {:<34} {:>12}\n",
+        "  scene stream $ lines (M)",
+        m(t.scene_lines)
+    );
+    s += &format!(
+        "  {:<34} {:>12}\n",
+        "  shading $ lines (M)",
+        m(t.shading_lines)
+    );
+    s += &format!(
+        "  {:<34} {:>12}\n",
+        "  hit record $ lines (M)",
+        m(t.hit_lines())
+    );
+    s += &format!("  {:<34} {:>12.1}\n", "DRAM bytes per ray", f.bytes_per_ray);
+    s += &format!("  {:<34} {:>12}\n", "segments loaded", t.segments_loaded);
+    s += &format!(
+        "  {:<34} {:>12}\n",
+        "box tests (M)",
+        m(t.traversal.box_tests)
+    );
+    s += &format!(
+        "  {:<34} {:>12}\n",
+        "triangle tests (M)",
+        m(t.traversal.tri_tests)
+    );
+    s += &format!(
+        "  {:<34} {:>12}\n",
+        "max traversal stack (entries)", t.traversal.max_stack
+    );
+    s += &format!(
+        "  wall {:.2} s (tracing {:.2} s), DRAM image {:.1} MB resident\n",
+        f.wall_s, f.trace_s, f.dram_resident_mb
+    );
+    if f.verified_rays > 0 {
+        s += &format!(
+            "  verified: all {} rays agree with the reference traversal\n",
+            f.verified_rays
+        );
+    }
+    s
+}

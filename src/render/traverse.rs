@@ -1,0 +1,212 @@
+//! Traversal kernels: the segment-local traversal that dual streaming runs (on a
+//! segment as loaded into the scene buffer) and the plain reference traversal of
+//! the whole BVH that judges every other mode.
+//!
+//! Both use the same box and triangle functions and the same culling rule, so the
+//! closest hit by (t, triangle id) is found exactly, ties included.
+
+use glam::Vec3;
+
+use crate::accel::{Bvh, Child};
+use crate::contract::{
+    HitRec, NODE_BYTES, NodeRec, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, SparseMem, TRI_BYTES,
+    TriRec,
+};
+use crate::geom::{Aabb, Triangle, inverse_dir, ray_box, ray_triangle};
+
+/// Boxes and segment exits are culled only beyond this distance from the best hit
+/// so far. The box test may place a box's entry a few ulps after a hit on a triangle
+/// inside it (independent roundings), and a tie on a shared edge must still reach
+/// the triangle with the smaller id, so culling keeps a margin of 2^-16 relative
+/// (triangle tests themselves use the exact best t, inclusively).
+#[inline]
+pub fn cull(t: f32) -> f32 {
+    t * (1.0 + 1.0 / 65536.0)
+}
+
+/// Work done by a traversal.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct TraversalCounts {
+    pub nodes: u64,
+    pub box_tests: u64,
+    pub tri_tests: u64,
+    pub exits: u64,
+    pub max_stack: u64,
+}
+
+impl std::ops::AddAssign for TraversalCounts {
+    fn add_assign(&mut self, o: Self) {
+        self.nodes += o.nodes;
+        self.box_tests += o.box_tests;
+        self.tri_tests += o.tri_tests;
+        self.exits += o.exits;
+        self.max_stack = self.max_stack.max(o.max_stack);
+    }
+}
+
+/// A segment as held in the scene buffer: its records, decoded.
+pub struct SegmentView {
+    pub id: u32,
+    pub nodes: Vec<NodeRec>,
+    pub tris: Vec<TriRec>,
+}
+
+impl SegmentView {
+    /// Reads a whole segment from the DRAM image (the scene stream).
+    pub fn load(mem: &SparseMem, base: u64, id: u32, nodes: u32, tris: u32) -> SegmentView {
+        let na = base + SEGMENT_HEADER_BYTES as u64;
+        let ta = na + nodes as u64 * NODE_BYTES as u64;
+        SegmentView {
+            id,
+            nodes: (0..nodes)
+                .map(|k| NodeRec::read(mem, na + k as u64 * NODE_BYTES as u64))
+                .collect(),
+            tris: (0..tris)
+                .map(|k| TriRec::read(mem, ta + k as u64 * TRI_BYTES as u64))
+                .collect(),
+        }
+    }
+}
+
+/// Traverses one ray through one segment. The stack holds (reference, segment or
+/// `SEG_SAME`, entry distance); an entry with a segment is an exit.
+/// from `entry`: returns the best hit found
+/// here (local early termination: nothing farther is visited or enqueued) and calls
+/// `exit(segment, entry)` for every exit into a child segment that is not culled,
+/// in discovery order. A shadow ray stops at its first hit.
+pub fn traverse_segment(
+    seg: &SegmentView,
+    ray: &RayRec,
+    stack: &mut Vec<(u32, u32, f32)>,
+    counts: &mut TraversalCounts,
+    mut exit: impl FnMut(u32, u32),
+) -> HitRec {
+    let (origin, dir, shadow, entry) = (ray.origin, ray.dir, ray.is_shadow(), ray.entry);
+    let inv = inverse_dir(dir);
+    let t_ray = ray.t_max();
+    let mut best = HitRec::NONE;
+    stack.clear();
+    stack.push((entry, SEG_SAME, 0.0));
+    while let Some((r, s, te)) = stack.pop() {
+        let limit = best.t.min(t_ray);
+        if te > cull(limit) {
+            continue;
+        }
+        if s != SEG_SAME {
+            counts.exits += 1;
+            exit(s, r);
+            continue;
+        }
+        match Ref::decode(r) {
+            Ref::Leaf { first, count } => {
+                for k in first..first + count {
+                    let tr = &seg.tris[k as usize];
+                    counts.tri_tests += 1;
+                    let tri = Triangle {
+                        v0: tr.v[0],
+                        v1: tr.v[1],
+                        v2: tr.v[2],
+                    };
+                    if let Some(h) = ray_triangle(origin, dir, 0.0, best.t.min(t_ray), &tri) {
+                        let cand = HitRec {
+                            t: h.t,
+                            tri_id: tr.tri_id,
+                            u: h.u,
+                            v: h.v,
+                        };
+                        if cand.closer_than(&best) {
+                            best = cand;
+                        }
+                        if shadow {
+                            return best;
+                        }
+                    }
+                }
+            }
+            Ref::Node(i) => {
+                counts.nodes += 1;
+                let n = &seg.nodes[i as usize];
+                let lim = cull(best.t.min(t_ray));
+                counts.box_tests += 2;
+                let hit = [0, 1].map(|side| {
+                    let b = Aabb {
+                        min: n.bmin[side],
+                        max: n.bmax[side],
+                    };
+                    ray_box(origin, inv, 0.0, lim, &b)
+                });
+                // Push the far child first so the near one is visited first.
+                let order = match (hit[0], hit[1]) {
+                    (Some(a), Some(b)) if b < a => [0, 1],
+                    _ => [1, 0],
+                };
+                for side in order {
+                    if let Some(t) = hit[side] {
+                        stack.push((n.child[side], n.seg[side], t));
+                    }
+                }
+                counts.max_stack = counts.max_stack.max(stack.len() as u64);
+            }
+            Ref::None => {}
+        }
+    }
+    best
+}
+
+/// The reference: a plain stack traversal of the whole BVH. Closest hit by
+/// (t, id) for a bounce ray; for a shadow ray, whether anything lies in t in [0, 1].
+pub fn reference_trace(
+    bvh: &Bvh,
+    tris: &[Triangle],
+    origin: Vec3,
+    dir: Vec3,
+    shadow: bool,
+) -> HitRec {
+    let inv = inverse_dir(dir);
+    let t_ray = if shadow { 1.0 } else { f32::INFINITY };
+    let mut best = HitRec::NONE;
+    let mut stack: Vec<(Child, f32)> = vec![(bvh.root, 0.0)];
+    while let Some((c, te)) = stack.pop() {
+        if te > cull(best.t.min(t_ray)) {
+            continue;
+        }
+        match c {
+            Child::Leaf { first, count } => {
+                for &id in &bvh.tri_order[first as usize..(first + count) as usize] {
+                    if let Some(h) =
+                        ray_triangle(origin, dir, 0.0, best.t.min(t_ray), &tris[id as usize])
+                    {
+                        let cand = HitRec {
+                            t: h.t,
+                            tri_id: id,
+                            u: h.u,
+                            v: h.v,
+                        };
+                        if cand.closer_than(&best) {
+                            best = cand;
+                        }
+                        if shadow {
+                            return best;
+                        }
+                    }
+                }
+            }
+            Child::Inner(i) => {
+                let n = &bvh.nodes[i as usize];
+                let lim = cull(best.t.min(t_ray));
+                let h0 = ray_box(origin, inv, 0.0, lim, &n.child_bounds[0]);
+                let h1 = ray_box(origin, inv, 0.0, lim, &n.child_bounds[1]);
+                let order = match (h0, h1) {
+                    (Some(a), Some(b)) if b < a => [0, 1],
+                    _ => [1, 0],
+                };
+                for side in order {
+                    if let Some(t) = [h0, h1][side] {
+                        stack.push((n.children[side], t));
+                    }
+                }
+            }
+        }
+    }
+    best
+}
