@@ -84,6 +84,9 @@ enum Cmd {
         /// Check every ray against the reference traversal.
         #[arg(long)]
         verify: bool,
+        /// Write each wavefront's rays and hit records into this directory.
+        #[arg(long)]
+        dump_rays: Option<PathBuf>,
     },
     /// Scene tools.
     Scene {
@@ -134,6 +137,7 @@ fn render_cfg(config: &Config) -> dualstream::render::RenderCfg {
         accel: config.accel.clone(),
         memory: config.memory.clone(),
         verify: false,
+        dump_rays: None,
     }
 }
 
@@ -212,6 +216,7 @@ fn run(cli: Cli) -> Result<(), String> {
             out,
             stats,
             verify,
+            dump_rays,
         } => {
             use dualstream::render::{self, Mode, output};
             let mode = match mode.as_str() {
@@ -251,14 +256,24 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             let mut rc = render_cfg(&config);
             rc.verify = verify;
-            let start = std::time::Instant::now();
-            let frame = render::render(&sc, mode, &rc, |wave, rays| {
-                eprint!(
-                    "\rwavefront {wave}: {rays} rays, {:.1} s elapsed   ",
-                    start.elapsed().as_secs_f64()
-                );
+            rc.dump_rays = dump_rays;
+            let bar = indicatif::ProgressBar::new((sc.settings.bounces as u64 + 1) * 1000);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{elapsed_precise} [{bar:40}] {msg} (ETA {eta})",
+                )
+                .expect("valid template")
+                .progress_chars("=> "),
+            );
+            let frame = render::render(&sc, mode, &rc, &mut |p: &render::Progress| {
+                let frac = (p.done * 1000).checked_div(p.known).unwrap_or(0);
+                bar.set_position(p.wave as u64 * 1000 + frac);
+                bar.set_message(format!(
+                    "wavefront {}/{}: {} rays",
+                    p.wave, p.waves_max, p.rays
+                ));
             })?;
-            eprintln!();
+            bar.finish_and_clear();
             output::write_png(&frame, &out)?;
             print!("{}", output::summary(&frame));
             println!("image: {}", out.display());

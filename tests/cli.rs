@@ -268,3 +268,35 @@ fn scene_info_prints_the_structure() {
         assert!(out.contains(k), "{out}");
     }
 }
+
+#[test]
+fn dump_rays_writes_each_wavefront() {
+    let dir = tmp("dump");
+    let _ = std::fs::remove_dir_all(&dir);
+    let o = run(&[
+        "render",
+        "--scene",
+        "tiny",
+        "--res",
+        "8x8",
+        "--out",
+        tmp("d.png").to_str().unwrap(),
+        "--dump-rays",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rays = std::fs::read(dir.join("wave0_rays.bin")).unwrap();
+    let hits = std::fs::read(dir.join("wave0_hits.bin")).unwrap();
+    assert_eq!(
+        rays.len(),
+        64 * 32,
+        "wavefront 0: one primary ray per pixel"
+    );
+    assert_eq!(hits.len(), 64 * 16);
+    // Ray 5's id is pixel 5, a bounce ray.
+    assert_eq!(
+        u32::from_le_bytes(rays[5 * 32 + 24..5 * 32 + 28].try_into().unwrap()),
+        5
+    );
+    assert!(dir.join("wave1_rays.bin").exists());
+}

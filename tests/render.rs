@@ -34,7 +34,7 @@ fn cfg(segment_kb: u32) -> RenderCfg {
 fn functional_agrees_with_reference_on_every_ray_and_pixel() {
     for (name, res, kb) in [("tiny", 32, 8), ("cornell", 48, 8), ("cornell", 32, 64)] {
         let s = small(name, res);
-        let f = render(&s, Mode::Functional, &cfg(kb), |_, _| {}).unwrap();
+        let f = render(&s, Mode::Functional, &cfg(kb), &mut |_| {}).unwrap();
         assert!(
             f.verified_rays > (res * res) as u64,
             "every wavefront verified"
@@ -50,7 +50,7 @@ fn functional_agrees_with_reference_on_every_ray_and_pixel() {
                 verify: false,
                 ..cfg(kb)
             },
-            |_, _| {},
+            &mut |_| {},
         )
         .unwrap();
         // Same hits, same shading: the images are identical to the bit.
@@ -91,13 +91,13 @@ fn functional_agrees_with_reference_on_every_ray_and_pixel() {
 #[test]
 fn same_seed_same_image_and_statistics() {
     let s = small("cornell", 24);
-    let a = render(&s, Mode::Functional, &cfg(8), |_, _| {}).unwrap();
-    let b = render(&s, Mode::Functional, &cfg(8), |_, _| {}).unwrap();
+    let a = render(&s, Mode::Functional, &cfg(8), &mut |_| {}).unwrap();
+    let b = render(&s, Mode::Functional, &cfg(8), &mut |_| {}).unwrap();
     assert_eq!(a.radiance, b.radiance);
     assert_eq!(a.waves, b.waves);
     let mut s2 = s.clone();
     s2.settings.seed = 99;
-    let c = render(&s2, Mode::Functional, &cfg(8), |_, _| {}).unwrap();
+    let c = render(&s2, Mode::Functional, &cfg(8), &mut |_| {}).unwrap();
     assert_ne!(a.radiance, c.radiance);
 }
 
@@ -148,19 +148,19 @@ fn bad_input_is_named() {
     let mut s = small("tiny", 8);
     s.settings.width = 0;
     assert!(
-        render(&s, Mode::Functional, &cfg(8), |_, _| {})
+        render(&s, Mode::Functional, &cfg(8), &mut |_| {})
             .unwrap_err()
             .contains("width")
     );
     let mut s = small("tiny", 8);
     s.settings.bounces = 17;
     assert!(
-        render(&s, Mode::Functional, &cfg(8), |_, _| {})
+        render(&s, Mode::Functional, &cfg(8), &mut |_| {})
             .unwrap_err()
             .contains("bounces")
     );
     let s = small("tiny", 8);
-    let e = render(&s, Mode::Functional, &cfg(3), |_, _| {}).unwrap_err();
+    let e = render(&s, Mode::Functional, &cfg(3), &mut |_| {}).unwrap_err();
     assert!(e.contains("multiple of the DRAM row"), "{e}");
     // A pool of one row runs dry: a clear error, not a hang or a crash.
     let rc = RenderCfg {
@@ -171,7 +171,7 @@ fn bad_input_is_named() {
         ..cfg(8)
     };
     let s = small("cornell", 32);
-    let e = render(&s, Mode::Functional, &rc, |_, _| {}).unwrap_err();
+    let e = render(&s, Mode::Functional, &rc, &mut |_| {}).unwrap_err();
     assert!(
         e.contains("ran dry") && e.contains("bucket_pool_bytes"),
         "{e}"
@@ -184,7 +184,7 @@ fn bad_input_is_named() {
         },
         ..cfg(8)
     };
-    let e = render(&s, Mode::Functional, &rc, |_, _| {}).unwrap_err();
+    let e = render(&s, Mode::Functional, &rc, &mut |_| {}).unwrap_err();
     assert!(e.contains("more than the configured DRAM"), "{e}");
     let _ = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
 }

@@ -46,6 +46,21 @@ pub struct RenderCfg {
     pub memory: MemoryMapCfg,
     /// Check every ray's result against the reference traversal.
     pub verify: bool,
+    /// Write each wavefront's rays and hit records here (see the data contract).
+    pub dump_rays: Option<std::path::PathBuf>,
+}
+
+/// Where a render is, for progress reporting.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    pub wave: usize,
+    /// Upper bound on wavefronts (hit points per path + 1).
+    pub waves_max: usize,
+    /// Rays of this wavefront (unique).
+    pub rays: u64,
+    /// Ray-segment traversals done and known so far in this wavefront.
+    pub done: u64,
+    pub known: u64,
 }
 
 /// Counts of one wavefront (or of a frame, summed).
@@ -231,12 +246,12 @@ fn update_hit(mem: &mut SparseMem, map: &MemoryMap, idx: u64, h: HitRec, st: &mu
     }
 }
 
-/// Renders a frame. `progress(done_waves, rays_in_next)` is called per wavefront.
+/// Renders a frame; `progress` is called after each bucket of rays.
 pub fn render(
     scene: &Scene,
     mode: Mode,
     cfg: &RenderCfg,
-    mut progress: impl FnMut(usize, u64),
+    progress: &mut dyn FnMut(&Progress),
 ) -> Result<Frame, String> {
     scene.settings.validate()?;
     let start = Instant::now();
@@ -250,6 +265,15 @@ pub fn render(
     let mut trace_s = 0.0;
     let mut verified = 0u64;
     let mut rays_this_wave: Vec<RayRec> = Vec::new();
+    let keep = cfg.verify || cfg.dump_rays.is_some();
+    if let Some(dir) = &cfg.dump_rays {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            format!(
+                "cannot create '{}': {e}; choose a writable --dump-rays directory",
+                dir.display()
+            )
+        })?;
+    }
 
     // Ray generation: path state and primary rays into the root segment's queue.
     let mut st = WaveStats::default();
@@ -263,14 +287,7 @@ pub fn render(
             ray_id: pix,
             entry: root_entry,
         };
-        emit(
-            &mut p,
-            &mut q,
-            &mut st,
-            &ray,
-            cfg.verify,
-            &mut rays_this_wave,
-        )?;
+        emit(&mut p, &mut q, &mut st, &ray, keep, &mut rays_this_wave)?;
         PathRec {
             throughput: Vec3::ONE,
             pending: Vec3::ZERO,
@@ -287,16 +304,30 @@ pub fn render(
     q.close(&mut p.mem, &p.map, 0);
 
     while !work.is_empty() {
-        progress(waves.len(), st.rays);
+        let mut prog = Progress {
+            wave: waves.len(),
+            waves_max: scene.settings.bounces as usize + 1,
+            rays: st.rays,
+            done: 0,
+            known: st.enqueues,
+        };
+        progress(&prog);
         let t0 = Instant::now();
         let (r0, w0) = (q.traffic.lines_read, q.traffic.lines_written);
         match mode {
-            Mode::Functional => trace_functional(&mut p, &mut q, &mut st)?,
+            Mode::Functional => trace_functional(&mut p, &mut q, &mut st, &mut |done, known| {
+                prog.done = done;
+                prog.known = known;
+                progress(&prog)
+            })?,
             Mode::Reference => trace_reference(&mut p, &mut q, scene, &mut st),
         }
         trace_s += t0.elapsed().as_secs_f64();
         if cfg.verify {
             verified += verify(&p, scene, &rays_this_wave)?;
+        }
+        if let Some(dir) = &cfg.dump_rays {
+            dump(dir, waves.len(), &p, &rays_this_wave)?;
         }
         rays_this_wave.clear();
         // Shading (produces the next wavefront into the root queue).
@@ -310,7 +341,7 @@ pub fn render(
                 pix,
                 &mut st,
                 &mut next,
-                cfg.verify,
+                keep,
                 &mut rays_this_wave,
                 &mut next_work,
             )?;
@@ -375,7 +406,13 @@ fn emit(
 /// Dual streaming, functional: segments in depth-first order, each loaded once if
 /// its queue has rays; every ray of the queue traverses the segment locally and is
 /// duplicated into the queue of each child segment it exits into.
-fn trace_functional(p: &mut Prepared, q: &mut RayQueues, st: &mut WaveStats) -> Result<(), String> {
+fn trace_functional(
+    p: &mut Prepared,
+    q: &mut RayQueues,
+    st: &mut WaveStats,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<(), String> {
+    let mut done = 0u64;
     let mut rays = Vec::new();
     let mut stack = Vec::new();
     let mut exits: Vec<(u32, u32)> = Vec::new();
@@ -407,6 +444,8 @@ fn trace_functional(p: &mut Prepared, q: &mut RayQueues, st: &mut WaveStats) -> 
                     update_hit(&mut p.mem, &p.map, ray.hit_index(), best, st);
                 }
             }
+            done += rays.len() as u64;
+            progress(done, st.enqueues);
         }
         for k in 0..e.child_count {
             let c = p
@@ -590,7 +629,7 @@ pub fn trace_rays(
     }
     q.close(&mut p.mem, &p.map, 0);
     match mode {
-        Mode::Functional => trace_functional(&mut p, &mut q, &mut st)?,
+        Mode::Functional => trace_functional(&mut p, &mut q, &mut st, &mut |_, _| {})?,
         Mode::Reference => trace_reference(&mut p, &mut q, &sc, &mut st),
     }
     Ok((
@@ -599,4 +638,34 @@ pub fn trace_rays(
             .collect(),
         st,
     ))
+}
+
+/// Writes a wavefront's rays (32 B ray records) and their hit records (16 B), in the
+/// same order, as `wave<k>_rays.bin` and `wave<k>_hits.bin` (data contract layouts).
+fn dump(dir: &std::path::Path, wave: usize, p: &Prepared, rays: &[RayRec]) -> Result<(), String> {
+    let mut rb = Vec::with_capacity(rays.len() * 32);
+    let mut hb = Vec::with_capacity(rays.len() * 16);
+    for r in rays {
+        for f in [
+            r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z,
+        ] {
+            rb.extend_from_slice(&f.to_le_bytes());
+        }
+        rb.extend_from_slice(&r.ray_id.to_le_bytes());
+        rb.extend_from_slice(&r.entry.to_le_bytes());
+        let h = HitRec::read(&p.mem, p.map.hit_addr(r.hit_index()));
+        hb.extend_from_slice(&h.t.to_le_bytes());
+        hb.extend_from_slice(&h.tri_id.to_le_bytes());
+        hb.extend_from_slice(&h.u.to_le_bytes());
+        hb.extend_from_slice(&h.v.to_le_bytes());
+    }
+    for (name, bytes) in [
+        (format!("wave{wave}_rays.bin"), rb),
+        (format!("wave{wave}_hits.bin"), hb),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes)
+            .map_err(|e| format!("cannot write '{}': {e}", path.display()))?;
+    }
+    Ok(())
 }
