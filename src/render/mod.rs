@@ -462,12 +462,13 @@ fn trace_reference(p: &mut Prepared, q: &mut RayQueues, scene: &Scene, st: &mut 
     let mut rays = Vec::new();
     while q.pop_bucket(&p.mem, &p.map, 0, &mut rays) {}
     for ray in &rays {
-        let best = reference_trace(
+        let best = traverse::reference_trace_counted(
             &p.bvh,
             &scene.triangles,
             ray.origin,
             ray.dir,
             ray.is_shadow(),
+            &mut st.traversal,
         );
         if best.is_hit() {
             update_hit(&mut p.mem, &p.map, ray.hit_index(), best, st);

@@ -162,6 +162,25 @@ pub fn reference_trace(
     dir: Vec3,
     shadow: bool,
 ) -> HitRec {
+    reference_trace_counted(
+        bvh,
+        tris,
+        origin,
+        dir,
+        shadow,
+        &mut TraversalCounts::default(),
+    )
+}
+
+/// [`reference_trace`], counting its work.
+pub fn reference_trace_counted(
+    bvh: &Bvh,
+    tris: &[Triangle],
+    origin: Vec3,
+    dir: Vec3,
+    shadow: bool,
+    counts: &mut TraversalCounts,
+) -> HitRec {
     let inv = inverse_dir(dir);
     let t_ray = if shadow { 1.0 } else { f32::INFINITY };
     let mut best = HitRec::NONE;
@@ -173,6 +192,7 @@ pub fn reference_trace(
         match c {
             Child::Leaf { first, count } => {
                 for &id in &bvh.tri_order[first as usize..(first + count) as usize] {
+                    counts.tri_tests += 1;
                     if let Some(h) =
                         ray_triangle(origin, dir, 0.0, best.t.min(t_ray), &tris[id as usize])
                     {
@@ -193,6 +213,8 @@ pub fn reference_trace(
             }
             Child::Inner(i) => {
                 let n = &bvh.nodes[i as usize];
+                counts.nodes += 1;
+                counts.box_tests += 2;
                 let lim = cull(best.t.min(t_ray));
                 let h0 = ray_box(origin, inv, 0.0, lim, &n.child_bounds[0]);
                 let h1 = ray_box(origin, inv, 0.0, lim, &n.child_bounds[1]);
