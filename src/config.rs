@@ -72,6 +72,8 @@ pub struct Config {
     /// cycles: interval 3, and the last component is done 16 + 2 = 18 cycles after
     /// the first was accepted.
     pub divider: PipeCfg,
+    /// The GDDR5 memory system (geometry, timing, mapping, controller, energy).
+    pub mem: crate::mem::MemCfg,
 }
 
 impl Default for Config {
@@ -91,6 +93,7 @@ impl Default for Config {
                 latency: 18,
                 interval: 3,
             },
+            mem: crate::mem::MemCfg::default(),
         }
     }
 }
@@ -130,6 +133,7 @@ impl Config {
         ] {
             validate_pipe(name, p, &self.links.tm)?;
         }
+        self.mem.validate()?;
         Ok(())
     }
 }

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod config;
 pub mod geom;
+pub mod mem;
 pub mod rtl;
 #[path = "../testbench/mod.rs"]
 pub mod testbench;
