@@ -625,6 +625,18 @@ impl MemCfg {
         self.ctrl.validate()?;
         self.energy.validate()?;
         super::map::AddrMap::new(&self.geometry, &self.mapping)?;
+        if self.ctrl.resp_link.delay > self.timing.cwl {
+            return Err(format!(
+                "mem.ctrl.resp_link.delay = {} exceeds CWL = {}; the response register would be loaded before the data ends, so use a delay <= CWL",
+                self.ctrl.resp_link.delay, self.timing.cwl
+            ));
+        }
+        if self.geometry.banks() > 64 {
+            return Err(format!(
+                "mem.geometry: {} banks per channel; at most 64 are supported (bank masks)",
+                self.geometry.banks()
+            ));
+        }
         Ok(())
     }
 }

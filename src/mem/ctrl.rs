@@ -582,7 +582,7 @@ impl State for ChannelCtrl {
         let (rb, wb, pb) = self.queue_bits();
         out.items.push(StateDecl::reg("rd_count", rb));
         out.items.push(StateDecl::reg("wr_count", wb));
-        out.items.push(StateDecl::reg("resp_count", pb));
+        out.items.push(StateDecl::reg("done_count", pb));
         out.items.push(StateDecl::reg("write_drain", 1));
         out.items.push(StateDecl::reg("refresh_pending", 1));
         let mut cmd = StateDecl::reg("cmd", DramCmd::BITS);
@@ -603,7 +603,7 @@ impl State for ChannelCtrl {
             self.wq_cap as u32,
         ));
         out.items.push(StateDecl::array(
-            "resp_buf",
+            "done_buf",
             MemResp::BITS,
             self.resp_cap as u32,
         ));

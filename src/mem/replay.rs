@@ -26,6 +26,8 @@ pub struct ReplayOptions {
 pub struct Replayed {
     pub report: MemReport,
     pub commands: Vec<Vec<super::Command>>,
+    /// With `check`: (request index, cycle its data ended), in completion order.
+    pub completions: Vec<(u32, u64)>,
 }
 
 /// Replays `reqs` on the memory of `cfg` (validated) with DRAM clock `tck_ps`.
@@ -53,9 +55,14 @@ pub fn replay(
     let mut c = 0u64;
     let mut i = 0usize;
     let mut last = 0u64;
+    let mut completions = Vec::new();
     loop {
         for ch in chans.iter_mut() {
-            while ch.pop_response(c, c).is_some() {}
+            while let Some(r) = ch.pop_response(c, c) {
+                if opts.check {
+                    completions.push((r.id, c));
+                }
+            }
         }
         let target = (i < reqs.len() && reqs[i].cycle <= c).then(|| chan_of[i]);
         for (k, ch) in chans.iter_mut().enumerate() {
@@ -125,5 +132,9 @@ pub fn replay(
         }
         report.violations = Some(v);
     }
-    Ok(Replayed { report, commands })
+    Ok(Replayed {
+        report,
+        commands,
+        completions,
+    })
 }
