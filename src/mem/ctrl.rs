@@ -346,44 +346,55 @@ impl ChannelCtrl {
         }
         let writes = self.drain || (self.rq.is_empty() && !self.wq.is_empty());
         let q = if writes { &self.wq } else { &self.rq };
+        // Per bank, once: its open row and when its next command may go (the
+        // column command if open, else ACT). The PRE time is asked only for a
+        // conflict.
+        let nb = self.nbanks as usize;
+        let mut open = [u32::MAX; 64];
+        let mut ready = [0u64; 64];
+        for b in 0..nb {
+            match t.open_row(b as u32) {
+                Some(r) => {
+                    open[b] = r;
+                    ready[b] = t.earliest_col(b as u32, writes);
+                }
+                None => ready[b] = t.earliest_act(b as u32),
+            }
+        }
         // Banks whose open row some request of the served queue still hits.
         let mut hit_banks = 0u64;
         for e in q {
-            if t.open_row(e.bank) == Some(e.row) {
+            if open[e.bank as usize] == e.row {
                 hit_banks |= 1 << e.bank;
             }
         }
         let resp_full = self.resp.len() >= self.resp_cap;
         let mut other: Option<Choice> = None;
         for (i, e) in q.iter().enumerate() {
-            match t.open_row(e.bank) {
-                Some(r) if r == e.row => {
-                    if resp_full && e.bursts_done + 1 == self.bursts_per_line {
-                        continue; // woken by the next pop_response
-                    }
-                    let x = t.earliest_col(e.bank, writes);
-                    if x <= c {
-                        return Ok(Choice::Col(i));
-                    }
+            let b = e.bank as usize;
+            if open[b] == e.row {
+                if resp_full && e.bursts_done + 1 == self.bursts_per_line {
+                    continue; // woken by the next pop_response
+                }
+                if ready[b] <= c {
+                    return Ok(Choice::Col(i));
+                }
+                wake = wake.min(ready[b]);
+            } else if other.is_some() {
+                continue;
+            } else if open[b] == u32::MAX {
+                if ready[b] <= c {
+                    other = Some(Choice::Act(i));
+                } else {
+                    wake = wake.min(ready[b]);
+                }
+            } else if hit_banks & (1 << b) == 0 {
+                let x = t.earliest_pre(b as u32);
+                if x <= c {
+                    other = Some(Choice::Pre(i));
+                } else {
                     wake = wake.min(x);
                 }
-                None if other.is_none() => {
-                    let x = t.earliest_act(e.bank);
-                    if x <= c {
-                        other = Some(Choice::Act(i));
-                    } else {
-                        wake = wake.min(x);
-                    }
-                }
-                Some(_) if other.is_none() && hit_banks & (1 << e.bank) == 0 => {
-                    let x = t.earliest_pre(e.bank);
-                    if x <= c {
-                        other = Some(Choice::Pre(i));
-                    } else {
-                        wake = wake.min(x);
-                    }
-                }
-                _ => {}
             }
         }
         other.ok_or(wake)
@@ -407,26 +418,12 @@ impl ChannelCtrl {
             l.push(cmd);
         }
         let s = &mut self.stats;
-        let em = &self.em;
         match kind {
-            DramCmd::Act => {
-                s.acts += 1;
-                s.energy.act_pre += em.act_pre_pj * 1e-12;
-            }
+            DramCmd::Act => s.acts += 1,
             DramCmd::Pre => s.pres += 1,
-            DramCmd::Rd => {
-                s.rd_bursts += 1;
-                s.energy.read += em.rd_burst_pj * 1e-12;
-                s.energy.read_io += em.rd_io_pj * 1e-12;
-            }
-            DramCmd::Wr => {
-                s.wr_bursts += 1;
-                s.energy.write += em.wr_burst_pj * 1e-12;
-            }
-            DramCmd::Ref => {
-                s.refs += 1;
-                s.energy.refresh += em.ref_pj * 1e-12;
-            }
+            DramCmd::Rd => s.rd_bursts += 1,
+            DramCmd::Wr => s.wr_bursts += 1,
+            DramCmd::Ref => s.refs += 1,
             DramCmd::Nop => {}
         }
     }
@@ -532,8 +529,7 @@ impl ChannelCtrl {
         me.bg_integrate(end);
         let mut s = me.stats;
         s.until = end;
-        s.energy.active_standby = s.active_cycles as f64 * me.em.act_stby_pj * 1e-12;
-        s.energy.precharge_standby = s.precharged_cycles as f64 * me.em.pre_stby_pj * 1e-12;
+        s.energy = super::energy::energy_of(&s, &me.em);
         s
     }
 

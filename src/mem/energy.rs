@@ -45,6 +45,22 @@ impl EnergyModel {
     }
 }
 
+/// Energy of a channel's activity: commands and standby cycles times the
+/// per-event energies (the model is linear, so any preset can be applied to the
+/// same counts).
+pub fn energy_of(s: &super::stats::ChannelStats, em: &EnergyModel) -> Energy {
+    let j = |n: u64, pj: f64| n as f64 * pj * 1e-12;
+    Energy {
+        act_pre: j(s.acts, em.act_pre_pj),
+        read: j(s.rd_bursts, em.rd_burst_pj),
+        write: j(s.wr_bursts, em.wr_burst_pj),
+        read_io: j(s.rd_bursts, em.rd_io_pj),
+        refresh: j(s.refs, em.ref_pj),
+        active_standby: j(s.active_cycles, em.act_stby_pj),
+        precharge_standby: j(s.precharged_cycles, em.pre_stby_pj),
+    }
+}
+
 /// Energy by component, in joules.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Energy {

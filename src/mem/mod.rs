@@ -10,6 +10,7 @@
 //! - `energy`, `stats`: Micron-equation energy and the statistics report;
 //! - `trace`, `replay`: DRAMsim3 trace format, generators, and the in-order replay.
 
+pub mod bench;
 pub mod checker;
 pub mod config;
 pub mod ctrl;

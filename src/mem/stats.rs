@@ -218,6 +218,37 @@ impl MemReport {
     pub fn peak_gbs(&self) -> f64 {
         self.peak_bytes_per_cycle / (self.tck_ps as f64 * 1e-12) / 1e9
     }
+    /// The same run priced with another energy configuration (the energy model
+    /// is linear in the command and standby counts).
+    pub fn with_energy(
+        &self,
+        e: &super::config::EnergyCfg,
+        t: &super::config::TimingCfg,
+        burst_cycles: u32,
+    ) -> MemReport {
+        let em = super::energy::EnergyModel::new(e, t, burst_cycles, self.tck_ps);
+        let chans = self
+            .channels
+            .iter()
+            .map(|c| {
+                let mut c = c.clone();
+                c.energy = super::energy::energy_of(&c, &em);
+                c
+            })
+            .collect();
+        let mut r = MemReport::new(
+            &self.preset,
+            &e.preset,
+            self.tck_ps,
+            self.line_bytes,
+            self.peak_bytes_per_cycle,
+            self.cycles,
+            chans,
+        );
+        r.violations = self.violations.clone();
+        r
+    }
+
     /// Energy per line moved, in nJ.
     pub fn nj_per_line(&self) -> f64 {
         let n = self.total.requests();
@@ -227,6 +258,21 @@ impl MemReport {
             self.total.energy.total() / n as f64 * 1e9
         }
     }
+}
+
+/// Joules with an SI prefix.
+pub fn joules(j: f64) -> String {
+    let a = j.abs();
+    let (v, u) = if a >= 1.0 {
+        (j, "J")
+    } else if a >= 1e-3 {
+        (j * 1e3, "mJ")
+    } else if a >= 1e-6 {
+        (j * 1e6, "uJ")
+    } else {
+        (j * 1e9, "nJ")
+    };
+    format!("{v:.3} {u}")
 }
 
 impl fmt::Display for MemReport {
@@ -295,14 +341,20 @@ impl fmt::Display for MemReport {
         )?;
         writeln!(
             f,
-            "  energy ({} preset): total {:.6} J, {:.2} nJ per {} B line",
+            "  energy ({} preset): total {}, {:.2} nJ per {} B line, {:.2} W average",
             self.energy_preset,
-            t.energy.total(),
+            joules(t.energy.total()),
             self.nj_per_line(),
-            self.line_bytes
+            self.line_bytes,
+            t.energy.total() / self.seconds().max(1e-30)
         )?;
         for (k, v) in t.energy.components() {
-            writeln!(f, "    {k:<18} {v:.6} J")?;
+            writeln!(
+                f,
+                "    {k:<18} {:>12} {:5.1}%",
+                joules(v),
+                100.0 * v / t.energy.total().max(1e-300)
+            )?;
         }
         let tags: Vec<_> = StreamTag::ALL
             .iter()
@@ -328,16 +380,16 @@ impl fmt::Display for MemReport {
         if self.channels.len() > 1 {
             writeln!(
                 f,
-                "  per channel: requests, row hit %, read avg latency, energy J"
+                "  per channel: requests, row hit %, read avg latency, energy"
             )?;
             for (i, ch) in self.channels.iter().enumerate() {
                 writeln!(
                     f,
-                    "    ch{i:<3} {} {:.1}% {:.1} {:.6}",
+                    "    ch{i:<3} {} {:.1}% {:.1} {}",
                     ch.requests(),
                     100.0 * ch.row_hit_rate(),
                     ch.read_latency.mean(),
-                    ch.energy.total()
+                    joules(ch.energy.total())
                 )?;
             }
         }

@@ -42,6 +42,8 @@ pub struct ChannelTiming {
     t: TimingCfg,
     burst: u64,
     banks_per_group: u32,
+    /// log2(banks_per_group): the bank group of a flat bank is a shift away.
+    group_shift: u32,
     banks: Vec<Bank>,
     bg_act: Vec<u64>,
     bg_rd: Vec<u64>,
@@ -65,6 +67,7 @@ impl ChannelTiming {
             t: t.clone(),
             burst: g.burst_cycles() as u64,
             banks_per_group: g.banks_per_group,
+            group_shift: g.banks_per_group.trailing_zeros(),
             banks: vec![Bank::default(); nb],
             bg_act: vec![0; ng],
             bg_rd: vec![0; ng],
@@ -86,8 +89,12 @@ impl ChannelTiming {
     pub fn open_banks(&self) -> u32 {
         self.open_banks
     }
+    #[inline]
     fn group(&self, bank: u32) -> usize {
-        (bank / self.banks_per_group) as usize
+        (bank >> self.group_shift) as usize
+    }
+    pub fn banks_per_group(&self) -> u32 {
+        self.banks_per_group
     }
 
     /// Earliest cycle for an ACT to a (closed) bank.

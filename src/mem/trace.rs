@@ -143,13 +143,17 @@ pub fn generate(
         "mixed" => {
             let bucket = (2048 / line).max(1);
             while (out.len() as u64) < n {
-                let r = rng.next_u64() % 100;
-                if r < 40 {
+                // Event weights give 60% of requests in buckets (32 lines each),
+                // 25% random writes and 15% random reads.
+                let lines_per_bucket = bucket as f64;
+                let wb = 60.0 / lines_per_bucket;
+                let r = rng.unit_f32() as f64 * (wb + 25.0 + 15.0);
+                if r >= wb {
                     let addr = rand_line(&mut rng) * line;
                     let i = out.len();
                     out.push(TraceReq {
                         addr,
-                        write: r < 25,
+                        write: r < wb + 25.0,
                         cycle: cycle(i),
                     });
                 } else {
