@@ -53,7 +53,7 @@ struct Entry {
     class: Class,
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Choice {
     Col(usize),
     Act(usize),
@@ -292,9 +292,11 @@ impl ChannelCtrl {
             return None;
         }
         self.touch();
-        let r = self.resp.pop_front().map(|r| r.1);
-        self.next_event = self.next_event.min(now);
-        r
+        // Only a full buffer holds a command back; otherwise nothing changes.
+        if self.resp.len() >= self.resp_cap {
+            self.next_event = self.next_event.min(now);
+        }
+        self.resp.pop_front().map(|r| r.1)
     }
 
     /// Runs every event before cycle `c` (used after sleeping while idle).
@@ -326,6 +328,102 @@ impl ChannelCtrl {
 
     /// The command to issue in cycle `c`, or the earliest cycle one may become legal.
     fn pick(&self, c: u64) -> Result<Choice, u64> {
+        let r = self.pick_fast(c);
+        #[cfg(debug_assertions)]
+        {
+            let want = self.pick_reference(c);
+            debug_assert_eq!(r, want, "scheduler fast path vs reference at cycle {c}");
+        }
+        r
+    }
+
+    /// FR-FCFS in one pass over the served queue: the first (oldest) row hit whose
+    /// column command is legal wins; meanwhile note each bank's oldest other
+    /// request, the only one that can want its ACT or PRE first.
+    fn pick_fast(&self, c: u64) -> Result<Choice, u64> {
+        let t = &self.timing;
+        if self.refresh_pending {
+            return self.pick_reference_refresh(c);
+        }
+        let writes = self.drain || (self.rq.is_empty() && !self.wq.is_empty());
+        let q = if writes { &self.wq } else { &self.rq };
+        let nb = self.nbanks as usize;
+        let mut open = [u32::MAX; 64];
+        for (b, o) in open.iter_mut().enumerate().take(nb) {
+            *o = t.open_row(b as u32).unwrap_or(u32::MAX);
+        }
+        // Column-command times, asked only for banks that have a hit.
+        let mut ready = [u64::MAX; 64];
+        debug_assert!(self.rq_cap.max(self.wq_cap) < u16::MAX as usize);
+        let resp_full = self.resp.len() >= self.resp_cap;
+        let mut wake = u64::MAX;
+        let mut hit_banks = 0u64;
+        let mut first_other = [u16::MAX; 64];
+        for (i, e) in q.iter().enumerate() {
+            let b = e.bank as usize;
+            if open[b] == e.row {
+                hit_banks |= 1 << b;
+                if resp_full && e.bursts_done + 1 == self.bursts_per_line {
+                    continue; // woken by the next pop_response
+                }
+                if ready[b] == u64::MAX {
+                    ready[b] = t.earliest_col(b as u32, writes);
+                }
+                if ready[b] <= c {
+                    return Ok(Choice::Col(i));
+                }
+                wake = wake.min(ready[b]);
+            } else if first_other[b] == u16::MAX {
+                first_other[b] = i as u16;
+            }
+        }
+        let mut best: Option<(usize, Choice)> = None;
+        for b in 0..nb {
+            if first_other[b] == u16::MAX {
+                continue;
+            }
+            let i = first_other[b] as usize;
+            let (x, ch) = if open[b] == u32::MAX {
+                (t.earliest_act(b as u32), Choice::Act(i))
+            } else if hit_banks & (1 << b) == 0 {
+                (t.earliest_pre(b as u32), Choice::Pre(i))
+            } else {
+                continue;
+            };
+            if x <= c {
+                if best.is_none_or(|(j, _)| i < j) {
+                    best = Some((i, ch));
+                }
+            } else {
+                wake = wake.min(x);
+            }
+        }
+        best.map(|b| b.1).ok_or(wake)
+    }
+
+    fn pick_reference_refresh(&self, c: u64) -> Result<Choice, u64> {
+        let t = &self.timing;
+        let mut wake = u64::MAX;
+        if t.open_banks() == 0 {
+            let e = t.earliest_ref();
+            return if e <= c { Ok(Choice::Ref) } else { Err(e) };
+        }
+        for b in 0..self.nbanks {
+            if t.open_row(b).is_some() {
+                let e = t.earliest_pre(b);
+                if e <= c {
+                    return Ok(Choice::PreForRefresh(b));
+                }
+                wake = wake.min(e);
+            }
+        }
+        Err(wake)
+    }
+
+    /// The plain FR-FCFS scan over every request, kept as the reference that
+    /// `pick` must agree with (checked in debug builds).
+    #[cfg(debug_assertions)]
+    fn pick_reference(&self, c: u64) -> Result<Choice, u64> {
         let t = &self.timing;
         let mut wake = u64::MAX;
         if self.refresh_pending {
