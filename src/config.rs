@@ -76,6 +76,8 @@ pub struct Config {
     pub accel: crate::accel::AccelCfg,
     /// The DRAM image: capacity, row, buckets.
     pub memory: crate::contract::MemoryMapCfg,
+    /// The GDDR5 memory system (geometry, timing, mapping, controller, energy).
+    pub mem: crate::mem::MemCfg,
 }
 
 impl Default for Config {
@@ -97,6 +99,7 @@ impl Default for Config {
             },
             accel: crate::accel::AccelCfg::default(),
             memory: crate::contract::MemoryMapCfg::default(),
+            mem: crate::mem::MemCfg::default(),
         }
     }
 }
@@ -138,6 +141,9 @@ impl Config {
         }
         self.memory.validate()?;
         self.accel.validate(self.memory.row_bytes)?;
+        self.mem.validate()?;
+        // TODO(issue 6): the DRAM image's row and capacity (`memory`) should be derived
+        // from the device geometry (`mem.geometry`) once the chip connects them.
         Ok(())
     }
 }

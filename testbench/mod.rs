@@ -11,13 +11,14 @@ pub mod pipe_tb;
 
 pub mod box_pipe_tb;
 pub mod divider_tb;
+pub mod mem_ctrl_tb;
 pub mod tri_pipe_tb;
 
 pub use harness::{Driver, LoadGen, Sink};
 pub use pipe_tb::{PipeKind, PipeTb, TbOptions, TbReport};
 
-/// Names accepted by `dualstream tb`.
-pub const BENCHES: &[&str] = &["box_pipe", "tri_pipe", "divider"];
+/// Names accepted by `dualstream tb` (each a module name; `dram` also runs mem_ctrl).
+pub const BENCHES: &[&str] = &["box_pipe", "tri_pipe", "divider", "mem_ctrl"];
 
 /// Runs a testbench by unit name (the CLI's `tb` command).
 pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, String> {
@@ -25,8 +26,9 @@ pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, String> {
         "box_pipe" => pipe_tb::run_random::<box_pipe_tb::BoxKind>(opts),
         "tri_pipe" => pipe_tb::run_random::<tri_pipe_tb::TriKind>(opts),
         "divider" => pipe_tb::run_random::<divider_tb::DivKind>(opts),
+        "mem_ctrl" | "dram" => mem_ctrl_tb::run_random(opts),
         _ => Err(format!(
-            "unknown unit '{name}'; testbenches exist for: {}",
+            "unknown unit '{name}'; testbenches exist for: {} (dram = mem_ctrl)",
             BENCHES.join(", ")
         )),
     }

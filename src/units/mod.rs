@@ -1,6 +1,7 @@
 //! Hardware units, one per file. Each is declared once with `unit!`.
 pub mod box_pipe;
 pub mod divider;
+pub mod mem_ctrl;
 pub mod tri_pipe;
 
 /// Identifies the requester (thread processor and slot) so a shared unit's result
@@ -20,6 +21,7 @@ pub fn catalog(cfg: &Config) -> Vec<UnitDecl> {
         box_pipe::BoxPipe::new(&cfg.box_pipe, d, In::new(i), Out::new(o)).decl(),
         tri_pipe::TriPipe::new(&cfg.tri_pipe, d, In::new(i), Out::new(o)).decl(),
         divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl(),
+        mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o)).decl(),
     ]
 }
 

@@ -1,0 +1,739 @@
+//! One channel's memory controller: read and write queues, FR-FCFS scheduling with
+//! an open-page policy, write drain between watermarks, all-bank refresh every
+//! tREFI, and a response buffer. Stepped by events: `step(c)` issues at most one
+//! command in cycle `c` (one command bus) and computes the next cycle at which
+//! anything can become legal, so nothing is polled cycle by cycle.
+//!
+//! Scheduling (FR-FCFS, Rixner et al. 2000; HWREF §5.2): among the queue being
+//! served, the oldest request whose column command (a row hit) is legal now goes
+//! first; otherwise the oldest request whose ACT or PRE is legal now. A PRE is held
+//! back while a request in the served queue still hits the open row (row-hit
+//! preserving, as simtrax). Reads are served unless the write queue reached
+//! `write_high` (then writes drain down to `write_low`) or no read is waiting.
+//! A refresh, once due, precharges every bank and then issues REF; nothing else
+//! issues meanwhile.
+//!
+//! The same code runs inside the `mem_ctrl` unit (through its links) and in the
+//! trace replay (called directly); `tests/mem.rs` checks that they agree.
+//!
+//! Idle refresh: when the controller holds nothing, the unit sleeps without
+//! waking for refreshes; the refreshes that fell in the idle time are issued at
+//! their own cycles (`advance_to`) when the next request arrives or a report is
+//! made, so statistics, energy and the command log are as if it had stayed awake.
+
+use std::collections::VecDeque;
+
+use super::config::MemCfg;
+use super::energy::EnergyModel;
+use super::map::AddrMap;
+use super::stats::ChannelStats;
+use super::timing::{ChannelTiming, Command, DramCmd};
+use super::{MemReq, MemResp};
+use crate::rtl::bits::clog2_u32;
+use crate::rtl::decl::{Samples, StateDecl, StateList};
+use crate::rtl::{Payload, State};
+
+/// Row-buffer outcome of a request, decided by the first command it needed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Class {
+    Unset,
+    Miss,
+    Conflict,
+}
+
+#[derive(Clone, Debug)]
+struct Entry {
+    req: MemReq,
+    bank: u32,
+    row: u32,
+    /// First burst of the line within the row.
+    col: u32,
+    arrive: u64,
+    bursts_done: u32,
+    class: Class,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Choice {
+    Col(usize),
+    Act(usize),
+    Pre(usize),
+    PreForRefresh(u32),
+    Ref,
+}
+
+/// Values of the traced registers at the start of the current cycle.
+#[derive(Clone, Copy, Debug, Default)]
+struct Traced {
+    rq: u32,
+    wq: u32,
+    resp: u32,
+    drain: bool,
+    refresh: bool,
+}
+
+#[derive(Clone, Debug)]
+pub struct ChannelCtrl {
+    pub channel: u32,
+    /// What `reset` rebuilds from.
+    cfg: MemCfg,
+    tck_ps: u64,
+    nbanks: u32,
+    map: AddrMap,
+    banks_per_group: u32,
+    bursts_per_line: u32,
+    burst: u64,
+    cl: u64,
+    cwl: u64,
+    refi: u64,
+    rq_cap: usize,
+    wq_cap: usize,
+    resp_cap: usize,
+    write_high: usize,
+    write_low: usize,
+    row_bits: u32,
+    bank_bits: u32,
+    col_bits: u32,
+    timing: ChannelTiming,
+    rq: Vec<Entry>,
+    wq: Vec<Entry>,
+    /// Requests whose last burst has issued, by cycle their data ends.
+    resp: VecDeque<(u64, MemResp)>,
+    drain: bool,
+    refresh_due: u64,
+    refresh_pending: bool,
+    next_event: u64,
+    last_cmd: Option<Command>,
+    log: Option<Vec<Command>>,
+    stats: ChannelStats,
+    em: EnergyModel,
+    occ_since: u64,
+    bg_since: u64,
+    /// Something changed this cycle (the edge commits it); `pre` holds what the
+    /// traced registers showed before the change.
+    dirty: bool,
+    pre: Traced,
+}
+
+impl ChannelCtrl {
+    /// A controller for channel `channel` of `cfg` (validated) at `tck_ps`.
+    pub fn new(cfg: &MemCfg, tck_ps: u64, channel: u32) -> Self {
+        let g = &cfg.geometry;
+        let map = AddrMap::new(g, &cfg.mapping).expect("validated mapping");
+        assert!(g.banks() <= 64, "bank masks are 64 bits");
+        ChannelCtrl {
+            channel,
+            cfg: cfg.clone(),
+            tck_ps,
+            nbanks: g.banks(),
+            map,
+            banks_per_group: g.banks_per_group,
+            bursts_per_line: g.bursts_per_line(),
+            burst: g.burst_cycles() as u64,
+            cl: cfg.timing.cl as u64,
+            cwl: cfg.timing.cwl as u64,
+            refi: cfg.timing.refi as u64,
+            rq_cap: cfg.ctrl.read_queue as usize,
+            wq_cap: cfg.ctrl.write_queue as usize,
+            resp_cap: cfg.ctrl.resp_buffer as usize,
+            write_high: cfg.ctrl.write_high as usize,
+            write_low: cfg.ctrl.write_low as usize,
+            row_bits: clog2_u32(g.rows),
+            bank_bits: clog2_u32(g.banks()),
+            col_bits: clog2_u32(g.columns),
+            timing: ChannelTiming::new(&cfg.timing, g),
+            rq: Vec::with_capacity(cfg.ctrl.read_queue as usize),
+            wq: Vec::with_capacity(cfg.ctrl.write_queue as usize),
+            resp: VecDeque::with_capacity(cfg.ctrl.resp_buffer as usize),
+            drain: false,
+            refresh_due: cfg.timing.refi as u64,
+            refresh_pending: false,
+            next_event: cfg.timing.refi as u64,
+            last_cmd: None,
+            log: None,
+            stats: ChannelStats::default(),
+            em: EnergyModel::new(&cfg.energy, &cfg.timing, g.burst_cycles(), tck_ps),
+            occ_since: 0,
+            bg_since: 0,
+            dirty: false,
+            pre: Traced::default(),
+        }
+    }
+
+    /// Records every issued command (for the timing checker).
+    pub fn record_commands(&mut self, on: bool) {
+        self.log = on.then(Vec::new);
+    }
+    pub fn commands(&self) -> &[Command] {
+        self.log.as_deref().unwrap_or(&[])
+    }
+
+    /// Nothing queued, in flight or waiting to be returned.
+    pub fn is_idle(&self) -> bool {
+        self.rq.is_empty() && self.wq.is_empty() && self.resp.is_empty()
+    }
+    pub fn can_accept(&self, write: bool) -> bool {
+        if write {
+            self.wq.len() < self.wq_cap
+        } else {
+            self.rq.len() < self.rq_cap
+        }
+    }
+    pub fn queue_lengths(&self) -> (usize, usize, usize) {
+        (self.rq.len(), self.wq.len(), self.resp.len())
+    }
+    /// The next cycle at which `step` may do something (refresh included).
+    pub fn next_event(&self) -> u64 {
+        self.next_event
+    }
+    /// Data-end cycle of the oldest response, if any.
+    pub fn next_response(&self) -> Option<u64> {
+        self.resp.front().map(|r| r.0)
+    }
+    /// The command issued in cycle `c`, if any.
+    pub fn command_at(&self, c: u64) -> Option<Command> {
+        self.last_cmd.filter(|x| x.cycle == c)
+    }
+
+    fn touch(&mut self) {
+        if !self.dirty {
+            self.dirty = true;
+            self.pre = self.traced();
+        }
+    }
+    fn traced(&self) -> Traced {
+        Traced {
+            rq: self.rq.len() as u32,
+            wq: self.wq.len() as u32,
+            resp: self.resp.len() as u32,
+            drain: self.drain,
+            refresh: self.refresh_pending,
+        }
+    }
+
+    /// Queue occupancy integrals up to (not including) cycle `c`.
+    fn occ_integrate(&mut self, c: u64) {
+        if c > self.occ_since {
+            let d = c - self.occ_since;
+            self.stats.rq_occupancy_sum += self.rq.len() as u64 * d;
+            self.stats.wq_occupancy_sum += self.wq.len() as u64 * d;
+            self.occ_since = c;
+        }
+    }
+    /// Background (standby) time up to cycle `c`.
+    fn bg_integrate(&mut self, c: u64) {
+        if c > self.bg_since {
+            let d = c - self.bg_since;
+            if self.timing.open_banks() > 0 {
+                self.stats.active_cycles += d;
+            } else {
+                self.stats.precharged_cycles += d;
+            }
+            self.bg_since = c;
+        }
+    }
+
+    fn update_drain(&mut self) {
+        if self.drain {
+            if self.wq.len() <= self.write_low {
+                self.drain = false;
+            }
+        } else if self.wq.len() >= self.write_high {
+            self.drain = true;
+        }
+    }
+
+    /// Takes a request into its queue at cycle `c` (the caller checked
+    /// `can_accept`). It is considered from cycle `c + 1` on, as if registered.
+    pub fn accept(&mut self, c: u64, req: MemReq) {
+        self.touch();
+        let loc = match self.map.decode(req.addr) {
+            Ok(l) => l,
+            Err(_) => {
+                self.stats.bad_addresses += 1;
+                self.map.decode_unchecked(req.addr % self.map.capacity())
+            }
+        };
+        if loc.channel != self.channel {
+            self.stats.bad_addresses += 1;
+        }
+        let e = Entry {
+            bank: loc.flat_bank(self.banks_per_group),
+            row: loc.row,
+            col: loc.column * self.bursts_per_line,
+            arrive: c,
+            bursts_done: 0,
+            class: Class::Unset,
+            req,
+        };
+        self.occ_integrate(c + 1);
+        if e.req.write {
+            assert!(self.wq.len() < self.wq_cap, "write queue overflow");
+            self.wq.push(e);
+            self.stats.wq_max = self.stats.wq_max.max(self.wq.len() as u32);
+        } else {
+            assert!(self.rq.len() < self.rq_cap, "read queue overflow");
+            self.rq.push(e);
+            self.stats.rq_max = self.stats.rq_max.max(self.rq.len() as u32);
+        }
+        self.update_drain();
+        self.next_event = self.next_event.min(c + 1);
+    }
+
+    /// The oldest response whose data has ended by cycle `c`.
+    pub fn peek_response(&self, c: u64) -> Option<&MemResp> {
+        self.resp.front().filter(|r| r.0 <= c).map(|r| &r.1)
+    }
+    /// Removes the oldest response if its data ends by `ready_by`; it leaves in
+    /// cycle `now` (a unit hands it to a link `delay` cycles before the data end,
+    /// so the requester sees it exactly then). A full buffer may unblock.
+    pub fn pop_response(&mut self, now: u64, ready_by: u64) -> Option<MemResp> {
+        if self.resp.front().is_none_or(|r| r.0 > ready_by) {
+            return None;
+        }
+        self.touch();
+        // Only a full buffer holds a command back; otherwise nothing changes.
+        if self.resp.len() >= self.resp_cap {
+            self.next_event = self.next_event.min(now);
+        }
+        self.resp.pop_front().map(|r| r.1)
+    }
+
+    /// Runs every event before cycle `c` (used after sleeping while idle).
+    pub fn advance_to(&mut self, c: u64) {
+        while self.next_event < c {
+            let e = self.next_event;
+            self.step(e);
+        }
+    }
+
+    /// One cycle of the scheduler: issues at most one command. Does nothing
+    /// before `next_event`.
+    pub fn step(&mut self, c: u64) {
+        if c < self.next_event {
+            return;
+        }
+        self.touch();
+        if c >= self.refresh_due {
+            self.refresh_pending = true;
+        }
+        match self.pick(c) {
+            Ok(ch) => {
+                self.apply(c, ch);
+                self.next_event = c + 1;
+            }
+            Err(wake) => self.next_event = wake.min(self.refresh_due.max(c + 1)),
+        }
+    }
+
+    /// The command to issue in cycle `c`, or the earliest cycle one may become legal.
+    fn pick(&self, c: u64) -> Result<Choice, u64> {
+        let r = self.pick_fast(c);
+        #[cfg(debug_assertions)]
+        {
+            let want = self.pick_reference(c);
+            debug_assert_eq!(r, want, "scheduler fast path vs reference at cycle {c}");
+        }
+        r
+    }
+
+    /// FR-FCFS in one pass over the served queue: the first (oldest) row hit whose
+    /// column command is legal wins; meanwhile note each bank's oldest other
+    /// request, the only one that can want its ACT or PRE first.
+    fn pick_fast(&self, c: u64) -> Result<Choice, u64> {
+        let t = &self.timing;
+        if self.refresh_pending {
+            return self.pick_reference_refresh(c);
+        }
+        let writes = self.drain || (self.rq.is_empty() && !self.wq.is_empty());
+        let q = if writes { &self.wq } else { &self.rq };
+        let nb = self.nbanks as usize;
+        let mut open = [u32::MAX; 64];
+        for (b, o) in open.iter_mut().enumerate().take(nb) {
+            *o = t.open_row(b as u32).unwrap_or(u32::MAX);
+        }
+        // Column-command times, asked only for banks that have a hit.
+        let mut ready = [u64::MAX; 64];
+        debug_assert!(self.rq_cap.max(self.wq_cap) < u16::MAX as usize);
+        let resp_full = self.resp.len() >= self.resp_cap;
+        let mut wake = u64::MAX;
+        let mut hit_banks = 0u64;
+        let mut first_other = [u16::MAX; 64];
+        for (i, e) in q.iter().enumerate() {
+            let b = e.bank as usize;
+            if open[b] == e.row {
+                hit_banks |= 1 << b;
+                if resp_full && e.bursts_done + 1 == self.bursts_per_line {
+                    continue; // woken by the next pop_response
+                }
+                if ready[b] == u64::MAX {
+                    ready[b] = t.earliest_col(b as u32, writes);
+                }
+                if ready[b] <= c {
+                    return Ok(Choice::Col(i));
+                }
+                wake = wake.min(ready[b]);
+            } else if first_other[b] == u16::MAX {
+                first_other[b] = i as u16;
+            }
+        }
+        let mut best: Option<(usize, Choice)> = None;
+        for b in 0..nb {
+            if first_other[b] == u16::MAX {
+                continue;
+            }
+            let i = first_other[b] as usize;
+            let (x, ch) = if open[b] == u32::MAX {
+                (t.earliest_act(b as u32), Choice::Act(i))
+            } else if hit_banks & (1 << b) == 0 {
+                (t.earliest_pre(b as u32), Choice::Pre(i))
+            } else {
+                continue;
+            };
+            if x <= c {
+                if best.is_none_or(|(j, _)| i < j) {
+                    best = Some((i, ch));
+                }
+            } else {
+                wake = wake.min(x);
+            }
+        }
+        best.map(|b| b.1).ok_or(wake)
+    }
+
+    fn pick_reference_refresh(&self, c: u64) -> Result<Choice, u64> {
+        let t = &self.timing;
+        let mut wake = u64::MAX;
+        if t.open_banks() == 0 {
+            let e = t.earliest_ref();
+            return if e <= c { Ok(Choice::Ref) } else { Err(e) };
+        }
+        for b in 0..self.nbanks {
+            if t.open_row(b).is_some() {
+                let e = t.earliest_pre(b);
+                if e <= c {
+                    return Ok(Choice::PreForRefresh(b));
+                }
+                wake = wake.min(e);
+            }
+        }
+        Err(wake)
+    }
+
+    /// The plain FR-FCFS scan over every request, kept as the reference that
+    /// `pick` must agree with (checked in debug builds).
+    #[cfg(debug_assertions)]
+    fn pick_reference(&self, c: u64) -> Result<Choice, u64> {
+        let t = &self.timing;
+        let mut wake = u64::MAX;
+        if self.refresh_pending {
+            if t.open_banks() == 0 {
+                let e = t.earliest_ref();
+                return if e <= c { Ok(Choice::Ref) } else { Err(e) };
+            }
+            for b in 0..self.nbanks {
+                if t.open_row(b).is_some() {
+                    let e = t.earliest_pre(b);
+                    if e <= c {
+                        return Ok(Choice::PreForRefresh(b));
+                    }
+                    wake = wake.min(e);
+                }
+            }
+            return Err(wake);
+        }
+        let writes = self.drain || (self.rq.is_empty() && !self.wq.is_empty());
+        let q = if writes { &self.wq } else { &self.rq };
+        // Per bank, once: its open row and when its next command may go (the
+        // column command if open, else ACT). The PRE time is asked only for a
+        // conflict.
+        let nb = self.nbanks as usize;
+        let mut open = [u32::MAX; 64];
+        let mut ready = [0u64; 64];
+        for b in 0..nb {
+            match t.open_row(b as u32) {
+                Some(r) => {
+                    open[b] = r;
+                    ready[b] = t.earliest_col(b as u32, writes);
+                }
+                None => ready[b] = t.earliest_act(b as u32),
+            }
+        }
+        // Banks whose open row some request of the served queue still hits.
+        let mut hit_banks = 0u64;
+        for e in q {
+            if open[e.bank as usize] == e.row {
+                hit_banks |= 1 << e.bank;
+            }
+        }
+        let resp_full = self.resp.len() >= self.resp_cap;
+        let mut other: Option<Choice> = None;
+        for (i, e) in q.iter().enumerate() {
+            let b = e.bank as usize;
+            if open[b] == e.row {
+                if resp_full && e.bursts_done + 1 == self.bursts_per_line {
+                    continue; // woken by the next pop_response
+                }
+                if ready[b] <= c {
+                    return Ok(Choice::Col(i));
+                }
+                wake = wake.min(ready[b]);
+            } else if other.is_some() {
+                continue;
+            } else if open[b] == u32::MAX {
+                if ready[b] <= c {
+                    other = Some(Choice::Act(i));
+                } else {
+                    wake = wake.min(ready[b]);
+                }
+            } else if hit_banks & (1 << b) == 0 {
+                let x = t.earliest_pre(b as u32);
+                if x <= c {
+                    other = Some(Choice::Pre(i));
+                } else {
+                    wake = wake.min(x);
+                }
+            }
+        }
+        other.ok_or(wake)
+    }
+
+    fn command(&mut self, c: u64, kind: DramCmd, bank: u32, row: u32, column: u32) {
+        if matches!(kind, DramCmd::Act | DramCmd::Pre) {
+            self.bg_integrate(c);
+        }
+        self.timing.issue(c, kind, bank, row);
+        let cmd = Command {
+            cycle: c,
+            kind,
+            bank_group: bank / self.banks_per_group,
+            bank,
+            row,
+            column,
+        };
+        self.last_cmd = Some(cmd);
+        if let Some(l) = &mut self.log {
+            l.push(cmd);
+        }
+        let s = &mut self.stats;
+        match kind {
+            DramCmd::Act => s.acts += 1,
+            DramCmd::Pre => s.pres += 1,
+            DramCmd::Rd => s.rd_bursts += 1,
+            DramCmd::Wr => s.wr_bursts += 1,
+            DramCmd::Ref => s.refs += 1,
+            DramCmd::Nop => {}
+        }
+    }
+
+    fn apply(&mut self, c: u64, ch: Choice) {
+        let writes = self.drain || (self.rq.is_empty() && !self.wq.is_empty());
+        match ch {
+            Choice::Ref => {
+                self.command(c, DramCmd::Ref, 0, 0, 0);
+                self.refresh_pending = false;
+                self.refresh_due += self.refi;
+            }
+            Choice::PreForRefresh(b) => {
+                let row = self.timing.open_row(b).expect("open");
+                self.command(c, DramCmd::Pre, b, row, 0);
+            }
+            Choice::Act(i) | Choice::Pre(i) => {
+                let q = if writes { &mut self.wq } else { &mut self.rq };
+                let e = &mut q[i];
+                let (bank, row) = (e.bank, e.row);
+                if let Choice::Act(_) = ch {
+                    if e.class == Class::Unset {
+                        e.class = Class::Miss;
+                    }
+                    self.command(c, DramCmd::Act, bank, row, 0);
+                } else {
+                    e.class = Class::Conflict;
+                    let open = self.timing.open_row(bank).expect("open");
+                    self.command(c, DramCmd::Pre, bank, open, 0);
+                }
+            }
+            Choice::Col(i) => {
+                let q = if writes { &mut self.wq } else { &mut self.rq };
+                let e = &mut q[i];
+                let (bank, row, col) = (e.bank, e.row, e.col + e.bursts_done);
+                e.bursts_done += 1;
+                let first = e.bursts_done == 1;
+                let last = e.bursts_done == self.bursts_per_line;
+                let class = e.class;
+                let kind = if writes { DramCmd::Wr } else { DramCmd::Rd };
+                self.command(c, kind, bank, row, col);
+                if first {
+                    match class {
+                        Class::Unset => self.stats.row_hits += 1,
+                        Class::Miss => self.stats.row_misses += 1,
+                        Class::Conflict => self.stats.row_conflicts += 1,
+                    }
+                }
+                if last {
+                    self.complete(c, i, writes);
+                }
+            }
+        }
+    }
+
+    /// The last burst of queue entry `i` issued in cycle `c`.
+    fn complete(&mut self, c: u64, i: usize, write: bool) {
+        self.occ_integrate(c + 1);
+        let e = if write {
+            self.wq.remove(i)
+        } else {
+            self.rq.remove(i)
+        };
+        let lat = if write { self.cwl } else { self.cl };
+        let done = c + lat + self.burst;
+        let latency = done - e.arrive;
+        let s = &mut self.stats;
+        let tag = &mut s.per_tag[e.req.tag as usize];
+        if write {
+            s.writes += 1;
+            s.write_latency.add(latency);
+            tag.writes += 1;
+        } else {
+            s.reads += 1;
+            s.read_latency.add(latency);
+            tag.reads += 1;
+        }
+        tag.latency_sum += latency;
+        tag.latency_max = tag.latency_max.max(latency);
+        let resp = MemResp {
+            id: e.req.id,
+            write,
+            tag: e.req.tag,
+        };
+        // Keep the buffer ordered by data end (a write's data ends sooner).
+        let pos = self
+            .resp
+            .iter()
+            .rposition(|r| r.0 <= done)
+            .map_or(0, |p| p + 1);
+        self.resp.insert(pos, (done, resp));
+        debug_assert!(self.resp.len() <= self.resp_cap, "response buffer overflow");
+        self.update_drain();
+    }
+
+    /// Statistics up to cycle `end`, with refreshes due before `end` issued and
+    /// background energy integrated (the controller itself is not changed).
+    pub fn stats_at(&self, end: u64) -> ChannelStats {
+        let mut me = self.clone();
+        me.log = None;
+        me.advance_to(end);
+        me.occ_integrate(end);
+        me.bg_integrate(end);
+        let mut s = me.stats;
+        s.until = end;
+        s.energy = super::energy::energy_of(&s, &me.em);
+        s
+    }
+
+    /// The command log including refreshes due before `end`.
+    pub fn commands_until(&self, end: u64) -> Vec<Command> {
+        let mut me = self.clone();
+        if me.log.is_none() {
+            return Vec::new();
+        }
+        me.advance_to(end);
+        me.log.take().unwrap_or_default()
+    }
+
+    /// Counters for the unit's statistics.
+    pub fn counters(&self) -> Vec<(&'static str, u64)> {
+        let s = &self.stats;
+        vec![
+            ("reads", s.reads),
+            ("writes", s.writes),
+            ("row_hits", s.row_hits),
+            ("row_misses", s.row_misses),
+            ("row_conflicts", s.row_conflicts),
+            ("act", s.acts),
+            ("pre", s.pres),
+            ("rd", s.rd_bursts),
+            ("wr", s.wr_bursts),
+            ("ref", s.refs),
+            ("bad_addresses", s.bad_addresses),
+        ]
+    }
+
+    fn queue_bits(&self) -> (u32, u32, u32) {
+        (
+            clog2_u32(self.rq_cap as u32 + 1),
+            clog2_u32(self.wq_cap as u32 + 1),
+            clog2_u32(self.resp_cap as u32 + 1),
+        )
+    }
+}
+
+/// The controller's clocked state as the waveform and the Verilog skeleton see it:
+/// queue occupancies, modes, the command issued this cycle, and the queue and
+/// open-row memories (not traced).
+impl State for ChannelCtrl {
+    fn declare(&self, _name: &str, out: &mut StateList) {
+        let (rb, wb, pb) = self.queue_bits();
+        out.items.push(StateDecl::reg("rd_count", rb));
+        out.items.push(StateDecl::reg("wr_count", wb));
+        out.items.push(StateDecl::reg("done_count", pb));
+        out.items.push(StateDecl::reg("write_drain", 1));
+        out.items.push(StateDecl::reg("refresh_pending", 1));
+        let mut cmd = StateDecl::reg("cmd", DramCmd::BITS);
+        cmd.enum_names = DramCmd::enum_names();
+        out.items.push(cmd);
+        out.items
+            .push(StateDecl::reg("cmd_bank", self.bank_bits.max(1)));
+        out.items.push(StateDecl::reg("cmd_row", self.row_bits));
+        out.items.push(StateDecl::reg("cmd_col", self.col_bits));
+        out.items.push(StateDecl::array(
+            "rd_queue",
+            MemReq::BITS,
+            self.rq_cap as u32,
+        ));
+        out.items.push(StateDecl::array(
+            "wr_queue",
+            MemReq::BITS,
+            self.wq_cap as u32,
+        ));
+        out.items.push(StateDecl::array(
+            "done_buf",
+            MemResp::BITS,
+            self.resp_cap as u32,
+        ));
+        out.items.push(StateDecl::array(
+            "open_row",
+            self.row_bits + 1,
+            1 << self.bank_bits,
+        ));
+    }
+    fn sample(&self, cycle: u64, out: &mut Samples) {
+        let (rb, wb, pb) = self.queue_bits();
+        let v = if self.dirty { self.pre } else { self.traced() };
+        out.slot().push(v.rq as u64, rb);
+        out.slot().push(v.wq as u64, wb);
+        out.slot().push(v.resp as u64, pb);
+        out.slot().push(v.drain as u64, 1);
+        out.slot().push(v.refresh as u64, 1);
+        let c = self.command_at(cycle);
+        out.slot()
+            .push(c.map_or(DramCmd::Nop, |c| c.kind) as u64, DramCmd::BITS);
+        out.slot()
+            .push(c.map_or(0, |c| c.bank) as u64, self.bank_bits.max(1));
+        out.slot()
+            .push(c.map_or(0, |c| c.row) as u64, self.row_bits);
+        out.slot()
+            .push(c.map_or(0, |c| c.column) as u64, self.col_bits);
+    }
+    fn commit(&mut self) {
+        self.dirty = false;
+    }
+    fn reset(&mut self) {
+        let log = self.log.is_some();
+        *self = ChannelCtrl::new(&self.cfg, self.tck_ps, self.channel);
+        self.record_commands(log);
+    }
+    fn pending_change(&self) -> bool {
+        self.dirty
+    }
+}

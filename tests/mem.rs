@@ -1,0 +1,376 @@
+//! The memory system: timing checker on random traffic, streaming vs random
+//! bandwidth, directed timing cases, bad input, and the unit == fast path check.
+
+use dualstream::mem::config::MemCfg;
+use dualstream::mem::replay::{ReplayOptions, replay};
+use dualstream::mem::trace::{TraceReq, generate};
+
+fn one_channel(mut m: MemCfg) -> MemCfg {
+    m.geometry.channels = 1;
+    m
+}
+
+fn run(m: &MemCfg, tck: u64, reqs: &[TraceReq]) -> dualstream::mem::MemReport {
+    let r = replay(
+        m,
+        tck,
+        reqs,
+        &ReplayOptions {
+            check: true,
+            preset: "test".into(),
+        },
+    )
+    .unwrap();
+    r.report
+}
+
+#[test]
+fn random_traffic_has_no_timing_violations() {
+    for (m, tck) in [
+        (one_channel(MemCfg::paper()), 500),
+        (MemCfg::paper(), 500),
+        (MemCfg::dramsim3_gddr5(), 667),
+    ] {
+        for (kind, wf) in [("random", 0.3), ("mixed", 0.0), ("stream", 0.5)] {
+            let reqs = generate(kind, 6000, 7, &m, 0, wf).unwrap();
+            let rep = run(&m, tck, &reqs);
+            let v = rep.violations.as_ref().unwrap();
+            assert!(
+                v.is_empty(),
+                "{kind}: {} violations: {:?}",
+                v.len(),
+                &v[..v.len().min(5)]
+            );
+            assert_eq!(rep.total.requests(), 6000);
+            assert!(rep.total.refs > 0 || rep.cycles < m.timing.refi as u64);
+            println!("{kind}\n{rep}");
+        }
+    }
+}
+
+/// Unthrottled sequential reads on one channel of the paper's memory, spread
+/// over bank groups by the default mapping, reach >= 90% of the channel's peak
+/// with nearly every request a row hit; uniform random reads reach far less.
+#[test]
+fn streaming_reaches_peak_and_random_does_not() {
+    for (m, tck) in [
+        (one_channel(MemCfg::paper()), 500),
+        (MemCfg::dramsim3_gddr5(), 667),
+    ] {
+        let stream = run(&m, tck, &generate("stream", 20_000, 1, &m, 0, 0.0).unwrap());
+        let random = run(&m, tck, &generate("random", 5_000, 1, &m, 0, 0.0).unwrap());
+        let s = stream.bandwidth_gbs() / stream.peak_gbs();
+        let r = random.bandwidth_gbs() / random.peak_gbs();
+        println!(
+            "{}: stream {:.1}% of peak, hit rate {:.1}%; random {:.1}%, hit rate {:.1}%",
+            m.mapping,
+            100.0 * s,
+            100.0 * stream.total.row_hit_rate(),
+            100.0 * r,
+            100.0 * random.total.row_hit_rate()
+        );
+        if m.geometry.line_bytes == 64 {
+            assert!(s >= 0.90, "stream reached only {:.1}% of peak", 100.0 * s);
+            assert!(stream.total.row_hit_rate() > 0.98);
+        }
+        assert!(r < 0.5 * s, "random {r} should be far below stream {s}");
+        assert!(random.total.row_hit_rate() < 0.1);
+    }
+}
+
+mod unit {
+    use std::io::Write;
+    use std::sync::{Arc, Mutex};
+
+    use dualstream::config::Config;
+    use dualstream::mem::replay::{ReplayOptions, replay};
+    use dualstream::mem::trace::{TraceReq, generate};
+    use dualstream::mem::{Command, DramCmd, StreamTag};
+    use dualstream::rtl::{SimOptions, TraceSpec, Tracer};
+    use dualstream::testbench::mem_ctrl_tb::MemTb;
+    use dualstream::util::rng::Rng;
+
+    fn tb(cfg: &Config) -> MemTb {
+        MemTb::new(cfg, SimOptions::default(), 1.0, 1).unwrap()
+    }
+    fn got(tb: &MemTb, id: u32) -> u64 {
+        tb.received().iter().find(|(_, r)| r.id == id).unwrap().0
+    }
+    fn cmds_after(tb: &MemTb, end: u64, from: u64, kind: DramCmd) -> Vec<Command> {
+        tb.commands(end)
+            .into_iter()
+            .filter(|c| c.cycle >= from && c.kind == kind)
+            .collect()
+    }
+
+    /// Pushed at `p`: visible and accepted at p + 1, first command at p + 2.
+    const FIRST_CMD: u64 = 2;
+
+    #[test]
+    fn open_row_hit_returns_after_cl_plus_the_burst_and_a_conflict_costs_trp_trcd() {
+        let cfg = Config::default();
+        let m = &cfg.mem;
+        let t = &m.timing;
+        let (burst, bpl) = (
+            m.geometry.burst_cycles() as u64,
+            m.geometry.bursts_per_line() as u64,
+        );
+        // The bursts of one line go to one bank group: tCCD_L apart.
+        let line = (bpl - 1) * (t.ccd_l as u64).max(burst) + t.cl as u64 + burst;
+        let mut b = tb(&cfg);
+        b.send(0, b.addr(0, 0, 5, 0), false, StreamTag::Ray, 0); // opens row 5
+        b.send(1000, b.addr(0, 0, 5, 1), false, StreamTag::Ray, 1); // hit
+        b.send(2000, b.addr(0, 0, 9, 0), false, StreamTag::Scene, 2); // conflict
+        let end = b.run_to_idle(100_000).unwrap();
+        let miss = FIRST_CMD + t.rcd_rd as u64 + line;
+        assert_eq!(got(&b, 0), miss, "closed bank: ACT, tRCD, then the line");
+        assert_eq!(got(&b, 1), 1000 + FIRST_CMD + line, "open row: CL + burst");
+        let rd = cmds_after(&b, end, 1000, DramCmd::Rd);
+        assert_eq!(got(&b, 1) - rd[0].cycle, line);
+        assert_eq!(
+            got(&b, 2) - 2000,
+            FIRST_CMD + (t.rp + t.rcd_rd) as u64 + line,
+            "conflict: PRE, tRP, ACT, tRCD, then the line"
+        );
+        let s = b.sim.unit_stats(b.dut);
+        let count = |k: &str| s.counters.iter().find(|c| c.0 == k).unwrap().1;
+        assert_eq!(
+            (
+                count("row_hits"),
+                count("row_misses"),
+                count("row_conflicts")
+            ),
+            (1, 1, 1)
+        );
+        assert!(b.check_timing(end).is_empty());
+        // The same on DRAMsim3's preset: one 128 B burst per line, CL + 2.
+        let mut c2 = Config::default();
+        let (mem, tck) = dualstream::mem::MemCfg::preset("dramsim3-gddr5").unwrap();
+        c2.mem = mem;
+        c2.clocks.dram_ps = tck;
+        let mut b = tb(&c2);
+        b.send(0, b.addr(0, 0, 5, 0), false, StreamTag::Ray, 0);
+        b.send(1000, b.addr(0, 0, 5, 1), false, StreamTag::Ray, 1);
+        b.run_to_idle(100_000).unwrap();
+        assert_eq!(got(&b, 1), 1000 + FIRST_CMD + 24 + 2);
+    }
+
+    #[test]
+    fn tfaw_holds_the_fifth_activate() {
+        let mut cfg = Config::default();
+        cfg.mem.timing.faw = 50; // four tRRD gaps (40) no longer cover it
+        let t = cfg.mem.timing.clone();
+        let mut b = tb(&cfg);
+        for i in 0..5u32 {
+            b.send(
+                i as u64,
+                b.addr(i % 4, i / 4, 3, 0),
+                false,
+                StreamTag::Ray,
+                i,
+            );
+        }
+        let end = b.run_to_idle(100_000).unwrap();
+        let acts: Vec<u64> = cmds_after(&b, end, 0, DramCmd::Act)
+            .iter()
+            .map(|c| c.cycle)
+            .collect();
+        assert_eq!(acts.len(), 5);
+        for k in 1..4 {
+            assert_eq!(acts[k] - acts[k - 1], t.rrd_s as u64, "tRRD between ACTs");
+        }
+        assert_eq!(acts[4] - acts[0], t.faw as u64, "the fifth waits for tFAW");
+        assert!(b.check_timing(end).is_empty());
+    }
+
+    #[test]
+    fn refresh_blocks_the_banks() {
+        let cfg = Config::default();
+        let t = &cfg.mem.timing;
+        let refi = t.refi as u64;
+        let mut b = tb(&cfg);
+        b.send(0, b.addr(1, 2, 7, 0), false, StreamTag::Hit, 0); // row 7 stays open
+        // Arrives as the refresh falls due: the open row is closed, REF issued,
+        // and the request waits tRFC before it may activate again.
+        b.send(
+            refi - FIRST_CMD,
+            b.addr(1, 2, 7, 1),
+            false,
+            StreamTag::Hit,
+            1,
+        );
+        let end = b.run_to_idle(100_000).unwrap();
+        let refs = cmds_after(&b, end, 0, DramCmd::Ref);
+        let pre = cmds_after(&b, end, refi, DramCmd::Pre);
+        let act = cmds_after(&b, end, refi, DramCmd::Act);
+        assert_eq!(
+            pre[0].cycle, refi,
+            "the open bank is precharged when REF is due"
+        );
+        assert_eq!(refs[0].cycle, refi + t.rp as u64);
+        assert_eq!(
+            act[0].cycle,
+            refs[0].cycle + t.rfc as u64,
+            "no ACT before tRFC"
+        );
+        assert!(b.check_timing(end).is_empty());
+    }
+
+    /// Random stimulus with writes, bursts that fill the queues, and idle gaps
+    /// longer than tREFI.
+    fn stimulus(b: &mut MemTb, seed: u64, n: u32) {
+        let g = b.cfg.geometry.clone();
+        let mut rng = Rng::new(seed);
+        let mut c = 0;
+        for id in 0..n {
+            c += match rng.below(10) {
+                0 => 5000,
+                1..=4 => 0,
+                _ => rng.below(8),
+            };
+            let addr = b.addr(
+                rng.below(g.bank_groups as u64) as u32,
+                rng.below(g.banks_per_group as u64) as u32,
+                rng.below(3) as u32,
+                rng.below(g.lines_per_row()) as u32,
+            );
+            let tag = StreamTag::ALL[rng.below(5) as usize];
+            b.send(c, addr, rng.chance(0.3), tag, id);
+        }
+    }
+
+    #[derive(Clone, Default)]
+    struct Buf(Arc<Mutex<Vec<u8>>>);
+    impl Write for Buf {
+        fn write(&mut self, x: &[u8]) -> std::io::Result<usize> {
+            self.0.lock().unwrap().extend_from_slice(x);
+            Ok(x.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn sleeping_and_evaluation_order_change_nothing() {
+        let cfg = Config::default();
+        let run = |opts: SimOptions| {
+            let mut b = MemTb::new(&cfg, opts, 0.6, 9).unwrap();
+            let buf = Buf::default();
+            b.sim
+                .attach_tracer(Tracer::new(Box::new(buf.clone()), TraceSpec::all()).unwrap())
+                .unwrap();
+            stimulus(&mut b, 4, 600);
+            let end = b.run_to_idle(1_000_000).unwrap();
+            b.sim.finish_trace().unwrap().unwrap();
+            let vcd = buf.0.lock().unwrap().clone();
+            let hash = vcd.iter().fold(0xcbf29ce484222325u64, |h, &x| {
+                (h ^ x as u64).wrapping_mul(0x100000001b3)
+            });
+            assert!(b.check_timing(end).is_empty());
+            (
+                end,
+                b.sim.all_stats(),
+                b.sim.link_stats(),
+                b.commands(end),
+                b.received().to_vec(),
+                hash,
+                vcd.len(),
+            )
+        };
+        let base = run(SimOptions::default());
+        assert_eq!(base.4.len(), 600);
+        for opts in [
+            SimOptions {
+                sleep: false,
+                shadow: false,
+                shuffle_seed: None,
+            },
+            SimOptions {
+                sleep: false,
+                shadow: true,
+                shuffle_seed: None,
+            },
+            SimOptions {
+                sleep: true,
+                shadow: false,
+                shuffle_seed: Some(3),
+            },
+        ] {
+            assert!(run(opts.clone()) == base, "{opts:?} changed the outcome");
+        }
+    }
+
+    /// The trace replay (the fast path) calls the controller directly; it must give
+    /// the unit's cycles exactly: same commands, same completion times.
+    #[test]
+    fn replay_fast_path_equals_the_unit() {
+        let cfg = Config::default();
+        let mut b = tb(&cfg);
+        let mut rng = Rng::new(5);
+        let base = generate("mixed", 3000, 2, &cfg.mem, 0, 0.0).unwrap();
+        let mut reqs = Vec::new();
+        let mut c = 0;
+        for (i, r) in base.iter().enumerate() {
+            let mut l = b.map.decode(r.addr).unwrap();
+            l.channel = 0;
+            let addr = b.map.encode(&l);
+            c += if rng.chance(0.01) { 6000 } else { rng.below(3) };
+            b.send(c, addr, r.write, StreamTag::Other, i as u32);
+            // The request link's delay: the unit sees it one cycle later.
+            reqs.push(TraceReq {
+                addr,
+                write: r.write,
+                cycle: c + cfg.mem.ctrl.req_link.delay as u64,
+            });
+        }
+        let end = b.run_to_idle(10_000_000).unwrap();
+        let r = replay(
+            &cfg.mem,
+            cfg.clocks.dram_ps,
+            &reqs,
+            &ReplayOptions {
+                check: true,
+                preset: "paper".into(),
+            },
+        )
+        .unwrap();
+        assert_eq!(r.report.violations.as_ref().unwrap().len(), 0);
+        let unit_cmds = b.commands(end.max(r.report.cycles));
+        let fast_cmds = &r.commands[0];
+        assert_eq!(unit_cmds.len(), fast_cmds.len());
+        assert!(unit_cmds == *fast_cmds, "command streams differ");
+        let mut u: Vec<(u32, u64)> = b.received().iter().map(|(c, r)| (r.id, *c)).collect();
+        let mut f = r.completions.clone();
+        u.sort();
+        f.sort();
+        assert_eq!(u, f);
+    }
+}
+
+#[test]
+fn bad_configs_and_traces_are_named() {
+    use dualstream::config::Config;
+    let e = Config::from_toml("[mem.timing]\ntRC = 50\n").unwrap_err();
+    assert!(e.contains("tRC = 50 < tRAS + tRP"), "{e}");
+    let e = Config::from_toml("[mem.geometry]\nchannels = 0\n").unwrap_err();
+    assert!(e.contains("channels = 0"), "{e}");
+    let e = Config::from_toml("[mem.geometry]\nrows = 1000\n").unwrap_err();
+    assert!(e.contains("power of two"), "{e}");
+    let e = Config::from_toml("[mem]\nmapping = \"row:bank:chan:column\"\n").unwrap_err();
+    assert!(e.contains("'chan'"), "{e}");
+    let e = Config::from_toml("[mem.ctrl]\nwrite_low = 50\n").unwrap_err();
+    assert!(e.contains("watermarks"), "{e}");
+    let e = Config::from_toml("[mem.timing]\ntCL = 3\n").unwrap_err();
+    assert!(e.contains("tCL"), "{e}");
+    let m = MemCfg::paper();
+    let bad = [TraceReq {
+        addr: m.geometry.capacity(),
+        write: false,
+        cycle: 0,
+    }];
+    let e = replay(&m, 500, &bad, &ReplayOptions::default())
+        .err()
+        .unwrap();
+    assert!(e.contains("beyond the configured capacity"), "{e}");
+}
