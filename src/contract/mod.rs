@@ -208,73 +208,119 @@ pub struct SegEntry {
 
 // ---- codecs over the sparse DRAM image ----
 
-fn put_vec3(m: &mut SparseMem, a: u64, v: Vec3) {
-    m.write_f32(a, v.x);
-    m.write_f32(a + 4, v.y);
-    m.write_f32(a + 8, v.z);
+// Each record is encoded to / decoded from its bytes in one piece, so a record
+// costs one access to the sparse image, not one per field.
+fn f32_at(b: &[u8], o: usize) -> f32 {
+    f32::from_le_bytes(b[o..o + 4].try_into().expect("4 bytes"))
+}
+fn u32_at(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes(b[o..o + 4].try_into().expect("4 bytes"))
+}
+fn vec3_at(b: &[u8], o: usize) -> Vec3 {
+    Vec3::new(f32_at(b, o), f32_at(b, o + 4), f32_at(b, o + 8))
+}
+fn put_u32(b: &mut [u8], o: usize, v: u32) {
+    b[o..o + 4].copy_from_slice(&v.to_le_bytes());
+}
+fn put_f32(b: &mut [u8], o: usize, v: f32) {
+    put_u32(b, o, v.to_bits());
+}
+fn put_vec3(b: &mut [u8], o: usize, v: Vec3) {
+    put_f32(b, o, v.x);
+    put_f32(b, o + 4, v.y);
+    put_f32(b, o + 8, v.z);
 }
 fn get_vec3(m: &SparseMem, a: u64) -> Vec3 {
-    Vec3::new(m.read_f32(a), m.read_f32(a + 4), m.read_f32(a + 8))
+    let mut b = [0u8; 12];
+    m.read(a, &mut b);
+    vec3_at(&b, 0)
+}
+fn write_vec3(m: &mut SparseMem, a: u64, v: Vec3) {
+    let mut b = [0u8; 12];
+    put_vec3(&mut b, 0, v);
+    m.write(a, &b);
 }
 
 impl NodeRec {
-    pub fn write(&self, m: &mut SparseMem, a: u64) {
+    pub fn encode(&self) -> [u8; NODE_BYTES as usize] {
+        let mut b = [0u8; NODE_BYTES as usize];
         for s in 0..2 {
-            put_vec3(m, a + 24 * s as u64, self.bmin[s]);
-            put_vec3(m, a + 24 * s as u64 + 12, self.bmax[s]);
-            m.write_u32(a + 48 + 4 * s as u64, self.child[s]);
-            m.write_u32(a + 56 + 4 * s as u64, self.seg[s]);
+            put_vec3(&mut b, 24 * s, self.bmin[s]);
+            put_vec3(&mut b, 24 * s + 12, self.bmax[s]);
+            put_u32(&mut b, 48 + 4 * s, self.child[s]);
+            put_u32(&mut b, 56 + 4 * s, self.seg[s]);
+        }
+        b
+    }
+    pub fn decode(b: &[u8]) -> NodeRec {
+        NodeRec {
+            bmin: [vec3_at(b, 0), vec3_at(b, 24)],
+            bmax: [vec3_at(b, 12), vec3_at(b, 36)],
+            child: [u32_at(b, 48), u32_at(b, 52)],
+            seg: [u32_at(b, 56), u32_at(b, 60)],
         }
     }
+    pub fn write(&self, m: &mut SparseMem, a: u64) {
+        m.write(a, &self.encode());
+    }
     pub fn read(m: &SparseMem, a: u64) -> NodeRec {
-        let mut n = NodeRec {
-            bmin: [Vec3::ZERO; 2],
-            bmax: [Vec3::ZERO; 2],
-            child: [0; 2],
-            seg: [0; 2],
-        };
-        for s in 0..2 {
-            n.bmin[s] = get_vec3(m, a + 24 * s as u64);
-            n.bmax[s] = get_vec3(m, a + 24 * s as u64 + 12);
-            n.child[s] = m.read_u32(a + 48 + 4 * s as u64);
-            n.seg[s] = m.read_u32(a + 56 + 4 * s as u64);
-        }
-        n
+        let mut b = [0u8; NODE_BYTES as usize];
+        m.read(a, &mut b);
+        NodeRec::decode(&b)
     }
 }
 
 impl TriRec {
-    pub fn write(&self, m: &mut SparseMem, a: u64) {
+    pub fn encode(&self) -> [u8; TRI_BYTES as usize] {
+        let mut b = [0u8; TRI_BYTES as usize];
         for k in 0..3 {
-            put_vec3(m, a + 12 * k as u64, self.v[k]);
+            put_vec3(&mut b, 12 * k, self.v[k]);
         }
-        m.write_u32(a + 36, self.tri_id);
-        m.write_u32(a + 40, self.material);
-        m.write_u32(a + 44, 0);
+        put_u32(&mut b, 36, self.tri_id);
+        put_u32(&mut b, 40, self.material);
+        b
+    }
+    pub fn decode(b: &[u8]) -> TriRec {
+        TriRec {
+            v: [vec3_at(b, 0), vec3_at(b, 12), vec3_at(b, 24)],
+            tri_id: u32_at(b, 36),
+            material: u32_at(b, 40),
+        }
+    }
+    pub fn write(&self, m: &mut SparseMem, a: u64) {
+        m.write(a, &self.encode());
     }
     pub fn read(m: &SparseMem, a: u64) -> TriRec {
-        TriRec {
-            v: [get_vec3(m, a), get_vec3(m, a + 12), get_vec3(m, a + 24)],
-            tri_id: m.read_u32(a + 36),
-            material: m.read_u32(a + 40),
-        }
+        let mut b = [0u8; TRI_BYTES as usize];
+        m.read(a, &mut b);
+        TriRec::decode(&b)
     }
 }
 
 impl RayRec {
+    pub fn encode(&self) -> [u8; RAY_BYTES as usize] {
+        let mut b = [0u8; RAY_BYTES as usize];
+        put_vec3(&mut b, 0, self.origin);
+        put_vec3(&mut b, 12, self.dir);
+        put_u32(&mut b, 24, self.ray_id);
+        put_u32(&mut b, 28, self.entry);
+        b
+    }
+    pub fn decode(b: &[u8]) -> RayRec {
+        RayRec {
+            origin: vec3_at(b, 0),
+            dir: vec3_at(b, 12),
+            ray_id: u32_at(b, 24),
+            entry: u32_at(b, 28),
+        }
+    }
     pub fn write(&self, m: &mut SparseMem, a: u64) {
-        put_vec3(m, a, self.origin);
-        put_vec3(m, a + 12, self.dir);
-        m.write_u32(a + 24, self.ray_id);
-        m.write_u32(a + 28, self.entry);
+        m.write(a, &self.encode());
     }
     pub fn read(m: &SparseMem, a: u64) -> RayRec {
-        RayRec {
-            origin: get_vec3(m, a),
-            dir: get_vec3(m, a + 12),
-            ray_id: m.read_u32(a + 24),
-            entry: m.read_u32(a + 28),
-        }
+        let mut b = [0u8; RAY_BYTES as usize];
+        m.read(a, &mut b);
+        RayRec::decode(&b)
     }
 }
 
@@ -312,10 +358,10 @@ impl HitRec {
 
 impl PathRec {
     pub fn write(&self, m: &mut SparseMem, a: u64) {
-        put_vec3(m, a, self.throughput);
-        put_vec3(m, a + 12, self.pending);
-        put_vec3(m, a + 24, self.radiance);
-        put_vec3(m, a + 36, self.dir);
+        write_vec3(m, a, self.throughput);
+        write_vec3(m, a + 12, self.pending);
+        write_vec3(m, a + 24, self.radiance);
+        write_vec3(m, a + 36, self.dir);
         m.write_u64(a + 48, self.rng);
         m.write_u32(a + 56, self.depth as u32 | (self.flags as u32) << 16);
         m.write_u32(a + 60, 0);

@@ -192,12 +192,9 @@ impl RayQueues {
         if let Some(&n) = self.queues[seg as usize].buckets.front() {
             debug_assert_eq!(h.next, map.bucket_addr(n), "linked list matches");
         }
-        for k in 0..h.count {
-            out.push(RayRec::read(
-                mem,
-                a + BUCKET_HEADER_BYTES as u64 + k as u64 * RAY_BYTES as u64,
-            ));
-        }
+        let mut bytes = vec![0u8; h.count as usize * RAY_BYTES as usize];
+        mem.read(a + BUCKET_HEADER_BYTES as u64, &mut bytes);
+        out.extend(bytes.chunks_exact(RAY_BYTES as usize).map(RayRec::decode));
         self.traffic.lines_read += lines_touched(
             a,
             BUCKET_HEADER_BYTES as u64 + h.count as u64 * RAY_BYTES as u64,

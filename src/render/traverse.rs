@@ -54,26 +54,30 @@ pub struct SegmentView {
 impl SegmentView {
     /// Reads a whole segment from the DRAM image (the scene stream).
     pub fn load(mem: &SparseMem, base: u64, id: u32, nodes: u32, tris: u32) -> SegmentView {
-        let na = base + SEGMENT_HEADER_BYTES as u64;
-        let ta = na + nodes as u64 * NODE_BYTES as u64;
+        let nb = nodes as usize * NODE_BYTES as usize;
+        let mut bytes = vec![0u8; nb + tris as usize * TRI_BYTES as usize];
+        mem.read(base + SEGMENT_HEADER_BYTES as u64, &mut bytes);
+        let (nbytes, tbytes) = bytes.split_at(nb);
         SegmentView {
             id,
-            nodes: (0..nodes)
-                .map(|k| NodeRec::read(mem, na + k as u64 * NODE_BYTES as u64))
+            nodes: nbytes
+                .chunks_exact(NODE_BYTES as usize)
+                .map(NodeRec::decode)
                 .collect(),
-            tris: (0..tris)
-                .map(|k| TriRec::read(mem, ta + k as u64 * TRI_BYTES as u64))
+            tris: tbytes
+                .chunks_exact(TRI_BYTES as usize)
+                .map(TriRec::decode)
                 .collect(),
         }
     }
 }
 
-/// Traverses one ray through one segment. The stack holds (reference, segment or
-/// `SEG_SAME`, entry distance); an entry with a segment is an exit.
-/// from `entry`: returns the best hit found
-/// here (local early termination: nothing farther is visited or enqueued) and calls
+/// Traverses one ray through one segment from its entry reference: returns the best
+/// hit found here (local early termination: nothing farther is visited or enqueued) and calls
 /// `exit(segment, entry)` for every exit into a child segment that is not culled,
-/// in discovery order. A shadow ray stops at its first hit.
+/// in discovery order. A shadow ray stops at its first hit. The stack holds
+/// (reference, segment or `SEG_SAME`, entry distance); an entry with a segment is an
+/// exit.
 pub fn traverse_segment(
     seg: &SegmentView,
     ray: &RayRec,
