@@ -2,6 +2,7 @@
 //! links, the unit declaration, the lock-step simulator, VCD tracing and Verilog
 //! emission.
 pub mod bits;
+mod calendar;
 pub mod decl;
 pub mod link;
 pub mod pipe;

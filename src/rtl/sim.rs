@@ -13,8 +13,6 @@
 //! nothing (no register, link, status or counter), which checks the sleep contract.
 
 use std::any::Any;
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 use std::fmt;
 
 use super::bits::Payload;
@@ -258,13 +256,14 @@ pub struct Sim {
     now: Time,
     /// Whether the step at `now` has been processed.
     stepped: bool,
-    heap: BinaryHeap<Reverse<(Time, u32)>>,
+    cal: super::calendar::Calendar,
     opts: SimOptions,
     rng: Option<Rng>,
     elaborated: bool,
     touched: Vec<LinkId>,
     wakes: Vec<(UnitId, Time)>,
     due: Vec<(u32, bool)>,
+    taken: Vec<u32>,
     nexts: Vec<(u32, Next)>,
     tracer: Option<Tracer>,
     /// Unit evaluations so far (due ones, not shadow ones).
@@ -288,7 +287,8 @@ impl Sim {
             links: Vec::new(),
             now: 0,
             stepped: false,
-            heap: BinaryHeap::new(),
+            cal: super::calendar::Calendar::new(),
+            taken: Vec::new(),
             opts,
             rng,
             elaborated: false,
@@ -313,6 +313,7 @@ impl Sim {
                 "clock '{name}' has period 0 ps; give a positive period"
             )));
         }
+        self.cal.add_domain(period_ps);
         self.clocks.push(Clock {
             name: name.into(),
             period_ps,
@@ -413,7 +414,7 @@ impl Sim {
     pub fn reset(&mut self) {
         self.now = 0;
         self.stepped = false;
-        self.heap.clear();
+        self.cal.clear();
         self.evals = 0;
         self.steps = 0;
         for l in &mut self.links {
@@ -429,7 +430,7 @@ impl Sim {
             s.evals = 0;
             s.last_wake = 0;
             s.last_eval = Time::MAX;
-            self.heap.push(Reverse((0, i as u32)));
+            self.cal.push(s.clock.0 as usize, i as u32, 0);
         }
     }
 
@@ -445,13 +446,13 @@ impl Sim {
     /// Every wake-up is kept (a unit may be woken by a link before the time it asked
     /// for, and must still run at that time); duplicates of one time are skipped.
     #[inline]
-    fn schedule(slots: &mut [Slot], heap: &mut BinaryHeap<Reverse<(Time, u32)>>, u: u32, t: Time) {
+    fn schedule(slots: &mut [Slot], cal: &mut super::calendar::Calendar, u: u32, t: Time) {
         let s = &mut slots[u as usize];
         let p = s.period;
         let t = t.div_ceil(p) * p;
         if t != s.last_wake {
             s.last_wake = t;
-            heap.push(Reverse((t, u)));
+            cal.push(s.clock.0 as usize, u, t);
         }
     }
 
@@ -459,12 +460,12 @@ impl Sim {
     /// between runs).
     pub fn wake(&mut self, u: UnitId) {
         let t = if self.stepped { self.now + 1 } else { self.now };
-        Self::schedule(&mut self.slots, &mut self.heap, u.0, t);
+        Self::schedule(&mut self.slots, &mut self.cal, u.0, t);
     }
 
     /// Time of the next step, if any unit is scheduled.
     fn next_time(&mut self) -> Option<Time> {
-        let Reverse((mut t, _)) = *self.heap.peek()?;
+        let mut t = self.cal.next_time()?;
         let after = if self.stepped { self.now + 1 } else { self.now };
         let edge_after = |p: Time| after.div_ceil(p) * p;
         if !self.opts.sleep {
@@ -533,17 +534,15 @@ impl Sim {
         self.steps += 1;
         // Units that are due (scheduled for t).
         self.due.clear();
-        while let Some(Reverse((ht, u))) = self.heap.peek().copied() {
-            if ht != t {
-                break;
-            }
-            self.heap.pop();
+        self.cal.take(t, &mut self.taken);
+        for &u in &self.taken {
             let s = &mut self.slots[u as usize];
             if s.last_eval != t {
                 s.last_eval = t;
                 self.due.push((u, true));
             }
         }
+        self.taken.clear();
         // Sleep off: every unit whose clock has an edge now, due or not.
         if !self.opts.sleep {
             for (i, s) in self.slots.iter().enumerate() {
@@ -598,10 +597,10 @@ impl Sim {
                 }
                 Next::Idle => continue,
             };
-            Self::schedule(&mut self.slots, &mut self.heap, u, at);
+            Self::schedule(&mut self.slots, &mut self.cal, u, at);
         }
         for (u, w) in self.wakes.drain(..) {
-            Self::schedule(&mut self.slots, &mut self.heap, u.0, w);
+            Self::schedule(&mut self.slots, &mut self.cal, u.0, w);
         }
         Ok(())
     }
