@@ -88,7 +88,7 @@ impl Calendar {
     pub fn take(&mut self, t: Time, out: &mut Vec<u32>) {
         for w in &mut self.wheels {
             let c = t / w.period;
-            if t % w.period == 0 && c >= w.base && c < w.base + SLOTS {
+            if t.is_multiple_of(w.period) && c >= w.base && c < w.base + SLOTS {
                 let i = (c % SLOTS) as usize;
                 if w.mask & (1 << i) != 0 {
                     out.append(&mut w.slots[i]);
