@@ -19,6 +19,36 @@ fn decl(module: &'static str, ports: Vec<PortDecl>) -> UnitDecl {
     }
 }
 
+/// A testbench component has one port and no hardware state: its declaration is
+/// that port alone (no Verilog is emitted for it).
+macro_rules! tb_component {
+    ($ty:ident, $module:literal, $field:ident, $dir:ident, |$s:ident| $reset:block) => {
+        impl<T: Payload> Declared for $ty<T> {
+            fn decl(&self) -> UnitDecl {
+                decl($module, self.ports())
+            }
+            fn ports(&self) -> Vec<PortDecl> {
+                vec![PortDecl {
+                    name: stringify!($field),
+                    dir: PortDir::$dir,
+                    width: T::BITS,
+                    link: self.$field.id,
+                }]
+            }
+            fn sample_state(&self, _cycle: u64, _out: &mut Samples) {}
+            fn commit_state(&mut self) {}
+            #[allow(unused_variables)]
+            fn reset_state(&mut self) {
+                let $s = self;
+                $reset
+            }
+            fn state_pending(&self) -> bool {
+                false
+            }
+        }
+    };
+}
+
 /// Pushes scripted payloads in order, each no earlier than its cycle, honouring
 /// back-pressure (a refused payload is offered again until taken).
 pub struct Driver<T: Payload> {
@@ -44,25 +74,7 @@ impl<T: Payload> Driver<T> {
     }
 }
 
-impl<T: Payload> Declared for Driver<T> {
-    fn decl(&self) -> UnitDecl {
-        decl("tb_driver", self.ports())
-    }
-    fn ports(&self) -> Vec<PortDecl> {
-        vec![PortDecl {
-            name: "out",
-            dir: PortDir::Out,
-            width: T::BITS,
-            link: self.out.id,
-        }]
-    }
-    fn sample_state(&self, _cycle: u64, _out: &mut Samples) {}
-    fn commit_state(&mut self) {}
-    fn reset_state(&mut self) {}
-    fn state_pending(&self) -> bool {
-        false
-    }
-}
+tb_component!(Driver, "tb_driver", out, Out, |_s| {});
 
 impl<T: Payload> Logic for Driver<T> {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
@@ -120,27 +132,9 @@ impl<T: Payload> Sink<T> {
     }
 }
 
-impl<T: Payload> Declared for Sink<T> {
-    fn decl(&self) -> UnitDecl {
-        decl("tb_sink", self.ports())
-    }
-    fn ports(&self) -> Vec<PortDecl> {
-        vec![PortDecl {
-            name: "inp",
-            dir: PortDir::In,
-            width: T::BITS,
-            link: self.inp.id,
-        }]
-    }
-    fn sample_state(&self, _cycle: u64, _out: &mut Samples) {}
-    fn commit_state(&mut self) {}
-    fn reset_state(&mut self) {
-        self.got.clear();
-    }
-    fn state_pending(&self) -> bool {
-        false
-    }
-}
+tb_component!(Sink, "tb_sink", inp, In, |s| {
+    s.got.clear();
+});
 
 impl<T: Payload> Logic for Sink<T> {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
@@ -210,28 +204,10 @@ impl<T: Payload> LoadGen<T> {
     }
 }
 
-impl<T: Payload> Declared for LoadGen<T> {
-    fn decl(&self) -> UnitDecl {
-        decl("tb_loadgen", self.ports())
-    }
-    fn ports(&self) -> Vec<PortDecl> {
-        vec![PortDecl {
-            name: "out",
-            dir: PortDir::Out,
-            width: T::BITS,
-            link: self.out.id,
-        }]
-    }
-    fn sample_state(&self, _cycle: u64, _out: &mut Samples) {}
-    fn commit_state(&mut self) {}
-    fn reset_state(&mut self) {
-        self.pending = None;
-        self.sent = 0;
-    }
-    fn state_pending(&self) -> bool {
-        false
-    }
-}
+tb_component!(LoadGen, "tb_loadgen", out, Out, |s| {
+    s.pending = None;
+    s.sent = 0;
+});
 
 impl<T: Payload> Logic for LoadGen<T> {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
