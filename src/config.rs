@@ -76,6 +76,8 @@ pub struct Config {
     pub accel: crate::accel::AccelCfg,
     /// The DRAM image: capacity, row, buckets.
     pub memory: crate::contract::MemoryMapCfg,
+    /// The thread multiprocessor: TPs and their cost table, L1, staging buffer.
+    pub tm: crate::units::tm::TmCfg,
 }
 
 impl Default for Config {
@@ -97,6 +99,7 @@ impl Default for Config {
             },
             accel: crate::accel::AccelCfg::default(),
             memory: crate::contract::MemoryMapCfg::default(),
+            tm: crate::units::tm::TmCfg::default(),
         }
     }
 }
@@ -138,6 +141,7 @@ impl Config {
         }
         self.memory.validate()?;
         self.accel.validate(self.memory.row_bytes)?;
+        self.tm.validate(&self.links.tm)?;
         Ok(())
     }
 }

@@ -11,6 +11,7 @@ pub mod pipe_tb;
 
 pub mod box_pipe_tb;
 pub mod divider_tb;
+pub mod tm_tb;
 pub mod tri_pipe_tb;
 
 pub use harness::{Driver, LoadGen, Sink};
