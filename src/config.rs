@@ -78,6 +78,8 @@ pub struct Config {
     pub memory: crate::contract::MemoryMapCfg,
     /// The GDDR5 memory system (geometry, timing, mapping, controller, energy).
     pub mem: crate::mem::MemCfg,
+    /// The thread multiprocessor: TPs and their cost table, L1, staging buffer.
+    pub tm: crate::units::tm::TmCfg,
 }
 
 impl Default for Config {
@@ -100,6 +102,7 @@ impl Default for Config {
             accel: crate::accel::AccelCfg::default(),
             memory: crate::contract::MemoryMapCfg::default(),
             mem: crate::mem::MemCfg::default(),
+            tm: crate::units::tm::TmCfg::default(),
         }
     }
 }
@@ -144,6 +147,7 @@ impl Config {
         self.mem.validate()?;
         // TODO(issue 6): the DRAM image's row and capacity (`memory`) should be derived
         // from the device geometry (`mem.geometry`) once the chip connects them.
+        self.tm.validate(&self.links.tm)?;
         Ok(())
     }
 }

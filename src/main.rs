@@ -27,7 +27,7 @@ struct Cli {
 enum Cmd {
     /// Run a unit testbench: random stimulus, scoreboard against the reference, optional VCD.
     Tb {
-        /// Unit to test: box_pipe, tri_pipe or divider.
+        /// Unit to test: box_pipe, tri_pipe, divider or tm.
         unit: String,
         /// Cycles of stimulus (the bench then drains).
         #[arg(long, default_value_t = 10_000)]
@@ -58,6 +58,21 @@ enum Cmd {
         /// Also evaluate sleeping units and fail if that would change anything.
         #[arg(long)]
         shadow: bool,
+        /// tm: scene (builtin name, `builtin:NAME`, .toml or .obj).
+        #[arg(long, default_value = dualstream::scene::DEFAULT_SCENE)]
+        scene: String,
+        /// tm: the treelet (segment id) whose primary rays the TM traverses.
+        #[arg(long, default_value_t = 0)]
+        treelet: u32,
+        /// tm: ideal memory latency behind the L1 miss port (cycles).
+        #[arg(long, default_value_t = 20)]
+        mem_latency: u32,
+        /// tm: use only the first N rays of the treelet.
+        #[arg(long)]
+        rays: Option<usize>,
+        /// tm: resolution WIDTHxHEIGHT (default: the scene's).
+        #[arg(long)]
+        res: Option<String>,
     },
     /// Render a frame: dual streaming (functional) or the reference traversal.
     Render {
@@ -197,6 +212,11 @@ fn run(cli: Cli) -> Result<(), String> {
             trace_to,
             no_sleep,
             shadow,
+            scene,
+            treelet,
+            mem_latency,
+            rays,
+            res,
         } => {
             let p = config.clocks.core_ps;
             let spec = TraceSpec {
@@ -223,6 +243,37 @@ fn run(cli: Cli) -> Result<(), String> {
                 config,
             };
             let start = std::time::Instant::now();
+            if unit == "tm" {
+                let topts = testbench::tm_tb::TmTbOptions {
+                    scene,
+                    treelet,
+                    res: res.as_deref().map(parse_res).transpose()?,
+                    max_rays: rays,
+                    run: testbench::tm_tb::RunOptions {
+                        mem_latency,
+                        sim: opts.sim.clone(),
+                        trace: opts.trace.clone(),
+                        log: false,
+                    },
+                    vcd: vcd.clone(),
+                    config: opts.config.clone(),
+                };
+                let rep = testbench::tm_tb::run(&topts)?;
+                print!("{rep}");
+                println!("  wall time {:.3} s", start.elapsed().as_secs_f64());
+                if let Some(v) = vcd {
+                    println!(
+                        "  waveform: {} (open with: gtkwave {})",
+                        v.display(),
+                        v.display()
+                    );
+                }
+                return if rep.passed() {
+                    Ok(())
+                } else {
+                    Err("the TM testbench failed".into())
+                };
+            }
             let rep = testbench::run_by_name(&unit, &opts)?;
             print!("{rep}");
             println!("  wall time {:.3} s", start.elapsed().as_secs_f64());

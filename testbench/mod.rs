@@ -12,6 +12,7 @@ pub mod pipe_tb;
 pub mod box_pipe_tb;
 pub mod divider_tb;
 pub mod mem_ctrl_tb;
+pub mod tm_tb;
 pub mod tri_pipe_tb;
 
 pub use harness::{Driver, LoadGen, Sink};
@@ -28,7 +29,7 @@ pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, String> {
         "divider" => pipe_tb::run_random::<divider_tb::DivKind>(opts),
         "mem_ctrl" | "dram" => mem_ctrl_tb::run_random(opts),
         _ => Err(format!(
-            "unknown unit '{name}'; testbenches exist for: {} (dram = mem_ctrl)",
+            "unknown unit '{name}'; testbenches exist for: {}, tm (dram = mem_ctrl)",
             BENCHES.join(", ")
         )),
     }

@@ -382,3 +382,34 @@ fn dram_generates_replays_and_rejects_bad_input() {
         &["channels = 0"],
     );
 }
+
+#[test]
+fn tb_tm_runs_a_treelet_and_writes_a_vcd() {
+    let vcd = tmp("tm.vcd");
+    let o = run(&[
+        "tb",
+        "tm",
+        "--scene",
+        "builtin:cornell",
+        "--treelet",
+        "1",
+        "--res",
+        "16x16",
+        "--vcd",
+        vcd.to_str().unwrap(),
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(out.contains("PASS") && out.contains("TM cycles"), "{out}");
+    let text = std::fs::read_to_string(&vcd).unwrap();
+    assert!(text.contains("$scope module tp15 $end"));
+    let _ = std::fs::remove_file(&vcd);
+    fails_with(
+        &["tb", "tm", "--scene", "builtin:tiny", "--treelet", "3"],
+        &["treelet 3 does not exist", "1 segments"],
+    );
+}

@@ -216,6 +216,9 @@ fn renaming_a_port_renames_it_everywhere() {
 fn state_inventory_counts_every_bit() {
     let cfg = Config::default();
     for d in catalog(&cfg) {
+        if !d.state.iter().any(|s| s.name == "pipe_stage_data") {
+            continue; // the pipeline checks below; TM units are checked in tests/tm.rs
+        }
         let regs: u64 = d
             .state
             .iter()
@@ -248,7 +251,8 @@ fn verilog_passes_verilator_iverilog_and_yosys() {
     for f in &files {
         if have("verilator") {
             let o = Command::new("verilator")
-                .args(["--lint-only", "-Wall"])
+                .args(["--lint-only", "-Wall", "-y"])
+                .arg(repo().join("hdl"))
                 .arg(f)
                 .output()
                 .unwrap();
@@ -260,7 +264,8 @@ fn verilog_passes_verilator_iverilog_and_yosys() {
         }
         if have("iverilog") {
             let o = Command::new("iverilog")
-                .args(["-g2012", "-o", "/dev/null"])
+                .args(["-g2012", "-o", "/dev/null", "-y"])
+                .arg(repo().join("hdl"))
                 .arg(f)
                 .output()
                 .unwrap();
@@ -271,9 +276,12 @@ fn verilog_passes_verilator_iverilog_and_yosys() {
             );
         }
         if have("yosys") {
+            // A structural module (tm.v) reads its parts from the other files.
+            let all: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
+            let top = f.file_stem().unwrap().to_string_lossy();
             let script = format!(
-                "read_verilog -sv {}; hierarchy -check; check -assert",
-                f.display()
+                "read_verilog -sv {}; hierarchy -check -top {top}; check -assert",
+                all.join(" ")
             );
             let o = Command::new("yosys")
                 .args(["-q", "-p", &script])

@@ -149,3 +149,22 @@ impl Samples {
         b
     }
 }
+
+/// The name of element `k` of a port array (`tp_req_3`), interned so a port name
+/// stays a `&'static str` like a declared one.
+pub fn array_port_name(base: &str, k: usize) -> &'static str {
+    use std::collections::HashSet;
+    use std::sync::{Mutex, OnceLock};
+    static NAMES: OnceLock<Mutex<HashSet<&'static str>>> = OnceLock::new();
+    let name = format!("{base}_{k}");
+    let mut set = NAMES
+        .get_or_init(|| Mutex::new(HashSet::new()))
+        .lock()
+        .expect("name table lock");
+    if let Some(s) = set.get(name.as_str()) {
+        return s;
+    }
+    let s: &'static str = Box::leak(name.into_boxed_str());
+    set.insert(s);
+    s
+}

@@ -113,7 +113,9 @@ impl<U: Declared + Logic + 'static> Unit for U {
     }
 }
 
-/// Declares a unit once: its Verilog name, parameters, ports and state. Generates the
+/// Declares a unit once: its Verilog name, parameters, ports and state.
+/// Optional `in_arrays` / `out_arrays` sections declare vectors of ports of one
+/// payload type (one per thread processor, say), named `<name>_<k>`. Generates the
 /// struct (with the declared fields plus any `extra` simulation-only fields, such as
 /// event counters, that are not hardware) and `Declared`, from which the VCD scope,
 /// the Verilog skeleton and the state inventory are derived.
@@ -138,6 +140,8 @@ macro_rules! unit {
             params { $($p:ident : $pt:ty => $pname:literal),* $(,)? }
             inputs { $($i:ident : $it:ty),* $(,)? }
             outputs { $($o:ident : $ot:ty),* $(,)? }
+            $(in_arrays { $($ia:ident : $iat:ty),* $(,)? })?
+            $(out_arrays { $($oa:ident : $oat:ty),* $(,)? })?
             state { $($s:ident : $st:ty),* $(,)? }
             extra { $($e:ident : $et:ty),* $(,)? }
         }
@@ -147,6 +151,8 @@ macro_rules! unit {
             $(pub $p: $pt,)*
             $(pub $i: $crate::rtl::In<$it>,)*
             $(pub $o: $crate::rtl::Out<$ot>,)*
+            $($(pub $ia: Vec<$crate::rtl::In<$iat>>,)*)?
+            $($(pub $oa: Vec<$crate::rtl::Out<$oat>>,)*)?
             $(pub $s: $st,)*
             $(pub $e: $et,)*
         }
@@ -166,7 +172,8 @@ macro_rules! unit {
                 }
             }
             fn ports(&self) -> Vec<$crate::rtl::PortDecl> {
-                vec![
+                #[allow(unused_mut)]
+                let mut v = vec![
                     $($crate::rtl::PortDecl {
                         name: stringify!($i),
                         dir: $crate::rtl::PortDir::In,
@@ -179,7 +186,24 @@ macro_rules! unit {
                         width: <$ot as $crate::rtl::Payload>::BITS,
                         link: self.$o.id,
                     },)*
-                ]
+                ];
+                $($(for (k, p) in self.$ia.iter().enumerate() {
+                    v.push($crate::rtl::PortDecl {
+                        name: $crate::rtl::decl::array_port_name(stringify!($ia), k),
+                        dir: $crate::rtl::PortDir::In,
+                        width: <$iat as $crate::rtl::Payload>::BITS,
+                        link: p.id,
+                    });
+                })*)?
+                $($(for (k, p) in self.$oa.iter().enumerate() {
+                    v.push($crate::rtl::PortDecl {
+                        name: $crate::rtl::decl::array_port_name(stringify!($oa), k),
+                        dir: $crate::rtl::PortDir::Out,
+                        width: <$oat as $crate::rtl::Payload>::BITS,
+                        link: p.id,
+                    });
+                })*)?
+                v
             }
             #[allow(unused_variables)]
             fn sample_state(&self, cycle: u64, out: &mut $crate::rtl::decl::Samples) {

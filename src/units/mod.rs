@@ -1,7 +1,12 @@
 //! Hardware units, one per file. Each is declared once with `unit!`.
 pub mod box_pipe;
 pub mod divider;
+pub mod l1;
 pub mod mem_ctrl;
+pub mod staging_buffer;
+pub mod tm;
+pub mod tm_xbar;
+pub mod tp;
 pub mod tri_pipe;
 
 /// Identifies the requester (thread processor and slot) so a shared unit's result
@@ -23,6 +28,71 @@ pub fn catalog(cfg: &Config) -> Vec<UnitDecl> {
         divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl(),
         mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o)).decl(),
     ]
+    .into_iter()
+    .chain(tm_unit_decls(cfg))
+    .collect()
+}
+
+/// Declarations of the TM's own units: tp, l1, staging_buffer, tm_xbar.
+fn tm_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
+    let n = cfg.tm.tps as usize;
+    let np = cfg.tm.tri_pipes as usize;
+    fn ins<T>(k: usize) -> Vec<In<T>> {
+        (0..k).map(|j| In::new(LinkId(j as u32))).collect()
+    }
+    fn outs<T>(k: usize) -> Vec<Out<T>> {
+        (0..k).map(|j| Out::new(LinkId(j as u32))).collect()
+    }
+    let (i, o) = (LinkId(0), LinkId(1));
+    let tp = tp::Tp::new(
+        cfg,
+        0,
+        tp::TpLinks {
+            ray: In::new(i),
+            div_req: Out::new(o),
+            div_resp: In::new(i),
+            box_req: Out::new(o),
+            box_resp: In::new(i),
+            tri_req: Out::new(o),
+            tri_resp: In::new(i),
+            mem_req: Out::new(o),
+            mem_resp: In::new(i),
+            ray_write: Out::new(o),
+            hit: Out::new(o),
+        },
+    );
+    let l1 = l1::L1::new(
+        &cfg.tm.l1,
+        cfg.links.tm.delay,
+        ins(n),
+        outs(n),
+        Out::new(o),
+        In::new(i),
+    );
+    let sb = staging_buffer::StagingBuffer::new(&cfg.tm, In::new(i), outs(n));
+    let xbar = tm_xbar::TmXbar {
+        tps: n as u32,
+        tri_pipes: np as u32,
+        div_resp: In::new(i),
+        box_resp: In::new(i),
+        div_req: Out::new(o),
+        box_req: Out::new(o),
+        ray_write: Out::new(o),
+        hit: Out::new(o),
+        tp_div_req: ins(n),
+        tp_box_req: ins(n),
+        tp_tri_req: ins(n),
+        tp_ray_write: ins(n),
+        tp_hit: ins(n),
+        tri_resp: ins(np),
+        tp_div_resp: outs(n),
+        tp_box_resp: outs(n),
+        tp_tri_resp: outs(n),
+        tri_req: outs(np),
+        tri_outstanding: crate::rtl::Ram::new(np as u32, np as u32, 0),
+        stats: Default::default(),
+    };
+    vec![tp.decl(), l1.decl(), sb.decl(), xbar.decl()]
 }
 
 /// Writes one `<module>.v` per unit into `dir` (created if missing); returns the paths.
@@ -44,5 +114,14 @@ pub fn write_hdl(cfg: &Config, dir: &std::path::Path) -> Result<Vec<std::path::P
         })?;
         out.push(p);
     }
+    // The TM is structural: instances of the units above, wired as simulated.
+    let p = dir.join("tm.v");
+    std::fs::write(&p, tm::emit_verilog(cfg)).map_err(|e| {
+        format!(
+            "cannot write '{}': {e}; choose a writable --out",
+            p.display()
+        )
+    })?;
+    out.push(p);
     Ok(out)
 }

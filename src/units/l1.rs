@@ -1,0 +1,373 @@
+//! The L1 data cache of a TM (paper Figure 1, Table 1: 16 KB, 8 banks). Direct
+//! mapped like simtrax's L1; tags are whole DRAM line addresses, so a segment slot of
+//! the scene buffer reused for another treelet can never return stale bytes.
+//!
+//! One request port per TP (a TP has at most one load outstanding). Line `i` lives in
+//! bank `i mod banks`; each bank serves one request per cycle, chosen round-robin
+//! from the TP `cycle mod tps` on (a function of absolute time, so sleeping cannot
+//! change the choice); the others are bank conflicts and retry. A hit is answered
+//! `hit_latency` cycles after acceptance (response link included). A miss takes a miss
+//! register (MSHR): a second miss to the same line joins it, a miss with none free
+//! waits. One line request per cycle leaves on `miss_req`; when the line comes back
+//! on `miss_resp` it is written to its slot and every waiting TP gets it at once.
+
+use crate::rtl::bits::{Bits, Payload};
+use crate::rtl::{Ctx, In, Logic, Next, Out, Ram, Status};
+
+use super::tm::L1Cfg;
+
+/// One 64 B line, as bytes (packed as eight little-endian words).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Line(pub [u8; 64]);
+
+impl Default for Line {
+    fn default() -> Self {
+        Line([0; 64])
+    }
+}
+
+impl Payload for Line {
+    const BITS: u32 = 512;
+    fn pack(&self, out: &mut Bits) {
+        for w in self.0.chunks_exact(8) {
+            out.push(u64::from_le_bytes(w.try_into().expect("8 bytes")), 64);
+        }
+    }
+}
+
+impl Line {
+    pub fn u32_at(&self, off: usize) -> u32 {
+        u32::from_le_bytes(self.0[off..off + 4].try_into().expect("4 bytes"))
+    }
+    pub fn f32_at(&self, off: usize) -> f32 {
+        f32::from_bits(self.u32_at(off))
+    }
+}
+
+crate::payload_struct! {
+    /// A line request: the line's DRAM address (64 B aligned).
+    pub struct L1Req {
+        pub addr: u64,
+    }
+}
+
+crate::payload_struct! {
+    /// A line: its DRAM address and its bytes.
+    pub struct L1Resp {
+        pub addr: u64,
+        pub line: Line,
+    }
+}
+
+crate::payload_struct! {
+    /// A miss register: the missing line and the TPs waiting for it.
+    #[derive(Default)]
+    pub struct Mshr {
+        pub valid: bool,
+        pub sent: bool,
+        pub addr: u64,
+        pub waiters: u32,
+        /// Allocation order: the oldest unsent miss goes out first.
+        pub seq: u32,
+    }
+}
+
+crate::payload_struct! {
+    /// A hit on its way out of the data array.
+    #[derive(Default)]
+    pub struct Pending {
+        pub valid: bool,
+        pub due: u64,
+        pub addr: u64,
+        pub line: Line,
+    }
+}
+
+crate::unit! {
+    /// Per-TM L1: direct mapped, banked, DRAM-address tags, bounded miss registers.
+    pub struct L1 : "l1" {
+        params {
+            bytes: u32 => "BYTES",
+            banks: u32 => "BANKS",
+            line_bytes: u32 => "LINE_BYTES",
+            hit_latency: u32 => "HIT_LATENCY",
+            mshr_count: u32 => "MSHRS"
+        }
+        inputs { miss_resp: L1Resp }
+        outputs { miss_req: L1Req }
+        in_arrays { req: L1Req }
+        out_arrays { resp: L1Resp }
+        state {
+            tags: Ram<u64>,
+            data: Ram<Line>,
+            mshr: Ram<Mshr>,
+            pending: Ram<Pending>,
+            next_seq: crate::rtl::Reg<u32>
+        }
+        extra { out_delay: u32, stats: L1Stats, log: Option<Vec<(u16, u64)>> }
+    }
+}
+
+/// Event counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct L1Stats {
+    pub accesses: u64,
+    pub hits: u64,
+    pub misses: u64,
+    /// Misses that joined a line already missing.
+    pub merged: u64,
+    /// Request-cycles lost to another TP on the same bank.
+    pub bank_conflicts: u64,
+    /// Request-cycles waiting for a free miss register.
+    pub mshr_stalls: u64,
+    pub fills: u64,
+}
+
+impl L1 {
+    pub fn new(
+        cfg: &L1Cfg,
+        out_delay: u32,
+        req: Vec<In<L1Req>>,
+        resp: Vec<Out<L1Resp>>,
+        miss_req: Out<L1Req>,
+        miss_resp: In<L1Resp>,
+    ) -> Self {
+        let lines = cfg.bytes / cfg.line_bytes;
+        let n = req.len() as u32;
+        L1 {
+            bytes: cfg.bytes,
+            banks: cfg.banks,
+            line_bytes: cfg.line_bytes,
+            hit_latency: cfg.hit_latency,
+            mshr_count: cfg.mshrs,
+            miss_resp,
+            miss_req,
+            req,
+            resp,
+            // Tag = line address + 1; 0 is an invalid slot.
+            tags: Ram::new(lines, 1, 0),
+            data: Ram::new(lines, 1, Line::default()),
+            mshr: Ram::new(cfg.mshrs, cfg.mshrs, Mshr::default()),
+            pending: Ram::new(n, n, Pending::default()),
+            next_seq: crate::rtl::Reg::new(0),
+            out_delay,
+            stats: L1Stats::default(),
+            log: None,
+        }
+    }
+
+    /// Records every accepted request as (port, address) (tests read the order).
+    pub fn enable_log(&mut self) {
+        self.log = Some(Vec::new());
+    }
+
+    fn lines(&self) -> u64 {
+        (self.bytes / self.line_bytes) as u64
+    }
+    fn bank_of(&self, addr: u64) -> u32 {
+        ((addr / self.line_bytes as u64) % self.banks as u64) as u32
+    }
+    /// Slot of a line: bank-major, so a bank is one contiguous SRAM.
+    fn slot_of(&self, addr: u64) -> u32 {
+        let i = addr / self.line_bytes as u64;
+        let banks = self.banks as u64;
+        let per_bank = self.lines() / banks;
+        ((i % banks) * per_bank + (i / banks) % per_bank) as u32
+    }
+}
+
+impl Logic for L1 {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let n = self.req.len();
+        let mut worked = false;
+        let mut waiting = false;
+        let mut mshr: Vec<Mshr> = (0..self.mshr_count)
+            .map(|k| self.mshr.read(k).clone())
+            .collect();
+        let mut mshr_dirty = vec![false; mshr.len()];
+        let mut pend: Vec<Option<Pending>> = vec![None; n];
+        // 1. A line from the miss port: fill its slot, answer its waiters now.
+        let mut filled: Option<L1Resp> = None;
+        if let Some(f) = ctx.peek(&self.miss_resp).cloned() {
+            let k = mshr.iter().position(|m| m.valid && m.addr == f.addr);
+            let k = k.expect("a line comes back only for a miss register");
+            let ok = (0..n).all(|p| mshr[k].waiters & (1 << p) == 0 || ctx.can_push(&self.resp[p]));
+            if ok {
+                ctx.pop(&self.miss_resp);
+                let slot = self.slot_of(f.addr);
+                self.tags.write(slot, f.addr + 1);
+                self.data.write(slot, f.line.clone());
+                for p in 0..n {
+                    if mshr[k].waiters & (1 << p) != 0 {
+                        ctx.push(&self.resp[p], f.clone());
+                    }
+                }
+                mshr[k] = Mshr::default();
+                mshr_dirty[k] = true;
+                self.stats.fills += 1;
+                filled = Some(f);
+                worked = true;
+            } else {
+                waiting = true;
+            }
+        }
+        // 2. Hits whose data array access is done.
+        let mut next_due: Option<u64> = None;
+        for (p, slot) in pend.iter_mut().enumerate() {
+            let e = self.pending.read(p as u32);
+            if !e.valid {
+                continue;
+            }
+            if e.due <= c {
+                let r = L1Resp {
+                    addr: e.addr,
+                    line: e.line.clone(),
+                };
+                if ctx.offer(&self.resp[p], r) {
+                    *slot = Some(Pending::default());
+                    worked = true;
+                } else {
+                    waiting = true;
+                }
+            } else {
+                next_due = Some(next_due.map_or(e.due, |d: u64| d.min(e.due)));
+            }
+        }
+        // 3. Requests: one per bank per cycle, round-robin from TP `c mod n`.
+        let mut bank_busy = vec![false; self.banks as usize];
+        let start = (c % n as u64) as usize;
+        for j in 0..n {
+            let p = (start + j) % n;
+            let Some(r) = ctx.peek(&self.req[p]).cloned() else {
+                continue;
+            };
+            let b = self.bank_of(r.addr) as usize;
+            // A port has one response slot; a TP has one load outstanding anyway.
+            let slot_busy = self.pending.read(p as u32).valid && pend[p].is_none();
+            if bank_busy[b] || slot_busy {
+                self.stats.bank_conflicts += bank_busy[b] as u64;
+                waiting = true;
+                continue;
+            }
+            let slot = self.slot_of(r.addr);
+            let hit_line = match &filled {
+                Some(f) if f.addr == r.addr => Some(f.line.clone()),
+                _ if *self.tags.read(slot) == r.addr + 1 => Some(self.data.read(slot).clone()),
+                _ => None,
+            };
+            match hit_line {
+                Some(line) => {
+                    bank_busy[b] = true;
+                    ctx.pop(&self.req[p]);
+                    self.stats.hits += 1;
+                    let due = c + (self.hit_latency - self.out_delay) as u64;
+                    if due == c {
+                        ctx.push(&self.resp[p], L1Resp { addr: r.addr, line });
+                    } else {
+                        pend[p] = Some(Pending {
+                            valid: true,
+                            due,
+                            addr: r.addr,
+                            line,
+                        });
+                        next_due = Some(next_due.map_or(due, |d| d.min(due)));
+                    }
+                }
+                None => {
+                    let same = mshr.iter().position(|m| m.valid && m.addr == r.addr);
+                    let k = same.or_else(|| mshr.iter().position(|m| !m.valid));
+                    let Some(k) = k else {
+                        self.stats.mshr_stalls += 1;
+                        waiting = true;
+                        continue;
+                    };
+                    bank_busy[b] = true;
+                    ctx.pop(&self.req[p]);
+                    self.stats.misses += 1;
+                    if same.is_some() {
+                        self.stats.merged += 1;
+                    } else {
+                        let seq = self.next_seq.val();
+                        self.next_seq.set(seq.wrapping_add(1));
+                        mshr[k] = Mshr {
+                            valid: true,
+                            sent: false,
+                            addr: r.addr,
+                            waiters: 0,
+                            seq,
+                        };
+                    }
+                    mshr[k].waiters |= 1 << p;
+                    mshr_dirty[k] = true;
+                }
+            }
+            self.stats.accesses += 1;
+            if let Some(log) = &mut self.log {
+                log.push((p as u16, r.addr));
+            }
+            worked = true;
+        }
+        // 4. The oldest unsent miss leaves on the miss port.
+        let oldest = mshr
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.valid && !m.sent)
+            .min_by_key(|(_, m)| m.seq)
+            .map(|(k, _)| k);
+        if let Some(k) = oldest {
+            if ctx.can_push(&self.miss_req) {
+                ctx.push(&self.miss_req, L1Req { addr: mshr[k].addr });
+                mshr[k].sent = true;
+                mshr_dirty[k] = true;
+                worked = true;
+            } else {
+                waiting = true;
+            }
+        }
+        for (k, m) in mshr.into_iter().enumerate() {
+            if mshr_dirty[k] {
+                self.mshr.write(k as u32, m);
+            }
+        }
+        for (p, e) in pend.into_iter().enumerate() {
+            if let Some(e) = e {
+                self.pending.write(p as u32, e);
+            }
+        }
+        ctx.set_status(if worked {
+            Status::Busy
+        } else if waiting {
+            Status::ResourceBusy
+        } else {
+            Status::WaitInput
+        });
+        if worked || waiting {
+            Next::Cycle
+        } else if let Some(d) = next_due {
+            Next::AtCycle(d)
+        } else {
+            Next::Idle
+        }
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        let s = &self.stats;
+        vec![
+            ("accesses", s.accesses),
+            ("hits", s.hits),
+            ("misses", s.misses),
+            ("merged", s.merged),
+            ("bank_conflicts", s.bank_conflicts),
+            ("mshr_stalls", s.mshr_stalls),
+            ("fills", s.fills),
+        ]
+    }
+
+    fn reset_counters(&mut self) {
+        self.stats = L1Stats::default();
+        if let Some(l) = &mut self.log {
+            l.clear();
+        }
+    }
+}

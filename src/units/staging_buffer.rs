@@ -1,0 +1,200 @@
+//! The ray staging buffer of a TM (paper §4.1, Table 1: 2 x 2 KB). Two halves of
+//! one bucket each: the TPs drain one while the stream scheduler fills the other
+//! through the fill port; when the drained half runs dry and the other holds a
+//! complete bucket, they swap. There is no fixed mapping between TPs and rays: each
+//! cycle the next ray goes to the first TP, round-robin from `cycle mod tps`, whose
+//! one-entry ray link has room (so every free TP holds its next ray).
+
+use crate::contract::RayRec;
+use crate::rtl::{Ctx, In, Logic, Next, Out, Ram, Reg, Status};
+
+use super::tm::TmCfg;
+
+crate::payload_struct! {
+    /// Where the rays of a half traverse: the segment and what the TPs need to
+    /// address its records (the scheduler has them from the segment table).
+    #[derive(Default)]
+    pub struct SbHeader {
+        pub seg: u32,
+        /// Segment base address (the header; nodes follow at +64).
+        pub base: u64,
+        /// Inner nodes in the segment (the triangles follow them).
+        pub nodes: u32,
+    }
+}
+
+crate::payload_struct! {
+    /// One ray of a bucket on the fill port; `last` closes the bucket.
+    pub struct SbFill {
+        pub ray: RayRec,
+        pub hdr: SbHeader,
+        pub last: bool,
+    }
+}
+
+crate::payload_struct! {
+    /// A ray handed to a TP, with its half's header.
+    pub struct SbRay {
+        pub ray: RayRec,
+        pub hdr: SbHeader,
+    }
+}
+
+crate::unit! {
+    /// Double-buffered ray staging buffer: one half drains to the TPs while the other fills.
+    pub struct StagingBuffer : "staging_buffer" {
+        params { half_rays: u32 => "HALF_RAYS", tps: u32 => "TPS" }
+        inputs { fill: SbFill }
+        outputs { }
+        out_arrays { ray: SbRay }
+        state {
+            rays: Ram<RayRec>,
+            drain_half: Reg<bool>,
+            count0: Reg<u16>,
+            count1: Reg<u16>,
+            sealed0: Reg<bool>,
+            sealed1: Reg<bool>,
+            hdr0: Reg<SbHeader>,
+            hdr1: Reg<SbHeader>,
+            read_idx: Reg<u16>
+        }
+        extra { rays_in: u64, rays_out: u64, swaps: u64 }
+    }
+}
+
+const NO_RAY: RayRec = RayRec {
+    origin: glam::Vec3::ZERO,
+    dir: glam::Vec3::ZERO,
+    ray_id: 0,
+    entry: 0,
+};
+
+impl StagingBuffer {
+    pub fn new(cfg: &TmCfg, fill: In<SbFill>, ray: Vec<Out<SbRay>>) -> Self {
+        let half = cfg.half_rays();
+        StagingBuffer {
+            half_rays: half,
+            tps: ray.len() as u32,
+            fill,
+            ray,
+            rays: Ram::new(2 * half, 1, NO_RAY),
+            drain_half: Reg::new(false),
+            count0: Reg::new(0),
+            count1: Reg::new(0),
+            sealed0: Reg::new(false),
+            sealed1: Reg::new(false),
+            hdr0: Reg::new(SbHeader::default()),
+            hdr1: Reg::new(SbHeader::default()),
+            read_idx: Reg::new(0),
+            rays_in: 0,
+            rays_out: 0,
+            swaps: 0,
+        }
+    }
+
+    fn count(&self, h: bool) -> u16 {
+        if h {
+            self.count1.val()
+        } else {
+            self.count0.val()
+        }
+    }
+    fn sealed(&self, h: bool) -> bool {
+        if h {
+            self.sealed1.val()
+        } else {
+            self.sealed0.val()
+        }
+    }
+    fn set_half(&mut self, h: bool, count: u16, sealed: bool) {
+        if h {
+            self.count1.set(count);
+            self.sealed1.set(sealed);
+        } else {
+            self.count0.set(count);
+            self.sealed0.set(sealed);
+        }
+    }
+}
+
+impl Logic for StagingBuffer {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let d = self.drain_half.val();
+        let f = !d;
+        let mut worked = false;
+        let mut blocked = false;
+        // Fill port: into the half that is not being drained, until it is sealed.
+        let (fc, fs) = (self.count(f), self.sealed(f));
+        if !fs
+            && (fc as u32) < self.half_rays
+            && let Some(x) = ctx.pop(&self.fill)
+        {
+            let idx = f as u32 * self.half_rays + fc as u32;
+            self.rays.write(idx, x.ray);
+            let n = fc + 1;
+            self.set_half(f, n, x.last || n as u32 == self.half_rays);
+            if f {
+                self.hdr1.set(x.hdr);
+            } else {
+                self.hdr0.set(x.hdr);
+            }
+            self.rays_in += 1;
+            worked = true;
+        }
+        // Drain: one ray per cycle to a TP with room.
+        let ri = self.read_idx.val();
+        if ri < self.count(d) {
+            let n = self.ray.len();
+            let start = (c % n as u64) as usize;
+            let free = (0..n)
+                .map(|j| (start + j) % n)
+                .find(|&p| ctx.can_push(&self.ray[p]));
+            match free {
+                Some(p) => {
+                    let ray = *self.rays.read(d as u32 * self.half_rays + ri as u32);
+                    let hdr = if d {
+                        self.hdr1.get().clone()
+                    } else {
+                        self.hdr0.get().clone()
+                    };
+                    ctx.push(&self.ray[p], SbRay { ray, hdr });
+                    self.read_idx.set(ri + 1);
+                    self.rays_out += 1;
+                    worked = true;
+                }
+                None => blocked = true,
+            }
+        } else if self.sealed(f) {
+            // The drained half ran dry and the other holds a whole bucket: swap.
+            self.drain_half.set(f);
+            self.read_idx.set(0);
+            self.set_half(d, 0, false);
+            self.swaps += 1;
+            worked = true;
+        }
+        ctx.set_status(if worked {
+            Status::Busy
+        } else if blocked {
+            Status::OutputBlocked
+        } else {
+            Status::WaitInput
+        });
+        // Idle: a fill push or a TP taking its ray (a pop from a full link) wakes it.
+        if worked { Next::Cycle } else { Next::Idle }
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("rays_in", self.rays_in),
+            ("rays_out", self.rays_out),
+            ("swaps", self.swaps),
+        ]
+    }
+
+    fn reset_counters(&mut self) {
+        self.rays_in = 0;
+        self.rays_out = 0;
+        self.swaps = 0;
+    }
+}

@@ -1,0 +1,205 @@
+//! The TM crossbar: connects the TPs to the TM-shared divider, ray-box pipeline and
+//! ray-triangle pipelines, and merges their duplicates and hit updates into the TM's
+//! two outside ports.
+//!
+//! Arbitration: per shared resource, one request per cycle, round-robin from the TP
+//! `cycle mod tps` on, a function of absolute time, so it does not depend on when
+//! the crossbar was evaluated (sleeping stays exact). A triangle request goes to the
+//! pipeline with room in its input link and the fewest tests in flight (ties: the
+//! lowest index). Responses return by tag (TP index in the low byte). The crossbar is
+//! one register stage each way: it adds the link delay to every round trip.
+
+use super::box_pipe::{BoxReq, BoxResp};
+use super::divider::{DivReq, DivResp};
+use super::tp::{HitUpdate, RayWrite};
+use super::tri_pipe::{TriReq, TriResp};
+use crate::rtl::{Ctx, In, Logic, Next, Out, Payload, Ram, Status};
+
+crate::unit! {
+    /// TM crossbar: round-robin arbitration of the TPs onto the shared units and outputs.
+    pub struct TmXbar : "tm_xbar" {
+        params { tps: u32 => "TPS", tri_pipes: u32 => "TRI_PIPES" }
+        inputs { div_resp: DivResp, box_resp: BoxResp }
+        outputs { div_req: DivReq, box_req: BoxReq, ray_write: RayWrite, hit: HitUpdate }
+        in_arrays {
+            tp_div_req: DivReq,
+            tp_box_req: BoxReq,
+            tp_tri_req: TriReq,
+            tp_ray_write: RayWrite,
+            tp_hit: HitUpdate,
+            tri_resp: TriResp
+        }
+        out_arrays {
+            tp_div_resp: DivResp,
+            tp_box_resp: BoxResp,
+            tp_tri_resp: TriResp,
+            tri_req: TriReq
+        }
+        state { tri_outstanding: Ram<u16> }
+        extra { stats: XbarStats }
+    }
+}
+
+/// Grants and losses per class: divider, box, triangle, ray write, hit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct XbarStats {
+    pub grants: [u64; 5],
+    /// Request-cycles a TP waited while another TP was granted or the unit was full.
+    pub conflicts: [u64; 5],
+}
+
+pub const CLASSES: [&str; 5] = ["div", "box", "tri", "ray_write", "hit"];
+
+/// Round-robin pick among `inputs` with a visible head, from `start`; counts the
+/// losers. Pops the winner only if `grant`.
+fn pick<T: Payload>(
+    ctx: &mut Ctx,
+    inputs: &[In<T>],
+    start: usize,
+    grant: bool,
+    conflicts: &mut u64,
+) -> Option<(usize, T)> {
+    let n = inputs.len();
+    let mut won = None;
+    for j in 0..n {
+        let k = (start + j) % n;
+        if ctx.peek(&inputs[k]).is_none() {
+            continue;
+        }
+        if grant && won.is_none() {
+            won = Some((k, ctx.pop(&inputs[k]).expect("peeked")));
+        } else {
+            *conflicts += 1;
+        }
+    }
+    won
+}
+
+fn route<T: Payload>(
+    ctx: &mut Ctx,
+    inp: &In<T>,
+    outs: &[Out<T>],
+    tag: impl Fn(&T) -> u16,
+) -> (bool, bool) {
+    let Some(v) = ctx.peek(inp) else {
+        return (false, false);
+    };
+    let k = (tag(v) & 0xFF) as usize;
+    if !ctx.can_push(&outs[k]) {
+        return (false, true);
+    }
+    let v = ctx.pop(inp).expect("peeked");
+    ctx.push(&outs[k], v);
+    (true, false)
+}
+
+impl Logic for TmXbar {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let start = (c % self.tps as u64) as usize;
+        let mut worked = false;
+        let mut waiting = false;
+        let s = &mut self.stats;
+        // Responses back to their TPs.
+        for (w, b) in [
+            route(ctx, &self.div_resp, &self.tp_div_resp, |r| r.tag),
+            route(ctx, &self.box_resp, &self.tp_box_resp, |r| r.tag),
+        ] {
+            worked |= w;
+            waiting |= b;
+        }
+        let mut outstanding: Vec<u16> = (0..self.tri_pipes)
+            .map(|p| *self.tri_outstanding.read(p))
+            .collect();
+        let mut changed = vec![false; outstanding.len()];
+        for p in 0..self.tri_resp.len() {
+            let (w, b) = route(ctx, &self.tri_resp[p], &self.tp_tri_resp, |r| r.tag);
+            if w {
+                outstanding[p] -= 1;
+                changed[p] = true;
+            }
+            worked |= w;
+            waiting |= b;
+        }
+        // Requests onto the shared units and outputs.
+        macro_rules! forward {
+            ($class:expr, $inputs:expr, $out:expr) => {{
+                let free = ctx.can_push(&$out);
+                let (g, cf) = (&mut s.grants[$class], &mut s.conflicts[$class]);
+                let before = *cf;
+                if let Some((_, v)) = pick(ctx, &$inputs, start, free, cf) {
+                    ctx.push(&$out, v);
+                    *g += 1;
+                    worked = true;
+                }
+                waiting |= *cf > before;
+            }};
+        }
+        forward!(0, self.tp_div_req, self.div_req);
+        forward!(1, self.tp_box_req, self.box_req);
+        forward!(3, self.tp_ray_write, self.ray_write);
+        forward!(4, self.tp_hit, self.hit);
+        let target = (0..self.tri_req.len())
+            .filter(|&p| ctx.can_push(&self.tri_req[p]))
+            .min_by_key(|&p| (outstanding[p], p));
+        let before = s.conflicts[2];
+        if let Some((_, v)) = pick(
+            ctx,
+            &self.tp_tri_req,
+            start,
+            target.is_some(),
+            &mut s.conflicts[2],
+        ) {
+            let p = target.expect("granted only with a target");
+            ctx.push(&self.tri_req[p], v);
+            outstanding[p] += 1;
+            changed[p] = true;
+            s.grants[2] += 1;
+            worked = true;
+        }
+        waiting |= s.conflicts[2] > before;
+        for (p, o) in outstanding.into_iter().enumerate() {
+            if changed[p] {
+                self.tri_outstanding.write(p as u32, o);
+            }
+        }
+        ctx.set_status(if worked {
+            Status::Busy
+        } else if waiting {
+            Status::ResourceBusy
+        } else {
+            Status::WaitInput
+        });
+        // Waiting requests are re-arbitrated every cycle (the counts stay exact).
+        if worked || waiting {
+            Next::Cycle
+        } else {
+            Next::Idle
+        }
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        let s = &self.stats;
+        let names_g = [
+            "div_grants",
+            "box_grants",
+            "tri_grants",
+            "ray_write_grants",
+            "hit_grants",
+        ];
+        let names_c = [
+            "div_conflicts",
+            "box_conflicts",
+            "tri_conflicts",
+            "ray_write_conflicts",
+            "hit_conflicts",
+        ];
+        let mut v: Vec<(&'static str, u64)> = names_g.iter().copied().zip(s.grants).collect();
+        v.extend(names_c.iter().copied().zip(s.conflicts));
+        v
+    }
+
+    fn reset_counters(&mut self) {
+        self.stats = XbarStats::default();
+    }
+}

@@ -1,0 +1,689 @@
+//! A thread processor (TP, paper §4): the FSM of the segment traversal kernel.
+//!
+//! It takes a ray from the staging buffer, gets its inverse direction from the
+//! TM's divider, and traverses the current segment exactly as
+//! `render::traverse::traverse_segment` does (the scoreboard demands equality): pop
+//! an entry; cull it beyond `cull(best)`; an exit sends the duplicate on `ray_write`;
+//! an inner node is loaded through the L1 and both children are box-tested with
+//! limit `cull(best)`, the far one pushed first; a leaf's triangles are loaded and
+//! tested one by one with `t_max = best`; a shadow ray stops at its first hit. At
+//! the end a hit is sent on `hit`. All geometry comes from the L1 line bytes.
+//!
+//! Timing: every computing state has a cost from `tm.costs` (cycles and the
+//! instructions they stand for); its action happens in its last cycle, and the next
+//! state begins in the following cycle. Waiting states end in the cycle the
+//! response is visible, so a ray's time is the sum of state costs and round trips.
+
+use glam::Vec3;
+
+use super::Tag;
+use super::box_pipe::{BoxReq, BoxResp};
+use super::divider::{DivReq, DivResp};
+use super::l1::{L1Req, L1Resp, Line};
+use super::staging_buffer::{SbHeader, SbRay};
+use super::tm::{StateCost, TpCosts, round_trip};
+use super::tri_pipe::{TriReq, TriResp};
+use crate::config::Config;
+use crate::contract::{HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, TRI_BYTES};
+use crate::render::traverse::cull;
+use crate::rtl::{Ctx, In, Logic, Next, Out, Ram, Reg, Status};
+
+crate::payload_struct! {
+    /// A duplicate: the ray, with its entry into the child segment `seg`.
+    pub struct RayWrite {
+        pub seg: u32,
+        pub ray: RayRec,
+    }
+}
+
+crate::payload_struct! {
+    /// A segment's best hit for the ray whose hit record is `index` (pixel*2+shadow).
+    pub struct HitUpdate {
+        pub index: u32,
+        pub hit: HitRec,
+    }
+}
+
+crate::payload_struct! {
+    /// A traversal stack entry in the scratchpad: reference, segment word
+    /// (`SEG_SAME` or an exit's child segment), entry distance.
+    pub struct StackEntry {
+        pub r: u32,
+        pub seg: u32,
+        pub t: f32,
+    }
+}
+
+crate::fsm_states! {
+    /// TP states. Computing states (cost from the config): Fetch, Init, Pop, Exit,
+    /// NodeFetch, BoxIssue, NodePush, TriFetch, TriIssue, TriResult, Finish; the
+    /// second box issue takes one cycle; the rest wait for a link.
+    pub enum TpState {
+        Idle, Fetch, DivWait, Init, Pop, Exit, NodeFetch, NodeWait, BoxIssue, BoxIssue1,
+        BoxWait, NodePush, TriFetch, TriMemWait, TriIssue, TriTestWait, TriResult,
+        Finish, Overflow,
+    }
+}
+
+impl Default for SbRay {
+    fn default() -> Self {
+        SbRay {
+            ray: RayRec {
+                origin: Vec3::ZERO,
+                dir: Vec3::ZERO,
+                ray_id: 0,
+                entry: 0,
+            },
+            hdr: SbHeader::default(),
+        }
+    }
+}
+
+/// The links of one TP.
+pub struct TpLinks {
+    pub ray: In<SbRay>,
+    pub div_req: Out<DivReq>,
+    pub div_resp: In<DivResp>,
+    pub box_req: Out<BoxReq>,
+    pub box_resp: In<BoxResp>,
+    pub tri_req: Out<TriReq>,
+    pub tri_resp: In<TriResp>,
+    pub mem_req: Out<L1Req>,
+    pub mem_resp: In<L1Resp>,
+    pub ray_write: Out<RayWrite>,
+    pub hit: Out<HitUpdate>,
+}
+
+crate::unit! {
+    /// Thread processor: the segment traversal kernel as an FSM with per-state costs.
+    pub struct Tp : "tp" {
+        params { index: u16 => "INDEX", stack_entries: u32 => "STACK_ENTRIES" }
+        inputs {
+            ray: SbRay,
+            div_resp: DivResp,
+            box_resp: BoxResp,
+            tri_resp: TriResp,
+            mem_resp: L1Resp
+        }
+        outputs {
+            div_req: DivReq,
+            box_req: BoxReq,
+            tri_req: TriReq,
+            mem_req: L1Req,
+            ray_write: RayWrite,
+            hit: HitUpdate
+        }
+        state {
+            state: Reg<TpState>,
+            ray_index: Reg<u32>,
+            node_addr: Reg<u64>,
+            stack_depth: Reg<u16>,
+            act_at: Reg<u64>,
+            req_at: Reg<u64>,
+            cur: Reg<SbRay>,
+            inv_dir: Reg<Vec3>,
+            best: Reg<HitRec>,
+            entry: Reg<StackEntry>,
+            line0: Reg<Line>,
+            line1: Reg<Line>,
+            box0: Reg<Option<f32>>,
+            box1: Reg<Option<f32>>,
+            box_got: Reg<bool>,
+            tri_k: Reg<u32>,
+            tri_end: Reg<u32>,
+            tri_hit: Reg<Option<HitRec>>,
+            stack: Ram<StackEntry>
+        }
+        extra { costs: TpCosts, rt: [u64; 3], stats: TpStats, log: Option<Vec<u64>> }
+    }
+}
+
+/// Indices of the computing states in `TpStats::uses` and `TpCosts::all`.
+const COSTED: [TpState; 11] = [
+    TpState::Fetch,
+    TpState::Init,
+    TpState::Pop,
+    TpState::Exit,
+    TpState::NodeFetch,
+    TpState::BoxIssue,
+    TpState::NodePush,
+    TpState::TriFetch,
+    TpState::TriIssue,
+    TpState::TriResult,
+    TpState::Finish,
+];
+
+/// Event counters of one TP.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TpStats {
+    /// Actions of each computing state, in `TpCosts::all` order.
+    pub uses: [u64; 11],
+    pub rays: u64,
+    pub box_tests: u64,
+    pub tri_tests: u64,
+    pub exits: u64,
+    pub hits: u64,
+    pub l1_loads: u64,
+    /// Cycles from a request to its response, per unit: divider, box, triangle, L1.
+    pub wait: [u64; 4],
+    /// The part of `wait` beyond the idle round trip (contention), for div/box/tri.
+    pub stall: [u64; 3],
+    /// Cycles a finished action waited for a full output link.
+    pub blocked: u64,
+    pub max_stack: u64,
+    pub first_ray: Option<u64>,
+    /// Cycle of the last `Finish` action.
+    pub last_finish: u64,
+}
+
+fn vec3_at(l: &Line, off: usize) -> Vec3 {
+    Vec3::new(l.f32_at(off), l.f32_at(off + 4), l.f32_at(off + 8))
+}
+
+impl Tp {
+    pub fn new(cfg: &Config, index: u16, l: TpLinks) -> Self {
+        let entries = cfg.tm.stack_entries();
+        let d = &cfg.links.tm;
+        Tp {
+            index,
+            stack_entries: entries,
+            ray: l.ray,
+            div_resp: l.div_resp,
+            box_resp: l.box_resp,
+            tri_resp: l.tri_resp,
+            mem_resp: l.mem_resp,
+            div_req: l.div_req,
+            box_req: l.box_req,
+            tri_req: l.tri_req,
+            mem_req: l.mem_req,
+            ray_write: l.ray_write,
+            hit: l.hit,
+            state: Reg::new(TpState::Idle),
+            ray_index: Reg::new(0),
+            node_addr: Reg::new(0),
+            stack_depth: Reg::new(0),
+            act_at: Reg::new(0),
+            req_at: Reg::new(0),
+            cur: Reg::new(SbRay::default()),
+            inv_dir: Reg::new(Vec3::ZERO),
+            best: Reg::new(HitRec::NONE),
+            entry: Reg::new(StackEntry {
+                r: 0,
+                seg: 0,
+                t: 0.0,
+            }),
+            line0: Reg::new(Line::default()),
+            line1: Reg::new(Line::default()),
+            box0: Reg::new(None),
+            box1: Reg::new(None),
+            box_got: Reg::new(false),
+            tri_k: Reg::new(0),
+            tri_end: Reg::new(0),
+            tri_hit: Reg::new(None),
+            // Two write ports: a node pushes both children in one action.
+            stack: Ram::new(
+                entries,
+                2,
+                StackEntry {
+                    r: 0,
+                    seg: 0,
+                    t: 0.0,
+                },
+            ),
+            costs: cfg.tm.costs.clone(),
+            rt: [
+                round_trip(&cfg.divider, d),
+                round_trip(&cfg.box_pipe, d),
+                round_trip(&cfg.tri_pipe, d),
+            ],
+            stats: TpStats::default(),
+            log: None,
+        }
+    }
+
+    /// Records the address of every L1 load (tests compare the visit order).
+    pub fn enable_log(&mut self) {
+        self.log = Some(Vec::new());
+    }
+
+    pub fn request_log(&self) -> &[u64] {
+        self.log.as_deref().unwrap_or(&[])
+    }
+
+    fn cost(&self, s: TpState) -> Option<&StateCost> {
+        COSTED
+            .iter()
+            .position(|&x| x == s)
+            .map(|k| self.costs.all()[k].1)
+    }
+
+    /// Enters `s` in the cycle after `c`; a computing state acts in its last cycle.
+    fn go(&mut self, s: TpState, c: u64) -> Next {
+        self.state.set(s);
+        match self.cost(s) {
+            Some(k) => {
+                let at = c + k.cycles as u64;
+                self.act_at.set(at);
+                Next::AtCycle(at)
+            }
+            // A waiting state looks at its link from the next cycle on.
+            None => Next::Cycle,
+        }
+    }
+
+    fn used(&mut self, s: TpState) {
+        if let Some(k) = COSTED.iter().position(|&x| x == s) {
+            self.stats.uses[k] += 1;
+        }
+    }
+
+    fn t_ray(&self) -> f32 {
+        self.cur.get().ray.t_max()
+    }
+
+    fn hdr(&self) -> &SbHeader {
+        &self.cur.get().hdr
+    }
+
+    fn tri_addr(&self, k: u32) -> u64 {
+        let h = self.hdr();
+        h.base
+            + SEGMENT_HEADER_BYTES as u64
+            + h.nodes as u64 * NODE_BYTES as u64
+            + k as u64 * TRI_BYTES as u64
+    }
+
+    fn load(&mut self, ctx: &mut Ctx, addr: u64) -> bool {
+        let line = addr & !63;
+        if ctx.offer(&self.mem_req, L1Req { addr: line }) {
+            self.stats.l1_loads += 1;
+            if let Some(l) = &mut self.log {
+                l.push(line);
+            }
+            true
+        } else {
+            false
+        }
+    }
+
+    /// A computing state's action in cycle `c`; `None` if an output was full.
+    fn act(&mut self, ctx: &mut Ctx, s: TpState, c: u64) -> Option<Next> {
+        let tag = self.index as Tag;
+        let ray = self.cur.get().ray;
+        Some(match s {
+            TpState::Fetch => {
+                if !ctx.offer(&self.div_req, DivReq { dir: ray.dir, tag }) {
+                    return None;
+                }
+                self.req_at.set(c);
+                self.go(TpState::DivWait, c)
+            }
+            TpState::Init => {
+                self.best.set(HitRec::NONE);
+                self.stack.write(
+                    0,
+                    StackEntry {
+                        r: ray.entry,
+                        seg: SEG_SAME,
+                        t: 0.0,
+                    },
+                );
+                self.stack_depth.set(1);
+                self.stats.max_stack = self.stats.max_stack.max(1);
+                self.go(TpState::Pop, c)
+            }
+            TpState::Pop => {
+                let depth = self.stack_depth.val();
+                if depth == 0 {
+                    return Some(self.go(TpState::Finish, c));
+                }
+                let e = self.stack.read(depth as u32 - 1).clone();
+                self.stack_depth.set(depth - 1);
+                self.entry.set(e.clone());
+                let limit = self.best.get().t.min(self.t_ray());
+                if e.t > cull(limit) {
+                    self.go(TpState::Pop, c)
+                } else if e.seg != SEG_SAME {
+                    self.go(TpState::Exit, c)
+                } else {
+                    match Ref::decode(e.r) {
+                        Ref::Leaf { first, count } => {
+                            self.tri_k.set(first);
+                            self.tri_end.set(first + count);
+                            self.go(TpState::TriFetch, c)
+                        }
+                        Ref::Node(i) => {
+                            let h = self.hdr();
+                            let a =
+                                h.base + SEGMENT_HEADER_BYTES as u64 + i as u64 * NODE_BYTES as u64;
+                            self.node_addr.set(a);
+                            self.go(TpState::NodeFetch, c)
+                        }
+                        Ref::None => self.go(TpState::Pop, c),
+                    }
+                }
+            }
+            TpState::Exit => {
+                let e = self.entry.get().clone();
+                let w = RayWrite {
+                    seg: e.seg,
+                    ray: RayRec { entry: e.r, ..ray },
+                };
+                if !ctx.offer(&self.ray_write, w) {
+                    return None;
+                }
+                self.stats.exits += 1;
+                self.go(TpState::Pop, c)
+            }
+            TpState::NodeFetch => {
+                if !self.load(ctx, self.node_addr.val()) {
+                    return None;
+                }
+                self.req_at.set(c);
+                self.go(TpState::NodeWait, c)
+            }
+            TpState::BoxIssue | TpState::BoxIssue1 => {
+                let side = (s == TpState::BoxIssue1) as usize;
+                let l = self.line0.get();
+                let lim = cull(self.best.get().t.min(self.t_ray()));
+                let req = BoxReq {
+                    origin: ray.origin,
+                    inv_dir: self.inv_dir.val(),
+                    t_min: 0.0,
+                    t_max: lim,
+                    bmin: vec3_at(l, 24 * side),
+                    bmax: vec3_at(l, 24 * side + 12),
+                    tag: tag | (side as Tag) << 8,
+                };
+                if !ctx.offer(&self.box_req, req) {
+                    return None;
+                }
+                self.stats.box_tests += 1;
+                if side == 0 {
+                    self.box_got.set(false);
+                    self.state.set(TpState::BoxIssue1);
+                    self.act_at.set(c + 1);
+                    Next::AtCycle(c + 1)
+                } else {
+                    self.req_at.set(c);
+                    self.go(TpState::BoxWait, c)
+                }
+            }
+            TpState::NodePush => {
+                let l = self.line0.get().clone();
+                let hit = [self.box0.val(), self.box1.val()];
+                // Push the far child first so the near one is visited first.
+                let order = match (hit[0], hit[1]) {
+                    (Some(a), Some(b)) if b < a => [0, 1],
+                    _ => [1, 0],
+                };
+                let mut depth = self.stack_depth.val() as u32;
+                for side in order {
+                    if let Some(t) = hit[side] {
+                        if depth >= self.stack_entries {
+                            // The config promised a deep enough scratchpad; stop loudly.
+                            self.state.set(TpState::Overflow);
+                            return Some(Next::Idle);
+                        }
+                        self.stack.write(
+                            depth,
+                            StackEntry {
+                                r: l.u32_at(48 + 4 * side),
+                                seg: l.u32_at(56 + 4 * side),
+                                t,
+                            },
+                        );
+                        depth += 1;
+                    }
+                }
+                self.stack_depth.set(depth as u16);
+                self.stats.max_stack = self.stats.max_stack.max(depth as u64);
+                self.go(TpState::Pop, c)
+            }
+            TpState::TriFetch => {
+                let a = self.tri_addr(self.tri_k.val());
+                if !self.load(ctx, a) {
+                    return None;
+                }
+                self.req_at.set(c);
+                self.go(TpState::TriMemWait, c)
+            }
+            TpState::TriIssue => {
+                let a = self.tri_addr(self.tri_k.val());
+                let off = (a & 63) as usize;
+                let mut b = [0u8; 48];
+                for (i, x) in b.iter_mut().enumerate() {
+                    let o = off + i;
+                    *x = if o < 64 {
+                        self.line0.get().0[o]
+                    } else {
+                        self.line1.get().0[o - 64]
+                    };
+                }
+                let mut l = Line::default();
+                l.0[..48].copy_from_slice(&b);
+                let req = TriReq {
+                    origin: ray.origin,
+                    dir: ray.dir,
+                    t_min: 0.0,
+                    t_max: self.best.get().t.min(self.t_ray()),
+                    v0: vec3_at(&l, 0),
+                    v1: vec3_at(&l, 12),
+                    v2: vec3_at(&l, 24),
+                    tri_id: l.u32_at(36),
+                    tag,
+                };
+                if !ctx.offer(&self.tri_req, req) {
+                    return None;
+                }
+                self.stats.tri_tests += 1;
+                self.req_at.set(c);
+                self.go(TpState::TriTestWait, c)
+            }
+            TpState::TriResult => {
+                if let Some(h) = self.tri_hit.val() {
+                    if h.closer_than(self.best.get()) {
+                        self.best.set(h);
+                    }
+                    if ray.is_shadow() {
+                        return Some(self.go(TpState::Finish, c));
+                    }
+                }
+                let k = self.tri_k.val() + 1;
+                self.tri_k.set(k);
+                if k < self.tri_end.val() {
+                    self.go(TpState::TriFetch, c)
+                } else {
+                    self.go(TpState::Pop, c)
+                }
+            }
+            TpState::Finish => {
+                let best = self.best.val();
+                if best.is_hit() {
+                    let u = HitUpdate {
+                        index: ray.hit_index() as u32,
+                        hit: best,
+                    };
+                    if !ctx.offer(&self.hit, u) {
+                        return None;
+                    }
+                    self.stats.hits += 1;
+                }
+                self.stats.last_finish = c;
+                self.state.set(TpState::Idle);
+                // The next ray may already wait in the link: look next cycle.
+                Next::Cycle
+            }
+            _ => unreachable!("not a computing state"),
+        })
+    }
+}
+
+impl Logic for Tp {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let s = self.state.val();
+        let costed = self.cost(s).is_some() || s == TpState::BoxIssue1;
+        if costed {
+            if c < self.act_at.val() {
+                ctx.set_status(Status::Busy);
+                return Next::AtCycle(self.act_at.val());
+            }
+            return match self.act(ctx, s, c) {
+                Some(n) => {
+                    if s != TpState::BoxIssue1 {
+                        self.used(s);
+                    }
+                    ctx.set_status(Status::Busy);
+                    n
+                }
+                None => {
+                    // Offered and refused: offer the same again next cycle.
+                    self.stats.blocked += 1;
+                    ctx.set_status(Status::OutputBlocked);
+                    Next::Cycle
+                }
+            };
+        }
+        let wait = |ctx: &mut Ctx, st: Status| {
+            ctx.set_status(st);
+            Next::Idle // a push onto the awaited link wakes the TP
+        };
+        match s {
+            TpState::Idle => match ctx.pop(&self.ray) {
+                Some(r) => {
+                    self.ray_index.set(r.ray.ray_id);
+                    self.cur.set(r);
+                    self.stats.rays += 1;
+                    self.stats.first_ray.get_or_insert(c);
+                    ctx.set_status(Status::Busy);
+                    self.go(TpState::Fetch, c)
+                }
+                None => wait(ctx, Status::WaitInput),
+            },
+            TpState::DivWait => match ctx.pop(&self.div_resp) {
+                Some(r) => {
+                    self.inv_dir.set(r.inv_dir);
+                    let w = c - self.req_at.val();
+                    self.stats.wait[0] += w;
+                    self.stats.stall[0] += w.saturating_sub(self.rt[0]);
+                    ctx.set_status(Status::Busy);
+                    self.go(TpState::Init, c)
+                }
+                None => wait(ctx, Status::ResourceBusy),
+            },
+            TpState::NodeWait => match ctx.pop(&self.mem_resp) {
+                Some(r) => {
+                    self.line0.set(r.line);
+                    self.stats.wait[3] += c - self.req_at.val();
+                    ctx.set_status(Status::Busy);
+                    self.go(TpState::BoxIssue, c)
+                }
+                None => wait(ctx, Status::ResourceBusy),
+            },
+            TpState::BoxWait => match ctx.pop(&self.box_resp) {
+                Some(r) => {
+                    let v = r.hit.then_some(r.t_entry);
+                    if r.tag >> 8 == 0 {
+                        self.box0.set(v);
+                    } else {
+                        self.box1.set(v);
+                    }
+                    ctx.set_status(Status::Busy);
+                    if self.box_got.val() {
+                        let w = c - self.req_at.val();
+                        self.stats.wait[1] += w;
+                        self.stats.stall[1] += w.saturating_sub(self.rt[1]);
+                        self.go(TpState::NodePush, c)
+                    } else {
+                        self.box_got.set(true);
+                        Next::Cycle
+                    }
+                }
+                None => wait(ctx, Status::ResourceBusy),
+            },
+            TpState::TriMemWait => match ctx.pop(&self.mem_resp) {
+                Some(r) => {
+                    self.stats.wait[3] += c - self.req_at.val();
+                    ctx.set_status(Status::Busy);
+                    let a = self.tri_addr(self.tri_k.val());
+                    let last = (a + TRI_BYTES as u64 - 1) & !63;
+                    if r.addr == a & !63 {
+                        self.line0.set(r.line);
+                        if last != r.addr {
+                            // The triangle straddles two lines: load the second now.
+                            let ok = self.load(ctx, last);
+                            assert!(ok, "a TP's load link is empty while it waits");
+                            self.req_at.set(c);
+                            return Next::Cycle;
+                        }
+                    } else {
+                        self.line1.set(r.line);
+                    }
+                    self.go(TpState::TriIssue, c)
+                }
+                None => wait(ctx, Status::ResourceBusy),
+            },
+            TpState::TriTestWait => match ctx.pop(&self.tri_resp) {
+                Some(r) => {
+                    self.tri_hit.set(r.hit.then_some(HitRec {
+                        t: r.t,
+                        tri_id: r.tri_id,
+                        u: r.u,
+                        v: r.v,
+                    }));
+                    let w = c - self.req_at.val();
+                    self.stats.wait[2] += w;
+                    self.stats.stall[2] += w.saturating_sub(self.rt[2]);
+                    ctx.set_status(Status::Busy);
+                    self.go(TpState::TriResult, c)
+                }
+                None => wait(ctx, Status::ResourceBusy),
+            },
+            _ => {
+                // Overflow: stopped for good, reported by the testbench.
+                ctx.set_status(Status::ResourceBusy);
+                Next::Idle
+            }
+        }
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        let s = &self.stats;
+        let mut v = vec![
+            ("rays", s.rays),
+            ("box_tests", s.box_tests),
+            ("tri_tests", s.tri_tests),
+            ("exits", s.exits),
+            ("hits", s.hits),
+            ("l1_loads", s.l1_loads),
+            ("wait_div", s.wait[0]),
+            ("wait_box", s.wait[1]),
+            ("wait_tri", s.wait[2]),
+            ("wait_l1", s.wait[3]),
+            ("stall_div", s.stall[0]),
+            ("stall_box", s.stall[1]),
+            ("stall_tri", s.stall[2]),
+            ("blocked", s.blocked),
+            ("max_stack", s.max_stack),
+        ];
+        for (k, (name, _)) in self.costs.all().iter().enumerate() {
+            v.push((name, s.uses[k]));
+        }
+        v
+    }
+
+    fn reset_counters(&mut self) {
+        self.stats = TpStats::default();
+        if let Some(l) = &mut self.log {
+            l.clear();
+        }
+    }
+}
+
+impl Tp {
+    /// Whether the TP stopped on a stack overflow.
+    pub fn overflowed(&self) -> bool {
+        self.state.val() == TpState::Overflow
+    }
+}
