@@ -2,9 +2,6 @@
 //! result (cycles, statistics, waveform), the link monitors catch protocol bugs,
 //! shadow evaluation catches sleep bugs, and clock domains share one time base.
 
-use std::io::Write;
-use std::sync::{Arc, Mutex};
-
 use dualstream::config::Config;
 use dualstream::rtl::{
     Ctx, Declared, In, LinkCfg, Logic, Next, Out, Reg, RunEnd, Sim, SimError, SimOptions, Status,
@@ -16,25 +13,6 @@ use dualstream::units::divider::{DivReq, Divider};
 use dualstream::units::tri_pipe::{TriPipe, TriReq};
 use dualstream::util::rng::Rng;
 use glam::Vec3;
-
-/// A `Write` into shared memory, so a test can hash the whole VCD.
-#[derive(Clone, Default)]
-struct Buf(Arc<Mutex<Vec<u8>>>);
-impl Write for Buf {
-    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(b);
-        Ok(b.len())
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
-fn fnv(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x100000001b3)
-    })
-}
 
 /// Everything a run produces that must not depend on evaluation order or sleeping.
 #[derive(Debug, PartialEq)]
@@ -103,7 +81,7 @@ fn design(opts: SimOptions, seed: u64) -> Outcome {
         );
         drivers.push((d, 2));
     }
-    let buf = Buf::default();
+    let buf = dualstream::rtl::SharedBuf::default();
     sim.attach_tracer(Tracer::new(Box::new(buf.clone()), TraceSpec::all()).unwrap())
         .unwrap();
     for &(d, kind) in &drivers {
@@ -159,7 +137,7 @@ fn design(opts: SimOptions, seed: u64) -> Outcome {
         end_ps: sim.now(),
         stats: sim.all_stats(),
         links: sim.link_stats(),
-        vcd_hash: fnv(&vcd),
+        vcd_hash: dualstream::util::fnv1a(&vcd),
         vcd_len: vcd.len(),
     }
 }

@@ -79,8 +79,6 @@ fn streaming_reaches_peak_and_random_does_not() {
 }
 
 mod unit {
-    use std::io::Write;
-    use std::sync::{Arc, Mutex};
 
     use dualstream::config::Config;
     use dualstream::mem::replay::{ReplayOptions, replay};
@@ -239,24 +237,12 @@ mod unit {
         }
     }
 
-    #[derive(Clone, Default)]
-    struct Buf(Arc<Mutex<Vec<u8>>>);
-    impl Write for Buf {
-        fn write(&mut self, x: &[u8]) -> std::io::Result<usize> {
-            self.0.lock().unwrap().extend_from_slice(x);
-            Ok(x.len())
-        }
-        fn flush(&mut self) -> std::io::Result<()> {
-            Ok(())
-        }
-    }
-
     #[test]
     fn sleeping_and_evaluation_order_change_nothing() {
         let cfg = Config::default();
         let run = |opts: SimOptions| {
             let mut b = MemTb::new(&cfg, opts, 0.6, 9).unwrap();
-            let buf = Buf::default();
+            let buf = dualstream::rtl::SharedBuf::default();
             b.sim
                 .attach_tracer(Tracer::new(Box::new(buf.clone()), TraceSpec::all()).unwrap())
                 .unwrap();

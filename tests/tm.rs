@@ -3,9 +3,6 @@
 //! TP, shows real contention with 16, and sleeping or evaluation order change
 //! nothing.
 
-use std::io::Write;
-use std::sync::{Arc, Mutex};
-
 use dualstream::config::Config;
 use dualstream::contract::{
     HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, SegEntry, TRI_BYTES,
@@ -18,24 +15,6 @@ use dualstream::scene::Scene;
 use dualstream::testbench::tm_tb::{
     self, RunOptions, TmJob, TmRun, TmTbOptions, expected, run_job, scoreboard, treelet_rays,
 };
-
-#[derive(Clone, Default)]
-struct Buf(Arc<Mutex<Vec<u8>>>);
-impl Write for Buf {
-    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(b);
-        Ok(b.len())
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
-fn fnv(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x100000001b3)
-    })
-}
 
 struct Setup {
     p: Prepared,
@@ -418,7 +397,7 @@ fn outcome(opts: SimOptions) -> (u64, Vec<dualstream::rtl::UnitStats>, u64, usiz
     let s = setup("cornell", 12, 1);
     let seg = 1;
     let rays = s.rays[seg as usize].clone();
-    let buf = Buf::default();
+    let buf = dualstream::rtl::SharedBuf::default();
     let job = TmJob {
         mem: &s.p.mem,
         seg,
@@ -432,7 +411,7 @@ fn outcome(opts: SimOptions) -> (u64, Vec<dualstream::rtl::UnitStats>, u64, usiz
     };
     let r = run_job(&Config::default(), &job, &o, Some(Box::new(buf.clone()))).unwrap();
     let vcd = buf.0.lock().unwrap().clone();
-    (r.end_ps, r.stats, fnv(&vcd), vcd.len())
+    (r.end_ps, r.stats, dualstream::util::fnv1a(&vcd), vcd.len())
 }
 
 #[test]
@@ -466,7 +445,7 @@ fn sleeping_and_evaluation_order_change_nothing() {
 #[test]
 fn vcd_has_a_scope_per_tp_matching_its_verilog() {
     let s = setup("cornell", 8, 1);
-    let buf = Buf::default();
+    let buf = dualstream::rtl::SharedBuf::default();
     let job = TmJob {
         mem: &s.p.mem,
         seg: 1,

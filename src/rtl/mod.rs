@@ -18,5 +18,5 @@ pub use link::{In, LinkCfg, LinkEvent, LinkId, Out};
 pub use pipe::FixedPipe;
 pub use sim::{ClockId, Ctx, RunEnd, Sim, SimError, SimOptions, Time, UnitId, UnitStats};
 pub use state::{Ram, Reg, State};
-pub use trace::{TraceSpec, TraceStats, Tracer};
+pub use trace::{SharedBuf, TraceSpec, TraceStats, Tracer};
 pub use unit::{Declared, Logic, Next, Status, Unit};

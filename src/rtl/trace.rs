@@ -458,3 +458,24 @@ mod tests {
         assert_eq!(vcd_id(94), "!\"");
     }
 }
+
+/// A `Write` into shared memory: a trace kept in RAM (tests hash whole waveforms
+/// with it; a watchdog can keep the last cycles before a hang).
+#[derive(Clone, Default)]
+pub struct SharedBuf(pub std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
+
+impl SharedBuf {
+    pub fn bytes(&self) -> Vec<u8> {
+        self.0.lock().expect("not poisoned").clone()
+    }
+}
+
+impl Write for SharedBuf {
+    fn write(&mut self, b: &[u8]) -> io::Result<usize> {
+        self.0.lock().expect("not poisoned").extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
