@@ -655,12 +655,10 @@ impl ChannelCtrl {
 
     /// Takes slot `s` out of queue `q` and its bank list (it hits the open row).
     fn remove(&mut self, s: usize, q: usize) {
-        let (seq, bank) = (self.slots[s].seq, self.slots[s].bank);
-        let slots = &self.slots;
+        let bank = self.slots[s].bank;
+        // A scan of 16-bit slot numbers (no indirection; usually near the front).
         let order = &mut self.order[q];
-        let i = order
-            .binary_search_by_key(&seq, |&x| slots[x as usize].seq)
-            .expect("queued");
+        let i = order.iter().position(|&x| x as usize == s).expect("queued");
         order.remove(i);
         let qb = q * self.nbanks as usize + bank as usize;
         let list = &mut self.bank_q[qb];
