@@ -392,6 +392,26 @@ fn bad_configs_and_traces_are_named() {
     assert!(e.contains("watermarks"), "{e}");
     let e = Config::from_toml("[mem.timing]\ntCL = 3\n").unwrap_err();
     assert!(e.contains("tCL"), "{e}");
+    // The DRAM image and the device agree on the row and the capacity.
+    let d = Config::default();
+    assert_eq!(d.memory.row_bytes, d.mem.geometry.row_bytes());
+    assert_eq!(d.memory.capacity_bytes, d.mem.geometry.capacity());
+    let e = Config::from_toml("[mem.geometry]\ncolumns = 128\n").unwrap_err();
+    assert!(
+        e.contains("memory.row_bytes = 8192") && e.contains("mem.geometry.columns"),
+        "{e}"
+    );
+    let e = Config::from_toml("[mem.geometry]\nrows = 8192\n").unwrap_err();
+    assert!(
+        e.contains("memory.capacity_bytes") && e.contains("mem.geometry"),
+        "{e}"
+    );
+    let half = Config::from_toml(&format!(
+        "[mem.geometry]\nrows = {}\n[memory]\ncapacity_bytes = {}\n",
+        d.mem.geometry.rows / 2,
+        d.memory.capacity_bytes / 2
+    ));
+    assert!(half.is_ok(), "{:?}", half.err());
     let m = MemCfg::paper();
     let bad = [TraceReq {
         addr: m.geometry.capacity(),
