@@ -145,8 +145,32 @@ impl Config {
         self.memory.validate()?;
         self.accel.validate(self.memory.row_bytes)?;
         self.mem.validate()?;
-        // TODO(issue 6): the DRAM image's row and capacity (`memory`) should be derived
-        // from the device geometry (`mem.geometry`) once the chip connects them.
+        // The DRAM image (`memory`) lives in the device (`mem.geometry`): one row
+        // size and one capacity. (`dualstream dram --preset` swaps the device for a
+        // trace replay only, after this check.)
+        let g = &self.mem.geometry;
+        if self.memory.row_bytes != g.row_bytes() {
+            return Err(format!(
+                "memory.row_bytes = {} differs from the device's row, mem.geometry.columns x burst = {} x {} B = {} B; set memory.row_bytes = {} or change mem.geometry",
+                self.memory.row_bytes,
+                g.columns,
+                g.burst_bytes(),
+                g.row_bytes(),
+                g.row_bytes()
+            ));
+        }
+        if self.memory.capacity_bytes != g.capacity() {
+            return Err(format!(
+                "memory.capacity_bytes = {} differs from the device's capacity, mem.geometry channels x banks x rows x row = {} x {} x {} x {} B = {} B; set memory.capacity_bytes = {} or change mem.geometry",
+                self.memory.capacity_bytes,
+                g.channels,
+                g.banks(),
+                g.rows,
+                g.row_bytes(),
+                g.capacity(),
+                g.capacity()
+            ));
+        }
         self.tm.validate(&self.links.tm)?;
         Ok(())
     }

@@ -478,6 +478,9 @@ struct DramArgs {
 /// `dualstream dram`: generate and/or replay a trace on the memory model.
 fn dram(mut config: Config, a: DramArgs) -> Result<(), String> {
     use dualstream::mem::{MemCfg, config::EnergyCfg, replay, trace};
+    // The config as given must hold together (the DRAM image fits its device);
+    // a preset then replaces the device for this replay only (the image is unused).
+    config.validate()?;
     let preset = match &a.preset {
         Some(p) => {
             let (m, tck) = MemCfg::preset(p)?;
@@ -490,7 +493,7 @@ fn dram(mut config: Config, a: DramArgs) -> Result<(), String> {
     if let Some(e) = &a.energy {
         config.mem.energy = EnergyCfg::by_name(e, &config.mem.geometry)?;
     }
-    config.validate()?;
+    config.mem.validate()?;
     let m = &config.mem;
     let reqs = match (&a.trace, &a.generate) {
         (Some(_), Some(_)) => {

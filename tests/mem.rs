@@ -48,6 +48,35 @@ fn random_traffic_has_no_timing_violations() {
     }
 }
 
+/// The scheduler decides from per-bank queues; in debug builds (`cargo test`)
+/// every decision is checked against the plain FR-FCFS scan over the whole queue
+/// in age order (`ChannelCtrl::pick` panics on a difference). Run it where the
+/// two could part: tiny queues and response buffer (the scan itself decides while
+/// the buffer is full), frequent write drains, 16 banks in one group, the
+/// flat-bank mapping, and throttled traffic with refreshes in idle time.
+#[test]
+fn scheduler_decisions_equal_the_plain_scan() {
+    let mut small = one_channel(MemCfg::paper());
+    small.ctrl.read_queue = 8;
+    small.ctrl.write_queue = 12;
+    small.ctrl.write_high = 8;
+    small.ctrl.write_low = 3;
+    small.ctrl.resp_buffer = 2;
+    let mut flat = MemCfg::dramsim3_gddr5();
+    flat.geometry.bank_groups = 1;
+    flat.geometry.banks_per_group = 16;
+    let mut map1 = one_channel(MemCfg::paper());
+    map1.mapping = "row:bank:channel:column".into();
+    for (m, tck) in [(small, 500), (flat, 667), (map1, 500)] {
+        for (kind, wf, interval) in [("random", 0.3, 0), ("mixed", 0.0, 2), ("stream", 0.5, 0)] {
+            let reqs = generate(kind, 3000, 3, &m, interval, wf).unwrap();
+            let rep = run(&m, tck, &reqs);
+            assert_eq!(rep.violations.as_ref().unwrap().len(), 0, "{kind}");
+            assert_eq!(rep.total.requests(), 3000, "{kind}");
+        }
+    }
+}
+
 /// Unthrottled sequential reads on one channel of the paper's memory, spread
 /// over bank groups by the default mapping, reach >= 90% of the channel's peak
 /// with nearly every request a row hit; uniform random reads reach far less.
@@ -349,6 +378,26 @@ fn bad_configs_and_traces_are_named() {
     assert!(e.contains("watermarks"), "{e}");
     let e = Config::from_toml("[mem.timing]\ntCL = 3\n").unwrap_err();
     assert!(e.contains("tCL"), "{e}");
+    // The DRAM image and the device agree on the row and the capacity.
+    let d = Config::default();
+    assert_eq!(d.memory.row_bytes, d.mem.geometry.row_bytes());
+    assert_eq!(d.memory.capacity_bytes, d.mem.geometry.capacity());
+    let e = Config::from_toml("[mem.geometry]\ncolumns = 128\n").unwrap_err();
+    assert!(
+        e.contains("memory.row_bytes = 8192") && e.contains("mem.geometry.columns"),
+        "{e}"
+    );
+    let e = Config::from_toml("[mem.geometry]\nrows = 8192\n").unwrap_err();
+    assert!(
+        e.contains("memory.capacity_bytes") && e.contains("mem.geometry"),
+        "{e}"
+    );
+    let half = Config::from_toml(&format!(
+        "[mem.geometry]\nrows = {}\n[memory]\ncapacity_bytes = {}\n",
+        d.mem.geometry.rows / 2,
+        d.memory.capacity_bytes / 2
+    ));
+    assert!(half.is_ok(), "{:?}", half.err());
     let m = MemCfg::paper();
     let bad = [TraceReq {
         addr: m.geometry.capacity(),

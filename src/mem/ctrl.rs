@@ -13,6 +13,14 @@
 //! A refresh, once due, precharges every bank and then issues REF; nothing else
 //! issues meanwhile.
 //!
+//! Queues: requests live in a slab of slots; each queue keeps its slots in age
+//! order, and per bank (`bank_q`) with the number that hit the bank's open row,
+//! so one decision looks at the banks that hold requests (each bank's oldest
+//! request and oldest row hit are the only candidates) instead of every request.
+//! `pick_scan` is the plain FR-FCFS scan over the whole queue in age order: it
+//! decides while the response buffer is full (the one case where a bank's oldest
+//! hit may be held back) and, in debug builds, checks every other decision.
+//!
 //! The same code runs inside the `mem_ctrl` unit (through its links) and in the
 //! trace replay (called directly); `tests/mem.rs` checks that they agree.
 //!
@@ -44,6 +52,8 @@ enum Class {
 #[derive(Clone, Debug)]
 struct Entry {
     req: MemReq,
+    /// Arrival order within the controller (FR-FCFS age).
+    seq: u64,
     bank: u32,
     row: u32,
     /// First burst of the line within the row.
@@ -53,6 +63,7 @@ struct Entry {
     class: Class,
 }
 
+/// What to issue; `Col`, `Act` and `Pre` name the request's slot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Choice {
     Col(usize),
@@ -95,8 +106,18 @@ pub struct ChannelCtrl {
     bank_bits: u32,
     col_bits: u32,
     timing: ChannelTiming,
-    rq: Vec<Entry>,
-    wq: Vec<Entry>,
+    /// Queued requests by slot; `free` holds the unused slots.
+    slots: Vec<Entry>,
+    free: Vec<u16>,
+    /// Slots of the read (0) and write (1) queue in age order.
+    order: [Vec<u16>; 2],
+    /// Per queue and bank (`q * nbanks + bank`): slots in age order, and how
+    /// many of them hit the bank's open row.
+    bank_q: Vec<Vec<u16>>,
+    hits: Vec<u16>,
+    /// Per queue: banks with at least one request.
+    nonempty: [u64; 2],
+    next_seq: u64,
     /// Requests whose last burst has issued, by cycle their data ends.
     resp: VecDeque<(u64, MemResp)>,
     drain: bool,
@@ -121,6 +142,10 @@ impl ChannelCtrl {
         let g = &cfg.geometry;
         let map = AddrMap::new(g, &cfg.mapping).expect("validated mapping");
         assert!(g.banks() <= 64, "bank masks are 64 bits");
+        assert!(
+            cfg.ctrl.read_queue + cfg.ctrl.write_queue < u16::MAX as u32,
+            "queue slots are 16 bits"
+        );
         ChannelCtrl {
             channel,
             cfg: cfg.clone(),
@@ -142,8 +167,16 @@ impl ChannelCtrl {
             bank_bits: clog2_u32(g.banks()),
             col_bits: clog2_u32(g.columns),
             timing: ChannelTiming::new(&cfg.timing, g),
-            rq: Vec::with_capacity(cfg.ctrl.read_queue as usize),
-            wq: Vec::with_capacity(cfg.ctrl.write_queue as usize),
+            slots: Vec::with_capacity((cfg.ctrl.read_queue + cfg.ctrl.write_queue) as usize),
+            free: Vec::new(),
+            order: [
+                Vec::with_capacity(cfg.ctrl.read_queue as usize),
+                Vec::with_capacity(cfg.ctrl.write_queue as usize),
+            ],
+            bank_q: vec![Vec::new(); 2 * g.banks() as usize],
+            hits: vec![0; 2 * g.banks() as usize],
+            nonempty: [0; 2],
+            next_seq: 0,
             resp: VecDeque::with_capacity(cfg.ctrl.resp_buffer as usize),
             drain: false,
             refresh_due: cfg.timing.refi as u64,
@@ -170,17 +203,17 @@ impl ChannelCtrl {
 
     /// Nothing queued, in flight or waiting to be returned.
     pub fn is_idle(&self) -> bool {
-        self.rq.is_empty() && self.wq.is_empty() && self.resp.is_empty()
+        self.order[0].is_empty() && self.order[1].is_empty() && self.resp.is_empty()
     }
     pub fn can_accept(&self, write: bool) -> bool {
         if write {
-            self.wq.len() < self.wq_cap
+            self.order[1].len() < self.wq_cap
         } else {
-            self.rq.len() < self.rq_cap
+            self.order[0].len() < self.rq_cap
         }
     }
     pub fn queue_lengths(&self) -> (usize, usize, usize) {
-        (self.rq.len(), self.wq.len(), self.resp.len())
+        (self.order[0].len(), self.order[1].len(), self.resp.len())
     }
     /// The next cycle at which `step` may do something (refresh included).
     pub fn next_event(&self) -> u64 {
@@ -203,8 +236,8 @@ impl ChannelCtrl {
     }
     fn traced(&self) -> Traced {
         Traced {
-            rq: self.rq.len() as u32,
-            wq: self.wq.len() as u32,
+            rq: self.order[0].len() as u32,
+            wq: self.order[1].len() as u32,
             resp: self.resp.len() as u32,
             drain: self.drain,
             refresh: self.refresh_pending,
@@ -215,8 +248,8 @@ impl ChannelCtrl {
     fn occ_integrate(&mut self, c: u64) {
         if c > self.occ_since {
             let d = c - self.occ_since;
-            self.stats.rq_occupancy_sum += self.rq.len() as u64 * d;
-            self.stats.wq_occupancy_sum += self.wq.len() as u64 * d;
+            self.stats.rq_occupancy_sum += self.order[0].len() as u64 * d;
+            self.stats.wq_occupancy_sum += self.order[1].len() as u64 * d;
             self.occ_since = c;
         }
     }
@@ -235,10 +268,10 @@ impl ChannelCtrl {
 
     fn update_drain(&mut self) {
         if self.drain {
-            if self.wq.len() <= self.write_low {
+            if self.order[1].len() <= self.write_low {
                 self.drain = false;
             }
-        } else if self.wq.len() >= self.write_high {
+        } else if self.order[1].len() >= self.write_high {
             self.drain = true;
         }
     }
@@ -258,6 +291,7 @@ impl ChannelCtrl {
             self.stats.bad_addresses += 1;
         }
         let e = Entry {
+            seq: self.next_seq,
             bank: loc.flat_bank(self.banks_per_group),
             row: loc.row,
             col: loc.column * self.bursts_per_line,
@@ -266,16 +300,34 @@ impl ChannelCtrl {
             class: Class::Unset,
             req,
         };
+        self.next_seq += 1;
         self.occ_integrate(c + 1);
+        let q = e.req.write as usize;
+        let len = self.order[q].len() + 1;
         if e.req.write {
-            assert!(self.wq.len() < self.wq_cap, "write queue overflow");
-            self.wq.push(e);
-            self.stats.wq_max = self.stats.wq_max.max(self.wq.len() as u32);
+            assert!(len <= self.wq_cap, "write queue overflow");
+            self.stats.wq_max = self.stats.wq_max.max(len as u32);
         } else {
-            assert!(self.rq.len() < self.rq_cap, "read queue overflow");
-            self.rq.push(e);
-            self.stats.rq_max = self.stats.rq_max.max(self.rq.len() as u32);
+            assert!(len <= self.rq_cap, "read queue overflow");
+            self.stats.rq_max = self.stats.rq_max.max(len as u32);
         }
+        let qb = q * self.nbanks as usize + e.bank as usize;
+        if self.timing.open_row(e.bank) == Some(e.row) {
+            self.hits[qb] += 1;
+        }
+        self.nonempty[q] |= 1 << e.bank;
+        let s = match self.free.pop() {
+            Some(s) => {
+                self.slots[s as usize] = e;
+                s
+            }
+            None => {
+                self.slots.push(e);
+                (self.slots.len() - 1) as u16
+            }
+        };
+        self.order[q].push(s);
+        self.bank_q[qb].push(s);
         self.update_drain();
         self.next_event = self.next_event.min(c + 1);
     }
@@ -326,82 +378,103 @@ impl ChannelCtrl {
         }
     }
 
+    /// The queue being served: writes while draining or when no read waits.
+    #[inline]
+    fn serving_writes(&self) -> bool {
+        self.drain || (self.order[0].is_empty() && !self.order[1].is_empty())
+    }
+
     /// The command to issue in cycle `c`, or the earliest cycle one may become legal.
     fn pick(&self, c: u64) -> Result<Choice, u64> {
-        let r = self.pick_fast(c);
+        if self.refresh_pending {
+            return self.pick_refresh(c);
+        }
+        if self.resp.len() >= self.resp_cap {
+            return self.pick_scan(c);
+        }
+        let r = self.pick_banks(c);
         #[cfg(debug_assertions)]
         {
-            let want = self.pick_reference(c);
-            debug_assert_eq!(r, want, "scheduler fast path vs reference at cycle {c}");
+            let want = self.pick_scan(c);
+            debug_assert_eq!(
+                r, want,
+                "scheduler per-bank path vs plain scan at cycle {c}"
+            );
         }
         r
     }
 
-    /// FR-FCFS in one pass over the served queue: the first (oldest) row hit whose
-    /// column command is legal wins; meanwhile note each bank's oldest other
-    /// request, the only one that can want its ACT or PRE first.
-    fn pick_fast(&self, c: u64) -> Result<Choice, u64> {
+    /// FR-FCFS over the banks that hold requests of the served queue (the
+    /// response buffer has room): the oldest row hit whose column command is legal
+    /// goes first, else the oldest request whose ACT (closed bank) or PRE (open
+    /// bank that no queued request hits) is legal. Within a bank the oldest hit and
+    /// the oldest request are the only candidates, so this equals the plain scan.
+    fn pick_banks(&self, c: u64) -> Result<Choice, u64> {
         let t = &self.timing;
-        if self.refresh_pending {
-            return self.pick_reference_refresh(c);
-        }
-        let writes = self.drain || (self.rq.is_empty() && !self.wq.is_empty());
-        let q = if writes { &self.wq } else { &self.rq };
-        let nb = self.nbanks as usize;
-        let mut open = [u32::MAX; 64];
-        for (b, o) in open.iter_mut().enumerate().take(nb) {
-            *o = t.open_row(b as u32).unwrap_or(u32::MAX);
-        }
-        // Column-command times, asked only for banks that have a hit.
-        let mut ready = [u64::MAX; 64];
-        debug_assert!(self.rq_cap.max(self.wq_cap) < u16::MAX as usize);
-        let resp_full = self.resp.len() >= self.resp_cap;
+        let writes = self.serving_writes();
+        let q = writes as usize;
+        let base = q * self.nbanks as usize;
+        let act_floor = t.act_floor();
         let mut wake = u64::MAX;
-        let mut hit_banks = 0u64;
-        let mut first_other = [u16::MAX; 64];
-        for (i, e) in q.iter().enumerate() {
-            let b = e.bank as usize;
-            if open[b] == e.row {
-                hit_banks |= 1 << b;
-                if resp_full && e.bursts_done + 1 == self.bursts_per_line {
-                    continue; // woken by the next pop_response
+        // (seq, slot) of the best column command and of the best ACT/PRE.
+        let mut col = (u64::MAX, 0usize);
+        let mut other = (u64::MAX, Choice::Ref);
+        let mut m = self.nonempty[q];
+        while m != 0 {
+            let b = m.trailing_zeros();
+            m &= m - 1;
+            let list = &self.bank_q[base + b as usize];
+            match t.open_row(b) {
+                Some(open) if self.hits[base + b as usize] > 0 => {
+                    let x = t.earliest_col(b, writes);
+                    if x > c {
+                        wake = wake.min(x);
+                        continue;
+                    }
+                    let s = list
+                        .iter()
+                        .map(|&s| s as usize)
+                        .find(|&s| self.slots[s].row == open)
+                        .expect("counted hit");
+                    let seq = self.slots[s].seq;
+                    if seq < col.0 {
+                        col = (seq, s);
+                    }
                 }
-                if ready[b] == u64::MAX {
-                    ready[b] = t.earliest_col(b as u32, writes);
+                open => {
+                    let (x, ch) = match open {
+                        None => (t.earliest_act_after(b, act_floor), Choice::Act(0)),
+                        Some(_) => (t.earliest_pre(b), Choice::Pre(0)),
+                    };
+                    if x > c {
+                        wake = wake.min(x);
+                        continue;
+                    }
+                    let s = list[0] as usize;
+                    let seq = self.slots[s].seq;
+                    if seq < other.0 {
+                        other = (
+                            seq,
+                            match ch {
+                                Choice::Act(_) => Choice::Act(s),
+                                _ => Choice::Pre(s),
+                            },
+                        );
+                    }
                 }
-                if ready[b] <= c {
-                    return Ok(Choice::Col(i));
-                }
-                wake = wake.min(ready[b]);
-            } else if first_other[b] == u16::MAX {
-                first_other[b] = i as u16;
             }
         }
-        let mut best: Option<(usize, Choice)> = None;
-        for b in 0..nb {
-            if first_other[b] == u16::MAX {
-                continue;
-            }
-            let i = first_other[b] as usize;
-            let (x, ch) = if open[b] == u32::MAX {
-                (t.earliest_act(b as u32), Choice::Act(i))
-            } else if hit_banks & (1 << b) == 0 {
-                (t.earliest_pre(b as u32), Choice::Pre(i))
-            } else {
-                continue;
-            };
-            if x <= c {
-                if best.is_none_or(|(j, _)| i < j) {
-                    best = Some((i, ch));
-                }
-            } else {
-                wake = wake.min(x);
-            }
+        if col.0 != u64::MAX {
+            Ok(Choice::Col(col.1))
+        } else if other.0 != u64::MAX {
+            Ok(other.1)
+        } else {
+            Err(wake)
         }
-        best.map(|b| b.1).ok_or(wake)
     }
 
-    fn pick_reference_refresh(&self, c: u64) -> Result<Choice, u64> {
+    /// A refresh is due: precharge every open bank, then REF.
+    fn pick_refresh(&self, c: u64) -> Result<Choice, u64> {
         let t = &self.timing;
         let mut wake = u64::MAX;
         if t.open_banks() == 0 {
@@ -420,30 +493,14 @@ impl ChannelCtrl {
         Err(wake)
     }
 
-    /// The plain FR-FCFS scan over every request, kept as the reference that
-    /// `pick` must agree with (checked in debug builds).
-    #[cfg(debug_assertions)]
-    fn pick_reference(&self, c: u64) -> Result<Choice, u64> {
+    /// The plain FR-FCFS scan over every request of the served queue in age
+    /// order: the reference `pick_banks` must agree with (checked in debug
+    /// builds), and the decision while the response buffer is full.
+    fn pick_scan(&self, c: u64) -> Result<Choice, u64> {
         let t = &self.timing;
         let mut wake = u64::MAX;
-        if self.refresh_pending {
-            if t.open_banks() == 0 {
-                let e = t.earliest_ref();
-                return if e <= c { Ok(Choice::Ref) } else { Err(e) };
-            }
-            for b in 0..self.nbanks {
-                if t.open_row(b).is_some() {
-                    let e = t.earliest_pre(b);
-                    if e <= c {
-                        return Ok(Choice::PreForRefresh(b));
-                    }
-                    wake = wake.min(e);
-                }
-            }
-            return Err(wake);
-        }
-        let writes = self.drain || (self.rq.is_empty() && !self.wq.is_empty());
-        let q = if writes { &self.wq } else { &self.rq };
+        let writes = self.serving_writes();
+        let q = &self.order[writes as usize];
         // Per bank, once: its open row and when its next command may go (the
         // column command if open, else ACT). The PRE time is asked only for a
         // conflict.
@@ -461,14 +518,16 @@ impl ChannelCtrl {
         }
         // Banks whose open row some request of the served queue still hits.
         let mut hit_banks = 0u64;
-        for e in q {
+        for &s in q {
+            let e = &self.slots[s as usize];
             if open[e.bank as usize] == e.row {
                 hit_banks |= 1 << e.bank;
             }
         }
         let resp_full = self.resp.len() >= self.resp_cap;
         let mut other: Option<Choice> = None;
-        for (i, e) in q.iter().enumerate() {
+        for &s in q {
+            let (i, e) = (s as usize, &self.slots[s as usize]);
             let b = e.bank as usize;
             if open[b] == e.row {
                 if resp_full && e.bursts_done + 1 == self.bursts_per_line {
@@ -503,6 +562,25 @@ impl ChannelCtrl {
             self.bg_integrate(c);
         }
         self.timing.issue(c, kind, bank, row);
+        // Keep the per-bank hit counts of both queues in step with the open row.
+        let nb = self.nbanks as usize;
+        match kind {
+            DramCmd::Act => {
+                for q in 0..2 {
+                    let qb = q * nb + bank as usize;
+                    let n = self.bank_q[qb]
+                        .iter()
+                        .filter(|&&s| self.slots[s as usize].row == row)
+                        .count();
+                    self.hits[qb] = n as u16;
+                }
+            }
+            DramCmd::Pre => {
+                self.hits[bank as usize] = 0;
+                self.hits[nb + bank as usize] = 0;
+            }
+            _ => {}
+        }
         let cmd = Command {
             cycle: c,
             kind,
@@ -527,7 +605,7 @@ impl ChannelCtrl {
     }
 
     fn apply(&mut self, c: u64, ch: Choice) {
-        let writes = self.drain || (self.rq.is_empty() && !self.wq.is_empty());
+        let writes = self.serving_writes();
         match ch {
             Choice::Ref => {
                 self.command(c, DramCmd::Ref, 0, 0, 0);
@@ -538,9 +616,8 @@ impl ChannelCtrl {
                 let row = self.timing.open_row(b).expect("open");
                 self.command(c, DramCmd::Pre, b, row, 0);
             }
-            Choice::Act(i) | Choice::Pre(i) => {
-                let q = if writes { &mut self.wq } else { &mut self.rq };
-                let e = &mut q[i];
+            Choice::Act(s) | Choice::Pre(s) => {
+                let e = &mut self.slots[s];
                 let (bank, row) = (e.bank, e.row);
                 if let Choice::Act(_) = ch {
                     if e.class == Class::Unset {
@@ -553,9 +630,8 @@ impl ChannelCtrl {
                     self.command(c, DramCmd::Pre, bank, open, 0);
                 }
             }
-            Choice::Col(i) => {
-                let q = if writes { &mut self.wq } else { &mut self.rq };
-                let e = &mut q[i];
+            Choice::Col(s) => {
+                let e = &mut self.slots[s];
                 let (bank, row, col) = (e.bank, e.row, e.col + e.bursts_done);
                 e.bursts_done += 1;
                 let first = e.bursts_done == 1;
@@ -571,41 +647,54 @@ impl ChannelCtrl {
                     }
                 }
                 if last {
-                    self.complete(c, i, writes);
+                    self.complete(c, s, writes);
                 }
             }
         }
     }
 
-    /// The last burst of queue entry `i` issued in cycle `c`.
-    fn complete(&mut self, c: u64, i: usize, write: bool) {
+    /// Takes slot `s` out of queue `q` and its bank list (it hits the open row).
+    fn remove(&mut self, s: usize, q: usize) {
+        let bank = self.slots[s].bank;
+        // A scan of 16-bit slot numbers (no indirection; usually near the front).
+        let order = &mut self.order[q];
+        let i = order.iter().position(|&x| x as usize == s).expect("queued");
+        order.remove(i);
+        let qb = q * self.nbanks as usize + bank as usize;
+        let list = &mut self.bank_q[qb];
+        let j = list.iter().position(|&x| x as usize == s).expect("queued");
+        list.remove(j);
+        if list.is_empty() {
+            self.nonempty[q] &= !(1 << bank);
+        }
+        debug_assert!(self.hits[qb] > 0, "a completed request hits the open row");
+        self.hits[qb] -= 1;
+        self.free.push(s as u16);
+    }
+
+    /// The last burst of the request in slot `s` issued in cycle `c`.
+    fn complete(&mut self, c: u64, s: usize, write: bool) {
         self.occ_integrate(c + 1);
-        let e = if write {
-            self.wq.remove(i)
-        } else {
-            self.rq.remove(i)
-        };
+        self.remove(s, write as usize);
+        let e = &self.slots[s];
         let lat = if write { self.cwl } else { self.cl };
         let done = c + lat + self.burst;
         let latency = done - e.arrive;
+        let (tag_i, id, tag) = (e.req.tag as usize, e.req.id, e.req.tag);
         let s = &mut self.stats;
-        let tag = &mut s.per_tag[e.req.tag as usize];
+        let tagst = &mut s.per_tag[tag_i];
         if write {
             s.writes += 1;
             s.write_latency.add(latency);
-            tag.writes += 1;
+            tagst.writes += 1;
         } else {
             s.reads += 1;
             s.read_latency.add(latency);
-            tag.reads += 1;
+            tagst.reads += 1;
         }
-        tag.latency_sum += latency;
-        tag.latency_max = tag.latency_max.max(latency);
-        let resp = MemResp {
-            id: e.req.id,
-            write,
-            tag: e.req.tag,
-        };
+        tagst.latency_sum += latency;
+        tagst.latency_max = tagst.latency_max.max(latency);
+        let resp = MemResp { id, write, tag };
         // Keep the buffer ordered by data end (a write's data ends sooner).
         let pos = self
             .resp
@@ -616,7 +705,6 @@ impl ChannelCtrl {
         debug_assert!(self.resp.len() <= self.resp_cap, "response buffer overflow");
         self.update_drain();
     }
-
     /// Statistics up to cycle `end`, with refreshes due before `end` issued and
     /// background energy integrated (the controller itself is not changed).
     pub fn stats_at(&self, end: u64) -> ChannelStats {

@@ -56,16 +56,21 @@ pub fn replay(
     let mut i = 0usize;
     let mut last = 0u64;
     let mut completions = Vec::new();
+    // Per channel: the next cycle it needs attention (its next command or
+    // response while it holds something, else never). A channel not due and not
+    // targeted would do nothing this cycle, so it is not visited.
+    let mut due = vec![u64::MAX; chans.len()];
     loop {
-        for ch in chans.iter_mut() {
+        let target = (i < reqs.len() && reqs[i].cycle <= c).then(|| chan_of[i]);
+        for (k, ch) in chans.iter_mut().enumerate() {
+            if due[k] > c && target != Some(k) {
+                continue;
+            }
             while let Some(r) = ch.pop_response(c, c) {
                 if opts.check {
                     completions.push((r.id, c));
                 }
             }
-        }
-        let target = (i < reqs.len() && reqs[i].cycle <= c).then(|| chan_of[i]);
-        for (k, ch) in chans.iter_mut().enumerate() {
             if !ch.is_idle() || target == Some(k) {
                 ch.advance_to(c);
                 ch.step(c);
@@ -90,14 +95,18 @@ pub fn replay(
             }
         }
         let mut next = u64::MAX;
-        for ch in &chans {
-            if !ch.is_idle() {
-                next = next.min(ch.next_event());
-                if let Some(r) = ch.next_response() {
-                    next = next.min(r);
-                    last = last.max(r);
+        for (k, ch) in chans.iter().enumerate() {
+            if due[k] <= c || target == Some(k) {
+                due[k] = u64::MAX;
+                if !ch.is_idle() {
+                    due[k] = ch.next_event();
+                    if let Some(r) = ch.next_response() {
+                        due[k] = due[k].min(r);
+                        last = last.max(r);
+                    }
                 }
             }
+            next = next.min(due[k]);
         }
         if i < reqs.len() && !blocked {
             next = next.min(reqs[i].cycle.max(c + 1));

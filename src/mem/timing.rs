@@ -100,10 +100,13 @@ impl ChannelTiming {
     /// Earliest cycle for an ACT to a (closed) bank.
     #[inline]
     pub fn earliest_act(&self, bank: u32) -> u64 {
-        let mut e = self.banks[bank as usize]
-            .next_act
-            .max(self.bg_act[self.group(bank)])
-            .max(self.ch_act);
+        self.earliest_act_after(bank, self.act_floor())
+    }
+    /// The channel-level part of `earliest_act` (tRRD_S, tFAW, t32AW), the same
+    /// for every bank: ask once per decision.
+    #[inline]
+    pub fn act_floor(&self) -> u64 {
+        let mut e = self.ch_act;
         if self.t.faw > 0 && self.n_acts >= 4 {
             e = e.max(self.acts[((self.n_acts - 4) % 32) as usize] + self.t.faw as u64);
         }
@@ -111,6 +114,14 @@ impl ChannelTiming {
             e = e.max(self.acts[(self.n_acts % 32) as usize] + self.t.t32aw as u64);
         }
         e
+    }
+    /// `earliest_act` given `floor = act_floor()`.
+    #[inline]
+    pub fn earliest_act_after(&self, bank: u32, floor: u64) -> u64 {
+        self.banks[bank as usize]
+            .next_act
+            .max(self.bg_act[self.group(bank)])
+            .max(floor)
     }
     /// Earliest cycle for a RD (`write` false) or WR to the open row of a bank.
     #[inline]
