@@ -80,6 +80,8 @@ pub struct Config {
     pub mem: crate::mem::MemCfg,
     /// The thread multiprocessor: TPs and their cost table, L1, staging buffer.
     pub tm: crate::units::tm::TmCfg,
+    /// On-chip and compute energy per access and per operation (65 nm).
+    pub energy: crate::energy::EnergyCfg,
 }
 
 impl Default for Config {
@@ -103,6 +105,7 @@ impl Default for Config {
             memory: crate::contract::MemoryMapCfg::default(),
             mem: crate::mem::MemCfg::default(),
             tm: crate::units::tm::TmCfg::default(),
+            energy: crate::energy::EnergyCfg::default(),
         }
     }
 }
@@ -172,6 +175,7 @@ impl Config {
             ));
         }
         self.tm.validate(&self.links.tm)?;
+        self.energy.validate()?;
         Ok(())
     }
 }

@@ -4,6 +4,7 @@ pub mod accel;
 pub mod bench;
 pub mod config;
 pub mod contract;
+pub mod energy;
 pub mod geom;
 pub mod mem;
 pub mod render;

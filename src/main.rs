@@ -350,7 +350,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 .expect("valid template")
                 .progress_chars("=> "),
             );
-            let frame = render::render(&sc, mode, &rc, &mut |p: &render::Progress| {
+            let mut frame = render::render(&sc, mode, &rc, &mut |p: &render::Progress| {
                 let frac = (p.done * 1000).checked_div(p.known).unwrap_or(0);
                 bar.set_position(p.wave as u64 * 1000 + frac);
                 bar.set_message(format!(
@@ -359,6 +359,15 @@ fn run(cli: Cli) -> Result<(), String> {
                 ));
             })?;
             bar.finish_and_clear();
+            if mode == Mode::Functional {
+                // Every enqueued ray is one ray-segment traversal by a TP.
+                let act = dualstream::energy::tm_activity(
+                    &frame.total.traversal,
+                    frame.total.enqueues,
+                    &config.tm.costs,
+                );
+                frame.energy = Some(dualstream::energy::energy(&config.energy, &act));
+            }
             output::write_png(&frame, &out)?;
             print!("{}", output::summary(&frame));
             println!("image: {}", out.display());

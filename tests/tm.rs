@@ -510,3 +510,41 @@ fn bad_input_is_a_clear_error() {
     let e = Config::from_toml("[tm.costs.pop]\ncycles = 2\nint = 5\n").unwrap_err();
     assert!(e.contains("single-issue"), "{e}");
 }
+
+/// The energy model charges a functional run with the TP work it implies
+/// (`energy::tm_activity`); that work must equal what the cycle-level TPs do.
+#[test]
+fn functional_counts_imply_the_tps_state_uses() {
+    let s = setup("cornell", 32, 3);
+    let cfg = Config::default();
+    for seg in 0..=3u32 {
+        let rays = s.rays[seg as usize].clone();
+        if rays.is_empty() {
+            continue;
+        }
+        let e = entry(&s.p, seg);
+        let v =
+            dualstream::render::traverse::SegmentView::load(&s.p.mem, e.base, seg, e.nodes, e.tris);
+        let (_, _, counts) = expected(&v, &rays);
+        let r = run(&cfg, &s, seg, rays.clone(), &RunOptions::default());
+        let tps = &r.units.tps;
+        assert_eq!(r.counter(tps, "fetch"), rays.len() as u64, "segment {seg}");
+        assert_eq!(r.counter(tps, "pop"), counts.pops, "segment {seg}: pops");
+        assert_eq!(
+            r.counter(tps, "node_fetch"),
+            counts.nodes,
+            "segment {seg}: nodes"
+        );
+        assert_eq!(
+            r.counter(tps, "tri_fetch"),
+            counts.tri_tests,
+            "segment {seg}: triangles"
+        );
+        assert_eq!(r.counter(tps, "exit"), counts.exits, "segment {seg}: exits");
+        assert_eq!(
+            r.counter(tps, "l1_loads"),
+            counts.l1_lines,
+            "segment {seg}: L1 loads"
+        );
+    }
+}

@@ -161,6 +161,9 @@ pub struct Frame {
     pub trace_s: f64,
     pub verified_rays: u64,
     pub dram_resident_mb: f64,
+    /// Compute and on-chip energy of the TMs implied by the traversal (set by the
+    /// caller from the energy table and the TP cost table; functional mode only).
+    pub energy: Option<crate::energy::Energy>,
 }
 
 /// The scene built for the chip: BVH, segments and the DRAM image.
@@ -374,6 +377,7 @@ pub fn render(
         wall_s: start.elapsed().as_secs_f64(),
         trace_s,
         verified_rays: verified,
+        energy: None,
         dram_resident_mb: p.mem.resident_bytes() as f64 / (1 << 20) as f64,
     })
 }

@@ -125,6 +125,20 @@ pub fn summary(f: &Frame) -> String {
         "  wall {:.2} s (tracing {:.2} s), DRAM image {:.1} MB resident\n",
         f.wall_s, f.trace_s, f.dram_resident_mb
     );
+    if let Some(e) = &f.energy {
+        s += &format!(
+            "  {:<34} {:>12.4}\n",
+            "compute energy, TMs (J)", e.compute_j
+        );
+        s += &format!(
+            "  {:<34} {:>12.4}\n",
+            "on-chip memory energy, TMs (J)", e.onchip_j
+        );
+        for (k, j) in &e.parts {
+            s += &format!("    {:<32} {:>12.4}\n", k, j);
+        }
+        s += "  (DRAM, scene-buffer and L2 energy need the cycle-level chip)\n";
+    }
     if f.verified_rays > 0 {
         s += &format!(
             "  verified: all {} rays agree with the reference traversal\n",

@@ -27,10 +27,16 @@ pub fn cull(t: f32) -> f32 {
 /// Work done by a traversal.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct TraversalCounts {
+    /// Stack entries popped (culled ones included): the TP's `pop` state.
+    pub pops: u64,
     pub nodes: u64,
     pub box_tests: u64,
     pub tri_tests: u64,
     pub exits: u64,
+    /// Triangle tests that hit (the triangle pipeline's divide stage runs).
+    pub tri_hits: u64,
+    /// 64 B lines a TP loads through its L1: one per node, one or two per triangle.
+    pub l1_lines: u64,
     pub max_stack: u64,
 }
 
@@ -40,6 +46,9 @@ impl std::ops::AddAssign for TraversalCounts {
         self.box_tests += o.box_tests;
         self.tri_tests += o.tri_tests;
         self.exits += o.exits;
+        self.pops += o.pops;
+        self.tri_hits += o.tri_hits;
+        self.l1_lines += o.l1_lines;
         self.max_stack = self.max_stack.max(o.max_stack);
     }
 }
@@ -92,6 +101,7 @@ pub fn traverse_segment(
     stack.clear();
     stack.push((entry, SEG_SAME, 0.0));
     while let Some((r, s, te)) = stack.pop() {
+        counts.pops += 1;
         let limit = best.t.min(t_ray);
         if te > cull(limit) {
             continue;
@@ -106,12 +116,17 @@ pub fn traverse_segment(
                 for k in first..first + count {
                     let tr = &seg.tris[k as usize];
                     counts.tri_tests += 1;
+                    // Segments start on a row (a line) boundary, so offsets give the lines.
+                    let off = (SEGMENT_HEADER_BYTES + seg.nodes.len() as u32 * NODE_BYTES) as u64
+                        + k as u64 * TRI_BYTES as u64;
+                    counts.l1_lines += crate::contract::lines_touched(off, TRI_BYTES as u64);
                     let tri = Triangle {
                         v0: tr.v[0],
                         v1: tr.v[1],
                         v2: tr.v[2],
                     };
                     if let Some(h) = ray_triangle(origin, dir, 0.0, best.t.min(t_ray), &tri) {
+                        counts.tri_hits += 1;
                         let cand = HitRec {
                             t: h.t,
                             tri_id: tr.tri_id,
@@ -129,6 +144,7 @@ pub fn traverse_segment(
             }
             Ref::Node(i) => {
                 counts.nodes += 1;
+                counts.l1_lines += 1;
                 let n = &seg.nodes[i as usize];
                 let lim = cull(best.t.min(t_ray));
                 counts.box_tests += 2;
@@ -154,6 +170,8 @@ pub fn traverse_segment(
             Ref::None => {}
         }
     }
+    // The pop that finds the stack empty ends the traversal (a TP runs it too).
+    counts.pops += 1;
     best
 }
 
@@ -190,6 +208,7 @@ pub fn reference_trace_counted(
     let mut best = HitRec::NONE;
     let mut stack: Vec<(Child, f32)> = vec![(bvh.root, 0.0)];
     while let Some((c, te)) = stack.pop() {
+        counts.pops += 1;
         if te > cull(best.t.min(t_ray)) {
             continue;
         }
@@ -200,6 +219,7 @@ pub fn reference_trace_counted(
                     if let Some(h) =
                         ray_triangle(origin, dir, 0.0, best.t.min(t_ray), &tris[id as usize])
                     {
+                        counts.tri_hits += 1;
                         let cand = HitRec {
                             t: h.t,
                             tri_id: id,

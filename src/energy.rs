@@ -1,0 +1,326 @@
+//! On-chip and compute energy at 65 nm, per access and per operation, each constant
+//! named with its source (`../shared/docs/hardware-reference.md` §4). The paper's
+//! figures exclude leakage, so the model does too (leakage would be a separate row).
+//!
+//! What is charged:
+//! - compute: every box test (its exact op count, `geom::RAY_BOX_OPS`), every
+//!   triangle test (the datapath up to the deferred division for every test; the
+//!   three divides and two compares of the hit path only on hits), three reciprocals
+//!   per inverse direction (the divider), and the TP instructions by class;
+//! - on-chip memory: per access of each SRAM (simtrax's per-access table, as the
+//!   paper's group charged it), three register-file accesses and one I-cache access
+//!   per TP instruction, one local-store access per TP load or store.
+
+use serde::{Deserialize, Serialize};
+
+use crate::geom::{RAY_BOX_OPS, RAY_TRI_OPS, RAY_TRI_REJECT_OPS};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EnergyCfg {
+    /// FP add/sub, pJ (simtrax `sim/ReadConfig.cc` default).
+    pub fp_add_pj: f64,
+    /// FP multiply, pJ (same).
+    pub fp_mul_pj: f64,
+    /// FP inverse / divide, pJ (same).
+    pub fp_div_pj: f64,
+    /// FP min/max and compare, pJ (same).
+    pub fp_cmp_pj: f64,
+    /// Integer add, branch, bitwise, pJ (same).
+    pub int_pj: f64,
+    /// Integer multiply, pJ (same).
+    pub int_mul_pj: f64,
+    /// L1, 16 KB, 8 banks, 64 B lines, nJ per access (simtrax `dcacheparams.txt`).
+    pub l1_nj: f64,
+    /// L2, 512 KB, 32 banks, nJ per access (same table).
+    pub l2_nj: f64,
+    /// Scene buffer, 4 MB, 64 banks, nJ per access (same table).
+    pub scene_buffer_nj: f64,
+    /// Ray staging buffer half, 2 KB, 1 bank, nJ per access (same table).
+    pub staging_nj: f64,
+    /// TP local store (512 B), pJ per access (simtrax `sim/LocalStore.cc`).
+    pub local_store_pj: f64,
+    /// Register file, pJ per access (simtrax `sim/SimpleRegisterFile.cc`).
+    pub rf_pj: f64,
+    /// Register-file accesses charged per instruction: 2 reads, 1 write (simtrax `sim/main.cc`).
+    pub rf_per_instruction: f64,
+    /// I-cache 4 KB, 16 banks (one per 16 threads), pJ per fetch (simtrax `icacheparams.txt`).
+    pub icache_pj: f64,
+}
+
+impl Default for EnergyCfg {
+    fn default() -> Self {
+        EnergyCfg {
+            fp_add_pj: 7.4,
+            fp_mul_pj: 14.2,
+            fp_div_pj: 156.3,
+            fp_cmp_pj: 0.536,
+            int_pj: 0.572,
+            int_mul_pj: 17.7,
+            l1_nj: 0.2042,
+            l2_nj: 0.6830,
+            scene_buffer_nj: 1.656,
+            staging_nj: 0.0626,
+            local_store_pj: 6.93,
+            rf_pj: 7.90,
+            rf_per_instruction: 3.0,
+            icache_pj: 13.5,
+        }
+    }
+}
+
+impl EnergyCfg {
+    pub fn validate(&self) -> Result<(), String> {
+        let all = [
+            ("fp_add_pj", self.fp_add_pj),
+            ("fp_mul_pj", self.fp_mul_pj),
+            ("fp_div_pj", self.fp_div_pj),
+            ("fp_cmp_pj", self.fp_cmp_pj),
+            ("int_pj", self.int_pj),
+            ("int_mul_pj", self.int_mul_pj),
+            ("l1_nj", self.l1_nj),
+            ("l2_nj", self.l2_nj),
+            ("scene_buffer_nj", self.scene_buffer_nj),
+            ("staging_nj", self.staging_nj),
+            ("local_store_pj", self.local_store_pj),
+            ("rf_pj", self.rf_pj),
+            ("rf_per_instruction", self.rf_per_instruction),
+            ("icache_pj", self.icache_pj),
+        ];
+        for (k, v) in all {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("energy.{k} = {v} must be a non-negative number"));
+            }
+        }
+        Ok(())
+    }
+
+    fn ops_pj(&self, o: crate::geom::OpCount) -> f64 {
+        o.add as f64 * self.fp_add_pj
+            + o.mul as f64 * self.fp_mul_pj
+            + (o.cmp + o.minmax) as f64 * self.fp_cmp_pj
+            + o.div as f64 * self.fp_div_pj
+    }
+}
+
+/// TP instructions by functional-unit class (the TP cost table's classes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Instructions {
+    pub int: u64,
+    pub int_mul: u64,
+    pub fp_add: u64,
+    pub fp_mul: u64,
+    pub fp_cmp: u64,
+    pub branch: u64,
+    pub load: u64,
+    pub store: u64,
+}
+
+impl Instructions {
+    pub fn total(&self) -> u64 {
+        self.int
+            + self.int_mul
+            + self.fp_add
+            + self.fp_mul
+            + self.fp_cmp
+            + self.branch
+            + self.load
+            + self.store
+    }
+}
+
+/// What happened on the chip, in events.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Activity {
+    pub box_tests: u64,
+    pub tri_tests: u64,
+    pub tri_hits: u64,
+    pub inverse_dirs: u64,
+    pub instructions: Instructions,
+    pub l1_accesses: u64,
+    pub l2_accesses: u64,
+    pub scene_buffer_accesses: u64,
+    pub staging_accesses: u64,
+    pub local_store_accesses: u64,
+}
+
+/// Energy in joules by component.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Energy {
+    pub compute_j: f64,
+    pub onchip_j: f64,
+    pub parts: Vec<(&'static str, f64)>,
+}
+
+/// Charges `a` with the per-event energies of `c`.
+pub fn energy(c: &EnergyCfg, a: &Activity) -> Energy {
+    let pj = 1e-12;
+    let i = &a.instructions;
+    let hit_extra = c.ops_pj(RAY_TRI_OPS) - c.ops_pj(RAY_TRI_REJECT_OPS);
+    let compute = [
+        ("box tests", a.box_tests as f64 * c.ops_pj(RAY_BOX_OPS) * pj),
+        (
+            "triangle tests",
+            (a.tri_tests as f64 * c.ops_pj(RAY_TRI_REJECT_OPS) + a.tri_hits as f64 * hit_extra)
+                * pj,
+        ),
+        ("divider", a.inverse_dirs as f64 * 3.0 * c.fp_div_pj * pj),
+        (
+            "TP arithmetic",
+            (i.int as f64 * c.int_pj
+                + i.int_mul as f64 * c.int_mul_pj
+                + i.fp_add as f64 * c.fp_add_pj
+                + i.fp_mul as f64 * c.fp_mul_pj
+                + (i.fp_cmp + i.branch) as f64 * c.fp_cmp_pj.max(c.int_pj))
+                * pj,
+        ),
+    ];
+    let n = i.total() as f64;
+    let onchip = [
+        ("L1", a.l1_accesses as f64 * c.l1_nj * 1e-9),
+        ("L2", a.l2_accesses as f64 * c.l2_nj * 1e-9),
+        (
+            "scene buffer",
+            a.scene_buffer_accesses as f64 * c.scene_buffer_nj * 1e-9,
+        ),
+        (
+            "staging buffer",
+            a.staging_accesses as f64 * c.staging_nj * 1e-9,
+        ),
+        ("register file", n * c.rf_per_instruction * c.rf_pj * pj),
+        ("instruction fetch", n * c.icache_pj * pj),
+        (
+            "local store",
+            a.local_store_accesses as f64 * c.local_store_pj * pj,
+        ),
+    ];
+    Energy {
+        compute_j: compute.iter().map(|p| p.1).sum(),
+        onchip_j: onchip.iter().map(|p| p.1).sum(),
+        parts: compute.into_iter().chain(onchip).collect(),
+    }
+}
+
+/// The activity of the thread processors and their pipelines implied by a
+/// functional run: every ray-segment traversal runs the TP states the cycle model's
+/// TP runs (the same traversal, `docs/tm.md`), so instruction counts, tests and L1
+/// loads follow from the traversal counts and the TP cost table. The fetch state's
+/// loads read the staging buffer; the other loads and stores use the local store.
+/// Scene-buffer and L2 accesses depend on timing (L1 misses) and are left to the chip.
+pub fn tm_activity(
+    t: &crate::render::traverse::TraversalCounts,
+    traversals: u64,
+    costs: &crate::units::tm::TpCosts,
+) -> Activity {
+    let uses = [
+        (&costs.fetch, traversals),
+        (&costs.init, traversals),
+        (&costs.pop, t.pops),
+        (&costs.exit, t.exits),
+        (&costs.node_fetch, t.nodes),
+        (&costs.box_issue, t.nodes),
+        (&costs.node_push, t.nodes),
+        (&costs.tri_fetch, t.tri_tests),
+        (&costs.tri_issue, t.tri_tests),
+        (&costs.tri_result, t.tri_tests),
+        (&costs.finish, traversals),
+    ];
+    let mut i = Instructions::default();
+    for (c, n) in uses {
+        i.int += c.int as u64 * n;
+        i.int_mul += c.int_mul as u64 * n;
+        i.fp_add += c.fp_add as u64 * n;
+        i.fp_mul += c.fp_mul as u64 * n;
+        i.fp_cmp += c.fp_cmp as u64 * n;
+        i.branch += c.branch as u64 * n;
+        i.load += c.load as u64 * n;
+        i.store += c.store as u64 * n;
+    }
+    let staging = costs.fetch.load as u64 * traversals;
+    Activity {
+        box_tests: t.box_tests,
+        tri_tests: t.tri_tests,
+        tri_hits: t.tri_hits,
+        inverse_dirs: traversals,
+        instructions: i,
+        l1_accesses: t.l1_lines,
+        l2_accesses: 0,
+        scene_buffer_accesses: 0,
+        staging_accesses: staging,
+        local_store_accesses: i.load + i.store - staging,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_event_is_charged_its_listed_energy() {
+        let c = EnergyCfg::default();
+        // One box test: 6 adds, 7 muls, 1 compare, 6 min/max.
+        let e = energy(
+            &c,
+            &Activity {
+                box_tests: 1,
+                ..Activity::default()
+            },
+        );
+        let want = (6.0 * 7.4 + 7.0 * 14.2 + 7.0 * 0.536) * 1e-12;
+        assert!(
+            (e.compute_j - want).abs() < 1e-18,
+            "{} vs {want}",
+            e.compute_j
+        );
+        assert_eq!(e.onchip_j, 0.0);
+        // A hit costs the three divides and two compares more than a miss.
+        let miss = energy(
+            &c,
+            &Activity {
+                tri_tests: 1,
+                ..Activity::default()
+            },
+        )
+        .compute_j;
+        let hit = energy(
+            &c,
+            &Activity {
+                tri_tests: 1,
+                tri_hits: 1,
+                ..Activity::default()
+            },
+        )
+        .compute_j;
+        assert!(((hit - miss) - (3.0 * 156.3 + 2.0 * 0.536) * 1e-12).abs() < 1e-18);
+        // An instruction: 3 RF accesses and one fetch, plus a local-store access for a load.
+        let a = Activity {
+            instructions: Instructions {
+                load: 1,
+                ..Instructions::default()
+            },
+            local_store_accesses: 1,
+            ..Activity::default()
+        };
+        let e = energy(&c, &a);
+        assert!((e.onchip_j - (3.0 * 7.9 + 13.5 + 6.93) * 1e-12).abs() < 1e-18);
+        // SRAM accesses.
+        let e = energy(
+            &c,
+            &Activity {
+                l1_accesses: 1000,
+                scene_buffer_accesses: 10,
+                ..Activity::default()
+            },
+        );
+        assert!((e.onchip_j - (1000.0 * 0.2042 + 10.0 * 1.656) * 1e-9).abs() < 1e-15);
+    }
+
+    #[test]
+    fn bad_constants_are_named() {
+        let c = EnergyCfg {
+            l1_nj: -1.0,
+            ..EnergyCfg::default()
+        };
+        assert!(c.validate().unwrap_err().contains("energy.l1_nj"));
+    }
+}
