@@ -8,6 +8,7 @@ pub mod energy;
 pub mod geom;
 pub mod mem;
 pub mod render;
+pub mod report;
 pub mod rtl;
 pub mod scene;
 #[path = "../testbench/mod.rs"]

@@ -103,6 +103,20 @@ enum Cmd {
         #[arg(long)]
         dump_rays: Option<PathBuf>,
     },
+    /// Our figures next to the paper's (Table 2) for Dragon, Dragon Box and Sponza.
+    Report {
+        /// What to report: paper.
+        what: String,
+        /// Resolution (the paper's is 1024x1024).
+        #[arg(long, default_value = "1024x1024")]
+        res: String,
+        /// Directory of the scene files (dragon.toml, dragon_box.toml, dabrovic_sponza.toml).
+        #[arg(long, default_value = "scenes")]
+        scenes_dir: PathBuf,
+        /// Write the comparison as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Scene tools.
     Scene {
         #[command(subcommand)]
@@ -374,6 +388,54 @@ fn run(cli: Cli) -> Result<(), String> {
             if let Some(p) = stats {
                 output::write_json(&frame, &p)?;
                 println!("statistics: {}", p.display());
+            }
+            Ok(())
+        }
+        Cmd::Report {
+            what,
+            res,
+            scenes_dir,
+            json,
+        } => {
+            if what != "paper" {
+                return Err(format!("unknown report '{what}'; available: paper"));
+            }
+            let (w, h) = parse_res(&res)?;
+            let mut rows = Vec::new();
+            for row in dualstream::report::paper::TABLE2.iter() {
+                let path = scenes_dir.join(row.scene_file);
+                let spec = path.to_str().ok_or("scene path is not UTF-8")?;
+                let mut sc = dualstream::scene::load(spec).map_err(|e| {
+                    format!("{e}\n(the paper scenes need the meshes in ../shared/scenes; run from the repository root or pass --scenes-dir)")
+                })?;
+                sc.settings.width = w;
+                sc.settings.height = h;
+                sc.settings.validate()?;
+                eprintln!("rendering {} at {w}x{h} (functional)...", row.scene);
+                let mut frame = dualstream::render::render(
+                    &sc,
+                    dualstream::render::Mode::Functional,
+                    &render_cfg(&config),
+                    &mut |_| {},
+                )?;
+                let act = dualstream::energy::tm_activity(
+                    &frame.total.traversal,
+                    frame.total.enqueues,
+                    &config.tm.costs,
+                );
+                frame.energy = Some(dualstream::energy::energy(&config.energy, &act));
+                rows.extend(dualstream::report::paper::compare(row, &frame));
+            }
+            print!("{}", dualstream::report::paper::table(&rows));
+            if let Some(p) = json {
+                let text = serde_json::to_string_pretty(&rows).expect("rows serialise");
+                std::fs::write(&p, text).map_err(|e| {
+                    format!(
+                        "cannot write '{}': {e}; choose a writable --json",
+                        p.display()
+                    )
+                })?;
+                println!("comparison: {}", p.display());
             }
             Ok(())
         }

@@ -413,3 +413,12 @@ fn tb_tm_runs_a_treelet_and_writes_a_vcd() {
         &["treelet 3 does not exist", "1 segments"],
     );
 }
+
+#[test]
+fn report_paper_names_missing_scenes() {
+    fails_with(
+        &["report", "paper", "--scenes-dir", "/nonexistent"],
+        &["dragon.toml", "shared/scenes"],
+    );
+    fails_with(&["report", "nonsense"], &["unknown report"]);
+}

@@ -188,3 +188,24 @@ fn bad_input_is_named() {
     assert!(e.contains("more than the configured DRAM"), "{e}");
     let _ = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
 }
+
+#[test]
+fn paper_comparison_rows() {
+    use dualstream::report::paper::{TABLE2, compare, table};
+    let s = small("tiny", 16);
+    let f = render(&s, Mode::Functional, &cfg(8), &mut |_| {}).unwrap();
+    let rows = compare(&TABLE2[1], &f);
+    assert_eq!(rows.len(), 13);
+    let dup = rows.iter().find(|r| r.metric == "ray duplication").unwrap();
+    assert_eq!(dup.paper, TABLE2[1].duplication);
+    assert!((dup.ratio.unwrap() - f.duplication / TABLE2[1].duplication).abs() < 1e-12);
+    let time = rows
+        .iter()
+        .find(|r| r.metric == "render time (ms)")
+        .unwrap();
+    assert!(
+        time.ours.is_none() && time.note.contains("cycle"),
+        "no invented figures"
+    );
+    assert!(table(&rows).contains("Dragon Box"));
+}

@@ -1,0 +1,2 @@
+//! Reports that put our figures next to the paper's.
+pub mod paper;

@@ -1,0 +1,195 @@
+//! The paper's Table 2 (Dual Streaming rows) as data, and our figures next to them.
+//!
+//! The numbers below are facts from Shkurko et al. 2017, Table 2 (Dual Streaming
+//! column group): render time, rays traced per second, energy, bandwidth, cache
+//! lines in total and per stream, ray duplication. Crytek Sponza stands in for our
+//! Dabrovic Sponza (the Crytek model is not available; see the scene file).
+
+use serde::Serialize;
+
+use crate::render::Frame;
+
+/// One scene's Dual Streaming figures from Table 2.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PaperRow {
+    pub scene: &'static str,
+    /// Our scene file standing for it.
+    pub scene_file: &'static str,
+    pub render_ms: f64,
+    pub mrays_per_s: f64,
+    pub dram_j: f64,
+    pub onchip_j: f64,
+    pub compute_j: f64,
+    pub bandwidth_gbs: f64,
+    pub lines_m: f64,
+    pub ray_lines_m: f64,
+    pub scene_lines_m: f64,
+    pub shading_lines_m: f64,
+    pub hit_lines_m: f64,
+    pub duplication: f64,
+}
+
+// Dragon Box's duplication is 3.14 in the paper: a measurement, not pi.
+#[allow(clippy::approx_constant)]
+pub const TABLE2: [PaperRow; 3] = [
+    PaperRow {
+        scene: "Dragon",
+        scene_file: "dragon.toml",
+        render_ms: 18.08,
+        mrays_per_s: 114.8,
+        dram_j: 1.15,
+        onchip_j: 1.52,
+        compute_j: 0.09,
+        bandwidth_gbs: 140.21,
+        lines_m: 39.6,
+        ray_lines_m: 11.92,
+        scene_lines_m: 7.54,
+        shading_lines_m: 17.43,
+        hit_lines_m: 2.74,
+        duplication: 4.55,
+    },
+    PaperRow {
+        scene: "Dragon Box",
+        scene_file: "dragon_box.toml",
+        render_ms: 66.3,
+        mrays_per_s: 177.4,
+        dram_j: 4.66,
+        onchip_j: 6.54,
+        compute_j: 0.36,
+        bandwidth_gbs: 114.98,
+        lines_m: 119.2,
+        ray_lines_m: 45.81,
+        scene_lines_m: 8.0,
+        shading_lines_m: 42.38,
+        hit_lines_m: 22.97,
+        duplication: 3.14,
+    },
+    PaperRow {
+        scene: "Crytek Sponza (ours: Dabrovic Sponza)",
+        scene_file: "dabrovic_sponza.toml",
+        render_ms: 44.6,
+        mrays_per_s: 204.11,
+        dram_j: 4.51,
+        onchip_j: 4.14,
+        compute_j: 0.32,
+        bandwidth_gbs: 237.40,
+        lines_m: 165.4,
+        ray_lines_m: 80.56,
+        scene_lines_m: 2.26,
+        shading_lines_m: 45.42,
+        hit_lines_m: 37.21,
+        duplication: 8.55,
+    },
+];
+
+/// One compared figure.
+#[derive(Clone, Debug, Serialize)]
+pub struct Compared {
+    pub scene: String,
+    pub metric: &'static str,
+    pub ours: Option<f64>,
+    pub paper: f64,
+    /// ours / paper.
+    pub ratio: Option<f64>,
+    /// Why a figure is missing or what it covers.
+    pub note: &'static str,
+}
+
+/// Our figures for one frame next to the paper's row.
+pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
+    let t = &f.total;
+    let m = |x: u64| Some(x as f64 / 1e6);
+    let cycle = "needs the cycle-level chip (issue 6)";
+    let partial =
+        "TMs only (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store)";
+    let e = f.energy.as_ref();
+    let rows: Vec<(&'static str, Option<f64>, f64, &'static str)> = vec![
+        ("render time (ms)", None, row.render_ms, cycle),
+        ("rays traced per second (M)", None, row.mrays_per_s, cycle),
+        (
+            "rays traced (M)",
+            m(t.rays),
+            row.render_ms * row.mrays_per_s / 1000.0,
+            "paper: time x rate",
+        ),
+        ("DRAM energy (J)", None, row.dram_j, cycle),
+        (
+            "on-chip memory energy (J)",
+            e.map(|e| e.onchip_j),
+            row.onchip_j,
+            partial,
+        ),
+        (
+            "compute energy (J)",
+            e.map(|e| e.compute_j),
+            row.compute_j,
+            partial,
+        ),
+        ("average bandwidth (GB/s)", None, row.bandwidth_gbs, cycle),
+        (
+            "$ lines transferred (M)",
+            m(t.total_lines()),
+            row.lines_m,
+            "",
+        ),
+        (
+            "ray stream $ lines (M)",
+            m(t.ray_lines()),
+            row.ray_lines_m,
+            "",
+        ),
+        (
+            "scene stream $ lines (M)",
+            m(t.scene_lines),
+            row.scene_lines_m,
+            "",
+        ),
+        (
+            "shading $ lines (M)",
+            m(t.shading_lines),
+            row.shading_lines_m,
+            "",
+        ),
+        (
+            "hit record $ lines (M)",
+            m(t.hit_lines()),
+            row.hit_lines_m,
+            "",
+        ),
+        ("ray duplication", Some(f.duplication), row.duplication, ""),
+    ];
+    rows.into_iter()
+        .map(|(metric, ours, paper, note)| Compared {
+            scene: row.scene.to_string(),
+            metric,
+            ours,
+            paper,
+            ratio: ours.map(|o| o / paper),
+            note,
+        })
+        .collect()
+}
+
+/// The side-by-side table as text.
+pub fn table(rows: &[Compared]) -> String {
+    let mut s = String::new();
+    let mut scene = "";
+    for r in rows {
+        if r.scene != scene {
+            scene = &r.scene;
+            s += &format!(
+                "\n{}\n  {:<30} {:>12} {:>12} {:>10}\n",
+                r.scene, "", "ours", "paper", "ours/paper"
+            );
+        }
+        let (o, q) = match (r.ours, r.ratio) {
+            (Some(o), Some(q)) => (format!("{o:.3}"), format!("{q:.2}")),
+            _ => ("-".to_string(), "-".to_string()),
+        };
+        s += &format!(
+            "  {:<30} {:>12} {:>12.3} {:>10}  {}\n",
+            r.metric, o, r.paper, q, r.note
+        );
+    }
+    s
+}
