@@ -305,6 +305,7 @@ pub(crate) trait LinkDyn: Any {
     fn reset(&mut self);
     fn take_violations(&mut self) -> Vec<Violation>;
     fn check_offer_held(&mut self, now: Time) -> bool;
+    fn is_stalled(&self) -> bool;
     fn stats(&self) -> LinkStats;
     fn occupancy(&self) -> u32;
     fn set_log(&mut self, on: bool);
@@ -401,6 +402,9 @@ impl<T: Payload> LinkDyn for Link<T> {
     }
     fn stats(&self) -> LinkStats {
         self.stats
+    }
+    fn is_stalled(&self) -> bool {
+        self.stalled.is_some()
     }
     fn occupancy(&self) -> u32 {
         self.q.len() as u32

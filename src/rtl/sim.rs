@@ -116,6 +116,9 @@ struct Slot {
     last_eval: Time,
     evals: u64,
     out_links: Vec<LinkId>,
+    /// Output links with a refused offer that must be repeated (the monitor checks
+    /// only these after each evaluation, not every output link).
+    stalled_outs: Vec<LinkId>,
 }
 
 /// Statistics of one unit.
@@ -136,6 +139,8 @@ pub struct Ctx<'a> {
     links: &'a mut [Box<dyn LinkDyn>],
     touched: &'a mut Vec<LinkId>,
     wakes: &'a mut Vec<(UnitId, Time)>,
+    /// Output links of this unit with a refused offer outstanding.
+    stalls: &'a mut Vec<LinkId>,
     new_status: Option<Status>,
     link_ops: u32,
 }
@@ -229,6 +234,9 @@ impl<'a> Ctx<'a> {
         // Repeating a refused offer (the payload held while stalled) changes nothing.
         if vis.is_some() || !held {
             self.link_ops += 1;
+        }
+        if vis.is_none() && !held {
+            self.stalls.push(port.id);
         }
         self.mark(port.id, was);
         match (vis, consumer) {
@@ -349,6 +357,7 @@ impl Sim {
             last_eval: Time::MAX,
             evals: 0,
             out_links: Vec::new(),
+            stalled_outs: Vec::new(),
         });
         self.elaborated = false;
         UnitId(self.slots.len() as u32 - 1)
@@ -428,6 +437,7 @@ impl Sim {
             s.since = 0;
             s.status_ps = [0; 4];
             s.evals = 0;
+            s.stalled_outs.clear();
             s.last_wake = 0;
             s.last_eval = Time::MAX;
             self.cal.push(s.clock.0 as usize, i as u32, 0);
@@ -621,15 +631,22 @@ impl Sim {
             links: &mut self.links,
             touched: &mut self.touched,
             wakes: &mut self.wakes,
+            stalls: &mut slot.stalled_outs,
             new_status: None,
             link_ops: 0,
         };
         let next = slot.unit.eval(&mut ctx);
         let (new_status, link_ops) = (ctx.new_status, ctx.link_ops);
-        for &l in &slot.out_links {
-            if self.links[l.0 as usize].check_offer_held(t) {
-                self.touched.push(l);
-            }
+        if !slot.stalled_outs.is_empty() {
+            let links = &mut self.links;
+            let touched = &mut self.touched;
+            slot.stalled_outs.retain(|&l| {
+                let link = &mut links[l.0 as usize];
+                if link.check_offer_held(t) {
+                    touched.push(l);
+                }
+                link.is_stalled()
+            });
         }
         if shadow {
             let what = if link_ops > 0 {
