@@ -80,6 +80,8 @@ pub struct Config {
     pub mem: crate::mem::MemCfg,
     /// The thread multiprocessor: TPs and their cost table, L1, staging buffer.
     pub tm: crate::units::tm::TmCfg,
+    /// The chip top: TMs, stream scheduler, scene buffer, hit record updater, memory.
+    pub chip: crate::machine::config::ChipCfg,
 }
 
 impl Default for Config {
@@ -103,6 +105,7 @@ impl Default for Config {
             memory: crate::contract::MemoryMapCfg::default(),
             mem: crate::mem::MemCfg::default(),
             tm: crate::units::tm::TmCfg::default(),
+            chip: crate::machine::config::ChipCfg::default(),
         }
     }
 }
@@ -148,6 +151,7 @@ impl Config {
         // TODO(issue 6): the DRAM image's row and capacity (`memory`) should be derived
         // from the device geometry (`mem.geometry`) once the chip connects them.
         self.tm.validate(&self.links.tm)?;
+        self.chip.validate(self.accel.segment_bytes)?;
         Ok(())
     }
 }

@@ -5,6 +5,7 @@ pub mod bench;
 pub mod config;
 pub mod contract;
 pub mod geom;
+pub mod machine;
 pub mod mem;
 pub mod render;
 pub mod rtl;

@@ -187,6 +187,10 @@ fn render_cfg(config: &Config) -> dualstream::render::RenderCfg {
         memory: config.memory.clone(),
         verify: false,
         dump_rays: None,
+        chip: Some(Box::new(dualstream::render::ChipRun {
+            config: config.clone(),
+            sim: Default::default(),
+        })),
     }
 }
 
@@ -307,8 +311,12 @@ fn run(cli: Cli) -> Result<(), String> {
             let mode = match mode.as_str() {
                 "functional" => Mode::Functional,
                 "reference" => Mode::Reference,
-                "cycle" => return Err("--mode cycle needs the cycle-level chip, which is not built yet; use functional or reference".into()),
-                m => return Err(format!("unknown --mode '{m}'; use functional or reference")),
+                "cycle" => Mode::Cycle,
+                m => {
+                    return Err(format!(
+                        "unknown --mode '{m}'; use functional, reference or cycle"
+                    ));
+                }
             };
             let mut sc = dualstream::scene::load(&scene)?;
             for w in &sc.warnings {

@@ -131,5 +131,31 @@ pub fn summary(f: &Frame) -> String {
             f.verified_rays
         );
     }
+    if let Some(c) = &f.chip {
+        s += &format!(
+            "  chip {} TMs x {} TPs (shading on the host between wavefronts: stage A)\n",
+            c.tms, c.tps_per_tm
+        );
+        for (k, w) in c.waves.iter().enumerate() {
+            s += &format!(
+                "    wavefront {k}: {:>10} cycles  {:>8} rays  {:>8} duplicates  {:>5} segments  scene-buffer stalls {} ({} cycles)  hit updates merged {}\n",
+                w.cycles,
+                w.rays_emitted,
+                w.duplicates,
+                w.segments_loaded,
+                w.scene_buffer_stalls,
+                w.scene_buffer_stall_cycles,
+                w.hit_merged
+            );
+        }
+        s += &format!(
+            "  {:<34} {:>12}\n",
+            "total cycles (tracing)", c.total_cycles
+        );
+        s += &format!(
+            "  chip simulation {:.2} s, {:.0} simulated cycles/s\n",
+            c.sim_wall_s, c.cycles_per_s
+        );
+    }
     s
 }
