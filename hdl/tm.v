@@ -15,7 +15,7 @@ module tm (
     input  wire [575:0] miss_resp_data,
     output wire ray_write_valid,
     input  wire ray_write_ready,
-    output wire [287:0] ray_write_data,
+    output wire [288:0] ray_write_data,
     output wire hit_valid,
     input  wire hit_ready,
     output wire [159:0] hit_data
@@ -454,52 +454,52 @@ module tm (
     wire [575:0] tp_mem_resp15_data;
     wire tp_ray_write0_valid;
     wire tp_ray_write0_ready;
-    wire [287:0] tp_ray_write0_data;
+    wire [288:0] tp_ray_write0_data;
     wire tp_ray_write1_valid;
     wire tp_ray_write1_ready;
-    wire [287:0] tp_ray_write1_data;
+    wire [288:0] tp_ray_write1_data;
     wire tp_ray_write2_valid;
     wire tp_ray_write2_ready;
-    wire [287:0] tp_ray_write2_data;
+    wire [288:0] tp_ray_write2_data;
     wire tp_ray_write3_valid;
     wire tp_ray_write3_ready;
-    wire [287:0] tp_ray_write3_data;
+    wire [288:0] tp_ray_write3_data;
     wire tp_ray_write4_valid;
     wire tp_ray_write4_ready;
-    wire [287:0] tp_ray_write4_data;
+    wire [288:0] tp_ray_write4_data;
     wire tp_ray_write5_valid;
     wire tp_ray_write5_ready;
-    wire [287:0] tp_ray_write5_data;
+    wire [288:0] tp_ray_write5_data;
     wire tp_ray_write6_valid;
     wire tp_ray_write6_ready;
-    wire [287:0] tp_ray_write6_data;
+    wire [288:0] tp_ray_write6_data;
     wire tp_ray_write7_valid;
     wire tp_ray_write7_ready;
-    wire [287:0] tp_ray_write7_data;
+    wire [288:0] tp_ray_write7_data;
     wire tp_ray_write8_valid;
     wire tp_ray_write8_ready;
-    wire [287:0] tp_ray_write8_data;
+    wire [288:0] tp_ray_write8_data;
     wire tp_ray_write9_valid;
     wire tp_ray_write9_ready;
-    wire [287:0] tp_ray_write9_data;
+    wire [288:0] tp_ray_write9_data;
     wire tp_ray_write10_valid;
     wire tp_ray_write10_ready;
-    wire [287:0] tp_ray_write10_data;
+    wire [288:0] tp_ray_write10_data;
     wire tp_ray_write11_valid;
     wire tp_ray_write11_ready;
-    wire [287:0] tp_ray_write11_data;
+    wire [288:0] tp_ray_write11_data;
     wire tp_ray_write12_valid;
     wire tp_ray_write12_ready;
-    wire [287:0] tp_ray_write12_data;
+    wire [288:0] tp_ray_write12_data;
     wire tp_ray_write13_valid;
     wire tp_ray_write13_ready;
-    wire [287:0] tp_ray_write13_data;
+    wire [288:0] tp_ray_write13_data;
     wire tp_ray_write14_valid;
     wire tp_ray_write14_ready;
-    wire [287:0] tp_ray_write14_data;
+    wire [288:0] tp_ray_write14_data;
     wire tp_ray_write15_valid;
     wire tp_ray_write15_ready;
-    wire [287:0] tp_ray_write15_data;
+    wire [288:0] tp_ray_write15_data;
     wire tp_hit0_valid;
     wire tp_hit0_ready;
     wire [159:0] tp_hit0_data;

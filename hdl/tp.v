@@ -2,7 +2,7 @@
 // Regenerate with `dualstream hdl --out hdl/`.
 // Thread processor: the segment traversal kernel as an FSM with per-state costs.
 // Ports are valid/ready links; data is the payload packed LSB-first.
-// State: 6265 bits.
+// State: 6266 bits.
 module tp #(
     parameter integer INDEX = 0,
     parameter integer STACK_ENTRIES = 42
@@ -38,7 +38,7 @@ module tp #(
     output wire [63:0] mem_req_data,
     output wire ray_write_valid,
     input  wire ray_write_ready,
-    output wire [287:0] ray_write_data,
+    output wire [288:0] ray_write_data,
     output wire hit_valid,
     input  wire hit_ready,
     output wire [159:0] hit_data
@@ -63,6 +63,7 @@ module tp #(
     reg [31:0] tri_k;
     reg [31:0] tri_end;
     reg [128:0] tri_hit;
+    reg done_sent;
     reg [95:0] stack [0:41];
     wire [41:0] _unused_stack;
     for (genvar i = 0; i < 42; i++) begin : g_unused_stack
@@ -90,6 +91,7 @@ module tp #(
             tri_k <= '0;
             tri_end <= '0;
             tri_hit <= '0;
+            done_sent <= '0;
             for (int i = 0; i < 42; i++) stack[i] <= '0;
         end
     end
@@ -111,5 +113,5 @@ module tp #(
     assign ray_write_data = '0;
     assign hit_valid = 1'b0;
     assign hit_data = '0;
-    wire _unused_ok = &{1'b0, ray_valid, ray_data, div_resp_valid, div_resp_data, box_resp_valid, box_resp_data, tri_resp_valid, tri_resp_data, mem_resp_valid, mem_resp_data, div_req_ready, box_req_ready, tri_req_ready, mem_req_ready, ray_write_ready, hit_ready, state, ray_index, node_addr, stack_depth, act_at, req_at, cur, inv_dir, best, entry, line0, line1, box0, box1, box_got, tri_k, tri_end, tri_hit, _unused_stack, INDEX[0], STACK_ENTRIES[0], 1'b0};
+    wire _unused_ok = &{1'b0, ray_valid, ray_data, div_resp_valid, div_resp_data, box_resp_valid, box_resp_data, tri_resp_valid, tri_resp_data, mem_resp_valid, mem_resp_data, div_req_ready, box_req_ready, tri_req_ready, mem_req_ready, ray_write_ready, hit_ready, state, ray_index, node_addr, stack_depth, act_at, req_at, cur, inv_dir, best, entry, line0, line1, box0, box1, box_got, tri_k, tri_end, tri_hit, done_sent, _unused_stack, INDEX[0], STACK_ENTRIES[0], 1'b0};
 endmodule

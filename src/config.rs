@@ -82,6 +82,8 @@ pub struct Config {
     pub tm: crate::units::tm::TmCfg,
     /// On-chip and compute energy per access and per operation (65 nm).
     pub energy: crate::energy::EnergyCfg,
+    /// The chip top: TMs, stream scheduler, scene buffer, hit record updater, memory.
+    pub chip: crate::machine::config::ChipCfg,
 }
 
 impl Default for Config {
@@ -106,6 +108,7 @@ impl Default for Config {
             mem: crate::mem::MemCfg::default(),
             tm: crate::units::tm::TmCfg::default(),
             energy: crate::energy::EnergyCfg::default(),
+            chip: crate::machine::config::ChipCfg::default(),
         }
     }
 }
@@ -176,6 +179,7 @@ impl Config {
         }
         self.tm.validate(&self.links.tm)?;
         self.energy.validate()?;
+        self.chip.validate(self.accel.segment_bytes)?;
         Ok(())
     }
 }

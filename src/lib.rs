@@ -6,6 +6,7 @@ pub mod config;
 pub mod contract;
 pub mod energy;
 pub mod geom;
+pub mod machine;
 pub mod mem;
 pub mod render;
 pub mod report;

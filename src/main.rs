@@ -201,6 +201,10 @@ fn render_cfg(config: &Config) -> dualstream::render::RenderCfg {
         memory: config.memory.clone(),
         verify: false,
         dump_rays: None,
+        chip: Some(Box::new(dualstream::render::ChipRun {
+            config: config.clone(),
+            sim: Default::default(),
+        })),
     }
 }
 
@@ -321,8 +325,12 @@ fn run(cli: Cli) -> Result<(), String> {
             let mode = match mode.as_str() {
                 "functional" => Mode::Functional,
                 "reference" => Mode::Reference,
-                "cycle" => return Err("--mode cycle needs the cycle-level chip, which is not built yet; use functional or reference".into()),
-                m => return Err(format!("unknown --mode '{m}'; use functional or reference")),
+                "cycle" => Mode::Cycle,
+                m => {
+                    return Err(format!(
+                        "unknown --mode '{m}'; use functional, reference or cycle"
+                    ));
+                }
             };
             let mut sc = dualstream::scene::load(&scene)?;
             for w in &sc.warnings {
@@ -373,13 +381,16 @@ fn run(cli: Cli) -> Result<(), String> {
                 ));
             })?;
             bar.finish_and_clear();
-            if mode == Mode::Functional {
+            if mode != Mode::Reference {
                 // Every enqueued ray is one ray-segment traversal by a TP.
-                let act = dualstream::energy::tm_activity(
+                let mut act = dualstream::energy::tm_activity(
                     &frame.total.traversal,
                     frame.total.enqueues,
                     &config.tm.costs,
                 );
+                if let Some(c) = &frame.chip {
+                    act.scene_buffer_accesses = c.waves.iter().map(|w| w.scene_buffer_reads).sum();
+                }
                 frame.energy = Some(dualstream::energy::energy(&config.energy, &act));
             }
             output::write_png(&frame, &out)?;

@@ -212,6 +212,7 @@ pub fn expected(
             writes.push(RayWrite {
                 seg,
                 ray: RayRec { entry, ..*ray },
+                done: false,
             })
         });
         if best.is_hit() {
@@ -403,10 +404,12 @@ pub fn run_job(
     let tp_logs = tps.iter().map(|t| t.request_log().to_vec()).collect();
     let tp_first_ray = tps.iter().map(|t| t.stats.first_ray).collect();
     let l1_log = sim.unit_ref::<L1>(units.l1).log.clone().unwrap_or_default();
+    // End-of-ray markers are the scheduler's bookkeeping, not duplicates.
     let writes = sim
         .unit_ref::<Sink<RayWrite>>(wsink)
         .got
         .iter()
+        .filter(|(_, v)| !v.done)
         .map(|(_, v)| v.clone())
         .collect();
     let hits = sim

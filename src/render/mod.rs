@@ -25,7 +25,7 @@ use crate::contract::{
     PathRec, RayRec, SHADOW_BIT, SegEntry, SparseMem, TriRec, lines_touched,
 };
 use crate::scene::Scene;
-use queues::RayQueues;
+use queues::{RayQueues, queue_lines_written};
 use shade::{cosine_sample, facing_normal, next_f32, offset_ray, pixel_seed};
 use traverse::{SegmentView, TraversalCounts, reference_trace, traverse_segment};
 
@@ -37,6 +37,11 @@ pub enum Mode {
     Functional,
     /// The plain reference traversal (no streams).
     Reference,
+    /// Dual streaming on the cycle-level chip (`src/machine/`): every wavefront
+    /// is traced by the chip from the DRAM image. Stage A: shading (and ray
+    /// generation) is still this host code between wavefronts (interim; stage C
+    /// moves it onto the TPs through an L2).
+    Cycle,
 }
 
 /// Everything that decides a render besides the scene.
@@ -48,6 +53,29 @@ pub struct RenderCfg {
     pub verify: bool,
     /// Write each wavefront's rays and hit records here (see the data contract).
     pub dump_rays: Option<std::path::PathBuf>,
+    /// Cycle mode: the chip's configuration (its `accel` and `memory` are
+    /// replaced by the two above) and the simulator options. `None`: defaults.
+    pub chip: Option<Box<ChipRun>>,
+}
+
+/// How to build and run the chip in cycle mode.
+#[derive(Clone, Debug, Default)]
+pub struct ChipRun {
+    pub config: crate::config::Config,
+    pub sim: crate::rtl::SimOptions,
+}
+
+/// Cycle-mode figures of a frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct ChipFrame {
+    pub tms: u32,
+    pub tps_per_tm: u32,
+    /// Per wavefront: cycles and the chip's own counts.
+    pub waves: Vec<crate::machine::WaveCycles>,
+    pub total_cycles: u64,
+    /// Wall time of the chip simulation (tracing only) and simulated cycles/s.
+    pub sim_wall_s: f64,
+    pub cycles_per_s: f64,
 }
 
 /// Where a render is, for progress reporting.
@@ -164,6 +192,8 @@ pub struct Frame {
     /// Compute and on-chip energy of the TMs implied by the traversal (set by the
     /// caller from the energy table and the TP cost table; functional mode only).
     pub energy: Option<crate::energy::Energy>,
+    /// Cycle mode only.
+    pub chip: Option<ChipFrame>,
 }
 
 /// The scene built for the chip: BVH, segments and the DRAM image.
@@ -264,6 +294,18 @@ pub fn render(
     let nseg = p.seg.segments.len();
     let mut q = RayQueues::new(&p.map, nseg);
     let root_entry = p.image.root_entry.encode();
+    let mut chip = None;
+    let mut chip_waves = Vec::new();
+    let mut chip_cfg = crate::config::Config::default();
+    if mode == Mode::Cycle {
+        let run = cfg.chip.as_deref().cloned().unwrap_or_default();
+        chip_cfg = run.config;
+        chip_cfg.accel = cfg.accel.clone();
+        chip_cfg.memory = cfg.memory.clone();
+        chip = Some(crate::machine::Chip::new(&chip_cfg, &p.map, nseg, run.sim)?);
+        q.divert();
+    }
+    let rpb = cfg.memory.rays_per_bucket();
     let mut waves = Vec::new();
     let mut trace_s = 0.0;
     let mut verified = 0u64;
@@ -324,6 +366,13 @@ pub fn render(
                 progress(&prog)
             })?,
             Mode::Reference => trace_reference(&mut p, &mut q, scene, &mut st),
+            Mode::Cycle => {
+                let chip = chip.as_mut().expect("built for cycle mode");
+                let rays = q.take_diverted();
+                let w = chip.trace_wave(&mut p.mem, &rays)?;
+                add_chip_wave(&mut st, &w, rpb);
+                chip_waves.push(w);
+            }
         }
         trace_s += t0.elapsed().as_secs_f64();
         if cfg.verify {
@@ -352,6 +401,13 @@ pub fn render(
         q.close(&mut p.mem, &p.map, 0);
         st.ray_lines_read += q.traffic.lines_read - r0;
         st.ray_lines_written += q.traffic.lines_written - w0;
+        if mode == Mode::Cycle {
+            // The functional model counts a wavefront's root-queue writes with the
+            // shading that emits them (the previous wavefront; ray generation's
+            // nowhere); the chip writes them while tracing. Same attribution here.
+            let emitted = next.rays;
+            st.ray_lines_written += queue_lines_written(emitted, rpb);
+        }
         waves.push(st);
         st = next;
         work = next_work;
@@ -379,7 +435,37 @@ pub fn render(
         verified_rays: verified,
         energy: None,
         dram_resident_mb: p.mem.resident_bytes() as f64 / (1 << 20) as f64,
+        chip: chip.map(|c| ChipFrame {
+            tms: chip_cfg.chip.tms,
+            tps_per_tm: chip_cfg.tm.tps,
+            waves: chip_waves,
+            total_cycles: c.total_cycles,
+            sim_wall_s: c.wall_s,
+            cycles_per_s: c.total_cycles as f64 / c.wall_s.max(1e-9),
+        }),
     })
+}
+
+/// Adds a chip-traced wavefront's counts to the wavefront's statistics, with the
+/// functional model's attribution of the root queue's writes (see `render`).
+fn add_chip_wave(st: &mut WaveStats, w: &crate::machine::WaveCycles, rpb: u32) {
+    use crate::mem::StreamTag;
+    st.enqueues += w.duplicates;
+    st.segments_loaded += w.segments_loaded;
+    st.traversal.box_tests += w.box_tests;
+    st.traversal.nodes += w.box_tests / 2;
+    st.traversal.tri_tests += w.tri_tests;
+    st.traversal.exits += w.exits;
+    st.traversal.pops += w.pops;
+    st.traversal.tri_hits += w.tri_hits;
+    st.traversal.l1_lines += w.l1_lines;
+    st.traversal.max_stack = st.traversal.max_stack.max(w.max_stack);
+    st.scene_lines += w.lines_read[StreamTag::Scene as usize];
+    st.ray_lines_read += w.lines_read[StreamTag::Ray as usize];
+    st.ray_lines_written +=
+        w.lines_written[StreamTag::Ray as usize] - queue_lines_written(w.rays_emitted, rpb);
+    st.hit_lines_read += w.lines_read[StreamTag::Hit as usize];
+    st.hit_lines_written += w.lines_written[StreamTag::Hit as usize];
 }
 
 /// Puts a new ray into the root segment's queue and resets its hit record.
@@ -636,6 +722,12 @@ pub fn trace_rays(
     match mode {
         Mode::Functional => trace_functional(&mut p, &mut q, &mut st, &mut |_, _| {})?,
         Mode::Reference => trace_reference(&mut p, &mut q, &sc, &mut st),
+        Mode::Cycle => {
+            return Err(
+                "trace_rays runs functional or reference mode; render a frame for cycle mode"
+                    .into(),
+            );
+        }
     }
     Ok((
         recs.iter()

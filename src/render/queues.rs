@@ -45,6 +45,9 @@ pub struct RayQueues {
     pub enqueued: u64,
     pub peak_buckets: u64,
     live_buckets: u64,
+    /// Cycle mode: the queues live on the chip; rays pushed to the root queue are
+    /// handed over here instead (see [`RayQueues::divert`]).
+    diverted: Option<Vec<RayRec>>,
 }
 
 impl RayQueues {
@@ -63,7 +66,24 @@ impl RayQueues {
             enqueued: 0,
             peak_buckets: 0,
             live_buckets: 0,
+            diverted: None,
         }
+    }
+
+    /// Cycle mode: the chip's stream scheduler keeps the queues; from now on the
+    /// host's pushes (root-queue rays from ray generation and shading) are
+    /// collected for the chip instead of written into buckets, and closes are
+    /// the chip's business.
+    pub fn divert(&mut self) {
+        self.diverted = Some(Vec::new());
+    }
+
+    /// The rays pushed since the last call (cycle mode).
+    pub fn take_diverted(&mut self) -> Vec<RayRec> {
+        self.diverted
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default()
     }
 
     pub fn len(&self, seg: u32) -> u64 {
@@ -132,6 +152,11 @@ impl RayQueues {
         seg: u32,
         ray: &RayRec,
     ) -> Result<(), String> {
+        if let Some(d) = &mut self.diverted {
+            debug_assert_eq!(seg, 0, "the host emits into the root queue only");
+            d.push(*ray);
+            return Ok(());
+        }
         let full = {
             let q = &self.queues[seg as usize];
             q.buckets.is_empty() || q.tail_count == self.rays_per_bucket
@@ -162,6 +187,9 @@ impl RayQueues {
 
     /// Seals the open bucket of a queue (its parent is done: no more rays come).
     pub fn close(&mut self, mem: &mut SparseMem, map: &MemoryMap, seg: u32) {
+        if self.diverted.is_some() {
+            return;
+        }
         let q = &self.queues[seg as usize];
         if let Some(&b) = q.buckets.back() {
             let n = q.tail_count;
@@ -211,4 +239,13 @@ impl RayQueues {
     pub fn live_buckets(&self) -> u64 {
         self.live_buckets
     }
+}
+
+/// Lines the functional model writes for a queue of `n` rays (ray lines coalesced
+/// per line, one header per bucket), `rays_per_bucket` rays per bucket.
+pub fn queue_lines_written(n: u64, rays_per_bucket: u32) -> u64 {
+    let rpb = rays_per_bucket as u64;
+    let line = |m: u64| lines_touched(BUCKET_HEADER_BYTES as u64, m * RAY_BYTES as u64);
+    let (full, rest) = (n / rpb, n % rpb);
+    full * (line(rpb) + 1) + if rest > 0 { line(rest) + 1 } else { 0 }
 }

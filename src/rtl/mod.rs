@@ -5,6 +5,7 @@ pub mod bits;
 mod calendar;
 pub mod decl;
 pub mod link;
+pub mod model;
 pub mod pipe;
 pub mod sim;
 pub mod state;

@@ -1,9 +1,13 @@
 //! Hardware units, one per file. Each is declared once with `unit!`.
 pub mod box_pipe;
 pub mod divider;
+pub mod hit_record_updater;
 pub mod l1;
 pub mod mem_ctrl;
+pub mod memory;
+pub mod scene_buffer;
 pub mod staging_buffer;
+pub mod stream_scheduler;
 pub mod tm;
 pub mod tm_xbar;
 pub mod tp;
@@ -30,7 +34,71 @@ pub fn catalog(cfg: &Config) -> Vec<UnitDecl> {
     ]
     .into_iter()
     .chain(tm_unit_decls(cfg))
+    .chain(chip_unit_decls(cfg))
     .collect()
+}
+
+/// Declarations of the chip's global units, for the default chip and a small
+/// scene's memory map (the map sets no interface width).
+fn chip_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
+    let n = cfg.chip.tms as usize;
+    fn ins<T>(k: usize) -> Vec<In<T>> {
+        (0..k).map(|j| In::new(LinkId(j as u32))).collect()
+    }
+    fn outs<T>(k: usize) -> Vec<Out<T>> {
+        (0..k).map(|j| Out::new(LinkId(j as u32))).collect()
+    }
+    let (i, o) = (LinkId(0), LinkId(1));
+    let d = cfg.chip.links.delay;
+    let map = crate::contract::MemoryMap::new(
+        &crate::contract::MemoryMapCfg {
+            bucket_pool_bytes: 1 << 20,
+            ..cfg.memory.clone()
+        },
+        &[cfg.accel.segment_bytes],
+        0,
+        1,
+        1,
+        1,
+    )
+    .expect("a one-segment map fits");
+    let mem = memory::Memory::new(
+        &cfg.chip.memory,
+        d,
+        crate::contract::SparseMem::new(0),
+        ins(3),
+        outs(3),
+    );
+    let sb = scene_buffer::SceneBuffer::new(
+        &cfg.chip.scene_buffer,
+        d,
+        In::new(i),
+        In::new(i),
+        ins(n),
+        outs(n),
+    );
+    let hru = hit_record_updater::HitRecordUpdater::new(
+        &cfg.chip.hit_updater,
+        map.hits,
+        ins(n),
+        Out::new(o),
+        In::new(i),
+    );
+    let sched = stream_scheduler::StreamScheduler::new(
+        &cfg.chip.scheduler,
+        &cfg.chip.scene_buffer,
+        &map,
+        1,
+        In::new(i),
+        In::new(i),
+        In::new(i),
+        Out::new(o),
+        Out::new(o),
+        Out::new(o),
+        ins(n),
+        outs(n),
+    );
+    vec![mem.decl(), sb.decl(), hru.decl(), sched.decl()]
 }
 
 /// Declarations of the TM's own units: tp, l1, staging_buffer, tm_xbar.

@@ -29,10 +29,14 @@ use crate::render::traverse::cull;
 use crate::rtl::{Ctx, In, Logic, Next, Out, Ram, Reg, Status};
 
 crate::payload_struct! {
-    /// A duplicate: the ray, with its entry into the child segment `seg`.
+    /// A duplicate: the ray, with its entry into the child segment `seg`; or, with
+    /// `done`, the end marker of a ray in segment `seg` (sent after all its
+    /// duplicates on the same path, so the stream scheduler knows when a segment's
+    /// rays are finished).
     pub struct RayWrite {
         pub seg: u32,
         pub ray: RayRec,
+        pub done: bool,
     }
 }
 
@@ -132,6 +136,7 @@ crate::unit! {
             tri_k: Reg<u32>,
             tri_end: Reg<u32>,
             tri_hit: Reg<Option<HitRec>>,
+            done_sent: Reg<bool>,
             stack: Ram<StackEntry>
         }
         extra { costs: TpCosts, rt: [u64; 3], stats: TpStats, log: Option<Vec<u64>> }
@@ -163,6 +168,8 @@ pub struct TpStats {
     pub tri_tests: u64,
     pub exits: u64,
     pub hits: u64,
+    /// Triangle tests that hit.
+    pub tri_hits: u64,
     pub l1_loads: u64,
     /// Cycles from a request to its response, per unit: divider, box, triangle, L1.
     pub wait: [u64; 4],
@@ -220,6 +227,7 @@ impl Tp {
             tri_k: Reg::new(0),
             tri_end: Reg::new(0),
             tri_hit: Reg::new(None),
+            done_sent: Reg::new(false),
             // Two write ports: a node pushes both children in one action.
             stack: Ram::new(
                 entries,
@@ -368,6 +376,7 @@ impl Tp {
                 let w = RayWrite {
                     seg: e.seg,
                     ray: RayRec { entry: e.r, ..ray },
+                    done: false,
                 };
                 if !ctx.offer(&self.ray_write, w) {
                     return None;
@@ -498,6 +507,19 @@ impl Tp {
                 }
             }
             TpState::Finish => {
+                // The end marker first (same path as the duplicates, so it arrives
+                // after them), then the hit; a refused hit retries without the marker.
+                if !self.done_sent.val() {
+                    let m = RayWrite {
+                        seg: self.hdr().seg,
+                        ray,
+                        done: true,
+                    };
+                    if !ctx.offer(&self.ray_write, m) {
+                        return None;
+                    }
+                    self.done_sent.set(true);
+                }
                 let best = self.best.val();
                 if best.is_hit() {
                     let u = HitUpdate {
@@ -510,6 +532,7 @@ impl Tp {
                     self.stats.hits += 1;
                 }
                 self.stats.last_finish = c;
+                self.done_sent.set(false);
                 self.state.set(TpState::Idle);
                 // The next ray may already wait in the link: look next cycle.
                 Next::Cycle
@@ -626,6 +649,7 @@ impl Logic for Tp {
             },
             TpState::TriTestWait => match ctx.pop(&self.tri_resp) {
                 Some(r) => {
+                    self.stats.tri_hits += r.hit as u64;
                     self.tri_hit.set(r.hit.then_some(HitRec {
                         t: r.t,
                         tri_id: r.tri_id,
@@ -656,6 +680,7 @@ impl Logic for Tp {
             ("tri_tests", s.tri_tests),
             ("exits", s.exits),
             ("hits", s.hits),
+            ("tri_hits", s.tri_hits),
             ("l1_loads", s.l1_loads),
             ("wait_div", s.wait[0]),
             ("wait_box", s.wait[1]),

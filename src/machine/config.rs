@@ -1,0 +1,232 @@
+//! Configuration of the chip top: how many TMs and the global units' sizes and
+//! latencies. Defaults are the paper's Table 1 and §5.1 where it gives a number;
+//! the others are named as modelling assumptions.
+
+use serde::{Deserialize, Serialize};
+
+use crate::rtl::LinkCfg;
+
+/// Which timing model serves the memory unit's lines.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MemoryModel {
+    /// Fixed latency and a bandwidth limit (the "simple memory" switch of the
+    /// paper group's simulator). Stage B adds `gddr5` (the channel router and the
+    /// 16 `mem_ctrl` units).
+    Fixed,
+}
+
+/// The memory unit (DRAM image + timing).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MemoryUnitCfg {
+    pub model: MemoryModel,
+    /// Cycles from acceptance of a line request to its response being visible to
+    /// the requester (response link included). Assumption: 100 core cycles, a
+    /// loaded GDDR5 access at 1 GHz.
+    pub latency: u32,
+    /// Peak bandwidth in bytes per core cycle: 512 GB/s at 1 GHz [DS17 §5.1] =
+    /// 512 B = 8 lines per cycle.
+    pub bytes_per_cycle: u32,
+}
+
+impl Default for MemoryUnitCfg {
+    fn default() -> Self {
+        MemoryUnitCfg {
+            model: MemoryModel::Fixed,
+            latency: 100,
+            bytes_per_cycle: 512,
+        }
+    }
+}
+
+/// The scene buffer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SceneBufferCfg {
+    /// 4 MB [DS17 Table 1].
+    pub bytes: u32,
+    /// One slot per segment: 64 KB, 64 slots [DS17 §5.1].
+    pub slot_bytes: u32,
+    /// Banks, one line per bank per cycle. Assumption: 32, like the L2 of Table 1.
+    pub banks: u32,
+    /// Cycles from acceptance of an L1 miss to the line visible at the L1
+    /// (response link included). Assumption: 4.
+    pub latency: u32,
+}
+
+impl Default for SceneBufferCfg {
+    fn default() -> Self {
+        SceneBufferCfg {
+            bytes: 4 << 20,
+            slot_bytes: 64 << 10,
+            banks: 32,
+            latency: 4,
+        }
+    }
+}
+
+impl SceneBufferCfg {
+    pub fn slots(&self) -> u32 {
+        self.bytes / self.slot_bytes.max(1)
+    }
+}
+
+/// The stream scheduler.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SchedulerCfg {
+    /// Segments streamed into the scene buffer at once: 8 [DS17 §4.1].
+    pub streams: u32,
+    /// Destination table: ray queues the scheduler tracks at once (pending child
+    /// queues included): about a thousand [DS17 §4.1].
+    pub dest_entries: u32,
+    /// Ray writes (duplicates and end markers) accepted per cycle from the TMs.
+    /// Assumption: 4.
+    pub ray_writes_per_cycle: u32,
+    /// Buckets being read from DRAM at once. Assumption: 8.
+    pub bucket_reads: u32,
+    /// On-chip bucket buffers (read from DRAM, not yet forwarded to a TM), at
+    /// 2 KB each. Assumption: 16.
+    pub bucket_buffers: u32,
+    /// Line requests queued towards the memory (ray stream). Assumption: 32.
+    pub mem_queue: u32,
+}
+
+impl Default for SchedulerCfg {
+    fn default() -> Self {
+        SchedulerCfg {
+            streams: 8,
+            dest_entries: 1024,
+            ray_writes_per_cycle: 4,
+            bucket_reads: 8,
+            bucket_buffers: 16,
+            mem_queue: 32,
+        }
+    }
+}
+
+/// The hit record updater.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HitUpdaterCfg {
+    /// Pending updates (merged per hit index). Assumption: 64.
+    pub queue: u32,
+    /// Read-compare-writes in flight. Assumption: 32.
+    pub in_flight: u32,
+}
+
+impl Default for HitUpdaterCfg {
+    fn default() -> Self {
+        HitUpdaterCfg {
+            queue: 64,
+            in_flight: 32,
+        }
+    }
+}
+
+/// The chip top.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ChipCfg {
+    /// Thread multiprocessors: 128 [DS17 §5.1] (TPs per TM are `tm.tps`).
+    pub tms: u32,
+    /// Links between the global units and the TMs.
+    pub links: LinkCfg,
+    /// A run with no progress for this many cycles stops with a report.
+    pub watchdog_cycles: u64,
+    pub memory: MemoryUnitCfg,
+    pub scene_buffer: SceneBufferCfg,
+    pub scheduler: SchedulerCfg,
+    pub hit_updater: HitUpdaterCfg,
+}
+
+impl Default for ChipCfg {
+    fn default() -> Self {
+        ChipCfg {
+            tms: 128,
+            links: LinkCfg { depth: 2, delay: 1 },
+            watchdog_cycles: 200_000,
+            memory: MemoryUnitCfg::default(),
+            scene_buffer: SceneBufferCfg::default(),
+            scheduler: SchedulerCfg::default(),
+            hit_updater: HitUpdaterCfg::default(),
+        }
+    }
+}
+
+impl ChipCfg {
+    /// Checks the chip against itself and the segment size `segment_bytes`.
+    pub fn validate(&self, segment_bytes: u32) -> Result<(), String> {
+        if self.tms == 0 || self.tms > 4096 {
+            return Err(format!(
+                "chip.tms = {}: give 1 to 4096 thread multiprocessors",
+                self.tms
+            ));
+        }
+        self.links.validate("chip.links")?;
+        let d = self.links.delay;
+        if self.memory.latency <= d {
+            return Err(format!(
+                "chip.memory.latency = {} must exceed the response link delay ({d}, chip.links.delay), which is part of it",
+                self.memory.latency
+            ));
+        }
+        if self.memory.bytes_per_cycle < 64 {
+            return Err(format!(
+                "chip.memory.bytes_per_cycle = {}: at least one 64 B line per cycle",
+                self.memory.bytes_per_cycle
+            ));
+        }
+        let sb = &self.scene_buffer;
+        if sb.slot_bytes < segment_bytes {
+            return Err(format!(
+                "chip.scene_buffer.slot_bytes = {} is smaller than one segment (accel.segment_bytes = {segment_bytes}); a slot must hold a whole segment",
+                sb.slot_bytes
+            ));
+        }
+        if !sb.slot_bytes.is_multiple_of(64) || sb.slots() == 0 {
+            return Err(format!(
+                "chip.scene_buffer: {} B of {} B slots hold no slot; the buffer must hold at least one whole-line slot",
+                sb.bytes, sb.slot_bytes
+            ));
+        }
+        if sb.banks == 0 || !sb.banks.is_power_of_two() {
+            return Err(format!(
+                "chip.scene_buffer.banks = {} must be a power of two",
+                sb.banks
+            ));
+        }
+        if sb.latency <= d {
+            return Err(format!(
+                "chip.scene_buffer.latency = {} must exceed the response link delay ({d}, chip.links.delay)",
+                sb.latency
+            ));
+        }
+        let s = &self.scheduler;
+        for (name, v) in [
+            ("streams", s.streams),
+            ("dest_entries", s.dest_entries),
+            ("ray_writes_per_cycle", s.ray_writes_per_cycle),
+            ("bucket_reads", s.bucket_reads),
+            ("bucket_buffers", s.bucket_buffers),
+        ] {
+            if v == 0 {
+                return Err(format!("chip.scheduler.{name} = 0: give at least 1"));
+            }
+        }
+        if s.mem_queue < 4 {
+            return Err(format!(
+                "chip.scheduler.mem_queue = {}: at least 4 (one ray write may need a line, a header and a next line)",
+                s.mem_queue
+            ));
+        }
+        if self.hit_updater.queue == 0 || self.hit_updater.in_flight == 0 {
+            return Err("chip.hit_updater.queue and in_flight must be at least 1".into());
+        }
+        if self.watchdog_cycles == 0 {
+            return Err("chip.watchdog_cycles = 0: give a positive number of cycles".into());
+        }
+        Ok(())
+    }
+}

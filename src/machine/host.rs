@@ -1,0 +1,105 @@
+//! The host side of stage A: emits a wavefront's rays into the root queue (one per
+//! cycle through the scheduler's `emit` port), then `start`. Not hardware: in
+//! stage C the shading pass on the TPs takes its place.
+
+use std::collections::VecDeque;
+
+use crate::contract::RayRec;
+use crate::rtl::decl::{Samples, StateList};
+use crate::rtl::{Ctx, Declared, Logic, Next, Out, Payload, PortDecl, PortDir, Status, UnitDecl};
+use crate::units::stream_scheduler::WaveStart;
+use crate::units::tp::RayWrite;
+
+pub struct Host {
+    pub emit: Out<RayWrite>,
+    pub start: Out<WaveStart>,
+    rays: VecDeque<RayRec>,
+    wave: Option<u32>,
+    pub sent: u64,
+}
+
+impl Host {
+    pub fn new(emit: Out<RayWrite>, start: Out<WaveStart>) -> Self {
+        Host {
+            emit,
+            start,
+            rays: VecDeque::new(),
+            wave: None,
+            sent: 0,
+        }
+    }
+    /// Queues a wavefront; wake the unit afterwards.
+    pub fn load(&mut self, rays: Vec<RayRec>, wave: u32) {
+        self.rays = rays.into();
+        self.wave = Some(wave);
+    }
+}
+
+impl Declared for Host {
+    fn decl(&self) -> UnitDecl {
+        UnitDecl {
+            module: "host",
+            source: file!(),
+            doc: "stage A host stand-in for the shading pass",
+            params: vec![],
+            ports: self.ports(),
+            state: StateList::default().items,
+        }
+    }
+    fn ports(&self) -> Vec<PortDecl> {
+        vec![
+            PortDecl {
+                name: "emit",
+                dir: PortDir::Out,
+                width: RayWrite::BITS,
+                link: self.emit.id,
+            },
+            PortDecl {
+                name: "start",
+                dir: PortDir::Out,
+                width: WaveStart::BITS,
+                link: self.start.id,
+            },
+        ]
+    }
+    fn sample_state(&self, _cycle: u64, _out: &mut Samples) {}
+    fn commit_state(&mut self) {}
+    fn reset_state(&mut self) {}
+    fn state_pending(&self) -> bool {
+        false
+    }
+}
+
+impl Logic for Host {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        if let Some(r) = self.rays.front() {
+            let w = RayWrite {
+                seg: 0,
+                ray: *r,
+                done: false,
+            };
+            if ctx.offer(&self.emit, w) {
+                self.rays.pop_front();
+                self.sent += 1;
+                ctx.set_status(Status::Busy);
+                return Next::Cycle;
+            }
+            ctx.set_status(Status::OutputBlocked);
+            return Next::Idle;
+        }
+        if let Some(wave) = self.wave {
+            if ctx.offer(&self.start, WaveStart { wave }) {
+                self.wave = None;
+                ctx.set_status(Status::Busy);
+                return Next::Cycle;
+            }
+            ctx.set_status(Status::OutputBlocked);
+            return Next::Idle;
+        }
+        ctx.set_status(Status::WaitInput);
+        Next::Idle
+    }
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![("sent", self.sent)]
+    }
+}

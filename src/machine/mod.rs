@@ -1,0 +1,466 @@
+//! The chip top (paper §4, Figure 1): N TMs of M TPs, the stream scheduler, the
+//! scene buffer, the hit record updater and the memory unit, wired only through
+//! declared links.
+//!
+//! Wiring (all links `chip.links`):
+//! - host `emit`/`start` -> scheduler (stage A: the host's shading emits the rays);
+//! - scheduler `fill[k]` -> TM k `fill`; TM k `ray_write` -> scheduler `ray_write[k]`;
+//! - TM k `miss_req` -> scene buffer `req[k]`; scene buffer `resp[k]` -> TM k `miss_resp`;
+//! - TM k `hit` -> hit record updater `hit[k]`;
+//! - scheduler `slot_map` -> scene buffer;
+//! - memory port 0: scheduler `mem_req`/`mem_resp` (ray stream, segment table);
+//!   port 1: scheduler `scene_req` -> memory -> scene buffer `fill` (scene stream);
+//!   port 2: hit record updater (hit records).
+//!
+//! Stage A runs one wavefront at a time: the host (render/mod.rs, shading still
+//! on the host: interim, stage C moves it onto the TPs through an L2) emits the
+//! wavefront's rays into the root queue through the scheduler, then the chip runs
+//! until every unit is idle. The DRAM image moves into the memory unit for the
+//! run and back out for shading.
+
+pub mod config;
+pub mod host;
+
+use std::time::Instant;
+
+use crate::config::Config;
+use crate::contract::{MemoryMap, RayRec, SparseMem};
+use crate::mem::StreamTag;
+use crate::rtl::{ClockId, Sim, SimOptions, UnitId};
+use crate::units::hit_record_updater::HitRecordUpdater;
+use crate::units::l1::{L1Req, L1Resp};
+use crate::units::memory::{MemLineReq, MemLineResp, Memory};
+use crate::units::scene_buffer::{SceneBuffer, SlotMap};
+use crate::units::staging_buffer::SbFill;
+use crate::units::stream_scheduler::{StreamScheduler, WaveStart};
+use crate::units::tm::{self, TmPorts, TmUnits};
+use crate::units::tp::{HitUpdate, RayWrite, Tp};
+use host::Host;
+
+/// Memory ports.
+pub const PORT_SCHED: usize = 0;
+pub const PORT_SCENE: usize = 1;
+pub const PORT_HITS: usize = 2;
+
+/// One traced wavefront's figures.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct WaveCycles {
+    /// Cycles from the first emitted ray to the last unit going idle.
+    pub cycles: u64,
+    pub rays_emitted: u64,
+    pub duplicates: u64,
+    pub segments_loaded: u64,
+    pub box_tests: u64,
+    pub tri_tests: u64,
+    pub exits: u64,
+    pub pops: u64,
+    pub tri_hits: u64,
+    pub l1_lines: u64,
+    pub max_stack: u64,
+    pub hits_sent: u64,
+    pub lines_read: [u64; StreamTag::COUNT],
+    pub lines_written: [u64; StreamTag::COUNT],
+    pub hit_merged: u64,
+    pub scene_buffer_stalls: u64,
+    pub scene_buffer_stall_cycles: u64,
+    pub scene_buffer_reads: u64,
+    pub evals: u64,
+}
+
+/// The chip, elaborated once per frame.
+pub struct Chip {
+    pub sim: Sim,
+    pub clock: ClockId,
+    pub tms: Vec<TmUnits>,
+    pub scheduler: UnitId,
+    pub scene_buffer: UnitId,
+    pub hit_updater: UnitId,
+    pub memory: UnitId,
+    pub host: UnitId,
+    watchdog: u64,
+    segments: usize,
+    wave: u32,
+    /// Simulated cycles and wall time of the traced wavefronts.
+    pub total_cycles: u64,
+    pub wall_s: f64,
+}
+
+fn counter(sim: &Sim, u: UnitId, name: &str) -> u64 {
+    sim.unit(u)
+        .counters()
+        .into_iter()
+        .find(|(n, _)| *n == name)
+        .map_or(0, |(_, v)| v)
+}
+
+impl Chip {
+    /// Builds the chip for a scene laid out by `map` with `segments` segments.
+    pub fn new(
+        cfg: &Config,
+        map: &MemoryMap,
+        segments: usize,
+        opts: SimOptions,
+    ) -> Result<Chip, String> {
+        cfg.validate()?;
+        let ch = &cfg.chip;
+        let mut sim = Sim::new(opts);
+        let clock = sim
+            .clock("core", cfg.clocks.core_ps)
+            .map_err(|e| e.to_string())?;
+        let l = ch.links;
+        let n = ch.tms as usize;
+        // Memory ports.
+        let mut mreq_o = Vec::new();
+        let mut mreq_i = Vec::new();
+        let mut mresp_o = Vec::new();
+        let mut mresp_i = Vec::new();
+        for (k, who) in ["sched", "scene", "hits"].iter().enumerate() {
+            let (a, b) = sim.link::<MemLineReq>(&format!("chip.mem_req{k}_{who}"), l);
+            mreq_o.push(Some(a));
+            mreq_i.push(b);
+            let (a, b) = sim.link::<MemLineResp>(&format!("chip.mem_resp{k}_{who}"), l);
+            mresp_o.push(a);
+            mresp_i.push(Some(b));
+        }
+        let (emit_o, emit_i) = sim.link::<RayWrite>("chip.emit", l);
+        let (start_o, start_i) = sim.link::<WaveStart>("chip.start", l);
+        let (map_o, map_i) = sim.link::<SlotMap>("chip.slot_map", l);
+        let mut fill_o = Vec::new();
+        let mut rw_i = Vec::new();
+        let mut sbq_i = Vec::new();
+        let mut sbr_o = Vec::new();
+        let mut hit_i = Vec::new();
+        let mut tm_ports = Vec::new();
+        for k in 0..n {
+            let (fo, fi) = sim.link::<SbFill>(&format!("chip.tm{k}_fill"), l);
+            let (mo, mi) = sim.link::<L1Req>(&format!("chip.tm{k}_miss_req"), l);
+            let (ro, ri) = sim.link::<L1Resp>(&format!("chip.tm{k}_miss_resp"), l);
+            let (wo, wi) = sim.link::<RayWrite>(&format!("chip.tm{k}_ray_write"), l);
+            let (ho, hi) = sim.link::<HitUpdate>(&format!("chip.tm{k}_hit"), l);
+            fill_o.push(fo);
+            rw_i.push(wi);
+            sbq_i.push(mi);
+            sbr_o.push(ro);
+            hit_i.push(hi);
+            tm_ports.push(TmPorts {
+                fill: fi,
+                miss_req: mo,
+                miss_resp: ri,
+                ray_write: wo,
+                hit: ho,
+            });
+        }
+        let host = sim.add("chip.host", clock, Host::new(emit_o, start_o));
+        let scheduler = sim.add(
+            "chip.scheduler",
+            clock,
+            StreamScheduler::new(
+                &ch.scheduler,
+                &ch.scene_buffer,
+                map,
+                segments,
+                emit_i,
+                start_i,
+                mresp_i[PORT_SCHED].take().expect("port"),
+                map_o,
+                mreq_o[PORT_SCENE].take().expect("port"),
+                mreq_o[PORT_SCHED].take().expect("port"),
+                rw_i,
+                fill_o,
+            ),
+        );
+        let scene_buffer = sim.add(
+            "chip.scene_buffer",
+            clock,
+            SceneBuffer::new(
+                &ch.scene_buffer,
+                l.delay,
+                map_i,
+                mresp_i[PORT_SCENE].take().expect("port"),
+                sbq_i,
+                sbr_o,
+            ),
+        );
+        let hit_updater = sim.add(
+            "chip.hit_updater",
+            clock,
+            HitRecordUpdater::new(
+                &ch.hit_updater,
+                map.hits,
+                hit_i,
+                mreq_o[PORT_HITS].take().expect("port"),
+                mresp_i[PORT_HITS].take().expect("port"),
+            ),
+        );
+        let memory = sim.add(
+            "chip.memory",
+            clock,
+            Memory::new(
+                &ch.memory,
+                l.delay,
+                SparseMem::new(map.capacity),
+                mreq_i,
+                mresp_o,
+            ),
+        );
+        let mut tms = Vec::with_capacity(n);
+        for (k, ports) in tm_ports.into_iter().enumerate() {
+            tms.push(tm::build(
+                &mut sim,
+                clock,
+                cfg,
+                &format!("chip.tm{k}"),
+                ports,
+            ));
+        }
+        sim.elaborate().map_err(|e| e.to_string())?;
+        Ok(Chip {
+            sim,
+            clock,
+            tms,
+            scheduler,
+            scene_buffer,
+            hit_updater,
+            memory,
+            host,
+            watchdog: ch.watchdog_cycles,
+            segments,
+            wave: 0,
+            total_cycles: 0,
+            wall_s: 0.0,
+        })
+    }
+
+    fn sum_tp(&self, name: &str) -> u64 {
+        self.tms
+            .iter()
+            .flat_map(|t| t.tps.iter())
+            .map(|&u| counter(&self.sim, u, name))
+            .sum()
+    }
+
+    fn snapshot(&self) -> WaveCycles {
+        let s = &self.sim;
+        let mem = s.unit_ref::<Memory>(self.memory);
+        let sb = self.scene_buffer;
+        let sched = s.unit_ref::<StreamScheduler>(self.scheduler).stats();
+        WaveCycles {
+            cycles: s.cycle(self.clock),
+            rays_emitted: 0,
+            duplicates: sched.enqueues,
+            segments_loaded: sched.segments_loaded,
+            box_tests: self.sum_tp("box_tests"),
+            tri_tests: self.sum_tp("tri_tests"),
+            exits: self.sum_tp("exits"),
+            pops: self.sum_tp("pop"),
+            tri_hits: self.sum_tp("tri_hits"),
+            l1_lines: self.sum_tp("l1_loads"),
+            max_stack: 0,
+            hits_sent: self.sum_tp("hits"),
+            lines_read: mem.lines_read,
+            lines_written: mem.lines_written,
+            hit_merged: counter(s, self.hit_updater, "merged"),
+            scene_buffer_stalls: counter(s, sb, "stalls"),
+            scene_buffer_stall_cycles: counter(s, sb, "stall_cycles"),
+            scene_buffer_reads: counter(s, sb, "reads"),
+            evals: s.evals,
+        }
+    }
+
+    /// Units holding work, and what they wait for (the watchdog's report).
+    pub fn holding(&self) -> Vec<String> {
+        let s = &self.sim;
+        let mut v = Vec::new();
+        let sch = s.unit_ref::<StreamScheduler>(self.scheduler);
+        if !sch.idle() {
+            v.push(format!("chip.scheduler: {}", sch.holding()));
+        }
+        let sb = s.unit_ref::<SceneBuffer>(self.scene_buffer);
+        if sb.busy() {
+            v.push("chip.scene_buffer: L1 misses wait for lines not streamed in, or responses in flight".into());
+        }
+        let h = s.unit_ref::<HitRecordUpdater>(self.hit_updater);
+        if h.busy() {
+            v.push(format!(
+                "chip.hit_updater: {} queued, {} read-compare-writes in flight",
+                h.st.r().queue.len(),
+                h.st.r().in_flight.len()
+            ));
+        }
+        let m = s.unit_ref::<Memory>(self.memory);
+        if m.in_flight() > 0 {
+            v.push(format!("chip.memory: {} requests in flight", m.in_flight()));
+        }
+        for (k, t) in self.tms.iter().enumerate() {
+            let busy = t
+                .tps
+                .iter()
+                .filter(|&&u| s.unit_ref::<Tp>(u).state.val() != crate::units::tp::TpState::Idle)
+                .count();
+            if busy > 0 {
+                v.push(format!("chip.tm{k}: {busy} TPs hold a ray"));
+            }
+        }
+        v
+    }
+
+    /// Traces one wavefront: `rays` into the root queue, run until idle. The DRAM
+    /// image is lent to the memory unit for the run.
+    pub fn trace_wave(
+        &mut self,
+        mem: &mut SparseMem,
+        rays: &[RayRec],
+    ) -> Result<WaveCycles, String> {
+        let t0 = Instant::now();
+        std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
+        let before = self.snapshot();
+        self.sim
+            .unit_mut::<StreamScheduler>(self.scheduler)
+            .new_wave();
+        self.sim
+            .unit_mut::<Host>(self.host)
+            .load(rays.to_vec(), self.wave);
+        self.sim.wake(self.host);
+        self.wave += 1;
+        let res = self.run_until_idle();
+        std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
+        res?;
+        let after = self.snapshot();
+        self.wall_s += t0.elapsed().as_secs_f64();
+        let mut w = WaveCycles {
+            cycles: after.cycles - before.cycles,
+            rays_emitted: rays.len() as u64,
+            duplicates: after.duplicates - before.duplicates - rays.len() as u64,
+            segments_loaded: after.segments_loaded - before.segments_loaded,
+            box_tests: after.box_tests - before.box_tests,
+            tri_tests: after.tri_tests - before.tri_tests,
+            exits: after.exits - before.exits,
+            pops: after.pops - before.pops,
+            tri_hits: after.tri_hits - before.tri_hits,
+            l1_lines: after.l1_lines - before.l1_lines,
+            max_stack: 0,
+            hits_sent: after.hits_sent - before.hits_sent,
+            lines_read: [0; StreamTag::COUNT],
+            lines_written: [0; StreamTag::COUNT],
+            hit_merged: after.hit_merged - before.hit_merged,
+            scene_buffer_stalls: after.scene_buffer_stalls - before.scene_buffer_stalls,
+            scene_buffer_stall_cycles: after.scene_buffer_stall_cycles
+                - before.scene_buffer_stall_cycles,
+            scene_buffer_reads: after.scene_buffer_reads - before.scene_buffer_reads,
+            evals: after.evals - before.evals,
+        };
+        for k in 0..StreamTag::COUNT {
+            w.lines_read[k] = after.lines_read[k] - before.lines_read[k];
+            w.lines_written[k] = after.lines_written[k] - before.lines_written[k];
+        }
+        w.max_stack = self
+            .tms
+            .iter()
+            .flat_map(|t| t.tps.iter())
+            .map(|&u| self.sim.unit_ref::<Tp>(u).stats.max_stack)
+            .max()
+            .unwrap_or(0);
+        self.total_cycles += w.cycles;
+        self.check_drained()?;
+        Ok(w)
+    }
+
+    /// Runs in watchdog windows until every unit sleeps with nothing scheduled.
+    fn run_until_idle(&mut self) -> Result<(), String> {
+        let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
+        let mut last_progress = self.progress();
+        loop {
+            let limit = self.sim.now() + self.watchdog * period;
+            let end = self
+                .sim
+                .run_to_idle(limit)
+                .map(|_| true)
+                .or_else(|e| match e {
+                    crate::rtl::SimError::Elaboration(m) if m.contains("still busy") => Ok(false),
+                    e => Err(e.to_string()),
+                })?;
+            if let Some(e) = self.sim.unit_ref::<StreamScheduler>(self.scheduler).error() {
+                return Err(e.to_string());
+            }
+            if end {
+                return Ok(());
+            }
+            let p = self.progress();
+            if p == last_progress {
+                return Err(self.stuck(&format!(
+                    "no progress for {} cycles (chip.watchdog_cycles)",
+                    self.watchdog
+                )));
+            }
+            last_progress = p;
+        }
+    }
+
+    /// A monotonic measure of work done (memory answers, rays forwarded, markers).
+    fn progress(&self) -> (u64, u64, u64, u64) {
+        let s = &self.sim;
+        let st = s.unit_ref::<StreamScheduler>(self.scheduler).stats();
+        (
+            counter(s, self.memory, "responses"),
+            st.rays_forwarded,
+            st.markers,
+            counter(s, self.scene_buffer, "reads"),
+        )
+    }
+
+    fn stuck(&self, why: &str) -> String {
+        let mut msg = format!(
+            "the chip is stuck at cycle {}: {why}",
+            self.sim.cycle(self.clock)
+        );
+        let sch = self.sim.unit_ref::<StreamScheduler>(self.scheduler);
+        if sch.dest_blocked() {
+            msg.push_str(&format!(
+                "; the destination table is full (chip.scheduler.dest_entries = {}): raise it",
+                sch.dest_entries
+            ));
+        }
+        msg.push_str("; units holding work:");
+        for h in self.holding() {
+            msg.push_str("\n  ");
+            msg.push_str(&h);
+        }
+        msg
+    }
+
+    /// Nothing is lost: asserted after every wavefront.
+    fn check_drained(&self) -> Result<(), String> {
+        let s = &self.sim;
+        let sch = s.unit_ref::<StreamScheduler>(self.scheduler);
+        let held = self.holding();
+        if !held.is_empty() {
+            return Err(self.stuck("every unit sleeps but work is left (a deadlock)"));
+        }
+        for seg in 0..self.segments {
+            if sch.pub_enqueued[seg] != sch.pub_done[seg] {
+                return Err(format!(
+                    "segment {seg}: {} rays enqueued but {} processed in this wavefront",
+                    sch.pub_enqueued[seg], sch.pub_done[seg]
+                ));
+            }
+        }
+        if sch.live_buckets() != 0 {
+            return Err(format!(
+                "{} ray buckets were not freed at the end of the wavefront",
+                sch.live_buckets()
+            ));
+        }
+        let m = s.unit_ref::<Memory>(self.memory);
+        if counter(s, self.memory, "requests") != m.responses {
+            return Err("a memory request was not answered".into());
+        }
+        for (i, (name, _)) in s.link_stats().into_iter().enumerate() {
+            if s.link_occupancy(crate::rtl::LinkId(i as u32)) > 0 {
+                return Err(format!(
+                    "link '{name}' still holds data at the end of the wavefront"
+                ));
+            }
+        }
+        Ok(())
+    }
+}

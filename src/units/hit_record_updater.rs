@@ -1,0 +1,246 @@
+//! The hit record updater (paper §4.3): atomic-min updates of the 16 B hit
+//! records in DRAM on the pair (t, triangle id).
+//!
+//! - `hit[k]`: TM k's hit updates, one accepted per cycle over all TMs
+//!   (round-robin from `cycle mod tms`). An update for an index that already has
+//!   a pending (not yet issued) update is merged into it: the closer (t, id) wins.
+//!   Otherwise it takes a queue entry; with the queue full the TM's link fills and
+//!   its TPs block (the only way they block on this unit).
+//! - Read-compare-write: the oldest pending update whose index has no
+//!   read-compare-write in flight reads the record's line (tag `hit`); when the
+//!   line comes back the record is compared and written (a 16 B partial write)
+//!   only if the update is strictly closer. The index stays "in flight" until the
+//!   write is answered, so a second update of the same record waits in the queue
+//!   (merging with later ones) and reads the written value: the hazard of two
+//!   in-flight read-compare-writes to one record cannot occur.
+
+use std::collections::VecDeque;
+
+use crate::contract::{HIT_BYTES, HitRec, LINE_BYTES};
+use crate::machine::config::HitUpdaterCfg;
+use crate::mem::StreamTag;
+use crate::rtl::decl::{Samples, StateDecl, StateList};
+use crate::rtl::model::{Behavioural, Model};
+use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
+
+use super::l1::Line;
+use super::memory::{MemLineReq, MemLineResp};
+use super::tp::HitUpdate;
+
+#[derive(Clone, Debug, Default)]
+pub struct HruState {
+    /// Pending updates in arrival order (index, best hit so far).
+    pub queue: VecDeque<(u32, HitRec)>,
+    /// Read-compare-writes in flight: index -> (update, write issued).
+    pub in_flight: std::collections::BTreeMap<u32, (HitRec, bool)>,
+    /// Writes decided, waiting for the memory port.
+    pub writes: VecDeque<MemLineReq>,
+}
+
+impl Behavioural for HruState {
+    fn declare(&self, out: &mut StateList) {
+        out.items.push(StateDecl::reg("queued", 16));
+        out.items.push(StateDecl::reg("in_flight", 16));
+    }
+    fn sample(&self, out: &mut Samples) {
+        out.slot().push(self.queue.len() as u64, 16);
+        out.slot().push(self.in_flight.len() as u64, 16);
+    }
+    fn reset(&mut self) {
+        self.queue.clear();
+        self.in_flight.clear();
+        self.writes.clear();
+    }
+}
+
+crate::unit! {
+    /// Hit record updater: merged atomic-min read-compare-writes of hit records.
+    pub struct HitRecordUpdater : "hit_record_updater" {
+        params { tms: u32 => "TMS", queue_n: u32 => "QUEUE", in_flight_n: u32 => "IN_FLIGHT" }
+        inputs { mem_resp: MemLineResp }
+        outputs { mem_req: MemLineReq }
+        in_arrays { hit: HitUpdate }
+        state { st: Model<HruState> }
+        extra {
+            hits_base: u64,
+            updates: u64,
+            merged: u64,
+            reads: u64,
+            writes: u64,
+            hazard_waits: u64
+        }
+    }
+}
+
+impl HitRecordUpdater {
+    /// `hits_base`: the hit-record region of the memory map.
+    pub fn new(
+        cfg: &HitUpdaterCfg,
+        hits_base: u64,
+        hit: Vec<In<HitUpdate>>,
+        mem_req: Out<MemLineReq>,
+        mem_resp: In<MemLineResp>,
+    ) -> Self {
+        HitRecordUpdater {
+            tms: hit.len() as u32,
+            queue_n: cfg.queue,
+            in_flight_n: cfg.in_flight,
+            mem_resp,
+            mem_req,
+            hit,
+            st: Model::new(HruState::default()),
+            hits_base,
+            updates: 0,
+            merged: 0,
+            reads: 0,
+            writes: 0,
+            hazard_waits: 0,
+        }
+    }
+
+    fn addr(&self, index: u32) -> u64 {
+        self.hits_base + index as u64 * HIT_BYTES as u64
+    }
+
+    pub fn busy(&self) -> bool {
+        let s = self.st.r();
+        !s.queue.is_empty() || !s.in_flight.is_empty() || !s.writes.is_empty()
+    }
+}
+
+impl Logic for HitRecordUpdater {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let n = self.tms as usize;
+        let mut worked = false;
+        let mut full = false;
+        // A memory answer: compare a read record, or retire a written one.
+        if let Some(r) = ctx.pop(&self.mem_resp) {
+            let idx = r.id;
+            let st = self.st.m();
+            if r.write {
+                st.in_flight.remove(&idx);
+            } else {
+                let (h, _) = st.in_flight[&idx];
+                let off = ((self.hits_base + idx as u64 * HIT_BYTES as u64) % LINE_BYTES) as usize;
+                let cur = HitRec {
+                    t: r.data.f32_at(off),
+                    tri_id: r.data.u32_at(off + 4),
+                    u: r.data.f32_at(off + 8),
+                    v: r.data.f32_at(off + 12),
+                };
+                if h.closer_than(&cur) {
+                    let mut data = Line::default();
+                    data.0[off..off + 4].copy_from_slice(&h.t.to_le_bytes());
+                    data.0[off + 4..off + 8].copy_from_slice(&h.tri_id.to_le_bytes());
+                    data.0[off + 8..off + 12].copy_from_slice(&h.u.to_le_bytes());
+                    data.0[off + 12..off + 16].copy_from_slice(&h.v.to_le_bytes());
+                    st.writes.push_back(MemLineReq {
+                        addr: r.addr,
+                        write: true,
+                        tag: StreamTag::Hit,
+                        id: idx,
+                        mask: 0xFFFF << off,
+                        data,
+                    });
+                    st.in_flight.get_mut(&idx).expect("in flight").1 = true;
+                } else {
+                    st.in_flight.remove(&idx);
+                }
+            }
+            worked = true;
+        }
+        // One memory request per cycle: a decided write first, else the oldest
+        // pending update whose record is not in flight.
+        if ctx.can_push(&self.mem_req) {
+            if !self.st.r().writes.is_empty() {
+                let w = self.st.m().writes.pop_front().expect("non-empty");
+                ctx.push(&self.mem_req, w);
+                self.writes += 1;
+                worked = true;
+            } else if self.st.r().in_flight.len() < self.in_flight_n as usize {
+                let pick = {
+                    let s = self.st.r();
+                    s.queue
+                        .iter()
+                        .position(|(i, _)| !s.in_flight.contains_key(i))
+                };
+                if let Some(k) = pick {
+                    if k > 0 {
+                        self.hazard_waits += 1;
+                    }
+                    let (idx, h) = self.st.m().queue.remove(k).expect("picked");
+                    let a = self.addr(idx);
+                    self.st.m().in_flight.insert(idx, (h, false));
+                    ctx.push(&self.mem_req, MemLineReq::read(a, StreamTag::Hit, idx));
+                    self.reads += 1;
+                    worked = true;
+                }
+            }
+        }
+        // One update accepted per cycle.
+        for j in 0..n {
+            let k = (c as usize + j) % n;
+            let Some(u) = ctx.peek(&self.hit[k]).cloned() else {
+                continue;
+            };
+            let pos = self.st.r().queue.iter().position(|(i, _)| *i == u.index);
+            match pos {
+                Some(p) => {
+                    ctx.pop(&self.hit[k]);
+                    let e = &mut self.st.m().queue[p];
+                    if u.hit.closer_than(&e.1) {
+                        e.1 = u.hit;
+                    }
+                    self.merged += 1;
+                }
+                None if self.st.r().queue.len() < self.queue_n as usize => {
+                    ctx.pop(&self.hit[k]);
+                    self.st.m().queue.push_back((u.index, u.hit));
+                }
+                None => {
+                    full = true;
+                    break;
+                }
+            }
+            self.updates += 1;
+            worked = true;
+            break;
+        }
+        ctx.set_status(if full {
+            Status::ResourceBusy
+        } else if worked || self.busy() {
+            Status::Busy
+        } else {
+            Status::WaitInput
+        });
+        // Pending work that can proceed next cycle; else memory answers wake us.
+        let s = self.st.r();
+        let can_issue = !s.writes.is_empty()
+            || (s.in_flight.len() < self.in_flight_n as usize
+                && s.queue.iter().any(|(i, _)| !s.in_flight.contains_key(i)));
+        if worked || can_issue {
+            Next::Cycle
+        } else {
+            Next::Idle
+        }
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        vec![
+            ("updates", self.updates),
+            ("merged", self.merged),
+            ("reads", self.reads),
+            ("writes", self.writes),
+            ("hazard_waits", self.hazard_waits),
+        ]
+    }
+
+    fn reset_counters(&mut self) {
+        self.updates = 0;
+        self.merged = 0;
+        self.reads = 0;
+        self.writes = 0;
+        self.hazard_waits = 0;
+    }
+}

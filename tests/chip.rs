@@ -1,0 +1,240 @@
+//! The cycle-level chip (stage A of issue 6): every ray agrees with functional mode,
+//! the timing-independent counts match exactly, nothing is lost, small chips
+//! force back-pressure, sleeping and evaluation order change nothing, and bad
+//! configurations are named.
+
+use dualstream::accel::AccelCfg;
+use dualstream::config::Config;
+use dualstream::render::{ChipRun, Frame, Mode, RenderCfg, WaveStats, render};
+use dualstream::rtl::SimOptions;
+
+fn chip_cfg(tms: u32, tps: u32) -> Config {
+    let mut c = Config::default();
+    c.chip.tms = tms;
+    c.tm.tps = tps;
+    c
+}
+
+/// Small segments so the small scenes have many segments and duplication.
+fn rcfg(segment_kb: u32, chip: Option<(Config, SimOptions)>) -> RenderCfg {
+    RenderCfg {
+        accel: AccelCfg {
+            segment_bytes: segment_kb << 10,
+            ..AccelCfg::default()
+        },
+        chip: chip.map(|(config, sim)| Box::new(ChipRun { config, sim })),
+        ..RenderCfg::default()
+    }
+}
+
+fn scene(name: &str, w: u32, h: u32, bounces: u32) -> dualstream::scene::Scene {
+    let mut s = dualstream::scene::load(name).unwrap();
+    s.settings.width = w;
+    s.settings.height = h;
+    s.settings.bounces = bounces;
+    s
+}
+
+/// Timing-independent counts: everything but the hit-record traffic (merging in
+/// the hit record updater depends on timing) and the deepest stack (the TP counts
+/// its scratchpad occupancy, one entry more than the functional traversal's).
+fn timeless(w: &WaveStats) -> WaveStats {
+    let mut t = w.traversal;
+    t.max_stack = 0;
+    WaveStats {
+        hit_lines_read: 0,
+        hit_lines_written: 0,
+        traversal: t,
+        ..*w
+    }
+}
+
+fn same_frame(f: &Frame, c: &Frame, what: &str) {
+    assert_eq!(f.waves.len(), c.waves.len(), "{what}: wavefronts");
+    for (k, (a, b)) in f.waves.iter().zip(&c.waves).enumerate() {
+        assert_eq!(timeless(a), timeless(b), "{what}: wavefront {k} counts");
+    }
+    let bits = |fr: &Frame| -> Vec<u32> {
+        fr.radiance
+            .iter()
+            .flat_map(|v| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()])
+            .collect()
+    };
+    assert!(
+        bits(f) == bits(c),
+        "{what}: image differs from functional mode"
+    );
+}
+
+#[test]
+fn every_ray_agrees_on_small_chips() {
+    for (name, w, h, seg_kb) in [("tiny", 16, 16, 8), ("cornell", 16, 12, 8)] {
+        let s = scene(name, w, h, 3);
+        let f = render(&s, Mode::Functional, &rcfg(seg_kb, None), &mut |_| {}).unwrap();
+        assert!(
+            f.accel.segments > 1 || name == "tiny",
+            "{name}: several segments"
+        );
+        for (tms, tps) in [(1, 1), (1, 16), (2, 16)] {
+            let cfg = rcfg(seg_kb, Some((chip_cfg(tms, tps), SimOptions::default())));
+            let c = render(&s, Mode::Cycle, &cfg, &mut |_| {}).unwrap();
+            same_frame(&f, &c, &format!("{name} on {tms}x{tps}"));
+            let chip = c.chip.as_ref().unwrap();
+            assert!(chip.total_cycles > 0);
+            assert_eq!(chip.waves.len(), f.waves.len());
+        }
+    }
+}
+
+// ---- sleeping, shadow mode and evaluation order (pattern of tests/kernel.rs) ----
+
+use std::io::Write;
+use std::sync::{Arc, Mutex};
+
+use dualstream::contract::HitRec;
+use dualstream::machine::Chip;
+use dualstream::rtl::{TraceSpec, Tracer};
+
+#[derive(Clone, Default)]
+struct Buf(Arc<Mutex<Vec<u8>>>);
+impl Write for Buf {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(b);
+        Ok(b.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+fn fnv(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x100000001b3)
+    })
+}
+
+#[derive(Debug, PartialEq)]
+struct Outcome {
+    cycles: u64,
+    stats: Vec<dualstream::rtl::UnitStats>,
+    vcd_hash: u64,
+    hits: Vec<[u32; 4]>,
+}
+
+/// One primary wavefront of `cornell` 8x8 on a 1 x 4 chip, traced throughout.
+fn run_tiny_chip(opts: SimOptions) -> Outcome {
+    let s = scene("cornell", 8, 8, 1);
+    let rc = rcfg(8, None);
+    let mut p = dualstream::render::prepare(&s, &rc).unwrap();
+    let rays = dualstream::testbench::tm_tb::treelet_rays(&p, &s, 0).swap_remove(0);
+    for r in &rays {
+        HitRec::NONE.write(&mut p.mem, p.map.hit_addr(r.hit_index()));
+    }
+    let mut cfg = chip_cfg(1, 4);
+    cfg.accel = rc.accel.clone();
+    let mut chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), opts).unwrap();
+    let buf = Buf::default();
+    chip.sim
+        .attach_tracer(Tracer::new(Box::new(buf.clone()), TraceSpec::all()).unwrap())
+        .unwrap();
+    let w = chip.trace_wave(&mut p.mem, &rays).unwrap();
+    chip.sim.finish_trace().unwrap().unwrap();
+    let vcd = buf.0.lock().unwrap().clone();
+    Outcome {
+        cycles: w.cycles,
+        stats: chip.sim.all_stats(),
+        vcd_hash: fnv(&vcd),
+        hits: rays
+            .iter()
+            .map(|r| {
+                let h = HitRec::read(&p.mem, p.map.hit_addr(r.hit_index()));
+                [h.t.to_bits(), h.tri_id, h.u.to_bits(), h.v.to_bits()]
+            })
+            .collect(),
+    }
+}
+
+#[test]
+fn sleeping_shadow_and_shuffles_change_nothing() {
+    let base = run_tiny_chip(SimOptions::default());
+    assert!(base.cycles > 0);
+    for (what, o) in [
+        (
+            "sleep off",
+            SimOptions {
+                sleep: false,
+                ..SimOptions::default()
+            },
+        ),
+        (
+            "shadow",
+            SimOptions {
+                sleep: false,
+                shadow: true,
+                ..SimOptions::default()
+            },
+        ),
+        (
+            "shuffle",
+            SimOptions {
+                shuffle_seed: Some(7),
+                ..SimOptions::default()
+            },
+        ),
+    ] {
+        let r = run_tiny_chip(o);
+        assert!(r == base, "{what}: cycles, statistics, VCD or hits differ");
+    }
+}
+
+// ---- stuck chips and bad input ----
+
+#[test]
+fn bad_chip_configs_are_named() {
+    let mut c = Config::default();
+    c.chip.tms = 0;
+    assert!(c.validate().unwrap_err().contains("chip.tms = 0"));
+    let mut c = Config::default();
+    c.chip.scene_buffer.slot_bytes = 32 << 10;
+    let e = c.validate().unwrap_err();
+    assert!(e.contains("smaller than one segment"), "{e}");
+    let mut c = Config::default();
+    c.chip.scene_buffer.bytes = 1024;
+    assert!(c.validate().is_err());
+    let e = Config::from_toml("[chip]\ntms = 0\n").unwrap_err();
+    assert!(e.contains("chip.tms"), "{e}");
+}
+
+#[test]
+fn a_full_destination_table_stops_with_a_named_error() {
+    let s = scene("cornell", 8, 8, 1);
+    let mut cfg = chip_cfg(1, 4);
+    cfg.chip.scheduler.dest_entries = 1;
+    let e = render(
+        &s,
+        Mode::Cycle,
+        &rcfg(8, Some((cfg, SimOptions::default()))),
+        &mut |_| {},
+    )
+    .unwrap_err();
+    assert!(e.contains("dest_entries"), "{e}");
+    assert!(e.contains("chip.scheduler"), "{e}");
+}
+
+#[test]
+fn the_watchdog_names_the_units_holding_work() {
+    // A scene buffer that never answers: lines longer than the watchdog.
+    let s = scene("cornell", 8, 8, 1);
+    let mut cfg = chip_cfg(1, 2);
+    cfg.chip.memory.latency = 5000;
+    cfg.chip.watchdog_cycles = 1000;
+    let e = render(
+        &s,
+        Mode::Cycle,
+        &rcfg(8, Some((cfg, SimOptions::default()))),
+        &mut |_| {},
+    )
+    .unwrap_err();
+    assert!(e.contains("no progress for 1000 cycles"), "{e}");
+    assert!(e.contains("chip.memory"), "{e}");
+}
