@@ -108,10 +108,14 @@ impl Logic for TmXbar {
             worked |= w;
             waiting |= b;
         }
-        let mut outstanding: Vec<u16> = (0..self.tri_pipes)
-            .map(|p| *self.tri_outstanding.read(p))
-            .collect();
-        let mut changed = vec![false; outstanding.len()];
+        // Per-pipe scratch on the stack (the config allows at most 8 pipes): this
+        // runs every busy cycle, so no allocation here.
+        let np = self.tri_pipes as usize;
+        let mut outstanding = [0u16; 8];
+        for (p, o) in outstanding.iter_mut().enumerate().take(np) {
+            *o = *self.tri_outstanding.read(p as u32);
+        }
+        let mut changed = [false; 8];
         for p in 0..self.tri_resp.len() {
             let (w, b) = route(ctx, &self.tri_resp[p], &self.tp_tri_resp, |r| r.tag);
             if w {
@@ -158,9 +162,9 @@ impl Logic for TmXbar {
             worked = true;
         }
         waiting |= s.conflicts[2] > before;
-        for (p, o) in outstanding.into_iter().enumerate() {
+        for p in 0..np {
             if changed[p] {
-                self.tri_outstanding.write(p as u32, o);
+                self.tri_outstanding.write(p as u32, outstanding[p]);
             }
         }
         ctx.set_status(if worked {
