@@ -306,6 +306,7 @@ pub(crate) trait LinkDyn: Any {
     fn take_violations(&mut self) -> Vec<Violation>;
     fn check_offer_held(&mut self, now: Time) -> bool;
     fn is_stalled(&self) -> bool;
+    fn has_visible(&self, now: Time) -> bool;
     fn stats(&self) -> LinkStats;
     fn occupancy(&self) -> u32;
     fn set_log(&mut self, on: bool);
@@ -405,6 +406,9 @@ impl<T: Payload> LinkDyn for Link<T> {
     }
     fn is_stalled(&self) -> bool {
         self.stalled.is_some()
+    }
+    fn has_visible(&self, now: Time) -> bool {
+        self.peek(now).is_some()
     }
     fn occupancy(&self) -> u32 {
         self.q.len() as u32

@@ -185,6 +185,14 @@ impl<'a> Ctx<'a> {
         self.link::<T>(port.id).peek(now)
     }
 
+    /// Whether a payload is visible at the head of an input link this cycle: a
+    /// cheaper `peek(..).is_some()` for arbiters that scan many inputs (no
+    /// payload-type check).
+    #[inline]
+    pub fn has_input<T: Payload>(&self, port: &In<T>) -> bool {
+        self.links[port.id.0 as usize].has_visible(self.now)
+    }
+
     /// Takes the head of an input link (at most one per link per cycle).
     #[inline]
     pub fn pop<T: Payload>(&mut self, port: &In<T>) -> Option<T> {

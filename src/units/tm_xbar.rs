@@ -63,7 +63,7 @@ fn pick<T: Payload>(
     let mut won = None;
     for j in 0..n {
         let k = (start + j) % n;
-        if ctx.peek(&inputs[k]).is_none() {
+        if !ctx.has_input(&inputs[k]) {
             continue;
         }
         if grant && won.is_none() {
