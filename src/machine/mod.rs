@@ -10,7 +10,9 @@
 //! - scheduler `slot_map` -> scene buffer;
 //! - memory port 0: scheduler `mem_req`/`mem_resp` (ray stream, segment table);
 //!   port 1: scheduler `scene_req` -> memory -> scene buffer `fill` (scene stream);
-//!   port 2: hit record updater (hit records).
+//!   port 2: hit record updater (hit records);
+//! - `chip.memory.model = "gddr5"`: memory `ch_req[c]`/`ch_resp[c]` <-> `chip.mem_ctrl{c}`
+//!   (one per channel, on the DRAM clock; docs/chip.md "Memory timing").
 //!
 //! Stage A runs one wavefront at a time: the host (render/mod.rs, shading still
 //! on the host: interim, stage C moves it onto the TPs through an L2) emits the

@@ -181,6 +181,21 @@ pub fn summary(f: &Frame) -> String {
             "total cycles (tracing)", c.total_cycles
         );
         s += &format!("  {:<34} {:>12}\n", "memory timing model", c.memory_model);
+        let lines: u64 = c
+            .waves
+            .iter()
+            .map(|w| w.lines_read.iter().sum::<u64>() + w.lines_written.iter().sum::<u64>())
+            .sum();
+        let secs = c.total_cycles as f64 * c.core_ps as f64 * 1e-12;
+        s += &format!(
+            "  {:<34} {:>12.1}\n",
+            "memory unit bandwidth (GB/s)",
+            if secs > 0.0 {
+                (lines * c.line_bytes) as f64 / secs / 1e9
+            } else {
+                0.0
+            }
+        );
         if let Some(d) = &c.dram {
             s += &format!(
                 "  {:<34} {:>12}\n  {:<34} {:>12.1}\n  {:<34} {:>11.1}%\n  {:<34} {:>12}\n  {:<34} {:>12}\n",

@@ -3,7 +3,7 @@
 //! mask in the request), one request/response port pair per client. Every request
 //! is answered, writes too (the requester learns its write is done).
 //!
-//! Timing model `fixed` (this stage): a request accepted in cycle `a` is answered
+//! Timing model `fixed` (`chip.memory.model`, the default): a request accepted in cycle `a` is answered
 //! so that the response is visible at `a + latency`; at most `bytes_per_cycle / 64`
 //! requests are accepted per cycle over all ports (round-robin from
 //! `cycle mod ports`), at most one per port. Data are applied at completion (the
