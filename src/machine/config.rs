@@ -11,9 +11,14 @@ use crate::rtl::LinkCfg;
 #[serde(rename_all = "snake_case")]
 pub enum MemoryModel {
     /// Fixed latency and a bandwidth limit (the "simple memory" switch of the
-    /// paper group's simulator). Stage B adds `gddr5` (the channel router and the
-    /// 16 `mem_ctrl` units).
+    /// paper group's simulator). The default: fast, and what the stage A tests use.
     Fixed,
+    /// The memory unit routes every line by the address mapping (`mem.mapping`)
+    /// to one `mem_ctrl` unit per channel (`mem.geometry.channels`, 16) on the
+    /// DRAM clock (`clocks.dram_ps`): timing, bandwidth, row hits and energy come
+    /// from the GDDR5 model (`[mem]`), data from the DRAM image. The paper's
+    /// figures need this; `latency` and `bytes_per_cycle` are then unused.
+    Gddr5,
 }
 
 /// The memory unit (DRAM image + timing).
@@ -28,6 +33,10 @@ pub struct MemoryUnitCfg {
     /// Peak bandwidth in bytes per core cycle: 512 GB/s at 1 GHz [DS17 §5.1] =
     /// 512 B = 8 lines per cycle.
     pub bytes_per_cycle: u32,
+    /// `gddr5`: record every DRAM command and run the independent timing checker
+    /// (`mem::checker`) after every wavefront; a violation stops the run. Costs
+    /// memory and time: for tests.
+    pub check_timing: bool,
 }
 
 impl Default for MemoryUnitCfg {
@@ -36,6 +45,7 @@ impl Default for MemoryUnitCfg {
             model: MemoryModel::Fixed,
             latency: 100,
             bytes_per_cycle: 512,
+            check_timing: false,
         }
     }
 }

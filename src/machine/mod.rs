@@ -10,7 +10,9 @@
 //! - scheduler `slot_map` -> scene buffer;
 //! - memory port 0: scheduler `mem_req`/`mem_resp` (ray stream, segment table);
 //!   port 1: scheduler `scene_req` -> memory -> scene buffer `fill` (scene stream);
-//!   port 2: hit record updater (hit records).
+//!   port 2: hit record updater (hit records);
+//! - `chip.memory.model = "gddr5"`: memory `ch_req[c]`/`ch_resp[c]` <-> `chip.mem_ctrl{c}`
+//!   (one per channel, on the DRAM clock; docs/chip.md "Memory timing").
 //!
 //! Stage A runs one wavefront at a time: the host (render/mod.rs, shading still
 //! on the host: interim, stage C moves it onto the TPs through an L2) emits the
@@ -25,10 +27,14 @@ use std::time::Instant;
 
 use crate::config::Config;
 use crate::contract::{MemoryMap, RayRec, SparseMem};
-use crate::mem::StreamTag;
+use crate::mem::config::EnergyCfg;
+use crate::mem::energy::{EnergyModel, energy_of};
+use crate::mem::stats::ChannelStats;
+use crate::mem::{AddrMap, MemCfg, MemReq, MemResp, StreamTag};
 use crate::rtl::{ClockId, Sim, SimOptions, UnitId};
 use crate::units::hit_record_updater::HitRecordUpdater;
 use crate::units::l1::{L1Req, L1Resp};
+use crate::units::mem_ctrl::MemCtrl;
 use crate::units::memory::{MemLineReq, MemLineResp, Memory};
 use crate::units::scene_buffer::{SceneBuffer, SlotMap};
 use crate::units::staging_buffer::SbFill;
@@ -42,8 +48,95 @@ pub const PORT_SCHED: usize = 0;
 pub const PORT_SCENE: usize = 1;
 pub const PORT_HITS: usize = 2;
 
+/// The GDDR5 model's figures over one wavefront (all zero with `fixed`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct DramWave {
+    /// Line reads and writes served by the controllers, per stream tag too.
+    pub reads: u64,
+    pub writes: u64,
+    pub tag_reads: [u64; StreamTag::COUNT],
+    pub tag_writes: [u64; StreamTag::COUNT],
+    pub row_hits: u64,
+    pub row_misses: u64,
+    pub row_conflicts: u64,
+    pub acts: u64,
+    pub refs: u64,
+    /// DRAM energy in joules with the `paper` and `physical` presets
+    /// (`mem.energy`, docs/memory.md), background and refresh included.
+    pub energy_paper_j: f64,
+    pub energy_physical_j: f64,
+}
+
+impl DramWave {
+    pub fn lines(&self) -> u64 {
+        self.reads + self.writes
+    }
+    pub fn row_hit_rate(&self) -> f64 {
+        let n = self.row_hits + self.row_misses + self.row_conflicts;
+        if n == 0 {
+            0.0
+        } else {
+            self.row_hits as f64 / n as f64
+        }
+    }
+    /// Achieved bandwidth in GB/s over `cycles` core cycles of `core_ps`.
+    pub fn bandwidth_gbs(&self, line_bytes: u64, cycles: u64, core_ps: u64) -> f64 {
+        let s = cycles as f64 * core_ps as f64 * 1e-12;
+        if s == 0.0 {
+            0.0
+        } else {
+            (self.lines() * line_bytes) as f64 / s / 1e9
+        }
+    }
+    fn sub(&self, b: &DramWave) -> DramWave {
+        let mut d = DramWave {
+            reads: self.reads - b.reads,
+            writes: self.writes - b.writes,
+            row_hits: self.row_hits - b.row_hits,
+            row_misses: self.row_misses - b.row_misses,
+            row_conflicts: self.row_conflicts - b.row_conflicts,
+            acts: self.acts - b.acts,
+            refs: self.refs - b.refs,
+            energy_paper_j: self.energy_paper_j - b.energy_paper_j,
+            energy_physical_j: self.energy_physical_j - b.energy_physical_j,
+            ..DramWave::default()
+        };
+        for k in 0..StreamTag::COUNT {
+            d.tag_reads[k] = self.tag_reads[k] - b.tag_reads[k];
+            d.tag_writes[k] = self.tag_writes[k] - b.tag_writes[k];
+        }
+        d
+    }
+    /// Accumulates another wavefront.
+    pub fn add(&mut self, o: &DramWave) {
+        self.reads += o.reads;
+        self.writes += o.writes;
+        self.row_hits += o.row_hits;
+        self.row_misses += o.row_misses;
+        self.row_conflicts += o.row_conflicts;
+        self.acts += o.acts;
+        self.refs += o.refs;
+        self.energy_paper_j += o.energy_paper_j;
+        self.energy_physical_j += o.energy_physical_j;
+        for k in 0..StreamTag::COUNT {
+            self.tag_reads[k] += o.tag_reads[k];
+            self.tag_writes[k] += o.tag_writes[k];
+        }
+    }
+}
+
+/// The GDDR5 side of the chip (`chip.memory.model = "gddr5"`).
+struct Dram {
+    clock: ClockId,
+    ctrls: Vec<UnitId>,
+    cfg: MemCfg,
+    paper: EnergyModel,
+    physical: EnergyModel,
+    check: bool,
+}
+
 /// One traced wavefront's figures.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct WaveCycles {
     /// Cycles from the first emitted ray to the last unit going idle.
     pub cycles: u64,
@@ -65,6 +158,7 @@ pub struct WaveCycles {
     pub scene_buffer_stall_cycles: u64,
     pub scene_buffer_reads: u64,
     pub evals: u64,
+    pub dram: DramWave,
 }
 
 /// The chip, elaborated once per frame.
@@ -77,6 +171,7 @@ pub struct Chip {
     pub hit_updater: UnitId,
     pub memory: UnitId,
     pub host: UnitId,
+    dram: Option<Dram>,
     watchdog: u64,
     segments: usize,
     wave: u32,
@@ -192,17 +287,52 @@ impl Chip {
                 mresp_i[PORT_HITS].take().expect("port"),
             ),
         );
-        let memory = sim.add(
-            "chip.memory",
-            clock,
-            Memory::new(
-                &ch.memory,
-                l.delay,
-                SparseMem::new(map.capacity),
-                mreq_i,
-                mresp_o,
-            ),
+        let mut memory_unit = Memory::new(
+            &ch.memory,
+            l.delay,
+            SparseMem::new(map.capacity),
+            mreq_i,
+            mresp_o,
         );
+        let mut dram = None;
+        if ch.memory.model == config::MemoryModel::Gddr5 {
+            let m = &cfg.mem;
+            let dclk = sim
+                .clock("dram", cfg.clocks.dram_ps)
+                .map_err(|e| e.to_string())?;
+            let amap = AddrMap::new(&m.geometry, &m.mapping)?;
+            let mut ch_req = Vec::new();
+            let mut ch_resp = Vec::new();
+            let mut ctrls = Vec::new();
+            for c in 0..m.geometry.channels {
+                let (qo, qi) = sim.link::<MemReq>(&format!("chip.dram_req{c}"), m.ctrl.req_link);
+                let (ro, ri) = sim.link::<MemResp>(&format!("chip.dram_resp{c}"), m.ctrl.resp_link);
+                let mut u = MemCtrl::new(m, cfg.clocks.dram_ps, c, qi, ro);
+                u.ctrl.record_commands(ch.memory.check_timing);
+                ctrls.push(sim.add(&format!("chip.mem_ctrl{c}"), dclk, u));
+                ch_req.push(qo);
+                ch_resp.push(ri);
+            }
+            memory_unit = memory_unit.with_channels(amap, ch_req, ch_resp);
+            let g = &m.geometry;
+            let em = |name: &str| -> Result<EnergyModel, String> {
+                Ok(EnergyModel::new(
+                    &EnergyCfg::by_name(name, g)?,
+                    &m.timing,
+                    g.burst_cycles(),
+                    cfg.clocks.dram_ps,
+                ))
+            };
+            dram = Some(Dram {
+                clock: dclk,
+                ctrls,
+                cfg: m.clone(),
+                paper: em("paper")?,
+                physical: em("physical")?,
+                check: ch.memory.check_timing,
+            });
+        }
+        let memory = sim.add("chip.memory", clock, memory_unit);
         let mut tms = Vec::with_capacity(n);
         for (k, ports) in tm_ports.into_iter().enumerate() {
             tms.push(tm::build(
@@ -223,6 +353,7 @@ impl Chip {
             hit_updater,
             memory,
             host,
+            dram,
             watchdog: ch.watchdog_cycles,
             segments,
             wave: 0,
@@ -237,6 +368,57 @@ impl Chip {
             .flat_map(|t| t.tps.iter())
             .map(|&u| counter(&self.sim, u, name))
             .sum()
+    }
+
+    /// The controllers' statistics up to now, all channels merged.
+    pub fn dram_stats(&self) -> Option<ChannelStats> {
+        let d = self.dram.as_ref()?;
+        let end = self.sim.cycle(d.clock);
+        let mut t = ChannelStats::default();
+        for &u in &d.ctrls {
+            t.merge(&self.sim.unit_ref::<MemCtrl>(u).ctrl.stats_at(end));
+        }
+        Some(t)
+    }
+
+    /// Timing-checker violations on every channel's command log so far (needs
+    /// `chip.memory.check_timing`; empty otherwise and with `fixed`).
+    pub fn dram_violations(&self) -> Vec<String> {
+        let Some(d) = self.dram.as_ref() else {
+            return Vec::new();
+        };
+        let end = self.sim.cycle(d.clock);
+        let mut v = Vec::new();
+        for (k, &u) in d.ctrls.iter().enumerate() {
+            let log = self.sim.unit_ref::<MemCtrl>(u).ctrl.commands_until(end);
+            for x in crate::mem::checker::check(&log, &d.cfg.timing, &d.cfg.geometry, end) {
+                v.push(format!("channel {k}: {x}"));
+            }
+        }
+        v
+    }
+
+    fn dram_snapshot(&self) -> DramWave {
+        let (Some(d), Some(t)) = (self.dram.as_ref(), self.dram_stats()) else {
+            return DramWave::default();
+        };
+        let mut w = DramWave {
+            reads: t.reads,
+            writes: t.writes,
+            row_hits: t.row_hits,
+            row_misses: t.row_misses,
+            row_conflicts: t.row_conflicts,
+            acts: t.acts,
+            refs: t.refs,
+            energy_paper_j: energy_of(&t, &d.paper).total(),
+            energy_physical_j: energy_of(&t, &d.physical).total(),
+            ..DramWave::default()
+        };
+        for k in 0..StreamTag::COUNT {
+            w.tag_reads[k] = t.per_tag[k].reads;
+            w.tag_writes[k] = t.per_tag[k].writes;
+        }
+        w
     }
 
     fn snapshot(&self) -> WaveCycles {
@@ -264,6 +446,7 @@ impl Chip {
             scene_buffer_stall_cycles: counter(s, sb, "stall_cycles"),
             scene_buffer_reads: counter(s, sb, "reads"),
             evals: s.evals,
+            dram: self.dram_snapshot(),
         }
     }
 
@@ -348,6 +531,7 @@ impl Chip {
                 - before.scene_buffer_stall_cycles,
             scene_buffer_reads: after.scene_buffer_reads - before.scene_buffer_reads,
             evals: after.evals - before.evals,
+            dram: after.dram.sub(&before.dram),
         };
         for k in 0..StreamTag::COUNT {
             w.lines_read[k] = after.lines_read[k] - before.lines_read[k];
@@ -362,6 +546,16 @@ impl Chip {
             .unwrap_or(0);
         self.total_cycles += w.cycles;
         self.check_drained()?;
+        if self.dram.as_ref().is_some_and(|d| d.check) {
+            let v = self.dram_violations();
+            if !v.is_empty() {
+                return Err(format!(
+                    "{} DRAM timing violations (chip.memory.check_timing), first: {}",
+                    v.len(),
+                    v[0]
+                ));
+            }
+        }
         Ok(w)
     }
 

@@ -76,6 +76,21 @@ pub struct ChipFrame {
     /// Wall time of the chip simulation (tracing only) and simulated cycles/s.
     pub sim_wall_s: f64,
     pub cycles_per_s: f64,
+    /// `chip.memory.model`: "fixed" or "gddr5".
+    pub memory_model: String,
+    /// Core clock period (ps) and line size, for bandwidths.
+    pub core_ps: u64,
+    pub line_bytes: u64,
+    /// `gddr5`: the controllers' figures over the whole frame (sum of `waves`).
+    pub dram: Option<crate::machine::DramWave>,
+}
+
+impl ChipFrame {
+    /// Achieved DRAM bandwidth (GB/s) over the traced cycles (`gddr5`).
+    pub fn dram_bandwidth_gbs(&self) -> Option<f64> {
+        self.dram
+            .map(|d| d.bandwidth_gbs(self.line_bytes, self.total_cycles, self.core_ps))
+    }
 }
 
 /// Where a render is, for progress reporting.
@@ -438,10 +453,25 @@ pub fn render(
         chip: chip.map(|c| ChipFrame {
             tms: chip_cfg.chip.tms,
             tps_per_tm: chip_cfg.tm.tps,
-            waves: chip_waves,
             total_cycles: c.total_cycles,
             sim_wall_s: c.wall_s,
             cycles_per_s: c.total_cycles as f64 / c.wall_s.max(1e-9),
+            memory_model: match chip_cfg.chip.memory.model {
+                crate::machine::config::MemoryModel::Fixed => "fixed".into(),
+                crate::machine::config::MemoryModel::Gddr5 => "gddr5".into(),
+            },
+            core_ps: chip_cfg.clocks.core_ps,
+            line_bytes: crate::contract::LINE_BYTES,
+            dram: (chip_cfg.chip.memory.model == crate::machine::config::MemoryModel::Gddr5).then(
+                || {
+                    let mut t = crate::machine::DramWave::default();
+                    for w in &chip_waves {
+                        t.add(&w.dram);
+                    }
+                    t
+                },
+            ),
+            waves: chip_waves,
         }),
     })
 }

@@ -137,7 +137,11 @@ pub fn summary(f: &Frame) -> String {
         for (k, j) in &e.parts {
             s += &format!("    {:<32} {:>12.4}\n", k, j);
         }
-        s += "  (DRAM and L2 energy: not modelled yet; the scene buffer is counted in cycle mode only)\n";
+        if f.chip.as_ref().is_some_and(|c| c.dram.is_some()) {
+            s += "  (L2 energy: not modelled yet; DRAM energy: the gddr5 figures below)\n";
+        } else {
+            s += "  (DRAM and L2 energy: not modelled yet (chip.memory.model = \"gddr5\" in cycle mode); the scene buffer is counted in cycle mode only)\n";
+        }
     }
     if f.verified_rays > 0 {
         s += &format!(
@@ -161,11 +165,52 @@ pub fn summary(f: &Frame) -> String {
                 w.scene_buffer_stall_cycles,
                 w.hit_merged
             );
+            if c.dram.is_some() {
+                s += &format!(
+                    "      DRAM: {:>9} lines  {:>7.1} GB/s  row hits {:>5.1}%  energy {} (paper) {} (physical)\n",
+                    w.dram.lines(),
+                    w.dram.bandwidth_gbs(c.line_bytes, w.cycles, c.core_ps),
+                    100.0 * w.dram.row_hit_rate(),
+                    crate::mem::stats::joules(w.dram.energy_paper_j),
+                    crate::mem::stats::joules(w.dram.energy_physical_j)
+                );
+            }
         }
         s += &format!(
             "  {:<34} {:>12}\n",
             "total cycles (tracing)", c.total_cycles
         );
+        s += &format!("  {:<34} {:>12}\n", "memory timing model", c.memory_model);
+        let lines: u64 = c
+            .waves
+            .iter()
+            .map(|w| w.lines_read.iter().sum::<u64>() + w.lines_written.iter().sum::<u64>())
+            .sum();
+        let secs = c.total_cycles as f64 * c.core_ps as f64 * 1e-12;
+        s += &format!(
+            "  {:<34} {:>12.1}\n",
+            "memory unit bandwidth (GB/s)",
+            if secs > 0.0 {
+                (lines * c.line_bytes) as f64 / secs / 1e9
+            } else {
+                0.0
+            }
+        );
+        if let Some(d) = &c.dram {
+            s += &format!(
+                "  {:<34} {:>12}\n  {:<34} {:>12.1}\n  {:<34} {:>11.1}%\n  {:<34} {:>12}\n  {:<34} {:>12}\n",
+                "DRAM lines (read + written)",
+                d.lines(),
+                "DRAM bandwidth (GB/s)",
+                c.dram_bandwidth_gbs().unwrap_or(0.0),
+                "DRAM row-hit rate",
+                100.0 * d.row_hit_rate(),
+                "DRAM energy, paper preset",
+                crate::mem::stats::joules(d.energy_paper_j),
+                "DRAM energy, physical preset",
+                crate::mem::stats::joules(d.energy_physical_j)
+            );
+        }
         s += &format!(
             "  chip simulation {:.2} s, {:.0} simulated cycles/s\n",
             c.sim_wall_s, c.cycles_per_s

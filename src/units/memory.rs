@@ -3,24 +3,33 @@
 //! mask in the request), one request/response port pair per client. Every request
 //! is answered, writes too (the requester learns its write is done).
 //!
-//! Timing model `fixed` (this stage): a request accepted in cycle `a` is answered
+//! Timing model `fixed` (`chip.memory.model`, the default): a request accepted in cycle `a` is answered
 //! so that the response is visible at `a + latency`; at most `bytes_per_cycle / 64`
 //! requests are accepted per cycle over all ports (round-robin from
 //! `cycle mod ports`), at most one per port. Data are applied at completion (the
 //! cycle the response is pushed), in acceptance order per port.
 //!
-//! Seam for stage B (`gddr5`): the same ports go through a channel router to the
-//! 16 `mem_ctrl` units; the controller decides when a request completes (its
-//! `MemResp { id }`), and this unit applies the data at that completion. Clients
-//! must therefore not rely on order across ports, nor on the order of a read
-//! and an older write to the same line on one port (the controllers may reorder
-//! them); every client here waits for a write's response before reading the line.
+//! Timing model `gddr5` (stage B): this unit is also the channel router. It
+//! accepts at most one request per port per cycle, decodes its channel with the
+//! address mapping (`mem::AddrMap`) and pushes a `MemReq { addr, write, tag, id }`
+//! into `ch_req[channel]` (at most one per channel link per cycle; a full link
+//! leaves the request waiting in its port), `id` being the slot of an in-flight
+//! table that remembers the port and the request. The `mem_ctrl` units (DRAM
+//! clock) decide when a request completes: when the controller's `MemResp { id }`
+//! is taken from `ch_resp[channel]` (visible when the last data beat ends), this
+//! unit applies the data to the image (read: the line's bytes; write: the masked
+//! bytes) and pushes the answer into `resp[port]` in the same cycle (one per port
+//! per cycle; a full port leaves the controller's response in its link).
+//! Clients must therefore not rely on order across ports, nor on the order of a
+//! read and an older write to the same line on one port (the controllers may
+//! reorder them); every client here waits for a write's response before reading
+//! the line.
 
 use std::collections::VecDeque;
 
 use crate::contract::{LINE_BYTES, SparseMem};
 use crate::machine::config::MemoryUnitCfg;
-use crate::mem::StreamTag;
+use crate::mem::{AddrMap, MemReq, MemResp, StreamTag};
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
 use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
@@ -65,15 +74,31 @@ impl MemLineReq {
     }
 }
 
-/// Requests in flight, per port: (cycle the response is pushed, request).
+/// Requests in flight. `fixed`: per port, (cycle the response is pushed,
+/// request). `gddr5`: the table indexed by the controllers' `id` (port, request),
+/// with its free slots (reused last-freed first).
 #[derive(Clone, Debug, Default)]
 pub struct MemPipe {
     pub ports: Vec<VecDeque<(u64, MemLineReq)>>,
+    pub table: Vec<Option<(u8, MemLineReq)>>,
+    pub free: Vec<u32>,
 }
 
 impl MemPipe {
     pub fn in_flight(&self) -> usize {
-        self.ports.iter().map(|q| q.len()).sum()
+        self.ports.iter().map(|q| q.len()).sum::<usize>() + self.table.len() - self.free.len()
+    }
+    fn alloc(&mut self, port: u8, r: MemLineReq) -> u32 {
+        match self.free.pop() {
+            Some(i) => {
+                self.table[i as usize] = Some((port, r));
+                i
+            }
+            None => {
+                self.table.push(Some((port, r)));
+                (self.table.len() - 1) as u32
+            }
+        }
     }
 }
 
@@ -88,24 +113,28 @@ impl Behavioural for MemPipe {
     }
     fn reset(&mut self) {
         self.ports.iter_mut().for_each(|q| q.clear());
+        self.table.clear();
+        self.free.clear();
     }
 }
 
 crate::unit! {
-    /// Memory unit: the DRAM image behind line request ports (fixed latency and bandwidth).
+    /// Memory unit: the DRAM image behind line request ports (fixed latency and bandwidth, or routed to the GDDR5 channel controllers).
     pub struct Memory : "memory" {
         params {
             ports_n: u32 => "PORTS",
             latency: u32 => "LATENCY",
-            lines_per_cycle: u32 => "LINES_PER_CYCLE"
+            lines_per_cycle: u32 => "LINES_PER_CYCLE",
+            channels: u32 => "CHANNELS"
         }
         inputs { }
         outputs { }
-        in_arrays { req: MemLineReq }
-        out_arrays { resp: MemLineResp }
+        in_arrays { req: MemLineReq, ch_resp: MemResp }
+        out_arrays { resp: MemLineResp, ch_req: MemReq }
         state { pipe: Model<MemPipe> }
         extra {
             out_delay: u32,
+            map: Option<AddrMap>,
             image: SparseMem,
             lines_read: [u64; StreamTag::COUNT],
             lines_written: [u64; StreamTag::COUNT],
@@ -129,18 +158,41 @@ impl Memory {
             ports_n: n as u32,
             latency: cfg.latency,
             lines_per_cycle: (cfg.bytes_per_cycle / LINE_BYTES as u32).max(1),
+            channels: 0,
             req,
             resp,
+            ch_resp: Vec::new(),
+            ch_req: Vec::new(),
             pipe: Model::new(MemPipe {
                 ports: vec![VecDeque::new(); n],
+                ..MemPipe::default()
             }),
             out_delay,
+            map: None,
             image,
             lines_read: [0; StreamTag::COUNT],
             lines_written: [0; StreamTag::COUNT],
             requests: 0,
             responses: 0,
         }
+    }
+
+    /// Timing model `gddr5`: route to the channel controllers through
+    /// `ch_req[c]`/`ch_resp[c]` (channel `c` of `map`).
+    pub fn with_channels(
+        mut self,
+        map: AddrMap,
+        ch_req: Vec<Out<MemReq>>,
+        ch_resp: Vec<In<MemResp>>,
+    ) -> Self {
+        assert_eq!(ch_req.len(), ch_resp.len(), "one response link per channel");
+        self.channels = ch_req.len() as u32;
+        self.latency = 0;
+        self.lines_per_cycle = 0;
+        self.map = Some(map);
+        self.ch_req = ch_req;
+        self.ch_resp = ch_resp;
+        self
     }
 
     /// Requests accepted and not yet answered.
@@ -184,8 +236,93 @@ impl Memory {
     }
 }
 
+impl Memory {
+    /// One cycle of the `gddr5` model (see the module docs).
+    fn eval_routed(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let n = self.ports_n as usize;
+        let nch = self.channels as usize;
+        let mut worked = false;
+        let mut blocked = false;
+        // Completions: round-robin over the channels, one answer per port.
+        let mut port_used = vec![false; n];
+        for j in 0..nch {
+            let ch = (c as usize + j) % nch;
+            let Some(id) = ctx.peek(&self.ch_resp[ch]).map(|r| r.id) else {
+                continue;
+            };
+            let p = self.pipe.r().table[id as usize]
+                .as_ref()
+                .expect("response to a live request")
+                .0 as usize;
+            if port_used[p] || !ctx.can_push(&self.resp[p]) {
+                blocked = true;
+                continue;
+            }
+            ctx.pop(&self.ch_resp[ch]).expect("peeked");
+            let pipe = self.pipe.m();
+            let (_, r) = pipe.table[id as usize].take().expect("live");
+            pipe.free.push(id);
+            let resp = self.complete(&r);
+            ctx.push(&self.resp[p], resp);
+            port_used[p] = true;
+            worked = true;
+        }
+        // Acceptance: round-robin over the ports, one request per channel link.
+        let mut ch_used = vec![false; nch];
+        let mut left_waiting = false;
+        for j in 0..n {
+            let p = (c as usize + j) % n;
+            let Some(r) = ctx.peek(&self.req[p]) else {
+                continue;
+            };
+            let ch = self
+                .map
+                .as_ref()
+                .expect("gddr5 has a map")
+                .decode(r.addr)
+                .map(|l| l.channel as usize)
+                .unwrap_or(0);
+            if ch_used[ch] || !ctx.can_push(&self.ch_req[ch]) {
+                left_waiting = true;
+                continue;
+            }
+            let r = ctx.pop(&self.req[p]).expect("peeked");
+            self.requests += 1;
+            let (addr, write, tag) = (r.addr, r.write, r.tag);
+            let id = self.pipe.m().alloc(p as u8, r);
+            ctx.push(
+                &self.ch_req[ch],
+                MemReq {
+                    addr,
+                    write,
+                    tag,
+                    id,
+                },
+            );
+            ch_used[ch] = true;
+            worked = true;
+        }
+        ctx.set_status(if blocked {
+            Status::OutputBlocked
+        } else if left_waiting {
+            Status::ResourceBusy
+        } else if worked || self.in_flight() > 0 {
+            Status::Busy
+        } else {
+            Status::WaitInput
+        });
+        // Anything left waiting is retried when a full link drains (the kernel
+        // wakes us) or next cycle if only this cycle's one-per-link rule held it.
+        if worked { Next::Cycle } else { Next::Idle }
+    }
+}
+
 impl Logic for Memory {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        if self.map.is_some() {
+            return self.eval_routed(ctx);
+        }
         let c = ctx.cycle();
         let n = self.ports_n as usize;
         let mut worked = false;
