@@ -13,6 +13,7 @@ pub mod box_pipe_tb;
 pub mod divider_tb;
 pub mod hit_record_updater_tb;
 pub mod mem_ctrl_tb;
+pub mod scene_buffer_tb;
 pub mod tm_tb;
 pub mod tri_pipe_tb;
 
@@ -36,6 +37,7 @@ pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, String> {
         "divider" => pipe_tb::run_random::<divider_tb::DivKind>(opts),
         "mem_ctrl" | "dram" => mem_ctrl_tb::run_random(opts),
         "hit_record_updater" | "hru" => hit_record_updater_tb::run(opts),
+        "scene_buffer" => scene_buffer_tb::run(opts),
         _ => Err(format!(
             "unknown unit '{name}'; testbenches exist for: {}, tm (dram = mem_ctrl)",
             BENCHES.join(", ")
