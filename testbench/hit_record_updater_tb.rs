@@ -321,6 +321,15 @@ impl Default for HruTbCfg {
     }
 }
 
+/// The configuration the bench elaborates its unit with: `base` with the bench's
+/// TM count and hit-updater sizes (the Verilog module of the traced scope).
+pub fn unit_config(base: &crate::config::Config, b: &HruTbCfg) -> crate::config::Config {
+    let mut c = base.clone();
+    c.chip.tms = b.tms;
+    c.chip.hit_updater = b.hru.clone();
+    c
+}
+
 /// A record whose u, v are a function of (t, id): equal keys are equal records.
 fn rec(t: f32, id: u32) -> HitRec {
     let h = crate::util::fnv1a(&[t.to_bits().to_le_bytes(), id.to_le_bytes()].concat());
@@ -349,7 +358,7 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
     if b.tms == 0 || b.indices == 0 || b.mem_latency < 2 {
         return Err("the bench needs TMs, indices and a memory latency >= 2".into());
     }
-    let cfg = &opts.config;
+    let cfg = &unit_config(&opts.config, b);
     let link = cfg.chip.links;
     let hits_base = 0x1_0000u64;
     let mut rng = Rng::new(opts.seed);
@@ -385,7 +394,7 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
     let dut = sim.add(
         "tb.hit_record_updater",
         clk,
-        HitRecordUpdater::new(&b.hru, hits_base, hit_in, qo, ri),
+        HitRecordUpdater::new(&cfg.chip.hit_updater, hits_base, hit_in, qo, ri),
     );
     let mut mem = LineMem::new(
         qi,

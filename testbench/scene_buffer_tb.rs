@@ -91,6 +91,15 @@ fn line_of(mem: &SparseMem, a: u64) -> Line {
     l
 }
 
+/// The configuration the bench elaborates its unit with: `base` with the bench's
+/// TM count and scene-buffer geometry (the Verilog module of the traced scope).
+pub fn unit_config(base: &crate::config::Config, b: &SbTbCfg) -> crate::config::Config {
+    let mut c = base.clone();
+    c.chip.tms = b.tms;
+    c.chip.scene_buffer = b.sb.clone();
+    c
+}
+
 pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
     run_with(opts, &SbTbCfg::default())
 }
@@ -105,7 +114,7 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
     if b.tms == 0 || slots < 2 || slot_lines < 8 || b.sb.banks == 0 || b.sb.latency < 2 {
         return Err("the bench needs TMs, >= 2 slots of >= 8 lines, banks and latency >= 2".into());
     }
-    let cfg = &opts.config;
+    let cfg = &unit_config(&opts.config, b);
     let link = cfg.chip.links;
     let p = cfg.clocks.core_ps;
     let mut rng = Rng::new(opts.seed);
@@ -153,7 +162,7 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
     let dut = sim.add(
         "tb.scene_buffer",
         clk,
-        SceneBuffer::new(&b.sb, link.delay, mi, fi, reqs, resps),
+        SceneBuffer::new(&cfg.chip.scene_buffer, link.delay, mi, fi, reqs, resps),
     );
     let mut sinks: Vec<UnitId> = Vec::new();
     for (k, i) in resp_ins.into_iter().enumerate() {

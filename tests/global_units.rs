@@ -211,3 +211,87 @@ fn sb_sleep_shadow_shuffle_invariance() {
     }
     assert_ne!(sb_outcome(SimOptions::default(), 5), base);
 }
+
+// ---- stream scheduler ----
+
+use dualstream::testbench::stream_scheduler_tb::{self as sched, SchedTbCfg};
+
+#[test]
+fn sched_scoreboard_passes_depth_first_with_skipped_subtrees() {
+    for seed in [1, 2] {
+        let r = sched::run(&opts(seed)).unwrap();
+        assert!(r.passed(), "{r}");
+        assert_eq!(r.results, r.requests, "{r}");
+        assert!(r.requests > 300, "duplicates were forwarded: {r}");
+        let adm = counter(&r, "segments_admitted");
+        assert!(adm > 5 && adm < counter(&r, "segments"), "{r}");
+        assert!(counter(&r, "skipped_children") > 0, "{r}");
+        assert_eq!(counter(&r, "retired"), adm);
+    }
+}
+
+#[test]
+fn sched_scoreboard_fails_on_a_wrong_expectation() {
+    let b = SchedTbCfg {
+        drop_expected: true,
+        ..SchedTbCfg::default()
+    };
+    let r = sched::run_with(&opts(1), &b).unwrap();
+    assert!(!r.passed(), "{r}");
+    assert!(
+        r.errors
+            .iter()
+            .any(|e| e.contains("forwarded a ray never enqueued")),
+        "{r}"
+    );
+}
+
+#[test]
+fn sched_scoreboard_fails_on_a_missing_end_marker() {
+    // One ray never reports its end: its segment cannot retire, its children
+    // are never admitted.
+    let b = SchedTbCfg {
+        skip_marker: Some(5),
+        ..SchedTbCfg::default()
+    };
+    let r = sched::run_with(&opts(1), &b).unwrap();
+    assert!(!r.passed(), "{r}");
+    assert!(
+        r.errors.iter().any(|e| e.contains("segments retired of")),
+        "{r}"
+    );
+    assert!(
+        r.errors.iter().any(|e| e.contains("buckets never freed")),
+        "{r}"
+    );
+}
+
+fn sched_outcome(sim: SimOptions, seed: u64) -> (String, u64) {
+    let buf = SharedBuf::default();
+    let o = TbOptions {
+        sim,
+        trace: TraceSpec::all(),
+        ..opts(seed)
+    };
+    let b = SchedTbCfg {
+        trace_buf: Some(buf.clone()),
+        rays: 100,
+        ..SchedTbCfg::default()
+    };
+    let r = sched::run_with(&o, &b).unwrap();
+    assert!(r.passed(), "{r}");
+    (format!("{r:?}"), dualstream::util::fnv1a(&buf.bytes()))
+}
+
+#[test]
+fn sched_sleep_shadow_shuffle_invariance() {
+    let base = sched_outcome(SimOptions::default(), 4);
+    for m in modes() {
+        assert_eq!(
+            sched_outcome(m.clone(), 4),
+            base,
+            "mode {m:?} changed the outcome"
+        );
+    }
+    assert_ne!(sched_outcome(SimOptions::default(), 5), base);
+}
