@@ -220,6 +220,7 @@ pub fn run_random(opts: &TbOptions) -> Result<TbReport, String> {
         vcd_changes: 0,
         vcd_bytes: 0,
         status_cycles: st.status_cycles,
+        counters: vec![],
     };
     if opts.vcd.is_some()
         && let Some(r) = tb.sim.finish_trace()

@@ -82,6 +82,8 @@ pub struct TbReport {
     pub vcd_changes: u64,
     pub vcd_bytes: u64,
     pub status_cycles: [u64; 4],
+    /// Bench-specific measurements (merges, stalls, bank conflicts, ...).
+    pub counters: Vec<(&'static str, u64)>,
 }
 
 impl TbReport {
@@ -122,6 +124,14 @@ impl std::fmt::Display for TbReport {
                 "  vcd: {} changes, {} bytes",
                 self.vcd_changes, self.vcd_bytes
             )?;
+        }
+        if !self.counters.is_empty() {
+            let c: Vec<String> = self
+                .counters
+                .iter()
+                .map(|(k, v)| format!("{k} {v}"))
+                .collect();
+            writeln!(f, "  {}", c.join("  "))?;
         }
         for e in self.errors.iter().take(20) {
             writeln!(f, "  ERROR {e}")?;
@@ -347,6 +357,7 @@ impl<K: PipeKind> PipeTb<K> {
             vcd_changes: 0,
             vcd_bytes: 0,
             status_cycles: st.status_cycles,
+            counters: vec![],
         }
     }
 }

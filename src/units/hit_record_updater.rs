@@ -5,7 +5,8 @@
 //!   (round-robin from `cycle mod tms`). An update for an index that already has
 //!   a pending (not yet issued) update is merged into it: the closer (t, id) wins.
 //!   Otherwise it takes a queue entry; with the queue full the TM's link fills and
-//!   its TPs block (the only way they block on this unit).
+//!   its TPs block (the only way they block on this unit), while other TMs'
+//!   updates that merge are still accepted.
 //! - Read-compare-write: the oldest pending update whose index has no
 //!   read-compare-write in flight reads the record's line (tag `hit`); when the
 //!   line comes back the record is compared and written (a 16 B partial write)
@@ -199,12 +200,16 @@ impl Logic for HitRecordUpdater {
                     self.st.m().queue.push_back((u.index, u.hit));
                 }
                 None => {
+                    // Queue full: this TM waits, another TM's update may still
+                    // merge (whether it can must not depend on the cycle's
+                    // round-robin start, or sleeping would change the result).
                     full = true;
-                    break;
+                    continue;
                 }
             }
             self.updates += 1;
             worked = true;
+            full = false;
             break;
         }
         ctx.set_status(if full {
