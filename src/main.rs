@@ -116,6 +116,9 @@ enum Cmd {
         /// Write the comparison as JSON here.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Write paper-style figures (SVG) into this directory.
+        #[arg(long)]
+        plots: Option<PathBuf>,
     },
     /// Scene tools.
     Scene {
@@ -407,6 +410,7 @@ fn run(cli: Cli) -> Result<(), String> {
             res,
             scenes_dir,
             json,
+            plots,
         } => {
             if what != "paper" {
                 return Err(format!("unknown report '{what}'; available: paper"));
@@ -447,6 +451,20 @@ fn run(cli: Cli) -> Result<(), String> {
                     )
                 })?;
                 println!("comparison: {}", p.display());
+            }
+            if let Some(dir) = plots {
+                std::fs::create_dir_all(&dir).map_err(|e| {
+                    format!(
+                        "cannot create '{}': {e}; choose a writable --plots directory",
+                        dir.display()
+                    )
+                })?;
+                for (name, svg) in dualstream::report::paper::figures(&rows) {
+                    let p = dir.join(name);
+                    std::fs::write(&p, svg)
+                        .map_err(|e| format!("cannot write '{}': {e}", p.display()))?;
+                    println!("figure: {}", p.display());
+                }
             }
             Ok(())
         }

@@ -208,4 +208,9 @@ fn paper_comparison_rows() {
         "no invented figures"
     );
     assert!(table(&rows).contains("Dragon Box"));
+    let figs = dualstream::report::paper::figures(&rows);
+    assert_eq!(figs.len(), 2);
+    assert!(figs[0].1.contains("Figure 7") && figs[1].1.contains("Figure 8"));
+    // Dragon Box ours and paper: 2 groups of 4 stream bars, plus 4 legend boxes.
+    assert_eq!(figs[1].1.matches("<rect x=").count(), 2 * 4 + 4);
 }

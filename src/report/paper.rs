@@ -193,3 +193,72 @@ pub fn table(rows: &[Compared]) -> String {
     }
     s
 }
+
+/// The paper-style figures for the compared rows: ray duplication (Figure 7) and
+/// cache lines per stream (Figure 8), ours beside the paper's. Returns
+/// (file name, SVG text).
+pub fn figures(rows: &[Compared]) -> Vec<(String, String)> {
+    use super::svg::{Group, grouped_bars};
+    let scenes: Vec<String> = {
+        let mut v: Vec<String> = Vec::new();
+        for r in rows {
+            if !v.contains(&r.scene) {
+                v.push(r.scene.clone());
+            }
+        }
+        v
+    };
+    let get =
+        |scene: &str, metric: &str| rows.iter().find(|r| r.scene == scene && r.metric == metric);
+    let short = |s: &str| s.split(" (").next().unwrap_or(s).to_string();
+    let dup: Vec<Group> = scenes
+        .iter()
+        .filter_map(|s| {
+            let r = get(s, "ray duplication")?;
+            Some(Group {
+                label: short(s),
+                values: vec![r.ours.unwrap_or(0.0), r.paper],
+            })
+        })
+        .collect();
+    let mut out = vec![(
+        "fig7_ray_duplication.svg".to_string(),
+        grouped_bars(
+            "Ray duplication (Figure 7)",
+            "enqueues per ray",
+            &["ours", "paper"],
+            &dup,
+        ),
+    )];
+    let streams = [
+        "ray stream $ lines (M)",
+        "scene stream $ lines (M)",
+        "shading $ lines (M)",
+        "hit record $ lines (M)",
+    ];
+    let mut groups = Vec::new();
+    for s in &scenes {
+        for (who, pick) in [("ours", true), ("paper", false)] {
+            let values: Vec<f64> = streams
+                .iter()
+                .map(|m| {
+                    get(s, m).map_or(0.0, |r| if pick { r.ours.unwrap_or(0.0) } else { r.paper })
+                })
+                .collect();
+            groups.push(Group {
+                label: format!("{} {who}", short(s)),
+                values,
+            });
+        }
+    }
+    out.push((
+        "fig8_memory_traffic.svg".to_string(),
+        grouped_bars(
+            "Memory traffic per stream (Figure 8)",
+            "64 B lines (M)",
+            &["ray", "scene", "shading", "hit record"],
+            &groups,
+        ),
+    ));
+    out
+}
