@@ -340,6 +340,22 @@ impl BucketHeader {
 }
 
 impl HitRec {
+    pub fn encode(&self) -> [u8; HIT_BYTES as usize] {
+        let mut b = [0u8; HIT_BYTES as usize];
+        put_f32(&mut b, 0, self.t);
+        put_u32(&mut b, 4, self.tri_id);
+        put_f32(&mut b, 8, self.u);
+        put_f32(&mut b, 12, self.v);
+        b
+    }
+    pub fn decode(b: &[u8]) -> HitRec {
+        HitRec {
+            t: f32_at(b, 0),
+            tri_id: u32_at(b, 4),
+            u: f32_at(b, 8),
+            v: f32_at(b, 12),
+        }
+    }
     pub fn write(&self, m: &mut SparseMem, a: u64) {
         m.write_f32(a, self.t);
         m.write_u32(a + 4, self.tri_id);
@@ -357,6 +373,28 @@ impl HitRec {
 }
 
 impl PathRec {
+    pub fn encode(&self) -> [u8; PATH_BYTES as usize] {
+        let mut b = [0u8; PATH_BYTES as usize];
+        put_vec3(&mut b, 0, self.throughput);
+        put_vec3(&mut b, 12, self.pending);
+        put_vec3(&mut b, 24, self.radiance);
+        put_vec3(&mut b, 36, self.dir);
+        b[48..56].copy_from_slice(&self.rng.to_le_bytes());
+        put_u32(&mut b, 56, self.depth as u32 | (self.flags as u32) << 16);
+        b
+    }
+    pub fn decode(b: &[u8]) -> PathRec {
+        let w = u32_at(b, 56);
+        PathRec {
+            throughput: vec3_at(b, 0),
+            pending: vec3_at(b, 12),
+            radiance: vec3_at(b, 24),
+            dir: vec3_at(b, 36),
+            rng: u64::from_le_bytes(b[48..56].try_into().expect("8 bytes")),
+            depth: w as u16,
+            flags: (w >> 16) as u16,
+        }
+    }
     pub fn write(&self, m: &mut SparseMem, a: u64) {
         write_vec3(m, a, self.throughput);
         write_vec3(m, a + 12, self.pending);

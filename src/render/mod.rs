@@ -21,12 +21,12 @@ use serde::Serialize;
 
 use crate::accel::{AccelCfg, Bvh, SceneImage, Segmentation};
 use crate::contract::{
-    HitRec, LINE_BYTES, MemoryMap, MemoryMapCfg, PATH_BOUNCE_IN_FLIGHT, PATH_SHADOW_IN_FLIGHT,
-    PathRec, RayRec, SHADOW_BIT, SegEntry, SparseMem, TriRec, lines_touched,
+    HitRec, LINE_BYTES, MemoryMap, MemoryMapCfg, PATH_BOUNCE_IN_FLIGHT, PathRec, RayRec,
+    SHADOW_BIT, SegEntry, SparseMem, TriRec, lines_touched,
 };
 use crate::scene::Scene;
 use queues::{RayQueues, queue_lines_written};
-use shade::{cosine_sample, facing_normal, next_f32, offset_ray, pixel_seed};
+use shade::{ShadeConsts, next_f32, pixel_seed, shade_reads, shade_step};
 use traverse::{SegmentView, TraversalCounts, reference_trace, traverse_segment};
 
 /// How rays are traced.
@@ -637,83 +637,61 @@ fn shade_pixel(
     next_work: &mut Vec<u32>,
 ) -> Result<(), String> {
     let pa = p.map.path_addr(pix as u64);
-    let mut path = PathRec::read(&p.mem, pa);
+    let path = PathRec::read(&p.mem, pa);
     st.shading_lines += 1;
-    // The shadow ray from the previous hit: its contribution, if the light is visible.
-    if path.flags & PATH_SHADOW_IN_FLIGHT != 0 {
-        let h = HitRec::read(&p.mem, p.map.hit_addr(pix as u64 * 2 + 1));
+    let (reads_shadow, reads_bounce) = shade_reads(&path);
+    let read_hit = |p: &Prepared, st: &mut WaveStats, idx: u64| {
         st.shading_lines += 1;
-        if h.is_hit() {
-            st.occluded += 1;
-        } else {
-            path.radiance += path.pending;
-        }
-        path.pending = Vec3::ZERO;
-        path.flags &= !PATH_SHADOW_IN_FLIGHT;
+        HitRec::read(&p.mem, p.map.hit_addr(idx))
+    };
+    let shadow_hit = reads_shadow.then(|| read_hit(p, st, pix as u64 * 2 + 1));
+    let bounce_hit = reads_bounce.then(|| read_hit(p, st, pix as u64 * 2));
+    let mut surface = None;
+    if let Some(h) = bounce_hit.filter(|h| h.is_hit()) {
+        let ti = p.mem.read_u32(p.map.tri_index + h.tri_id as u64 * 4);
+        let ta = p.map.scene + ti as u64 * 16;
+        let tri = TriRec::read(&p.mem, ta);
+        let ma = p.map.materials + tri.material as u64 * 16;
+        let albedo = Vec3::new(
+            p.mem.read_f32(ma),
+            p.mem.read_f32(ma + 4),
+            p.mem.read_f32(ma + 8),
+        );
+        st.shading_lines += 1 + lines_touched(ta, 48) + 1;
+        surface = Some((tri, albedo));
     }
-    if path.flags & PATH_BOUNCE_IN_FLIGHT != 0 {
-        path.flags &= !PATH_BOUNCE_IN_FLIGHT;
-        let h = HitRec::read(&p.mem, p.map.hit_addr(pix as u64 * 2));
-        st.shading_lines += 1;
-        if !h.is_hit() {
-            path.radiance += path.throughput * scene.sky;
-        } else {
-            st.hits += 1;
-            let ti = p.mem.read_u32(p.map.tri_index + h.tri_id as u64 * 4);
-            let ta = p.map.scene + ti as u64 * 16;
-            let tri = TriRec::read(&p.mem, ta);
-            let ma = p.map.materials + tri.material as u64 * 16;
-            let albedo = Vec3::new(
-                p.mem.read_f32(ma),
-                p.mem.read_f32(ma + 4),
-                p.mem.read_f32(ma + 8),
-            );
-            st.shading_lines += 1 + lines_touched(ta, 48) + 1;
-            let n = facing_normal(&tri.v, path.dir);
-            // The hit point from the barycentrics, on the triangle's plane (Wächter &
-            // Binder's offset assumes a point computed this way).
-            let hitp = tri.v[0] + (tri.v[1] - tri.v[0]) * h.u + (tri.v[2] - tri.v[0]) * h.v;
-            let o = offset_ray(hitp, n);
-            let to_light = scene.light.position - o;
-            let d2 = to_light.length_squared();
-            let cos = n.dot(to_light) / d2.sqrt();
-            if cos > 0.0 && d2 > 0.0 {
-                path.pending = path.throughput
-                    * albedo
-                    * (std::f32::consts::FRAC_1_PI * cos / d2)
-                    * scene.light.intensity;
-                path.flags |= PATH_SHADOW_IN_FLIGHT;
-                let r = RayRec {
-                    origin: o,
-                    dir: to_light,
-                    ray_id: pix | SHADOW_BIT,
-                    entry: p.image.root_entry.encode(),
-                };
-                emit(p, q, next, &r, keep, list)?;
-            }
-            path.depth += 1;
-            if (path.depth as u32) < scene.settings.bounces {
-                let (u1, u2) = (next_f32(&mut path.rng), next_f32(&mut path.rng));
-                let d = cosine_sample(n, u1, u2);
-                path.throughput *= albedo;
-                path.flags |= PATH_BOUNCE_IN_FLIGHT;
-                let r = RayRec {
-                    origin: o,
-                    dir: d,
-                    ray_id: pix,
-                    entry: p.image.root_entry.encode(),
-                };
-                emit(p, q, next, &r, keep, list)?;
-                path.dir = d;
-            }
-        }
+    let c = shade_consts(scene, p);
+    let out = shade_step(
+        &c,
+        pix,
+        path,
+        shadow_hit,
+        bounce_hit,
+        surface.as_ref().map(|(t, a)| (t, *a)),
+    );
+    st.occluded += out.occluded as u64;
+    st.hits += out.hit as u64;
+    for r in [out.shadow, out.bounce].into_iter().flatten() {
+        emit(p, q, next, &r, keep, list)?;
     }
+    let path = out.path;
     path.write(&mut p.mem, pa);
     st.shading_lines += 1;
     if path.flags != 0 {
         next_work.push(pix);
     }
     Ok(())
+}
+
+/// The shading pass's constants for `scene` laid out in `p`.
+pub fn shade_consts(scene: &Scene, p: &Prepared) -> ShadeConsts {
+    ShadeConsts {
+        light_pos: scene.light.position,
+        light_intensity: scene.light.intensity,
+        sky: scene.sky,
+        bounces: scene.settings.bounces,
+        root_entry: p.image.root_entry.encode(),
+    }
 }
 
 /// Traces a batch of rays (origin, direction, shadow?) as one wavefront and returns

@@ -4,6 +4,9 @@
 
 use glam::Vec3;
 
+use crate::contract::{
+    HitRec, PATH_BOUNCE_IN_FLIGHT, PATH_SHADOW_IN_FLIGHT, PathRec, RayRec, SHADOW_BIT, TriRec,
+};
 use crate::geom::shapes::sin_cos;
 
 /// SplitMix64 finaliser: a good 64-bit mix.
@@ -72,6 +75,118 @@ pub fn cosine_sample(n: Vec3, u1: f32, u2: f32) -> Vec3 {
 pub fn facing_normal(v: &[Vec3; 3], dir: Vec3) -> Vec3 {
     let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
     if n.dot(dir) > 0.0 { -n } else { n }
+}
+
+/// The scene constants a shading step needs: the shading pass's control
+/// registers (loaded by the host before the pass, like a GPU's uniforms).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadeConsts {
+    pub light_pos: Vec3,
+    pub light_intensity: Vec3,
+    pub sky: Vec3,
+    /// Hit points per path (the scene's `bounces`).
+    pub bounces: u32,
+    /// The root segment's entry reference every new ray starts from.
+    pub root_entry: u32,
+}
+
+/// The result of shading one pixel's finished rays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadeOut {
+    pub path: PathRec,
+    /// The next wavefront's rays, shadow first (the order the host emits them).
+    pub shadow: Option<RayRec>,
+    pub bounce: Option<RayRec>,
+    /// The shadow ray of the previous hit was blocked.
+    pub occluded: bool,
+    /// The bounce ray hit a surface.
+    pub hit: bool,
+}
+
+/// Which hit records a shading step reads, from the path's flags: (shadow, bounce).
+pub fn shade_reads(path: &PathRec) -> (bool, bool) {
+    (
+        path.flags & PATH_SHADOW_IN_FLIGHT != 0,
+        path.flags & PATH_BOUNCE_IN_FLIGHT != 0,
+    )
+}
+
+/// One shading step of pixel `pix`, as a pure function of what it read: the path
+/// record, the hit records of its shadow and bounce rays (`None` when not in
+/// flight), and for a bounce hit the triangle and its material's albedo. The host
+/// (functional mode) and the TPs (cycle mode) both call it, so images agree bit
+/// for bit.
+pub fn shade_step(
+    c: &ShadeConsts,
+    pix: u32,
+    mut path: PathRec,
+    shadow_hit: Option<HitRec>,
+    bounce_hit: Option<HitRec>,
+    surface: Option<(&TriRec, Vec3)>,
+) -> ShadeOut {
+    let mut out = ShadeOut {
+        path,
+        shadow: None,
+        bounce: None,
+        occluded: false,
+        hit: false,
+    };
+    // The shadow ray from the previous hit: its contribution, if the light is visible.
+    if let Some(h) = shadow_hit {
+        if h.is_hit() {
+            out.occluded = true;
+        } else {
+            path.radiance += path.pending;
+        }
+        path.pending = Vec3::ZERO;
+        path.flags &= !PATH_SHADOW_IN_FLIGHT;
+    }
+    if let Some(h) = bounce_hit {
+        path.flags &= !PATH_BOUNCE_IN_FLIGHT;
+        if !h.is_hit() {
+            path.radiance += path.throughput * c.sky;
+        } else {
+            out.hit = true;
+            let (tri, albedo) = surface.expect("a bounce hit is shaded with its triangle");
+            let n = facing_normal(&tri.v, path.dir);
+            // The hit point from the barycentrics, on the triangle's plane (Wächter &
+            // Binder's offset assumes a point computed this way).
+            let hitp = tri.v[0] + (tri.v[1] - tri.v[0]) * h.u + (tri.v[2] - tri.v[0]) * h.v;
+            let o = offset_ray(hitp, n);
+            let to_light = c.light_pos - o;
+            let d2 = to_light.length_squared();
+            let cos = n.dot(to_light) / d2.sqrt();
+            if cos > 0.0 && d2 > 0.0 {
+                path.pending = path.throughput
+                    * albedo
+                    * (std::f32::consts::FRAC_1_PI * cos / d2)
+                    * c.light_intensity;
+                path.flags |= PATH_SHADOW_IN_FLIGHT;
+                out.shadow = Some(RayRec {
+                    origin: o,
+                    dir: to_light,
+                    ray_id: pix | SHADOW_BIT,
+                    entry: c.root_entry,
+                });
+            }
+            path.depth += 1;
+            if (path.depth as u32) < c.bounces {
+                let (u1, u2) = (next_f32(&mut path.rng), next_f32(&mut path.rng));
+                let d = cosine_sample(n, u1, u2);
+                path.throughput *= albedo;
+                path.flags |= PATH_BOUNCE_IN_FLIGHT;
+                out.bounce = Some(RayRec {
+                    origin: o,
+                    dir: d,
+                    ray_id: pix,
+                    entry: c.root_entry,
+                });
+                path.dir = d;
+            }
+        }
+    }
+    out.path = path;
+    out
 }
 
 #[cfg(test)]
