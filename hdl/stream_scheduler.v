@@ -19,7 +19,7 @@ module stream_scheduler #(
     input  wire [288:0] emit_data,
     input  wire start_valid,
     output wire start_ready,
-    input  wire [31:0] start_data,
+    input  wire [63:0] start_data,
     input  wire mem_resp_valid,
     output wire mem_resp_ready,
     input  wire [611:0] mem_resp_data,

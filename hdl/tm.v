@@ -18,7 +18,13 @@ module tm (
     output wire [288:0] ray_write_data,
     output wire hit_valid,
     input  wire hit_ready,
-    output wire [159:0] hit_data
+    output wire [159:0] hit_data,
+    output wire gmem_req_valid,
+    input  wire gmem_req_ready,
+    output wire [675:0] gmem_req_data,
+    input  wire gmem_resp_valid,
+    output wire gmem_resp_ready,
+    input  wire [611:0] gmem_resp_data
 );
     wire ray0_valid;
     wire ray0_ready;
@@ -548,6 +554,102 @@ module tm (
     wire tp_hit15_valid;
     wire tp_hit15_ready;
     wire [159:0] tp_hit15_data;
+    wire tp_gmem_req0_valid;
+    wire tp_gmem_req0_ready;
+    wire [675:0] tp_gmem_req0_data;
+    wire tp_gmem_req1_valid;
+    wire tp_gmem_req1_ready;
+    wire [675:0] tp_gmem_req1_data;
+    wire tp_gmem_req2_valid;
+    wire tp_gmem_req2_ready;
+    wire [675:0] tp_gmem_req2_data;
+    wire tp_gmem_req3_valid;
+    wire tp_gmem_req3_ready;
+    wire [675:0] tp_gmem_req3_data;
+    wire tp_gmem_req4_valid;
+    wire tp_gmem_req4_ready;
+    wire [675:0] tp_gmem_req4_data;
+    wire tp_gmem_req5_valid;
+    wire tp_gmem_req5_ready;
+    wire [675:0] tp_gmem_req5_data;
+    wire tp_gmem_req6_valid;
+    wire tp_gmem_req6_ready;
+    wire [675:0] tp_gmem_req6_data;
+    wire tp_gmem_req7_valid;
+    wire tp_gmem_req7_ready;
+    wire [675:0] tp_gmem_req7_data;
+    wire tp_gmem_req8_valid;
+    wire tp_gmem_req8_ready;
+    wire [675:0] tp_gmem_req8_data;
+    wire tp_gmem_req9_valid;
+    wire tp_gmem_req9_ready;
+    wire [675:0] tp_gmem_req9_data;
+    wire tp_gmem_req10_valid;
+    wire tp_gmem_req10_ready;
+    wire [675:0] tp_gmem_req10_data;
+    wire tp_gmem_req11_valid;
+    wire tp_gmem_req11_ready;
+    wire [675:0] tp_gmem_req11_data;
+    wire tp_gmem_req12_valid;
+    wire tp_gmem_req12_ready;
+    wire [675:0] tp_gmem_req12_data;
+    wire tp_gmem_req13_valid;
+    wire tp_gmem_req13_ready;
+    wire [675:0] tp_gmem_req13_data;
+    wire tp_gmem_req14_valid;
+    wire tp_gmem_req14_ready;
+    wire [675:0] tp_gmem_req14_data;
+    wire tp_gmem_req15_valid;
+    wire tp_gmem_req15_ready;
+    wire [675:0] tp_gmem_req15_data;
+    wire tp_gmem_resp0_valid;
+    wire tp_gmem_resp0_ready;
+    wire [611:0] tp_gmem_resp0_data;
+    wire tp_gmem_resp1_valid;
+    wire tp_gmem_resp1_ready;
+    wire [611:0] tp_gmem_resp1_data;
+    wire tp_gmem_resp2_valid;
+    wire tp_gmem_resp2_ready;
+    wire [611:0] tp_gmem_resp2_data;
+    wire tp_gmem_resp3_valid;
+    wire tp_gmem_resp3_ready;
+    wire [611:0] tp_gmem_resp3_data;
+    wire tp_gmem_resp4_valid;
+    wire tp_gmem_resp4_ready;
+    wire [611:0] tp_gmem_resp4_data;
+    wire tp_gmem_resp5_valid;
+    wire tp_gmem_resp5_ready;
+    wire [611:0] tp_gmem_resp5_data;
+    wire tp_gmem_resp6_valid;
+    wire tp_gmem_resp6_ready;
+    wire [611:0] tp_gmem_resp6_data;
+    wire tp_gmem_resp7_valid;
+    wire tp_gmem_resp7_ready;
+    wire [611:0] tp_gmem_resp7_data;
+    wire tp_gmem_resp8_valid;
+    wire tp_gmem_resp8_ready;
+    wire [611:0] tp_gmem_resp8_data;
+    wire tp_gmem_resp9_valid;
+    wire tp_gmem_resp9_ready;
+    wire [611:0] tp_gmem_resp9_data;
+    wire tp_gmem_resp10_valid;
+    wire tp_gmem_resp10_ready;
+    wire [611:0] tp_gmem_resp10_data;
+    wire tp_gmem_resp11_valid;
+    wire tp_gmem_resp11_ready;
+    wire [611:0] tp_gmem_resp11_data;
+    wire tp_gmem_resp12_valid;
+    wire tp_gmem_resp12_ready;
+    wire [611:0] tp_gmem_resp12_data;
+    wire tp_gmem_resp13_valid;
+    wire tp_gmem_resp13_ready;
+    wire [611:0] tp_gmem_resp13_data;
+    wire tp_gmem_resp14_valid;
+    wire tp_gmem_resp14_ready;
+    wire [611:0] tp_gmem_resp14_data;
+    wire tp_gmem_resp15_valid;
+    wire tp_gmem_resp15_ready;
+    wire [611:0] tp_gmem_resp15_data;
     wire tri_req0_valid;
     wire tri_req0_ready;
     wire [591:0] tri_req0_data;
@@ -590,6 +692,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp0_valid),
         .mem_resp_ready(tp_mem_resp0_ready),
         .mem_resp_data(tp_mem_resp0_data),
+        .gmem_resp_valid(tp_gmem_resp0_valid),
+        .gmem_resp_ready(tp_gmem_resp0_ready),
+        .gmem_resp_data(tp_gmem_resp0_data),
         .div_req_valid(tp_div_req0_valid),
         .div_req_ready(tp_div_req0_ready),
         .div_req_data(tp_div_req0_data),
@@ -607,7 +712,10 @@ module tm (
         .ray_write_data(tp_ray_write0_data),
         .hit_valid(tp_hit0_valid),
         .hit_ready(tp_hit0_ready),
-        .hit_data(tp_hit0_data)
+        .hit_data(tp_hit0_data),
+        .gmem_req_valid(tp_gmem_req0_valid),
+        .gmem_req_ready(tp_gmem_req0_ready),
+        .gmem_req_data(tp_gmem_req0_data)
     );
     tp #(.INDEX(1), .STACK_ENTRIES(42)) u_tp1 (
         .clk(clk),
@@ -627,6 +735,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp1_valid),
         .mem_resp_ready(tp_mem_resp1_ready),
         .mem_resp_data(tp_mem_resp1_data),
+        .gmem_resp_valid(tp_gmem_resp1_valid),
+        .gmem_resp_ready(tp_gmem_resp1_ready),
+        .gmem_resp_data(tp_gmem_resp1_data),
         .div_req_valid(tp_div_req1_valid),
         .div_req_ready(tp_div_req1_ready),
         .div_req_data(tp_div_req1_data),
@@ -644,7 +755,10 @@ module tm (
         .ray_write_data(tp_ray_write1_data),
         .hit_valid(tp_hit1_valid),
         .hit_ready(tp_hit1_ready),
-        .hit_data(tp_hit1_data)
+        .hit_data(tp_hit1_data),
+        .gmem_req_valid(tp_gmem_req1_valid),
+        .gmem_req_ready(tp_gmem_req1_ready),
+        .gmem_req_data(tp_gmem_req1_data)
     );
     tp #(.INDEX(2), .STACK_ENTRIES(42)) u_tp2 (
         .clk(clk),
@@ -664,6 +778,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp2_valid),
         .mem_resp_ready(tp_mem_resp2_ready),
         .mem_resp_data(tp_mem_resp2_data),
+        .gmem_resp_valid(tp_gmem_resp2_valid),
+        .gmem_resp_ready(tp_gmem_resp2_ready),
+        .gmem_resp_data(tp_gmem_resp2_data),
         .div_req_valid(tp_div_req2_valid),
         .div_req_ready(tp_div_req2_ready),
         .div_req_data(tp_div_req2_data),
@@ -681,7 +798,10 @@ module tm (
         .ray_write_data(tp_ray_write2_data),
         .hit_valid(tp_hit2_valid),
         .hit_ready(tp_hit2_ready),
-        .hit_data(tp_hit2_data)
+        .hit_data(tp_hit2_data),
+        .gmem_req_valid(tp_gmem_req2_valid),
+        .gmem_req_ready(tp_gmem_req2_ready),
+        .gmem_req_data(tp_gmem_req2_data)
     );
     tp #(.INDEX(3), .STACK_ENTRIES(42)) u_tp3 (
         .clk(clk),
@@ -701,6 +821,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp3_valid),
         .mem_resp_ready(tp_mem_resp3_ready),
         .mem_resp_data(tp_mem_resp3_data),
+        .gmem_resp_valid(tp_gmem_resp3_valid),
+        .gmem_resp_ready(tp_gmem_resp3_ready),
+        .gmem_resp_data(tp_gmem_resp3_data),
         .div_req_valid(tp_div_req3_valid),
         .div_req_ready(tp_div_req3_ready),
         .div_req_data(tp_div_req3_data),
@@ -718,7 +841,10 @@ module tm (
         .ray_write_data(tp_ray_write3_data),
         .hit_valid(tp_hit3_valid),
         .hit_ready(tp_hit3_ready),
-        .hit_data(tp_hit3_data)
+        .hit_data(tp_hit3_data),
+        .gmem_req_valid(tp_gmem_req3_valid),
+        .gmem_req_ready(tp_gmem_req3_ready),
+        .gmem_req_data(tp_gmem_req3_data)
     );
     tp #(.INDEX(4), .STACK_ENTRIES(42)) u_tp4 (
         .clk(clk),
@@ -738,6 +864,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp4_valid),
         .mem_resp_ready(tp_mem_resp4_ready),
         .mem_resp_data(tp_mem_resp4_data),
+        .gmem_resp_valid(tp_gmem_resp4_valid),
+        .gmem_resp_ready(tp_gmem_resp4_ready),
+        .gmem_resp_data(tp_gmem_resp4_data),
         .div_req_valid(tp_div_req4_valid),
         .div_req_ready(tp_div_req4_ready),
         .div_req_data(tp_div_req4_data),
@@ -755,7 +884,10 @@ module tm (
         .ray_write_data(tp_ray_write4_data),
         .hit_valid(tp_hit4_valid),
         .hit_ready(tp_hit4_ready),
-        .hit_data(tp_hit4_data)
+        .hit_data(tp_hit4_data),
+        .gmem_req_valid(tp_gmem_req4_valid),
+        .gmem_req_ready(tp_gmem_req4_ready),
+        .gmem_req_data(tp_gmem_req4_data)
     );
     tp #(.INDEX(5), .STACK_ENTRIES(42)) u_tp5 (
         .clk(clk),
@@ -775,6 +907,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp5_valid),
         .mem_resp_ready(tp_mem_resp5_ready),
         .mem_resp_data(tp_mem_resp5_data),
+        .gmem_resp_valid(tp_gmem_resp5_valid),
+        .gmem_resp_ready(tp_gmem_resp5_ready),
+        .gmem_resp_data(tp_gmem_resp5_data),
         .div_req_valid(tp_div_req5_valid),
         .div_req_ready(tp_div_req5_ready),
         .div_req_data(tp_div_req5_data),
@@ -792,7 +927,10 @@ module tm (
         .ray_write_data(tp_ray_write5_data),
         .hit_valid(tp_hit5_valid),
         .hit_ready(tp_hit5_ready),
-        .hit_data(tp_hit5_data)
+        .hit_data(tp_hit5_data),
+        .gmem_req_valid(tp_gmem_req5_valid),
+        .gmem_req_ready(tp_gmem_req5_ready),
+        .gmem_req_data(tp_gmem_req5_data)
     );
     tp #(.INDEX(6), .STACK_ENTRIES(42)) u_tp6 (
         .clk(clk),
@@ -812,6 +950,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp6_valid),
         .mem_resp_ready(tp_mem_resp6_ready),
         .mem_resp_data(tp_mem_resp6_data),
+        .gmem_resp_valid(tp_gmem_resp6_valid),
+        .gmem_resp_ready(tp_gmem_resp6_ready),
+        .gmem_resp_data(tp_gmem_resp6_data),
         .div_req_valid(tp_div_req6_valid),
         .div_req_ready(tp_div_req6_ready),
         .div_req_data(tp_div_req6_data),
@@ -829,7 +970,10 @@ module tm (
         .ray_write_data(tp_ray_write6_data),
         .hit_valid(tp_hit6_valid),
         .hit_ready(tp_hit6_ready),
-        .hit_data(tp_hit6_data)
+        .hit_data(tp_hit6_data),
+        .gmem_req_valid(tp_gmem_req6_valid),
+        .gmem_req_ready(tp_gmem_req6_ready),
+        .gmem_req_data(tp_gmem_req6_data)
     );
     tp #(.INDEX(7), .STACK_ENTRIES(42)) u_tp7 (
         .clk(clk),
@@ -849,6 +993,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp7_valid),
         .mem_resp_ready(tp_mem_resp7_ready),
         .mem_resp_data(tp_mem_resp7_data),
+        .gmem_resp_valid(tp_gmem_resp7_valid),
+        .gmem_resp_ready(tp_gmem_resp7_ready),
+        .gmem_resp_data(tp_gmem_resp7_data),
         .div_req_valid(tp_div_req7_valid),
         .div_req_ready(tp_div_req7_ready),
         .div_req_data(tp_div_req7_data),
@@ -866,7 +1013,10 @@ module tm (
         .ray_write_data(tp_ray_write7_data),
         .hit_valid(tp_hit7_valid),
         .hit_ready(tp_hit7_ready),
-        .hit_data(tp_hit7_data)
+        .hit_data(tp_hit7_data),
+        .gmem_req_valid(tp_gmem_req7_valid),
+        .gmem_req_ready(tp_gmem_req7_ready),
+        .gmem_req_data(tp_gmem_req7_data)
     );
     tp #(.INDEX(8), .STACK_ENTRIES(42)) u_tp8 (
         .clk(clk),
@@ -886,6 +1036,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp8_valid),
         .mem_resp_ready(tp_mem_resp8_ready),
         .mem_resp_data(tp_mem_resp8_data),
+        .gmem_resp_valid(tp_gmem_resp8_valid),
+        .gmem_resp_ready(tp_gmem_resp8_ready),
+        .gmem_resp_data(tp_gmem_resp8_data),
         .div_req_valid(tp_div_req8_valid),
         .div_req_ready(tp_div_req8_ready),
         .div_req_data(tp_div_req8_data),
@@ -903,7 +1056,10 @@ module tm (
         .ray_write_data(tp_ray_write8_data),
         .hit_valid(tp_hit8_valid),
         .hit_ready(tp_hit8_ready),
-        .hit_data(tp_hit8_data)
+        .hit_data(tp_hit8_data),
+        .gmem_req_valid(tp_gmem_req8_valid),
+        .gmem_req_ready(tp_gmem_req8_ready),
+        .gmem_req_data(tp_gmem_req8_data)
     );
     tp #(.INDEX(9), .STACK_ENTRIES(42)) u_tp9 (
         .clk(clk),
@@ -923,6 +1079,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp9_valid),
         .mem_resp_ready(tp_mem_resp9_ready),
         .mem_resp_data(tp_mem_resp9_data),
+        .gmem_resp_valid(tp_gmem_resp9_valid),
+        .gmem_resp_ready(tp_gmem_resp9_ready),
+        .gmem_resp_data(tp_gmem_resp9_data),
         .div_req_valid(tp_div_req9_valid),
         .div_req_ready(tp_div_req9_ready),
         .div_req_data(tp_div_req9_data),
@@ -940,7 +1099,10 @@ module tm (
         .ray_write_data(tp_ray_write9_data),
         .hit_valid(tp_hit9_valid),
         .hit_ready(tp_hit9_ready),
-        .hit_data(tp_hit9_data)
+        .hit_data(tp_hit9_data),
+        .gmem_req_valid(tp_gmem_req9_valid),
+        .gmem_req_ready(tp_gmem_req9_ready),
+        .gmem_req_data(tp_gmem_req9_data)
     );
     tp #(.INDEX(10), .STACK_ENTRIES(42)) u_tp10 (
         .clk(clk),
@@ -960,6 +1122,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp10_valid),
         .mem_resp_ready(tp_mem_resp10_ready),
         .mem_resp_data(tp_mem_resp10_data),
+        .gmem_resp_valid(tp_gmem_resp10_valid),
+        .gmem_resp_ready(tp_gmem_resp10_ready),
+        .gmem_resp_data(tp_gmem_resp10_data),
         .div_req_valid(tp_div_req10_valid),
         .div_req_ready(tp_div_req10_ready),
         .div_req_data(tp_div_req10_data),
@@ -977,7 +1142,10 @@ module tm (
         .ray_write_data(tp_ray_write10_data),
         .hit_valid(tp_hit10_valid),
         .hit_ready(tp_hit10_ready),
-        .hit_data(tp_hit10_data)
+        .hit_data(tp_hit10_data),
+        .gmem_req_valid(tp_gmem_req10_valid),
+        .gmem_req_ready(tp_gmem_req10_ready),
+        .gmem_req_data(tp_gmem_req10_data)
     );
     tp #(.INDEX(11), .STACK_ENTRIES(42)) u_tp11 (
         .clk(clk),
@@ -997,6 +1165,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp11_valid),
         .mem_resp_ready(tp_mem_resp11_ready),
         .mem_resp_data(tp_mem_resp11_data),
+        .gmem_resp_valid(tp_gmem_resp11_valid),
+        .gmem_resp_ready(tp_gmem_resp11_ready),
+        .gmem_resp_data(tp_gmem_resp11_data),
         .div_req_valid(tp_div_req11_valid),
         .div_req_ready(tp_div_req11_ready),
         .div_req_data(tp_div_req11_data),
@@ -1014,7 +1185,10 @@ module tm (
         .ray_write_data(tp_ray_write11_data),
         .hit_valid(tp_hit11_valid),
         .hit_ready(tp_hit11_ready),
-        .hit_data(tp_hit11_data)
+        .hit_data(tp_hit11_data),
+        .gmem_req_valid(tp_gmem_req11_valid),
+        .gmem_req_ready(tp_gmem_req11_ready),
+        .gmem_req_data(tp_gmem_req11_data)
     );
     tp #(.INDEX(12), .STACK_ENTRIES(42)) u_tp12 (
         .clk(clk),
@@ -1034,6 +1208,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp12_valid),
         .mem_resp_ready(tp_mem_resp12_ready),
         .mem_resp_data(tp_mem_resp12_data),
+        .gmem_resp_valid(tp_gmem_resp12_valid),
+        .gmem_resp_ready(tp_gmem_resp12_ready),
+        .gmem_resp_data(tp_gmem_resp12_data),
         .div_req_valid(tp_div_req12_valid),
         .div_req_ready(tp_div_req12_ready),
         .div_req_data(tp_div_req12_data),
@@ -1051,7 +1228,10 @@ module tm (
         .ray_write_data(tp_ray_write12_data),
         .hit_valid(tp_hit12_valid),
         .hit_ready(tp_hit12_ready),
-        .hit_data(tp_hit12_data)
+        .hit_data(tp_hit12_data),
+        .gmem_req_valid(tp_gmem_req12_valid),
+        .gmem_req_ready(tp_gmem_req12_ready),
+        .gmem_req_data(tp_gmem_req12_data)
     );
     tp #(.INDEX(13), .STACK_ENTRIES(42)) u_tp13 (
         .clk(clk),
@@ -1071,6 +1251,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp13_valid),
         .mem_resp_ready(tp_mem_resp13_ready),
         .mem_resp_data(tp_mem_resp13_data),
+        .gmem_resp_valid(tp_gmem_resp13_valid),
+        .gmem_resp_ready(tp_gmem_resp13_ready),
+        .gmem_resp_data(tp_gmem_resp13_data),
         .div_req_valid(tp_div_req13_valid),
         .div_req_ready(tp_div_req13_ready),
         .div_req_data(tp_div_req13_data),
@@ -1088,7 +1271,10 @@ module tm (
         .ray_write_data(tp_ray_write13_data),
         .hit_valid(tp_hit13_valid),
         .hit_ready(tp_hit13_ready),
-        .hit_data(tp_hit13_data)
+        .hit_data(tp_hit13_data),
+        .gmem_req_valid(tp_gmem_req13_valid),
+        .gmem_req_ready(tp_gmem_req13_ready),
+        .gmem_req_data(tp_gmem_req13_data)
     );
     tp #(.INDEX(14), .STACK_ENTRIES(42)) u_tp14 (
         .clk(clk),
@@ -1108,6 +1294,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp14_valid),
         .mem_resp_ready(tp_mem_resp14_ready),
         .mem_resp_data(tp_mem_resp14_data),
+        .gmem_resp_valid(tp_gmem_resp14_valid),
+        .gmem_resp_ready(tp_gmem_resp14_ready),
+        .gmem_resp_data(tp_gmem_resp14_data),
         .div_req_valid(tp_div_req14_valid),
         .div_req_ready(tp_div_req14_ready),
         .div_req_data(tp_div_req14_data),
@@ -1125,7 +1314,10 @@ module tm (
         .ray_write_data(tp_ray_write14_data),
         .hit_valid(tp_hit14_valid),
         .hit_ready(tp_hit14_ready),
-        .hit_data(tp_hit14_data)
+        .hit_data(tp_hit14_data),
+        .gmem_req_valid(tp_gmem_req14_valid),
+        .gmem_req_ready(tp_gmem_req14_ready),
+        .gmem_req_data(tp_gmem_req14_data)
     );
     tp #(.INDEX(15), .STACK_ENTRIES(42)) u_tp15 (
         .clk(clk),
@@ -1145,6 +1337,9 @@ module tm (
         .mem_resp_valid(tp_mem_resp15_valid),
         .mem_resp_ready(tp_mem_resp15_ready),
         .mem_resp_data(tp_mem_resp15_data),
+        .gmem_resp_valid(tp_gmem_resp15_valid),
+        .gmem_resp_ready(tp_gmem_resp15_ready),
+        .gmem_resp_data(tp_gmem_resp15_data),
         .div_req_valid(tp_div_req15_valid),
         .div_req_ready(tp_div_req15_ready),
         .div_req_data(tp_div_req15_data),
@@ -1162,7 +1357,10 @@ module tm (
         .ray_write_data(tp_ray_write15_data),
         .hit_valid(tp_hit15_valid),
         .hit_ready(tp_hit15_ready),
-        .hit_data(tp_hit15_data)
+        .hit_data(tp_hit15_data),
+        .gmem_req_valid(tp_gmem_req15_valid),
+        .gmem_req_ready(tp_gmem_req15_ready),
+        .gmem_req_data(tp_gmem_req15_data)
     );
     staging_buffer #(.HALF_RAYS(64), .TPS(16)) u_staging_buffer (
         .clk(clk),
@@ -1334,6 +1532,9 @@ module tm (
         .box_resp_valid(box_resp_valid),
         .box_resp_ready(box_resp_ready),
         .box_resp_data(box_resp_data),
+        .gmem_resp_valid(gmem_resp_valid),
+        .gmem_resp_ready(gmem_resp_ready),
+        .gmem_resp_data(gmem_resp_data),
         .div_req_valid(div_req_valid),
         .div_req_ready(div_req_ready),
         .div_req_data(div_req_data),
@@ -1346,6 +1547,9 @@ module tm (
         .hit_valid(hit_valid),
         .hit_ready(hit_ready),
         .hit_data(hit_data),
+        .gmem_req_valid(gmem_req_valid),
+        .gmem_req_ready(gmem_req_ready),
+        .gmem_req_data(gmem_req_data),
         .tp_div_req_0_valid(tp_div_req0_valid),
         .tp_div_req_0_ready(tp_div_req0_ready),
         .tp_div_req_0_data(tp_div_req0_data),
@@ -1586,6 +1790,54 @@ module tm (
         .tp_hit_15_valid(tp_hit15_valid),
         .tp_hit_15_ready(tp_hit15_ready),
         .tp_hit_15_data(tp_hit15_data),
+        .tp_gmem_req_0_valid(tp_gmem_req0_valid),
+        .tp_gmem_req_0_ready(tp_gmem_req0_ready),
+        .tp_gmem_req_0_data(tp_gmem_req0_data),
+        .tp_gmem_req_1_valid(tp_gmem_req1_valid),
+        .tp_gmem_req_1_ready(tp_gmem_req1_ready),
+        .tp_gmem_req_1_data(tp_gmem_req1_data),
+        .tp_gmem_req_2_valid(tp_gmem_req2_valid),
+        .tp_gmem_req_2_ready(tp_gmem_req2_ready),
+        .tp_gmem_req_2_data(tp_gmem_req2_data),
+        .tp_gmem_req_3_valid(tp_gmem_req3_valid),
+        .tp_gmem_req_3_ready(tp_gmem_req3_ready),
+        .tp_gmem_req_3_data(tp_gmem_req3_data),
+        .tp_gmem_req_4_valid(tp_gmem_req4_valid),
+        .tp_gmem_req_4_ready(tp_gmem_req4_ready),
+        .tp_gmem_req_4_data(tp_gmem_req4_data),
+        .tp_gmem_req_5_valid(tp_gmem_req5_valid),
+        .tp_gmem_req_5_ready(tp_gmem_req5_ready),
+        .tp_gmem_req_5_data(tp_gmem_req5_data),
+        .tp_gmem_req_6_valid(tp_gmem_req6_valid),
+        .tp_gmem_req_6_ready(tp_gmem_req6_ready),
+        .tp_gmem_req_6_data(tp_gmem_req6_data),
+        .tp_gmem_req_7_valid(tp_gmem_req7_valid),
+        .tp_gmem_req_7_ready(tp_gmem_req7_ready),
+        .tp_gmem_req_7_data(tp_gmem_req7_data),
+        .tp_gmem_req_8_valid(tp_gmem_req8_valid),
+        .tp_gmem_req_8_ready(tp_gmem_req8_ready),
+        .tp_gmem_req_8_data(tp_gmem_req8_data),
+        .tp_gmem_req_9_valid(tp_gmem_req9_valid),
+        .tp_gmem_req_9_ready(tp_gmem_req9_ready),
+        .tp_gmem_req_9_data(tp_gmem_req9_data),
+        .tp_gmem_req_10_valid(tp_gmem_req10_valid),
+        .tp_gmem_req_10_ready(tp_gmem_req10_ready),
+        .tp_gmem_req_10_data(tp_gmem_req10_data),
+        .tp_gmem_req_11_valid(tp_gmem_req11_valid),
+        .tp_gmem_req_11_ready(tp_gmem_req11_ready),
+        .tp_gmem_req_11_data(tp_gmem_req11_data),
+        .tp_gmem_req_12_valid(tp_gmem_req12_valid),
+        .tp_gmem_req_12_ready(tp_gmem_req12_ready),
+        .tp_gmem_req_12_data(tp_gmem_req12_data),
+        .tp_gmem_req_13_valid(tp_gmem_req13_valid),
+        .tp_gmem_req_13_ready(tp_gmem_req13_ready),
+        .tp_gmem_req_13_data(tp_gmem_req13_data),
+        .tp_gmem_req_14_valid(tp_gmem_req14_valid),
+        .tp_gmem_req_14_ready(tp_gmem_req14_ready),
+        .tp_gmem_req_14_data(tp_gmem_req14_data),
+        .tp_gmem_req_15_valid(tp_gmem_req15_valid),
+        .tp_gmem_req_15_ready(tp_gmem_req15_ready),
+        .tp_gmem_req_15_data(tp_gmem_req15_data),
         .tri_resp_0_valid(tri_resp0_valid),
         .tri_resp_0_ready(tri_resp0_ready),
         .tri_resp_0_data(tri_resp0_data),
@@ -1736,6 +1988,54 @@ module tm (
         .tp_tri_resp_15_valid(tp_tri_resp15_valid),
         .tp_tri_resp_15_ready(tp_tri_resp15_ready),
         .tp_tri_resp_15_data(tp_tri_resp15_data),
+        .tp_gmem_resp_0_valid(tp_gmem_resp0_valid),
+        .tp_gmem_resp_0_ready(tp_gmem_resp0_ready),
+        .tp_gmem_resp_0_data(tp_gmem_resp0_data),
+        .tp_gmem_resp_1_valid(tp_gmem_resp1_valid),
+        .tp_gmem_resp_1_ready(tp_gmem_resp1_ready),
+        .tp_gmem_resp_1_data(tp_gmem_resp1_data),
+        .tp_gmem_resp_2_valid(tp_gmem_resp2_valid),
+        .tp_gmem_resp_2_ready(tp_gmem_resp2_ready),
+        .tp_gmem_resp_2_data(tp_gmem_resp2_data),
+        .tp_gmem_resp_3_valid(tp_gmem_resp3_valid),
+        .tp_gmem_resp_3_ready(tp_gmem_resp3_ready),
+        .tp_gmem_resp_3_data(tp_gmem_resp3_data),
+        .tp_gmem_resp_4_valid(tp_gmem_resp4_valid),
+        .tp_gmem_resp_4_ready(tp_gmem_resp4_ready),
+        .tp_gmem_resp_4_data(tp_gmem_resp4_data),
+        .tp_gmem_resp_5_valid(tp_gmem_resp5_valid),
+        .tp_gmem_resp_5_ready(tp_gmem_resp5_ready),
+        .tp_gmem_resp_5_data(tp_gmem_resp5_data),
+        .tp_gmem_resp_6_valid(tp_gmem_resp6_valid),
+        .tp_gmem_resp_6_ready(tp_gmem_resp6_ready),
+        .tp_gmem_resp_6_data(tp_gmem_resp6_data),
+        .tp_gmem_resp_7_valid(tp_gmem_resp7_valid),
+        .tp_gmem_resp_7_ready(tp_gmem_resp7_ready),
+        .tp_gmem_resp_7_data(tp_gmem_resp7_data),
+        .tp_gmem_resp_8_valid(tp_gmem_resp8_valid),
+        .tp_gmem_resp_8_ready(tp_gmem_resp8_ready),
+        .tp_gmem_resp_8_data(tp_gmem_resp8_data),
+        .tp_gmem_resp_9_valid(tp_gmem_resp9_valid),
+        .tp_gmem_resp_9_ready(tp_gmem_resp9_ready),
+        .tp_gmem_resp_9_data(tp_gmem_resp9_data),
+        .tp_gmem_resp_10_valid(tp_gmem_resp10_valid),
+        .tp_gmem_resp_10_ready(tp_gmem_resp10_ready),
+        .tp_gmem_resp_10_data(tp_gmem_resp10_data),
+        .tp_gmem_resp_11_valid(tp_gmem_resp11_valid),
+        .tp_gmem_resp_11_ready(tp_gmem_resp11_ready),
+        .tp_gmem_resp_11_data(tp_gmem_resp11_data),
+        .tp_gmem_resp_12_valid(tp_gmem_resp12_valid),
+        .tp_gmem_resp_12_ready(tp_gmem_resp12_ready),
+        .tp_gmem_resp_12_data(tp_gmem_resp12_data),
+        .tp_gmem_resp_13_valid(tp_gmem_resp13_valid),
+        .tp_gmem_resp_13_ready(tp_gmem_resp13_ready),
+        .tp_gmem_resp_13_data(tp_gmem_resp13_data),
+        .tp_gmem_resp_14_valid(tp_gmem_resp14_valid),
+        .tp_gmem_resp_14_ready(tp_gmem_resp14_ready),
+        .tp_gmem_resp_14_data(tp_gmem_resp14_data),
+        .tp_gmem_resp_15_valid(tp_gmem_resp15_valid),
+        .tp_gmem_resp_15_ready(tp_gmem_resp15_ready),
+        .tp_gmem_resp_15_data(tp_gmem_resp15_data),
         .tri_req_0_valid(tri_req0_valid),
         .tri_req_0_ready(tri_req0_ready),
         .tri_req_0_data(tri_req0_data),

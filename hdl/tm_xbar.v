@@ -15,6 +15,9 @@ module tm_xbar #(
     input  wire box_resp_valid,
     output wire box_resp_ready,
     input  wire [48:0] box_resp_data,
+    input  wire gmem_resp_valid,
+    output wire gmem_resp_ready,
+    input  wire [611:0] gmem_resp_data,
     output wire div_req_valid,
     input  wire div_req_ready,
     output wire [111:0] div_req_data,
@@ -27,6 +30,9 @@ module tm_xbar #(
     output wire hit_valid,
     input  wire hit_ready,
     output wire [159:0] hit_data,
+    output wire gmem_req_valid,
+    input  wire gmem_req_ready,
+    output wire [675:0] gmem_req_data,
     input  wire tp_div_req_0_valid,
     output wire tp_div_req_0_ready,
     input  wire [111:0] tp_div_req_0_data,
@@ -267,6 +273,54 @@ module tm_xbar #(
     input  wire tp_hit_15_valid,
     output wire tp_hit_15_ready,
     input  wire [159:0] tp_hit_15_data,
+    input  wire tp_gmem_req_0_valid,
+    output wire tp_gmem_req_0_ready,
+    input  wire [675:0] tp_gmem_req_0_data,
+    input  wire tp_gmem_req_1_valid,
+    output wire tp_gmem_req_1_ready,
+    input  wire [675:0] tp_gmem_req_1_data,
+    input  wire tp_gmem_req_2_valid,
+    output wire tp_gmem_req_2_ready,
+    input  wire [675:0] tp_gmem_req_2_data,
+    input  wire tp_gmem_req_3_valid,
+    output wire tp_gmem_req_3_ready,
+    input  wire [675:0] tp_gmem_req_3_data,
+    input  wire tp_gmem_req_4_valid,
+    output wire tp_gmem_req_4_ready,
+    input  wire [675:0] tp_gmem_req_4_data,
+    input  wire tp_gmem_req_5_valid,
+    output wire tp_gmem_req_5_ready,
+    input  wire [675:0] tp_gmem_req_5_data,
+    input  wire tp_gmem_req_6_valid,
+    output wire tp_gmem_req_6_ready,
+    input  wire [675:0] tp_gmem_req_6_data,
+    input  wire tp_gmem_req_7_valid,
+    output wire tp_gmem_req_7_ready,
+    input  wire [675:0] tp_gmem_req_7_data,
+    input  wire tp_gmem_req_8_valid,
+    output wire tp_gmem_req_8_ready,
+    input  wire [675:0] tp_gmem_req_8_data,
+    input  wire tp_gmem_req_9_valid,
+    output wire tp_gmem_req_9_ready,
+    input  wire [675:0] tp_gmem_req_9_data,
+    input  wire tp_gmem_req_10_valid,
+    output wire tp_gmem_req_10_ready,
+    input  wire [675:0] tp_gmem_req_10_data,
+    input  wire tp_gmem_req_11_valid,
+    output wire tp_gmem_req_11_ready,
+    input  wire [675:0] tp_gmem_req_11_data,
+    input  wire tp_gmem_req_12_valid,
+    output wire tp_gmem_req_12_ready,
+    input  wire [675:0] tp_gmem_req_12_data,
+    input  wire tp_gmem_req_13_valid,
+    output wire tp_gmem_req_13_ready,
+    input  wire [675:0] tp_gmem_req_13_data,
+    input  wire tp_gmem_req_14_valid,
+    output wire tp_gmem_req_14_ready,
+    input  wire [675:0] tp_gmem_req_14_data,
+    input  wire tp_gmem_req_15_valid,
+    output wire tp_gmem_req_15_ready,
+    input  wire [675:0] tp_gmem_req_15_data,
     input  wire tri_resp_0_valid,
     output wire tri_resp_0_ready,
     input  wire [144:0] tri_resp_0_data,
@@ -417,6 +471,54 @@ module tm_xbar #(
     output wire tp_tri_resp_15_valid,
     input  wire tp_tri_resp_15_ready,
     output wire [144:0] tp_tri_resp_15_data,
+    output wire tp_gmem_resp_0_valid,
+    input  wire tp_gmem_resp_0_ready,
+    output wire [611:0] tp_gmem_resp_0_data,
+    output wire tp_gmem_resp_1_valid,
+    input  wire tp_gmem_resp_1_ready,
+    output wire [611:0] tp_gmem_resp_1_data,
+    output wire tp_gmem_resp_2_valid,
+    input  wire tp_gmem_resp_2_ready,
+    output wire [611:0] tp_gmem_resp_2_data,
+    output wire tp_gmem_resp_3_valid,
+    input  wire tp_gmem_resp_3_ready,
+    output wire [611:0] tp_gmem_resp_3_data,
+    output wire tp_gmem_resp_4_valid,
+    input  wire tp_gmem_resp_4_ready,
+    output wire [611:0] tp_gmem_resp_4_data,
+    output wire tp_gmem_resp_5_valid,
+    input  wire tp_gmem_resp_5_ready,
+    output wire [611:0] tp_gmem_resp_5_data,
+    output wire tp_gmem_resp_6_valid,
+    input  wire tp_gmem_resp_6_ready,
+    output wire [611:0] tp_gmem_resp_6_data,
+    output wire tp_gmem_resp_7_valid,
+    input  wire tp_gmem_resp_7_ready,
+    output wire [611:0] tp_gmem_resp_7_data,
+    output wire tp_gmem_resp_8_valid,
+    input  wire tp_gmem_resp_8_ready,
+    output wire [611:0] tp_gmem_resp_8_data,
+    output wire tp_gmem_resp_9_valid,
+    input  wire tp_gmem_resp_9_ready,
+    output wire [611:0] tp_gmem_resp_9_data,
+    output wire tp_gmem_resp_10_valid,
+    input  wire tp_gmem_resp_10_ready,
+    output wire [611:0] tp_gmem_resp_10_data,
+    output wire tp_gmem_resp_11_valid,
+    input  wire tp_gmem_resp_11_ready,
+    output wire [611:0] tp_gmem_resp_11_data,
+    output wire tp_gmem_resp_12_valid,
+    input  wire tp_gmem_resp_12_ready,
+    output wire [611:0] tp_gmem_resp_12_data,
+    output wire tp_gmem_resp_13_valid,
+    input  wire tp_gmem_resp_13_ready,
+    output wire [611:0] tp_gmem_resp_13_data,
+    output wire tp_gmem_resp_14_valid,
+    input  wire tp_gmem_resp_14_ready,
+    output wire [611:0] tp_gmem_resp_14_data,
+    output wire tp_gmem_resp_15_valid,
+    input  wire tp_gmem_resp_15_ready,
+    output wire [611:0] tp_gmem_resp_15_data,
     output wire tri_req_0_valid,
     input  wire tri_req_0_ready,
     output wire [591:0] tri_req_0_data,
@@ -440,6 +542,7 @@ module tm_xbar #(
 
     assign div_resp_ready = 1'b0;
     assign box_resp_ready = 1'b0;
+    assign gmem_resp_ready = 1'b0;
     assign div_req_valid = 1'b0;
     assign div_req_data = '0;
     assign box_req_valid = 1'b0;
@@ -448,6 +551,8 @@ module tm_xbar #(
     assign ray_write_data = '0;
     assign hit_valid = 1'b0;
     assign hit_data = '0;
+    assign gmem_req_valid = 1'b0;
+    assign gmem_req_data = '0;
     assign tp_div_req_0_ready = 1'b0;
     assign tp_div_req_1_ready = 1'b0;
     assign tp_div_req_2_ready = 1'b0;
@@ -528,6 +633,22 @@ module tm_xbar #(
     assign tp_hit_13_ready = 1'b0;
     assign tp_hit_14_ready = 1'b0;
     assign tp_hit_15_ready = 1'b0;
+    assign tp_gmem_req_0_ready = 1'b0;
+    assign tp_gmem_req_1_ready = 1'b0;
+    assign tp_gmem_req_2_ready = 1'b0;
+    assign tp_gmem_req_3_ready = 1'b0;
+    assign tp_gmem_req_4_ready = 1'b0;
+    assign tp_gmem_req_5_ready = 1'b0;
+    assign tp_gmem_req_6_ready = 1'b0;
+    assign tp_gmem_req_7_ready = 1'b0;
+    assign tp_gmem_req_8_ready = 1'b0;
+    assign tp_gmem_req_9_ready = 1'b0;
+    assign tp_gmem_req_10_ready = 1'b0;
+    assign tp_gmem_req_11_ready = 1'b0;
+    assign tp_gmem_req_12_ready = 1'b0;
+    assign tp_gmem_req_13_ready = 1'b0;
+    assign tp_gmem_req_14_ready = 1'b0;
+    assign tp_gmem_req_15_ready = 1'b0;
     assign tri_resp_0_ready = 1'b0;
     assign tri_resp_1_ready = 1'b0;
     assign tp_div_resp_0_valid = 1'b0;
@@ -626,9 +747,41 @@ module tm_xbar #(
     assign tp_tri_resp_14_data = '0;
     assign tp_tri_resp_15_valid = 1'b0;
     assign tp_tri_resp_15_data = '0;
+    assign tp_gmem_resp_0_valid = 1'b0;
+    assign tp_gmem_resp_0_data = '0;
+    assign tp_gmem_resp_1_valid = 1'b0;
+    assign tp_gmem_resp_1_data = '0;
+    assign tp_gmem_resp_2_valid = 1'b0;
+    assign tp_gmem_resp_2_data = '0;
+    assign tp_gmem_resp_3_valid = 1'b0;
+    assign tp_gmem_resp_3_data = '0;
+    assign tp_gmem_resp_4_valid = 1'b0;
+    assign tp_gmem_resp_4_data = '0;
+    assign tp_gmem_resp_5_valid = 1'b0;
+    assign tp_gmem_resp_5_data = '0;
+    assign tp_gmem_resp_6_valid = 1'b0;
+    assign tp_gmem_resp_6_data = '0;
+    assign tp_gmem_resp_7_valid = 1'b0;
+    assign tp_gmem_resp_7_data = '0;
+    assign tp_gmem_resp_8_valid = 1'b0;
+    assign tp_gmem_resp_8_data = '0;
+    assign tp_gmem_resp_9_valid = 1'b0;
+    assign tp_gmem_resp_9_data = '0;
+    assign tp_gmem_resp_10_valid = 1'b0;
+    assign tp_gmem_resp_10_data = '0;
+    assign tp_gmem_resp_11_valid = 1'b0;
+    assign tp_gmem_resp_11_data = '0;
+    assign tp_gmem_resp_12_valid = 1'b0;
+    assign tp_gmem_resp_12_data = '0;
+    assign tp_gmem_resp_13_valid = 1'b0;
+    assign tp_gmem_resp_13_data = '0;
+    assign tp_gmem_resp_14_valid = 1'b0;
+    assign tp_gmem_resp_14_data = '0;
+    assign tp_gmem_resp_15_valid = 1'b0;
+    assign tp_gmem_resp_15_data = '0;
     assign tri_req_0_valid = 1'b0;
     assign tri_req_0_data = '0;
     assign tri_req_1_valid = 1'b0;
     assign tri_req_1_data = '0;
-    wire _unused_ok = &{1'b0, div_resp_valid, div_resp_data, box_resp_valid, box_resp_data, div_req_ready, box_req_ready, ray_write_ready, hit_ready, tp_div_req_0_valid, tp_div_req_0_data, tp_div_req_1_valid, tp_div_req_1_data, tp_div_req_2_valid, tp_div_req_2_data, tp_div_req_3_valid, tp_div_req_3_data, tp_div_req_4_valid, tp_div_req_4_data, tp_div_req_5_valid, tp_div_req_5_data, tp_div_req_6_valid, tp_div_req_6_data, tp_div_req_7_valid, tp_div_req_7_data, tp_div_req_8_valid, tp_div_req_8_data, tp_div_req_9_valid, tp_div_req_9_data, tp_div_req_10_valid, tp_div_req_10_data, tp_div_req_11_valid, tp_div_req_11_data, tp_div_req_12_valid, tp_div_req_12_data, tp_div_req_13_valid, tp_div_req_13_data, tp_div_req_14_valid, tp_div_req_14_data, tp_div_req_15_valid, tp_div_req_15_data, tp_box_req_0_valid, tp_box_req_0_data, tp_box_req_1_valid, tp_box_req_1_data, tp_box_req_2_valid, tp_box_req_2_data, tp_box_req_3_valid, tp_box_req_3_data, tp_box_req_4_valid, tp_box_req_4_data, tp_box_req_5_valid, tp_box_req_5_data, tp_box_req_6_valid, tp_box_req_6_data, tp_box_req_7_valid, tp_box_req_7_data, tp_box_req_8_valid, tp_box_req_8_data, tp_box_req_9_valid, tp_box_req_9_data, tp_box_req_10_valid, tp_box_req_10_data, tp_box_req_11_valid, tp_box_req_11_data, tp_box_req_12_valid, tp_box_req_12_data, tp_box_req_13_valid, tp_box_req_13_data, tp_box_req_14_valid, tp_box_req_14_data, tp_box_req_15_valid, tp_box_req_15_data, tp_tri_req_0_valid, tp_tri_req_0_data, tp_tri_req_1_valid, tp_tri_req_1_data, tp_tri_req_2_valid, tp_tri_req_2_data, tp_tri_req_3_valid, tp_tri_req_3_data, tp_tri_req_4_valid, tp_tri_req_4_data, tp_tri_req_5_valid, tp_tri_req_5_data, tp_tri_req_6_valid, tp_tri_req_6_data, tp_tri_req_7_valid, tp_tri_req_7_data, tp_tri_req_8_valid, tp_tri_req_8_data, tp_tri_req_9_valid, tp_tri_req_9_data, tp_tri_req_10_valid, tp_tri_req_10_data, tp_tri_req_11_valid, tp_tri_req_11_data, tp_tri_req_12_valid, tp_tri_req_12_data, tp_tri_req_13_valid, tp_tri_req_13_data, tp_tri_req_14_valid, tp_tri_req_14_data, tp_tri_req_15_valid, tp_tri_req_15_data, tp_ray_write_0_valid, tp_ray_write_0_data, tp_ray_write_1_valid, tp_ray_write_1_data, tp_ray_write_2_valid, tp_ray_write_2_data, tp_ray_write_3_valid, tp_ray_write_3_data, tp_ray_write_4_valid, tp_ray_write_4_data, tp_ray_write_5_valid, tp_ray_write_5_data, tp_ray_write_6_valid, tp_ray_write_6_data, tp_ray_write_7_valid, tp_ray_write_7_data, tp_ray_write_8_valid, tp_ray_write_8_data, tp_ray_write_9_valid, tp_ray_write_9_data, tp_ray_write_10_valid, tp_ray_write_10_data, tp_ray_write_11_valid, tp_ray_write_11_data, tp_ray_write_12_valid, tp_ray_write_12_data, tp_ray_write_13_valid, tp_ray_write_13_data, tp_ray_write_14_valid, tp_ray_write_14_data, tp_ray_write_15_valid, tp_ray_write_15_data, tp_hit_0_valid, tp_hit_0_data, tp_hit_1_valid, tp_hit_1_data, tp_hit_2_valid, tp_hit_2_data, tp_hit_3_valid, tp_hit_3_data, tp_hit_4_valid, tp_hit_4_data, tp_hit_5_valid, tp_hit_5_data, tp_hit_6_valid, tp_hit_6_data, tp_hit_7_valid, tp_hit_7_data, tp_hit_8_valid, tp_hit_8_data, tp_hit_9_valid, tp_hit_9_data, tp_hit_10_valid, tp_hit_10_data, tp_hit_11_valid, tp_hit_11_data, tp_hit_12_valid, tp_hit_12_data, tp_hit_13_valid, tp_hit_13_data, tp_hit_14_valid, tp_hit_14_data, tp_hit_15_valid, tp_hit_15_data, tri_resp_0_valid, tri_resp_0_data, tri_resp_1_valid, tri_resp_1_data, tp_div_resp_0_ready, tp_div_resp_1_ready, tp_div_resp_2_ready, tp_div_resp_3_ready, tp_div_resp_4_ready, tp_div_resp_5_ready, tp_div_resp_6_ready, tp_div_resp_7_ready, tp_div_resp_8_ready, tp_div_resp_9_ready, tp_div_resp_10_ready, tp_div_resp_11_ready, tp_div_resp_12_ready, tp_div_resp_13_ready, tp_div_resp_14_ready, tp_div_resp_15_ready, tp_box_resp_0_ready, tp_box_resp_1_ready, tp_box_resp_2_ready, tp_box_resp_3_ready, tp_box_resp_4_ready, tp_box_resp_5_ready, tp_box_resp_6_ready, tp_box_resp_7_ready, tp_box_resp_8_ready, tp_box_resp_9_ready, tp_box_resp_10_ready, tp_box_resp_11_ready, tp_box_resp_12_ready, tp_box_resp_13_ready, tp_box_resp_14_ready, tp_box_resp_15_ready, tp_tri_resp_0_ready, tp_tri_resp_1_ready, tp_tri_resp_2_ready, tp_tri_resp_3_ready, tp_tri_resp_4_ready, tp_tri_resp_5_ready, tp_tri_resp_6_ready, tp_tri_resp_7_ready, tp_tri_resp_8_ready, tp_tri_resp_9_ready, tp_tri_resp_10_ready, tp_tri_resp_11_ready, tp_tri_resp_12_ready, tp_tri_resp_13_ready, tp_tri_resp_14_ready, tp_tri_resp_15_ready, tri_req_0_ready, tri_req_1_ready, _unused_tri_outstanding, TPS[0], TRI_PIPES[0], 1'b0};
+    wire _unused_ok = &{1'b0, div_resp_valid, div_resp_data, box_resp_valid, box_resp_data, gmem_resp_valid, gmem_resp_data, div_req_ready, box_req_ready, ray_write_ready, hit_ready, gmem_req_ready, tp_div_req_0_valid, tp_div_req_0_data, tp_div_req_1_valid, tp_div_req_1_data, tp_div_req_2_valid, tp_div_req_2_data, tp_div_req_3_valid, tp_div_req_3_data, tp_div_req_4_valid, tp_div_req_4_data, tp_div_req_5_valid, tp_div_req_5_data, tp_div_req_6_valid, tp_div_req_6_data, tp_div_req_7_valid, tp_div_req_7_data, tp_div_req_8_valid, tp_div_req_8_data, tp_div_req_9_valid, tp_div_req_9_data, tp_div_req_10_valid, tp_div_req_10_data, tp_div_req_11_valid, tp_div_req_11_data, tp_div_req_12_valid, tp_div_req_12_data, tp_div_req_13_valid, tp_div_req_13_data, tp_div_req_14_valid, tp_div_req_14_data, tp_div_req_15_valid, tp_div_req_15_data, tp_box_req_0_valid, tp_box_req_0_data, tp_box_req_1_valid, tp_box_req_1_data, tp_box_req_2_valid, tp_box_req_2_data, tp_box_req_3_valid, tp_box_req_3_data, tp_box_req_4_valid, tp_box_req_4_data, tp_box_req_5_valid, tp_box_req_5_data, tp_box_req_6_valid, tp_box_req_6_data, tp_box_req_7_valid, tp_box_req_7_data, tp_box_req_8_valid, tp_box_req_8_data, tp_box_req_9_valid, tp_box_req_9_data, tp_box_req_10_valid, tp_box_req_10_data, tp_box_req_11_valid, tp_box_req_11_data, tp_box_req_12_valid, tp_box_req_12_data, tp_box_req_13_valid, tp_box_req_13_data, tp_box_req_14_valid, tp_box_req_14_data, tp_box_req_15_valid, tp_box_req_15_data, tp_tri_req_0_valid, tp_tri_req_0_data, tp_tri_req_1_valid, tp_tri_req_1_data, tp_tri_req_2_valid, tp_tri_req_2_data, tp_tri_req_3_valid, tp_tri_req_3_data, tp_tri_req_4_valid, tp_tri_req_4_data, tp_tri_req_5_valid, tp_tri_req_5_data, tp_tri_req_6_valid, tp_tri_req_6_data, tp_tri_req_7_valid, tp_tri_req_7_data, tp_tri_req_8_valid, tp_tri_req_8_data, tp_tri_req_9_valid, tp_tri_req_9_data, tp_tri_req_10_valid, tp_tri_req_10_data, tp_tri_req_11_valid, tp_tri_req_11_data, tp_tri_req_12_valid, tp_tri_req_12_data, tp_tri_req_13_valid, tp_tri_req_13_data, tp_tri_req_14_valid, tp_tri_req_14_data, tp_tri_req_15_valid, tp_tri_req_15_data, tp_ray_write_0_valid, tp_ray_write_0_data, tp_ray_write_1_valid, tp_ray_write_1_data, tp_ray_write_2_valid, tp_ray_write_2_data, tp_ray_write_3_valid, tp_ray_write_3_data, tp_ray_write_4_valid, tp_ray_write_4_data, tp_ray_write_5_valid, tp_ray_write_5_data, tp_ray_write_6_valid, tp_ray_write_6_data, tp_ray_write_7_valid, tp_ray_write_7_data, tp_ray_write_8_valid, tp_ray_write_8_data, tp_ray_write_9_valid, tp_ray_write_9_data, tp_ray_write_10_valid, tp_ray_write_10_data, tp_ray_write_11_valid, tp_ray_write_11_data, tp_ray_write_12_valid, tp_ray_write_12_data, tp_ray_write_13_valid, tp_ray_write_13_data, tp_ray_write_14_valid, tp_ray_write_14_data, tp_ray_write_15_valid, tp_ray_write_15_data, tp_hit_0_valid, tp_hit_0_data, tp_hit_1_valid, tp_hit_1_data, tp_hit_2_valid, tp_hit_2_data, tp_hit_3_valid, tp_hit_3_data, tp_hit_4_valid, tp_hit_4_data, tp_hit_5_valid, tp_hit_5_data, tp_hit_6_valid, tp_hit_6_data, tp_hit_7_valid, tp_hit_7_data, tp_hit_8_valid, tp_hit_8_data, tp_hit_9_valid, tp_hit_9_data, tp_hit_10_valid, tp_hit_10_data, tp_hit_11_valid, tp_hit_11_data, tp_hit_12_valid, tp_hit_12_data, tp_hit_13_valid, tp_hit_13_data, tp_hit_14_valid, tp_hit_14_data, tp_hit_15_valid, tp_hit_15_data, tp_gmem_req_0_valid, tp_gmem_req_0_data, tp_gmem_req_1_valid, tp_gmem_req_1_data, tp_gmem_req_2_valid, tp_gmem_req_2_data, tp_gmem_req_3_valid, tp_gmem_req_3_data, tp_gmem_req_4_valid, tp_gmem_req_4_data, tp_gmem_req_5_valid, tp_gmem_req_5_data, tp_gmem_req_6_valid, tp_gmem_req_6_data, tp_gmem_req_7_valid, tp_gmem_req_7_data, tp_gmem_req_8_valid, tp_gmem_req_8_data, tp_gmem_req_9_valid, tp_gmem_req_9_data, tp_gmem_req_10_valid, tp_gmem_req_10_data, tp_gmem_req_11_valid, tp_gmem_req_11_data, tp_gmem_req_12_valid, tp_gmem_req_12_data, tp_gmem_req_13_valid, tp_gmem_req_13_data, tp_gmem_req_14_valid, tp_gmem_req_14_data, tp_gmem_req_15_valid, tp_gmem_req_15_data, tri_resp_0_valid, tri_resp_0_data, tri_resp_1_valid, tri_resp_1_data, tp_div_resp_0_ready, tp_div_resp_1_ready, tp_div_resp_2_ready, tp_div_resp_3_ready, tp_div_resp_4_ready, tp_div_resp_5_ready, tp_div_resp_6_ready, tp_div_resp_7_ready, tp_div_resp_8_ready, tp_div_resp_9_ready, tp_div_resp_10_ready, tp_div_resp_11_ready, tp_div_resp_12_ready, tp_div_resp_13_ready, tp_div_resp_14_ready, tp_div_resp_15_ready, tp_box_resp_0_ready, tp_box_resp_1_ready, tp_box_resp_2_ready, tp_box_resp_3_ready, tp_box_resp_4_ready, tp_box_resp_5_ready, tp_box_resp_6_ready, tp_box_resp_7_ready, tp_box_resp_8_ready, tp_box_resp_9_ready, tp_box_resp_10_ready, tp_box_resp_11_ready, tp_box_resp_12_ready, tp_box_resp_13_ready, tp_box_resp_14_ready, tp_box_resp_15_ready, tp_tri_resp_0_ready, tp_tri_resp_1_ready, tp_tri_resp_2_ready, tp_tri_resp_3_ready, tp_tri_resp_4_ready, tp_tri_resp_5_ready, tp_tri_resp_6_ready, tp_tri_resp_7_ready, tp_tri_resp_8_ready, tp_tri_resp_9_ready, tp_tri_resp_10_ready, tp_tri_resp_11_ready, tp_tri_resp_12_ready, tp_tri_resp_13_ready, tp_tri_resp_14_ready, tp_tri_resp_15_ready, tp_gmem_resp_0_ready, tp_gmem_resp_1_ready, tp_gmem_resp_2_ready, tp_gmem_resp_3_ready, tp_gmem_resp_4_ready, tp_gmem_resp_5_ready, tp_gmem_resp_6_ready, tp_gmem_resp_7_ready, tp_gmem_resp_8_ready, tp_gmem_resp_9_ready, tp_gmem_resp_10_ready, tp_gmem_resp_11_ready, tp_gmem_resp_12_ready, tp_gmem_resp_13_ready, tp_gmem_resp_14_ready, tp_gmem_resp_15_ready, tri_req_0_ready, tri_req_1_ready, _unused_tri_outstanding, TPS[0], TRI_PIPES[0], 1'b0};
 endmodule

@@ -2,7 +2,7 @@
 // Regenerate with `dualstream hdl --out hdl/`.
 // Thread processor: the segment traversal kernel as an FSM with per-state costs.
 // Ports are valid/ready links; data is the payload packed LSB-first.
-// State: 6266 bits.
+// State: 8124 bits.
 module tp #(
     parameter integer INDEX = 0,
     parameter integer STACK_ENTRIES = 42
@@ -24,6 +24,9 @@ module tp #(
     input  wire mem_resp_valid,
     output wire mem_resp_ready,
     input  wire [575:0] mem_resp_data,
+    input  wire gmem_resp_valid,
+    output wire gmem_resp_ready,
+    input  wire [611:0] gmem_resp_data,
     output wire div_req_valid,
     input  wire div_req_ready,
     output wire [111:0] div_req_data,
@@ -41,11 +44,14 @@ module tp #(
     output wire [288:0] ray_write_data,
     output wire hit_valid,
     input  wire hit_ready,
-    output wire [159:0] hit_data
+    output wire [159:0] hit_data,
+    output wire gmem_req_valid,
+    input  wire gmem_req_ready,
+    output wire [675:0] gmem_req_data
 );
 
     reg [4:0] state;
-    // state states: 0=Idle 1=Fetch 2=DivWait 3=Init 4=Pop 5=Exit 6=NodeFetch 7=NodeWait 8=BoxIssue 9=BoxIssue1 10=BoxWait 11=NodePush 12=TriFetch 13=TriMemWait 14=TriIssue 15=TriTestWait 16=TriResult 17=Finish 18=Overflow
+    // state states: 0=Idle 1=Fetch 2=DivWait 3=Init 4=Pop 5=Exit 6=NodeFetch 7=NodeWait 8=BoxIssue 9=BoxIssue1 10=BoxWait 11=NodePush 12=TriFetch 13=TriMemWait 14=TriIssue 15=TriTestWait 16=TriResult 17=Finish 18=Overflow 19=ShPath 20=ShLoad 21=ShWait 22=Shade 23=ShEmit 24=ShStore 25=ShStore1 26=ShDone
     reg [31:0] ray_index;
     reg [63:0] node_addr;
     reg [15:0] stack_depth;
@@ -64,6 +70,16 @@ module tp #(
     reg [31:0] tri_end;
     reg [128:0] tri_hit;
     reg done_sent;
+    reg [31:0] sh_step;
+    reg [63:0] sh_addr;
+    reg [63:0] sh_tri_addr;
+    reg [511:0] sh_tri0;
+    reg [511:0] sh_tri1;
+    reg [95:0] sh_albedo;
+    reg [256:0] sh_shadow;
+    reg [256:0] sh_bounce;
+    reg [31:0] sh_emitted;
+    reg [31:0] sh_acks;
     reg [95:0] stack [0:41];
     wire [41:0] _unused_stack;
     for (genvar i = 0; i < 42; i++) begin : g_unused_stack
@@ -92,6 +108,16 @@ module tp #(
             tri_end <= '0;
             tri_hit <= '0;
             done_sent <= '0;
+            sh_step <= '0;
+            sh_addr <= '0;
+            sh_tri_addr <= '0;
+            sh_tri0 <= '0;
+            sh_tri1 <= '0;
+            sh_albedo <= '0;
+            sh_shadow <= '0;
+            sh_bounce <= '0;
+            sh_emitted <= '0;
+            sh_acks <= '0;
             for (int i = 0; i < 42; i++) stack[i] <= '0;
         end
     end
@@ -101,6 +127,7 @@ module tp #(
     assign box_resp_ready = 1'b0;
     assign tri_resp_ready = 1'b0;
     assign mem_resp_ready = 1'b0;
+    assign gmem_resp_ready = 1'b0;
     assign div_req_valid = 1'b0;
     assign div_req_data = '0;
     assign box_req_valid = 1'b0;
@@ -113,5 +140,7 @@ module tp #(
     assign ray_write_data = '0;
     assign hit_valid = 1'b0;
     assign hit_data = '0;
-    wire _unused_ok = &{1'b0, ray_valid, ray_data, div_resp_valid, div_resp_data, box_resp_valid, box_resp_data, tri_resp_valid, tri_resp_data, mem_resp_valid, mem_resp_data, div_req_ready, box_req_ready, tri_req_ready, mem_req_ready, ray_write_ready, hit_ready, state, ray_index, node_addr, stack_depth, act_at, req_at, cur, inv_dir, best, entry, line0, line1, box0, box1, box_got, tri_k, tri_end, tri_hit, done_sent, _unused_stack, INDEX[0], STACK_ENTRIES[0], 1'b0};
+    assign gmem_req_valid = 1'b0;
+    assign gmem_req_data = '0;
+    wire _unused_ok = &{1'b0, ray_valid, ray_data, div_resp_valid, div_resp_data, box_resp_valid, box_resp_data, tri_resp_valid, tri_resp_data, mem_resp_valid, mem_resp_data, gmem_resp_valid, gmem_resp_data, div_req_ready, box_req_ready, tri_req_ready, mem_req_ready, ray_write_ready, hit_ready, gmem_req_ready, state, ray_index, node_addr, stack_depth, act_at, req_at, cur, inv_dir, best, entry, line0, line1, box0, box1, box_got, tri_k, tri_end, tri_hit, done_sent, sh_step, sh_addr, sh_tri_addr, sh_tri0, sh_tri1, sh_albedo, sh_shadow, sh_bounce, sh_emitted, sh_acks, _unused_stack, INDEX[0], STACK_ENTRIES[0], 1'b0};
 endmodule

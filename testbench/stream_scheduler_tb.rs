@@ -362,7 +362,7 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
             entry: rng.next_u32(),
         })
         .collect();
-    sim.unit_mut::<Host>(host).load(rays.clone(), 0);
+    sim.unit_mut::<Host>(host).load(rays.clone(), 0, 0);
     sim.wake(host);
     let end = sim
         .run_to_idle((b.rays as u64 * 2000 + 1_000_000) * p)

@@ -25,6 +25,7 @@ use crate::rtl::{
 };
 use crate::scene::Scene;
 use crate::units::l1::{L1, L1Req, L1Resp, Line};
+use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::units::staging_buffer::{SbFill, SbHeader};
 use crate::units::tm::{self, TmPorts, TmUnits};
 use crate::units::tp::{HitUpdate, RayWrite, Tp};
@@ -333,6 +334,11 @@ pub fn run_job(
     );
     let wsink = sim.add("tb.ray_writes", clk, Sink::new(rw_i, 1.0, 1));
     let hsink = sim.add("tb.hits", clk, Sink::new(hit_i, 1.0, 2));
+    // The bench traces treelets only: the shading port has an idle driver and sink.
+    let (gmem_req, gq_i) = sim.link::<MemLineReq>("tb.gmem_req", l);
+    let (gr_o, gmem_resp) = sim.link::<MemLineResp>("tb.gmem_resp", l);
+    sim.add("tb.gmem_sink", clk, Sink::new(gq_i, 1.0, 3));
+    sim.add("tb.gmem_driver", clk, Driver::new(gr_o));
     let units = tm::build(
         &mut sim,
         clk,
@@ -344,6 +350,8 @@ pub fn run_job(
             miss_resp: mr_i,
             ray_write: rw_o,
             hit: hit_o,
+            gmem_req,
+            gmem_resp,
         },
     );
     if opts.log {

@@ -5,6 +5,7 @@
 
 use dualstream::accel::AccelCfg;
 use dualstream::config::Config;
+use dualstream::machine::config::Shading;
 use dualstream::render::{ChipRun, Frame, Mode, RenderCfg, WaveStats, render};
 use dualstream::rtl::SimOptions;
 
@@ -36,14 +37,17 @@ fn scene(name: &str, w: u32, h: u32, bounces: u32) -> dualstream::scene::Scene {
 }
 
 /// Timing-independent counts: everything but the hit-record traffic (merging in
-/// the hit record updater depends on timing) and the deepest stack (the TP counts
-/// its scratchpad occupancy, one entry more than the functional traversal's).
+/// the hit record updater depends on timing), the shading lines (the TPs read and
+/// write through the memory port, the functional model counts records) and the
+/// deepest stack (the TP counts its scratchpad occupancy, one entry more than the
+/// functional traversal's).
 fn timeless(w: &WaveStats) -> WaveStats {
     let mut t = w.traversal;
     t.max_stack = 0;
     WaveStats {
         hit_lines_read: 0,
         hit_lines_written: 0,
+        shading_lines: 0,
         traversal: t,
         ..*w
     }
@@ -75,13 +79,45 @@ fn every_ray_agrees_on_small_chips() {
             f.accel.segments > 1 || name == "tiny",
             "{name}: several segments"
         );
-        for (tms, tps) in [(1, 1), (1, 16), (2, 16)] {
-            let cfg = rcfg(seg_kb, Some((chip_cfg(tms, tps), SimOptions::default())));
+        for (tms, tps, shading) in [
+            (1, 1, Shading::Tps),
+            (1, 16, Shading::Tps),
+            (2, 16, Shading::Tps),
+            (2, 16, Shading::Host),
+        ] {
+            let mut cc = chip_cfg(tms, tps);
+            cc.chip.shading = shading;
+            let cfg = rcfg(seg_kb, Some((cc, SimOptions::default())));
             let c = render(&s, Mode::Cycle, &cfg, &mut |_| {}).unwrap();
-            same_frame(&f, &c, &format!("{name} on {tms}x{tps}"));
+            same_frame(&f, &c, &format!("{name} on {tms}x{tps} {shading:?}"));
             let chip = c.chip.as_ref().unwrap();
             assert!(chip.total_cycles > 0);
-            assert_eq!(chip.waves.len(), f.waves.len());
+            let tp = shading == Shading::Tps;
+            // On the TPs the last run is the last wavefront's shading pass.
+            assert_eq!(chip.waves.len(), f.waves.len() + tp as usize);
+            if tp {
+                let items: u64 = chip.waves.iter().map(|w| w.shade_items).sum();
+                let pixels = (w * h) as u64;
+                assert_eq!(
+                    items,
+                    pixels * f.waves.len() as u64,
+                    "{name}: every pixel shaded per pass"
+                );
+                let emitted: u64 = chip.waves.iter().map(|w| w.shade_rays).sum();
+                assert_eq!(
+                    emitted + pixels,
+                    c.total.rays,
+                    "{name}: rays emitted by the TPs"
+                );
+                assert_eq!(chip.waves.last().unwrap().rays_emitted, 0);
+                assert!(
+                    chip.waves[1..]
+                        .iter()
+                        .all(|w| w.shade_cycles > 0 && w.shade_cycles < w.cycles)
+                );
+                let hits: u64 = chip.waves.iter().map(|w| w.shade_hits).sum();
+                assert_eq!(hits, f.total.hits, "{name}: bounce hits shaded");
+            }
         }
     }
 }
@@ -136,7 +172,8 @@ fn run_tiny_chip_with(mut cfg: Config, opts: SimOptions, trace: &str) -> Outcome
         HitRec::NONE.write(&mut p.mem, p.map.hit_addr(r.hit_index()));
     }
     cfg.accel = rc.accel.clone();
-    let mut chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), opts).unwrap();
+    let consts = dualstream::render::shade_consts(&s, &p);
+    let mut chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), &consts, opts).unwrap();
     let buf = Buf::default();
     chip.sim
         .attach_tracer(
@@ -321,5 +358,37 @@ fn gddr5_every_ray_agrees_and_the_checker_is_clean() {
             assert!(w.dram.energy_paper_j > w.dram.energy_physical_j);
             assert!(w.dram.energy_physical_j > 0.0);
         }
+    }
+}
+
+/// The shading pass on the TPs (stage C) under sleeping off, shadow evaluation and
+/// an evaluation-order shuffle: the same cycles and counts per run, the same image.
+#[test]
+fn tp_shading_is_invariant_under_sleeping_shadow_and_shuffles() {
+    let s = scene("cornell", 8, 6, 2);
+    let run = |opts: SimOptions| {
+        let mut cfg = chip_cfg(1, 4);
+        cfg.chip.shading = Shading::Tps;
+        let c = render(&s, Mode::Cycle, &rcfg(8, Some((cfg, opts))), &mut |_| {}).unwrap();
+        let chip = c.chip.unwrap();
+        let waves: Vec<_> = chip
+            .waves
+            .iter()
+            .map(|w| dualstream::machine::WaveCycles { evals: 0, ..*w })
+            .collect();
+        let bits: Vec<u32> = c
+            .radiance
+            .iter()
+            .flat_map(|v| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()])
+            .collect();
+        (chip.total_cycles, waves, bits)
+    };
+    let base = run(SimOptions::default());
+    assert!(base.1.iter().skip(1).all(|w| w.shade_items == 48));
+    for (what, o) in variants() {
+        let v = run(o);
+        assert_eq!(v.0, base.0, "{what}: total cycles");
+        assert_eq!(v.1, base.1, "{what}: per-run figures");
+        assert!(v.2 == base.2, "{what}: image");
     }
 }

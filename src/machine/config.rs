@@ -6,6 +6,18 @@ use serde::{Deserialize, Serialize};
 
 use crate::rtl::LinkCfg;
 
+/// Where the shading pass between wavefronts runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Shading {
+    /// On the TPs, through the TMs' global-memory ports (issue 6 stage C; the
+    /// default): shading traffic and cycles are simulated.
+    Tps,
+    /// On the host between wavefronts, in zero cycles (stage A): only tracing is
+    /// timed. Faster; the image is the same.
+    Host,
+}
+
 /// Which timing model serves the memory unit's lines.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -149,6 +161,8 @@ pub struct ChipCfg {
     pub scene_buffer: SceneBufferCfg,
     pub scheduler: SchedulerCfg,
     pub hit_updater: HitUpdaterCfg,
+    /// `tps` (default) or `host`.
+    pub shading: Shading,
 }
 
 impl Default for ChipCfg {
@@ -161,6 +175,7 @@ impl Default for ChipCfg {
             scene_buffer: SceneBufferCfg::default(),
             scheduler: SchedulerCfg::default(),
             hit_updater: HitUpdaterCfg::default(),
+            shading: Shading::Tps,
         }
     }
 }

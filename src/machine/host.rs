@@ -1,6 +1,8 @@
-//! The host side of stage A: emits a wavefront's rays into the root queue (one per
-//! cycle through the scheduler's `emit` port), then `start`. Not hardware: in
-//! stage C the shading pass on the TPs takes its place.
+//! The host (the driver, not hardware): emits the primary rays into the root queue
+//! (one per cycle through the scheduler's `emit` port) and then `start`; for later
+//! wavefronts it only sends `start` with the pixel count, and the shading pass on
+//! the TPs emits the rays (stage C). With `chip.shading = "host"` it emits the
+//! host-shaded rays of every wavefront (stage A).
 
 use std::collections::VecDeque;
 
@@ -14,7 +16,7 @@ pub struct Host {
     pub emit: Out<RayWrite>,
     pub start: Out<WaveStart>,
     rays: VecDeque<RayRec>,
-    wave: Option<u32>,
+    wave: Option<(u32, u32)>,
     pub sent: u64,
 }
 
@@ -28,10 +30,11 @@ impl Host {
             sent: 0,
         }
     }
-    /// Queues a wavefront; wake the unit afterwards.
-    pub fn load(&mut self, rays: Vec<RayRec>, wave: u32) {
+    /// Queues a wavefront: `rays` to emit, then `start` (with `shade_pixels` > 0
+    /// the shading pass emits the rays); wake the unit afterwards.
+    pub fn load(&mut self, rays: Vec<RayRec>, wave: u32, shade_pixels: u32) {
         self.rays = rays.into();
-        self.wave = Some(wave);
+        self.wave = Some((wave, shade_pixels));
     }
 }
 
@@ -87,8 +90,8 @@ impl Logic for Host {
             ctx.set_status(Status::OutputBlocked);
             return Next::Idle;
         }
-        if let Some(wave) = self.wave {
-            if ctx.offer(&self.start, WaveStart { wave }) {
+        if let Some((wave, shade_pixels)) = self.wave {
+            if ctx.offer(&self.start, WaveStart { wave, shade_pixels }) {
                 self.wave = None;
                 ctx.set_status(Status::Busy);
                 return Next::Cycle;

@@ -31,6 +31,7 @@ use crate::mem::config::EnergyCfg;
 use crate::mem::energy::{EnergyModel, energy_of};
 use crate::mem::stats::ChannelStats;
 use crate::mem::{AddrMap, MemCfg, MemReq, MemResp, StreamTag};
+use crate::render::shade::ShadeConsts;
 use crate::rtl::{ClockId, Sim, SimOptions, UnitId};
 use crate::units::hit_record_updater::HitRecordUpdater;
 use crate::units::l1::{L1Req, L1Resp};
@@ -40,7 +41,7 @@ use crate::units::scene_buffer::{SceneBuffer, SlotMap};
 use crate::units::staging_buffer::SbFill;
 use crate::units::stream_scheduler::{StreamScheduler, WaveStart};
 use crate::units::tm::{self, TmPorts, TmUnits};
-use crate::units::tp::{HitUpdate, RayWrite, Tp};
+use crate::units::tp::{HitUpdate, RayWrite, ShadeRegs, Tp};
 use host::Host;
 
 /// Memory ports.
@@ -159,6 +160,15 @@ pub struct WaveCycles {
     pub scene_buffer_reads: u64,
     pub evals: u64,
     pub dram: DramWave,
+    /// The shading pass before the wavefront (0 for the primary rays): pixels
+    /// shaded, rays emitted (shadow ones too), bounce hits, blocked shadow rays,
+    /// and its cycles (from the start to the last item's end marker).
+    pub shade_items: u64,
+    pub shade_rays: u64,
+    pub shade_shadow_rays: u64,
+    pub shade_hits: u64,
+    pub shade_occluded: u64,
+    pub shade_cycles: u64,
 }
 
 /// The chip, elaborated once per frame.
@@ -194,6 +204,7 @@ impl Chip {
         cfg: &Config,
         map: &MemoryMap,
         segments: usize,
+        shade: &ShadeConsts,
         opts: SimOptions,
     ) -> Result<Chip, String> {
         cfg.validate()?;
@@ -226,6 +237,7 @@ impl Chip {
         let mut sbr_o = Vec::new();
         let mut hit_i = Vec::new();
         let mut tm_ports = Vec::new();
+        let (mut gmem_i, mut gmem_o) = (Vec::new(), Vec::new());
         for k in 0..n {
             let (fo, fi) = sim.link::<SbFill>(&format!("chip.tm{k}_fill"), l);
             let (mo, mi) = sim.link::<L1Req>(&format!("chip.tm{k}_miss_req"), l);
@@ -237,12 +249,18 @@ impl Chip {
             sbq_i.push(mi);
             sbr_o.push(ro);
             hit_i.push(hi);
+            let (go, gi) = sim.link::<MemLineReq>(&format!("chip.tm{k}_gmem_req"), l);
+            let (gro, gri) = sim.link::<MemLineResp>(&format!("chip.tm{k}_gmem_resp"), l);
+            gmem_i.push(gi);
+            gmem_o.push(gro);
             tm_ports.push(TmPorts {
                 fill: fi,
                 miss_req: mo,
                 miss_resp: ri,
                 ray_write: wo,
                 hit: ho,
+                gmem_req: go,
+                gmem_resp: gri,
             });
         }
         let host = sim.add("chip.host", clock, Host::new(emit_o, start_o));
@@ -287,6 +305,9 @@ impl Chip {
                 mresp_i[PORT_HITS].take().expect("port"),
             ),
         );
+        // The TMs' global-memory ports (the shading pass) go to the memory too.
+        mreq_i.extend(gmem_i);
+        mresp_o.extend(gmem_o);
         let mut memory_unit = Memory::new(
             &ch.memory,
             l.delay,
@@ -344,6 +365,12 @@ impl Chip {
             ));
         }
         sim.elaborate().map_err(|e| e.to_string())?;
+        let shading = ShadeRegs::new(*shade, map);
+        for t in &tms {
+            for &u in &t.tps {
+                sim.unit_mut::<Tp>(u).set_shading(Some(shading));
+            }
+        }
         Ok(Chip {
             sim,
             clock,
@@ -447,6 +474,13 @@ impl Chip {
             scene_buffer_reads: counter(s, sb, "reads"),
             evals: s.evals,
             dram: self.dram_snapshot(),
+            shade_items: self.sum_tp("shade_items"),
+            shade_rays: self.sum_tp("shade_rays"),
+            shade_shadow_rays: self.sum_tp("shade_shadow_rays"),
+            shade_hits: self.sum_tp("shade_hits"),
+            shade_occluded: self.sum_tp("shade_occluded"),
+            // The cycle the last shading pass ended (see `run_wave`).
+            shade_cycles: s.unit_ref::<StreamScheduler>(self.scheduler).last_shade_end,
         }
     }
 
@@ -487,12 +521,44 @@ impl Chip {
         v
     }
 
+    /// Records the rays written into the root queue (see `take_root_log`).
+    pub fn enable_root_log(&mut self) {
+        self.sim
+            .unit_mut::<StreamScheduler>(self.scheduler)
+            .enable_root_log();
+    }
+    /// The rays written into the root queue since the last call.
+    pub fn take_root_log(&mut self) -> Vec<RayRec> {
+        self.sim
+            .unit_mut::<StreamScheduler>(self.scheduler)
+            .take_root_log()
+    }
+
     /// Traces one wavefront: `rays` into the root queue, run until idle. The DRAM
     /// image is lent to the memory unit for the run.
     pub fn trace_wave(
         &mut self,
         mem: &mut SparseMem,
         rays: &[RayRec],
+    ) -> Result<WaveCycles, String> {
+        self.run_wave(mem, rays, 0)
+    }
+
+    /// The shading pass of the finished wavefront over pixels `0..pixels` on the
+    /// TPs, then the wavefront it emits (nothing, after the last one).
+    pub fn shade_and_trace(
+        &mut self,
+        mem: &mut SparseMem,
+        pixels: u32,
+    ) -> Result<WaveCycles, String> {
+        self.run_wave(mem, &[], pixels)
+    }
+
+    fn run_wave(
+        &mut self,
+        mem: &mut SparseMem,
+        rays: &[RayRec],
+        shade_pixels: u32,
     ) -> Result<WaveCycles, String> {
         let t0 = Instant::now();
         std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
@@ -502,7 +568,7 @@ impl Chip {
             .new_wave();
         self.sim
             .unit_mut::<Host>(self.host)
-            .load(rays.to_vec(), self.wave);
+            .load(rays.to_vec(), self.wave, shade_pixels);
         self.sim.wake(self.host);
         self.wave += 1;
         let res = self.run_until_idle();
@@ -512,8 +578,21 @@ impl Chip {
         self.wall_s += t0.elapsed().as_secs_f64();
         let mut w = WaveCycles {
             cycles: after.cycles - before.cycles,
-            rays_emitted: rays.len() as u64,
-            duplicates: after.duplicates - before.duplicates - rays.len() as u64,
+            rays_emitted: rays.len() as u64 + after.shade_rays - before.shade_rays,
+            duplicates: after.duplicates
+                - before.duplicates
+                - rays.len() as u64
+                - (after.shade_rays - before.shade_rays),
+            shade_items: after.shade_items - before.shade_items,
+            shade_rays: after.shade_rays - before.shade_rays,
+            shade_shadow_rays: after.shade_shadow_rays - before.shade_shadow_rays,
+            shade_hits: after.shade_hits - before.shade_hits,
+            shade_occluded: after.shade_occluded - before.shade_occluded,
+            shade_cycles: if shade_pixels > 0 {
+                after.shade_cycles - before.cycles
+            } else {
+                0
+            },
             segments_loaded: after.segments_loaded - before.segments_loaded,
             box_tests: after.box_tests - before.box_tests,
             tri_tests: after.tri_tests - before.tri_tests,
@@ -597,7 +676,7 @@ impl Chip {
         (
             counter(s, self.memory, "responses"),
             st.rays_forwarded,
-            st.markers,
+            st.markers + st.shade_done,
             counter(s, self.scene_buffer, "reads"),
         )
     }

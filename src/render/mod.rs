@@ -68,6 +68,8 @@ pub struct ChipRun {
 /// Cycle-mode figures of a frame.
 #[derive(Clone, Debug, Serialize)]
 pub struct ChipFrame {
+    /// Shading ran on the TPs (`chip.shading = "tps"`), so the cycles include it.
+    pub shading_on_tps: bool,
     pub tms: u32,
     pub tps_per_tm: u32,
     /// Per wavefront: cycles and the chip's own counts.
@@ -317,9 +319,18 @@ pub fn render(
         chip_cfg = run.config;
         chip_cfg.accel = cfg.accel.clone();
         chip_cfg.memory = cfg.memory.clone();
-        chip = Some(crate::machine::Chip::new(&chip_cfg, &p.map, nseg, run.sim)?);
+        let consts = shade_consts(scene, &p);
+        let mut c = crate::machine::Chip::new(&chip_cfg, &p.map, nseg, &consts, run.sim)?;
+        if cfg.verify || cfg.dump_rays.is_some() {
+            c.enable_root_log();
+        }
+        chip = Some(c);
         q.divert();
     }
+    // Cycle mode with shading on the TPs: every chip run after the first shades the
+    // finished wavefront and traces the one it emits.
+    let tp_shading =
+        mode == Mode::Cycle && chip_cfg.chip.shading == crate::machine::config::Shading::Tps;
     let rpb = cfg.memory.rays_per_bucket();
     let mut waves = Vec::new();
     let mut trace_s = 0.0;
@@ -383,10 +394,30 @@ pub fn render(
             Mode::Reference => trace_reference(&mut p, &mut q, scene, &mut st),
             Mode::Cycle => {
                 let chip = chip.as_mut().expect("built for cycle mode");
-                let rays = q.take_diverted();
-                let w = chip.trace_wave(&mut p.mem, &rays)?;
-                add_chip_wave(&mut st, &w, rpb);
+                let w = if tp_shading && !waves.is_empty() {
+                    chip.shade_and_trace(&mut p.mem, pixels)?
+                } else {
+                    let rays = q.take_diverted();
+                    chip.trace_wave(&mut p.mem, &rays)?
+                };
+                if tp_shading {
+                    if keep {
+                        rays_this_wave = chip.take_root_log();
+                    }
+                    if let Some(prev) = waves.last_mut() {
+                        add_chip_shading(prev, &mut st, &w, rpb);
+                    }
+                }
+                let last = tp_shading && w.rays_emitted == 0;
+                if !last {
+                    add_chip_wave(&mut st, &w, rpb);
+                }
                 chip_waves.push(w);
+                if last {
+                    // The shading pass of the last wavefront emitted nothing.
+                    trace_s += t0.elapsed().as_secs_f64();
+                    break;
+                }
             }
         }
         trace_s += t0.elapsed().as_secs_f64();
@@ -397,6 +428,12 @@ pub fn render(
             dump(dir, waves.len(), &p, &rays_this_wave)?;
         }
         rays_this_wave.clear();
+        if tp_shading {
+            // The next chip run shades this wavefront on the TPs.
+            waves.push(st);
+            st = WaveStats::default();
+            continue;
+        }
         // Shading (produces the next wavefront into the root queue).
         let mut next_work = Vec::new();
         let mut next = WaveStats::default();
@@ -451,6 +488,7 @@ pub fn render(
         energy: None,
         dram_resident_mb: p.mem.resident_bytes() as f64 / (1 << 20) as f64,
         chip: chip.map(|c| ChipFrame {
+            shading_on_tps: tp_shading,
             tms: chip_cfg.chip.tms,
             tps_per_tm: chip_cfg.tm.tps,
             total_cycles: c.total_cycles,
@@ -474,6 +512,28 @@ pub fn render(
             waves: chip_waves,
         }),
     })
+}
+
+/// Cycle mode with shading on the TPs: what a chip run's shading pass did goes to
+/// the wavefront it shaded (`prev`: hits, blocked shadow rays, shading lines and,
+/// as in functional mode, the root-queue writes of the rays it emitted); the rays
+/// it emitted start the new wavefront's counts (`st`).
+fn add_chip_shading(
+    prev: &mut WaveStats,
+    st: &mut WaveStats,
+    w: &crate::machine::WaveCycles,
+    rpb: u32,
+) {
+    use crate::mem::StreamTag;
+    let sh = StreamTag::Shading as usize;
+    prev.hits += w.shade_hits;
+    prev.occluded += w.shade_occluded;
+    prev.shading_lines += w.lines_read[sh] + w.lines_written[sh];
+    prev.ray_lines_written += queue_lines_written(w.rays_emitted, rpb);
+    st.rays += w.rays_emitted;
+    st.shadow_rays += w.shade_shadow_rays;
+    st.bounce_rays += w.rays_emitted - w.shade_shadow_rays;
+    st.enqueues += w.rays_emitted;
 }
 
 /// Adds a chip-traced wavefront's counts to the wavefront's statistics, with the

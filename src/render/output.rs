@@ -151,13 +151,20 @@ pub fn summary(f: &Frame) -> String {
     }
     if let Some(c) = &f.chip {
         s += &format!(
-            "  chip {} TMs x {} TPs (shading on the host between wavefronts: stage A)\n",
-            c.tms, c.tps_per_tm
+            "  chip {} TMs x {} TPs ({})\n",
+            c.tms,
+            c.tps_per_tm,
+            if c.shading_on_tps {
+                "shading on the TPs: every run after the first shades the previous wavefront, then traces"
+            } else {
+                "shading on the host between wavefronts, untimed"
+            }
         );
         for (k, w) in c.waves.iter().enumerate() {
             s += &format!(
-                "    wavefront {k}: {:>10} cycles  {:>8} rays  {:>8} duplicates  {:>5} segments  scene-buffer stalls {} ({} cycles)  hit updates merged {}\n",
+                "    run {k}: {:>10} cycles (shading {:>8})  {:>8} rays  {:>8} duplicates  {:>5} segments  scene-buffer stalls {} ({} cycles)  hit updates merged {}\n",
                 w.cycles,
+                w.shade_cycles,
                 w.rays_emitted,
                 w.duplicates,
                 w.segments_loaded,
@@ -176,10 +183,7 @@ pub fn summary(f: &Frame) -> String {
                 );
             }
         }
-        s += &format!(
-            "  {:<34} {:>12}\n",
-            "total cycles (tracing)", c.total_cycles
-        );
+        s += &format!("  {:<34} {:>12}\n", "total cycles", c.total_cycles);
         s += &format!("  {:<34} {:>12}\n", "memory timing model", c.memory_model);
         let lines: u64 = c
             .waves

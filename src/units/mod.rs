@@ -11,6 +11,7 @@ pub mod stream_scheduler;
 pub mod tm;
 pub mod tm_xbar;
 pub mod tp;
+pub mod tp_shade;
 pub mod tri_pipe;
 
 /// Identifies the requester (thread processor and slot) so a shared unit's result
@@ -127,6 +128,8 @@ fn tm_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
             mem_resp: In::new(i),
             ray_write: Out::new(o),
             hit: Out::new(o),
+            gmem_req: Out::new(o),
+            gmem_resp: In::new(i),
         },
     );
     let l1 = l1::L1::new(
@@ -147,15 +150,19 @@ fn tm_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
         box_req: Out::new(o),
         ray_write: Out::new(o),
         hit: Out::new(o),
+        gmem_resp: In::new(i),
+        gmem_req: Out::new(o),
         tp_div_req: ins(n),
         tp_box_req: ins(n),
         tp_tri_req: ins(n),
         tp_ray_write: ins(n),
         tp_hit: ins(n),
+        tp_gmem_req: ins(n),
         tri_resp: ins(np),
         tp_div_resp: outs(n),
         tp_box_resp: outs(n),
         tp_tri_resp: outs(n),
+        tp_gmem_resp: outs(n),
         tri_req: outs(np),
         tri_outstanding: crate::rtl::Ram::new(np as u32, np as u32, 0),
         stats: Default::default(),

@@ -75,12 +75,26 @@ use super::memory::{MemLineReq, MemLineResp};
 use super::scene_buffer::{SlotMap, fill_id};
 use super::staging_buffer::{SbFill, SbHeader};
 use super::tp::RayWrite;
+use super::tp_shade::SHADE_SEG;
 
 crate::payload_struct! {
-    /// The host (stage C: the shading pass) has emitted wavefront `wave`.
+    /// Start wavefront `wave`: its rays are in the root queue (`shade_pixels` = 0:
+    /// the host emitted them on `emit`), or the shading pass over pixels
+    /// `0..shade_pixels` on the TPs emits them first.
     pub struct WaveStart {
         pub wave: u32,
+        pub shade_pixels: u32,
     }
+}
+
+/// A shading pass being handed out: pixels `next..end` are left, `out` items were
+/// forwarded and `done` of them have sent their end marker.
+#[derive(Clone, Debug, Default)]
+pub struct ShadePass {
+    pub next: u32,
+    pub end: u32,
+    pub out: u64,
+    pub done: u64,
 }
 
 const KIND_SHIFT: u32 = 28;
@@ -180,6 +194,7 @@ pub struct SchedState {
     pub out: VecDeque<MemLineReq>,
     pub closing: VecDeque<u32>,
     pub pending_map: Option<SlotMap>,
+    pub shade: Option<ShadePass>,
     // bucket pool
     pub free_chunks: Vec<u64>,
     pub chunk_live: Vec<u8>,
@@ -272,6 +287,8 @@ crate::unit! {
 
             pub_enqueued: Vec<u64>,
             pub_done: Vec<u64>,
+            last_shade_end: u64,
+            root_log: Option<Vec<RayRec>>,
             stats: SchedStats
         }
     }
@@ -291,6 +308,9 @@ pub struct SchedStats {
     pub same_segment_picks: u64,
     pub retired: u64,
     pub skipped_children: u64,
+    /// Shading work items forwarded and finished (end markers).
+    pub shade_items: u64,
+    pub shade_done: u64,
 }
 
 impl StreamScheduler {
@@ -339,6 +359,8 @@ impl StreamScheduler {
             per_chunk,
             pub_enqueued: vec![0; segments],
             pub_done: vec![0; segments],
+            last_shade_end: 0,
+            root_log: None,
             stats: SchedStats::default(),
         }
     }
@@ -357,6 +379,7 @@ impl StreamScheduler {
             && s.out.is_empty()
             && s.closing.is_empty()
             && s.pending_map.is_none()
+            && s.shade.is_none()
     }
 
     /// What it holds, for the watchdog.
@@ -372,7 +395,11 @@ impl StreamScheduler {
                 })
                 .collect();
         format!(
-            "working set [{}], eligible {:?}, fetching {:?}, queues {}, streams {}, bucket reads {}, ready buckets {}, TMs forwarding {}, memory queue {}, closing {}{}",
+            "{}working set [{}], eligible {:?}, fetching {:?}, queues {}, streams {}, bucket reads {}, ready buckets {}, TMs forwarding {}, memory queue {}, closing {}{}",
+            s.shade.as_ref().map_or(String::new(), |p| format!(
+                "shading pass (pixels {}..{} left, items out {}, done {}), ",
+                p.next, p.end, p.out, p.done
+            )),
             ws.join(", "),
             s.eligible.iter().take(8).collect::<Vec<_>>(),
             s.fetch.as_ref().map(|f| f.seg),
@@ -403,6 +430,18 @@ impl StreamScheduler {
     pub fn live_buckets(&self) -> u64 {
         self.st.r().live_buckets
     }
+    /// Records every ray written into the root queue (for `--verify`; a probe
+    /// on the ray writes, not hardware).
+    pub fn enable_root_log(&mut self) {
+        self.root_log = Some(Vec::new());
+    }
+    pub fn take_root_log(&mut self) -> Vec<RayRec> {
+        self.root_log
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default()
+    }
+
     /// Clears the per-segment wavefront counts.
     pub fn new_wave(&mut self) {
         self.pub_enqueued.iter_mut().for_each(|x| *x = 0);
@@ -561,6 +600,16 @@ impl StreamScheduler {
 
     /// Accepts a duplicate or a marker.
     fn accept_write(&mut self, w: &RayWrite) {
+        if w.done && w.seg == SHADE_SEG {
+            self.stats.shade_done += 1;
+            self.st
+                .m()
+                .shade
+                .as_mut()
+                .expect("a shading item's end marker during a shading pass")
+                .done += 1;
+            return;
+        }
         if w.done {
             self.stats.markers += 1;
             self.pub_done[w.seg as usize] += 1;
@@ -572,6 +621,11 @@ impl StreamScheduler {
                 .expect("end marker of a working-set segment");
             e.rays_done += 1;
             return;
+        }
+        if w.seg == 0
+            && let Some(l) = &mut self.root_log
+        {
+            l.push(w.ray);
         }
         if !self.st.r().dest.contains_key(&w.seg) {
             let st = self.st.m();
@@ -713,7 +767,31 @@ impl Logic for StreamScheduler {
         // the emit link empty, every ray of the wavefront has been taken.)
         if self.out_room() >= 2 && ctx.peek(&self.start).is_some() && ctx.peek(&self.emit).is_none()
         {
-            ctx.pop(&self.start);
+            let ws = ctx.pop(&self.start).expect("peeked");
+            if ws.shade_pixels > 0 {
+                self.st.m().shade = Some(ShadePass {
+                    end: ws.shade_pixels,
+                    ..ShadePass::default()
+                });
+            } else {
+                self.close(0);
+                if self.st.r().dest.contains_key(&0) {
+                    self.st.m().eligible.insert(0);
+                }
+            }
+            worked = true;
+        }
+        // 2b. The shading pass is over when every item handed out has sent its end
+        // marker (after its rays, on the same path): the root queue is complete.
+        let shaded = self
+            .st
+            .r()
+            .shade
+            .as_ref()
+            .is_some_and(|p| p.next == p.end && p.done == p.out);
+        if shaded && self.out_room() >= 2 {
+            self.st.m().shade = None;
+            self.last_shade_end = c;
             self.close(0);
             if self.st.r().dest.contains_key(&0) {
                 self.st.m().eligible.insert(0);
@@ -940,6 +1018,27 @@ impl Logic for StreamScheduler {
 
         // 9. Distribution to the TMs' staging buffers.
         for k in 0..n {
+            // Shading items (pixels, a bucket's worth at a time) to idle TMs.
+            let shade_left = self.st.r().shade.as_ref().is_some_and(|p| p.next < p.end);
+            if self.st.r().tms[k].cur.is_none() && self.st.r().ready.is_empty() && shade_left {
+                let rpb = self.rays_per_bucket;
+                let st = self.st.m();
+                let p = st.shade.as_mut().expect("shading");
+                let m = rpb.min(p.end - p.next);
+                let items = (p.next..p.next + m)
+                    .map(|pix| RayRec {
+                        origin: glam::Vec3::ZERO,
+                        dir: glam::Vec3::ZERO,
+                        ray_id: pix,
+                        entry: 0,
+                    })
+                    .collect();
+                p.next += m;
+                p.out += m as u64;
+                self.stats.shade_items += m as u64;
+                st.tms[k].cur = Some((SHADE_SEG, items, 0));
+                worked = true;
+            }
             if self.st.r().tms[k].cur.is_none() && !self.st.r().ready.is_empty() {
                 let st = self.st.m();
                 let last = st.tms[k].last_seg;
@@ -955,7 +1054,27 @@ impl Logic for StreamScheduler {
                 st.tms[k].last_seg = Some(seg);
                 worked = true;
             }
-            if self.st.r().tms[k].cur.is_some() && ctx.can_push(&self.fill[k]) {
+            let shade_item = self.st.r().tms[k]
+                .cur
+                .as_ref()
+                .is_some_and(|c| c.0 == SHADE_SEG);
+            if shade_item && ctx.can_push(&self.fill[k]) {
+                let st = self.st.m();
+                let hdr = SbHeader {
+                    seg: SHADE_SEG,
+                    base: 0,
+                    nodes: 0,
+                };
+                let (_, items, pos) = st.tms[k].cur.as_mut().expect("cur");
+                let last = *pos + 1 == items.len();
+                let ray = items[*pos];
+                *pos += 1;
+                if last {
+                    st.tms[k].cur = None;
+                }
+                ctx.push(&self.fill[k], SbFill { ray, hdr, last });
+                worked = true;
+            } else if self.st.r().tms[k].cur.is_some() && ctx.can_push(&self.fill[k]) {
                 let st = self.st.m();
                 let seg = st.tms[k].cur.as_ref().expect("cur").0;
                 let w = st.ws.iter_mut().find(|w| w.seg == seg).expect("ws");
@@ -1025,6 +1144,8 @@ impl Logic for StreamScheduler {
             ("same_segment_picks", s.same_segment_picks),
             ("retired", s.retired),
             ("skipped_children", s.skipped_children),
+            ("shade_items", s.shade_items),
+            ("shade_done", s.shade_done),
         ]
     }
 

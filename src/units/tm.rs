@@ -10,7 +10,9 @@
 //! - `miss_req` (out, [`L1Req`]) / `miss_resp` (in, [`L1Resp`]): the L1 miss path,
 //!   line address out, 64 B line back (later: the scene buffer);
 //! - `ray_write` (out, [`RayWrite`]): a duplicate for a child segment's queue;
-//! - `hit` (out, [`HitUpdate`]): a segment's best hit for the hit record updater.
+//! - `hit` (out, [`HitUpdate`]): a segment's best hit for the hit record updater;
+//! - `gmem_req` (out, [`MemLineReq`]) / `gmem_resp` (in, [`MemLineResp`]): the TPs'
+//!   global loads and stores of the shading pass (to the L2), `id` = TP index.
 
 use serde::{Deserialize, Serialize};
 
@@ -22,6 +24,7 @@ use crate::rtl::{ClockId, In, LinkCfg, Out, Sim, UnitId};
 use super::box_pipe::BoxPipe;
 use super::divider::Divider;
 use super::l1::{L1, L1Req, L1Resp};
+use super::memory::{MemLineReq, MemLineResp};
 use super::staging_buffer::{SbFill, StagingBuffer};
 use super::tm_xbar::TmXbar;
 use super::tp::{HitUpdate, RayWrite, Tp};
@@ -133,7 +136,19 @@ pub struct TpCosts {
     pub tri_result: StateCost,
     /// Hit index, send the hit update.
     pub finish: StateCost,
+    /// Shading: address of a record (path state, hit records, triangle index,
+    /// triangle, material) and its global load through the L2.
+    pub shade_load: StateCost,
+    /// Shading: the shading arithmetic of one pixel (`render::shade::shade_step`).
+    pub shade: StateCost,
+    /// Shading: send one new ray (8 words) to the root queue, or the item's end marker.
+    pub shade_emit: StateCost,
+    /// Shading: store the path state and reset the new rays' hit records.
+    pub shade_store: StateCost,
 }
+
+/// Number of costed TP states (`TpCosts::all`).
+pub const COSTS: usize = 15;
 
 impl Default for TpCosts {
     fn default() -> Self {
@@ -150,12 +165,18 @@ impl Default for TpCosts {
             tri_issue: StateCost::new(2, [0, 0, 0, 0, 1, 0, 0, 1]),
             tri_result: StateCost::new(12, [6, 0, 0, 0, 2, 4, 0, 0]),
             finish: StateCost::new(4, [2, 0, 0, 0, 0, 1, 0, 1]),
+            // Shading (docs/tm.md, "Shading"): estimates from the operation counts
+            // of `shade_step`, not calibrated against simtrax like the rest.
+            shade_load: StateCost::new(3, [2, 1, 0, 0, 0, 0, 0, 0]),
+            shade: StateCost::new(96, [18, 2, 24, 30, 8, 8, 0, 0]),
+            shade_emit: StateCost::new(8, [0, 0, 0, 0, 0, 0, 0, 8]),
+            shade_store: StateCost::new(16, [0, 0, 0, 0, 0, 0, 0, 16]),
         }
     }
 }
 
 impl TpCosts {
-    pub fn all(&self) -> [(&'static str, &StateCost); 11] {
+    pub fn all(&self) -> [(&'static str, &StateCost); COSTS] {
         [
             ("fetch", &self.fetch),
             ("init", &self.init),
@@ -168,6 +189,10 @@ impl TpCosts {
             ("tri_issue", &self.tri_issue),
             ("tri_result", &self.tri_result),
             ("finish", &self.finish),
+            ("shade_load", &self.shade_load),
+            ("shade", &self.shade),
+            ("shade_emit", &self.shade_emit),
+            ("shade_store", &self.shade_store),
         ]
     }
 }
@@ -341,6 +366,8 @@ pub struct TmPorts {
     pub miss_resp: In<L1Resp>,
     pub ray_write: Out<RayWrite>,
     pub hit: Out<HitUpdate>,
+    pub gmem_req: Out<MemLineReq>,
+    pub gmem_resp: In<MemLineResp>,
 }
 
 /// Round trips a TP sees with idle units (cycles from its push to the response
@@ -384,6 +411,8 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
     let (mem_r_o, mem_r_i) = links!(L1Resp, "tp_mem_resp", n);
     let (rw_o, rw_i) = links!(RayWrite, "tp_ray_write", n);
     let (hit_o, hit_i) = links!(HitUpdate, "tp_hit", n);
+    let (gq_o, gq_i) = links!(MemLineReq, "tp_gmem_req", n);
+    let (gr_o, gr_i) = links!(MemLineResp, "tp_gmem_resp", n);
     let np = cfg.tm.tri_pipes as usize;
     let (pq_o, pq_i) = links!(super::tri_pipe::TriReq, "tri_req", np);
     let (pr_o, pr_i) = links!(super::tri_pipe::TriResp, "tri_resp", np);
@@ -393,6 +422,7 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
     let (dr_o, dr_i) = sim.link(&p("div_resp"), l);
 
     let mut tps = Vec::with_capacity(n);
+    let (mut gq_o, mut gr_i) = (gq_o.into_iter(), gr_i.into_iter());
     for k in 0..n {
         let tp = Tp::new(
             cfg,
@@ -409,6 +439,8 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
                 mem_resp: mem_r_i[k],
                 ray_write: rw_o[k],
                 hit: hit_o[k],
+                gmem_req: gq_o.next().expect("one per TP"),
+                gmem_resp: gr_i.next().expect("one per TP"),
             },
         );
         tps.push(sim.add(&p(&format!("tp{k}")), clock, tp));
@@ -442,15 +474,19 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
             box_req: bq_o,
             ray_write: ports.ray_write,
             hit: ports.hit,
+            gmem_req: ports.gmem_req,
+            gmem_resp: ports.gmem_resp,
             tp_div_req: div_q_i,
             tp_box_req: box_q_i,
             tp_tri_req: tri_q_i,
             tp_ray_write: rw_i,
             tp_hit: hit_i,
+            tp_gmem_req: gq_i,
             tri_resp: pr_i,
             tp_div_resp: div_r_o,
             tp_box_resp: box_r_o,
             tp_tri_resp: tri_r_o,
+            tp_gmem_resp: gr_o,
             tri_req: pq_o,
             tri_outstanding: crate::rtl::Ram::new(np as u32, np as u32, 0u16),
             stats: Default::default(),
@@ -500,6 +536,8 @@ pub fn emit_verilog(cfg: &Config) -> String {
     let (_, miss_resp) = sim.link::<L1Resp>("miss_resp", l);
     let (ray_write, _) = sim.link::<RayWrite>("ray_write", l);
     let (hit, _) = sim.link::<HitUpdate>("hit", l);
+    let (gmem_req, _) = sim.link::<MemLineReq>("gmem_req", l);
+    let (_, gmem_resp) = sim.link::<MemLineResp>("gmem_resp", l);
     build(
         &mut sim,
         clk,
@@ -511,6 +549,8 @@ pub fn emit_verilog(cfg: &Config) -> String {
             miss_resp,
             ray_write,
             hit,
+            gmem_req,
+            gmem_resp,
         },
     );
     let names: Vec<String> = sim.link_stats().into_iter().map(|(n, _)| n).collect();

@@ -6,11 +6,13 @@
 //! `cycle mod tps` on, a function of absolute time, so it does not depend on when
 //! the crossbar was evaluated (sleeping stays exact). A triangle request goes to the
 //! pipeline with room in its input link and the fewest tests in flight (ties: the
-//! lowest index). Responses return by tag (TP index in the low byte). The crossbar is
+//! lowest index). Responses return by tag (TP index in the low byte; global memory:
+//! the `id`, which a TP sets to its index). The crossbar is
 //! one register stage each way: it adds the link delay to every round trip.
 
 use super::box_pipe::{BoxReq, BoxResp};
 use super::divider::{DivReq, DivResp};
+use super::memory::{MemLineReq, MemLineResp};
 use super::tp::{HitUpdate, RayWrite};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::rtl::{Ctx, In, Logic, Next, Out, Payload, Ram, Status};
@@ -19,20 +21,28 @@ crate::unit! {
     /// TM crossbar: round-robin arbitration of the TPs onto the shared units and outputs.
     pub struct TmXbar : "tm_xbar" {
         params { tps: u32 => "TPS", tri_pipes: u32 => "TRI_PIPES" }
-        inputs { div_resp: DivResp, box_resp: BoxResp }
-        outputs { div_req: DivReq, box_req: BoxReq, ray_write: RayWrite, hit: HitUpdate }
+        inputs { div_resp: DivResp, box_resp: BoxResp, gmem_resp: MemLineResp }
+        outputs {
+            div_req: DivReq,
+            box_req: BoxReq,
+            ray_write: RayWrite,
+            hit: HitUpdate,
+            gmem_req: MemLineReq
+        }
         in_arrays {
             tp_div_req: DivReq,
             tp_box_req: BoxReq,
             tp_tri_req: TriReq,
             tp_ray_write: RayWrite,
             tp_hit: HitUpdate,
+            tp_gmem_req: MemLineReq,
             tri_resp: TriResp
         }
         out_arrays {
             tp_div_resp: DivResp,
             tp_box_resp: BoxResp,
             tp_tri_resp: TriResp,
+            tp_gmem_resp: MemLineResp,
             tri_req: TriReq
         }
         state { tri_outstanding: Ram<u16> }
@@ -40,15 +50,16 @@ crate::unit! {
     }
 }
 
-/// Grants and losses per class: divider, box, triangle, ray write, hit.
+/// Grants and losses per class: divider, box, triangle, ray write, hit, global
+/// memory (shading's loads and stores through the L2).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct XbarStats {
-    pub grants: [u64; 5],
+    pub grants: [u64; 6],
     /// Request-cycles a TP waited while another TP was granted or the unit was full.
-    pub conflicts: [u64; 5],
+    pub conflicts: [u64; 6],
 }
 
-pub const CLASSES: [&str; 5] = ["div", "box", "tri", "ray_write", "hit"];
+pub const CLASSES: [&str; 6] = ["div", "box", "tri", "ray_write", "hit", "gmem"];
 
 /// Round-robin pick among `inputs` with a visible head, from `start`; counts the
 /// losers. Pops the winner only if `grant`.
@@ -104,6 +115,7 @@ impl Logic for TmXbar {
         for (w, b) in [
             route(ctx, &self.div_resp, &self.tp_div_resp, |r| r.tag),
             route(ctx, &self.box_resp, &self.tp_box_resp, |r| r.tag),
+            route(ctx, &self.gmem_resp, &self.tp_gmem_resp, |r| r.id as u16),
         ] {
             worked |= w;
             waiting |= b;
@@ -143,6 +155,7 @@ impl Logic for TmXbar {
         forward!(1, self.tp_box_req, self.box_req);
         forward!(3, self.tp_ray_write, self.ray_write);
         forward!(4, self.tp_hit, self.hit);
+        forward!(5, self.tp_gmem_req, self.gmem_req);
         let target = (0..self.tri_req.len())
             .filter(|&p| ctx.can_push(&self.tri_req[p]))
             .min_by_key(|&p| (outstanding[p], p));
@@ -190,6 +203,7 @@ impl Logic for TmXbar {
             "tri_grants",
             "ray_write_grants",
             "hit_grants",
+            "gmem_grants",
         ];
         let names_c = [
             "div_conflicts",
@@ -197,6 +211,7 @@ impl Logic for TmXbar {
             "tri_conflicts",
             "ray_write_conflicts",
             "hit_conflicts",
+            "gmem_conflicts",
         ];
         let mut v: Vec<(&'static str, u64)> = names_g.iter().copied().zip(s.grants).collect();
         v.extend(names_c.iter().copied().zip(s.conflicts));

@@ -20,8 +20,11 @@ use super::Tag;
 use super::box_pipe::{BoxReq, BoxResp};
 use super::divider::{DivReq, DivResp};
 use super::l1::{L1Req, L1Resp, Line};
+use super::memory::{MemLineReq, MemLineResp};
 use super::staging_buffer::{SbHeader, SbRay};
+use super::tm::COSTS;
 use super::tm::{StateCost, TpCosts, round_trip};
+pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::config::Config;
 use crate::contract::{HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, TRI_BYTES};
@@ -66,6 +69,7 @@ crate::fsm_states! {
         Idle, Fetch, DivWait, Init, Pop, Exit, NodeFetch, NodeWait, BoxIssue, BoxIssue1,
         BoxWait, NodePush, TriFetch, TriMemWait, TriIssue, TriTestWait, TriResult,
         Finish, Overflow,
+        ShPath, ShLoad, ShWait, Shade, ShEmit, ShStore, ShStore1, ShDone,
     }
 }
 
@@ -96,6 +100,8 @@ pub struct TpLinks {
     pub mem_resp: In<L1Resp>,
     pub ray_write: Out<RayWrite>,
     pub hit: Out<HitUpdate>,
+    pub gmem_req: Out<MemLineReq>,
+    pub gmem_resp: In<MemLineResp>,
 }
 
 crate::unit! {
@@ -107,7 +113,8 @@ crate::unit! {
             div_resp: DivResp,
             box_resp: BoxResp,
             tri_resp: TriResp,
-            mem_resp: L1Resp
+            mem_resp: L1Resp,
+            gmem_resp: MemLineResp
         }
         outputs {
             div_req: DivReq,
@@ -115,7 +122,8 @@ crate::unit! {
             tri_req: TriReq,
             mem_req: L1Req,
             ray_write: RayWrite,
-            hit: HitUpdate
+            hit: HitUpdate,
+            gmem_req: MemLineReq
         }
         state {
             state: Reg<TpState>,
@@ -137,32 +145,56 @@ crate::unit! {
             tri_end: Reg<u32>,
             tri_hit: Reg<Option<HitRec>>,
             done_sent: Reg<bool>,
+            sh_step: Reg<u32>,
+            sh_addr: Reg<u64>,
+            sh_tri_addr: Reg<u64>,
+            sh_tri0: Reg<Line>,
+            sh_tri1: Reg<Line>,
+            sh_albedo: Reg<Vec3>,
+            sh_shadow: Reg<Option<RayRec>>,
+            sh_bounce: Reg<Option<RayRec>>,
+            sh_emitted: Reg<u32>,
+            sh_acks: Reg<u32>,
             stack: Ram<StackEntry>
         }
-        extra { costs: TpCosts, rt: [u64; 3], stats: TpStats, log: Option<Vec<u64>> }
+        extra {
+            costs: TpCosts,
+            rt: [u64; 3],
+            stats: TpStats,
+            log: Option<Vec<u64>>,
+            shading: Option<ShadeRegs>
+        }
     }
 }
 
-/// Indices of the computing states in `TpStats::uses` and `TpCosts::all`.
-const COSTED: [TpState; 11] = [
-    TpState::Fetch,
-    TpState::Init,
-    TpState::Pop,
-    TpState::Exit,
-    TpState::NodeFetch,
-    TpState::BoxIssue,
-    TpState::NodePush,
-    TpState::TriFetch,
-    TpState::TriIssue,
-    TpState::TriResult,
-    TpState::Finish,
-];
+/// Index of a computing state's cost in `TpCosts::all` (and `TpStats::uses`).
+fn cost_index(s: TpState) -> Option<usize> {
+    use TpState::*;
+    Some(match s {
+        Fetch => 0,
+        Init => 1,
+        Pop => 2,
+        Exit => 3,
+        NodeFetch => 4,
+        BoxIssue => 5,
+        NodePush => 6,
+        TriFetch => 7,
+        TriIssue => 8,
+        TriResult => 9,
+        Finish => 10,
+        ShPath | ShLoad => 11,
+        Shade => 12,
+        ShEmit | ShDone => 13,
+        ShStore => 14,
+        _ => return None,
+    })
+}
 
 /// Event counters of one TP.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TpStats {
     /// Actions of each computing state, in `TpCosts::all` order.
-    pub uses: [u64; 11],
+    pub uses: [u64; COSTS],
     pub rays: u64,
     pub box_tests: u64,
     pub tri_tests: u64,
@@ -181,6 +213,17 @@ pub struct TpStats {
     pub first_ray: Option<u64>,
     /// Cycle of the last `Finish` action.
     pub last_finish: u64,
+    /// Shading: work items (pixels), bounce hits shaded, shadow rays blocked,
+    /// rays emitted, global-memory reads and writes.
+    pub shade_items: u64,
+    pub shade_hits: u64,
+    pub shade_occluded: u64,
+    pub shade_rays: u64,
+    pub shade_shadow_rays: u64,
+    pub gmem_reads: u64,
+    pub gmem_writes: u64,
+    /// Cycles waiting for global memory (the L2).
+    pub gmem_wait: u64,
 }
 
 fn vec3_at(l: &Line, off: usize) -> Vec3 {
@@ -205,6 +248,8 @@ impl Tp {
             mem_req: l.mem_req,
             ray_write: l.ray_write,
             hit: l.hit,
+            gmem_req: l.gmem_req,
+            gmem_resp: l.gmem_resp,
             state: Reg::new(TpState::Idle),
             ray_index: Reg::new(0),
             node_addr: Reg::new(0),
@@ -228,6 +273,16 @@ impl Tp {
             tri_end: Reg::new(0),
             tri_hit: Reg::new(None),
             done_sent: Reg::new(false),
+            sh_step: Reg::new(0),
+            sh_addr: Reg::new(0),
+            sh_tri_addr: Reg::new(0),
+            sh_tri0: Reg::new(Line::default()),
+            sh_tri1: Reg::new(Line::default()),
+            sh_albedo: Reg::new(Vec3::ZERO),
+            sh_shadow: Reg::new(None),
+            sh_bounce: Reg::new(None),
+            sh_emitted: Reg::new(0),
+            sh_acks: Reg::new(0),
             // Two write ports: a node pushes both children in one action.
             stack: Ram::new(
                 entries,
@@ -246,6 +301,7 @@ impl Tp {
             ],
             stats: TpStats::default(),
             log: None,
+            shading: None,
         }
     }
 
@@ -259,14 +315,11 @@ impl Tp {
     }
 
     fn cost(&self, s: TpState) -> Option<&StateCost> {
-        COSTED
-            .iter()
-            .position(|&x| x == s)
-            .map(|k| self.costs.all()[k].1)
+        cost_index(s).map(|k| self.costs.all()[k].1)
     }
 
     /// Enters `s` in the cycle after `c`; a computing state acts in its last cycle.
-    fn go(&mut self, s: TpState, c: u64) -> Next {
+    pub(super) fn go(&mut self, s: TpState, c: u64) -> Next {
         self.state.set(s);
         match self.cost(s) {
             Some(k) => {
@@ -280,7 +333,7 @@ impl Tp {
     }
 
     fn used(&mut self, s: TpState) {
-        if let Some(k) = COSTED.iter().position(|&x| x == s) {
+        if let Some(k) = cost_index(s) {
             self.stats.uses[k] += 1;
         }
     }
@@ -537,6 +590,13 @@ impl Tp {
                 // The next ray may already wait in the link: look next cycle.
                 Next::Cycle
             }
+            TpState::ShPath
+            | TpState::ShLoad
+            | TpState::Shade
+            | TpState::ShEmit
+            | TpState::ShStore
+            | TpState::ShStore1
+            | TpState::ShDone => return self.shade_act(ctx, s, c),
             _ => unreachable!("not a computing state"),
         })
     }
@@ -546,7 +606,7 @@ impl Logic for Tp {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let s = self.state.val();
-        let costed = self.cost(s).is_some() || s == TpState::BoxIssue1;
+        let costed = self.cost(s).is_some() || s == TpState::BoxIssue1 || s == TpState::ShStore1;
         if costed {
             if c < self.act_at.val() {
                 ctx.set_status(Status::Busy);
@@ -554,9 +614,7 @@ impl Logic for Tp {
             }
             return match self.act(ctx, s, c) {
                 Some(n) => {
-                    if s != TpState::BoxIssue1 {
-                        self.used(s);
-                    }
+                    self.used(s);
                     ctx.set_status(Status::Busy);
                     n
                 }
@@ -574,6 +632,14 @@ impl Logic for Tp {
         };
         match s {
             TpState::Idle => match ctx.pop(&self.ray) {
+                Some(r) if r.hdr.seg == SHADE_SEG => {
+                    // A shading work item: the pixel in `ray_id`.
+                    self.ray_index.set(r.ray.ray_id);
+                    self.cur.set(r);
+                    self.stats.shade_items += 1;
+                    ctx.set_status(Status::Busy);
+                    self.go(TpState::ShPath, c)
+                }
                 Some(r) => {
                     self.ray_index.set(r.ray.ray_id);
                     self.cur.set(r);
@@ -664,6 +730,14 @@ impl Logic for Tp {
                 }
                 None => wait(ctx, Status::ResourceBusy),
             },
+            TpState::ShWait => match ctx.pop(&self.gmem_resp) {
+                Some(r) => {
+                    self.stats.gmem_wait += c - self.req_at.val();
+                    ctx.set_status(Status::Busy);
+                    self.shade_response(ctx, r, c)
+                }
+                None => wait(ctx, Status::ResourceBusy),
+            },
             _ => {
                 // Overflow: stopped for good, reported by the testbench.
                 ctx.set_status(Status::ResourceBusy);
@@ -691,6 +765,14 @@ impl Logic for Tp {
             ("stall_tri", s.stall[2]),
             ("blocked", s.blocked),
             ("max_stack", s.max_stack),
+            ("shade_items", s.shade_items),
+            ("shade_hits", s.shade_hits),
+            ("shade_occluded", s.shade_occluded),
+            ("shade_rays", s.shade_rays),
+            ("shade_shadow_rays", s.shade_shadow_rays),
+            ("gmem_reads", s.gmem_reads),
+            ("gmem_writes", s.gmem_writes),
+            ("gmem_wait", s.gmem_wait),
         ];
         for (k, (name, _)) in self.costs.all().iter().enumerate() {
             v.push((name, s.uses[k]));
