@@ -144,6 +144,43 @@ pub struct Activity {
     pub local_store_accesses: u64,
 }
 
+/// The TP instructions of the shading pass on the chip: each shading state's
+/// instruction mix (`tm.costs`) times its actions (`WaveCycles::shade_uses`:
+/// shade_load, shade, shade_emit, shade_store).
+pub fn shading_instructions(costs: &crate::units::tm::TpCosts, uses: [u64; 4]) -> Instructions {
+    let mut i = Instructions::default();
+    let states = [
+        &costs.shade_load,
+        &costs.shade,
+        &costs.shade_emit,
+        &costs.shade_store,
+    ];
+    for (c, n) in states.into_iter().zip(uses) {
+        i.int += c.int as u64 * n;
+        i.int_mul += c.int_mul as u64 * n;
+        i.fp_add += c.fp_add as u64 * n;
+        i.fp_mul += c.fp_mul as u64 * n;
+        i.fp_cmp += c.fp_cmp as u64 * n;
+        i.branch += c.branch as u64 * n;
+        i.load += c.load as u64 * n;
+        i.store += c.store as u64 * n;
+    }
+    i
+}
+
+impl std::ops::AddAssign for Instructions {
+    fn add_assign(&mut self, o: Instructions) {
+        self.int += o.int;
+        self.int_mul += o.int_mul;
+        self.fp_add += o.fp_add;
+        self.fp_mul += o.fp_mul;
+        self.fp_cmp += o.fp_cmp;
+        self.branch += o.branch;
+        self.load += o.load;
+        self.store += o.store;
+    }
+}
+
 /// Energy in joules by component.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Energy {

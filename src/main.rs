@@ -393,6 +393,14 @@ fn run(cli: Cli) -> Result<(), String> {
                 );
                 if let Some(c) = &frame.chip {
                     act.scene_buffer_accesses = c.waves.iter().map(|w| w.scene_buffer_reads).sum();
+                    // The shading pass's instructions (on the TPs only; its
+                    // global loads and stores are charged where they are served).
+                    for w in &c.waves {
+                        act.instructions += dualstream::energy::shading_instructions(
+                            &config.tm.costs,
+                            w.shade_uses,
+                        );
+                    }
                 }
                 frame.energy = Some(dualstream::energy::energy(&config.energy, &act));
             }

@@ -169,6 +169,9 @@ pub struct WaveCycles {
     pub shade_hits: u64,
     pub shade_occluded: u64,
     pub shade_cycles: u64,
+    /// Actions of the TPs' shading states (`tm.costs` shade_load, shade,
+    /// shade_emit, shade_store), for the energy model.
+    pub shade_uses: [u64; 4],
 }
 
 /// The chip, elaborated once per frame.
@@ -481,6 +484,8 @@ impl Chip {
             shade_occluded: self.sum_tp("shade_occluded"),
             // The cycle the last shading pass ended (see `run_wave`).
             shade_cycles: s.unit_ref::<StreamScheduler>(self.scheduler).last_shade_end,
+            shade_uses: ["shade_load", "shade", "shade_emit", "shade_store"]
+                .map(|n| self.sum_tp(n)),
         }
     }
 
@@ -588,6 +593,7 @@ impl Chip {
             shade_shadow_rays: after.shade_shadow_rays - before.shade_shadow_rays,
             shade_hits: after.shade_hits - before.shade_hits,
             shade_occluded: after.shade_occluded - before.shade_occluded,
+            shade_uses: std::array::from_fn(|k| after.shade_uses[k] - before.shade_uses[k]),
             shade_cycles: if shade_pixels > 0 {
                 after.shade_cycles - before.cycles
             } else {
