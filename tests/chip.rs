@@ -84,12 +84,16 @@ fn every_ray_agrees_on_small_chips() {
             (1, 16, Shading::Tps),
             (2, 16, Shading::Tps),
             (2, 16, Shading::Host),
+            (8, 16, Shading::Tps),
         ] {
             let mut cc = chip_cfg(tms, tps);
             cc.chip.shading = shading;
-            let cfg = rcfg(seg_kb, Some((cc, SimOptions::default())));
+            let mut cfg = rcfg(seg_kb, Some((cc, SimOptions::default())));
+            cfg.verify = true;
             let c = render(&s, Mode::Cycle, &cfg, &mut |_| {}).unwrap();
             same_frame(&f, &c, &format!("{name} on {tms}x{tps} {shading:?}"));
+            // --verify: every ray's hit record checked against the reference.
+            assert_eq!(c.verified_rays, c.total.rays, "{name}: every ray verified");
             let chip = c.chip.as_ref().unwrap();
             assert!(chip.total_cycles > 0);
             let tp = shading == Shading::Tps;
