@@ -119,6 +119,10 @@ enum Cmd {
         /// Write paper-style figures (SVG) into this directory.
         #[arg(long)]
         plots: Option<PathBuf>,
+        /// functional (counts only, fast) or cycle (the chip with GDDR5: also
+        /// render time, rays/s, bandwidth and DRAM energy; slow at 1024x1024).
+        #[arg(long, default_value = "functional")]
+        mode: String,
     },
     /// Scene tools.
     Scene {
@@ -326,9 +330,9 @@ fn run(cli: Cli) -> Result<(), String> {
         } => {
             use dualstream::render::{self, Mode, output};
             let mode = match mode.as_str() {
-                "functional" => Mode::Functional,
+                "functional" => dualstream::render::Mode::Functional,
                 "reference" => Mode::Reference,
-                "cycle" => Mode::Cycle,
+                "cycle" => dualstream::render::Mode::Cycle,
                 m => {
                     return Err(format!(
                         "unknown --mode '{m}'; use functional, reference or cycle"
@@ -385,24 +389,7 @@ fn run(cli: Cli) -> Result<(), String> {
             })?;
             bar.finish_and_clear();
             if mode != Mode::Reference {
-                // Every enqueued ray is one ray-segment traversal by a TP.
-                let mut act = dualstream::energy::tm_activity(
-                    &frame.total.traversal,
-                    frame.total.enqueues,
-                    &config.tm.costs,
-                );
-                if let Some(c) = &frame.chip {
-                    act.scene_buffer_accesses = c.waves.iter().map(|w| w.scene_buffer_reads).sum();
-                    // The shading pass's instructions (on the TPs only; its
-                    // global loads and stores are charged where they are served).
-                    for w in &c.waves {
-                        act.instructions += dualstream::energy::shading_instructions(
-                            &config.tm.costs,
-                            w.shade_uses,
-                        );
-                    }
-                }
-                frame.energy = Some(dualstream::energy::energy(&config.energy, &act));
+                frame.energy = Some(dualstream::energy::frame_energy(&config, &frame));
             }
             output::write_png(&frame, &out)?;
             print!("{}", output::summary(&frame));
@@ -419,7 +406,17 @@ fn run(cli: Cli) -> Result<(), String> {
             scenes_dir,
             json,
             plots,
+            mode,
         } => {
+            let mode = match mode.as_str() {
+                "functional" => dualstream::render::Mode::Functional,
+                "cycle" => dualstream::render::Mode::Cycle,
+                m => {
+                    return Err(format!(
+                        "unknown report mode '{m}'; use --mode functional or --mode cycle"
+                    ));
+                }
+            };
             if what != "paper" {
                 return Err(format!("unknown report '{what}'; available: paper"));
             }
@@ -434,19 +431,17 @@ fn run(cli: Cli) -> Result<(), String> {
                 sc.settings.width = w;
                 sc.settings.height = h;
                 sc.settings.validate()?;
-                eprintln!("rendering {} at {w}x{h} (functional)...", row.scene);
-                let mut frame = dualstream::render::render(
-                    &sc,
-                    dualstream::render::Mode::Functional,
-                    &render_cfg(&config),
-                    &mut |_| {},
-                )?;
-                let act = dualstream::energy::tm_activity(
-                    &frame.total.traversal,
-                    frame.total.enqueues,
-                    &config.tm.costs,
-                );
-                frame.energy = Some(dualstream::energy::energy(&config.energy, &act));
+                eprintln!("rendering {} at {w}x{h} ({mode:?})...", row.scene);
+                let mut cfg = config.clone();
+                if mode == dualstream::render::Mode::Cycle {
+                    // Time, bandwidth and DRAM energy need the GDDR5 model.
+                    cfg.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+                }
+                let t0 = std::time::Instant::now();
+                let mut frame =
+                    dualstream::render::render(&sc, mode, &render_cfg(&cfg), &mut |_| {})?;
+                eprintln!("  {:.1} s", t0.elapsed().as_secs_f64());
+                frame.energy = Some(dualstream::energy::frame_energy(&cfg, &frame));
                 rows.extend(dualstream::report::paper::compare(row, &frame));
             }
             print!("{}", dualstream::report::paper::table(&rows));

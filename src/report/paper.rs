@@ -99,20 +99,59 @@ pub struct Compared {
 pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
     let t = &f.total;
     let m = |x: u64| Some(x as f64 / 1e6);
-    let cycle = "needs the cycle-level chip (issue 6)";
+    let cycle = "needs --mode cycle (the chip with GDDR5)";
+    let chip = f.chip.as_ref();
+    let dram = chip.and_then(|c| c.dram);
+    let ms = chip.map(|c| c.total_cycles as f64 * c.core_ps as f64 * 1e-9);
+    let mrays = ms
+        .filter(|&t| t > 0.0)
+        .map(|t| f.total.rays as f64 / (t * 1e-3) / 1e6);
     let partial =
         "TMs only (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store)";
     let e = f.energy.as_ref();
     let rows: Vec<(&'static str, Option<f64>, f64, &'static str)> = vec![
-        ("render time (ms)", None, row.render_ms, cycle),
-        ("rays traced per second (M)", None, row.mrays_per_s, cycle),
+        (
+            "render time (ms)",
+            ms,
+            row.render_ms,
+            if ms.is_some() {
+                "cycles x core clock"
+            } else {
+                cycle
+            },
+        ),
+        (
+            "rays traced per second (M)",
+            mrays,
+            row.mrays_per_s,
+            if mrays.is_some() { "" } else { cycle },
+        ),
         (
             "rays traced (M)",
             m(t.rays),
             row.render_ms * row.mrays_per_s / 1000.0,
             "paper: time x rate",
         ),
-        ("DRAM energy (J)", None, row.dram_j, cycle),
+        (
+            "DRAM energy (J)",
+            dram.map(|d| d.energy_paper_j),
+            row.dram_j,
+            if dram.is_some() {
+                "preset paper (physical: next row)"
+            } else {
+                cycle
+            },
+        ),
+        (
+            "DRAM energy, physical preset (J)",
+            dram.map(|d| d.energy_physical_j),
+            row.dram_j,
+            if dram.is_some() {
+                "preset physical (datasheet currents)"
+            } else {
+                cycle
+            },
+        ),
         (
             "on-chip memory energy (J)",
             e.map(|e| e.onchip_j),
@@ -125,7 +164,12 @@ pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
             row.compute_j,
             partial,
         ),
-        ("average bandwidth (GB/s)", None, row.bandwidth_gbs, cycle),
+        (
+            "average bandwidth (GB/s)",
+            chip.and_then(|c| c.dram_bandwidth_gbs()),
+            row.bandwidth_gbs,
+            if dram.is_some() { "" } else { cycle },
+        ),
         (
             "$ lines transferred (M)",
             m(t.total_lines()),
