@@ -288,6 +288,22 @@ pub fn tm_activity(
     }
 }
 
+/// The TMs' energy of a rendered frame: traversal activity from its counts (every
+/// enqueued ray is one ray-segment traversal by a TP), and in cycle mode the
+/// scene-buffer reads and the shading pass's instructions the chip counted.
+pub fn frame_energy(c: &crate::config::Config, f: &crate::render::Frame) -> Energy {
+    let mut act = tm_activity(&f.total.traversal, f.total.enqueues, &c.tm.costs);
+    if let Some(ch) = &f.chip {
+        act.scene_buffer_accesses = ch.waves.iter().map(|w| w.scene_buffer_reads).sum();
+        // The shading pass's instructions (on the TPs only; its global loads and
+        // stores are charged where they are served).
+        for w in &ch.waves {
+            act.instructions += shading_instructions(&c.tm.costs, w.shade_uses);
+        }
+    }
+    energy(&c.energy, &act)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -360,20 +376,4 @@ mod tests {
         };
         assert!(c.validate().unwrap_err().contains("energy.l1_nj"));
     }
-}
-
-/// The TMs' energy of a rendered frame: traversal activity from its counts (every
-/// enqueued ray is one ray-segment traversal by a TP), and in cycle mode the
-/// scene-buffer reads and the shading pass's instructions the chip counted.
-pub fn frame_energy(c: &crate::config::Config, f: &crate::render::Frame) -> Energy {
-    let mut act = tm_activity(&f.total.traversal, f.total.enqueues, &c.tm.costs);
-    if let Some(ch) = &f.chip {
-        act.scene_buffer_accesses = ch.waves.iter().map(|w| w.scene_buffer_reads).sum();
-        // The shading pass's instructions (on the TPs only; its global loads and
-        // stores are charged where they are served).
-        for w in &ch.waves {
-            act.instructions += shading_instructions(&c.tm.costs, w.shade_uses);
-        }
-    }
-    energy(&c.energy, &act)
 }
