@@ -195,7 +195,20 @@ fn paper_comparison_rows() {
     let s = small("tiny", 16);
     let f = render(&s, Mode::Functional, &cfg(8), &mut |_| {}).unwrap();
     let rows = compare(&TABLE2[1], &f);
-    assert_eq!(rows.len(), 13);
+    // Timing, rate, rays, DRAM energy (paper and physical presets), on-chip and compute
+    // energy, bandwidth, five line counts, duplication.
+    assert_eq!(rows.len(), 14);
+    for metric in [
+        "DRAM energy (J)",
+        "DRAM energy, physical preset (J)",
+        "average bandwidth (GB/s)",
+    ] {
+        let r = rows.iter().find(|r| r.metric == metric).unwrap();
+        assert!(
+            r.ours.is_none() && r.note.contains("cycle"),
+            "{metric} needs the chip: no invented figures"
+        );
+    }
     let dup = rows.iter().find(|r| r.metric == "ray duplication").unwrap();
     assert_eq!(dup.paper, TABLE2[1].duplication);
     assert!((dup.ratio.unwrap() - f.duplication / TABLE2[1].duplication).abs() < 1e-12);
