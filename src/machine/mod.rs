@@ -195,6 +195,8 @@ pub struct L2Wave {
     pub bank_conflicts: u64,
     pub fills: u64,
     pub writebacks: u64,
+    /// Cycles of the end-of-run flush (part of the run's cycles).
+    pub flush_cycles: u64,
 }
 
 impl L2Wave {
@@ -218,6 +220,7 @@ impl L2Wave {
             bank_conflicts: self.bank_conflicts - b.bank_conflicts,
             fills: self.fills - b.fills,
             writebacks: self.writebacks - b.writebacks,
+            flush_cycles: self.flush_cycles - b.flush_cycles,
         }
     }
     pub fn add(&mut self, o: &L2Wave) {
@@ -228,6 +231,7 @@ impl L2Wave {
         self.bank_conflicts += o.bank_conflicts;
         self.fills += o.fills;
         self.writebacks += o.writebacks;
+        self.flush_cycles += o.flush_cycles;
     }
 }
 
@@ -245,6 +249,8 @@ pub struct Chip {
     /// invalidates (host shading writes DRAM between runs).
     pub l2: Option<UnitId>,
     l2_invalidate: bool,
+    /// Cycles spent in L2 flushes so far.
+    flush_cycles: u64,
     dram: Option<Dram>,
     watchdog: u64,
     segments: usize,
@@ -480,6 +486,7 @@ impl Chip {
             host,
             l2,
             l2_invalidate: ch.shading == config::Shading::Host,
+            flush_cycles: 0,
             dram,
             watchdog: ch.watchdog_cycles,
             segments,
@@ -593,6 +600,7 @@ impl Chip {
                     bank_conflicts: st.bank_conflicts,
                     fills: st.fills,
                     writebacks: st.writebacks,
+                    flush_cycles: self.flush_cycles,
                 }
             }),
         }
@@ -702,9 +710,11 @@ impl Chip {
             // The host reads DRAM next: write the L2's dirty lines back (its
             // cycles count in the run).
             let inv = self.l2_invalidate;
+            let c0 = self.sim.cycle(self.clock);
             self.sim.unit_mut::<Host>(self.host).request_flush(inv);
             self.sim.wake(self.host);
             res = self.run_until_idle();
+            self.flush_cycles += self.sim.cycle(self.clock) - c0;
         }
         std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
         res?;
