@@ -3,6 +3,7 @@ pub mod box_pipe;
 pub mod divider;
 pub mod hit_record_updater;
 pub mod l1;
+pub mod l2;
 pub mod mem_ctrl;
 pub mod memory;
 pub mod scene_buffer;
@@ -99,7 +100,18 @@ fn chip_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
         ins(n),
         outs(n),
     );
-    vec![mem.decl(), sb.decl(), hru.decl(), sched.decl()]
+    // The L2's clients: the hit record updater and every TM's global-memory port.
+    let l2 = l2::L2::new(
+        &cfg.chip.l2,
+        d,
+        ins(n + 1),
+        outs(n + 1),
+        Out::new(o),
+        In::new(i),
+        In::new(i),
+        Out::new(o),
+    );
+    vec![mem.decl(), sb.decl(), hru.decl(), sched.decl(), l2.decl()]
 }
 
 /// Declarations of the TM's own units: tp, l1, staging_buffer, tm_xbar.
