@@ -22,6 +22,7 @@
 
 pub mod config;
 pub mod host;
+pub mod trace;
 
 use std::time::Instant;
 
@@ -169,6 +170,10 @@ pub struct WaveCycles {
     pub shade_hits: u64,
     pub shade_occluded: u64,
     pub shade_cycles: u64,
+    /// Cycles from the last finished work (the last end marker of a ray or a
+    /// shading item taken by the scheduler) to the run's end (every unit idle):
+    /// the pass's drain (hit record writes, retirement, answers in flight).
+    pub drain_cycles: u64,
     /// Actions of the TPs' shading states (`tm.costs` shade_load, shade,
     /// shade_emit, shade_store), for the energy model.
     pub shade_uses: [u64; 4],
@@ -484,6 +489,7 @@ impl Chip {
             shade_occluded: self.sum_tp("shade_occluded"),
             // The cycle the last shading pass ended (see `run_wave`).
             shade_cycles: s.unit_ref::<StreamScheduler>(self.scheduler).last_shade_end,
+            drain_cycles: 0,
             shade_uses: ["shade_load", "shade", "shade_emit", "shade_store"]
                 .map(|n| self.sum_tp(n)),
         }
@@ -617,6 +623,12 @@ impl Chip {
             scene_buffer_reads: after.scene_buffer_reads - before.scene_buffer_reads,
             evals: after.evals - before.evals,
             dram: after.dram.sub(&before.dram),
+            drain_cycles: after.cycles
+                - self
+                    .sim
+                    .unit_ref::<StreamScheduler>(self.scheduler)
+                    .last_marker
+                    .max(before.cycles),
         };
         for k in 0..StreamTag::COUNT {
             w.lines_read[k] = after.lines_read[k] - before.lines_read[k];
