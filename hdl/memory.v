@@ -4,7 +4,7 @@
 // Ports are valid/ready links; data is the payload packed LSB-first.
 // State: 16 bits.
 module memory #(
-    parameter integer PORTS = 3,
+    parameter integer PORTS = 131,
     parameter integer LATENCY = 100,
     parameter integer LINES_PER_CYCLE = 8,
     parameter integer CHANNELS = 0
@@ -20,6 +20,390 @@ module memory #(
     input  wire req_2_valid,
     output wire req_2_ready,
     input  wire [675:0] req_2_data,
+    input  wire req_3_valid,
+    output wire req_3_ready,
+    input  wire [675:0] req_3_data,
+    input  wire req_4_valid,
+    output wire req_4_ready,
+    input  wire [675:0] req_4_data,
+    input  wire req_5_valid,
+    output wire req_5_ready,
+    input  wire [675:0] req_5_data,
+    input  wire req_6_valid,
+    output wire req_6_ready,
+    input  wire [675:0] req_6_data,
+    input  wire req_7_valid,
+    output wire req_7_ready,
+    input  wire [675:0] req_7_data,
+    input  wire req_8_valid,
+    output wire req_8_ready,
+    input  wire [675:0] req_8_data,
+    input  wire req_9_valid,
+    output wire req_9_ready,
+    input  wire [675:0] req_9_data,
+    input  wire req_10_valid,
+    output wire req_10_ready,
+    input  wire [675:0] req_10_data,
+    input  wire req_11_valid,
+    output wire req_11_ready,
+    input  wire [675:0] req_11_data,
+    input  wire req_12_valid,
+    output wire req_12_ready,
+    input  wire [675:0] req_12_data,
+    input  wire req_13_valid,
+    output wire req_13_ready,
+    input  wire [675:0] req_13_data,
+    input  wire req_14_valid,
+    output wire req_14_ready,
+    input  wire [675:0] req_14_data,
+    input  wire req_15_valid,
+    output wire req_15_ready,
+    input  wire [675:0] req_15_data,
+    input  wire req_16_valid,
+    output wire req_16_ready,
+    input  wire [675:0] req_16_data,
+    input  wire req_17_valid,
+    output wire req_17_ready,
+    input  wire [675:0] req_17_data,
+    input  wire req_18_valid,
+    output wire req_18_ready,
+    input  wire [675:0] req_18_data,
+    input  wire req_19_valid,
+    output wire req_19_ready,
+    input  wire [675:0] req_19_data,
+    input  wire req_20_valid,
+    output wire req_20_ready,
+    input  wire [675:0] req_20_data,
+    input  wire req_21_valid,
+    output wire req_21_ready,
+    input  wire [675:0] req_21_data,
+    input  wire req_22_valid,
+    output wire req_22_ready,
+    input  wire [675:0] req_22_data,
+    input  wire req_23_valid,
+    output wire req_23_ready,
+    input  wire [675:0] req_23_data,
+    input  wire req_24_valid,
+    output wire req_24_ready,
+    input  wire [675:0] req_24_data,
+    input  wire req_25_valid,
+    output wire req_25_ready,
+    input  wire [675:0] req_25_data,
+    input  wire req_26_valid,
+    output wire req_26_ready,
+    input  wire [675:0] req_26_data,
+    input  wire req_27_valid,
+    output wire req_27_ready,
+    input  wire [675:0] req_27_data,
+    input  wire req_28_valid,
+    output wire req_28_ready,
+    input  wire [675:0] req_28_data,
+    input  wire req_29_valid,
+    output wire req_29_ready,
+    input  wire [675:0] req_29_data,
+    input  wire req_30_valid,
+    output wire req_30_ready,
+    input  wire [675:0] req_30_data,
+    input  wire req_31_valid,
+    output wire req_31_ready,
+    input  wire [675:0] req_31_data,
+    input  wire req_32_valid,
+    output wire req_32_ready,
+    input  wire [675:0] req_32_data,
+    input  wire req_33_valid,
+    output wire req_33_ready,
+    input  wire [675:0] req_33_data,
+    input  wire req_34_valid,
+    output wire req_34_ready,
+    input  wire [675:0] req_34_data,
+    input  wire req_35_valid,
+    output wire req_35_ready,
+    input  wire [675:0] req_35_data,
+    input  wire req_36_valid,
+    output wire req_36_ready,
+    input  wire [675:0] req_36_data,
+    input  wire req_37_valid,
+    output wire req_37_ready,
+    input  wire [675:0] req_37_data,
+    input  wire req_38_valid,
+    output wire req_38_ready,
+    input  wire [675:0] req_38_data,
+    input  wire req_39_valid,
+    output wire req_39_ready,
+    input  wire [675:0] req_39_data,
+    input  wire req_40_valid,
+    output wire req_40_ready,
+    input  wire [675:0] req_40_data,
+    input  wire req_41_valid,
+    output wire req_41_ready,
+    input  wire [675:0] req_41_data,
+    input  wire req_42_valid,
+    output wire req_42_ready,
+    input  wire [675:0] req_42_data,
+    input  wire req_43_valid,
+    output wire req_43_ready,
+    input  wire [675:0] req_43_data,
+    input  wire req_44_valid,
+    output wire req_44_ready,
+    input  wire [675:0] req_44_data,
+    input  wire req_45_valid,
+    output wire req_45_ready,
+    input  wire [675:0] req_45_data,
+    input  wire req_46_valid,
+    output wire req_46_ready,
+    input  wire [675:0] req_46_data,
+    input  wire req_47_valid,
+    output wire req_47_ready,
+    input  wire [675:0] req_47_data,
+    input  wire req_48_valid,
+    output wire req_48_ready,
+    input  wire [675:0] req_48_data,
+    input  wire req_49_valid,
+    output wire req_49_ready,
+    input  wire [675:0] req_49_data,
+    input  wire req_50_valid,
+    output wire req_50_ready,
+    input  wire [675:0] req_50_data,
+    input  wire req_51_valid,
+    output wire req_51_ready,
+    input  wire [675:0] req_51_data,
+    input  wire req_52_valid,
+    output wire req_52_ready,
+    input  wire [675:0] req_52_data,
+    input  wire req_53_valid,
+    output wire req_53_ready,
+    input  wire [675:0] req_53_data,
+    input  wire req_54_valid,
+    output wire req_54_ready,
+    input  wire [675:0] req_54_data,
+    input  wire req_55_valid,
+    output wire req_55_ready,
+    input  wire [675:0] req_55_data,
+    input  wire req_56_valid,
+    output wire req_56_ready,
+    input  wire [675:0] req_56_data,
+    input  wire req_57_valid,
+    output wire req_57_ready,
+    input  wire [675:0] req_57_data,
+    input  wire req_58_valid,
+    output wire req_58_ready,
+    input  wire [675:0] req_58_data,
+    input  wire req_59_valid,
+    output wire req_59_ready,
+    input  wire [675:0] req_59_data,
+    input  wire req_60_valid,
+    output wire req_60_ready,
+    input  wire [675:0] req_60_data,
+    input  wire req_61_valid,
+    output wire req_61_ready,
+    input  wire [675:0] req_61_data,
+    input  wire req_62_valid,
+    output wire req_62_ready,
+    input  wire [675:0] req_62_data,
+    input  wire req_63_valid,
+    output wire req_63_ready,
+    input  wire [675:0] req_63_data,
+    input  wire req_64_valid,
+    output wire req_64_ready,
+    input  wire [675:0] req_64_data,
+    input  wire req_65_valid,
+    output wire req_65_ready,
+    input  wire [675:0] req_65_data,
+    input  wire req_66_valid,
+    output wire req_66_ready,
+    input  wire [675:0] req_66_data,
+    input  wire req_67_valid,
+    output wire req_67_ready,
+    input  wire [675:0] req_67_data,
+    input  wire req_68_valid,
+    output wire req_68_ready,
+    input  wire [675:0] req_68_data,
+    input  wire req_69_valid,
+    output wire req_69_ready,
+    input  wire [675:0] req_69_data,
+    input  wire req_70_valid,
+    output wire req_70_ready,
+    input  wire [675:0] req_70_data,
+    input  wire req_71_valid,
+    output wire req_71_ready,
+    input  wire [675:0] req_71_data,
+    input  wire req_72_valid,
+    output wire req_72_ready,
+    input  wire [675:0] req_72_data,
+    input  wire req_73_valid,
+    output wire req_73_ready,
+    input  wire [675:0] req_73_data,
+    input  wire req_74_valid,
+    output wire req_74_ready,
+    input  wire [675:0] req_74_data,
+    input  wire req_75_valid,
+    output wire req_75_ready,
+    input  wire [675:0] req_75_data,
+    input  wire req_76_valid,
+    output wire req_76_ready,
+    input  wire [675:0] req_76_data,
+    input  wire req_77_valid,
+    output wire req_77_ready,
+    input  wire [675:0] req_77_data,
+    input  wire req_78_valid,
+    output wire req_78_ready,
+    input  wire [675:0] req_78_data,
+    input  wire req_79_valid,
+    output wire req_79_ready,
+    input  wire [675:0] req_79_data,
+    input  wire req_80_valid,
+    output wire req_80_ready,
+    input  wire [675:0] req_80_data,
+    input  wire req_81_valid,
+    output wire req_81_ready,
+    input  wire [675:0] req_81_data,
+    input  wire req_82_valid,
+    output wire req_82_ready,
+    input  wire [675:0] req_82_data,
+    input  wire req_83_valid,
+    output wire req_83_ready,
+    input  wire [675:0] req_83_data,
+    input  wire req_84_valid,
+    output wire req_84_ready,
+    input  wire [675:0] req_84_data,
+    input  wire req_85_valid,
+    output wire req_85_ready,
+    input  wire [675:0] req_85_data,
+    input  wire req_86_valid,
+    output wire req_86_ready,
+    input  wire [675:0] req_86_data,
+    input  wire req_87_valid,
+    output wire req_87_ready,
+    input  wire [675:0] req_87_data,
+    input  wire req_88_valid,
+    output wire req_88_ready,
+    input  wire [675:0] req_88_data,
+    input  wire req_89_valid,
+    output wire req_89_ready,
+    input  wire [675:0] req_89_data,
+    input  wire req_90_valid,
+    output wire req_90_ready,
+    input  wire [675:0] req_90_data,
+    input  wire req_91_valid,
+    output wire req_91_ready,
+    input  wire [675:0] req_91_data,
+    input  wire req_92_valid,
+    output wire req_92_ready,
+    input  wire [675:0] req_92_data,
+    input  wire req_93_valid,
+    output wire req_93_ready,
+    input  wire [675:0] req_93_data,
+    input  wire req_94_valid,
+    output wire req_94_ready,
+    input  wire [675:0] req_94_data,
+    input  wire req_95_valid,
+    output wire req_95_ready,
+    input  wire [675:0] req_95_data,
+    input  wire req_96_valid,
+    output wire req_96_ready,
+    input  wire [675:0] req_96_data,
+    input  wire req_97_valid,
+    output wire req_97_ready,
+    input  wire [675:0] req_97_data,
+    input  wire req_98_valid,
+    output wire req_98_ready,
+    input  wire [675:0] req_98_data,
+    input  wire req_99_valid,
+    output wire req_99_ready,
+    input  wire [675:0] req_99_data,
+    input  wire req_100_valid,
+    output wire req_100_ready,
+    input  wire [675:0] req_100_data,
+    input  wire req_101_valid,
+    output wire req_101_ready,
+    input  wire [675:0] req_101_data,
+    input  wire req_102_valid,
+    output wire req_102_ready,
+    input  wire [675:0] req_102_data,
+    input  wire req_103_valid,
+    output wire req_103_ready,
+    input  wire [675:0] req_103_data,
+    input  wire req_104_valid,
+    output wire req_104_ready,
+    input  wire [675:0] req_104_data,
+    input  wire req_105_valid,
+    output wire req_105_ready,
+    input  wire [675:0] req_105_data,
+    input  wire req_106_valid,
+    output wire req_106_ready,
+    input  wire [675:0] req_106_data,
+    input  wire req_107_valid,
+    output wire req_107_ready,
+    input  wire [675:0] req_107_data,
+    input  wire req_108_valid,
+    output wire req_108_ready,
+    input  wire [675:0] req_108_data,
+    input  wire req_109_valid,
+    output wire req_109_ready,
+    input  wire [675:0] req_109_data,
+    input  wire req_110_valid,
+    output wire req_110_ready,
+    input  wire [675:0] req_110_data,
+    input  wire req_111_valid,
+    output wire req_111_ready,
+    input  wire [675:0] req_111_data,
+    input  wire req_112_valid,
+    output wire req_112_ready,
+    input  wire [675:0] req_112_data,
+    input  wire req_113_valid,
+    output wire req_113_ready,
+    input  wire [675:0] req_113_data,
+    input  wire req_114_valid,
+    output wire req_114_ready,
+    input  wire [675:0] req_114_data,
+    input  wire req_115_valid,
+    output wire req_115_ready,
+    input  wire [675:0] req_115_data,
+    input  wire req_116_valid,
+    output wire req_116_ready,
+    input  wire [675:0] req_116_data,
+    input  wire req_117_valid,
+    output wire req_117_ready,
+    input  wire [675:0] req_117_data,
+    input  wire req_118_valid,
+    output wire req_118_ready,
+    input  wire [675:0] req_118_data,
+    input  wire req_119_valid,
+    output wire req_119_ready,
+    input  wire [675:0] req_119_data,
+    input  wire req_120_valid,
+    output wire req_120_ready,
+    input  wire [675:0] req_120_data,
+    input  wire req_121_valid,
+    output wire req_121_ready,
+    input  wire [675:0] req_121_data,
+    input  wire req_122_valid,
+    output wire req_122_ready,
+    input  wire [675:0] req_122_data,
+    input  wire req_123_valid,
+    output wire req_123_ready,
+    input  wire [675:0] req_123_data,
+    input  wire req_124_valid,
+    output wire req_124_ready,
+    input  wire [675:0] req_124_data,
+    input  wire req_125_valid,
+    output wire req_125_ready,
+    input  wire [675:0] req_125_data,
+    input  wire req_126_valid,
+    output wire req_126_ready,
+    input  wire [675:0] req_126_data,
+    input  wire req_127_valid,
+    output wire req_127_ready,
+    input  wire [675:0] req_127_data,
+    input  wire req_128_valid,
+    output wire req_128_ready,
+    input  wire [675:0] req_128_data,
+    input  wire req_129_valid,
+    output wire req_129_ready,
+    input  wire [675:0] req_129_data,
+    input  wire req_130_valid,
+    output wire req_130_ready,
+    input  wire [675:0] req_130_data,
     output wire resp_0_valid,
     input  wire resp_0_ready,
     output wire [611:0] resp_0_data,
@@ -28,7 +412,391 @@ module memory #(
     output wire [611:0] resp_1_data,
     output wire resp_2_valid,
     input  wire resp_2_ready,
-    output wire [611:0] resp_2_data
+    output wire [611:0] resp_2_data,
+    output wire resp_3_valid,
+    input  wire resp_3_ready,
+    output wire [611:0] resp_3_data,
+    output wire resp_4_valid,
+    input  wire resp_4_ready,
+    output wire [611:0] resp_4_data,
+    output wire resp_5_valid,
+    input  wire resp_5_ready,
+    output wire [611:0] resp_5_data,
+    output wire resp_6_valid,
+    input  wire resp_6_ready,
+    output wire [611:0] resp_6_data,
+    output wire resp_7_valid,
+    input  wire resp_7_ready,
+    output wire [611:0] resp_7_data,
+    output wire resp_8_valid,
+    input  wire resp_8_ready,
+    output wire [611:0] resp_8_data,
+    output wire resp_9_valid,
+    input  wire resp_9_ready,
+    output wire [611:0] resp_9_data,
+    output wire resp_10_valid,
+    input  wire resp_10_ready,
+    output wire [611:0] resp_10_data,
+    output wire resp_11_valid,
+    input  wire resp_11_ready,
+    output wire [611:0] resp_11_data,
+    output wire resp_12_valid,
+    input  wire resp_12_ready,
+    output wire [611:0] resp_12_data,
+    output wire resp_13_valid,
+    input  wire resp_13_ready,
+    output wire [611:0] resp_13_data,
+    output wire resp_14_valid,
+    input  wire resp_14_ready,
+    output wire [611:0] resp_14_data,
+    output wire resp_15_valid,
+    input  wire resp_15_ready,
+    output wire [611:0] resp_15_data,
+    output wire resp_16_valid,
+    input  wire resp_16_ready,
+    output wire [611:0] resp_16_data,
+    output wire resp_17_valid,
+    input  wire resp_17_ready,
+    output wire [611:0] resp_17_data,
+    output wire resp_18_valid,
+    input  wire resp_18_ready,
+    output wire [611:0] resp_18_data,
+    output wire resp_19_valid,
+    input  wire resp_19_ready,
+    output wire [611:0] resp_19_data,
+    output wire resp_20_valid,
+    input  wire resp_20_ready,
+    output wire [611:0] resp_20_data,
+    output wire resp_21_valid,
+    input  wire resp_21_ready,
+    output wire [611:0] resp_21_data,
+    output wire resp_22_valid,
+    input  wire resp_22_ready,
+    output wire [611:0] resp_22_data,
+    output wire resp_23_valid,
+    input  wire resp_23_ready,
+    output wire [611:0] resp_23_data,
+    output wire resp_24_valid,
+    input  wire resp_24_ready,
+    output wire [611:0] resp_24_data,
+    output wire resp_25_valid,
+    input  wire resp_25_ready,
+    output wire [611:0] resp_25_data,
+    output wire resp_26_valid,
+    input  wire resp_26_ready,
+    output wire [611:0] resp_26_data,
+    output wire resp_27_valid,
+    input  wire resp_27_ready,
+    output wire [611:0] resp_27_data,
+    output wire resp_28_valid,
+    input  wire resp_28_ready,
+    output wire [611:0] resp_28_data,
+    output wire resp_29_valid,
+    input  wire resp_29_ready,
+    output wire [611:0] resp_29_data,
+    output wire resp_30_valid,
+    input  wire resp_30_ready,
+    output wire [611:0] resp_30_data,
+    output wire resp_31_valid,
+    input  wire resp_31_ready,
+    output wire [611:0] resp_31_data,
+    output wire resp_32_valid,
+    input  wire resp_32_ready,
+    output wire [611:0] resp_32_data,
+    output wire resp_33_valid,
+    input  wire resp_33_ready,
+    output wire [611:0] resp_33_data,
+    output wire resp_34_valid,
+    input  wire resp_34_ready,
+    output wire [611:0] resp_34_data,
+    output wire resp_35_valid,
+    input  wire resp_35_ready,
+    output wire [611:0] resp_35_data,
+    output wire resp_36_valid,
+    input  wire resp_36_ready,
+    output wire [611:0] resp_36_data,
+    output wire resp_37_valid,
+    input  wire resp_37_ready,
+    output wire [611:0] resp_37_data,
+    output wire resp_38_valid,
+    input  wire resp_38_ready,
+    output wire [611:0] resp_38_data,
+    output wire resp_39_valid,
+    input  wire resp_39_ready,
+    output wire [611:0] resp_39_data,
+    output wire resp_40_valid,
+    input  wire resp_40_ready,
+    output wire [611:0] resp_40_data,
+    output wire resp_41_valid,
+    input  wire resp_41_ready,
+    output wire [611:0] resp_41_data,
+    output wire resp_42_valid,
+    input  wire resp_42_ready,
+    output wire [611:0] resp_42_data,
+    output wire resp_43_valid,
+    input  wire resp_43_ready,
+    output wire [611:0] resp_43_data,
+    output wire resp_44_valid,
+    input  wire resp_44_ready,
+    output wire [611:0] resp_44_data,
+    output wire resp_45_valid,
+    input  wire resp_45_ready,
+    output wire [611:0] resp_45_data,
+    output wire resp_46_valid,
+    input  wire resp_46_ready,
+    output wire [611:0] resp_46_data,
+    output wire resp_47_valid,
+    input  wire resp_47_ready,
+    output wire [611:0] resp_47_data,
+    output wire resp_48_valid,
+    input  wire resp_48_ready,
+    output wire [611:0] resp_48_data,
+    output wire resp_49_valid,
+    input  wire resp_49_ready,
+    output wire [611:0] resp_49_data,
+    output wire resp_50_valid,
+    input  wire resp_50_ready,
+    output wire [611:0] resp_50_data,
+    output wire resp_51_valid,
+    input  wire resp_51_ready,
+    output wire [611:0] resp_51_data,
+    output wire resp_52_valid,
+    input  wire resp_52_ready,
+    output wire [611:0] resp_52_data,
+    output wire resp_53_valid,
+    input  wire resp_53_ready,
+    output wire [611:0] resp_53_data,
+    output wire resp_54_valid,
+    input  wire resp_54_ready,
+    output wire [611:0] resp_54_data,
+    output wire resp_55_valid,
+    input  wire resp_55_ready,
+    output wire [611:0] resp_55_data,
+    output wire resp_56_valid,
+    input  wire resp_56_ready,
+    output wire [611:0] resp_56_data,
+    output wire resp_57_valid,
+    input  wire resp_57_ready,
+    output wire [611:0] resp_57_data,
+    output wire resp_58_valid,
+    input  wire resp_58_ready,
+    output wire [611:0] resp_58_data,
+    output wire resp_59_valid,
+    input  wire resp_59_ready,
+    output wire [611:0] resp_59_data,
+    output wire resp_60_valid,
+    input  wire resp_60_ready,
+    output wire [611:0] resp_60_data,
+    output wire resp_61_valid,
+    input  wire resp_61_ready,
+    output wire [611:0] resp_61_data,
+    output wire resp_62_valid,
+    input  wire resp_62_ready,
+    output wire [611:0] resp_62_data,
+    output wire resp_63_valid,
+    input  wire resp_63_ready,
+    output wire [611:0] resp_63_data,
+    output wire resp_64_valid,
+    input  wire resp_64_ready,
+    output wire [611:0] resp_64_data,
+    output wire resp_65_valid,
+    input  wire resp_65_ready,
+    output wire [611:0] resp_65_data,
+    output wire resp_66_valid,
+    input  wire resp_66_ready,
+    output wire [611:0] resp_66_data,
+    output wire resp_67_valid,
+    input  wire resp_67_ready,
+    output wire [611:0] resp_67_data,
+    output wire resp_68_valid,
+    input  wire resp_68_ready,
+    output wire [611:0] resp_68_data,
+    output wire resp_69_valid,
+    input  wire resp_69_ready,
+    output wire [611:0] resp_69_data,
+    output wire resp_70_valid,
+    input  wire resp_70_ready,
+    output wire [611:0] resp_70_data,
+    output wire resp_71_valid,
+    input  wire resp_71_ready,
+    output wire [611:0] resp_71_data,
+    output wire resp_72_valid,
+    input  wire resp_72_ready,
+    output wire [611:0] resp_72_data,
+    output wire resp_73_valid,
+    input  wire resp_73_ready,
+    output wire [611:0] resp_73_data,
+    output wire resp_74_valid,
+    input  wire resp_74_ready,
+    output wire [611:0] resp_74_data,
+    output wire resp_75_valid,
+    input  wire resp_75_ready,
+    output wire [611:0] resp_75_data,
+    output wire resp_76_valid,
+    input  wire resp_76_ready,
+    output wire [611:0] resp_76_data,
+    output wire resp_77_valid,
+    input  wire resp_77_ready,
+    output wire [611:0] resp_77_data,
+    output wire resp_78_valid,
+    input  wire resp_78_ready,
+    output wire [611:0] resp_78_data,
+    output wire resp_79_valid,
+    input  wire resp_79_ready,
+    output wire [611:0] resp_79_data,
+    output wire resp_80_valid,
+    input  wire resp_80_ready,
+    output wire [611:0] resp_80_data,
+    output wire resp_81_valid,
+    input  wire resp_81_ready,
+    output wire [611:0] resp_81_data,
+    output wire resp_82_valid,
+    input  wire resp_82_ready,
+    output wire [611:0] resp_82_data,
+    output wire resp_83_valid,
+    input  wire resp_83_ready,
+    output wire [611:0] resp_83_data,
+    output wire resp_84_valid,
+    input  wire resp_84_ready,
+    output wire [611:0] resp_84_data,
+    output wire resp_85_valid,
+    input  wire resp_85_ready,
+    output wire [611:0] resp_85_data,
+    output wire resp_86_valid,
+    input  wire resp_86_ready,
+    output wire [611:0] resp_86_data,
+    output wire resp_87_valid,
+    input  wire resp_87_ready,
+    output wire [611:0] resp_87_data,
+    output wire resp_88_valid,
+    input  wire resp_88_ready,
+    output wire [611:0] resp_88_data,
+    output wire resp_89_valid,
+    input  wire resp_89_ready,
+    output wire [611:0] resp_89_data,
+    output wire resp_90_valid,
+    input  wire resp_90_ready,
+    output wire [611:0] resp_90_data,
+    output wire resp_91_valid,
+    input  wire resp_91_ready,
+    output wire [611:0] resp_91_data,
+    output wire resp_92_valid,
+    input  wire resp_92_ready,
+    output wire [611:0] resp_92_data,
+    output wire resp_93_valid,
+    input  wire resp_93_ready,
+    output wire [611:0] resp_93_data,
+    output wire resp_94_valid,
+    input  wire resp_94_ready,
+    output wire [611:0] resp_94_data,
+    output wire resp_95_valid,
+    input  wire resp_95_ready,
+    output wire [611:0] resp_95_data,
+    output wire resp_96_valid,
+    input  wire resp_96_ready,
+    output wire [611:0] resp_96_data,
+    output wire resp_97_valid,
+    input  wire resp_97_ready,
+    output wire [611:0] resp_97_data,
+    output wire resp_98_valid,
+    input  wire resp_98_ready,
+    output wire [611:0] resp_98_data,
+    output wire resp_99_valid,
+    input  wire resp_99_ready,
+    output wire [611:0] resp_99_data,
+    output wire resp_100_valid,
+    input  wire resp_100_ready,
+    output wire [611:0] resp_100_data,
+    output wire resp_101_valid,
+    input  wire resp_101_ready,
+    output wire [611:0] resp_101_data,
+    output wire resp_102_valid,
+    input  wire resp_102_ready,
+    output wire [611:0] resp_102_data,
+    output wire resp_103_valid,
+    input  wire resp_103_ready,
+    output wire [611:0] resp_103_data,
+    output wire resp_104_valid,
+    input  wire resp_104_ready,
+    output wire [611:0] resp_104_data,
+    output wire resp_105_valid,
+    input  wire resp_105_ready,
+    output wire [611:0] resp_105_data,
+    output wire resp_106_valid,
+    input  wire resp_106_ready,
+    output wire [611:0] resp_106_data,
+    output wire resp_107_valid,
+    input  wire resp_107_ready,
+    output wire [611:0] resp_107_data,
+    output wire resp_108_valid,
+    input  wire resp_108_ready,
+    output wire [611:0] resp_108_data,
+    output wire resp_109_valid,
+    input  wire resp_109_ready,
+    output wire [611:0] resp_109_data,
+    output wire resp_110_valid,
+    input  wire resp_110_ready,
+    output wire [611:0] resp_110_data,
+    output wire resp_111_valid,
+    input  wire resp_111_ready,
+    output wire [611:0] resp_111_data,
+    output wire resp_112_valid,
+    input  wire resp_112_ready,
+    output wire [611:0] resp_112_data,
+    output wire resp_113_valid,
+    input  wire resp_113_ready,
+    output wire [611:0] resp_113_data,
+    output wire resp_114_valid,
+    input  wire resp_114_ready,
+    output wire [611:0] resp_114_data,
+    output wire resp_115_valid,
+    input  wire resp_115_ready,
+    output wire [611:0] resp_115_data,
+    output wire resp_116_valid,
+    input  wire resp_116_ready,
+    output wire [611:0] resp_116_data,
+    output wire resp_117_valid,
+    input  wire resp_117_ready,
+    output wire [611:0] resp_117_data,
+    output wire resp_118_valid,
+    input  wire resp_118_ready,
+    output wire [611:0] resp_118_data,
+    output wire resp_119_valid,
+    input  wire resp_119_ready,
+    output wire [611:0] resp_119_data,
+    output wire resp_120_valid,
+    input  wire resp_120_ready,
+    output wire [611:0] resp_120_data,
+    output wire resp_121_valid,
+    input  wire resp_121_ready,
+    output wire [611:0] resp_121_data,
+    output wire resp_122_valid,
+    input  wire resp_122_ready,
+    output wire [611:0] resp_122_data,
+    output wire resp_123_valid,
+    input  wire resp_123_ready,
+    output wire [611:0] resp_123_data,
+    output wire resp_124_valid,
+    input  wire resp_124_ready,
+    output wire [611:0] resp_124_data,
+    output wire resp_125_valid,
+    input  wire resp_125_ready,
+    output wire [611:0] resp_125_data,
+    output wire resp_126_valid,
+    input  wire resp_126_ready,
+    output wire [611:0] resp_126_data,
+    output wire resp_127_valid,
+    input  wire resp_127_ready,
+    output wire [611:0] resp_127_data,
+    output wire resp_128_valid,
+    input  wire resp_128_ready,
+    output wire [611:0] resp_128_data,
+    output wire resp_129_valid,
+    input  wire resp_129_ready,
+    output wire [611:0] resp_129_data,
+    output wire resp_130_valid,
+    input  wire resp_130_ready,
+    output wire [611:0] resp_130_data
 );
 
     reg [15:0] in_flight;
@@ -43,11 +811,395 @@ module memory #(
     assign req_0_ready = 1'b0;
     assign req_1_ready = 1'b0;
     assign req_2_ready = 1'b0;
+    assign req_3_ready = 1'b0;
+    assign req_4_ready = 1'b0;
+    assign req_5_ready = 1'b0;
+    assign req_6_ready = 1'b0;
+    assign req_7_ready = 1'b0;
+    assign req_8_ready = 1'b0;
+    assign req_9_ready = 1'b0;
+    assign req_10_ready = 1'b0;
+    assign req_11_ready = 1'b0;
+    assign req_12_ready = 1'b0;
+    assign req_13_ready = 1'b0;
+    assign req_14_ready = 1'b0;
+    assign req_15_ready = 1'b0;
+    assign req_16_ready = 1'b0;
+    assign req_17_ready = 1'b0;
+    assign req_18_ready = 1'b0;
+    assign req_19_ready = 1'b0;
+    assign req_20_ready = 1'b0;
+    assign req_21_ready = 1'b0;
+    assign req_22_ready = 1'b0;
+    assign req_23_ready = 1'b0;
+    assign req_24_ready = 1'b0;
+    assign req_25_ready = 1'b0;
+    assign req_26_ready = 1'b0;
+    assign req_27_ready = 1'b0;
+    assign req_28_ready = 1'b0;
+    assign req_29_ready = 1'b0;
+    assign req_30_ready = 1'b0;
+    assign req_31_ready = 1'b0;
+    assign req_32_ready = 1'b0;
+    assign req_33_ready = 1'b0;
+    assign req_34_ready = 1'b0;
+    assign req_35_ready = 1'b0;
+    assign req_36_ready = 1'b0;
+    assign req_37_ready = 1'b0;
+    assign req_38_ready = 1'b0;
+    assign req_39_ready = 1'b0;
+    assign req_40_ready = 1'b0;
+    assign req_41_ready = 1'b0;
+    assign req_42_ready = 1'b0;
+    assign req_43_ready = 1'b0;
+    assign req_44_ready = 1'b0;
+    assign req_45_ready = 1'b0;
+    assign req_46_ready = 1'b0;
+    assign req_47_ready = 1'b0;
+    assign req_48_ready = 1'b0;
+    assign req_49_ready = 1'b0;
+    assign req_50_ready = 1'b0;
+    assign req_51_ready = 1'b0;
+    assign req_52_ready = 1'b0;
+    assign req_53_ready = 1'b0;
+    assign req_54_ready = 1'b0;
+    assign req_55_ready = 1'b0;
+    assign req_56_ready = 1'b0;
+    assign req_57_ready = 1'b0;
+    assign req_58_ready = 1'b0;
+    assign req_59_ready = 1'b0;
+    assign req_60_ready = 1'b0;
+    assign req_61_ready = 1'b0;
+    assign req_62_ready = 1'b0;
+    assign req_63_ready = 1'b0;
+    assign req_64_ready = 1'b0;
+    assign req_65_ready = 1'b0;
+    assign req_66_ready = 1'b0;
+    assign req_67_ready = 1'b0;
+    assign req_68_ready = 1'b0;
+    assign req_69_ready = 1'b0;
+    assign req_70_ready = 1'b0;
+    assign req_71_ready = 1'b0;
+    assign req_72_ready = 1'b0;
+    assign req_73_ready = 1'b0;
+    assign req_74_ready = 1'b0;
+    assign req_75_ready = 1'b0;
+    assign req_76_ready = 1'b0;
+    assign req_77_ready = 1'b0;
+    assign req_78_ready = 1'b0;
+    assign req_79_ready = 1'b0;
+    assign req_80_ready = 1'b0;
+    assign req_81_ready = 1'b0;
+    assign req_82_ready = 1'b0;
+    assign req_83_ready = 1'b0;
+    assign req_84_ready = 1'b0;
+    assign req_85_ready = 1'b0;
+    assign req_86_ready = 1'b0;
+    assign req_87_ready = 1'b0;
+    assign req_88_ready = 1'b0;
+    assign req_89_ready = 1'b0;
+    assign req_90_ready = 1'b0;
+    assign req_91_ready = 1'b0;
+    assign req_92_ready = 1'b0;
+    assign req_93_ready = 1'b0;
+    assign req_94_ready = 1'b0;
+    assign req_95_ready = 1'b0;
+    assign req_96_ready = 1'b0;
+    assign req_97_ready = 1'b0;
+    assign req_98_ready = 1'b0;
+    assign req_99_ready = 1'b0;
+    assign req_100_ready = 1'b0;
+    assign req_101_ready = 1'b0;
+    assign req_102_ready = 1'b0;
+    assign req_103_ready = 1'b0;
+    assign req_104_ready = 1'b0;
+    assign req_105_ready = 1'b0;
+    assign req_106_ready = 1'b0;
+    assign req_107_ready = 1'b0;
+    assign req_108_ready = 1'b0;
+    assign req_109_ready = 1'b0;
+    assign req_110_ready = 1'b0;
+    assign req_111_ready = 1'b0;
+    assign req_112_ready = 1'b0;
+    assign req_113_ready = 1'b0;
+    assign req_114_ready = 1'b0;
+    assign req_115_ready = 1'b0;
+    assign req_116_ready = 1'b0;
+    assign req_117_ready = 1'b0;
+    assign req_118_ready = 1'b0;
+    assign req_119_ready = 1'b0;
+    assign req_120_ready = 1'b0;
+    assign req_121_ready = 1'b0;
+    assign req_122_ready = 1'b0;
+    assign req_123_ready = 1'b0;
+    assign req_124_ready = 1'b0;
+    assign req_125_ready = 1'b0;
+    assign req_126_ready = 1'b0;
+    assign req_127_ready = 1'b0;
+    assign req_128_ready = 1'b0;
+    assign req_129_ready = 1'b0;
+    assign req_130_ready = 1'b0;
     assign resp_0_valid = 1'b0;
     assign resp_0_data = '0;
     assign resp_1_valid = 1'b0;
     assign resp_1_data = '0;
     assign resp_2_valid = 1'b0;
     assign resp_2_data = '0;
-    wire _unused_ok = &{1'b0, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, resp_0_ready, resp_1_ready, resp_2_ready, in_flight, PORTS[0], LATENCY[0], LINES_PER_CYCLE[0], CHANNELS[0], 1'b0};
+    assign resp_3_valid = 1'b0;
+    assign resp_3_data = '0;
+    assign resp_4_valid = 1'b0;
+    assign resp_4_data = '0;
+    assign resp_5_valid = 1'b0;
+    assign resp_5_data = '0;
+    assign resp_6_valid = 1'b0;
+    assign resp_6_data = '0;
+    assign resp_7_valid = 1'b0;
+    assign resp_7_data = '0;
+    assign resp_8_valid = 1'b0;
+    assign resp_8_data = '0;
+    assign resp_9_valid = 1'b0;
+    assign resp_9_data = '0;
+    assign resp_10_valid = 1'b0;
+    assign resp_10_data = '0;
+    assign resp_11_valid = 1'b0;
+    assign resp_11_data = '0;
+    assign resp_12_valid = 1'b0;
+    assign resp_12_data = '0;
+    assign resp_13_valid = 1'b0;
+    assign resp_13_data = '0;
+    assign resp_14_valid = 1'b0;
+    assign resp_14_data = '0;
+    assign resp_15_valid = 1'b0;
+    assign resp_15_data = '0;
+    assign resp_16_valid = 1'b0;
+    assign resp_16_data = '0;
+    assign resp_17_valid = 1'b0;
+    assign resp_17_data = '0;
+    assign resp_18_valid = 1'b0;
+    assign resp_18_data = '0;
+    assign resp_19_valid = 1'b0;
+    assign resp_19_data = '0;
+    assign resp_20_valid = 1'b0;
+    assign resp_20_data = '0;
+    assign resp_21_valid = 1'b0;
+    assign resp_21_data = '0;
+    assign resp_22_valid = 1'b0;
+    assign resp_22_data = '0;
+    assign resp_23_valid = 1'b0;
+    assign resp_23_data = '0;
+    assign resp_24_valid = 1'b0;
+    assign resp_24_data = '0;
+    assign resp_25_valid = 1'b0;
+    assign resp_25_data = '0;
+    assign resp_26_valid = 1'b0;
+    assign resp_26_data = '0;
+    assign resp_27_valid = 1'b0;
+    assign resp_27_data = '0;
+    assign resp_28_valid = 1'b0;
+    assign resp_28_data = '0;
+    assign resp_29_valid = 1'b0;
+    assign resp_29_data = '0;
+    assign resp_30_valid = 1'b0;
+    assign resp_30_data = '0;
+    assign resp_31_valid = 1'b0;
+    assign resp_31_data = '0;
+    assign resp_32_valid = 1'b0;
+    assign resp_32_data = '0;
+    assign resp_33_valid = 1'b0;
+    assign resp_33_data = '0;
+    assign resp_34_valid = 1'b0;
+    assign resp_34_data = '0;
+    assign resp_35_valid = 1'b0;
+    assign resp_35_data = '0;
+    assign resp_36_valid = 1'b0;
+    assign resp_36_data = '0;
+    assign resp_37_valid = 1'b0;
+    assign resp_37_data = '0;
+    assign resp_38_valid = 1'b0;
+    assign resp_38_data = '0;
+    assign resp_39_valid = 1'b0;
+    assign resp_39_data = '0;
+    assign resp_40_valid = 1'b0;
+    assign resp_40_data = '0;
+    assign resp_41_valid = 1'b0;
+    assign resp_41_data = '0;
+    assign resp_42_valid = 1'b0;
+    assign resp_42_data = '0;
+    assign resp_43_valid = 1'b0;
+    assign resp_43_data = '0;
+    assign resp_44_valid = 1'b0;
+    assign resp_44_data = '0;
+    assign resp_45_valid = 1'b0;
+    assign resp_45_data = '0;
+    assign resp_46_valid = 1'b0;
+    assign resp_46_data = '0;
+    assign resp_47_valid = 1'b0;
+    assign resp_47_data = '0;
+    assign resp_48_valid = 1'b0;
+    assign resp_48_data = '0;
+    assign resp_49_valid = 1'b0;
+    assign resp_49_data = '0;
+    assign resp_50_valid = 1'b0;
+    assign resp_50_data = '0;
+    assign resp_51_valid = 1'b0;
+    assign resp_51_data = '0;
+    assign resp_52_valid = 1'b0;
+    assign resp_52_data = '0;
+    assign resp_53_valid = 1'b0;
+    assign resp_53_data = '0;
+    assign resp_54_valid = 1'b0;
+    assign resp_54_data = '0;
+    assign resp_55_valid = 1'b0;
+    assign resp_55_data = '0;
+    assign resp_56_valid = 1'b0;
+    assign resp_56_data = '0;
+    assign resp_57_valid = 1'b0;
+    assign resp_57_data = '0;
+    assign resp_58_valid = 1'b0;
+    assign resp_58_data = '0;
+    assign resp_59_valid = 1'b0;
+    assign resp_59_data = '0;
+    assign resp_60_valid = 1'b0;
+    assign resp_60_data = '0;
+    assign resp_61_valid = 1'b0;
+    assign resp_61_data = '0;
+    assign resp_62_valid = 1'b0;
+    assign resp_62_data = '0;
+    assign resp_63_valid = 1'b0;
+    assign resp_63_data = '0;
+    assign resp_64_valid = 1'b0;
+    assign resp_64_data = '0;
+    assign resp_65_valid = 1'b0;
+    assign resp_65_data = '0;
+    assign resp_66_valid = 1'b0;
+    assign resp_66_data = '0;
+    assign resp_67_valid = 1'b0;
+    assign resp_67_data = '0;
+    assign resp_68_valid = 1'b0;
+    assign resp_68_data = '0;
+    assign resp_69_valid = 1'b0;
+    assign resp_69_data = '0;
+    assign resp_70_valid = 1'b0;
+    assign resp_70_data = '0;
+    assign resp_71_valid = 1'b0;
+    assign resp_71_data = '0;
+    assign resp_72_valid = 1'b0;
+    assign resp_72_data = '0;
+    assign resp_73_valid = 1'b0;
+    assign resp_73_data = '0;
+    assign resp_74_valid = 1'b0;
+    assign resp_74_data = '0;
+    assign resp_75_valid = 1'b0;
+    assign resp_75_data = '0;
+    assign resp_76_valid = 1'b0;
+    assign resp_76_data = '0;
+    assign resp_77_valid = 1'b0;
+    assign resp_77_data = '0;
+    assign resp_78_valid = 1'b0;
+    assign resp_78_data = '0;
+    assign resp_79_valid = 1'b0;
+    assign resp_79_data = '0;
+    assign resp_80_valid = 1'b0;
+    assign resp_80_data = '0;
+    assign resp_81_valid = 1'b0;
+    assign resp_81_data = '0;
+    assign resp_82_valid = 1'b0;
+    assign resp_82_data = '0;
+    assign resp_83_valid = 1'b0;
+    assign resp_83_data = '0;
+    assign resp_84_valid = 1'b0;
+    assign resp_84_data = '0;
+    assign resp_85_valid = 1'b0;
+    assign resp_85_data = '0;
+    assign resp_86_valid = 1'b0;
+    assign resp_86_data = '0;
+    assign resp_87_valid = 1'b0;
+    assign resp_87_data = '0;
+    assign resp_88_valid = 1'b0;
+    assign resp_88_data = '0;
+    assign resp_89_valid = 1'b0;
+    assign resp_89_data = '0;
+    assign resp_90_valid = 1'b0;
+    assign resp_90_data = '0;
+    assign resp_91_valid = 1'b0;
+    assign resp_91_data = '0;
+    assign resp_92_valid = 1'b0;
+    assign resp_92_data = '0;
+    assign resp_93_valid = 1'b0;
+    assign resp_93_data = '0;
+    assign resp_94_valid = 1'b0;
+    assign resp_94_data = '0;
+    assign resp_95_valid = 1'b0;
+    assign resp_95_data = '0;
+    assign resp_96_valid = 1'b0;
+    assign resp_96_data = '0;
+    assign resp_97_valid = 1'b0;
+    assign resp_97_data = '0;
+    assign resp_98_valid = 1'b0;
+    assign resp_98_data = '0;
+    assign resp_99_valid = 1'b0;
+    assign resp_99_data = '0;
+    assign resp_100_valid = 1'b0;
+    assign resp_100_data = '0;
+    assign resp_101_valid = 1'b0;
+    assign resp_101_data = '0;
+    assign resp_102_valid = 1'b0;
+    assign resp_102_data = '0;
+    assign resp_103_valid = 1'b0;
+    assign resp_103_data = '0;
+    assign resp_104_valid = 1'b0;
+    assign resp_104_data = '0;
+    assign resp_105_valid = 1'b0;
+    assign resp_105_data = '0;
+    assign resp_106_valid = 1'b0;
+    assign resp_106_data = '0;
+    assign resp_107_valid = 1'b0;
+    assign resp_107_data = '0;
+    assign resp_108_valid = 1'b0;
+    assign resp_108_data = '0;
+    assign resp_109_valid = 1'b0;
+    assign resp_109_data = '0;
+    assign resp_110_valid = 1'b0;
+    assign resp_110_data = '0;
+    assign resp_111_valid = 1'b0;
+    assign resp_111_data = '0;
+    assign resp_112_valid = 1'b0;
+    assign resp_112_data = '0;
+    assign resp_113_valid = 1'b0;
+    assign resp_113_data = '0;
+    assign resp_114_valid = 1'b0;
+    assign resp_114_data = '0;
+    assign resp_115_valid = 1'b0;
+    assign resp_115_data = '0;
+    assign resp_116_valid = 1'b0;
+    assign resp_116_data = '0;
+    assign resp_117_valid = 1'b0;
+    assign resp_117_data = '0;
+    assign resp_118_valid = 1'b0;
+    assign resp_118_data = '0;
+    assign resp_119_valid = 1'b0;
+    assign resp_119_data = '0;
+    assign resp_120_valid = 1'b0;
+    assign resp_120_data = '0;
+    assign resp_121_valid = 1'b0;
+    assign resp_121_data = '0;
+    assign resp_122_valid = 1'b0;
+    assign resp_122_data = '0;
+    assign resp_123_valid = 1'b0;
+    assign resp_123_data = '0;
+    assign resp_124_valid = 1'b0;
+    assign resp_124_data = '0;
+    assign resp_125_valid = 1'b0;
+    assign resp_125_data = '0;
+    assign resp_126_valid = 1'b0;
+    assign resp_126_data = '0;
+    assign resp_127_valid = 1'b0;
+    assign resp_127_data = '0;
+    assign resp_128_valid = 1'b0;
+    assign resp_128_data = '0;
+    assign resp_129_valid = 1'b0;
+    assign resp_129_data = '0;
+    assign resp_130_valid = 1'b0;
+    assign resp_130_data = '0;
+    wire _unused_ok = &{1'b0, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, req_9_valid, req_9_data, req_10_valid, req_10_data, req_11_valid, req_11_data, req_12_valid, req_12_data, req_13_valid, req_13_data, req_14_valid, req_14_data, req_15_valid, req_15_data, req_16_valid, req_16_data, req_17_valid, req_17_data, req_18_valid, req_18_data, req_19_valid, req_19_data, req_20_valid, req_20_data, req_21_valid, req_21_data, req_22_valid, req_22_data, req_23_valid, req_23_data, req_24_valid, req_24_data, req_25_valid, req_25_data, req_26_valid, req_26_data, req_27_valid, req_27_data, req_28_valid, req_28_data, req_29_valid, req_29_data, req_30_valid, req_30_data, req_31_valid, req_31_data, req_32_valid, req_32_data, req_33_valid, req_33_data, req_34_valid, req_34_data, req_35_valid, req_35_data, req_36_valid, req_36_data, req_37_valid, req_37_data, req_38_valid, req_38_data, req_39_valid, req_39_data, req_40_valid, req_40_data, req_41_valid, req_41_data, req_42_valid, req_42_data, req_43_valid, req_43_data, req_44_valid, req_44_data, req_45_valid, req_45_data, req_46_valid, req_46_data, req_47_valid, req_47_data, req_48_valid, req_48_data, req_49_valid, req_49_data, req_50_valid, req_50_data, req_51_valid, req_51_data, req_52_valid, req_52_data, req_53_valid, req_53_data, req_54_valid, req_54_data, req_55_valid, req_55_data, req_56_valid, req_56_data, req_57_valid, req_57_data, req_58_valid, req_58_data, req_59_valid, req_59_data, req_60_valid, req_60_data, req_61_valid, req_61_data, req_62_valid, req_62_data, req_63_valid, req_63_data, req_64_valid, req_64_data, req_65_valid, req_65_data, req_66_valid, req_66_data, req_67_valid, req_67_data, req_68_valid, req_68_data, req_69_valid, req_69_data, req_70_valid, req_70_data, req_71_valid, req_71_data, req_72_valid, req_72_data, req_73_valid, req_73_data, req_74_valid, req_74_data, req_75_valid, req_75_data, req_76_valid, req_76_data, req_77_valid, req_77_data, req_78_valid, req_78_data, req_79_valid, req_79_data, req_80_valid, req_80_data, req_81_valid, req_81_data, req_82_valid, req_82_data, req_83_valid, req_83_data, req_84_valid, req_84_data, req_85_valid, req_85_data, req_86_valid, req_86_data, req_87_valid, req_87_data, req_88_valid, req_88_data, req_89_valid, req_89_data, req_90_valid, req_90_data, req_91_valid, req_91_data, req_92_valid, req_92_data, req_93_valid, req_93_data, req_94_valid, req_94_data, req_95_valid, req_95_data, req_96_valid, req_96_data, req_97_valid, req_97_data, req_98_valid, req_98_data, req_99_valid, req_99_data, req_100_valid, req_100_data, req_101_valid, req_101_data, req_102_valid, req_102_data, req_103_valid, req_103_data, req_104_valid, req_104_data, req_105_valid, req_105_data, req_106_valid, req_106_data, req_107_valid, req_107_data, req_108_valid, req_108_data, req_109_valid, req_109_data, req_110_valid, req_110_data, req_111_valid, req_111_data, req_112_valid, req_112_data, req_113_valid, req_113_data, req_114_valid, req_114_data, req_115_valid, req_115_data, req_116_valid, req_116_data, req_117_valid, req_117_data, req_118_valid, req_118_data, req_119_valid, req_119_data, req_120_valid, req_120_data, req_121_valid, req_121_data, req_122_valid, req_122_data, req_123_valid, req_123_data, req_124_valid, req_124_data, req_125_valid, req_125_data, req_126_valid, req_126_data, req_127_valid, req_127_data, req_128_valid, req_128_data, req_129_valid, req_129_data, req_130_valid, req_130_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, resp_9_ready, resp_10_ready, resp_11_ready, resp_12_ready, resp_13_ready, resp_14_ready, resp_15_ready, resp_16_ready, resp_17_ready, resp_18_ready, resp_19_ready, resp_20_ready, resp_21_ready, resp_22_ready, resp_23_ready, resp_24_ready, resp_25_ready, resp_26_ready, resp_27_ready, resp_28_ready, resp_29_ready, resp_30_ready, resp_31_ready, resp_32_ready, resp_33_ready, resp_34_ready, resp_35_ready, resp_36_ready, resp_37_ready, resp_38_ready, resp_39_ready, resp_40_ready, resp_41_ready, resp_42_ready, resp_43_ready, resp_44_ready, resp_45_ready, resp_46_ready, resp_47_ready, resp_48_ready, resp_49_ready, resp_50_ready, resp_51_ready, resp_52_ready, resp_53_ready, resp_54_ready, resp_55_ready, resp_56_ready, resp_57_ready, resp_58_ready, resp_59_ready, resp_60_ready, resp_61_ready, resp_62_ready, resp_63_ready, resp_64_ready, resp_65_ready, resp_66_ready, resp_67_ready, resp_68_ready, resp_69_ready, resp_70_ready, resp_71_ready, resp_72_ready, resp_73_ready, resp_74_ready, resp_75_ready, resp_76_ready, resp_77_ready, resp_78_ready, resp_79_ready, resp_80_ready, resp_81_ready, resp_82_ready, resp_83_ready, resp_84_ready, resp_85_ready, resp_86_ready, resp_87_ready, resp_88_ready, resp_89_ready, resp_90_ready, resp_91_ready, resp_92_ready, resp_93_ready, resp_94_ready, resp_95_ready, resp_96_ready, resp_97_ready, resp_98_ready, resp_99_ready, resp_100_ready, resp_101_ready, resp_102_ready, resp_103_ready, resp_104_ready, resp_105_ready, resp_106_ready, resp_107_ready, resp_108_ready, resp_109_ready, resp_110_ready, resp_111_ready, resp_112_ready, resp_113_ready, resp_114_ready, resp_115_ready, resp_116_ready, resp_117_ready, resp_118_ready, resp_119_ready, resp_120_ready, resp_121_ready, resp_122_ready, resp_123_ready, resp_124_ready, resp_125_ready, resp_126_ready, resp_127_ready, resp_128_ready, resp_129_ready, resp_130_ready, in_flight, PORTS[0], LATENCY[0], LINES_PER_CYCLE[0], CHANNELS[0], 1'b0};
 endmodule

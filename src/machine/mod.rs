@@ -21,6 +21,7 @@
 //! run and back out for shading.
 
 pub mod config;
+pub mod hdl;
 pub mod host;
 pub mod trace;
 
