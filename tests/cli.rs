@@ -517,6 +517,22 @@ fn render_cycle_writes_a_waveform_of_the_chosen_units_and_window() {
         out.contains("drain"),
         "the summary gives drain cycles: {out}"
     );
+    // Tracing changes nothing: the same cycles per run without the waveform.
+    let plain = run(&base[..base.len() - 2]);
+    let runs = |s: &str| -> Vec<String> {
+        s.lines()
+            .filter(|l| l.contains("run ") || l.contains("total cycles"))
+            .map(String::from)
+            .collect()
+    };
+    let plain_out = String::from_utf8_lossy(&plain.stdout);
+    assert!(plain.status.success() && !plain_out.contains("waveform"));
+    assert!(runs(&out).len() >= 3);
+    assert_eq!(
+        runs(&out),
+        runs(&plain_out),
+        "cycles with and without --vcd"
+    );
     let (scopes, times) = vcd_scopes_and_times(&vcd);
     assert!(scopes.contains("chip.scheduler"), "{scopes:?}");
     assert!(scopes.contains("chip.tm0.l1") && scopes.contains("chip.tm0.tp3"));
