@@ -157,6 +157,7 @@ fn render_with(scene: &Scene, mode: Mode, c: &Config) -> Result<Frame, String> {
         chip: Some(Box::new(render::ChipRun {
             config: c.clone(),
             sim: Default::default(),
+            trace: None,
         })),
     };
     render::render(scene, mode, &rc, &mut |_| {})

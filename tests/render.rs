@@ -240,7 +240,7 @@ fn cycle_rows_add_the_time_and_dram_energy_figures() {
     let rc = RenderCfg {
         chip: Some(Box::new(dualstream::render::ChipRun {
             config: c,
-            sim: Default::default(),
+            ..Default::default()
         })),
         ..cfg(8)
     };
