@@ -172,6 +172,28 @@ pub struct WaveCycles {
     /// Actions of the TPs' shading states (`tm.costs` shade_load, shade,
     /// shade_emit, shade_store), for the energy model.
     pub shade_uses: [u64; 4],
+    /// Distribution balance: the most and fewest rays one TM got in this run,
+    /// and how many TMs got any (the mean is `rays_traced / tms`).
+    pub tm_rays_max: u64,
+    pub tm_rays_min: u64,
+    pub tms_with_rays: u64,
+}
+
+impl WaveCycles {
+    /// Rays handed to the TMs in this run (duplicates included).
+    pub fn rays_traced(&self) -> u64 {
+        self.rays_emitted + self.duplicates
+    }
+    /// Most rays on one TM over the mean per TM (1 = perfectly balanced; 0 when
+    /// no ray was traced).
+    pub fn tm_imbalance(&self, tms: u64) -> f64 {
+        let n = self.rays_traced();
+        if n == 0 || tms == 0 {
+            0.0
+        } else {
+            self.tm_rays_max as f64 * tms as f64 / n as f64
+        }
+    }
 }
 
 /// The chip, elaborated once per frame.
@@ -486,7 +508,17 @@ impl Chip {
             shade_cycles: s.unit_ref::<StreamScheduler>(self.scheduler).last_shade_end,
             shade_uses: ["shade_load", "shade", "shade_emit", "shade_store"]
                 .map(|n| self.sum_tp(n)),
+            tm_rays_max: 0,
+            tm_rays_min: 0,
+            tms_with_rays: 0,
         }
+    }
+
+    fn sched_tm_rays(&self) -> Vec<u64> {
+        self.sim
+            .unit_ref::<StreamScheduler>(self.scheduler)
+            .tm_rays()
+            .to_vec()
     }
 
     /// Units holding work, and what they wait for (the watchdog's report).
@@ -568,6 +600,7 @@ impl Chip {
         let t0 = Instant::now();
         std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
         let before = self.snapshot();
+        let tm_before = self.sched_tm_rays();
         self.sim
             .unit_mut::<StreamScheduler>(self.scheduler)
             .new_wave();
@@ -617,11 +650,23 @@ impl Chip {
             scene_buffer_reads: after.scene_buffer_reads - before.scene_buffer_reads,
             evals: after.evals - before.evals,
             dram: after.dram.sub(&before.dram),
+            tm_rays_max: 0,
+            tm_rays_min: 0,
+            tms_with_rays: 0,
         };
         for k in 0..StreamTag::COUNT {
             w.lines_read[k] = after.lines_read[k] - before.lines_read[k];
             w.lines_written[k] = after.lines_written[k] - before.lines_written[k];
         }
+        let per_tm: Vec<u64> = self
+            .sched_tm_rays()
+            .iter()
+            .zip(&tm_before)
+            .map(|(a, b)| a - b)
+            .collect();
+        w.tm_rays_max = per_tm.iter().copied().max().unwrap_or(0);
+        w.tm_rays_min = per_tm.iter().copied().min().unwrap_or(0);
+        w.tms_with_rays = per_tm.iter().filter(|&&r| r > 0).count() as u64;
         w.max_stack = self
             .tms
             .iter()

@@ -50,9 +50,14 @@
 //!   other lines the rays span; the next bucket's header may be read as soon as
 //!   the previous header is known. At most `bucket_reads` buckets are being read
 //!   and `bucket_buffers` buckets are on chip (being read, or waiting for a TM).
-//! - **Distribution:** a TM with no bucket in progress takes a waiting bucket of
-//!   the segment it had last, else the oldest waiting bucket; its rays go into the
-//!   `fill` link one per cycle (`last` on the bucket's last ray).
+//! - **Distribution:** a waiting bucket goes to the TM with no bucket in progress
+//!   that has the fewest outstanding rays (handed out, end marker not back: a
+//!   counter per TM), ties broken round-robin from the TM after the last one
+//!   served (`next_tm`, a register that changes only when a bucket is handed
+//!   out); the TM takes a waiting bucket of the segment it had last (L1 reuse,
+//!   §4.1), else the oldest. Its rays go into the `fill` link one per cycle
+//!   (`last` on the bucket's last ray). Shading items go out the same way when
+//!   no bucket waits. (Lowest-numbered TMs first left most of a 128-TM chip idle.)
 //! - **Retirement:** a working-set segment whose queue is read, whose buckets are
 //!   all forwarded, and whose every forwarded ray has sent its end marker retires:
 //!   its children's queues are closed (one per cycle) and those holding rays
@@ -173,6 +178,9 @@ pub struct TmFwd {
     /// (segment, rays, next position)
     pub cur: Option<(u32, Vec<RayRec>, usize)>,
     pub last_seg: Option<u32>,
+    /// Rays and shading items handed to this TM whose end marker has not come
+    /// back yet (a counter per TM: what the distribution balances).
+    pub outstanding: u32,
 }
 
 /// Everything the scheduler holds.
@@ -191,6 +199,9 @@ pub struct SchedState {
     pub reads: Vec<Option<BucketRead>>,
     pub ready: VecDeque<(u32, Vec<RayRec>)>,
     pub tms: Vec<TmFwd>,
+    /// Round-robin pointer of the distribution: the TM after the one that got
+    /// the last bucket (changes only when a bucket is handed out).
+    pub next_tm: u32,
     pub out: VecDeque<MemLineReq>,
     pub closing: VecDeque<u32>,
     pub pending_map: Option<SlotMap>,
@@ -215,6 +226,7 @@ impl Behavioural for SchedState {
         out.items.push(StateDecl::reg("buckets_ready", 8));
         out.items.push(StateDecl::reg("mem_queued", 8));
         out.items.push(StateDecl::reg("next_eligible", 32));
+        out.items.push(StateDecl::reg("next_tm", 16));
         // Destination table entry: head and tail pointers, counts, line buffer mask.
         out.items
             .push(StateDecl::array("dest_table", 224, self.cap_dest.max(1)));
@@ -233,6 +245,7 @@ impl Behavioural for SchedState {
         out.slot().push(self.out.len() as u64, 8);
         out.slot()
             .push(self.eligible.first().map_or(u32::MAX, |&s| s) as u64, 32);
+        out.slot().push(self.next_tm as u64, 16);
     }
     fn reset(&mut self) {
         // Rebuilt by the owner (`StreamScheduler::fresh_state`) at construction;
@@ -289,6 +302,7 @@ crate::unit! {
             pub_done: Vec<u64>,
             last_shade_end: u64,
             root_log: Option<Vec<RayRec>>,
+            tm_rays: Vec<u64>,
             stats: SchedStats
         }
     }
@@ -361,6 +375,7 @@ impl StreamScheduler {
             pub_done: vec![0; segments],
             last_shade_end: 0,
             root_log: None,
+            tm_rays: vec![0; tms],
             stats: SchedStats::default(),
         }
     }
@@ -427,6 +442,10 @@ impl StreamScheduler {
     pub fn stats(&self) -> SchedStats {
         self.stats
     }
+    /// Rays handed to each TM (cumulative; shading items not counted).
+    pub fn tm_rays(&self) -> &[u64] {
+        &self.tm_rays
+    }
     pub fn live_buckets(&self) -> u64 {
         self.st.r().live_buckets
     }
@@ -446,6 +465,22 @@ impl StreamScheduler {
     pub fn new_wave(&mut self) {
         self.pub_enqueued.iter_mut().for_each(|x| *x = 0);
         self.pub_done.iter_mut().for_each(|x| *x = 0);
+    }
+
+    /// The free TM (no bucket in progress) with the fewest outstanding rays,
+    /// the first from `next_tm` on a tie.
+    fn pick_tm(&self) -> Option<usize> {
+        let s = self.st.r();
+        let n = s.tms.len();
+        let mut best: Option<(u32, usize)> = None;
+        for j in 0..n {
+            let k = (s.next_tm as usize + j) % n;
+            let t = &s.tms[k];
+            if t.cur.is_none() && best.is_none_or(|(o, _)| t.outstanding < o) {
+                best = Some((t.outstanding, k));
+            }
+        }
+        best.map(|(_, k)| k)
     }
 
     fn out_room(&self) -> usize {
@@ -599,7 +634,13 @@ impl StreamScheduler {
     }
 
     /// Accepts a duplicate or a marker.
-    fn accept_write(&mut self, w: &RayWrite) {
+    fn accept_write(&mut self, w: &RayWrite, tm: Option<usize>) {
+        if w.done
+            && let Some(k) = tm
+        {
+            let t = &mut self.st.m().tms[k];
+            t.outstanding = t.outstanding.saturating_sub(1);
+        }
         if w.done && w.seg == SHADE_SEG {
             self.stats.shade_done += 1;
             self.st
@@ -819,12 +860,15 @@ impl Logic for StreamScheduler {
                     continue; // the table is full: the write waits in its link
                 }
             }
-            if j == n {
+            let tm = if j == n {
                 ctx.pop(&self.emit);
+                None
             } else {
-                ctx.pop(&self.ray_write[(c as usize + j) % n]);
-            }
-            self.accept_write(&w);
+                let k = (c as usize + j) % n;
+                ctx.pop(&self.ray_write[k]);
+                Some(k)
+            };
+            self.accept_write(&w, tm);
             taken += 1;
             worked = true;
         }
@@ -1016,13 +1060,21 @@ impl Logic for StreamScheduler {
             worked = true;
         }
 
-        // 9. Distribution to the TMs' staging buffers.
-        for k in 0..n {
-            // Shading items (pixels, a bucket's worth at a time) to idle TMs.
+        // 9. Distribution to the TMs' staging buffers: each waiting bucket (or,
+        // when none waits, a bucket's worth of shading items) goes to the free TM
+        // (no bucket in progress) with the fewest outstanding rays, ties broken
+        // round-robin from `next_tm`.
+        loop {
             let shade_left = self.st.r().shade.as_ref().is_some_and(|p| p.next < p.end);
-            if self.st.r().tms[k].cur.is_none() && self.st.r().ready.is_empty() && shade_left {
+            if self.st.r().ready.is_empty() && !shade_left {
+                break;
+            }
+            let Some(k) = self.pick_tm() else { break };
+            let st = self.st.m();
+            st.next_tm = ((k + 1) % n) as u32;
+            if st.ready.is_empty() {
+                // Shading items (pixels, a bucket's worth at a time).
                 let rpb = self.rays_per_bucket;
-                let st = self.st.m();
                 let p = st.shade.as_mut().expect("shading");
                 let m = rpb.min(p.end - p.next);
                 let items = (p.next..p.next + m)
@@ -1036,11 +1088,11 @@ impl Logic for StreamScheduler {
                 p.next += m;
                 p.out += m as u64;
                 self.stats.shade_items += m as u64;
+                st.tms[k].outstanding += m;
                 st.tms[k].cur = Some((SHADE_SEG, items, 0));
-                worked = true;
-            }
-            if self.st.r().tms[k].cur.is_none() && !self.st.r().ready.is_empty() {
-                let st = self.st.m();
+            } else {
+                // A bucket of the segment the TM had last (L1 reuse, §4.1), else
+                // the oldest.
                 let last = st.tms[k].last_seg;
                 let pick = last
                     .and_then(|s| st.ready.iter().position(|(rs, _)| *rs == s))
@@ -1050,10 +1102,14 @@ impl Logic for StreamScheduler {
                 let w = st.ws.iter_mut().find(|w| w.seg == seg).expect("ws");
                 w.rays_fwd += rays.len() as u64;
                 self.stats.buckets_forwarded += 1;
+                self.tm_rays[k] += rays.len() as u64;
+                st.tms[k].outstanding += rays.len() as u32;
                 st.tms[k].cur = Some((seg, rays, 0));
                 st.tms[k].last_seg = Some(seg);
-                worked = true;
             }
+            worked = true;
+        }
+        for k in 0..n {
             let shade_item = self.st.r().tms[k]
                 .cur
                 .as_ref()
@@ -1151,5 +1207,6 @@ impl Logic for StreamScheduler {
 
     fn reset_counters(&mut self) {
         self.stats = SchedStats::default();
+        self.tm_rays.iter_mut().for_each(|x| *x = 0);
     }
 }
