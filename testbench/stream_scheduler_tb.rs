@@ -224,6 +224,9 @@ impl Default for SchedTbCfg {
 pub fn unit_config(base: &crate::config::Config, b: &SchedTbCfg) -> crate::config::Config {
     let mut cfg = base.clone();
     cfg.chip.tms = b.tms;
+    // The bench's line memory has one port: one ray-stream lane. The scene
+    // lanes (`scene_lines_per_cycle`) each go to a sink.
+    cfg.chip.scheduler.ray_lines_per_cycle = 1;
     if let Some(sb) = b.segment_bytes {
         cfg.accel.segment_bytes = sb;
         cfg.chip.scene_buffer.slot_bytes = sb;
@@ -278,7 +281,10 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
     let (qo, qi) = sim.link::<MemLineReq>("sched.mem_req", link);
     let (ro, ri) = sim.link::<MemLineResp>("sched.mem_resp", link);
     let (mo, mi) = sim.link::<SlotMap>("sched.slot_map", link);
-    let (sco, sci) = sim.link::<MemLineReq>("sched.scene_req", link);
+    let lanes = cfg.chip.scheduler.scene_lines_per_cycle as usize;
+    let (sco, sci): (Vec<_>, Vec<_>) = (0..lanes)
+        .map(|j| sim.link::<MemLineReq>(&format!("sched.scene_req{j}"), link))
+        .unzip();
     let mut rw_in = Vec::new();
     let mut fill_out = Vec::new();
     let mut tm_ports = Vec::new();
@@ -300,10 +306,10 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
             nseg,
             ei,
             si,
-            ri,
+            vec![ri],
             mo,
             sco,
-            qo,
+            vec![qo],
             rw_in,
             fill_out,
         ),
@@ -323,7 +329,11 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
         ),
     );
     let map_sink = sim.add("tb.slot_map", clk, Sink::new(mi, 1.0, 0));
-    let scene_sink = sim.add("tb.scene", clk, Sink::new(sci, 1.0, 0));
+    let scene_sinks: Vec<UnitId> = sci
+        .into_iter()
+        .enumerate()
+        .map(|(j, i)| sim.add(&format!("tb.scene{j}"), clk, Sink::new(i, 1.0, 0)))
+        .collect();
     let mut tms: Vec<UnitId> = Vec::new();
     for (k, (fi, wo)) in tm_ports.into_iter().enumerate() {
         tms.push(sim.add(
@@ -518,9 +528,12 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
         }
     }
     // Segment streams: every line of every admitted segment once.
-    let scene = &sim.unit_ref::<Sink<MemLineReq>>(scene_sink).got;
+    let scene: Vec<_> = scene_sinks
+        .iter()
+        .flat_map(|&u| sim.unit_ref::<Sink<MemLineReq>>(u).got.iter())
+        .collect();
     let mut lines: BTreeMap<u64, u32> = BTreeMap::new();
-    for (_, r) in scene {
+    for (_, r) in &scene {
         *lines.entry(r.addr).or_default() += 1;
     }
     let mut want_lines = 0u64;

@@ -463,3 +463,51 @@ fn distribution_is_invariant_under_sleeping_shadow_and_shuffles() {
         assert_eq!(v.1, base.1, "{what}: per-run figures");
     }
 }
+
+// ---- stream bandwidth: lines per cycle ----
+
+fn sched_counter(o: &Outcome, name: &str) -> u64 {
+    o.stats
+        .iter()
+        .find(|u| u.path == "chip.scheduler")
+        .and_then(|u| u.counters.iter().find(|(n, _)| *n == name))
+        .map(|(_, v)| *v)
+        .unwrap()
+}
+
+/// `chip.scheduler.ray_lines_per_cycle` / `scene_lines_per_cycle` memory ports
+/// each: the streams issue that many lines in one cycle (a segment streams in a
+/// burst), never more, with both memory models; one lane each issues one line
+/// per cycle and the hits come out the same. (This run is latency-bound: the
+/// cycles are not compared; see docs/chip.md for measured frames.)
+#[test]
+fn stream_lanes_carry_several_lines_per_cycle() {
+    for gddr5 in [false, true] {
+        let run = |ray: u32, scene: u32| {
+            let mut cfg = if gddr5 {
+                gddr5_cfg(1, 4)
+            } else {
+                chip_cfg(1, 4)
+            };
+            cfg.chip.scheduler.ray_lines_per_cycle = ray;
+            cfg.chip.scheduler.scene_lines_per_cycle = scene;
+            run_tiny_chip_with(cfg, SimOptions::default(), "chip.scheduler")
+        };
+        let one = run(1, 1);
+        assert_eq!(sched_counter(&one, "ray_lines_peak"), 1);
+        assert_eq!(sched_counter(&one, "scene_lines_peak"), 1);
+        let wide = run(3, 4);
+        assert_eq!(sched_counter(&wide, "scene_lines_peak"), 4, "gddr5 {gddr5}");
+        let r = sched_counter(&wide, "ray_lines_peak");
+        assert!((2..=3).contains(&r), "gddr5 {gddr5}: ray lines peak {r}");
+        assert_eq!(wide.hits, one.hits, "gddr5 {gddr5}: the same hit records");
+    }
+}
+
+#[test]
+fn bad_stream_lanes_are_named() {
+    for (key, v) in [("ray_lines_per_cycle", 0), ("scene_lines_per_cycle", 17)] {
+        let e = Config::from_toml(&format!("[chip.scheduler]\n{key} = {v}\n")).unwrap_err();
+        assert!(e.contains(&format!("chip.scheduler.{key} = {v}")), "{e}");
+    }
+}

@@ -8,9 +8,11 @@
 //! - TM k `miss_req` -> scene buffer `req[k]`; scene buffer `resp[k]` -> TM k `miss_resp`;
 //! - TM k `hit` -> hit record updater `hit[k]`;
 //! - scheduler `slot_map` -> scene buffer;
-//! - memory port 0: scheduler `mem_req`/`mem_resp` (ray stream, segment table);
-//!   port 1: scheduler `scene_req` -> memory -> scene buffer `fill` (scene stream);
-//!   port 2: hit record updater (hit records);
+//! - memory port 0: scheduler `mem_req[0]`/`mem_resp[0]` (ray stream, segment table);
+//!   port 1: scheduler `scene_req[0]` -> memory -> scene buffer `fill[0]` (scene stream);
+//!   port 2: hit record updater (hit records); then the TMs' `gmem` ports; then
+//!   the scheduler's further ray lanes `mem_req[j]` and scene lanes `scene_req[j]`,
+//!   j >= 1 (`chip.scheduler.ray_lines_per_cycle`, `scene_lines_per_cycle`);
 //! - `chip.memory.model = "gddr5"`: memory `ch_req[c]`/`ch_resp[c]` <-> `chip.mem_ctrl{c}`
 //!   (one per channel, on the DRAM clock; docs/chip.md "Memory timing").
 //!
@@ -253,6 +255,38 @@ impl Chip {
             mresp_o.push(a);
             mresp_i.push(Some(b));
         }
+        // Further stream lanes (one memory port per line per cycle): their links
+        // now, their memory ports after the TMs' (ports 0-2 stay the first lanes).
+        let (mut lane_req_o, mut lane_req_i, mut lane_resp_o, mut lane_resp_i) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (who, lanes) in [
+            ("sched", ch.scheduler.ray_lines_per_cycle),
+            ("scene", ch.scheduler.scene_lines_per_cycle),
+        ] {
+            for j in 1..lanes {
+                let (a, b) = sim.link::<MemLineReq>(&format!("chip.mem_req_{who}{j}"), l);
+                lane_req_o.push(a);
+                lane_req_i.push(b);
+                let (a, b) = sim.link::<MemLineResp>(&format!("chip.mem_resp_{who}{j}"), l);
+                lane_resp_o.push(a);
+                lane_resp_i.push(b);
+            }
+        }
+        let ray_extra = ch.scheduler.ray_lines_per_cycle as usize - 1;
+        let mut lane_req_o = lane_req_o.into_iter();
+        let mut lane_resp_i = lane_resp_i.into_iter();
+        let sched_req: Vec<_> = std::iter::once(mreq_o[PORT_SCHED].take().expect("port"))
+            .chain(lane_req_o.by_ref().take(ray_extra))
+            .collect();
+        let sched_resp: Vec<_> = std::iter::once(mresp_i[PORT_SCHED].take().expect("port"))
+            .chain(lane_resp_i.by_ref().take(ray_extra))
+            .collect();
+        let scene_req: Vec<_> = std::iter::once(mreq_o[PORT_SCENE].take().expect("port"))
+            .chain(lane_req_o)
+            .collect();
+        let scene_fill: Vec<_> = std::iter::once(mresp_i[PORT_SCENE].take().expect("port"))
+            .chain(lane_resp_i)
+            .collect();
         let (emit_o, emit_i) = sim.link::<RayWrite>("chip.emit", l);
         let (start_o, start_i) = sim.link::<WaveStart>("chip.start", l);
         let (map_o, map_i) = sim.link::<SlotMap>("chip.slot_map", l);
@@ -299,10 +333,10 @@ impl Chip {
                 segments,
                 emit_i,
                 start_i,
-                mresp_i[PORT_SCHED].take().expect("port"),
+                sched_resp,
                 map_o,
-                mreq_o[PORT_SCENE].take().expect("port"),
-                mreq_o[PORT_SCHED].take().expect("port"),
+                scene_req,
+                sched_req,
                 rw_i,
                 fill_o,
             ),
@@ -310,14 +344,7 @@ impl Chip {
         let scene_buffer = sim.add(
             "chip.scene_buffer",
             clock,
-            SceneBuffer::new(
-                &ch.scene_buffer,
-                l.delay,
-                map_i,
-                mresp_i[PORT_SCENE].take().expect("port"),
-                sbq_i,
-                sbr_o,
-            ),
+            SceneBuffer::new(&ch.scene_buffer, l.delay, map_i, scene_fill, sbq_i, sbr_o),
         );
         let hit_updater = sim.add(
             "chip.hit_updater",
@@ -333,6 +360,8 @@ impl Chip {
         // The TMs' global-memory ports (the shading pass) go to the memory too.
         mreq_i.extend(gmem_i);
         mresp_o.extend(gmem_o);
+        mreq_i.extend(lane_req_i);
+        mresp_o.extend(lane_resp_o);
         let mut memory_unit = Memory::new(
             &ch.memory,
             l.delay,

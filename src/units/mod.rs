@@ -63,18 +63,25 @@ fn chip_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
         1,
     )
     .expect("a one-segment map fits");
+    // Memory ports: the scheduler's ray and scene lanes and the hit record
+    // updater (the TMs' gmem ports are not part of the skeleton).
+    let (ray_lanes, scene_lanes) = (
+        cfg.chip.scheduler.ray_lines_per_cycle as usize,
+        cfg.chip.scheduler.scene_lines_per_cycle as usize,
+    );
+    let ports = ray_lanes + scene_lanes + 1;
     let mem = memory::Memory::new(
         &cfg.chip.memory,
         d,
         crate::contract::SparseMem::new(0),
-        ins(3),
-        outs(3),
+        ins(ports),
+        outs(ports),
     );
     let sb = scene_buffer::SceneBuffer::new(
         &cfg.chip.scene_buffer,
         d,
         In::new(i),
-        In::new(i),
+        ins(scene_lanes),
         ins(n),
         outs(n),
     );
@@ -92,10 +99,10 @@ fn chip_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
         1,
         In::new(i),
         In::new(i),
-        In::new(i),
+        ins(ray_lanes),
         Out::new(o),
-        Out::new(o),
-        Out::new(o),
+        outs(scene_lanes),
+        outs(ray_lanes),
         ins(n),
         outs(n),
     );
