@@ -59,6 +59,42 @@ module chip (
     wire mem_resp2_l2_valid;
     wire mem_resp2_l2_ready;
     wire [611:0] mem_resp2_l2_data;
+    wire mem_req_sched1_valid;
+    wire mem_req_sched1_ready;
+    wire [675:0] mem_req_sched1_data;
+    wire mem_resp_sched1_valid;
+    wire mem_resp_sched1_ready;
+    wire [611:0] mem_resp_sched1_data;
+    wire mem_req_sched2_valid;
+    wire mem_req_sched2_ready;
+    wire [675:0] mem_req_sched2_data;
+    wire mem_resp_sched2_valid;
+    wire mem_resp_sched2_ready;
+    wire [611:0] mem_resp_sched2_data;
+    wire mem_req_sched3_valid;
+    wire mem_req_sched3_ready;
+    wire [675:0] mem_req_sched3_data;
+    wire mem_resp_sched3_valid;
+    wire mem_resp_sched3_ready;
+    wire [611:0] mem_resp_sched3_data;
+    wire mem_req_scene1_valid;
+    wire mem_req_scene1_ready;
+    wire [675:0] mem_req_scene1_data;
+    wire mem_resp_scene1_valid;
+    wire mem_resp_scene1_ready;
+    wire [611:0] mem_resp_scene1_data;
+    wire mem_req_scene2_valid;
+    wire mem_req_scene2_ready;
+    wire [675:0] mem_req_scene2_data;
+    wire mem_resp_scene2_valid;
+    wire mem_resp_scene2_ready;
+    wire [611:0] mem_resp_scene2_data;
+    wire mem_req_scene3_valid;
+    wire mem_req_scene3_ready;
+    wire [675:0] mem_req_scene3_data;
+    wire mem_resp_scene3_valid;
+    wire mem_resp_scene3_ready;
+    wire [611:0] mem_resp_scene3_data;
     wire slot_map_valid;
     wire slot_map_ready;
     wire [119:0] slot_map_data;
@@ -1252,7 +1288,7 @@ module chip (
         .flush_done_ready(flush_done_ready),
         .flush_done_data(flush_done_data)
     );
-    memory #(.PORTS(3), .LATENCY(100), .LINES_PER_CYCLE(8), .CHANNELS(0)) u_memory (
+    memory #(.PORTS(9), .LATENCY(100), .LINES_PER_CYCLE(8), .CHANNELS(0)) u_memory (
         .clk(clk),
         .rst(rst),
         .req_0_valid(mem_req0_sched_valid),
@@ -1272,14 +1308,59 @@ module chip (
         .req_2_data(mem_req2_l2_data),
         .resp_2_valid(mem_resp2_l2_valid),
         .resp_2_ready(mem_resp2_l2_ready),
-        .resp_2_data(mem_resp2_l2_data)
+        .resp_2_data(mem_resp2_l2_data),
+        .req_3_valid(mem_req_sched1_valid),
+        .req_3_ready(mem_req_sched1_ready),
+        .req_3_data(mem_req_sched1_data),
+        .resp_3_valid(mem_resp_sched1_valid),
+        .resp_3_ready(mem_resp_sched1_ready),
+        .resp_3_data(mem_resp_sched1_data),
+        .req_4_valid(mem_req_sched2_valid),
+        .req_4_ready(mem_req_sched2_ready),
+        .req_4_data(mem_req_sched2_data),
+        .resp_4_valid(mem_resp_sched2_valid),
+        .resp_4_ready(mem_resp_sched2_ready),
+        .resp_4_data(mem_resp_sched2_data),
+        .req_5_valid(mem_req_sched3_valid),
+        .req_5_ready(mem_req_sched3_ready),
+        .req_5_data(mem_req_sched3_data),
+        .resp_5_valid(mem_resp_sched3_valid),
+        .resp_5_ready(mem_resp_sched3_ready),
+        .resp_5_data(mem_resp_sched3_data),
+        .req_6_valid(mem_req_scene1_valid),
+        .req_6_ready(mem_req_scene1_ready),
+        .req_6_data(mem_req_scene1_data),
+        .resp_6_valid(mem_resp_scene1_valid),
+        .resp_6_ready(mem_resp_scene1_ready),
+        .resp_6_data(mem_resp_scene1_data),
+        .req_7_valid(mem_req_scene2_valid),
+        .req_7_ready(mem_req_scene2_ready),
+        .req_7_data(mem_req_scene2_data),
+        .resp_7_valid(mem_resp_scene2_valid),
+        .resp_7_ready(mem_resp_scene2_ready),
+        .resp_7_data(mem_resp_scene2_data),
+        .req_8_valid(mem_req_scene3_valid),
+        .req_8_ready(mem_req_scene3_ready),
+        .req_8_data(mem_req_scene3_data),
+        .resp_8_valid(mem_resp_scene3_valid),
+        .resp_8_ready(mem_resp_scene3_ready),
+        .resp_8_data(mem_resp_scene3_data)
     );
     scene_buffer #(.SLOTS(64), .SLOT_LINES(1024), .BANKS(32), .LATENCY(4), .TMS(128)) u_scene_buffer (
         .clk(clk),
         .rst(rst),
-        .fill_valid(mem_resp1_scene_valid),
-        .fill_ready(mem_resp1_scene_ready),
-        .fill_data(mem_resp1_scene_data),
+        .fill_0_valid(mem_resp1_scene_valid),
+        .fill_0_ready(mem_resp1_scene_ready),
+        .fill_0_data(mem_resp1_scene_data),
+        .fill_1_valid(mem_resp_scene1_valid),
+        .fill_1_ready(mem_resp_scene1_ready),
+        .fill_1_data(mem_resp_scene1_data),
+        .fill_2_valid(mem_resp_scene2_valid),
+        .fill_2_ready(mem_resp_scene2_ready),
+        .fill_2_data(mem_resp_scene2_data),
+        .fill_3_valid(mem_resp_scene3_valid),
+        .fill_3_ready(mem_resp_scene3_ready),
+        .fill_3_data(mem_resp_scene3_data),
         .slot_map_valid(slot_map_valid),
         .slot_map_ready(slot_map_ready),
         .slot_map_data(slot_map_data),
@@ -2052,18 +2133,45 @@ module chip (
         .resp_127_ready(tm_miss_resp_ready[127]),
         .resp_127_data(tm_miss_resp_data[73727:73152])
     );
-    stream_scheduler #(.TMS(128), .STREAMS(8), .SLOTS(64), .DEST_ENTRIES(1024), .WRITES_PER_CYCLE(4), .BUCKET_BUFFERS(16), .MEM_QUEUE(32)) u_scheduler (
+    stream_scheduler #(.TMS(128), .STREAMS(8), .SLOTS(64), .DEST_ENTRIES(1024), .WRITES_PER_CYCLE(4), .BUCKET_BUFFERS(16), .MEM_QUEUE(32), .RAY_LINES_PER_CYCLE(4), .SCENE_LINES_PER_CYCLE(4)) u_scheduler (
         .clk(clk),
         .rst(rst),
-        .mem_req_valid(mem_req0_sched_valid),
-        .mem_req_ready(mem_req0_sched_ready),
-        .mem_req_data(mem_req0_sched_data),
-        .mem_resp_valid(mem_resp0_sched_valid),
-        .mem_resp_ready(mem_resp0_sched_ready),
-        .mem_resp_data(mem_resp0_sched_data),
-        .scene_req_valid(mem_req1_scene_valid),
-        .scene_req_ready(mem_req1_scene_ready),
-        .scene_req_data(mem_req1_scene_data),
+        .mem_req_0_valid(mem_req0_sched_valid),
+        .mem_req_0_ready(mem_req0_sched_ready),
+        .mem_req_0_data(mem_req0_sched_data),
+        .mem_resp_0_valid(mem_resp0_sched_valid),
+        .mem_resp_0_ready(mem_resp0_sched_ready),
+        .mem_resp_0_data(mem_resp0_sched_data),
+        .scene_req_0_valid(mem_req1_scene_valid),
+        .scene_req_0_ready(mem_req1_scene_ready),
+        .scene_req_0_data(mem_req1_scene_data),
+        .mem_req_1_valid(mem_req_sched1_valid),
+        .mem_req_1_ready(mem_req_sched1_ready),
+        .mem_req_1_data(mem_req_sched1_data),
+        .mem_resp_1_valid(mem_resp_sched1_valid),
+        .mem_resp_1_ready(mem_resp_sched1_ready),
+        .mem_resp_1_data(mem_resp_sched1_data),
+        .mem_req_2_valid(mem_req_sched2_valid),
+        .mem_req_2_ready(mem_req_sched2_ready),
+        .mem_req_2_data(mem_req_sched2_data),
+        .mem_resp_2_valid(mem_resp_sched2_valid),
+        .mem_resp_2_ready(mem_resp_sched2_ready),
+        .mem_resp_2_data(mem_resp_sched2_data),
+        .mem_req_3_valid(mem_req_sched3_valid),
+        .mem_req_3_ready(mem_req_sched3_ready),
+        .mem_req_3_data(mem_req_sched3_data),
+        .mem_resp_3_valid(mem_resp_sched3_valid),
+        .mem_resp_3_ready(mem_resp_sched3_ready),
+        .mem_resp_3_data(mem_resp_sched3_data),
+        .scene_req_1_valid(mem_req_scene1_valid),
+        .scene_req_1_ready(mem_req_scene1_ready),
+        .scene_req_1_data(mem_req_scene1_data),
+        .scene_req_2_valid(mem_req_scene2_valid),
+        .scene_req_2_ready(mem_req_scene2_ready),
+        .scene_req_2_data(mem_req_scene2_data),
+        .scene_req_3_valid(mem_req_scene3_valid),
+        .scene_req_3_ready(mem_req_scene3_ready),
+        .scene_req_3_data(mem_req_scene3_data),
         .emit_valid(emit_valid),
         .emit_ready(emit_ready),
         .emit_data(emit_data),

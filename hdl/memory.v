@@ -4,7 +4,7 @@
 // Ports are valid/ready links; data is the payload packed LSB-first.
 // State: 16 bits.
 module memory #(
-    parameter integer PORTS = 3,
+    parameter integer PORTS = 9,
     parameter integer LATENCY = 100,
     parameter integer LINES_PER_CYCLE = 8,
     parameter integer CHANNELS = 0
@@ -20,6 +20,24 @@ module memory #(
     input  wire req_2_valid,
     output wire req_2_ready,
     input  wire [675:0] req_2_data,
+    input  wire req_3_valid,
+    output wire req_3_ready,
+    input  wire [675:0] req_3_data,
+    input  wire req_4_valid,
+    output wire req_4_ready,
+    input  wire [675:0] req_4_data,
+    input  wire req_5_valid,
+    output wire req_5_ready,
+    input  wire [675:0] req_5_data,
+    input  wire req_6_valid,
+    output wire req_6_ready,
+    input  wire [675:0] req_6_data,
+    input  wire req_7_valid,
+    output wire req_7_ready,
+    input  wire [675:0] req_7_data,
+    input  wire req_8_valid,
+    output wire req_8_ready,
+    input  wire [675:0] req_8_data,
     output wire resp_0_valid,
     input  wire resp_0_ready,
     output wire [611:0] resp_0_data,
@@ -28,7 +46,25 @@ module memory #(
     output wire [611:0] resp_1_data,
     output wire resp_2_valid,
     input  wire resp_2_ready,
-    output wire [611:0] resp_2_data
+    output wire [611:0] resp_2_data,
+    output wire resp_3_valid,
+    input  wire resp_3_ready,
+    output wire [611:0] resp_3_data,
+    output wire resp_4_valid,
+    input  wire resp_4_ready,
+    output wire [611:0] resp_4_data,
+    output wire resp_5_valid,
+    input  wire resp_5_ready,
+    output wire [611:0] resp_5_data,
+    output wire resp_6_valid,
+    input  wire resp_6_ready,
+    output wire [611:0] resp_6_data,
+    output wire resp_7_valid,
+    input  wire resp_7_ready,
+    output wire [611:0] resp_7_data,
+    output wire resp_8_valid,
+    input  wire resp_8_ready,
+    output wire [611:0] resp_8_data
 );
 
     reg [15:0] in_flight;
@@ -43,11 +79,29 @@ module memory #(
     assign req_0_ready = 1'b0;
     assign req_1_ready = 1'b0;
     assign req_2_ready = 1'b0;
+    assign req_3_ready = 1'b0;
+    assign req_4_ready = 1'b0;
+    assign req_5_ready = 1'b0;
+    assign req_6_ready = 1'b0;
+    assign req_7_ready = 1'b0;
+    assign req_8_ready = 1'b0;
     assign resp_0_valid = 1'b0;
     assign resp_0_data = '0;
     assign resp_1_valid = 1'b0;
     assign resp_1_data = '0;
     assign resp_2_valid = 1'b0;
     assign resp_2_data = '0;
-    wire _unused_ok = &{1'b0, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, resp_0_ready, resp_1_ready, resp_2_ready, in_flight, PORTS[0], LATENCY[0], LINES_PER_CYCLE[0], CHANNELS[0], 1'b0};
+    assign resp_3_valid = 1'b0;
+    assign resp_3_data = '0;
+    assign resp_4_valid = 1'b0;
+    assign resp_4_data = '0;
+    assign resp_5_valid = 1'b0;
+    assign resp_5_data = '0;
+    assign resp_6_valid = 1'b0;
+    assign resp_6_data = '0;
+    assign resp_7_valid = 1'b0;
+    assign resp_7_data = '0;
+    assign resp_8_valid = 1'b0;
+    assign resp_8_data = '0;
+    wire _unused_ok = &{1'b0, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, in_flight, PORTS[0], LATENCY[0], LINES_PER_CYCLE[0], CHANNELS[0], 1'b0};
 endmodule

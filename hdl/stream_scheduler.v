@@ -2,7 +2,7 @@
 // Regenerate with `dualstream hdl --out hdl/`.
 // Stream scheduler: working set, segment streams, ray queues, bucket distribution.
 // Ports are valid/ready links; data is the payload packed LSB-first.
-// State: 230672 bits.
+// State: 230688 bits.
 module stream_scheduler #(
     parameter integer TMS = 128,
     parameter integer STREAMS = 8,
@@ -10,7 +10,9 @@ module stream_scheduler #(
     parameter integer DEST_ENTRIES = 1024,
     parameter integer WRITES_PER_CYCLE = 4,
     parameter integer BUCKET_BUFFERS = 16,
-    parameter integer MEM_QUEUE = 32
+    parameter integer MEM_QUEUE = 32,
+    parameter integer RAY_LINES_PER_CYCLE = 4,
+    parameter integer SCENE_LINES_PER_CYCLE = 4
 ) (
     input  wire clk,
     input  wire rst,
@@ -20,18 +22,9 @@ module stream_scheduler #(
     input  wire start_valid,
     output wire start_ready,
     input  wire [63:0] start_data,
-    input  wire mem_resp_valid,
-    output wire mem_resp_ready,
-    input  wire [611:0] mem_resp_data,
     output wire slot_map_valid,
     input  wire slot_map_ready,
     output wire [119:0] slot_map_data,
-    output wire scene_req_valid,
-    input  wire scene_req_ready,
-    output wire [675:0] scene_req_data,
-    output wire mem_req_valid,
-    input  wire mem_req_ready,
-    output wire [675:0] mem_req_data,
     input  wire ray_write_0_valid,
     output wire ray_write_0_ready,
     input  wire [288:0] ray_write_0_data,
@@ -416,6 +409,18 @@ module stream_scheduler #(
     input  wire ray_write_127_valid,
     output wire ray_write_127_ready,
     input  wire [288:0] ray_write_127_data,
+    input  wire mem_resp_0_valid,
+    output wire mem_resp_0_ready,
+    input  wire [611:0] mem_resp_0_data,
+    input  wire mem_resp_1_valid,
+    output wire mem_resp_1_ready,
+    input  wire [611:0] mem_resp_1_data,
+    input  wire mem_resp_2_valid,
+    output wire mem_resp_2_ready,
+    input  wire [611:0] mem_resp_2_data,
+    input  wire mem_resp_3_valid,
+    output wire mem_resp_3_ready,
+    input  wire [611:0] mem_resp_3_data,
     output wire fill_0_valid,
     input  wire fill_0_ready,
     output wire [384:0] fill_0_data,
@@ -799,7 +804,31 @@ module stream_scheduler #(
     output wire [384:0] fill_126_data,
     output wire fill_127_valid,
     input  wire fill_127_ready,
-    output wire [384:0] fill_127_data
+    output wire [384:0] fill_127_data,
+    output wire mem_req_0_valid,
+    input  wire mem_req_0_ready,
+    output wire [675:0] mem_req_0_data,
+    output wire mem_req_1_valid,
+    input  wire mem_req_1_ready,
+    output wire [675:0] mem_req_1_data,
+    output wire mem_req_2_valid,
+    input  wire mem_req_2_ready,
+    output wire [675:0] mem_req_2_data,
+    output wire mem_req_3_valid,
+    input  wire mem_req_3_ready,
+    output wire [675:0] mem_req_3_data,
+    output wire scene_req_0_valid,
+    input  wire scene_req_0_ready,
+    output wire [675:0] scene_req_0_data,
+    output wire scene_req_1_valid,
+    input  wire scene_req_1_ready,
+    output wire [675:0] scene_req_1_data,
+    output wire scene_req_2_valid,
+    input  wire scene_req_2_ready,
+    output wire [675:0] scene_req_2_data,
+    output wire scene_req_3_valid,
+    input  wire scene_req_3_ready,
+    output wire [675:0] scene_req_3_data
 );
 
     reg [7:0] working_set;
@@ -808,6 +837,7 @@ module stream_scheduler #(
     reg [7:0] buckets_ready;
     reg [7:0] mem_queued;
     reg [31:0] next_eligible;
+    reg [15:0] next_tm;
     reg [223:0] dest_table [0:1023];
     wire [1023:0] _unused_dest_table;
     for (genvar i = 0; i < 1024; i++) begin : g_unused_dest_table
@@ -828,6 +858,7 @@ module stream_scheduler #(
             buckets_ready <= '0;
             mem_queued <= '0;
             next_eligible <= '0;
+            next_tm <= '0;
             for (int i = 0; i < 1024; i++) dest_table[i] <= '0;
             for (int i = 0; i < 8; i++) stream_table[i] <= '0;
         end
@@ -835,13 +866,8 @@ module stream_scheduler #(
 
     assign emit_ready = 1'b0;
     assign start_ready = 1'b0;
-    assign mem_resp_ready = 1'b0;
     assign slot_map_valid = 1'b0;
     assign slot_map_data = '0;
-    assign scene_req_valid = 1'b0;
-    assign scene_req_data = '0;
-    assign mem_req_valid = 1'b0;
-    assign mem_req_data = '0;
     assign ray_write_0_ready = 1'b0;
     assign ray_write_1_ready = 1'b0;
     assign ray_write_2_ready = 1'b0;
@@ -970,6 +996,10 @@ module stream_scheduler #(
     assign ray_write_125_ready = 1'b0;
     assign ray_write_126_ready = 1'b0;
     assign ray_write_127_ready = 1'b0;
+    assign mem_resp_0_ready = 1'b0;
+    assign mem_resp_1_ready = 1'b0;
+    assign mem_resp_2_ready = 1'b0;
+    assign mem_resp_3_ready = 1'b0;
     assign fill_0_valid = 1'b0;
     assign fill_0_data = '0;
     assign fill_1_valid = 1'b0;
@@ -1226,5 +1256,21 @@ module stream_scheduler #(
     assign fill_126_data = '0;
     assign fill_127_valid = 1'b0;
     assign fill_127_data = '0;
-    wire _unused_ok = &{1'b0, emit_valid, emit_data, start_valid, start_data, mem_resp_valid, mem_resp_data, slot_map_ready, scene_req_ready, mem_req_ready, ray_write_0_valid, ray_write_0_data, ray_write_1_valid, ray_write_1_data, ray_write_2_valid, ray_write_2_data, ray_write_3_valid, ray_write_3_data, ray_write_4_valid, ray_write_4_data, ray_write_5_valid, ray_write_5_data, ray_write_6_valid, ray_write_6_data, ray_write_7_valid, ray_write_7_data, ray_write_8_valid, ray_write_8_data, ray_write_9_valid, ray_write_9_data, ray_write_10_valid, ray_write_10_data, ray_write_11_valid, ray_write_11_data, ray_write_12_valid, ray_write_12_data, ray_write_13_valid, ray_write_13_data, ray_write_14_valid, ray_write_14_data, ray_write_15_valid, ray_write_15_data, ray_write_16_valid, ray_write_16_data, ray_write_17_valid, ray_write_17_data, ray_write_18_valid, ray_write_18_data, ray_write_19_valid, ray_write_19_data, ray_write_20_valid, ray_write_20_data, ray_write_21_valid, ray_write_21_data, ray_write_22_valid, ray_write_22_data, ray_write_23_valid, ray_write_23_data, ray_write_24_valid, ray_write_24_data, ray_write_25_valid, ray_write_25_data, ray_write_26_valid, ray_write_26_data, ray_write_27_valid, ray_write_27_data, ray_write_28_valid, ray_write_28_data, ray_write_29_valid, ray_write_29_data, ray_write_30_valid, ray_write_30_data, ray_write_31_valid, ray_write_31_data, ray_write_32_valid, ray_write_32_data, ray_write_33_valid, ray_write_33_data, ray_write_34_valid, ray_write_34_data, ray_write_35_valid, ray_write_35_data, ray_write_36_valid, ray_write_36_data, ray_write_37_valid, ray_write_37_data, ray_write_38_valid, ray_write_38_data, ray_write_39_valid, ray_write_39_data, ray_write_40_valid, ray_write_40_data, ray_write_41_valid, ray_write_41_data, ray_write_42_valid, ray_write_42_data, ray_write_43_valid, ray_write_43_data, ray_write_44_valid, ray_write_44_data, ray_write_45_valid, ray_write_45_data, ray_write_46_valid, ray_write_46_data, ray_write_47_valid, ray_write_47_data, ray_write_48_valid, ray_write_48_data, ray_write_49_valid, ray_write_49_data, ray_write_50_valid, ray_write_50_data, ray_write_51_valid, ray_write_51_data, ray_write_52_valid, ray_write_52_data, ray_write_53_valid, ray_write_53_data, ray_write_54_valid, ray_write_54_data, ray_write_55_valid, ray_write_55_data, ray_write_56_valid, ray_write_56_data, ray_write_57_valid, ray_write_57_data, ray_write_58_valid, ray_write_58_data, ray_write_59_valid, ray_write_59_data, ray_write_60_valid, ray_write_60_data, ray_write_61_valid, ray_write_61_data, ray_write_62_valid, ray_write_62_data, ray_write_63_valid, ray_write_63_data, ray_write_64_valid, ray_write_64_data, ray_write_65_valid, ray_write_65_data, ray_write_66_valid, ray_write_66_data, ray_write_67_valid, ray_write_67_data, ray_write_68_valid, ray_write_68_data, ray_write_69_valid, ray_write_69_data, ray_write_70_valid, ray_write_70_data, ray_write_71_valid, ray_write_71_data, ray_write_72_valid, ray_write_72_data, ray_write_73_valid, ray_write_73_data, ray_write_74_valid, ray_write_74_data, ray_write_75_valid, ray_write_75_data, ray_write_76_valid, ray_write_76_data, ray_write_77_valid, ray_write_77_data, ray_write_78_valid, ray_write_78_data, ray_write_79_valid, ray_write_79_data, ray_write_80_valid, ray_write_80_data, ray_write_81_valid, ray_write_81_data, ray_write_82_valid, ray_write_82_data, ray_write_83_valid, ray_write_83_data, ray_write_84_valid, ray_write_84_data, ray_write_85_valid, ray_write_85_data, ray_write_86_valid, ray_write_86_data, ray_write_87_valid, ray_write_87_data, ray_write_88_valid, ray_write_88_data, ray_write_89_valid, ray_write_89_data, ray_write_90_valid, ray_write_90_data, ray_write_91_valid, ray_write_91_data, ray_write_92_valid, ray_write_92_data, ray_write_93_valid, ray_write_93_data, ray_write_94_valid, ray_write_94_data, ray_write_95_valid, ray_write_95_data, ray_write_96_valid, ray_write_96_data, ray_write_97_valid, ray_write_97_data, ray_write_98_valid, ray_write_98_data, ray_write_99_valid, ray_write_99_data, ray_write_100_valid, ray_write_100_data, ray_write_101_valid, ray_write_101_data, ray_write_102_valid, ray_write_102_data, ray_write_103_valid, ray_write_103_data, ray_write_104_valid, ray_write_104_data, ray_write_105_valid, ray_write_105_data, ray_write_106_valid, ray_write_106_data, ray_write_107_valid, ray_write_107_data, ray_write_108_valid, ray_write_108_data, ray_write_109_valid, ray_write_109_data, ray_write_110_valid, ray_write_110_data, ray_write_111_valid, ray_write_111_data, ray_write_112_valid, ray_write_112_data, ray_write_113_valid, ray_write_113_data, ray_write_114_valid, ray_write_114_data, ray_write_115_valid, ray_write_115_data, ray_write_116_valid, ray_write_116_data, ray_write_117_valid, ray_write_117_data, ray_write_118_valid, ray_write_118_data, ray_write_119_valid, ray_write_119_data, ray_write_120_valid, ray_write_120_data, ray_write_121_valid, ray_write_121_data, ray_write_122_valid, ray_write_122_data, ray_write_123_valid, ray_write_123_data, ray_write_124_valid, ray_write_124_data, ray_write_125_valid, ray_write_125_data, ray_write_126_valid, ray_write_126_data, ray_write_127_valid, ray_write_127_data, fill_0_ready, fill_1_ready, fill_2_ready, fill_3_ready, fill_4_ready, fill_5_ready, fill_6_ready, fill_7_ready, fill_8_ready, fill_9_ready, fill_10_ready, fill_11_ready, fill_12_ready, fill_13_ready, fill_14_ready, fill_15_ready, fill_16_ready, fill_17_ready, fill_18_ready, fill_19_ready, fill_20_ready, fill_21_ready, fill_22_ready, fill_23_ready, fill_24_ready, fill_25_ready, fill_26_ready, fill_27_ready, fill_28_ready, fill_29_ready, fill_30_ready, fill_31_ready, fill_32_ready, fill_33_ready, fill_34_ready, fill_35_ready, fill_36_ready, fill_37_ready, fill_38_ready, fill_39_ready, fill_40_ready, fill_41_ready, fill_42_ready, fill_43_ready, fill_44_ready, fill_45_ready, fill_46_ready, fill_47_ready, fill_48_ready, fill_49_ready, fill_50_ready, fill_51_ready, fill_52_ready, fill_53_ready, fill_54_ready, fill_55_ready, fill_56_ready, fill_57_ready, fill_58_ready, fill_59_ready, fill_60_ready, fill_61_ready, fill_62_ready, fill_63_ready, fill_64_ready, fill_65_ready, fill_66_ready, fill_67_ready, fill_68_ready, fill_69_ready, fill_70_ready, fill_71_ready, fill_72_ready, fill_73_ready, fill_74_ready, fill_75_ready, fill_76_ready, fill_77_ready, fill_78_ready, fill_79_ready, fill_80_ready, fill_81_ready, fill_82_ready, fill_83_ready, fill_84_ready, fill_85_ready, fill_86_ready, fill_87_ready, fill_88_ready, fill_89_ready, fill_90_ready, fill_91_ready, fill_92_ready, fill_93_ready, fill_94_ready, fill_95_ready, fill_96_ready, fill_97_ready, fill_98_ready, fill_99_ready, fill_100_ready, fill_101_ready, fill_102_ready, fill_103_ready, fill_104_ready, fill_105_ready, fill_106_ready, fill_107_ready, fill_108_ready, fill_109_ready, fill_110_ready, fill_111_ready, fill_112_ready, fill_113_ready, fill_114_ready, fill_115_ready, fill_116_ready, fill_117_ready, fill_118_ready, fill_119_ready, fill_120_ready, fill_121_ready, fill_122_ready, fill_123_ready, fill_124_ready, fill_125_ready, fill_126_ready, fill_127_ready, working_set, streams_active, queues, buckets_ready, mem_queued, next_eligible, _unused_dest_table, _unused_stream_table, TMS[0], STREAMS[0], SLOTS[0], DEST_ENTRIES[0], WRITES_PER_CYCLE[0], BUCKET_BUFFERS[0], MEM_QUEUE[0], 1'b0};
+    assign mem_req_0_valid = 1'b0;
+    assign mem_req_0_data = '0;
+    assign mem_req_1_valid = 1'b0;
+    assign mem_req_1_data = '0;
+    assign mem_req_2_valid = 1'b0;
+    assign mem_req_2_data = '0;
+    assign mem_req_3_valid = 1'b0;
+    assign mem_req_3_data = '0;
+    assign scene_req_0_valid = 1'b0;
+    assign scene_req_0_data = '0;
+    assign scene_req_1_valid = 1'b0;
+    assign scene_req_1_data = '0;
+    assign scene_req_2_valid = 1'b0;
+    assign scene_req_2_data = '0;
+    assign scene_req_3_valid = 1'b0;
+    assign scene_req_3_data = '0;
+    wire _unused_ok = &{1'b0, emit_valid, emit_data, start_valid, start_data, slot_map_ready, ray_write_0_valid, ray_write_0_data, ray_write_1_valid, ray_write_1_data, ray_write_2_valid, ray_write_2_data, ray_write_3_valid, ray_write_3_data, ray_write_4_valid, ray_write_4_data, ray_write_5_valid, ray_write_5_data, ray_write_6_valid, ray_write_6_data, ray_write_7_valid, ray_write_7_data, ray_write_8_valid, ray_write_8_data, ray_write_9_valid, ray_write_9_data, ray_write_10_valid, ray_write_10_data, ray_write_11_valid, ray_write_11_data, ray_write_12_valid, ray_write_12_data, ray_write_13_valid, ray_write_13_data, ray_write_14_valid, ray_write_14_data, ray_write_15_valid, ray_write_15_data, ray_write_16_valid, ray_write_16_data, ray_write_17_valid, ray_write_17_data, ray_write_18_valid, ray_write_18_data, ray_write_19_valid, ray_write_19_data, ray_write_20_valid, ray_write_20_data, ray_write_21_valid, ray_write_21_data, ray_write_22_valid, ray_write_22_data, ray_write_23_valid, ray_write_23_data, ray_write_24_valid, ray_write_24_data, ray_write_25_valid, ray_write_25_data, ray_write_26_valid, ray_write_26_data, ray_write_27_valid, ray_write_27_data, ray_write_28_valid, ray_write_28_data, ray_write_29_valid, ray_write_29_data, ray_write_30_valid, ray_write_30_data, ray_write_31_valid, ray_write_31_data, ray_write_32_valid, ray_write_32_data, ray_write_33_valid, ray_write_33_data, ray_write_34_valid, ray_write_34_data, ray_write_35_valid, ray_write_35_data, ray_write_36_valid, ray_write_36_data, ray_write_37_valid, ray_write_37_data, ray_write_38_valid, ray_write_38_data, ray_write_39_valid, ray_write_39_data, ray_write_40_valid, ray_write_40_data, ray_write_41_valid, ray_write_41_data, ray_write_42_valid, ray_write_42_data, ray_write_43_valid, ray_write_43_data, ray_write_44_valid, ray_write_44_data, ray_write_45_valid, ray_write_45_data, ray_write_46_valid, ray_write_46_data, ray_write_47_valid, ray_write_47_data, ray_write_48_valid, ray_write_48_data, ray_write_49_valid, ray_write_49_data, ray_write_50_valid, ray_write_50_data, ray_write_51_valid, ray_write_51_data, ray_write_52_valid, ray_write_52_data, ray_write_53_valid, ray_write_53_data, ray_write_54_valid, ray_write_54_data, ray_write_55_valid, ray_write_55_data, ray_write_56_valid, ray_write_56_data, ray_write_57_valid, ray_write_57_data, ray_write_58_valid, ray_write_58_data, ray_write_59_valid, ray_write_59_data, ray_write_60_valid, ray_write_60_data, ray_write_61_valid, ray_write_61_data, ray_write_62_valid, ray_write_62_data, ray_write_63_valid, ray_write_63_data, ray_write_64_valid, ray_write_64_data, ray_write_65_valid, ray_write_65_data, ray_write_66_valid, ray_write_66_data, ray_write_67_valid, ray_write_67_data, ray_write_68_valid, ray_write_68_data, ray_write_69_valid, ray_write_69_data, ray_write_70_valid, ray_write_70_data, ray_write_71_valid, ray_write_71_data, ray_write_72_valid, ray_write_72_data, ray_write_73_valid, ray_write_73_data, ray_write_74_valid, ray_write_74_data, ray_write_75_valid, ray_write_75_data, ray_write_76_valid, ray_write_76_data, ray_write_77_valid, ray_write_77_data, ray_write_78_valid, ray_write_78_data, ray_write_79_valid, ray_write_79_data, ray_write_80_valid, ray_write_80_data, ray_write_81_valid, ray_write_81_data, ray_write_82_valid, ray_write_82_data, ray_write_83_valid, ray_write_83_data, ray_write_84_valid, ray_write_84_data, ray_write_85_valid, ray_write_85_data, ray_write_86_valid, ray_write_86_data, ray_write_87_valid, ray_write_87_data, ray_write_88_valid, ray_write_88_data, ray_write_89_valid, ray_write_89_data, ray_write_90_valid, ray_write_90_data, ray_write_91_valid, ray_write_91_data, ray_write_92_valid, ray_write_92_data, ray_write_93_valid, ray_write_93_data, ray_write_94_valid, ray_write_94_data, ray_write_95_valid, ray_write_95_data, ray_write_96_valid, ray_write_96_data, ray_write_97_valid, ray_write_97_data, ray_write_98_valid, ray_write_98_data, ray_write_99_valid, ray_write_99_data, ray_write_100_valid, ray_write_100_data, ray_write_101_valid, ray_write_101_data, ray_write_102_valid, ray_write_102_data, ray_write_103_valid, ray_write_103_data, ray_write_104_valid, ray_write_104_data, ray_write_105_valid, ray_write_105_data, ray_write_106_valid, ray_write_106_data, ray_write_107_valid, ray_write_107_data, ray_write_108_valid, ray_write_108_data, ray_write_109_valid, ray_write_109_data, ray_write_110_valid, ray_write_110_data, ray_write_111_valid, ray_write_111_data, ray_write_112_valid, ray_write_112_data, ray_write_113_valid, ray_write_113_data, ray_write_114_valid, ray_write_114_data, ray_write_115_valid, ray_write_115_data, ray_write_116_valid, ray_write_116_data, ray_write_117_valid, ray_write_117_data, ray_write_118_valid, ray_write_118_data, ray_write_119_valid, ray_write_119_data, ray_write_120_valid, ray_write_120_data, ray_write_121_valid, ray_write_121_data, ray_write_122_valid, ray_write_122_data, ray_write_123_valid, ray_write_123_data, ray_write_124_valid, ray_write_124_data, ray_write_125_valid, ray_write_125_data, ray_write_126_valid, ray_write_126_data, ray_write_127_valid, ray_write_127_data, mem_resp_0_valid, mem_resp_0_data, mem_resp_1_valid, mem_resp_1_data, mem_resp_2_valid, mem_resp_2_data, mem_resp_3_valid, mem_resp_3_data, fill_0_ready, fill_1_ready, fill_2_ready, fill_3_ready, fill_4_ready, fill_5_ready, fill_6_ready, fill_7_ready, fill_8_ready, fill_9_ready, fill_10_ready, fill_11_ready, fill_12_ready, fill_13_ready, fill_14_ready, fill_15_ready, fill_16_ready, fill_17_ready, fill_18_ready, fill_19_ready, fill_20_ready, fill_21_ready, fill_22_ready, fill_23_ready, fill_24_ready, fill_25_ready, fill_26_ready, fill_27_ready, fill_28_ready, fill_29_ready, fill_30_ready, fill_31_ready, fill_32_ready, fill_33_ready, fill_34_ready, fill_35_ready, fill_36_ready, fill_37_ready, fill_38_ready, fill_39_ready, fill_40_ready, fill_41_ready, fill_42_ready, fill_43_ready, fill_44_ready, fill_45_ready, fill_46_ready, fill_47_ready, fill_48_ready, fill_49_ready, fill_50_ready, fill_51_ready, fill_52_ready, fill_53_ready, fill_54_ready, fill_55_ready, fill_56_ready, fill_57_ready, fill_58_ready, fill_59_ready, fill_60_ready, fill_61_ready, fill_62_ready, fill_63_ready, fill_64_ready, fill_65_ready, fill_66_ready, fill_67_ready, fill_68_ready, fill_69_ready, fill_70_ready, fill_71_ready, fill_72_ready, fill_73_ready, fill_74_ready, fill_75_ready, fill_76_ready, fill_77_ready, fill_78_ready, fill_79_ready, fill_80_ready, fill_81_ready, fill_82_ready, fill_83_ready, fill_84_ready, fill_85_ready, fill_86_ready, fill_87_ready, fill_88_ready, fill_89_ready, fill_90_ready, fill_91_ready, fill_92_ready, fill_93_ready, fill_94_ready, fill_95_ready, fill_96_ready, fill_97_ready, fill_98_ready, fill_99_ready, fill_100_ready, fill_101_ready, fill_102_ready, fill_103_ready, fill_104_ready, fill_105_ready, fill_106_ready, fill_107_ready, fill_108_ready, fill_109_ready, fill_110_ready, fill_111_ready, fill_112_ready, fill_113_ready, fill_114_ready, fill_115_ready, fill_116_ready, fill_117_ready, fill_118_ready, fill_119_ready, fill_120_ready, fill_121_ready, fill_122_ready, fill_123_ready, fill_124_ready, fill_125_ready, fill_126_ready, fill_127_ready, mem_req_0_ready, mem_req_1_ready, mem_req_2_ready, mem_req_3_ready, scene_req_0_ready, scene_req_1_ready, scene_req_2_ready, scene_req_3_ready, working_set, streams_active, queues, buckets_ready, mem_queued, next_eligible, next_tm, _unused_dest_table, _unused_stream_table, TMS[0], STREAMS[0], SLOTS[0], DEST_ENTRIES[0], WRITES_PER_CYCLE[0], BUCKET_BUFFERS[0], MEM_QUEUE[0], RAY_LINES_PER_CYCLE[0], SCENE_LINES_PER_CYCLE[0], 1'b0};
 endmodule

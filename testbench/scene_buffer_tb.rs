@@ -97,6 +97,8 @@ pub fn unit_config(base: &crate::config::Config, b: &SbTbCfg) -> crate::config::
     let mut c = base.clone();
     c.chip.tms = b.tms;
     c.chip.scene_buffer = b.sb.clone();
+    // The bench's memory stand-in streams on one fill lane.
+    c.chip.scheduler.scene_lines_per_cycle = 1;
     c
 }
 
@@ -162,7 +164,14 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
     let dut = sim.add(
         "tb.scene_buffer",
         clk,
-        SceneBuffer::new(&cfg.chip.scene_buffer, link.delay, mi, fi, reqs, resps),
+        SceneBuffer::new(
+            &cfg.chip.scene_buffer,
+            link.delay,
+            mi,
+            vec![fi],
+            reqs,
+            resps,
+        ),
     );
     let mut sinks: Vec<UnitId> = Vec::new();
     for (k, i) in resp_ins.into_iter().enumerate() {

@@ -2,7 +2,9 @@
 //! (segment table, child lists, bucket pool) with stand-ins for everything else:
 //! the host emits one wavefront of rays into the root queue, a line memory
 //! (`LineMem`, fixed latency, seeded back-pressure) serves the ray stream and the
-//! segment info, sinks take the segment streams and slot mappings, and one fake
+//! segment info (the scheduler's `ray_lines_per_cycle` lanes reach it through a
+//! `LaneMux`), sinks take the segment streams (one per scene lane) and slot
+//! mappings, and one fake
 //! TM per port takes bucket rays with a seeded ready pattern and answers each ray
 //! with duplicates into a pseudo-random subset of the segment's children (a pure
 //! function of the seed, segment and ray; a fixed third of the segments never gets
@@ -182,6 +184,66 @@ impl Logic for FakeTm {
     }
 }
 
+crate::unit! {
+    /// Testbench component: the scheduler's ray lanes (`mem_req[j]`/`mem_resp[j]`)
+    /// onto the one-port line memory, one request per cycle (lanes round-robin
+    /// from `cycle mod lanes`); each answer goes back on its request's lane (the
+    /// memory answers in order).
+    pub struct LaneMux : "tb_lane_mux" {
+        params { lanes_n: u32 => "LANES" }
+        inputs { resp: MemLineResp }
+        outputs { req: MemLineReq }
+        in_arrays { lane_req: MemLineReq }
+        out_arrays { lane_resp: MemLineResp }
+        state { }
+        extra { order: VecDeque<usize> }
+    }
+}
+
+impl Logic for LaneMux {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let n = self.lane_req.len();
+        let mut worked = false;
+        if let (Some(_), Some(&j)) = (ctx.peek(&self.resp), self.order.front())
+            && ctx.can_push(&self.lane_resp[j])
+        {
+            let r = ctx.pop(&self.resp).expect("peeked");
+            ctx.push(&self.lane_resp[j], r);
+            self.order.pop_front();
+            worked = true;
+        }
+        let (mut waiting, mut sent) = (false, false);
+        for k in 0..n {
+            let j = (c as usize + k) % n;
+            if ctx.peek(&self.lane_req[j]).is_none() {
+                continue;
+            }
+            if !sent && ctx.can_push(&self.req) {
+                sent = true;
+                let r = ctx.pop(&self.lane_req[j]).expect("peeked");
+                ctx.push(&self.req, r);
+                self.order.push_back(j);
+                worked = true;
+            } else {
+                waiting = true;
+            }
+        }
+        ctx.set_status(if worked || !self.order.is_empty() {
+            Status::Busy
+        } else if waiting {
+            Status::ResourceBusy
+        } else {
+            Status::WaitInput
+        });
+        if worked || waiting || !self.order.is_empty() {
+            Next::Cycle
+        } else {
+            Next::Idle
+        }
+    }
+}
+
 /// The bench's knobs beyond `TbOptions`.
 #[derive(Clone)]
 pub struct SchedTbCfg {
@@ -224,6 +286,9 @@ impl Default for SchedTbCfg {
 pub fn unit_config(base: &crate::config::Config, b: &SchedTbCfg) -> crate::config::Config {
     let mut cfg = base.clone();
     cfg.chip.tms = b.tms;
+    // The ray lanes (`ray_lines_per_cycle`) share the one-port line memory
+    // through a `LaneMux`; the scene lanes (`scene_lines_per_cycle`) each go to
+    // a sink.
     if let Some(sb) = b.segment_bytes {
         cfg.accel.segment_bytes = sb;
         cfg.chip.scene_buffer.slot_bytes = sb;
@@ -275,10 +340,20 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
     let clk = sim.clock("core", p).map_err(|e| e.to_string())?;
     let (eo, ei) = sim.link::<RayWrite>("sched.emit", link);
     let (so, si) = sim.link::<WaveStart>("sched.start", link);
-    let (qo, qi) = sim.link::<MemLineReq>("sched.mem_req", link);
-    let (ro, ri) = sim.link::<MemLineResp>("sched.mem_resp", link);
+    let ray_lanes = cfg.chip.scheduler.ray_lines_per_cycle as usize;
+    let (lq_o, lq_i): (Vec<_>, Vec<_>) = (0..ray_lanes)
+        .map(|j| sim.link::<MemLineReq>(&format!("sched.mem_req{j}"), link))
+        .unzip();
+    let (lr_o, lr_i): (Vec<_>, Vec<_>) = (0..ray_lanes)
+        .map(|j| sim.link::<MemLineResp>(&format!("sched.mem_resp{j}"), link))
+        .unzip();
+    let (qo, qi) = sim.link::<MemLineReq>("mux.mem_req", link);
+    let (ro, ri) = sim.link::<MemLineResp>("mux.mem_resp", link);
     let (mo, mi) = sim.link::<SlotMap>("sched.slot_map", link);
-    let (sco, sci) = sim.link::<MemLineReq>("sched.scene_req", link);
+    let lanes = cfg.chip.scheduler.scene_lines_per_cycle as usize;
+    let (sco, sci): (Vec<_>, Vec<_>) = (0..lanes)
+        .map(|j| sim.link::<MemLineReq>(&format!("sched.scene_req{j}"), link))
+        .unzip();
     let mut rw_in = Vec::new();
     let mut fill_out = Vec::new();
     let mut tm_ports = Vec::new();
@@ -300,13 +375,25 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
             nseg,
             ei,
             si,
-            ri,
+            lr_i,
             mo,
             sco,
-            qo,
+            lq_o,
             rw_in,
             fill_out,
         ),
+    );
+    sim.add(
+        "tb.lane_mux",
+        clk,
+        LaneMux {
+            lanes_n: ray_lanes as u32,
+            resp: ri,
+            req: qo,
+            lane_req: lq_i,
+            lane_resp: lr_o,
+            order: VecDeque::new(),
+        },
     );
     let memu = sim.add(
         "tb.mem",
@@ -323,7 +410,11 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
         ),
     );
     let map_sink = sim.add("tb.slot_map", clk, Sink::new(mi, 1.0, 0));
-    let scene_sink = sim.add("tb.scene", clk, Sink::new(sci, 1.0, 0));
+    let scene_sinks: Vec<UnitId> = sci
+        .into_iter()
+        .enumerate()
+        .map(|(j, i)| sim.add(&format!("tb.scene{j}"), clk, Sink::new(i, 1.0, 0)))
+        .collect();
     let mut tms: Vec<UnitId> = Vec::new();
     for (k, (fi, wo)) in tm_ports.into_iter().enumerate() {
         tms.push(sim.add(
@@ -518,9 +609,12 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
         }
     }
     // Segment streams: every line of every admitted segment once.
-    let scene = &sim.unit_ref::<Sink<MemLineReq>>(scene_sink).got;
+    let scene: Vec<_> = scene_sinks
+        .iter()
+        .flat_map(|&u| sim.unit_ref::<Sink<MemLineReq>>(u).got.iter())
+        .collect();
     let mut lines: BTreeMap<u64, u32> = BTreeMap::new();
-    for (_, r) in scene {
+    for (_, r) in &scene {
         *lines.entry(r.addr).or_default() += 1;
     }
     let mut want_lines = 0u64;

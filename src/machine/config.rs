@@ -94,6 +94,10 @@ impl SceneBufferCfg {
     }
 }
 
+/// Most memory ports one stream may have (`ray_lines_per_cycle`,
+/// `scene_lines_per_cycle`).
+pub const MAX_STREAM_LANES: u32 = 16;
+
 /// The stream scheduler.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -113,6 +117,22 @@ pub struct SchedulerCfg {
     pub bucket_buffers: u32,
     /// Line requests queued towards the memory (ray stream). Assumption: 32.
     pub mem_queue: u32,
+    /// Ray-stream lines (bucket reads, coalesced bucket writes, segment info)
+    /// the scheduler issues and takes answers for per cycle: one memory port
+    /// (`mem_req[j]`/`mem_resp[j]`) per line. 4 (256 GB/s at 1 GHz): the paper's
+    /// ray stream averages 1.8 lines per cycle (San Miguel 146.34 M lines in
+    /// 79.61 ms, Crytek Sponza 80.56 M in 44.6 ms, [DS17 Table 2]), more than one
+    /// port carries, and bursts at admission need more; with
+    /// `scene_lines_per_cycle` the two streams can reach the GDDR5 peak of
+    /// 512 GB/s = 8 lines per cycle [DS17 §5.1], so the DRAM, not the ports,
+    /// limits them.
+    pub ray_lines_per_cycle: u32,
+    /// Scene-stream lines the scheduler issues per cycle: one memory port per
+    /// line (`scene_req[j]`, answered into the scene buffer's `fill[j]`). 4: the
+    /// paper's scene stream averages up to 1.3 lines per cycle (Dragon Sponza
+    /// 54.31 M lines in 40.93 ms) and comes in bursts of whole segments when
+    /// they are admitted; 4 + 4 lanes match the 8-line GDDR5 peak.
+    pub scene_lines_per_cycle: u32,
 }
 
 impl Default for SchedulerCfg {
@@ -124,6 +144,8 @@ impl Default for SchedulerCfg {
             bucket_reads: 8,
             bucket_buffers: 16,
             mem_queue: 32,
+            ray_lines_per_cycle: 4,
+            scene_lines_per_cycle: 4,
         }
     }
 }
@@ -324,9 +346,21 @@ impl ChipCfg {
             ("ray_writes_per_cycle", s.ray_writes_per_cycle),
             ("bucket_reads", s.bucket_reads),
             ("bucket_buffers", s.bucket_buffers),
+            ("ray_lines_per_cycle", s.ray_lines_per_cycle),
+            ("scene_lines_per_cycle", s.scene_lines_per_cycle),
         ] {
             if v == 0 {
                 return Err(format!("chip.scheduler.{name} = 0: give at least 1"));
+            }
+        }
+        for (name, v) in [
+            ("ray_lines_per_cycle", s.ray_lines_per_cycle),
+            ("scene_lines_per_cycle", s.scene_lines_per_cycle),
+        ] {
+            if v > MAX_STREAM_LANES {
+                return Err(format!(
+                    "chip.scheduler.{name} = {v}: at most {MAX_STREAM_LANES} lines per cycle (one memory port each; 8 lines per cycle is already the 512 GB/s GDDR5 peak)"
+                ));
             }
         }
         if s.mem_queue < 4 {

@@ -8,10 +8,12 @@
 //! - TM k `miss_req` -> scene buffer `req[k]`; scene buffer `resp[k]` -> TM k `miss_resp`;
 //! - TM k `hit` -> hit record updater `hit[k]`;
 //! - scheduler `slot_map` -> scene buffer;
-//! - memory port 0: scheduler `mem_req`/`mem_resp` (ray stream, segment table);
-//!   port 1: scheduler `scene_req` -> memory -> scene buffer `fill` (scene stream);
+//! - memory port 0: scheduler `mem_req[0]`/`mem_resp[0]` (ray stream, segment table);
+//!   port 1: scheduler `scene_req[0]` -> memory -> scene buffer `fill[0]` (scene stream);
 //!   port 2: the L2's memory side (`chip.l2.enabled`, the default), else the hit
-//!   record updater and, from port 3 on, TM k's `gmem_req`/`gmem_resp`;
+//!   record updater and, from port 3 on, TM k's `gmem_req`/`gmem_resp`; then the
+//!   scheduler's further ray lanes `mem_req[j]` and scene lanes `scene_req[j]`,
+//!   j >= 1 (`chip.scheduler.ray_lines_per_cycle`, `scene_lines_per_cycle`);
 //! - L2 (`units/l2.rs`) clients: `req[0]` hit record updater, `req[1 + k]` TM k's
 //!   global-memory port (the shading pass); host `flush` -> L2 -> `flush_done`
 //!   (every run ends with a flush, docs/chip.md "L2");
@@ -190,6 +192,11 @@ pub struct WaveCycles {
     /// misses merged into a live MSHR, bank-conflict stall cycles, lines filled
     /// and dirty lines written back (the end-of-run flush included).
     pub l2: L2Wave,
+    /// Distribution balance: the most and fewest rays one TM got in this run,
+    /// and how many TMs got any (the mean is `rays_traced / tms`).
+    pub tm_rays_max: u64,
+    pub tm_rays_min: u64,
+    pub tms_with_rays: u64,
 }
 
 /// The L2's counters over one run.
@@ -239,6 +246,23 @@ impl L2Wave {
         self.fills += o.fills;
         self.writebacks += o.writebacks;
         self.flush_cycles += o.flush_cycles;
+    }
+}
+
+impl WaveCycles {
+    /// Rays handed to the TMs in this run (duplicates included).
+    pub fn rays_traced(&self) -> u64 {
+        self.rays_emitted + self.duplicates
+    }
+    /// Most rays on one TM over the mean per TM (1 = perfectly balanced; 0 when
+    /// no ray was traced).
+    pub fn tm_imbalance(&self, tms: u64) -> f64 {
+        let n = self.rays_traced();
+        if n == 0 || tms == 0 {
+            0.0
+        } else {
+            self.tm_rays_max as f64 * tms as f64 / n as f64
+        }
     }
 }
 
@@ -307,6 +331,38 @@ impl Chip {
             mresp_o.push(a);
             mresp_i.push(Some(b));
         }
+        // Further stream lanes (one memory port per line per cycle): their links
+        // now, their memory ports after the TMs' (ports 0-2 stay the first lanes).
+        let (mut lane_req_o, mut lane_req_i, mut lane_resp_o, mut lane_resp_i) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (who, lanes) in [
+            ("sched", ch.scheduler.ray_lines_per_cycle),
+            ("scene", ch.scheduler.scene_lines_per_cycle),
+        ] {
+            for j in 1..lanes {
+                let (a, b) = sim.link::<MemLineReq>(&format!("chip.mem_req_{who}{j}"), l);
+                lane_req_o.push(a);
+                lane_req_i.push(b);
+                let (a, b) = sim.link::<MemLineResp>(&format!("chip.mem_resp_{who}{j}"), l);
+                lane_resp_o.push(a);
+                lane_resp_i.push(b);
+            }
+        }
+        let ray_extra = ch.scheduler.ray_lines_per_cycle as usize - 1;
+        let mut lane_req_o = lane_req_o.into_iter();
+        let mut lane_resp_i = lane_resp_i.into_iter();
+        let sched_req: Vec<_> = std::iter::once(mreq_o[PORT_SCHED].take().expect("port"))
+            .chain(lane_req_o.by_ref().take(ray_extra))
+            .collect();
+        let sched_resp: Vec<_> = std::iter::once(mresp_i[PORT_SCHED].take().expect("port"))
+            .chain(lane_resp_i.by_ref().take(ray_extra))
+            .collect();
+        let scene_req: Vec<_> = std::iter::once(mreq_o[PORT_SCENE].take().expect("port"))
+            .chain(lane_req_o)
+            .collect();
+        let scene_fill: Vec<_> = std::iter::once(mresp_i[PORT_SCENE].take().expect("port"))
+            .chain(lane_resp_i)
+            .collect();
         let (emit_o, emit_i) = sim.link::<RayWrite>("chip.emit", l);
         let (start_o, start_i) = sim.link::<WaveStart>("chip.start", l);
         let (map_o, map_i) = sim.link::<SlotMap>("chip.slot_map", l);
@@ -383,10 +439,10 @@ impl Chip {
                 segments,
                 emit_i,
                 start_i,
-                mresp_i[PORT_SCHED].take().expect("port"),
+                sched_resp,
                 map_o,
-                mreq_o[PORT_SCENE].take().expect("port"),
-                mreq_o[PORT_SCHED].take().expect("port"),
+                scene_req,
+                sched_req,
                 rw_i,
                 fill_o,
             ),
@@ -394,14 +450,7 @@ impl Chip {
         let scene_buffer = sim.add(
             "chip.scene_buffer",
             clock,
-            SceneBuffer::new(
-                &ch.scene_buffer,
-                l.delay,
-                map_i,
-                mresp_i[PORT_SCENE].take().expect("port"),
-                sbq_i,
-                sbr_o,
-            ),
+            SceneBuffer::new(&ch.scene_buffer, l.delay, map_i, scene_fill, sbq_i, sbr_o),
         );
         let hit_updater = sim.add(
             "chip.hit_updater",
@@ -413,6 +462,8 @@ impl Chip {
         // the memory too (empty with it).
         mreq_i.extend(gmem_i);
         mresp_o.extend(gmem_o);
+        mreq_i.extend(lane_req_i);
+        mresp_o.extend(lane_resp_o);
         let mut memory_unit = Memory::new(
             &ch.memory,
             l.delay,
@@ -605,7 +656,17 @@ impl Chip {
                     flush_cycles: self.flush_cycles,
                 }
             }),
+            tm_rays_max: 0,
+            tm_rays_min: 0,
+            tms_with_rays: 0,
         }
+    }
+
+    fn sched_tm_rays(&self) -> Vec<u64> {
+        self.sim
+            .unit_ref::<StreamScheduler>(self.scheduler)
+            .tm_rays()
+            .to_vec()
     }
 
     /// Units holding work, and what they wait for (the watchdog's report).
@@ -699,6 +760,7 @@ impl Chip {
         let t0 = Instant::now();
         std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
         let before = self.snapshot();
+        let tm_before = self.sched_tm_rays();
         self.sim
             .unit_mut::<StreamScheduler>(self.scheduler)
             .new_wave();
@@ -768,11 +830,23 @@ impl Chip {
                     .unit_ref::<StreamScheduler>(self.scheduler)
                     .last_marker
                     .max(before.cycles),
+            tm_rays_max: 0,
+            tm_rays_min: 0,
+            tms_with_rays: 0,
         };
         for k in 0..StreamTag::COUNT {
             w.lines_read[k] = after.lines_read[k] - before.lines_read[k];
             w.lines_written[k] = after.lines_written[k] - before.lines_written[k];
         }
+        let per_tm: Vec<u64> = self
+            .sched_tm_rays()
+            .iter()
+            .zip(&tm_before)
+            .map(|(a, b)| a - b)
+            .collect();
+        w.tm_rays_max = per_tm.iter().copied().max().unwrap_or(0);
+        w.tm_rays_min = per_tm.iter().copied().min().unwrap_or(0);
+        w.tms_with_rays = per_tm.iter().filter(|&&r| r > 0).count() as u64;
         w.max_stack = self
             .tms
             .iter()

@@ -186,6 +186,16 @@ pub fn summary(f: &Frame) -> String {
                     w.l2.flush_cycles
                 );
             }
+            if w.rays_traced() > 0 {
+                s += &format!(
+                    "      TMs: {}/{} got rays, rays per TM min {} max {} (max/mean {:.2})\n",
+                    w.tms_with_rays,
+                    c.tms,
+                    w.tm_rays_min,
+                    w.tm_rays_max,
+                    w.tm_imbalance(c.tms as u64)
+                );
+            }
             if c.dram.is_some() {
                 s += &format!(
                     "      DRAM: {:>9} lines  {:>7.1} GB/s  row hits {:>5.1}%  energy {} (paper) {} (physical)\n",

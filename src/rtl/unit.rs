@@ -159,6 +159,8 @@ macro_rules! unit {
 
         impl $crate::rtl::Declared for $name {
             fn decl(&self) -> $crate::rtl::UnitDecl {
+                // A unit may have no clocked state (`state { }`).
+                #[allow(unused_mut)]
                 let mut state = $crate::rtl::decl::StateList::default();
                 $($crate::rtl::State::declare(&self.$s, stringify!($s), &mut state);)*
                 let docs: &[&'static str] = &[$($doc),*];

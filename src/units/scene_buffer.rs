@@ -4,7 +4,8 @@
 //!
 //! - `slot_map` (from the scheduler): slot `slot` now holds the segment at `base`
 //!   of `lines` lines, generation `generation`; every line of the slot becomes invalid.
-//! - `fill` (from the memory unit's scene port): a streamed line; its id is
+//! - `fill[j]` (from the memory unit's scene ports, one lane per line per cycle,
+//!   `chip.scheduler.scene_lines_per_cycle`): a streamed line; its id is
 //!   `generation << 24 | slot << 16 | line`. A line of an older generation (the segment
 //!   retired before its stream finished) is dropped (`stale_fills`).
 //! - `req[k]` / `resp[k]`: TM k's L1 miss port. The address is looked up in the
@@ -101,9 +102,9 @@ crate::unit! {
             latency: u32 => "LATENCY",
             tms: u32 => "TMS"
         }
-        inputs { slot_map: SlotMap, fill: MemLineResp }
+        inputs { slot_map: SlotMap }
         outputs { }
-        in_arrays { req: L1Req }
+        in_arrays { req: L1Req, fill: MemLineResp }
         out_arrays { resp: L1Resp }
         state { st: Model<SbState> }
         extra {
@@ -123,7 +124,7 @@ impl SceneBuffer {
         cfg: &SceneBufferCfg,
         out_delay: u32,
         slot_map: In<SlotMap>,
-        fill: In<MemLineResp>,
+        fill: Vec<In<MemLineResp>>,
         req: Vec<In<L1Req>>,
         resp: Vec<Out<L1Resp>>,
     ) -> Self {
@@ -182,7 +183,9 @@ impl Logic for SceneBuffer {
         let n = self.tms as usize;
         let mut worked = false;
         let mut blocked = false;
-        // Control first: a new mapping, then a streamed line (one each per cycle).
+        // Control first: a new mapping, then the streamed lines (one per lane). The
+        // scheduler maps a slot before it streams into it, so a fill never
+        // precedes its mapping.
         if let Some(m) = ctx.pop(&self.slot_map) {
             let s = &mut self.st.m().slots[m.slot as usize];
             s.base = m.base;
@@ -192,7 +195,10 @@ impl Logic for SceneBuffer {
             s.valid.iter_mut().for_each(|v| *v = false);
             worked = true;
         }
-        if let Some(f) = ctx.pop(&self.fill) {
+        for j in 0..self.fill.len() {
+            let Some(f) = ctx.pop(&self.fill[j]) else {
+                continue;
+            };
             let (generation, slot, line) = (
                 (f.id >> 24) as u8,
                 (f.id >> 16 & 0xFF) as usize,

@@ -11,10 +11,13 @@
 //!   markers (`done` = true, sent by a TP after the ray's duplicates);
 //! - `fill[k]` (out, `SbFill`): rays of a bucket into TM k's staging buffer;
 //! - `slot_map` (out): a segment mapped into a scene-buffer slot;
-//! - `scene_req` (out): segment-stream line reads; their responses go to the scene
-//!   buffer, not back here;
-//! - `mem_req` / `mem_resp`: the ray stream (bucket line writes and reads) and the
-//!   segment table and child list reads (tag `other`).
+//! - `scene_req[j]` (out): segment-stream line reads, one lane per line per
+//!   cycle (`chip.scheduler.scene_lines_per_cycle` lanes); their responses go to
+//!   the scene buffer's `fill[j]`, not back here;
+//! - `mem_req[j]` / `mem_resp[j]`: the ray stream (bucket line writes and reads)
+//!   and the segment table and child list reads (tag `other`), one lane per line
+//!   per cycle each way (`chip.scheduler.ray_lines_per_cycle` lanes; a request's
+//!   answer comes back on its lane).
 //!
 //! Policies (stage A):
 //! - **Order.** Segments are admitted in increasing id among the eligible ones,
@@ -27,8 +30,9 @@
 //!   free stream (at most `streams` segments stream at once), room in the
 //!   destination table for all its children, and its queue's writes answered.
 //!   It is mapped into the slot (`slot_map`) and its stream starts: one line read
-//!   per cycle over the active streams, every line of the segment (so the scene
-//!   lines equal the functional model's). A slot is reused only when its
+//!   per `scene_req` lane per cycle, lane j serving active stream
+//!   `(cycle + j) mod streams`, every line of the segment (so the scene lines
+//!   equal the functional model's). A slot is reused only when its
 //!   segment has retired and its stream has issued every line; late lines of an
 //!   old generation are dropped by the scene buffer.
 //! - **Destination table** (`dest_entries`): one entry per ray queue that holds
@@ -50,9 +54,14 @@
 //!   other lines the rays span; the next bucket's header may be read as soon as
 //!   the previous header is known. At most `bucket_reads` buckets are being read
 //!   and `bucket_buffers` buckets are on chip (being read, or waiting for a TM).
-//! - **Distribution:** a TM with no bucket in progress takes a waiting bucket of
-//!   the segment it had last, else the oldest waiting bucket; its rays go into the
-//!   `fill` link one per cycle (`last` on the bucket's last ray).
+//! - **Distribution:** a waiting bucket goes to the TM with no bucket in progress
+//!   that has the fewest outstanding rays (handed out, end marker not back: a
+//!   counter per TM), ties broken round-robin from the TM after the last one
+//!   served (`next_tm`, a register that changes only when a bucket is handed
+//!   out); the TM takes a waiting bucket of the segment it had last (L1 reuse,
+//!   §4.1), else the oldest. Its rays go into the `fill` link one per cycle
+//!   (`last` on the bucket's last ray). Shading items go out the same way when
+//!   no bucket waits. (Lowest-numbered TMs first left most of a 128-TM chip idle.)
 //! - **Retirement:** a working-set segment whose queue is read, whose buckets are
 //!   all forwarded, and whose every forwarded ray has sent its end marker retires:
 //!   its children's queues are closed (one per cycle) and those holding rays
@@ -173,6 +182,9 @@ pub struct TmFwd {
     /// (segment, rays, next position)
     pub cur: Option<(u32, Vec<RayRec>, usize)>,
     pub last_seg: Option<u32>,
+    /// Rays and shading items handed to this TM whose end marker has not come
+    /// back yet (a counter per TM: what the distribution balances).
+    pub outstanding: u32,
 }
 
 /// Everything the scheduler holds.
@@ -191,6 +203,9 @@ pub struct SchedState {
     pub reads: Vec<Option<BucketRead>>,
     pub ready: VecDeque<(u32, Vec<RayRec>)>,
     pub tms: Vec<TmFwd>,
+    /// Round-robin pointer of the distribution: the TM after the one that got
+    /// the last bucket (changes only when a bucket is handed out).
+    pub next_tm: u32,
     pub out: VecDeque<MemLineReq>,
     pub closing: VecDeque<u32>,
     pub pending_map: Option<SlotMap>,
@@ -215,6 +230,7 @@ impl Behavioural for SchedState {
         out.items.push(StateDecl::reg("buckets_ready", 8));
         out.items.push(StateDecl::reg("mem_queued", 8));
         out.items.push(StateDecl::reg("next_eligible", 32));
+        out.items.push(StateDecl::reg("next_tm", 16));
         // Destination table entry: head and tail pointers, counts, line buffer mask.
         out.items
             .push(StateDecl::array("dest_table", 224, self.cap_dest.max(1)));
@@ -233,6 +249,7 @@ impl Behavioural for SchedState {
         out.slot().push(self.out.len() as u64, 8);
         out.slot()
             .push(self.eligible.first().map_or(u32::MAX, |&s| s) as u64, 32);
+        out.slot().push(self.next_tm as u64, 16);
     }
     fn reset(&mut self) {
         // Rebuilt by the owner (`StreamScheduler::fresh_state`) at construction;
@@ -273,12 +290,14 @@ crate::unit! {
             dest_entries: u32 => "DEST_ENTRIES",
             writes_per_cycle: u32 => "WRITES_PER_CYCLE",
             bucket_buffers: u32 => "BUCKET_BUFFERS",
-            mem_queue: u32 => "MEM_QUEUE"
+            mem_queue: u32 => "MEM_QUEUE",
+            ray_lanes: u32 => "RAY_LINES_PER_CYCLE",
+            scene_lanes: u32 => "SCENE_LINES_PER_CYCLE"
         }
-        inputs { emit: RayWrite, start: WaveStart, mem_resp: MemLineResp }
-        outputs { slot_map: SlotMap, scene_req: MemLineReq, mem_req: MemLineReq }
-        in_arrays { ray_write: RayWrite }
-        out_arrays { fill: SbFill }
+        inputs { emit: RayWrite, start: WaveStart }
+        outputs { slot_map: SlotMap }
+        in_arrays { ray_write: RayWrite, mem_resp: MemLineResp }
+        out_arrays { fill: SbFill, mem_req: MemLineReq, scene_req: MemLineReq }
         state { st: Model<SchedState> }
         extra {
             map: MemoryMap,
@@ -292,6 +311,7 @@ crate::unit! {
             // the chip's last finished work, for the drain figure.
             last_marker: u64,
             root_log: Option<Vec<RayRec>>,
+            tm_rays: Vec<u64>,
             stats: SchedStats
         }
     }
@@ -314,6 +334,10 @@ pub struct SchedStats {
     /// Shading work items forwarded and finished (end markers).
     pub shade_items: u64,
     pub shade_done: u64,
+    /// Most ray-stream (`mem_req`) and scene-stream (`scene_req`) lines issued in
+    /// one cycle (at most the lanes).
+    pub ray_lines_peak: u64,
+    pub scene_lines_peak: u64,
 }
 
 impl StreamScheduler {
@@ -325,13 +349,18 @@ impl StreamScheduler {
         segments: usize,
         emit: In<RayWrite>,
         start: In<WaveStart>,
-        mem_resp: In<MemLineResp>,
+        mem_resp: Vec<In<MemLineResp>>,
         slot_map: Out<SlotMap>,
-        scene_req: Out<MemLineReq>,
-        mem_req: Out<MemLineReq>,
+        scene_req: Vec<Out<MemLineReq>>,
+        mem_req: Vec<Out<MemLineReq>>,
         ray_write: Vec<In<RayWrite>>,
         fill: Vec<Out<SbFill>>,
     ) -> Self {
+        assert_eq!(
+            mem_req.len(),
+            mem_resp.len(),
+            "one memory response lane per request lane"
+        );
         let per_chunk = map.row_bytes / map.bucket_bytes;
         let chunks = map.bucket_count / per_chunk;
         let tms = fill.len();
@@ -343,6 +372,8 @@ impl StreamScheduler {
             writes_per_cycle: cfg.ray_writes_per_cycle,
             bucket_buffers: cfg.bucket_buffers,
             mem_queue: cfg.mem_queue,
+            ray_lanes: mem_req.len() as u32,
+            scene_lanes: scene_req.len() as u32,
             emit,
             start,
             mem_resp,
@@ -365,6 +396,7 @@ impl StreamScheduler {
             last_shade_end: 0,
             last_marker: 0,
             root_log: None,
+            tm_rays: vec![0; tms],
             stats: SchedStats::default(),
         }
     }
@@ -431,6 +463,10 @@ impl StreamScheduler {
     pub fn stats(&self) -> SchedStats {
         self.stats
     }
+    /// Rays handed to each TM (cumulative; shading items not counted).
+    pub fn tm_rays(&self) -> &[u64] {
+        &self.tm_rays
+    }
     pub fn live_buckets(&self) -> u64 {
         self.st.r().live_buckets
     }
@@ -450,6 +486,22 @@ impl StreamScheduler {
     pub fn new_wave(&mut self) {
         self.pub_enqueued.iter_mut().for_each(|x| *x = 0);
         self.pub_done.iter_mut().for_each(|x| *x = 0);
+    }
+
+    /// The free TM (no bucket in progress) with the fewest outstanding rays,
+    /// the first from `next_tm` on a tie.
+    fn pick_tm(&self) -> Option<usize> {
+        let s = self.st.r();
+        let n = s.tms.len();
+        let mut best: Option<(u32, usize)> = None;
+        for j in 0..n {
+            let k = (s.next_tm as usize + j) % n;
+            let t = &s.tms[k];
+            if t.cur.is_none() && best.is_none_or(|(o, _)| t.outstanding < o) {
+                best = Some((t.outstanding, k));
+            }
+        }
+        best.map(|(_, k)| k)
     }
 
     fn out_room(&self) -> usize {
@@ -602,8 +654,117 @@ impl StreamScheduler {
         }
     }
 
+    /// One memory answer (ray-stream line, segment info, write done).
+    fn answer(&mut self, r: MemLineResp) {
+        let kind = r.id >> KIND_SHIFT;
+        let low = r.id & ((1 << KIND_SHIFT) - 1);
+        match kind {
+            K_WRITE => {
+                let st = self.st.m();
+                if let Some(q) = st.dest.get_mut(&low) {
+                    q.writes_in_flight -= 1;
+                }
+            }
+            K_INFO => {
+                let st = self.st.m();
+                let f = st.fetch.as_mut().expect("fetch in progress");
+                let off = (self.map.seg_entry_addr(f.seg) % LINE_BYTES) as usize;
+                let e = seg_entry_from_line(&r.data, off);
+                let a = self.map.child_list + e.first_child as u64 * 4;
+                let n = lines_touched(a, e.child_count as u64 * 4);
+                f.entry = Some(e);
+                f.child_lines = vec![None; n as usize];
+                if n == 0 {
+                    f.children = Some(Vec::new());
+                }
+                for k in 0..n {
+                    st.out.push_back(MemLineReq::read(
+                        (a & !(LINE_BYTES - 1)) + k * LINE_BYTES,
+                        StreamTag::Other,
+                        K_CHILD << KIND_SHIFT | k as u32,
+                    ));
+                }
+            }
+            K_CHILD => {
+                let st = self.st.m();
+                let f = st.fetch.as_mut().expect("fetch in progress");
+                f.child_lines[low as usize] = Some(r.data);
+                if f.child_lines.iter().all(|l| l.is_some()) {
+                    let e = f.entry.expect("entry first");
+                    let a = self.map.child_list + e.first_child as u64 * 4;
+                    let base = a & !(LINE_BYTES - 1);
+                    let kids = (0..e.child_count as u64)
+                        .map(|k| {
+                            let x = a + 4 * k - base;
+                            let l = f.child_lines[(x / LINE_BYTES) as usize]
+                                .as_ref()
+                                .expect("all lines");
+                            l.u32_at((x % LINE_BYTES) as usize)
+                        })
+                        .collect();
+                    f.children = Some(kids);
+                }
+            }
+            K_BUCKET => {
+                let (ri, line) = ((low >> 8) as usize, low & 0xFF);
+                let per_chunk = self.per_chunk;
+                let map_base = self.map.buckets;
+                let bucket_bytes = self.map.bucket_bytes;
+                let st = self.st.m();
+                let rd = st.reads[ri].as_mut().expect("read in progress");
+                let o = line as usize * LINE_BYTES as usize;
+                rd.bytes[o..o + LINE_BYTES as usize].copy_from_slice(&r.data.0);
+                rd.got += 1;
+                let mut extra_lines = Vec::new();
+                if line == 0 {
+                    // Header: the count and the next bucket of the queue.
+                    let next = u64::from_le_bytes(r.data.0[0..8].try_into().expect("8"));
+                    let count = r.data.u32_at(8);
+                    rd.count = count;
+                    rd.lines = lines_touched(
+                        rd.addr,
+                        BUCKET_HEADER_BYTES as u64 + count as u64 * RAY_BYTES as u64,
+                    ) as u32;
+                    for k in 1..rd.lines {
+                        extra_lines.push(MemLineReq::read(
+                            rd.addr + k as u64 * LINE_BYTES,
+                            StreamTag::Ray,
+                            K_BUCKET << KIND_SHIFT | (ri as u32) << 8 | k,
+                        ));
+                    }
+                    let seg = rd.seg;
+                    let w = st.ws.iter_mut().find(|w| w.seg == seg).expect("ws");
+                    w.head = next;
+                    w.header_pending = false;
+                }
+                st.out.extend(extra_lines);
+                let rd = st.reads[ri].as_ref().expect("read");
+                if rd.lines > 0 && rd.got == rd.lines {
+                    let rd = st.reads[ri].take().expect("read");
+                    let rays: Vec<RayRec> = rd.bytes[BUCKET_HEADER_BYTES as usize
+                        ..(BUCKET_HEADER_BYTES + rd.count * RAY_BYTES) as usize]
+                        .chunks_exact(RAY_BYTES as usize)
+                        .map(RayRec::decode)
+                        .collect();
+                    let b = (rd.addr - map_base) / bucket_bytes;
+                    st.live_buckets -= 1;
+                    Self::free_bucket(st, per_chunk, b);
+                    st.ready.push_back((rd.seg, rays));
+                    self.stats.buckets_read += 1;
+                }
+            }
+            _ => unreachable!("unknown memory id {:#x}", r.id),
+        }
+    }
+
     /// Accepts a duplicate or a marker.
-    fn accept_write(&mut self, w: &RayWrite) {
+    fn accept_write(&mut self, w: &RayWrite, tm: Option<usize>) {
+        if w.done
+            && let Some(k) = tm
+        {
+            let t = &mut self.st.m().tms[k];
+            t.outstanding = t.outstanding.saturating_sub(1);
+        }
         if w.done && w.seg == SHADE_SEG {
             self.stats.shade_done += 1;
             self.st
@@ -662,107 +823,11 @@ impl Logic for StreamScheduler {
         }
         let mut worked = false;
 
-        // 1. One memory answer.
-        if let Some(r) = ctx.pop(&self.mem_resp) {
-            worked = true;
-            let kind = r.id >> KIND_SHIFT;
-            let low = r.id & ((1 << KIND_SHIFT) - 1);
-            match kind {
-                K_WRITE => {
-                    let st = self.st.m();
-                    if let Some(q) = st.dest.get_mut(&low) {
-                        q.writes_in_flight -= 1;
-                    }
-                }
-                K_INFO => {
-                    let st = self.st.m();
-                    let f = st.fetch.as_mut().expect("fetch in progress");
-                    let off = (self.map.seg_entry_addr(f.seg) % LINE_BYTES) as usize;
-                    let e = seg_entry_from_line(&r.data, off);
-                    let a = self.map.child_list + e.first_child as u64 * 4;
-                    let n = lines_touched(a, e.child_count as u64 * 4);
-                    f.entry = Some(e);
-                    f.child_lines = vec![None; n as usize];
-                    if n == 0 {
-                        f.children = Some(Vec::new());
-                    }
-                    for k in 0..n {
-                        st.out.push_back(MemLineReq::read(
-                            (a & !(LINE_BYTES - 1)) + k * LINE_BYTES,
-                            StreamTag::Other,
-                            K_CHILD << KIND_SHIFT | k as u32,
-                        ));
-                    }
-                }
-                K_CHILD => {
-                    let st = self.st.m();
-                    let f = st.fetch.as_mut().expect("fetch in progress");
-                    f.child_lines[low as usize] = Some(r.data);
-                    if f.child_lines.iter().all(|l| l.is_some()) {
-                        let e = f.entry.expect("entry first");
-                        let a = self.map.child_list + e.first_child as u64 * 4;
-                        let base = a & !(LINE_BYTES - 1);
-                        let kids = (0..e.child_count as u64)
-                            .map(|k| {
-                                let x = a + 4 * k - base;
-                                let l = f.child_lines[(x / LINE_BYTES) as usize]
-                                    .as_ref()
-                                    .expect("all lines");
-                                l.u32_at((x % LINE_BYTES) as usize)
-                            })
-                            .collect();
-                        f.children = Some(kids);
-                    }
-                }
-                K_BUCKET => {
-                    let (ri, line) = ((low >> 8) as usize, low & 0xFF);
-                    let per_chunk = self.per_chunk;
-                    let map_base = self.map.buckets;
-                    let bucket_bytes = self.map.bucket_bytes;
-                    let st = self.st.m();
-                    let rd = st.reads[ri].as_mut().expect("read in progress");
-                    let o = line as usize * LINE_BYTES as usize;
-                    rd.bytes[o..o + LINE_BYTES as usize].copy_from_slice(&r.data.0);
-                    rd.got += 1;
-                    let mut extra_lines = Vec::new();
-                    if line == 0 {
-                        // Header: the count and the next bucket of the queue.
-                        let next = u64::from_le_bytes(r.data.0[0..8].try_into().expect("8"));
-                        let count = r.data.u32_at(8);
-                        rd.count = count;
-                        rd.lines = lines_touched(
-                            rd.addr,
-                            BUCKET_HEADER_BYTES as u64 + count as u64 * RAY_BYTES as u64,
-                        ) as u32;
-                        for k in 1..rd.lines {
-                            extra_lines.push(MemLineReq::read(
-                                rd.addr + k as u64 * LINE_BYTES,
-                                StreamTag::Ray,
-                                K_BUCKET << KIND_SHIFT | (ri as u32) << 8 | k,
-                            ));
-                        }
-                        let seg = rd.seg;
-                        let w = st.ws.iter_mut().find(|w| w.seg == seg).expect("ws");
-                        w.head = next;
-                        w.header_pending = false;
-                    }
-                    st.out.extend(extra_lines);
-                    let rd = st.reads[ri].as_ref().expect("read");
-                    if rd.lines > 0 && rd.got == rd.lines {
-                        let rd = st.reads[ri].take().expect("read");
-                        let rays: Vec<RayRec> = rd.bytes[BUCKET_HEADER_BYTES as usize
-                            ..(BUCKET_HEADER_BYTES + rd.count * RAY_BYTES) as usize]
-                            .chunks_exact(RAY_BYTES as usize)
-                            .map(RayRec::decode)
-                            .collect();
-                        let b = (rd.addr - map_base) / bucket_bytes;
-                        st.live_buckets -= 1;
-                        Self::free_bucket(st, per_chunk, b);
-                        st.ready.push_back((rd.seg, rays));
-                        self.stats.buckets_read += 1;
-                    }
-                }
-                _ => unreachable!("unknown memory id {:#x}", r.id),
+        // 1. Memory answers: one per lane.
+        for j in 0..self.mem_resp.len() {
+            if let Some(r) = ctx.pop(&self.mem_resp[j]) {
+                self.answer(r);
+                worked = true;
             }
         }
 
@@ -823,15 +888,18 @@ impl Logic for StreamScheduler {
                     continue; // the table is full: the write waits in its link
                 }
             }
-            if j == n {
+            let tm = if j == n {
                 ctx.pop(&self.emit);
+                None
             } else {
-                ctx.pop(&self.ray_write[(c as usize + j) % n]);
-            }
+                let k = (c as usize + j) % n;
+                ctx.pop(&self.ray_write[k]);
+                Some(k)
+            };
             if w.done {
                 self.last_marker = c;
             }
-            self.accept_write(&w);
+            self.accept_write(&w, tm);
             taken += 1;
             worked = true;
         }
@@ -941,10 +1009,15 @@ impl Logic for StreamScheduler {
             }
         }
 
-        // 6. Segment streams: one scene line per cycle, round-robin over streams.
+        // 6. Segment streams: one scene line per lane per cycle
+        // (`scene_lines_per_cycle`), lane j serving stream (cycle + j) mod streams.
         // The mapping goes out first (the scene buffer must know the slot).
-        if !self.st.r().streams.is_empty() && ctx.can_push(&self.scene_req) {
-            let k = (c as usize) % self.st.r().streams.len();
+        let mut issued = 0;
+        for j in 0..self.scene_req.len() {
+            if self.st.r().streams.is_empty() || !ctx.can_push(&self.scene_req[j]) {
+                continue;
+            }
+            let k = (c as usize + j) % self.st.r().streams.len();
             let s = &self.st.r().streams[k];
             let mapped_first = self
                 .st
@@ -970,10 +1043,12 @@ impl Logic for StreamScheduler {
                         st.slot_free[slot] = true;
                     }
                 }
-                ctx.push(&self.scene_req, req);
+                ctx.push(&self.scene_req[j], req);
+                issued += 1;
                 worked = true;
             }
         }
+        self.stats.scene_lines_peak = self.stats.scene_lines_peak.max(issued);
 
         // 7. Bucket reads: start the next bucket of a working-set queue.
         {
@@ -1016,20 +1091,34 @@ impl Logic for StreamScheduler {
             }
         }
 
-        // 8. One memory request per cycle.
-        if !self.st.r().out.is_empty() && ctx.can_push(&self.mem_req) {
-            let r = self.st.m().out.pop_front().expect("non-empty");
-            ctx.push(&self.mem_req, r);
-            worked = true;
+        // 8. Memory requests in queue order, one per lane per cycle
+        // (`ray_lines_per_cycle`).
+        let mut issued = 0;
+        for j in 0..self.mem_req.len() {
+            if !self.st.r().out.is_empty() && ctx.can_push(&self.mem_req[j]) {
+                let r = self.st.m().out.pop_front().expect("non-empty");
+                ctx.push(&self.mem_req[j], r);
+                issued += 1;
+                worked = true;
+            }
         }
+        self.stats.ray_lines_peak = self.stats.ray_lines_peak.max(issued);
 
-        // 9. Distribution to the TMs' staging buffers.
-        for k in 0..n {
-            // Shading items (pixels, a bucket's worth at a time) to idle TMs.
+        // 9. Distribution to the TMs' staging buffers: each waiting bucket (or,
+        // when none waits, a bucket's worth of shading items) goes to the free TM
+        // (no bucket in progress) with the fewest outstanding rays, ties broken
+        // round-robin from `next_tm`.
+        loop {
             let shade_left = self.st.r().shade.as_ref().is_some_and(|p| p.next < p.end);
-            if self.st.r().tms[k].cur.is_none() && self.st.r().ready.is_empty() && shade_left {
+            if self.st.r().ready.is_empty() && !shade_left {
+                break;
+            }
+            let Some(k) = self.pick_tm() else { break };
+            let st = self.st.m();
+            st.next_tm = ((k + 1) % n) as u32;
+            if st.ready.is_empty() {
+                // Shading items (pixels, a bucket's worth at a time).
                 let rpb = self.rays_per_bucket;
-                let st = self.st.m();
                 let p = st.shade.as_mut().expect("shading");
                 let m = rpb.min(p.end - p.next);
                 let items = (p.next..p.next + m)
@@ -1043,11 +1132,11 @@ impl Logic for StreamScheduler {
                 p.next += m;
                 p.out += m as u64;
                 self.stats.shade_items += m as u64;
+                st.tms[k].outstanding += m;
                 st.tms[k].cur = Some((SHADE_SEG, items, 0));
-                worked = true;
-            }
-            if self.st.r().tms[k].cur.is_none() && !self.st.r().ready.is_empty() {
-                let st = self.st.m();
+            } else {
+                // A bucket of the segment the TM had last (L1 reuse, §4.1), else
+                // the oldest.
                 let last = st.tms[k].last_seg;
                 let pick = last
                     .and_then(|s| st.ready.iter().position(|(rs, _)| *rs == s))
@@ -1057,10 +1146,14 @@ impl Logic for StreamScheduler {
                 let w = st.ws.iter_mut().find(|w| w.seg == seg).expect("ws");
                 w.rays_fwd += rays.len() as u64;
                 self.stats.buckets_forwarded += 1;
+                self.tm_rays[k] += rays.len() as u64;
+                st.tms[k].outstanding += rays.len() as u32;
                 st.tms[k].cur = Some((seg, rays, 0));
                 st.tms[k].last_seg = Some(seg);
-                worked = true;
             }
+            worked = true;
+        }
+        for k in 0..n {
             let shade_item = self.st.r().tms[k]
                 .cur
                 .as_ref()
@@ -1153,10 +1246,13 @@ impl Logic for StreamScheduler {
             ("skipped_children", s.skipped_children),
             ("shade_items", s.shade_items),
             ("shade_done", s.shade_done),
+            ("ray_lines_peak", s.ray_lines_peak),
+            ("scene_lines_peak", s.scene_lines_peak),
         ]
     }
 
     fn reset_counters(&mut self) {
         self.stats = SchedStats::default();
+        self.tm_rays.iter_mut().for_each(|x| *x = 0);
     }
 }
