@@ -431,7 +431,10 @@ fn the_l2_serves_hit_records_and_shading_and_saves_dram_lines() {
     assert!(off.waves.iter().all(|w| w.l2.accesses == 0));
     for t in [StreamTag::Hit, StreamTag::Shading] {
         let (a, b) = (lines(&on, t), lines(&off, t));
-        assert!(a > 0 && a < b, "{t:?}: {a} DRAM lines with the L2, {b} without");
+        assert!(
+            a > 0 && a < b,
+            "{t:?}: {a} DRAM lines with the L2, {b} without"
+        );
     }
     // The streams do not go through the L2.
     for t in [StreamTag::Ray, StreamTag::Scene] {

@@ -333,7 +333,10 @@ fn l2_scoreboard_fails_on_a_lost_writeback() {
     };
     let r = l2tb::run_with(&opts(1), &b).unwrap();
     assert!(!r.passed(), "a dropped writeback must fail: {r}");
-    assert!(r.errors.iter().any(|e| e.contains("after the flush")), "{r}");
+    assert!(
+        r.errors.iter().any(|e| e.contains("after the flush")),
+        "{r}"
+    );
 }
 
 #[test]
@@ -343,7 +346,10 @@ fn l2_rejects_a_bad_geometry_with_the_fix() {
         ..Default::default()
     };
     let e = c.validate(1).unwrap_err();
-    assert!(e.contains("chip.l2.bytes") && e.contains("banks x ways x line_bytes"), "{e}");
+    assert!(
+        e.contains("chip.l2.bytes") && e.contains("banks x ways x line_bytes"),
+        "{e}"
+    );
     c.bytes = 512 << 10;
     c.hit_latency = 1;
     assert!(c.validate(1).unwrap_err().contains("chip.l2.hit_latency"));

@@ -8,7 +8,9 @@ use std::collections::VecDeque;
 
 use crate::contract::RayRec;
 use crate::rtl::decl::{Samples, StateList};
-use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Payload, PortDecl, PortDir, Status, UnitDecl};
+use crate::rtl::{
+    Ctx, Declared, In, Logic, Next, Out, Payload, PortDecl, PortDir, Status, UnitDecl,
+};
 use crate::units::l2::L2Flush;
 use crate::units::stream_scheduler::WaveStart;
 use crate::units::tp::RayWrite;

@@ -399,13 +399,7 @@ impl Chip {
         let hit_updater = sim.add(
             "chip.hit_updater",
             clock,
-            HitRecordUpdater::new(
-                &ch.hit_updater,
-                map.hits,
-                hit_i,
-                hru_req,
-                hru_resp,
-            ),
+            HitRecordUpdater::new(&ch.hit_updater, map.hits, hit_i, hru_req, hru_resp),
         );
         let l2 = l2_unit.map(|u| sim.add("chip.l2", clock, u));
         // Without the L2 the TMs' global-memory ports (the shading pass) go to

@@ -430,8 +430,7 @@ impl L2 {
                 addr,
                 targets: vec![(port, c, r.clone())],
             });
-            st.out_q
-                .push_back(MemLineReq::read(addr, r.tag, k as u32));
+            st.out_q.push_back(MemLineReq::read(addr, r.tag, k as u32));
             self.stats.misses += 1;
         }
         self.st.m().outstanding[p] += 1;
