@@ -102,6 +102,24 @@ enum Cmd {
         /// Write each wavefront's rays and hit records into this directory.
         #[arg(long)]
         dump_rays: Option<PathBuf>,
+        /// cycle: write a VCD waveform of the chip here (open with gtkwave).
+        #[arg(long)]
+        vcd: Option<PathBuf>,
+        /// cycle: units to trace, comma-separated: scheduler, scene_buffer,
+        /// hit_updater, memory, mem_ctrl (every channel) or mem_ctrl<c>, tm<k> (a
+        /// whole TM), tms, host, l2, or instance patterns (`chip.tm*.l1`, `*`
+        /// wildcard). Default: every unit.
+        #[arg(long, alias = "trace", default_value = "")]
+        trace_units: String,
+        /// cycle: core cycles to trace: A..B (B excluded), A..=B or A.. (to the end).
+        #[arg(long, conflicts_with_all = ["trace_from", "trace_to"])]
+        trace_window: Option<String>,
+        /// cycle: first core cycle to trace (same as --trace-window A..).
+        #[arg(long)]
+        trace_from: Option<u64>,
+        /// cycle: last core cycle to trace, included.
+        #[arg(long)]
+        trace_to: Option<u64>,
     },
     /// Our figures next to the paper's (Table 2) for Dragon, Dragon Box and Sponza.
     Report {
@@ -134,13 +152,30 @@ enum Cmd {
         #[arg(long, default_value = "hdl")]
         out: PathBuf,
     },
-    /// Measure the simulator's speed (kernel: pipelines of 128 TMs at several activities).
+    /// Measure the simulator: kernel (pipelines of 128 TMs at several activities),
+    /// dram (the memory model's replay speed), speed-error (every faster mode's wall
+    /// time and error against the full cycle model on a scene).
     Bench {
-        /// What to measure: kernel.
+        /// What to measure: kernel, dram or speed-error.
         what: String,
-        /// Scale the simulated cycles (1.0 = the full benchmark).
+        /// Scale the simulated cycles (1.0 = the full benchmark; kernel and dram).
         #[arg(long, default_value_t = 1.0)]
         scale: f64,
+        /// speed-error: the scene (builtin name, .toml or .obj).
+        #[arg(long, default_value = "cornell")]
+        scene: String,
+        /// speed-error: resolution WxH.
+        #[arg(long, default_value = "64x64")]
+        res: String,
+        /// speed-error: TMs of the small-chip mode.
+        #[arg(long, default_value_t = 8)]
+        small_tms: u32,
+        /// speed-error: write the rows as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// speed-error: write the speedup-against-error plot (SVG) here.
+        #[arg(long)]
+        plot: Option<PathBuf>,
     },
     /// The memory system: replay a DRAMsim3-format trace and print statistics, or
     /// generate a trace (random, stream, mixed).
@@ -211,6 +246,7 @@ fn render_cfg(config: &Config) -> dualstream::render::RenderCfg {
         chip: Some(Box::new(dualstream::render::ChipRun {
             config: config.clone(),
             sim: Default::default(),
+            trace: None,
         })),
     }
 }
@@ -327,6 +363,11 @@ fn run(cli: Cli) -> Result<(), String> {
             stats,
             verify,
             dump_rays,
+            vcd,
+            trace_units,
+            trace_window,
+            trace_from,
+            trace_to,
         } => {
             use dualstream::render::{self, Mode, output};
             let mode = match mode.as_str() {
@@ -353,8 +394,36 @@ fn run(cli: Cli) -> Result<(), String> {
                 sc.settings.seed = s;
             }
             sc.settings.validate()?;
+            let traced = !trace_units.is_empty()
+                || trace_window.is_some()
+                || trace_from.is_some()
+                || trace_to.is_some();
+            if traced && vcd.is_none() {
+                return Err(
+                    "--trace-units/--trace-window choose what goes into a waveform: add --vcd FILE"
+                        .into(),
+                );
+            }
+            if vcd.is_some() && mode != Mode::Cycle {
+                return Err("--vcd traces the chip: add --mode cycle".into());
+            }
+            let (from, to) = match &trace_window {
+                Some(w) => dualstream::machine::trace::parse_window(w)?,
+                None => (trace_from.unwrap_or(0), trace_to),
+            };
+            if let Some(t) = to
+                && t < from
+            {
+                return Err(format!(
+                    "--trace-from {from} --trace-to {t}: the trace window ends before it starts"
+                ));
+            }
             // Fail on an unwritable output before spending minutes on the frame.
-            for (p, what) in [(Some(&out), "--out"), (stats.as_ref(), "--stats")] {
+            for (p, what) in [
+                (Some(&out), "--out"),
+                (stats.as_ref(), "--stats"),
+                (vcd.as_ref(), "--vcd"),
+            ] {
                 if let Some(p) = p {
                     std::fs::OpenOptions::new()
                         .create(true)
@@ -369,6 +438,14 @@ fn run(cli: Cli) -> Result<(), String> {
                 }
             }
             let mut rc = render_cfg(&config);
+            if let (Some(path), Some(run)) = (&vcd, rc.chip.as_mut()) {
+                run.trace = Some(render::ChipTrace {
+                    path: path.clone(),
+                    units: trace_units,
+                    from,
+                    to,
+                });
+            }
             rc.verify = verify;
             rc.dump_rays = dump_rays;
             let bar = indicatif::ProgressBar::new((sc.settings.bounces as u64 + 1) * 1000);
@@ -394,6 +471,16 @@ fn run(cli: Cli) -> Result<(), String> {
             output::write_png(&frame, &out)?;
             print!("{}", output::summary(&frame));
             println!("image: {}", out.display());
+            if let (Some(p), Some(v)) = (&vcd, frame.chip.as_ref().and_then(|c| c.vcd)) {
+                println!(
+                    "waveform: {} ({} units, {} signals, {} changes; open with: gtkwave {})",
+                    p.display(),
+                    v.units,
+                    v.signals,
+                    v.changes,
+                    p.display()
+                );
+            }
             if let Some(p) = stats {
                 output::write_json(&frame, &p)?;
                 println!("statistics: {}", p.display());
@@ -513,16 +600,50 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             Ok(())
         }
-        Cmd::Bench { what, scale } => {
+        Cmd::Bench {
+            what,
+            scale,
+            scene,
+            res,
+            small_tms,
+            json,
+            plot,
+        } => {
             if scale.is_nan() || scale <= 0.0 {
                 return Err("--scale must be positive".into());
             }
             match what.as_str() {
                 "kernel" => print!("{}", dualstream::bench::kernel_report(scale)),
                 "dram" => print!("{}", dualstream::mem::bench::report(scale)?),
+                "speed-error" => {
+                    use dualstream::speed_error as se;
+                    let mut sc = dualstream::scene::load(&scene)?;
+                    (sc.settings.width, sc.settings.height) = parse_res(&res)?;
+                    sc.settings.validate()?;
+                    let rows = se::run(&sc, &config, &se::SpeedErrorOpts { small_tms })?;
+                    println!(
+                        "speed against error: {} {}x{} on {} x {} TPs (reference: cycle mode, GDDR5)",
+                        sc.name,
+                        sc.settings.width,
+                        sc.settings.height,
+                        config.chip.tms,
+                        config.tm.tps
+                    );
+                    print!("{}", se::table(&rows));
+                    if let Some(p) = json {
+                        let text =
+                            serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+                        std::fs::write(&p, text)
+                            .map_err(|e| format!("cannot write '{}': {e}", p.display()))?;
+                    }
+                    if let Some(p) = plot {
+                        std::fs::write(&p, se::plot(&rows))
+                            .map_err(|e| format!("cannot write '{}': {e}", p.display()))?;
+                    }
+                }
                 _ => {
                     return Err(format!(
-                        "unknown benchmark '{what}'; available: kernel, dram"
+                        "unknown benchmark '{what}'; available: kernel, dram, speed-error"
                     ));
                 }
             }

@@ -23,7 +23,13 @@ fn rcfg(segment_kb: u32, chip: Option<(Config, SimOptions)>) -> RenderCfg {
             segment_bytes: segment_kb << 10,
             ..AccelCfg::default()
         },
-        chip: chip.map(|(config, sim)| Box::new(ChipRun { config, sim })),
+        chip: chip.map(|(config, sim)| {
+            Box::new(ChipRun {
+                config,
+                sim,
+                ..ChipRun::default()
+            })
+        }),
         ..RenderCfg::default()
     }
 }
@@ -439,5 +445,42 @@ fn the_l2_serves_hit_records_and_shading_and_saves_dram_lines() {
     // The streams do not go through the L2.
     for t in [StreamTag::Ray, StreamTag::Scene] {
         assert_eq!(lines(&on, t), lines(&off, t), "{t:?} lines");
+    }
+}
+
+// ---- passes end promptly ----
+
+/// When the last rays (or shading items) of a pass are done, the pass ends within
+/// a few hundred cycles (`WaveCycles::drain_cycles`: the last end marker to every
+/// unit idle), on the default scene, on chips of several shapes, with both memory
+/// models: never a drain that grows with the chip (TMs x slots).
+#[test]
+fn passes_end_promptly_after_their_last_rays() {
+    const BOUND: u64 = 500;
+    let s = scene(dualstream::scene::DEFAULT_SCENE, 16, 12, 2);
+    for (tms, tps, gddr5) in [(1, 16, false), (8, 16, false), (4, 8, true)] {
+        let cfg = if gddr5 {
+            gddr5_cfg(tms, tps)
+        } else {
+            chip_cfg(tms, tps)
+        };
+        let c = render(
+            &s,
+            Mode::Cycle,
+            &rcfg(8, Some((cfg, SimOptions::default()))),
+            &mut |_| {},
+        )
+        .unwrap();
+        let chip = c.chip.unwrap();
+        for (k, w) in chip.waves.iter().enumerate() {
+            let what = format!("{tms}x{tps} gddr5={gddr5} run {k}");
+            assert!(
+                w.drain_cycles >= 1 && w.drain_cycles <= BOUND,
+                "{what}: drain {} cycles (of {})",
+                w.drain_cycles,
+                w.cycles
+            );
+            assert!(w.drain_cycles < w.cycles, "{what}: drain within the run");
+        }
     }
 }

@@ -316,6 +316,35 @@ mod unit {
         }
     }
 
+    /// A controller whose response link stalls with requests queued (its response
+    /// buffer full, nothing to issue before the refresh deadline) and that then
+    /// drains leaves no wake-up behind at the refresh deadline: the run ends
+    /// within a read latency of the last response (it ended at tREFI, holding a
+    /// chip's pass open, before the fix).
+    #[test]
+    fn a_stalled_controller_goes_idle_right_after_its_last_response() {
+        let cfg = Config::default();
+        let m = &cfg.mem;
+        let n = m.ctrl.resp_buffer + m.ctrl.read_queue / 2;
+        let mut b = MemTb::new(&cfg, SimOptions::default(), 0.05, 3).unwrap();
+        for id in 0..n {
+            let a = b.addr(id % 4, 0, 1, id / 4);
+            b.send(0, a, false, StreamTag::Ray, id);
+        }
+        let end = b.run_to_idle(1_000_000).unwrap();
+        assert_eq!(b.received().len(), n as usize);
+        let last = b.received().iter().map(|r| r.0).max().unwrap();
+        assert!(
+            last < m.timing.refi as u64,
+            "the stall must end before the refresh falls due ({last})"
+        );
+        let read = (m.timing.cl + m.geometry.burst_cycles()) as u64;
+        assert!(
+            end <= last + read,
+            "idle at {end}, last response at {last}: a stale wake-up"
+        );
+    }
+
     /// The trace replay (the fast path) calls the controller directly; it must give
     /// the unit's cycles exactly: same commands, same completion times.
     #[test]

@@ -25,7 +25,9 @@
 //! run and back out for shading.
 
 pub mod config;
+pub mod hdl;
 pub mod host;
+pub mod trace;
 
 use std::time::Instant;
 
@@ -176,6 +178,11 @@ pub struct WaveCycles {
     pub shade_hits: u64,
     pub shade_occluded: u64,
     pub shade_cycles: u64,
+    /// Cycles from the last finished work (the last end marker of a ray or a
+    /// shading item taken by the scheduler) to the run's end (every unit idle):
+    /// the pass's drain (hit record writes, retirement, answers in flight),
+    /// without the end-of-run L2 flush (`l2.flush_cycles`).
+    pub drain_cycles: u64,
     /// Actions of the TPs' shading states (`tm.costs` shade_load, shade,
     /// shade_emit, shade_store), for the energy model.
     pub shade_uses: [u64; 4],
@@ -582,6 +589,7 @@ impl Chip {
             shade_occluded: self.sum_tp("shade_occluded"),
             // The cycle the last shading pass ended (see `run_wave`).
             shade_cycles: s.unit_ref::<StreamScheduler>(self.scheduler).last_shade_end,
+            drain_cycles: 0,
             shade_uses: ["shade_load", "shade", "shade_emit", "shade_store"]
                 .map(|n| self.sum_tp(n)),
             l2: self.l2.map_or(L2Wave::default(), |u| {
@@ -751,6 +759,15 @@ impl Chip {
             evals: after.evals - before.evals,
             dram: after.dram.sub(&before.dram),
             l2: after.l2.sub(&before.l2),
+            // The end-of-run L2 flush is not the pass draining: it is counted
+            // apart (`l2.flush_cycles`).
+            drain_cycles: after.cycles
+                - (after.l2.flush_cycles - before.l2.flush_cycles)
+                - self
+                    .sim
+                    .unit_ref::<StreamScheduler>(self.scheduler)
+                    .last_marker
+                    .max(before.cycles),
         };
         for k in 0..StreamTag::COUNT {
             w.lines_read[k] = after.lines_read[k] - before.lines_read[k];

@@ -63,6 +63,29 @@ pub struct RenderCfg {
 pub struct ChipRun {
     pub config: crate::config::Config,
     pub sim: crate::rtl::SimOptions,
+    /// Write a VCD waveform of the run (`render --vcd`).
+    pub trace: Option<ChipTrace>,
+}
+
+/// A waveform of the chip over a window of core cycles (docs/chip.md).
+#[derive(Clone, Debug, Default)]
+pub struct ChipTrace {
+    pub path: std::path::PathBuf,
+    /// Comma-separated unit names and instance patterns
+    /// (`crate::machine::trace::resolve`); empty: every unit.
+    pub units: String,
+    /// First and last core cycle traced (`None`: to the end).
+    pub from: u64,
+    pub to: Option<u64>,
+}
+
+/// What a waveform holds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct VcdInfo {
+    pub units: u64,
+    pub signals: u64,
+    pub changes: u64,
+    pub bytes: u64,
 }
 
 /// Cycle-mode figures of a frame.
@@ -85,6 +108,8 @@ pub struct ChipFrame {
     pub line_bytes: u64,
     /// `gddr5`: the controllers' figures over the whole frame (sum of `waves`).
     pub dram: Option<crate::machine::DramWave>,
+    /// The waveform written (`ChipRun::trace`).
+    pub vcd: Option<VcdInfo>,
 }
 
 impl ChipFrame {
@@ -321,6 +346,16 @@ pub fn render(
         chip_cfg.memory = cfg.memory.clone();
         let consts = shade_consts(scene, &p);
         let mut c = crate::machine::Chip::new(&chip_cfg, &p.map, nseg, &consts, run.sim)?;
+        if let Some(t) = &run.trace {
+            let paths: Vec<String> = (0..c.sim.unit_count())
+                .map(|i| c.sim.unit_path(crate::rtl::UnitId(i as u32)).to_string())
+                .collect();
+            let paths: Vec<&str> = paths.iter().map(String::as_str).collect();
+            let filter = crate::machine::trace::resolve(&t.units, &paths)?;
+            let spec = crate::machine::trace::spec(filter, t.from, t.to, chip_cfg.clocks.core_ps);
+            let tracer = crate::rtl::Tracer::to_file(&t.path, spec)?;
+            c.sim.attach_tracer(tracer).map_err(|e| e.to_string())?;
+        }
         if cfg.verify || cfg.dump_rays.is_some() {
             c.enable_root_log();
         }
@@ -468,6 +503,18 @@ pub fn render(
     for wv in &waves {
         total.add(wv);
     }
+    let mut vcd = None;
+    if let Some(c) = chip.as_mut()
+        && let Some(r) = c.sim.finish_trace()
+    {
+        let t = r.map_err(|e| format!("writing the VCD file failed: {e}"))?;
+        vcd = Some(VcdInfo {
+            units: t.units,
+            signals: t.signals,
+            changes: t.changes,
+            bytes: t.bytes,
+        });
+    }
     let radiance = (0..pixels)
         .map(|pix| PathRec::read(&p.mem, p.map.path_addr(pix as u64)).radiance)
         .collect();
@@ -510,6 +557,7 @@ pub fn render(
                 },
             ),
             waves: chip_waves,
+            vcd,
         }),
     })
 }

@@ -162,9 +162,10 @@ pub fn summary(f: &Frame) -> String {
         );
         for (k, w) in c.waves.iter().enumerate() {
             s += &format!(
-                "    run {k}: {:>10} cycles (shading {:>8})  {:>8} rays  {:>8} duplicates  {:>5} segments  scene-buffer stalls {} ({} cycles)  hit updates merged {}\n",
+                "    run {k}: {:>10} cycles (shading {:>8}, drain {:>5})  {:>8} rays  {:>8} duplicates  {:>5} segments  scene-buffer stalls {} ({} cycles)  hit updates merged {}\n",
                 w.cycles,
                 w.shade_cycles,
+                w.drain_cycles,
                 w.rays_emitted,
                 w.duplicates,
                 w.segments_loaded,

@@ -29,7 +29,7 @@ crate::unit! {
         inputs { req: MemReq }
         outputs { resp: MemResp }
         state { ctrl: ChannelCtrl }
-        extra { resp_delay: u64 }
+        extra { resp_delay: u64, stall_poll: u64 }
     }
 }
 
@@ -52,6 +52,8 @@ impl MemCtrl {
             resp,
             ctrl: ChannelCtrl::new(cfg, tck_ps, channel),
             resp_delay: cfg.ctrl.resp_link.delay as u64,
+            // CL + one burst: a read's latency.
+            stall_poll: (cfg.timing.cl + cfg.geometry.burst_cycles()).max(1) as u64,
         }
     }
 }
@@ -70,9 +72,26 @@ impl Logic for MemCtrl {
             }
         }
         let waiting = ctx.peek(&self.req).map(|r| r.write);
-        if self.ctrl.is_idle() && waiting.is_none() {
-            ctx.set_status(Status::WaitInput);
-            return Next::Idle;
+        let (rq, wq, _) = self.ctrl.queue_lengths();
+        if rq == 0 && wq == 0 && waiting.is_none() {
+            // No request to schedule: the command engine rests (refreshes that
+            // fall due meanwhile are caught up by `advance_to` when one arrives).
+            // Only finished responses may wait: wake for the next one, or, when
+            // the link is full, when it drains (the kernel wakes us). A wake-up
+            // for the refresh deadline here would outlive the work and hold the
+            // pass open for up to tREFI after its last ray.
+            let next = self.ctrl.next_response();
+            ctx.set_status(if stalled {
+                Status::OutputBlocked
+            } else if next.is_some() {
+                Status::Busy
+            } else {
+                Status::WaitInput
+            });
+            return match next {
+                Some(r) if !stalled => Next::AtCycle(r.saturating_sub(d).max(c + 1)),
+                _ => Next::Idle,
+            };
         }
         // Refreshes that fell due while idle, then this cycle's command, then the
         // new request (it joins the queue at the edge, as a registered write).
@@ -104,6 +123,14 @@ impl Logic for MemCtrl {
             n = n.min(r.saturating_sub(d));
         }
         // A stalled response is retried when the link drains (the kernel wakes us).
+        // Meanwhile the engine may have nothing to do before the refresh deadline;
+        // a wake-up that far ahead outlives the queue when it empties after the
+        // stall and holds the pass open for up to tREFI after its last ray, so a
+        // stalled controller re-checks once per read latency instead (the extra
+        // evaluations do nothing: `step` acts only at `next_event`).
+        if stalled {
+            n = n.min(c + self.stall_poll);
+        }
         if n == u64::MAX {
             Next::Idle
         } else {

@@ -24,94 +24,32 @@ use crate::rtl::link::LinkId;
 use crate::rtl::{Declared, In, Out, UnitDecl};
 
 /// The declaration of every hardware unit, built with `cfg` (for `dualstream hdl`
-/// and the declaration tests). Link ids are placeholders: only the interface matters.
+/// and the declaration tests). Link ids are placeholders: only the interface
+/// matters. Panics on an invalid `cfg` (tests); `dualstream hdl` uses
+/// [`catalog_checked`].
 pub fn catalog(cfg: &Config) -> Vec<UnitDecl> {
+    catalog_checked(cfg).expect("a valid configuration")
+}
+
+/// [`catalog`], with an error naming what is wrong in `cfg`.
+pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
     let d = cfg.links.tm.delay;
     let (i, o) = (LinkId(0), LinkId(1));
-    vec![
+    let mut v: Vec<UnitDecl> = vec![
         box_pipe::BoxPipe::new(&cfg.box_pipe, d, In::new(i), Out::new(o)).decl(),
         tri_pipe::TriPipe::new(&cfg.tri_pipe, d, In::new(i), Out::new(o)).decl(),
         divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl(),
         mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o)).decl(),
-    ]
-    .into_iter()
-    .chain(tm_unit_decls(cfg))
-    .chain(chip_unit_decls(cfg))
-    .collect()
-}
-
-/// Declarations of the chip's global units, for the default chip and a small
-/// scene's memory map (the map sets no interface width).
-fn chip_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
-    let n = cfg.chip.tms as usize;
-    fn ins<T>(k: usize) -> Vec<In<T>> {
-        (0..k).map(|j| In::new(LinkId(j as u32))).collect()
+    ];
+    v.extend(tm_unit_decls(cfg));
+    // The chip's global units as the chip instantiates them (one source: the
+    // elaborated chip, so `hdl/chip.v` and these modules agree).
+    for g in crate::machine::hdl::global_decls(cfg)? {
+        if !v.iter().any(|x| x.module == g.module) {
+            v.push(g);
+        }
     }
-    fn outs<T>(k: usize) -> Vec<Out<T>> {
-        (0..k).map(|j| Out::new(LinkId(j as u32))).collect()
-    }
-    let (i, o) = (LinkId(0), LinkId(1));
-    let d = cfg.chip.links.delay;
-    let map = crate::contract::MemoryMap::new(
-        &crate::contract::MemoryMapCfg {
-            bucket_pool_bytes: 1 << 20,
-            ..cfg.memory.clone()
-        },
-        &[cfg.accel.segment_bytes],
-        0,
-        1,
-        1,
-        1,
-    )
-    .expect("a one-segment map fits");
-    let mem = memory::Memory::new(
-        &cfg.chip.memory,
-        d,
-        crate::contract::SparseMem::new(0),
-        ins(3),
-        outs(3),
-    );
-    let sb = scene_buffer::SceneBuffer::new(
-        &cfg.chip.scene_buffer,
-        d,
-        In::new(i),
-        In::new(i),
-        ins(n),
-        outs(n),
-    );
-    let hru = hit_record_updater::HitRecordUpdater::new(
-        &cfg.chip.hit_updater,
-        map.hits,
-        ins(n),
-        Out::new(o),
-        In::new(i),
-    );
-    let sched = stream_scheduler::StreamScheduler::new(
-        &cfg.chip.scheduler,
-        &cfg.chip.scene_buffer,
-        &map,
-        1,
-        In::new(i),
-        In::new(i),
-        In::new(i),
-        Out::new(o),
-        Out::new(o),
-        Out::new(o),
-        ins(n),
-        outs(n),
-    );
-    // The L2's clients: the hit record updater and every TM's global-memory port.
-    let l2 = l2::L2::new(
-        &cfg.chip.l2,
-        d,
-        ins(n + 1),
-        outs(n + 1),
-        Out::new(o),
-        In::new(i),
-        In::new(i),
-        Out::new(o),
-    );
-    vec![mem.decl(), sb.decl(), hru.decl(), sched.decl(), l2.decl()]
+    Ok(v)
 }
 
 /// Declarations of the TM's own units: tp, l1, staging_buffer, tm_xbar.
@@ -191,7 +129,7 @@ pub fn write_hdl(cfg: &Config, dir: &std::path::Path) -> Result<Vec<std::path::P
         )
     })?;
     let mut out = Vec::new();
-    for d in catalog(cfg) {
+    for d in catalog_checked(cfg)? {
         let p = dir.join(format!("{}.v", d.module));
         std::fs::write(&p, crate::rtl::verilog::emit_module(&d)).map_err(|e| {
             format!(
@@ -204,6 +142,15 @@ pub fn write_hdl(cfg: &Config, dir: &std::path::Path) -> Result<Vec<std::path::P
     // The TM is structural: instances of the units above, wired as simulated.
     let p = dir.join("tm.v");
     std::fs::write(&p, tm::emit_verilog(cfg)).map_err(|e| {
+        format!(
+            "cannot write '{}': {e}; choose a writable --out",
+            p.display()
+        )
+    })?;
+    out.push(p);
+    // The chip top: every unit instantiated and wired as simulated.
+    let p = dir.join("chip.v");
+    std::fs::write(&p, crate::machine::hdl::emit_chip(cfg)?).map_err(|e| {
         format!(
             "cannot write '{}': {e}; choose a writable --out",
             p.display()

@@ -288,6 +288,9 @@ crate::unit! {
             pub_enqueued: Vec<u64>,
             pub_done: Vec<u64>,
             last_shade_end: u64,
+            // Cycle the last end marker (a ray's or a shading item's) arrived:
+            // the chip's last finished work, for the drain figure.
+            last_marker: u64,
             root_log: Option<Vec<RayRec>>,
             stats: SchedStats
         }
@@ -360,6 +363,7 @@ impl StreamScheduler {
             pub_enqueued: vec![0; segments],
             pub_done: vec![0; segments],
             last_shade_end: 0,
+            last_marker: 0,
             root_log: None,
             stats: SchedStats::default(),
         }
@@ -823,6 +827,9 @@ impl Logic for StreamScheduler {
                 ctx.pop(&self.emit);
             } else {
                 ctx.pop(&self.ray_write[(c as usize + j) % n]);
+            }
+            if w.done {
+                self.last_marker = c;
             }
             self.accept_write(&w);
             taken += 1;

@@ -1,0 +1,398 @@
+//! `hdl/chip.v`: the chip top as structural Verilog, emitted from a chip elaborated
+//! by [`Chip::new`] (the same code and links the simulation runs), so the netlist
+//! cannot drift from the model. Each top-level instance is a global unit (its
+//! module, parameters from its declaration) or a numbered family (`chip.tm<k>`,
+//! `chip.mem_ctrl<c>`) built in a `generate` loop; a family whose members hold
+//! units (a TM) instantiates its structural module (`hdl/tm.v`), whose ports are
+//! named after the inner units' ports as there. The host is not hardware: its
+//! links become the chip's ports. One valid/ready/data triple per link; a
+//! family's links are vectors indexed by the member.
+
+use std::collections::BTreeMap;
+use std::fmt::Write;
+
+use crate::config::Config;
+use crate::rtl::decl::PortDir;
+use crate::rtl::{SimOptions, UnitDecl, UnitId};
+
+use super::Chip;
+
+/// A chip elaborated for emission: the default-sized scene map (interfaces do not
+/// depend on the scene).
+fn elaborate(cfg: &Config) -> Result<Chip, String> {
+    let map = crate::contract::MemoryMap::new(
+        &crate::contract::MemoryMapCfg {
+            bucket_pool_bytes: 1 << 20,
+            ..cfg.memory.clone()
+        },
+        &[cfg.accel.segment_bytes],
+        0,
+        1,
+        1,
+        1,
+    )?;
+    let shade = crate::render::shade::ShadeConsts {
+        light_pos: glam::Vec3::ZERO,
+        light_intensity: glam::Vec3::ZERO,
+        sky: glam::Vec3::ZERO,
+        bounces: 1,
+        root_entry: 0,
+    };
+    Chip::new(cfg, &map, 1, &shade, SimOptions::default())
+}
+
+/// The declarations of the chip's own units (not the TMs' insides, not the host),
+/// one per module, as the chip instantiates them (e.g. the memory unit with a
+/// port per requester).
+pub fn global_decls(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
+    let chip = elaborate(cfg)?;
+    let mut v: Vec<UnitDecl> = Vec::new();
+    for (path, d) in chip.sim.decls() {
+        let top = top_of(&path);
+        if path != format!("chip.{top}") || top == "host" {
+            continue;
+        }
+        if !v.iter().any(|x| x.module == d.module) {
+            v.push(d);
+        }
+    }
+    Ok(v)
+}
+
+/// `chip.tm3.l1` -> `tm3`.
+fn top_of(path: &str) -> &str {
+    path.strip_prefix("chip.")
+        .unwrap_or(path)
+        .split('.')
+        .next()
+        .unwrap_or(path)
+}
+
+/// `tm3` -> (`tm`, Some(3)); `scheduler` -> (`scheduler`, None).
+fn family(top: &str) -> (&str, Option<usize>) {
+    let base = top.trim_end_matches(|c: char| c.is_ascii_digit());
+    if base.len() < top.len() && !base.is_empty() {
+        (base, top[base.len()..].parse().ok())
+    } else {
+        (top, None)
+    }
+}
+
+fn range(w: u32) -> String {
+    if w == 1 {
+        String::new()
+    } else {
+        format!("[{}:0] ", w - 1)
+    }
+}
+
+/// One end of a chip-level link: the top instance and its port there.
+#[derive(Clone, Debug)]
+struct End {
+    top: String,
+    port: &'static str,
+    width: u32,
+}
+
+/// A top-level instance: a leaf unit or a structural group of units.
+struct Inst {
+    module: String,
+    params: Vec<(&'static str, u64)>,
+    clock: String,
+    /// (port, dir, width) in declaration order.
+    ports: Vec<(&'static str, PortDir, u32)>,
+}
+
+/// The Verilog text of the chip top for `cfg`.
+pub fn emit_chip(cfg: &Config) -> Result<String, String> {
+    let chip = elaborate(cfg)?;
+    let sim = &chip.sim;
+    let link_names: Vec<String> = sim.link_stats().into_iter().map(|(n, _)| n).collect();
+    let clock_names: Vec<String> = sim.clocks().iter().map(|c| c.name.clone()).collect();
+    let clk = |name: &str| {
+        if name == "core" {
+            "clk".to_string()
+        } else {
+            format!("clk_{name}")
+        }
+    };
+    // Top instances and link ends.
+    let mut insts: BTreeMap<String, Inst> = BTreeMap::new();
+    let mut ends: BTreeMap<u32, [Option<End>; 2]> = BTreeMap::new();
+    for i in 0..sim.unit_count() {
+        let u = UnitId(i as u32);
+        let path = sim.unit_path(u).to_string();
+        let d = sim.unit(u).decl();
+        let top = top_of(&path).to_string();
+        let leaf = path == format!("chip.{top}");
+        let inst = insts.entry(top.clone()).or_insert_with(|| Inst {
+            module: if leaf {
+                d.module.to_string()
+            } else {
+                family(&top).0.to_string()
+            },
+            params: Vec::new(),
+            clock: clk(&clock_names[sim.unit_clock(u).0 as usize]),
+            ports: Vec::new(),
+        });
+        if leaf {
+            inst.params = d.params.iter().map(|p| (p.name, p.value)).collect();
+        }
+        for p in &d.ports {
+            let e = ends.entry(p.link.0).or_default();
+            e[(p.dir == PortDir::In) as usize] = Some(End {
+                top: top.clone(),
+                port: p.name,
+                width: p.width,
+            });
+        }
+    }
+    // Ports of each top instance: its ends on links leaving it.
+    let mut nets = Vec::new();
+    for (id, e) in &ends {
+        let [Some(p), Some(c)] = e else {
+            return Err(format!(
+                "link '{}' has an open end",
+                link_names[*id as usize]
+            ));
+        };
+        if p.top == c.top {
+            continue; // inside a structural instance (a TM)
+        }
+        for (end, dir) in [(p, PortDir::Out), (c, PortDir::In)] {
+            let inst = insts.get_mut(&end.top).expect("instance");
+            if !inst.ports.iter().any(|x| x.0 == end.port) {
+                inst.ports.push((end.port, dir, end.width));
+            }
+        }
+        nets.push((*id, p.clone(), c.clone()));
+    }
+    // Families: members with the same module and ports become a generate loop.
+    let mut families: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+    for top in insts.keys() {
+        if let (base, Some(k)) = family(top) {
+            families.entry(base.to_string()).or_default().push(k);
+        }
+    }
+    // A lone instance whose name merely ends in a digit (`l2`) is no family.
+    families.retain(|_, ks| ks.len() > 1 || ks[0] == 0);
+    for (base, ks) in &mut families {
+        ks.sort_unstable();
+        if ks.iter().enumerate().any(|(i, &k)| i != k) {
+            return Err(format!("{base}: members are not numbered 0..n"));
+        }
+        let first = &insts[&format!("{base}0")];
+        for &k in ks.iter() {
+            let m = &insts[&format!("{base}{k}")];
+            if m.module != first.module || m.ports != first.ports || m.clock != first.clock {
+                return Err(format!("{base}{k} differs from {base}0 in module or ports"));
+            }
+        }
+    }
+    let count_name = |base: &str| format!("{}S", base.to_uppercase());
+    // The net a link end connects to: (valid, ready, data) expressions.
+    let signal = |end: &End, link: u32| -> [String; 3] {
+        if let (base, Some(k)) = family(&end.top)
+            && families.contains_key(base)
+        {
+            let n = format!("{base}_{}", end.port);
+            let w = end.width;
+            return [
+                format!("{n}_valid[{k}]"),
+                format!("{n}_ready[{k}]"),
+                if w == 1 {
+                    format!("{n}_data[{k}]")
+                } else {
+                    format!("{n}_data[{}:{}]", (k as u32 + 1) * w - 1, k as u32 * w)
+                },
+            ];
+        }
+        let n = link_names[link as usize]
+            .trim_start_matches("chip.")
+            .replace('.', "_");
+        ["valid", "ready", "data"].map(|s| format!("{n}_{s}"))
+    };
+    // Chip ports (the host's links), wires, and each instance's connections.
+    let mut ports = vec!["input  wire rst".to_string()];
+    let mut clocks: Vec<String> = insts
+        .iter()
+        .filter(|(t, _)| t.as_str() != "host")
+        .map(|(_, i)| i.clock.clone())
+        .collect();
+    clocks.sort();
+    clocks.dedup();
+    for c in clocks.iter().rev() {
+        ports.insert(0, format!("input  wire {c}"));
+    }
+    let mut wires = Vec::new();
+    let mut conn: BTreeMap<(String, &'static str), [String; 3]> = BTreeMap::new();
+    for base in families.keys() {
+        let inst = &insts[&format!("{base}0")];
+        let n = count_name(base);
+        for &(port, _, w) in &inst.ports {
+            let s = format!("{base}_{port}");
+            wires.push(format!("    wire [{n}-1:0] {s}_valid;"));
+            wires.push(format!("    wire [{n}-1:0] {s}_ready;"));
+            wires.push(format!("    wire [{n}*{w}-1:0] {s}_data;"));
+        }
+    }
+    for (id, p, c) in &nets {
+        let pf = family(&p.top).1.is_some() && families.contains_key(family(&p.top).0);
+        let cf = family(&c.top).1.is_some() && families.contains_key(family(&c.top).0);
+        if pf && cf {
+            return Err(format!(
+                "link '{}' joins two families; not supported by the emitter",
+                link_names[*id as usize]
+            ));
+        }
+        let (ps, cs) = (signal(p, *id), signal(c, *id));
+        if p.top == "host" || c.top == "host" {
+            // The host's side is the chip's port, named after the host's port.
+            let (h, other, dir) = if p.top == "host" {
+                (p, c, ("input ", "output"))
+            } else {
+                (c, p, ("output", "input "))
+            };
+            ports.push(format!("{} wire {}_valid", dir.0, h.port));
+            ports.push(format!("{} wire {}_ready", dir.1, h.port));
+            ports.push(format!("{} wire {}{}_data", dir.0, range(h.width), h.port));
+            conn.insert(
+                (other.top.clone(), other.port),
+                ["valid", "ready", "data"].map(|s| format!("{}_{s}", h.port)),
+            );
+            continue;
+        }
+        if !pf && !cf {
+            wires.push(format!("    wire {};", ps[0]));
+            wires.push(format!("    wire {};", ps[1]));
+            wires.push(format!("    wire {}{};", range(p.width), ps[2]));
+        }
+        // The family side names the net; the other end indexes it.
+        let s = if pf { ps } else { cs };
+        conn.insert((p.top.clone(), p.port), s.clone());
+        conn.insert((c.top.clone(), c.port), s);
+    }
+
+    let mut v = String::new();
+    let _ = writeln!(
+        v,
+        "// Generated by dualstream from {}; do not edit.",
+        file!()
+    );
+    let _ = writeln!(
+        v,
+        "// Regenerate with `dualstream hdl --out hdl/` (sizes from the config: --config)."
+    );
+    let _ = writeln!(
+        v,
+        "// The chip top: {} TMs of {} TPs, the global units and their links, as simulated.",
+        cfg.chip.tms, cfg.tm.tps
+    );
+    let _ = writeln!(
+        v,
+        "// Ports: the host's links (it is not hardware); one clock per clock domain."
+    );
+    let _ = writeln!(v, "module chip (\n    {}\n);", ports.join(",\n    "));
+    for (base, ks) in &families {
+        let _ = writeln!(
+            v,
+            "    localparam integer {} = {};",
+            count_name(base),
+            ks.len()
+        );
+    }
+    let _ = writeln!(
+        v,
+        "    localparam integer TPS = {}; // TPs per TM (tm.v is generated for this many)",
+        cfg.tm.tps
+    );
+    for w in &wires {
+        let _ = writeln!(v, "{w}");
+    }
+    let params_of = |inst: &Inst, members: Option<(&str, usize)>| -> Result<String, String> {
+        if inst.params.is_empty() {
+            return Ok(String::new());
+        }
+        let mut ps = Vec::new();
+        for (i, (name, val)) in inst.params.iter().enumerate() {
+            let expr = match members {
+                None => val.to_string(),
+                Some((base, n)) => {
+                    let vals: Vec<u64> = (0..n)
+                        .map(|k| insts[&format!("{base}{k}")].params[i].1)
+                        .collect();
+                    if vals.iter().all(|x| x == val) {
+                        val.to_string()
+                    } else if vals.iter().enumerate().all(|(k, &x)| x == k as u64) {
+                        "k".to_string()
+                    } else {
+                        return Err(format!(
+                            "{base}: parameter {name} varies between members in a way the emitter cannot express"
+                        ));
+                    }
+                }
+            };
+            ps.push(format!(".{name}({expr})"));
+        }
+        Ok(format!(" #({})", ps.join(", ")))
+    };
+    let connections = |top: &str, inst: &Inst| -> Vec<String> {
+        let mut cs = vec![format!(".clk({})", inst.clock), ".rst(rst)".to_string()];
+        for &(port, _, _) in &inst.ports {
+            let s = &conn[&(top.to_string(), port)];
+            for (k, suf) in ["valid", "ready", "data"].iter().enumerate() {
+                cs.push(format!(".{port}_{suf}({})", s[k]));
+            }
+        }
+        cs
+    };
+    for (top, inst) in &insts {
+        if top == "host" || (family(top).1.is_some() && families.contains_key(family(top).0)) {
+            continue;
+        }
+        let _ = writeln!(
+            v,
+            "    {}{} u_{top} (\n        {}\n    );",
+            inst.module,
+            params_of(inst, None)?,
+            connections(top, inst).join(",\n        ")
+        );
+    }
+    for (base, ks) in &families {
+        let key = format!("{base}0");
+        let inst = &insts[&key];
+        let n = count_name(base);
+        // Vector slices of member k, written with the genvar.
+        let cs: Vec<String> = inst
+            .ports
+            .iter()
+            .flat_map(|&(port, _, w)| {
+                let s = format!("{base}_{port}");
+                let data = if w == 1 {
+                    format!("{s}_data[k]")
+                } else {
+                    format!("{s}_data[k*{w} +: {w}]")
+                };
+                [
+                    format!(".{port}_valid({s}_valid[k])"),
+                    format!(".{port}_ready({s}_ready[k])"),
+                    format!(".{port}_data({data})"),
+                ]
+            })
+            .collect();
+        let _ = writeln!(
+            v,
+            "    for (genvar k = 0; k < {n}; k++) begin : g_{base}\n        {}{} u_{base} (\n            {}\n        );\n    end",
+            inst.module,
+            params_of(inst, Some((base, ks.len())))?,
+            [format!(".clk({})", inst.clock), ".rst(rst)".to_string()]
+                .into_iter()
+                .chain(cs)
+                .collect::<Vec<_>>()
+                .join(",\n            ")
+        );
+    }
+    let _ = writeln!(v, "    wire _unused_ok = &{{1'b0, TPS[0], 1'b0}};");
+    let _ = writeln!(v, "endmodule");
+    Ok(v)
+}

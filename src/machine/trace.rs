@@ -1,0 +1,250 @@
+//! Waveforms of the chip (`render --mode cycle --vcd`): friendly unit names for
+//! `--trace-units` and the core-cycle window of `--trace-window`, turned into the
+//! kernel's [`TraceSpec`] (instance patterns, picoseconds). docs/chip.md has the
+//! how-to.
+
+use crate::rtl::{Time, TraceSpec};
+
+/// Names that stand for one global unit or a family of units, with the instance
+/// pattern each traces. `tm<k>` and `mem_ctrl<c>` are added per instance.
+const NAMED: &[(&str, &str, &str)] = &[
+    ("scheduler", "chip.scheduler", "the stream scheduler"),
+    ("scene_buffer", "chip.scene_buffer", "the scene buffer"),
+    ("hit_updater", "chip.hit_updater", "the hit record updater"),
+    ("memory", "chip.memory", "the memory unit (channel router)"),
+    (
+        "mem_ctrl",
+        "chip.mem_ctrl*",
+        "every GDDR5 channel controller",
+    ),
+    (
+        "tms",
+        "chip.tm*",
+        "every TM with its TPs, L1, crossbar, pipelines",
+    ),
+    ("host", "chip.host", "the host stand-in"),
+    ("l2", "chip.l2*", "the L2"),
+];
+
+/// A unit name: a friendly name, `tm<k>`, `mem_ctrl<c>`, or an instance pattern
+/// (it has a `.` or a `*`: `chip.tm3.l1`, `chip.tm*.box_pipe`).
+fn pattern_of(name: &str) -> Option<String> {
+    if let Some((_, p, _)) = NAMED.iter().find(|(n, _, _)| *n == name) {
+        return Some(p.to_string());
+    }
+    for base in ["tm", "mem_ctrl"] {
+        if let Some(k) = name.strip_prefix(base)
+            && !k.is_empty()
+            && k.bytes().all(|b| b.is_ascii_digit())
+        {
+            return Some(format!("chip.{base}{}", k.parse::<u64>().ok()?));
+        }
+    }
+    (name.contains('.') || name.contains('*')).then(|| name.to_string())
+}
+
+/// The names valid for a chip whose instances are `paths`, for error messages.
+pub fn valid_names(paths: &[&str]) -> String {
+    let spec = |p: &str| TraceSpec {
+        filter: p.into(),
+        from: 0,
+        to: 0,
+    };
+    let mut v: Vec<String> = NAMED
+        .iter()
+        .filter(|(_, p, _)| paths.iter().any(|q| spec(p).matches(q)))
+        .map(|(n, _, what)| format!("{n} ({what})"))
+        .collect();
+    // Instances are numbered from 0: the highest index names the range.
+    let count = |base: &str| {
+        paths
+            .iter()
+            .filter_map(|p| p.strip_prefix("chip.")?.split('.').next())
+            .filter_map(|c| c.strip_prefix(base)?.parse::<usize>().ok())
+            .map(|k| k + 1)
+            .max()
+            .unwrap_or(0)
+    };
+    let tms = count("tm");
+    if tms > 0 {
+        v.push(format!("tm0..tm{} (one TM)", tms - 1));
+    }
+    let ch = count("mem_ctrl");
+    if ch > 0 {
+        v.push(format!("mem_ctrl0..mem_ctrl{} (one channel)", ch - 1));
+    }
+    v.push("or an instance pattern such as chip.tm0.l1 or chip.tm*.box_pipe".into());
+    v.join(", ")
+}
+
+/// The trace filter (comma-separated instance patterns) for the comma-separated
+/// `units`, checked against the chip's instance `paths`: an unknown name or one
+/// that matches no instance (`mem_ctrl` with the fixed memory, `tm9` on 8 TMs)
+/// is an error listing the valid names. Empty `units`: every unit.
+pub fn resolve(units: &str, paths: &[&str]) -> Result<String, String> {
+    let mut pats = Vec::new();
+    for name in units.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+        let Some(p) = pattern_of(name) else {
+            return Err(format!(
+                "--trace-units: unknown unit '{name}'; valid names: {}",
+                valid_names(paths)
+            ));
+        };
+        let spec = TraceSpec {
+            filter: p.clone(),
+            from: 0,
+            to: 0,
+        };
+        if !paths.iter().any(|q| spec.matches(q)) {
+            let hint = if name.starts_with("mem_ctrl") {
+                " (the channel controllers exist with chip.memory.model = \"gddr5\")"
+            } else {
+                ""
+            };
+            return Err(format!(
+                "--trace-units: '{name}' matches no unit of this chip{hint}; valid names: {}",
+                valid_names(paths)
+            ));
+        }
+        pats.push(p);
+    }
+    Ok(pats.join(","))
+}
+
+/// A window of core cycles: `A..B` (B excluded), `A..=B` (B included) or `A..`
+/// (to the end). Returns the first and the last cycle (`None`: open).
+pub fn parse_window(s: &str) -> Result<(u64, Option<u64>), String> {
+    let bad = |why: &str| {
+        format!("--trace-window '{s}' {why}; give core cycles as A..B (B excluded), A..=B or A..")
+    };
+    let (a, b) = s.split_once("..").ok_or_else(|| bad("has no '..'"))?;
+    let num = |t: &str| {
+        t.trim()
+            .replace('_', "")
+            .parse::<u64>()
+            .map_err(|_| bad(&format!("has '{}', not a cycle number", t.trim())))
+    };
+    let from = num(a)?;
+    let to = if let Some(b) = b.strip_prefix('=') {
+        Some(num(b)?)
+    } else if b.trim().is_empty() {
+        None
+    } else {
+        let b = num(b)?;
+        if b == 0 {
+            return Err(bad("is empty"));
+        }
+        Some(b - 1)
+    };
+    if let Some(t) = to
+        && t < from
+    {
+        return Err(bad("ends before it starts"));
+    }
+    Ok((from, to))
+}
+
+/// The kernel's spec for cycles `from..=to` of a `core_ps` clock.
+pub fn spec(filter: String, from: u64, to: Option<u64>, core_ps: Time) -> TraceSpec {
+    TraceSpec {
+        filter,
+        from: from.saturating_mul(core_ps),
+        // The last cycle's edge and everything before the next one (DRAM edges).
+        to: to.map_or(Time::MAX, |c| {
+            c.saturating_add(1)
+                .saturating_mul(core_ps)
+                .saturating_sub(1)
+        }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn paths() -> Vec<&'static str> {
+        vec![
+            "chip.host",
+            "chip.scheduler",
+            "chip.scene_buffer",
+            "chip.hit_updater",
+            "chip.mem_ctrl0",
+            "chip.mem_ctrl1",
+            "chip.memory",
+            "chip.tm0.tp0",
+            "chip.tm0.l1",
+            "chip.tm1.tp0",
+            "chip.tm10.tp0",
+        ]
+    }
+
+    fn traced(units: &str) -> Vec<&'static str> {
+        let f = resolve(units, &paths()).unwrap();
+        let s = spec(f, 0, None, 1000);
+        paths().into_iter().filter(|p| s.matches(p)).collect()
+    }
+
+    #[test]
+    fn names_select_their_units_only() {
+        assert_eq!(traced("scheduler"), ["chip.scheduler"]);
+        assert_eq!(traced("tm1"), ["chip.tm1.tp0"]);
+        assert_eq!(traced("tm0"), ["chip.tm0.tp0", "chip.tm0.l1"]);
+        assert_eq!(
+            traced("tms"),
+            [
+                "chip.tm0.tp0",
+                "chip.tm0.l1",
+                "chip.tm1.tp0",
+                "chip.tm10.tp0"
+            ]
+        );
+        assert_eq!(traced("mem_ctrl"), ["chip.mem_ctrl0", "chip.mem_ctrl1"]);
+        assert_eq!(traced("mem_ctrl1"), ["chip.mem_ctrl1"]);
+        assert_eq!(
+            traced("scheduler, tm0,mem_ctrl"),
+            [
+                "chip.scheduler",
+                "chip.mem_ctrl0",
+                "chip.mem_ctrl1",
+                "chip.tm0.tp0",
+                "chip.tm0.l1"
+            ]
+        );
+        assert_eq!(traced("chip.tm*.l1"), ["chip.tm0.l1"]);
+        assert_eq!(traced(""), paths());
+    }
+
+    #[test]
+    fn unknown_or_absent_names_list_the_valid_ones() {
+        let e = resolve("scheduler,tm_0", &paths()).unwrap_err();
+        assert!(e.contains("unknown unit 'tm_0'"), "{e}");
+        assert!(e.contains("scheduler") && e.contains("tm0..tm10"), "{e}");
+        assert!(e.contains("mem_ctrl0..mem_ctrl1"), "{e}");
+        let e = resolve("tm11", &paths()).unwrap_err();
+        assert!(e.contains("matches no unit"), "{e}");
+        let e = resolve("l2", &paths()).unwrap_err();
+        assert!(e.contains("'l2' matches no unit"), "{e}");
+        assert!(!e.contains("l2 ("), "l2 is not listed without one: {e}");
+        let fixed: Vec<&str> = paths()
+            .into_iter()
+            .filter(|p| !p.contains("mem_ctrl"))
+            .collect();
+        let e = resolve("mem_ctrl", &fixed).unwrap_err();
+        assert!(e.contains("gddr5"), "{e}");
+    }
+
+    #[test]
+    fn windows() {
+        assert_eq!(parse_window("10000..20000"), Ok((10000, Some(19999))));
+        assert_eq!(parse_window("5..=5"), Ok((5, Some(5))));
+        assert_eq!(parse_window(" 7 .."), Ok((7, None)));
+        assert_eq!(parse_window("1_000..2_000"), Ok((1000, Some(1999))));
+        for bad in ["10", "a..b", "20..10", "5..5", "0..0", "..5x"] {
+            let e = parse_window(bad).unwrap_err();
+            assert!(e.contains("--trace-window") && e.contains("A..B"), "{e}");
+        }
+        let s = spec(String::new(), 10, Some(19), 1000);
+        assert_eq!((s.from, s.to), (10_000, 19_999));
+        assert_eq!(spec(String::new(), 3, None, 1000).to, Time::MAX);
+    }
+}
