@@ -12,6 +12,7 @@ pub mod pipe_tb;
 pub mod box_pipe_tb;
 pub mod divider_tb;
 pub mod hit_record_updater_tb;
+pub mod l2_tb;
 pub mod mem_ctrl_tb;
 pub mod scene_buffer_tb;
 pub mod stream_scheduler_tb;
@@ -28,6 +29,7 @@ pub const BENCHES: &[&str] = &[
     "divider",
     "mem_ctrl",
     "hit_record_updater",
+    "l2",
 ];
 
 /// Runs a testbench by unit name (the CLI's `tb` command).
@@ -39,6 +41,7 @@ pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, String> {
         "mem_ctrl" | "dram" => mem_ctrl_tb::run_random(opts),
         "hit_record_updater" | "hru" => hit_record_updater_tb::run(opts),
         "scene_buffer" => scene_buffer_tb::run(opts),
+        "l2" => l2_tb::run(opts),
         "stream_scheduler" => stream_scheduler_tb::run(opts),
         _ => Err(format!(
             "unknown unit '{name}'; testbenches exist for: {}, tm (dram = mem_ctrl)",
@@ -54,6 +57,7 @@ pub fn bench_config(name: &str, base: &crate::config::Config) -> crate::config::
         "hit_record_updater" | "hru" => {
             hit_record_updater_tb::unit_config(base, &hit_record_updater_tb::HruTbCfg::default())
         }
+        "l2" => l2_tb::unit_config(base, &l2_tb::L2TbCfg::default()),
         "scene_buffer" => scene_buffer_tb::unit_config(base, &scene_buffer_tb::SbTbCfg::default()),
         "stream_scheduler" => {
             stream_scheduler_tb::unit_config(base, &stream_scheduler_tb::SchedTbCfg::default())

@@ -403,6 +403,51 @@ fn tp_shading_is_invariant_under_sleeping_shadow_and_shuffles() {
     }
 }
 
+/// The L2 (on by default) serves the hit record updater and the shading pass:
+/// the same rays and image as without it and as functional mode, L2 accesses
+/// and hits on every run, and no more DRAM hit-record or shading lines than the
+/// direct wiring (`chip.l2.enabled = false`) on the same frame.
+#[test]
+fn the_l2_serves_hit_records_and_shading_and_saves_dram_lines() {
+    use dualstream::mem::StreamTag;
+    let s = scene("cornell", 16, 12, 3);
+    let f = render(&s, Mode::Functional, &rcfg(8, None), &mut |_| {}).unwrap();
+    let run = |l2: bool| {
+        let mut cc = chip_cfg(2, 16);
+        cc.chip.l2.enabled = l2;
+        let mut cfg = rcfg(8, Some((cc, SimOptions::default())));
+        cfg.verify = true;
+        let c = render(&s, Mode::Cycle, &cfg, &mut |_| {}).unwrap();
+        same_frame(&f, &c, &format!("L2 {l2}"));
+        assert_eq!(c.verified_rays, c.total.rays);
+        c.chip.unwrap()
+    };
+    let (on, off) = (run(true), run(false));
+    let lines = |c: &dualstream::render::ChipFrame, t: StreamTag| -> u64 {
+        c.waves
+            .iter()
+            .map(|w| w.lines_read[t as usize] + w.lines_written[t as usize])
+            .sum()
+    };
+    for (k, w) in on.waves.iter().enumerate() {
+        assert!(w.l2.accesses > 0 && w.l2.hits > 0, "run {k}: {:?}", w.l2);
+        assert_eq!(w.l2.hits + w.l2.misses, w.l2.accesses, "run {k}");
+        assert!(w.l2.flush_cycles > 0 && w.l2.flush_cycles < w.cycles);
+    }
+    assert!(off.waves.iter().all(|w| w.l2.accesses == 0));
+    for t in [StreamTag::Hit, StreamTag::Shading] {
+        let (a, b) = (lines(&on, t), lines(&off, t));
+        assert!(
+            a > 0 && a < b,
+            "{t:?}: {a} DRAM lines with the L2, {b} without"
+        );
+    }
+    // The streams do not go through the L2.
+    for t in [StreamTag::Ray, StreamTag::Scene] {
+        assert_eq!(lines(&on, t), lines(&off, t), "{t:?} lines");
+    }
+}
+
 // ---- passes end promptly ----
 
 /// When the last rays (or shading items) of a pass are done, the pass ends within

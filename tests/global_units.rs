@@ -295,3 +295,96 @@ fn sched_sleep_shadow_shuffle_invariance() {
     }
     assert_ne!(sched_outcome(SimOptions::default(), 5), base);
 }
+
+// ---- L2 ----
+
+use dualstream::testbench::l2_tb::{self as l2tb, L2TbCfg};
+
+#[test]
+fn l2_scoreboard_passes_with_hits_merges_conflicts_and_writebacks() {
+    for seed in [1, 2, 3] {
+        let r = l2tb::run(&opts(seed)).unwrap();
+        assert!(r.passed(), "{r}");
+        assert_eq!(counter(&r, "accesses"), 2000);
+        for n in [
+            "hits",
+            "merges",
+            "bank_conflicts",
+            "mshr_stalls",
+            "writebacks",
+            "client_blocked_cycles",
+        ] {
+            assert!(counter(&r, n) > 0, "{n} must happen in the bench: {r}");
+        }
+        assert_eq!(counter(&r, "flushes"), 2);
+    }
+}
+
+#[test]
+fn l2_scoreboard_fails_on_a_lost_writeback() {
+    // Drop the last write the memory answers (a writeback of the final flush):
+    // DRAM then differs from the reference.
+    let w = counter(&l2tb::run(&opts(1)).unwrap(), "writebacks");
+    let b = L2TbCfg {
+        faults: MemFaults {
+            drop_write: Some(w - 1),
+        },
+        ..L2TbCfg::default()
+    };
+    let r = l2tb::run_with(&opts(1), &b).unwrap();
+    assert!(!r.passed(), "a dropped writeback must fail: {r}");
+    assert!(
+        r.errors.iter().any(|e| e.contains("after the flush")),
+        "{r}"
+    );
+}
+
+#[test]
+fn l2_rejects_a_bad_geometry_with_the_fix() {
+    let mut c = dualstream::machine::config::L2Cfg {
+        bytes: 1000,
+        ..Default::default()
+    };
+    let e = c.validate(1).unwrap_err();
+    assert!(
+        e.contains("chip.l2.bytes") && e.contains("banks x ways x line_bytes"),
+        "{e}"
+    );
+    c.bytes = 512 << 10;
+    c.hit_latency = 1;
+    assert!(c.validate(1).unwrap_err().contains("chip.l2.hit_latency"));
+    c.hit_latency = 10;
+    c.line_bytes = 128;
+    assert!(c.validate(1).unwrap_err().contains("give 64"));
+}
+
+fn l2_outcome(sim: SimOptions, seed: u64) -> (String, u64) {
+    let buf = SharedBuf::default();
+    let o = TbOptions {
+        sim,
+        trace: TraceSpec::all(),
+        ..opts(seed)
+    };
+    let b = L2TbCfg {
+        trace_buf: Some(buf.clone()),
+        requests_per_client: 200,
+        ..L2TbCfg::default()
+    };
+    let r = l2tb::run_with(&o, &b).unwrap();
+    assert!(r.passed(), "{r}");
+    (format!("{r:?}"), dualstream::util::fnv1a(&buf.bytes()))
+}
+
+#[test]
+fn l2_sleep_shadow_shuffle_invariance() {
+    for seed in [5, 6] {
+        let base = l2_outcome(SimOptions::default(), seed);
+        for m in modes() {
+            assert_eq!(
+                l2_outcome(m.clone(), seed),
+                base,
+                "the L2 bench changed under {m:?}"
+            );
+        }
+    }
+}

@@ -325,10 +325,17 @@ fn chip_top_wires_every_unit_and_lints() {
         assert!(committed.contains(inst), "chip.v lacks {inst}");
     }
     assert!(!committed.contains("u_host"), "the host is not hardware");
-    // The memory unit as instantiated: the scheduler, scene and hit ports and one
-    // global-memory port per TM (memory.v is emitted from the same chip).
+    // The memory unit as instantiated (memory.v is emitted from the same chip):
+    // the scheduler, scene and L2 ports (the L2 serves the hit record updater and
+    // the TMs' global-memory ports); without the L2, the hit port and one
+    // global-memory port per TM.
     let memory = std::fs::read_to_string(repo().join("hdl/memory.v")).unwrap();
-    let ports = 3 + cfg.chip.tms;
+    let ports = if cfg.chip.l2.enabled {
+        assert!(committed.contains("u_l2 ("), "chip.v lacks the L2");
+        3
+    } else {
+        3 + cfg.chip.tms
+    };
     assert!(memory.contains(&format!("parameter integer PORTS = {ports}")));
     assert!(committed.contains(&format!(".PORTS({ports})")));
     // Every scheduler fill port drives its TM's slice.

@@ -1,0 +1,399 @@
+//! The L2 testbench: one scripted driver per client pokes seeded random line
+//! requests (reads, full-line writes, partial writes with random byte masks) to a
+//! small pool of lines (more than the cache holds, few per set, so hits, merges,
+//! bank conflicts and dirty evictions all happen) into `req[k]`; one sink per
+//! client takes the answers with a seeded ready pattern; a memory stand-in
+//! (`LineMem`: fixed latency, seeded back-pressure) holds the DRAM image. A flush
+//! with invalidation is sent in the middle of the traffic and a plain one after it.
+//!
+//! Scoreboard (the unit logs every access in the order it applies them):
+//! - replaying the log on a reference image, every read's answer equals the
+//!   reference line at its turn, and every request is answered exactly once;
+//! - per client and line, accesses are applied in the order the client sent them;
+//! - real time: an access accepted after a write to its line was answered to its
+//!   client is applied after that write (a read after a write from any client
+//!   sees it);
+//! - after the final flush the DRAM image equals the reference on every line;
+//! - the memory never holds two requests for one line at once (it may reorder a
+//!   read before an older write);
+//! - counters: accesses = requests, hits + misses = accesses, fills = memory
+//!   reads, writebacks = memory writes, two flushes answered.
+
+use std::collections::BTreeMap;
+
+use crate::contract::SparseMem;
+use crate::machine::config::L2Cfg;
+use crate::mem::StreamTag;
+use crate::rtl::{SharedBuf, Sim, Status, Tracer, UnitId};
+use crate::units::l1::Line;
+use crate::units::l2::{L2, L2Flush};
+use crate::units::memory::{MemLineReq, MemLineResp};
+use crate::util::rng::Rng;
+
+use super::harness::{Driver, Sink};
+use super::hit_record_updater_tb::{LineMem, MemFaults};
+use super::pipe_tb::{TbOptions, TbReport};
+
+/// The bench's knobs beyond `TbOptions`.
+#[derive(Clone)]
+pub struct L2TbCfg {
+    pub clients: u32,
+    pub requests_per_client: u32,
+    /// Distinct lines addressed.
+    pub lines: u32,
+    pub mem_latency: u32,
+    /// A small cache so the pool does not fit.
+    pub l2: L2Cfg,
+    pub faults: MemFaults,
+    /// Trace into this buffer (invariance tests) instead of `opts.vcd`.
+    pub trace_buf: Option<SharedBuf>,
+}
+
+impl Default for L2TbCfg {
+    fn default() -> Self {
+        L2TbCfg {
+            clients: 4,
+            requests_per_client: 500,
+            lines: 96,
+            mem_latency: 20,
+            l2: L2Cfg {
+                bytes: 4096,
+                banks: 4,
+                ways: 2,
+                mshrs: 6,
+                targets: 3,
+                writebacks: 2,
+                port_queue: 6,
+                hit_latency: 4,
+                ..L2Cfg::default()
+            },
+            faults: MemFaults::default(),
+            trace_buf: None,
+        }
+    }
+}
+
+/// The configuration the bench elaborates its unit with: the chip's L2 has one
+/// client per TM plus the hit record updater, so `clients - 1` TMs.
+pub fn unit_config(base: &crate::config::Config, b: &L2TbCfg) -> crate::config::Config {
+    let mut c = base.clone();
+    c.chip.tms = b.clients.max(2) - 1;
+    c.chip.l2 = b.l2.clone();
+    c
+}
+
+const BASE: u64 = 0x4_0000;
+
+/// `dualstream tb l2` with the default bench knobs.
+pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
+    run_with(opts, &L2TbCfg::default())
+}
+
+pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
+    let prob = |p: f64| p > 0.0 && p <= 1.0;
+    if !prob(opts.ready_p) || !prob(opts.load) {
+        return Err("--ready and --load are probabilities in (0, 1]".into());
+    }
+    if b.clients < 2 || b.lines == 0 || b.mem_latency < 2 {
+        return Err("the bench needs at least 2 clients, lines and a memory latency >= 2".into());
+    }
+    let cfg = &unit_config(&opts.config, b);
+    cfg.chip.l2.validate(cfg.chip.links.delay)?;
+    let link = cfg.chip.links;
+    let mut rng = Rng::new(opts.seed);
+    let line_addr = |i: u64| BASE + i * 64;
+    // The initial image: seeded bytes on every line of the pool.
+    let cap = BASE + (b.lines as u64 + 1) * 64;
+    let (mut image, mut initial) = (SparseMem::new(cap), SparseMem::new(cap));
+    for i in 0..b.lines as u64 {
+        let mut l = [0u8; 64];
+        l.iter_mut().for_each(|x| *x = rng.below(256) as u8);
+        image.write(line_addr(i), &l);
+        initial.write(line_addr(i), &l);
+    }
+    let mut sim = Sim::new(opts.sim.clone());
+    let clk = sim
+        .clock("core", cfg.clocks.core_ps)
+        .map_err(|e| e.to_string())?;
+    let n = b.clients as usize;
+    let (mut req_i, mut resp_o) = (Vec::new(), Vec::new());
+    let (mut drivers, mut sinks): (Vec<UnitId>, Vec<UnitId>) = (Vec::new(), Vec::new());
+    let mut req_outs = Vec::new();
+    let mut resp_ins = Vec::new();
+    for k in 0..n {
+        let (o, i) = sim.link::<MemLineReq>(&format!("c{k}.req"), link);
+        req_i.push(i);
+        req_outs.push(o);
+        let (o, i) = sim.link::<MemLineResp>(&format!("c{k}.resp"), link);
+        resp_o.push(o);
+        resp_ins.push(i);
+    }
+    let (mqo, mqi) = sim.link::<MemLineReq>("l2.mem_req", link);
+    let (mro, mri) = sim.link::<MemLineResp>("l2.mem_resp", link);
+    let (fo, fi) = sim.link::<L2Flush>("l2.flush", link);
+    let (fdo, fdi) = sim.link::<L2Flush>("l2.flush_done", link);
+    for (k, (o, i)) in req_outs.into_iter().zip(resp_ins).enumerate() {
+        drivers.push(sim.add(&format!("tb.c{k}"), clk, Driver::new(o)));
+        sinks.push(sim.add(
+            &format!("tb.c{k}_sink"),
+            clk,
+            Sink::new(i, opts.ready_p, opts.seed ^ (0xC0 + k as u64)),
+        ));
+    }
+    let flusher = sim.add("tb.flush", clk, Driver::new(fo));
+    let flush_sink = sim.add("tb.flush_done", clk, Sink::new(fdi, 1.0, 0));
+    let mut unit = L2::new(&cfg.chip.l2, link.delay, req_i, resp_o, mqo, mri, fi, fdo);
+    unit.enable_log();
+    let dut = sim.add("tb.l2", clk, unit);
+    let mut mem = LineMem::new(
+        mqi,
+        mro,
+        image,
+        b.mem_latency,
+        link.delay,
+        opts.ready_p,
+        opts.seed ^ 0x5EED,
+        0,
+    );
+    mem.faults = b.faults.clone();
+    let memu = sim.add("tb.mem", clk, mem);
+    sim.elaborate().map_err(|e| e.to_string())?;
+    if let Some(buf) = &b.trace_buf {
+        let t = Tracer::new(Box::new(buf.clone()), opts.trace.clone())?;
+        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+    } else if let Some(path) = &opts.vcd {
+        let t = Tracer::to_file(path, opts.trace.clone())?;
+        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+    }
+    // Stimulus: per client, requests at seeded cycles; a hot quarter of the pool.
+    let hot = (b.lines / 4).max(1) as u64;
+    let mut sent = 0u64;
+    let mut last = 0u64;
+    let tags = [StreamTag::Shading, StreamTag::Other];
+    for &d in &drivers {
+        let mut c = 0u64;
+        for id in 0..b.requests_per_client {
+            while !rng.chance(opts.load) {
+                c += 1;
+            }
+            let line = if rng.chance(0.5) {
+                rng.below(hot)
+            } else {
+                rng.below(b.lines as u64)
+            };
+            let mut data = Line::default();
+            data.0.iter_mut().for_each(|x| *x = rng.below(256) as u8);
+            let kind = rng.below(10);
+            let (write, mask) = match kind {
+                0..=3 => (false, 0),
+                4..=5 => (true, u64::MAX),
+                _ => (true, rng.next_u64() | 1),
+            };
+            let r = MemLineReq {
+                addr: line_addr(line),
+                write,
+                tag: tags[rng.below(2) as usize],
+                id,
+                mask,
+                data,
+            };
+            sim.unit_mut::<Driver<MemLineReq>>(d).send(c, r);
+            sent += 1;
+            c += 1;
+        }
+        last = last.max(c);
+        sim.wake(d);
+    }
+    // A flush (with invalidation) in the middle of the traffic.
+    sim.unit_mut::<Driver<L2Flush>>(flusher)
+        .send(last / 2, L2Flush { invalidate: true });
+    sim.wake(flusher);
+    let p = cfg.clocks.core_ps;
+    let limit = (sent * 200 + 100_000) * p;
+    sim.run_to_idle(limit).map_err(|e| e.to_string())?;
+    // The final flush, as the chip does after a run.
+    let now = sim.cycle(clk);
+    sim.unit_mut::<Driver<L2Flush>>(flusher)
+        .send(now, L2Flush { invalidate: false });
+    sim.wake(flusher);
+    let end = sim
+        .run_to_idle(sim.now() + limit)
+        .map_err(|e| e.to_string())?
+        / p;
+    // Scoreboard.
+    let mut errors = Vec::new();
+    let u = sim.unit_ref::<L2>(dut);
+    let log = u.log.clone().unwrap_or_default();
+    let mut reference = initial;
+    let mut expect: BTreeMap<(u16, u32), Line> = BTreeMap::new();
+    let mut order: BTreeMap<(u16, u64), u32> = BTreeMap::new();
+    for a in &log {
+        let r = &a.req;
+        if let Some(&prev) = order.get(&(a.port, r.addr))
+            && prev >= r.id
+        {
+            errors.push(format!(
+                "client {} line {:#x}: request {} applied after request {} (out of the client's order)",
+                a.port, r.addr, r.id, prev
+            ));
+        }
+        order.insert((a.port, r.addr), r.id);
+        if r.write {
+            let mut l = [0u8; 64];
+            reference.read(r.addr, &mut l);
+            for (i, x) in l.iter_mut().enumerate() {
+                if r.mask >> i & 1 == 1 {
+                    *x = r.data.0[i];
+                }
+            }
+            reference.write(r.addr, &l);
+        } else {
+            let mut l = Line::default();
+            reference.read(r.addr, &mut l.0);
+            expect.insert((a.port, r.id), l);
+        }
+    }
+    if log.len() as u64 != sent {
+        errors.push(format!(
+            "{sent} requests sent, {} applied by the cache",
+            log.len()
+        ));
+    }
+    // Answers: one per request, reads with the reference bytes at their turn.
+    let mut answered_at: BTreeMap<(u16, u32), u64> = BTreeMap::new();
+    for (k, &s) in sinks.iter().enumerate() {
+        for (c, r) in &sim.unit_ref::<Sink<MemLineResp>>(s).got {
+            if answered_at.insert((k as u16, r.id), *c).is_some() {
+                errors.push(format!("client {k}: request {} answered twice", r.id));
+            }
+            if !r.write {
+                match expect.get(&(k as u16, r.id)) {
+                    Some(l) if *l == r.data => {}
+                    Some(_) => errors.push(format!(
+                        "client {k}: read {} of line {:#x} returned bytes that differ from the reference at its turn",
+                        r.id, r.addr
+                    )),
+                    None => errors.push(format!(
+                        "client {k}: read {} answered but never applied",
+                        r.id
+                    )),
+                }
+            }
+        }
+    }
+    if answered_at.len() as u64 != sent {
+        errors.push(format!(
+            "{sent} requests sent, {} answered",
+            answered_at.len()
+        ));
+    }
+    // Real time: per line, the log position of the writes and when answered.
+    let mut writes: BTreeMap<u64, Vec<(usize, u64)>> = BTreeMap::new();
+    for (pos, a) in log.iter().enumerate() {
+        if a.req.write
+            && let Some(&t) = answered_at.get(&(a.port, a.req.id))
+        {
+            writes.entry(a.req.addr).or_default().push((pos, t));
+        }
+    }
+    for (pos, a) in log.iter().enumerate() {
+        for &(wpos, t) in writes.get(&a.req.addr).map_or(&[][..], |v| &v[..]) {
+            if t < a.accepted && wpos > pos {
+                errors.push(format!(
+                    "line {:#x}: an access accepted in cycle {} was applied before a write answered in cycle {t}",
+                    a.req.addr, a.accepted
+                ));
+            }
+        }
+    }
+    // DRAM after the final flush.
+    let m = sim.unit_ref::<LineMem>(memu);
+    for i in 0..b.lines as u64 {
+        let (mut got, mut want) = ([0u8; 64], [0u8; 64]);
+        m.image.read(line_addr(i), &mut got);
+        reference.read(line_addr(i), &mut want);
+        if got != want {
+            errors.push(format!(
+                "line {:#x}: DRAM after the flush differs from the reference",
+                line_addr(i)
+            ));
+        }
+    }
+    // The memory side: never two requests for one line at once (answers are in
+    // acceptance order in the stand-in).
+    let mut busy_until: BTreeMap<u64, u64> = BTreeMap::new();
+    for ((ca, r), (cr, _)) in m.accepted.iter().zip(m.answered.iter()) {
+        if let Some(&t) = busy_until.get(&r.addr)
+            && *ca <= t
+        {
+            errors.push(format!(
+                "line {:#x}: a memory request accepted in cycle {ca} while another was in flight until {t}",
+                r.addr
+            ));
+        }
+        busy_until.insert(r.addr, *cr);
+    }
+    if m.accepted.len() != m.answered.len() {
+        errors.push(format!(
+            "the memory accepted {} requests and answered {}",
+            m.accepted.len(),
+            m.answered.len()
+        ));
+    }
+    let st = sim.unit_stats(dut);
+    let s = u.stats;
+    let mreads = m.accepted.iter().filter(|(_, r)| !r.write).count() as u64;
+    let mwrites = m.accepted.len() as u64 - mreads;
+    if s.accesses != sent || s.hits + s.misses != s.accesses {
+        errors.push(format!(
+            "accesses {} (sent {sent}), hits {} + misses {} must equal them",
+            s.accesses, s.hits, s.misses
+        ));
+    }
+    if s.fills != mreads || s.writebacks != mwrites {
+        errors.push(format!(
+            "fills {} / writebacks {}, the memory saw {mreads} reads / {mwrites} writes",
+            s.fills, s.writebacks
+        ));
+    }
+    let flushed = sim.unit_ref::<Sink<L2Flush>>(flush_sink).got.len();
+    if flushed != 2 {
+        errors.push(format!("2 flushes sent, {flushed} answered"));
+    }
+    let blocked: u64 = drivers
+        .iter()
+        .map(|&d| sim.unit_stats(d).status_cycles[Status::OutputBlocked as usize])
+        .sum();
+    let mut rep = TbReport {
+        unit: "l2",
+        requests: sent,
+        results: answered_at.len() as u64,
+        cycles: end,
+        min_latency: 0,
+        max_latency: 0,
+        stall_cycles: st.status_cycles[Status::ResourceBusy as usize],
+        errors,
+        vcd_changes: 0,
+        vcd_bytes: 0,
+        status_cycles: st.status_cycles,
+        counters: vec![
+            ("accesses", s.accesses),
+            ("hits", s.hits),
+            ("misses", s.misses),
+            ("merges", s.merges),
+            ("bank_conflicts", s.bank_conflicts),
+            ("mshr_stalls", s.mshr_stalls),
+            ("fills", s.fills),
+            ("writebacks", s.writebacks),
+            ("flushes", s.flushes),
+            ("client_blocked_cycles", blocked),
+            ("lines_checked", b.lines as u64),
+        ],
+    };
+    if let Some(r) = sim.finish_trace() {
+        let s = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
+        rep.vcd_changes = s.changes;
+        rep.vcd_bytes = s.bytes;
+    }
+    Ok(rep)
+}
