@@ -199,6 +199,15 @@ impl<T: Payload> Link<T> {
         self.q.front().filter(|e| e.visible <= now).map(|e| &e.data)
     }
 
+    /// See [`LinkDyn::head_time`].
+    #[inline]
+    pub(crate) fn head_time(&self) -> Time {
+        match self.q.front() {
+            Some(e) if self.pops_now == 0 => e.visible,
+            _ => Time::MAX,
+        }
+    }
+
     /// Pops the head; returns the payload and whether the producer must be woken.
     #[inline]
     pub(crate) fn pop(&mut self, now: Time) -> Option<T> {
@@ -306,7 +315,10 @@ pub(crate) trait LinkDyn: Any {
     fn take_violations(&mut self) -> Vec<Violation>;
     fn check_offer_held(&mut self, now: Time) -> bool;
     fn is_stalled(&self) -> bool;
-    fn has_visible(&self, now: Time) -> bool;
+    /// When the head becomes visible to the consumer: `Time::MAX` if the FIFO is
+    /// empty or its head was popped this cycle (the simulator keeps these in one flat
+    /// array so that `Ctx::has_input` is a load, not a virtual call).
+    fn head_time(&self) -> Time;
     fn stats(&self) -> LinkStats;
     fn occupancy(&self) -> u32;
     fn set_log(&mut self, on: bool);
@@ -407,8 +419,9 @@ impl<T: Payload> LinkDyn for Link<T> {
     fn is_stalled(&self) -> bool {
         self.stalled.is_some()
     }
-    fn has_visible(&self, now: Time) -> bool {
-        self.peek(now).is_some()
+    #[inline]
+    fn head_time(&self) -> Time {
+        self.head_time()
     }
     fn occupancy(&self) -> u32 {
         self.q.len() as u32

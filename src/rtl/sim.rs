@@ -137,6 +137,8 @@ pub struct Ctx<'a> {
     period: Time,
     unit: UnitId,
     links: &'a mut [Box<dyn LinkDyn>],
+    /// `LinkDyn::head_time` of every link, kept current by every push, pop and commit.
+    heads: &'a mut [Time],
     touched: &'a mut Vec<LinkId>,
     wakes: &'a mut Vec<(UnitId, Time)>,
     /// Output links of this unit with a refused offer outstanding.
@@ -182,6 +184,9 @@ impl<'a> Ctx<'a> {
     #[inline]
     pub fn peek<T: Payload>(&mut self, port: &In<T>) -> Option<&T> {
         let now = self.now;
+        if self.heads[port.id.0 as usize] > now {
+            return None;
+        }
         self.link::<T>(port.id).peek(now)
     }
 
@@ -190,7 +195,7 @@ impl<'a> Ctx<'a> {
     /// payload-type check).
     #[inline]
     pub fn has_input<T: Payload>(&self, port: &In<T>) -> bool {
-        self.links[port.id.0 as usize].has_visible(self.now)
+        self.heads[port.id.0 as usize] <= self.now
     }
 
     /// Takes the head of an input link (at most one per link per cycle).
@@ -203,6 +208,8 @@ impl<'a> Ctx<'a> {
         debug_assert_eq!(l.consumer, Some(me), "unit pops a link it does not consume");
         let v = l.pop(now);
         let t = l.touched;
+        let head = l.head_time();
+        self.heads[port.id.0 as usize] = head;
         self.link_ops += v.is_some() as u32;
         self.mark(port.id, was || !t);
         v
@@ -222,6 +229,8 @@ impl<'a> Ctx<'a> {
         let was = l.touched;
         let consumer = l.consumer;
         let vis = l.push(now, v);
+        let head = l.head_time();
+        self.heads[port.id.0 as usize] = head;
         self.link_ops += 1;
         self.mark(port.id, was);
         if let (Some(vis), Some(c)) = (vis, consumer) {
@@ -239,6 +248,8 @@ impl<'a> Ctx<'a> {
         let consumer = l.consumer;
         let held = l.is_stalled();
         let vis = l.offer(now, v);
+        let head = l.head_time();
+        self.heads[port.id.0 as usize] = head;
         // Repeating a refused offer (the payload held while stalled) changes nothing.
         if vis.is_some() || !held {
             self.link_ops += 1;
@@ -269,6 +280,8 @@ pub struct Sim {
     clocks: Vec<Clock>,
     slots: Vec<Slot>,
     links: Vec<Box<dyn LinkDyn>>,
+    /// Head visibility time of every link (see `Ctx::heads`).
+    heads: Vec<Time>,
     now: Time,
     /// Whether the step at `now` has been processed.
     stepped: bool,
@@ -301,6 +314,7 @@ impl Sim {
             clocks: Vec::new(),
             slots: Vec::new(),
             links: Vec::new(),
+            heads: Vec::new(),
             now: 0,
             stepped: false,
             cal: super::calendar::Calendar::new(),
@@ -346,6 +360,7 @@ impl Sim {
         let id = LinkId(self.links.len() as u32);
         self.links
             .push(Box::new(Link::<T>::new(name.to_string(), cfg)));
+        self.heads.push(Time::MAX);
         self.elaborated = false;
         (Out::new(id), In::new(id))
     }
@@ -437,6 +452,7 @@ impl Sim {
         for l in &mut self.links {
             l.reset();
         }
+        self.heads.iter_mut().for_each(|h| *h = Time::MAX);
         self.touched.clear();
         self.wakes.clear();
         for (i, s) in self.slots.iter_mut().enumerate() {
@@ -590,7 +606,9 @@ impl Sim {
         for &l in &self.touched {
             let link = &mut self.links[l.0 as usize];
             violations.extend(link.take_violations());
-            if link.commit() {
+            let wake = link.commit();
+            self.heads[l.0 as usize] = link.head_time();
+            if wake {
                 let (p, _) = link.ends();
                 let p = p.expect("elaborated link has a producer");
                 self.wakes.push((p, t + 1));
@@ -637,6 +655,7 @@ impl Sim {
             period: slot.period,
             unit: UnitId(u),
             links: &mut self.links,
+            heads: &mut self.heads,
             touched: &mut self.touched,
             wakes: &mut self.wakes,
             stalls: &mut slot.stalled_outs,
