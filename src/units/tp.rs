@@ -162,7 +162,8 @@ crate::unit! {
             rt: [u64; 3],
             stats: TpStats,
             log: Option<Vec<u64>>,
-            shading: Option<ShadeRegs>
+            shading: Option<ShadeRegs>,
+            blocked_since: Option<u64>
         }
     }
 }
@@ -207,7 +208,8 @@ pub struct TpStats {
     pub wait: [u64; 4],
     /// The part of `wait` beyond the idle round trip (contention), for div/box/tri.
     pub stall: [u64; 3],
-    /// Cycles a finished action waited for a full output link.
+    /// Cycles a finished action waited for a full output link (a wait in progress
+    /// is added when it ends).
     pub blocked: u64,
     pub max_stack: u64,
     pub first_ray: Option<u64>,
@@ -302,6 +304,7 @@ impl Tp {
             stats: TpStats::default(),
             log: None,
             shading: None,
+            blocked_since: None,
         }
     }
 
@@ -614,15 +617,22 @@ impl Logic for Tp {
             }
             return match self.act(ctx, s, c) {
                 Some(n) => {
+                    if let Some(b) = self.blocked_since.take() {
+                        self.stats.blocked += c - b;
+                    }
                     self.used(s);
                     ctx.set_status(Status::Busy);
                     n
                 }
                 None => {
-                    // Offered and refused: offer the same again next cycle.
-                    self.stats.blocked += 1;
+                    // Offered and refused: the link holds the offer, and the pop that
+                    // makes room wakes the TP (a pop from a full link wakes its
+                    // producer), which then offers the same again. Until then nothing
+                    // can change, so the TP sleeps; its blocked cycles are counted
+                    // when the offer is taken (`blocked_since`, the first refusal).
+                    self.blocked_since.get_or_insert(c);
                     ctx.set_status(Status::OutputBlocked);
-                    Next::Cycle
+                    Next::Idle
                 }
             };
         }
@@ -782,6 +792,7 @@ impl Logic for Tp {
 
     fn reset_counters(&mut self) {
         self.stats = TpStats::default();
+        self.blocked_since = None;
         if let Some(l) = &mut self.log {
             l.clear();
         }
