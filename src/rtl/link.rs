@@ -312,7 +312,8 @@ pub(crate) trait LinkDyn: Any {
     fn set_delay_ps(&mut self, ps: Time);
     fn cfg(&self) -> LinkCfg;
     fn reset(&mut self);
-    fn take_violations(&mut self) -> Vec<Violation>;
+    /// Moves this cycle's violations to `out`.
+    fn take_violations(&mut self, out: &mut Vec<Violation>);
     fn check_offer_held(&mut self, now: Time) -> bool;
     fn is_stalled(&self) -> bool;
     /// When the head becomes visible to the consumer: `Time::MAX` if the FIFO is
@@ -397,8 +398,8 @@ impl<T: Payload> LinkDyn for Link<T> {
         }
         self.violations.clear();
     }
-    fn take_violations(&mut self) -> Vec<Violation> {
-        std::mem::take(&mut self.violations)
+    fn take_violations(&mut self, out: &mut Vec<Violation>) {
+        out.append(&mut self.violations);
     }
     /// Called after the producer's evaluation: a stalled offer must be repeated.
     fn check_offer_held(&mut self, now: Time) -> bool {

@@ -605,7 +605,7 @@ impl Sim {
         let mut violations = Vec::new();
         for &l in &self.touched {
             let link = &mut self.links[l.0 as usize];
-            violations.extend(link.take_violations());
+            link.take_violations(&mut violations);
             let wake = link.commit();
             self.heads[l.0 as usize] = link.head_time();
             if wake {

@@ -80,8 +80,9 @@ fn pick<T: Payload>(
 ) -> Option<(usize, T)> {
     let n = inputs.len();
     let mut won = None;
-    for j in 0..n {
-        let k = (start + j) % n;
+    // `start..n` then `0..start`: the round-robin order without a division per input.
+    let order = (start..n).chain(0..start);
+    for k in order {
         if !ctx.has_input(&inputs[k]) {
             continue;
         }

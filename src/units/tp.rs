@@ -23,7 +23,7 @@ use super::l1::{L1Req, L1Resp, Line};
 use super::memory::{MemLineReq, MemLineResp};
 use super::staging_buffer::{SbHeader, SbRay};
 use super::tm::COSTS;
-use super::tm::{StateCost, TpCosts, round_trip};
+use super::tm::{TpCosts, round_trip};
 pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::config::Config;
@@ -163,7 +163,8 @@ crate::unit! {
             stats: TpStats,
             log: Option<Vec<u64>>,
             shading: Option<ShadeRegs>,
-            blocked_since: Option<u64>
+            blocked_since: Option<u64>,
+            cost_cycles: [u32; COSTS]
         }
     }
 }
@@ -296,6 +297,9 @@ impl Tp {
                 },
             ),
             costs: cfg.tm.costs.clone(),
+            // `costs.all()` builds its table on every call; the TP needs the cycles
+            // on every state change.
+            cost_cycles: cfg.tm.costs.all().map(|(_, k)| k.cycles),
             rt: [
                 round_trip(&cfg.divider, d),
                 round_trip(&cfg.box_pipe, d),
@@ -317,16 +321,17 @@ impl Tp {
         self.log.as_deref().unwrap_or(&[])
     }
 
-    fn cost(&self, s: TpState) -> Option<&StateCost> {
-        cost_index(s).map(|k| self.costs.all()[k].1)
+    /// Cycles of a computing state (`None` for the others).
+    fn cost_cycles(&self, s: TpState) -> Option<u32> {
+        cost_index(s).map(|k| self.cost_cycles[k])
     }
 
     /// Enters `s` in the cycle after `c`; a computing state acts in its last cycle.
     pub(super) fn go(&mut self, s: TpState, c: u64) -> Next {
         self.state.set(s);
-        match self.cost(s) {
+        match self.cost_cycles(s) {
             Some(k) => {
-                let at = c + k.cycles as u64;
+                let at = c + k as u64;
                 self.act_at.set(at);
                 Next::AtCycle(at)
             }
@@ -609,7 +614,7 @@ impl Logic for Tp {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let s = self.state.val();
-        let costed = self.cost(s).is_some() || s == TpState::BoxIssue1 || s == TpState::ShStore1;
+        let costed = self.cost_cycles(s).is_some() || s == TpState::BoxIssue1 || s == TpState::ShStore1;
         if costed {
             if c < self.act_at.val() {
                 ctx.set_status(Status::Busy);
