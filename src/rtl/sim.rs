@@ -198,6 +198,18 @@ impl<'a> Ctx<'a> {
         self.heads[port.id.0 as usize] <= self.now
     }
 
+    /// Bit `i` set when `ports[i]` has a visible head this cycle (`has_input` of up
+    /// to 64 ports at once, for arbiters).
+    #[inline]
+    pub fn visible_mask<T: Payload>(&self, ports: &[In<T>]) -> u64 {
+        assert!(ports.len() <= 64, "visible_mask takes at most 64 ports");
+        let mut m = 0u64;
+        for (i, p) in ports.iter().enumerate() {
+            m |= ((self.heads[p.id.0 as usize] <= self.now) as u64) << i;
+        }
+        m
+    }
+
     /// Takes the head of an input link (at most one per link per cycle).
     #[inline]
     pub fn pop<T: Payload>(&mut self, port: &In<T>) -> Option<T> {

@@ -79,6 +79,23 @@ fn pick<T: Payload>(
     conflicts: &mut u64,
 ) -> Option<(usize, T)> {
     let n = inputs.len();
+    if n <= 64 {
+        // The same choice from a bit mask of the visible heads: the first at or after
+        // `start`, else the first; every other visible head is a conflict.
+        let mask = ctx.visible_mask(inputs);
+        if mask == 0 {
+            return None;
+        }
+        let visible = mask.count_ones() as u64;
+        if !grant {
+            *conflicts += visible;
+            return None;
+        }
+        let hi = mask & (!0u64 << start);
+        let k = if hi != 0 { hi } else { mask }.trailing_zeros() as usize;
+        *conflicts += visible - 1;
+        return Some((k, ctx.pop(&inputs[k]).expect("visible")));
+    }
     let mut won = None;
     // `start..n` then `0..start`: the round-robin order without a division per input.
     let order = (start..n).chain(0..start);
