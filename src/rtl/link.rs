@@ -320,6 +320,8 @@ pub(crate) trait LinkDyn: Any {
     /// empty or its head was popped this cycle (the simulator keeps these in one flat
     /// array so that `Ctx::has_input` is a load, not a virtual call).
     fn head_time(&self) -> Time;
+    /// `can_push` (kept by the simulator in a flat array like `head_time`).
+    fn has_space(&self) -> bool;
     fn stats(&self) -> LinkStats;
     fn occupancy(&self) -> u32;
     fn set_log(&mut self, on: bool);
@@ -423,6 +425,10 @@ impl<T: Payload> LinkDyn for Link<T> {
     #[inline]
     fn head_time(&self) -> Time {
         self.head_time()
+    }
+    #[inline]
+    fn has_space(&self) -> bool {
+        self.can_push()
     }
     fn occupancy(&self) -> u32 {
         self.q.len() as u32

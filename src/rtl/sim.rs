@@ -139,6 +139,9 @@ pub struct Ctx<'a> {
     links: &'a mut [Box<dyn LinkDyn>],
     /// `LinkDyn::head_time` of every link, kept current by every push, pop and commit.
     heads: &'a mut [Time],
+    /// `LinkDyn::has_space` of every link, kept current by every push and commit (a
+    /// pop frees space only after the edge).
+    space: &'a mut [bool],
     touched: &'a mut Vec<LinkId>,
     wakes: &'a mut Vec<(UnitId, Time)>,
     /// Output links of this unit with a refused offer outstanding.
@@ -195,7 +198,9 @@ impl<'a> Ctx<'a> {
     /// payload-type check).
     #[inline]
     pub fn has_input<T: Payload>(&self, port: &In<T>) -> bool {
-        self.heads[port.id.0 as usize] <= self.now
+        let i = port.id.0 as usize;
+        debug_assert_eq!(self.heads[i], self.links[i].head_time());
+        self.heads[i] <= self.now
     }
 
     /// Bit `i` set when `ports[i]` has a visible head this cycle (`has_input` of up
@@ -205,7 +210,9 @@ impl<'a> Ctx<'a> {
         assert!(ports.len() <= 64, "visible_mask takes at most 64 ports");
         let mut m = 0u64;
         for (i, p) in ports.iter().enumerate() {
-            m |= ((self.heads[p.id.0 as usize] <= self.now) as u64) << i;
+            let id = p.id.0 as usize;
+            debug_assert_eq!(self.heads[id], self.links[id].head_time());
+            m |= ((self.heads[id] <= self.now) as u64) << i;
         }
         m
     }
@@ -230,7 +237,9 @@ impl<'a> Ctx<'a> {
     /// Whether the output link can take a payload this cycle (registered ready).
     #[inline]
     pub fn can_push<T: Payload>(&mut self, port: &Out<T>) -> bool {
-        self.link::<T>(port.id).can_push()
+        let s = self.space[port.id.0 as usize];
+        debug_assert_eq!(s, self.link::<T>(port.id).can_push());
+        s
     }
 
     /// Pushes onto an output link; pushing without `can_push` is a protocol violation.
@@ -241,8 +250,9 @@ impl<'a> Ctx<'a> {
         let was = l.touched;
         let consumer = l.consumer;
         let vis = l.push(now, v);
-        let head = l.head_time();
+        let (head, space) = (l.head_time(), l.can_push());
         self.heads[port.id.0 as usize] = head;
+        self.space[port.id.0 as usize] = space;
         self.link_ops += 1;
         self.mark(port.id, was);
         if let (Some(vis), Some(c)) = (vis, consumer) {
@@ -260,8 +270,9 @@ impl<'a> Ctx<'a> {
         let consumer = l.consumer;
         let held = l.is_stalled();
         let vis = l.offer(now, v);
-        let head = l.head_time();
+        let (head, space) = (l.head_time(), l.can_push());
         self.heads[port.id.0 as usize] = head;
+        self.space[port.id.0 as usize] = space;
         // Repeating a refused offer (the payload held while stalled) changes nothing.
         if vis.is_some() || !held {
             self.link_ops += 1;
@@ -294,6 +305,8 @@ pub struct Sim {
     links: Vec<Box<dyn LinkDyn>>,
     /// Head visibility time of every link (see `Ctx::heads`).
     heads: Vec<Time>,
+    /// Whether every link can take a push (see `Ctx::space`).
+    space: Vec<bool>,
     now: Time,
     /// Whether the step at `now` has been processed.
     stepped: bool,
@@ -327,6 +340,7 @@ impl Sim {
             slots: Vec::new(),
             links: Vec::new(),
             heads: Vec::new(),
+            space: Vec::new(),
             now: 0,
             stepped: false,
             cal: super::calendar::Calendar::new(),
@@ -373,6 +387,7 @@ impl Sim {
         self.links
             .push(Box::new(Link::<T>::new(name.to_string(), cfg)));
         self.heads.push(Time::MAX);
+        self.space.push(true);
         self.elaborated = false;
         (Out::new(id), In::new(id))
     }
@@ -465,6 +480,9 @@ impl Sim {
             l.reset();
         }
         self.heads.iter_mut().for_each(|h| *h = Time::MAX);
+        for (s, l) in self.space.iter_mut().zip(&self.links) {
+            *s = l.has_space();
+        }
         self.touched.clear();
         self.wakes.clear();
         for (i, s) in self.slots.iter_mut().enumerate() {
@@ -620,6 +638,7 @@ impl Sim {
             link.take_violations(&mut violations);
             let wake = link.commit();
             self.heads[l.0 as usize] = link.head_time();
+            self.space[l.0 as usize] = link.has_space();
             if wake {
                 let (p, _) = link.ends();
                 let p = p.expect("elaborated link has a producer");
@@ -668,6 +687,7 @@ impl Sim {
             unit: UnitId(u),
             links: &mut self.links,
             heads: &mut self.heads,
+            space: &mut self.space,
             touched: &mut self.touched,
             wakes: &mut self.wakes,
             stalls: &mut slot.stalled_outs,
