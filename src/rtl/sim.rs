@@ -635,11 +635,10 @@ impl Sim {
         let mut violations = Vec::new();
         for &l in &self.touched {
             let link = &mut self.links[l.0 as usize];
-            link.take_violations(&mut violations);
-            let wake = link.commit();
-            self.heads[l.0 as usize] = link.head_time();
-            self.space[l.0 as usize] = link.has_space();
-            if wake {
+            let e = link.edge(&mut violations);
+            self.heads[l.0 as usize] = e.head;
+            self.space[l.0 as usize] = e.space;
+            if e.wake_producer {
                 let (p, _) = link.ends();
                 let p = p.expect("elaborated link has a producer");
                 self.wakes.push((p, t + 1));
