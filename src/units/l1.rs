@@ -256,7 +256,11 @@ impl Logic for L1 {
         bank_busy.clear();
         bank_busy.resize(self.banks as usize, false);
         let start = (c % n as u64) as usize;
-        let visible = if n <= 64 { ctx.visible_mask(&self.req) } else { u64::MAX };
+        let visible = if n <= 64 {
+            ctx.visible_mask(&self.req)
+        } else {
+            u64::MAX
+        };
         for p in (start..n).chain(0..start) {
             if p < 64 && visible >> p & 1 == 0 {
                 continue;

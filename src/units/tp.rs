@@ -614,7 +614,8 @@ impl Logic for Tp {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let s = self.state.val();
-        let costed = self.cost_cycles(s).is_some() || s == TpState::BoxIssue1 || s == TpState::ShStore1;
+        let costed =
+            self.cost_cycles(s).is_some() || s == TpState::BoxIssue1 || s == TpState::ShStore1;
         if costed {
             if c < self.act_at.val() {
                 ctx.set_status(Status::Busy);
