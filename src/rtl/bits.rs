@@ -90,11 +90,27 @@ pub trait Payload: Clone + std::fmt::Debug + PartialEq + 'static {
     /// Bit-exact equality (NaN payloads equal themselves, +0 and -0 differ), which is
     /// what "the value did not change" means for hardware.
     fn same_bits(&self, other: &Self) -> bool {
-        let (mut a, mut b) = (Bits::new(), Bits::new());
-        self.pack(&mut a);
-        other.pack(&mut b);
-        a == b
+        // Link monitors call this every cycle a refused offer is repeated: pack into
+        // two per-thread scratch vectors instead of allocating (`pack` never calls
+        // `same_bits`, so the borrow cannot nest).
+        SCRATCH.with(|s| {
+            let (a, b) = &mut *s.borrow_mut();
+            a.clear();
+            b.clear();
+            self.pack(a);
+            other.pack(b);
+            a == b
+        })
     }
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<(Bits, Bits)> = const {
+        std::cell::RefCell::new((
+            Bits { words: Vec::new(), len: 0 },
+            Bits { words: Vec::new(), len: 0 },
+        ))
+    };
 }
 
 macro_rules! uint_payload {

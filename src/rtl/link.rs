@@ -199,6 +199,15 @@ impl<T: Payload> Link<T> {
         self.q.front().filter(|e| e.visible <= now).map(|e| &e.data)
     }
 
+    /// See [`LinkDyn::head_time`].
+    #[inline]
+    pub(crate) fn head_time(&self) -> Time {
+        match self.q.front() {
+            Some(e) if self.pops_now == 0 => e.visible,
+            _ => Time::MAX,
+        }
+    }
+
     /// Pops the head; returns the payload and whether the producer must be woken.
     #[inline]
     pub(crate) fn pop(&mut self, now: Time) -> Option<T> {
@@ -292,10 +301,23 @@ impl<T: Payload> Link<T> {
     }
 }
 
+/// What a link's clock edge reports to the simulator.
+pub(crate) struct EdgeResult {
+    /// A pop made room in a FIFO that was full: wake the producer.
+    pub wake_producer: bool,
+    /// `head_time` after the edge.
+    pub head: Time,
+    /// `can_push` after the edge.
+    pub space: bool,
+}
+
 /// Type-erased link interface used by the simulator for commit and tracing.
 pub(crate) trait LinkDyn: Any {
     fn name(&self) -> &str;
-    fn commit(&mut self) -> bool;
+    /// Clock edge: moves this cycle's violations to `violations`, retires this
+    /// cycle's pop, and tells the simulator what it mirrors (one virtual call per
+    /// touched link and edge).
+    fn edge(&mut self, violations: &mut Vec<Violation>) -> EdgeResult;
     fn sample_consumer(&self, now: Time, out: [&mut Bits; 3]);
     fn sample_producer(&self, out: [&mut Bits; 3]);
     fn ends(&self) -> (Option<UnitId>, Option<UnitId>);
@@ -303,10 +325,14 @@ pub(crate) trait LinkDyn: Any {
     fn set_delay_ps(&mut self, ps: Time);
     fn cfg(&self) -> LinkCfg;
     fn reset(&mut self);
-    fn take_violations(&mut self) -> Vec<Violation>;
     fn check_offer_held(&mut self, now: Time) -> bool;
     fn is_stalled(&self) -> bool;
-    fn has_visible(&self, now: Time) -> bool;
+    /// When the head becomes visible to the consumer: `Time::MAX` if the FIFO is
+    /// empty or its head was popped this cycle (the simulator keeps these in one flat
+    /// array so that `Ctx::has_input` is a load, not a virtual call).
+    fn head_time(&self) -> Time;
+    /// `can_push` (kept by the simulator in a flat array like `head_time`).
+    fn has_space(&self) -> bool;
     fn stats(&self) -> LinkStats;
     fn occupancy(&self) -> u32;
     fn set_log(&mut self, on: bool);
@@ -317,9 +343,12 @@ impl<T: Payload> LinkDyn for Link<T> {
     fn name(&self) -> &str {
         &self.name
     }
-    /// Clock edge: retire this cycle's pop. Returns whether the producer must be
-    /// woken (a pop made room in a FIFO that was full).
-    fn commit(&mut self) -> bool {
+    fn edge(&mut self, violations: &mut Vec<Violation>) -> EdgeResult {
+        if !self.violations.is_empty() {
+            violations.append(&mut self.violations);
+        }
+        // Retire this cycle's pop; a pop that made room in a full FIFO wakes the
+        // producer.
         let wake_producer = self.pops_now > 0 && self.full_at_start;
         if self.pops_now > 0 {
             self.q.pop_front();
@@ -329,7 +358,11 @@ impl<T: Payload> LinkDyn for Link<T> {
         self.offered_now = false;
         self.full_at_start = false;
         self.touched = false;
-        wake_producer
+        EdgeResult {
+            wake_producer,
+            head: self.head_time(),
+            space: self.can_push(),
+        }
     }
     fn sample_consumer(&self, now: Time, out: [&mut Bits; 3]) {
         let [valid, ready, data] = out;
@@ -385,9 +418,6 @@ impl<T: Payload> LinkDyn for Link<T> {
         }
         self.violations.clear();
     }
-    fn take_violations(&mut self) -> Vec<Violation> {
-        std::mem::take(&mut self.violations)
-    }
     /// Called after the producer's evaluation: a stalled offer must be repeated.
     fn check_offer_held(&mut self, now: Time) -> bool {
         if self.stalled.is_some() && !self.offered_now {
@@ -407,8 +437,13 @@ impl<T: Payload> LinkDyn for Link<T> {
     fn is_stalled(&self) -> bool {
         self.stalled.is_some()
     }
-    fn has_visible(&self, now: Time) -> bool {
-        self.peek(now).is_some()
+    #[inline]
+    fn head_time(&self) -> Time {
+        self.head_time()
+    }
+    #[inline]
+    fn has_space(&self) -> bool {
+        self.can_push()
     }
     fn occupancy(&self) -> u32 {
         self.q.len() as u32

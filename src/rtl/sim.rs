@@ -137,6 +137,11 @@ pub struct Ctx<'a> {
     period: Time,
     unit: UnitId,
     links: &'a mut [Box<dyn LinkDyn>],
+    /// `LinkDyn::head_time` of every link, kept current by every push, pop and commit.
+    heads: &'a mut [Time],
+    /// `LinkDyn::has_space` of every link, kept current by every push and commit (a
+    /// pop frees space only after the edge).
+    space: &'a mut [bool],
     touched: &'a mut Vec<LinkId>,
     wakes: &'a mut Vec<(UnitId, Time)>,
     /// Output links of this unit with a refused offer outstanding.
@@ -182,6 +187,9 @@ impl<'a> Ctx<'a> {
     #[inline]
     pub fn peek<T: Payload>(&mut self, port: &In<T>) -> Option<&T> {
         let now = self.now;
+        if self.heads[port.id.0 as usize] > now {
+            return None;
+        }
         self.link::<T>(port.id).peek(now)
     }
 
@@ -190,7 +198,23 @@ impl<'a> Ctx<'a> {
     /// payload-type check).
     #[inline]
     pub fn has_input<T: Payload>(&self, port: &In<T>) -> bool {
-        self.links[port.id.0 as usize].has_visible(self.now)
+        let i = port.id.0 as usize;
+        debug_assert_eq!(self.heads[i], self.links[i].head_time());
+        self.heads[i] <= self.now
+    }
+
+    /// Bit `i` set when `ports[i]` has a visible head this cycle (`has_input` of up
+    /// to 64 ports at once, for arbiters).
+    #[inline]
+    pub fn visible_mask<T: Payload>(&self, ports: &[In<T>]) -> u64 {
+        assert!(ports.len() <= 64, "visible_mask takes at most 64 ports");
+        let mut m = 0u64;
+        for (i, p) in ports.iter().enumerate() {
+            let id = p.id.0 as usize;
+            debug_assert_eq!(self.heads[id], self.links[id].head_time());
+            m |= ((self.heads[id] <= self.now) as u64) << i;
+        }
+        m
     }
 
     /// Takes the head of an input link (at most one per link per cycle).
@@ -203,6 +227,8 @@ impl<'a> Ctx<'a> {
         debug_assert_eq!(l.consumer, Some(me), "unit pops a link it does not consume");
         let v = l.pop(now);
         let t = l.touched;
+        let head = l.head_time();
+        self.heads[port.id.0 as usize] = head;
         self.link_ops += v.is_some() as u32;
         self.mark(port.id, was || !t);
         v
@@ -211,7 +237,9 @@ impl<'a> Ctx<'a> {
     /// Whether the output link can take a payload this cycle (registered ready).
     #[inline]
     pub fn can_push<T: Payload>(&mut self, port: &Out<T>) -> bool {
-        self.link::<T>(port.id).can_push()
+        let s = self.space[port.id.0 as usize];
+        debug_assert_eq!(s, self.link::<T>(port.id).can_push());
+        s
     }
 
     /// Pushes onto an output link; pushing without `can_push` is a protocol violation.
@@ -222,6 +250,9 @@ impl<'a> Ctx<'a> {
         let was = l.touched;
         let consumer = l.consumer;
         let vis = l.push(now, v);
+        let (head, space) = (l.head_time(), l.can_push());
+        self.heads[port.id.0 as usize] = head;
+        self.space[port.id.0 as usize] = space;
         self.link_ops += 1;
         self.mark(port.id, was);
         if let (Some(vis), Some(c)) = (vis, consumer) {
@@ -239,6 +270,9 @@ impl<'a> Ctx<'a> {
         let consumer = l.consumer;
         let held = l.is_stalled();
         let vis = l.offer(now, v);
+        let (head, space) = (l.head_time(), l.can_push());
+        self.heads[port.id.0 as usize] = head;
+        self.space[port.id.0 as usize] = space;
         // Repeating a refused offer (the payload held while stalled) changes nothing.
         if vis.is_some() || !held {
             self.link_ops += 1;
@@ -269,6 +303,10 @@ pub struct Sim {
     clocks: Vec<Clock>,
     slots: Vec<Slot>,
     links: Vec<Box<dyn LinkDyn>>,
+    /// Head visibility time of every link (see `Ctx::heads`).
+    heads: Vec<Time>,
+    /// Whether every link can take a push (see `Ctx::space`).
+    space: Vec<bool>,
     now: Time,
     /// Whether the step at `now` has been processed.
     stepped: bool,
@@ -301,6 +339,8 @@ impl Sim {
             clocks: Vec::new(),
             slots: Vec::new(),
             links: Vec::new(),
+            heads: Vec::new(),
+            space: Vec::new(),
             now: 0,
             stepped: false,
             cal: super::calendar::Calendar::new(),
@@ -346,6 +386,8 @@ impl Sim {
         let id = LinkId(self.links.len() as u32);
         self.links
             .push(Box::new(Link::<T>::new(name.to_string(), cfg)));
+        self.heads.push(Time::MAX);
+        self.space.push(true);
         self.elaborated = false;
         (Out::new(id), In::new(id))
     }
@@ -436,6 +478,10 @@ impl Sim {
         self.steps = 0;
         for l in &mut self.links {
             l.reset();
+        }
+        self.heads.iter_mut().for_each(|h| *h = Time::MAX);
+        for (s, l) in self.space.iter_mut().zip(&self.links) {
+            *s = l.has_space();
         }
         self.touched.clear();
         self.wakes.clear();
@@ -589,8 +635,10 @@ impl Sim {
         let mut violations = Vec::new();
         for &l in &self.touched {
             let link = &mut self.links[l.0 as usize];
-            violations.extend(link.take_violations());
-            if link.commit() {
+            let e = link.edge(&mut violations);
+            self.heads[l.0 as usize] = e.head;
+            self.space[l.0 as usize] = e.space;
+            if e.wake_producer {
                 let (p, _) = link.ends();
                 let p = p.expect("elaborated link has a producer");
                 self.wakes.push((p, t + 1));
@@ -637,6 +685,8 @@ impl Sim {
             period: slot.period,
             unit: UnitId(u),
             links: &mut self.links,
+            heads: &mut self.heads,
+            space: &mut self.space,
             touched: &mut self.touched,
             wakes: &mut self.wakes,
             stalls: &mut slot.stalled_outs,

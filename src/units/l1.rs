@@ -104,8 +104,18 @@ crate::unit! {
             pending: Ram<Pending>,
             next_seq: crate::rtl::Reg<u32>
         }
-        extra { out_delay: u32, stats: L1Stats, log: Option<Vec<(u16, u64)>> }
+        extra { out_delay: u32, stats: L1Stats, log: Option<Vec<(u16, u64)>>, scratch: L1Scratch }
     }
+}
+
+/// Per-evaluation working copies, kept between evaluations only so that a busy
+/// cycle allocates nothing (cleared at the start of every `eval`; not state).
+#[derive(Clone, Debug, Default)]
+pub struct L1Scratch {
+    mshr: Vec<Mshr>,
+    mshr_dirty: Vec<bool>,
+    pend: Vec<Option<Pending>>,
+    bank_busy: Vec<bool>,
 }
 
 /// Event counters.
@@ -153,6 +163,7 @@ impl L1 {
             out_delay,
             stats: L1Stats::default(),
             log: None,
+            scratch: L1Scratch::default(),
         }
     }
 
@@ -182,11 +193,18 @@ impl Logic for L1 {
         let n = self.req.len();
         let mut worked = false;
         let mut waiting = false;
-        let mut mshr: Vec<Mshr> = (0..self.mshr_count)
-            .map(|k| self.mshr.read(k).clone())
-            .collect();
-        let mut mshr_dirty = vec![false; mshr.len()];
-        let mut pend: Vec<Option<Pending>> = vec![None; n];
+        let L1Scratch {
+            mut mshr,
+            mut mshr_dirty,
+            mut pend,
+            mut bank_busy,
+        } = std::mem::take(&mut self.scratch);
+        mshr.clear();
+        mshr.extend((0..self.mshr_count).map(|k| self.mshr.read(k).clone()));
+        mshr_dirty.clear();
+        mshr_dirty.resize(mshr.len(), false);
+        pend.clear();
+        pend.resize(n, None);
         // 1. A line from the miss port: fill its slot, answer its waiters now.
         let mut filled: Option<L1Resp> = None;
         if let Some(f) = ctx.peek(&self.miss_resp).cloned() {
@@ -235,10 +253,18 @@ impl Logic for L1 {
             }
         }
         // 3. Requests: one per bank per cycle, round-robin from TP `c mod n`.
-        let mut bank_busy = vec![false; self.banks as usize];
+        bank_busy.clear();
+        bank_busy.resize(self.banks as usize, false);
         let start = (c % n as u64) as usize;
-        for j in 0..n {
-            let p = (start + j) % n;
+        let visible = if n <= 64 {
+            ctx.visible_mask(&self.req)
+        } else {
+            u64::MAX
+        };
+        for p in (start..n).chain(0..start) {
+            if p < 64 && visible >> p & 1 == 0 {
+                continue;
+            }
             let Some(r) = ctx.peek(&self.req[p]).cloned() else {
                 continue;
             };
@@ -325,16 +351,22 @@ impl Logic for L1 {
                 waiting = true;
             }
         }
-        for (k, m) in mshr.into_iter().enumerate() {
+        for (k, m) in mshr.drain(..).enumerate() {
             if mshr_dirty[k] {
                 self.mshr.write(k as u32, m);
             }
         }
-        for (p, e) in pend.into_iter().enumerate() {
+        for (p, e) in pend.drain(..).enumerate() {
             if let Some(e) = e {
                 self.pending.write(p as u32, e);
             }
         }
+        self.scratch = L1Scratch {
+            mshr,
+            mshr_dirty,
+            pend,
+            bank_busy,
+        };
         ctx.set_status(if worked {
             Status::Busy
         } else if waiting {

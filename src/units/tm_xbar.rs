@@ -55,8 +55,16 @@ crate::unit! {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct XbarStats {
     pub grants: [u64; 6],
-    /// Request-cycles a TP waited while another TP was granted or the unit was full.
+    /// Request-cycles a TP waited while another TP was granted or the unit was full
+    /// (a wait in progress is added when it ends, see `wait`).
     pub conflicts: [u64; 6],
+    /// A wait in progress: from cycle `.0` on, every cycle adds `.1` to `conflicts`
+    /// (not yet added). While the crossbar only waits (nothing granted, nothing
+    /// routed) nothing it sees can change until a push wakes it (a new request or
+    /// response) or a pop frees a full output (which wakes its producer), so it
+    /// sleeps and counts the wait in one step when it is evaluated again with a
+    /// different picture. Simulation bookkeeping, not hardware state.
+    pub wait: Option<(u64, [u64; 6])>,
 }
 
 pub const CLASSES: [&str; 6] = ["div", "box", "tri", "ray_write", "hit", "gmem"];
@@ -71,9 +79,27 @@ fn pick<T: Payload>(
     conflicts: &mut u64,
 ) -> Option<(usize, T)> {
     let n = inputs.len();
+    if n <= 64 {
+        // The same choice from a bit mask of the visible heads: the first at or after
+        // `start`, else the first; every other visible head is a conflict.
+        let mask = ctx.visible_mask(inputs);
+        if mask == 0 {
+            return None;
+        }
+        let visible = mask.count_ones() as u64;
+        if !grant {
+            *conflicts += visible;
+            return None;
+        }
+        let hi = mask & (!0u64 << start);
+        let k = if hi != 0 { hi } else { mask }.trailing_zeros() as usize;
+        *conflicts += visible - 1;
+        return Some((k, ctx.pop(&inputs[k]).expect("visible")));
+    }
     let mut won = None;
-    for j in 0..n {
-        let k = (start + j) % n;
+    // `start..n` then `0..start`: the round-robin order without a division per input.
+    let order = (start..n).chain(0..start);
+    for k in order {
         if !ctx.has_input(&inputs[k]) {
             continue;
         }
@@ -104,13 +130,23 @@ fn route<T: Payload>(
     (true, false)
 }
 
+/// Adds the conflicts of a wait in progress for its cycles before `c`.
+fn flush_wait(s: &mut XbarStats, c: u64) {
+    if let Some((since, w)) = s.wait.take() {
+        for (k, n) in w.iter().enumerate() {
+            s.conflicts[k] += n * (c - since);
+        }
+    }
+}
+
 impl Logic for TmXbar {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let start = (c % self.tps as u64) as usize;
         let mut worked = false;
         let mut waiting = false;
-        let s = &mut self.stats;
+        // This cycle's conflicts, per class (added to the stats at the end).
+        let mut cf = [0u64; 6];
         // Responses back to their TPs.
         for (w, b) in [
             route(ctx, &self.div_resp, &self.tp_div_resp, |r| r.tag),
@@ -141,14 +177,12 @@ impl Logic for TmXbar {
         macro_rules! forward {
             ($class:expr, $inputs:expr, $out:expr) => {{
                 let free = ctx.can_push(&$out);
-                let (g, cf) = (&mut s.grants[$class], &mut s.conflicts[$class]);
-                let before = *cf;
-                if let Some((_, v)) = pick(ctx, &$inputs, start, free, cf) {
+                if let Some((_, v)) = pick(ctx, &$inputs, start, free, &mut cf[$class]) {
                     ctx.push(&$out, v);
-                    *g += 1;
+                    self.stats.grants[$class] += 1;
                     worked = true;
                 }
-                waiting |= *cf > before;
+                waiting |= cf[$class] > 0;
             }};
         }
         forward!(0, self.tp_div_req, self.div_req);
@@ -159,22 +193,15 @@ impl Logic for TmXbar {
         let target = (0..self.tri_req.len())
             .filter(|&p| ctx.can_push(&self.tri_req[p]))
             .min_by_key(|&p| (outstanding[p], p));
-        let before = s.conflicts[2];
-        if let Some((_, v)) = pick(
-            ctx,
-            &self.tp_tri_req,
-            start,
-            target.is_some(),
-            &mut s.conflicts[2],
-        ) {
+        if let Some((_, v)) = pick(ctx, &self.tp_tri_req, start, target.is_some(), &mut cf[2]) {
             let p = target.expect("granted only with a target");
             ctx.push(&self.tri_req[p], v);
             outstanding[p] += 1;
             changed[p] = true;
-            s.grants[2] += 1;
+            self.stats.grants[2] += 1;
             worked = true;
         }
-        waiting |= s.conflicts[2] > before;
+        waiting |= cf[2] > 0;
         for p in 0..np {
             if changed[p] {
                 self.tri_outstanding.write(p as u32, outstanding[p]);
@@ -187,12 +214,24 @@ impl Logic for TmXbar {
         } else {
             Status::WaitInput
         });
-        // Waiting requests are re-arbitrated every cycle (the counts stay exact).
-        if worked || waiting {
-            Next::Cycle
-        } else {
-            Next::Idle
+        let s = &mut self.stats;
+        if !worked && waiting {
+            // Only waiting: sleep until a push or a pop wakes us (see `XbarStats::wait`).
+            // The same picture again (an evaluation that was not needed) changes nothing.
+            match s.wait {
+                Some((_, w)) if w == cf => {}
+                _ => {
+                    flush_wait(s, c);
+                    s.wait = Some((c, cf));
+                }
+            }
+            return Next::Idle;
         }
+        flush_wait(s, c);
+        for (k, n) in cf.iter().enumerate() {
+            s.conflicts[k] += n;
+        }
+        if worked { Next::Cycle } else { Next::Idle }
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {

@@ -23,7 +23,7 @@ use super::l1::{L1Req, L1Resp, Line};
 use super::memory::{MemLineReq, MemLineResp};
 use super::staging_buffer::{SbHeader, SbRay};
 use super::tm::COSTS;
-use super::tm::{StateCost, TpCosts, round_trip};
+use super::tm::{TpCosts, round_trip};
 pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::config::Config;
@@ -162,7 +162,9 @@ crate::unit! {
             rt: [u64; 3],
             stats: TpStats,
             log: Option<Vec<u64>>,
-            shading: Option<ShadeRegs>
+            shading: Option<ShadeRegs>,
+            blocked_since: Option<u64>,
+            cost_cycles: [u32; COSTS]
         }
     }
 }
@@ -207,7 +209,8 @@ pub struct TpStats {
     pub wait: [u64; 4],
     /// The part of `wait` beyond the idle round trip (contention), for div/box/tri.
     pub stall: [u64; 3],
-    /// Cycles a finished action waited for a full output link.
+    /// Cycles a finished action waited for a full output link (a wait in progress
+    /// is added when it ends).
     pub blocked: u64,
     pub max_stack: u64,
     pub first_ray: Option<u64>,
@@ -294,6 +297,9 @@ impl Tp {
                 },
             ),
             costs: cfg.tm.costs.clone(),
+            // `costs.all()` builds its table on every call; the TP needs the cycles
+            // on every state change.
+            cost_cycles: cfg.tm.costs.all().map(|(_, k)| k.cycles),
             rt: [
                 round_trip(&cfg.divider, d),
                 round_trip(&cfg.box_pipe, d),
@@ -302,6 +308,7 @@ impl Tp {
             stats: TpStats::default(),
             log: None,
             shading: None,
+            blocked_since: None,
         }
     }
 
@@ -314,16 +321,17 @@ impl Tp {
         self.log.as_deref().unwrap_or(&[])
     }
 
-    fn cost(&self, s: TpState) -> Option<&StateCost> {
-        cost_index(s).map(|k| self.costs.all()[k].1)
+    /// Cycles of a computing state (`None` for the others).
+    fn cost_cycles(&self, s: TpState) -> Option<u32> {
+        cost_index(s).map(|k| self.cost_cycles[k])
     }
 
     /// Enters `s` in the cycle after `c`; a computing state acts in its last cycle.
     pub(super) fn go(&mut self, s: TpState, c: u64) -> Next {
         self.state.set(s);
-        match self.cost(s) {
+        match self.cost_cycles(s) {
             Some(k) => {
-                let at = c + k.cycles as u64;
+                let at = c + k as u64;
                 self.act_at.set(at);
                 Next::AtCycle(at)
             }
@@ -606,7 +614,8 @@ impl Logic for Tp {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let s = self.state.val();
-        let costed = self.cost(s).is_some() || s == TpState::BoxIssue1 || s == TpState::ShStore1;
+        let costed =
+            self.cost_cycles(s).is_some() || s == TpState::BoxIssue1 || s == TpState::ShStore1;
         if costed {
             if c < self.act_at.val() {
                 ctx.set_status(Status::Busy);
@@ -614,15 +623,22 @@ impl Logic for Tp {
             }
             return match self.act(ctx, s, c) {
                 Some(n) => {
+                    if let Some(b) = self.blocked_since.take() {
+                        self.stats.blocked += c - b;
+                    }
                     self.used(s);
                     ctx.set_status(Status::Busy);
                     n
                 }
                 None => {
-                    // Offered and refused: offer the same again next cycle.
-                    self.stats.blocked += 1;
+                    // Offered and refused: the link holds the offer, and the pop that
+                    // makes room wakes the TP (a pop from a full link wakes its
+                    // producer), which then offers the same again. Until then nothing
+                    // can change, so the TP sleeps; its blocked cycles are counted
+                    // when the offer is taken (`blocked_since`, the first refusal).
+                    self.blocked_since.get_or_insert(c);
                     ctx.set_status(Status::OutputBlocked);
-                    Next::Cycle
+                    Next::Idle
                 }
             };
         }
@@ -782,6 +798,7 @@ impl Logic for Tp {
 
     fn reset_counters(&mut self) {
         self.stats = TpStats::default();
+        self.blocked_since = None;
         if let Some(l) = &mut self.log {
             l.clear();
         }
