@@ -330,12 +330,16 @@ fn chip_top_wires_every_unit_and_lints() {
     // the TMs' global-memory ports); without the L2, the hit port and one
     // global-memory port per TM.
     let memory = std::fs::read_to_string(repo().join("hdl/memory.v")).unwrap();
-    let ports = if cfg.chip.l2.enabled {
-        assert!(committed.contains("u_l2 ("), "chip.v lacks the L2");
-        3
-    } else {
-        3 + cfg.chip.tms
-    };
+    // Then the scheduler's further ray and scene lanes.
+    let lanes =
+        cfg.chip.scheduler.ray_lines_per_cycle - 1 + cfg.chip.scheduler.scene_lines_per_cycle - 1;
+    let ports = lanes
+        + if cfg.chip.l2.enabled {
+            assert!(committed.contains("u_l2 ("), "chip.v lacks the L2");
+            3
+        } else {
+            3 + cfg.chip.tms
+        };
     assert!(memory.contains(&format!("parameter integer PORTS = {ports}")));
     assert!(committed.contains(&format!(".PORTS({ports})")));
     // Every scheduler fill port drives its TM's slice.
