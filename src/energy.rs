@@ -1,6 +1,7 @@
 //! On-chip and compute energy at 65 nm, per access and per operation, each constant
 //! named with its source (`../shared/docs/hardware-reference.md` §4). The paper's
-//! figures exclude leakage, so the model does too (leakage would be a separate row).
+//! figures exclude leakage, so the totals do too; with `energy.leakage = true` the
+//! SRAMs' leakage over the render time is reported as a separate figure.
 //!
 //! What is charged:
 //! - compute: every box test (its exact op count, `geom::RAY_BOX_OPS`), every
@@ -46,6 +47,20 @@ pub struct EnergyCfg {
     pub rf_per_instruction: f64,
     /// I-cache 4 KB, 16 banks (one per 16 threads), pJ per fetch (simtrax `icacheparams.txt`).
     pub icache_pj: f64,
+    /// Report the SRAMs' leakage over the render time (cycle mode) as a separate
+    /// figure, never in the totals (the paper's figures exclude it). Off by default.
+    pub leakage: bool,
+    /// Leakage per bank, mW, CACTI 7 at 65 nm, itrs-hp cells at 360 K ("high; treat
+    /// with care", hardware-reference §4.2): L1 16 KB as 8-bank RAM.
+    pub l1_leak_mw_per_bank: f64,
+    /// L2 512 KB, per bank (the 16-bank cache figure, applied to each of `chip.l2.banks`).
+    pub l2_leak_mw_per_bank: f64,
+    /// Scene buffer 4 MB, per bank (the 64-bank RAM figure, applied to each of `chip.scene_buffer.banks`).
+    pub scene_buffer_leak_mw_per_bank: f64,
+    /// Ray staging buffer (2 x 2 KB RAM, 2 banks), per bank.
+    pub staging_leak_mw_per_bank: f64,
+    /// TP scratchpad 512 B, per TP.
+    pub scratchpad_leak_mw: f64,
 }
 
 impl Default for EnergyCfg {
@@ -65,6 +80,12 @@ impl Default for EnergyCfg {
             rf_pj: 7.90,
             rf_per_instruction: 3.0,
             icache_pj: 13.5,
+            leakage: false,
+            l1_leak_mw_per_bank: 10.2,
+            l2_leak_mw_per_bank: 68.0,
+            scene_buffer_leak_mw_per_bank: 150.0,
+            staging_leak_mw_per_bank: 4.0,
+            scratchpad_leak_mw: 0.8,
         }
     }
 }
@@ -86,6 +107,14 @@ impl EnergyCfg {
             ("rf_pj", self.rf_pj),
             ("rf_per_instruction", self.rf_per_instruction),
             ("icache_pj", self.icache_pj),
+            ("l1_leak_mw_per_bank", self.l1_leak_mw_per_bank),
+            ("l2_leak_mw_per_bank", self.l2_leak_mw_per_bank),
+            (
+                "scene_buffer_leak_mw_per_bank",
+                self.scene_buffer_leak_mw_per_bank,
+            ),
+            ("staging_leak_mw_per_bank", self.staging_leak_mw_per_bank),
+            ("scratchpad_leak_mw", self.scratchpad_leak_mw),
         ];
         for (k, v) in all {
             if !(v.is_finite() && v >= 0.0) {
@@ -187,6 +216,27 @@ pub struct Energy {
     pub compute_j: f64,
     pub onchip_j: f64,
     pub parts: Vec<(&'static str, f64)>,
+    /// SRAM leakage over the render time (`energy.leakage`, cycle mode), not
+    /// part of `compute_j` or `onchip_j`.
+    pub leakage_j: Option<f64>,
+}
+
+/// The chip's SRAM leakage power in watts: per TM the L1's banks, the staging
+/// buffer's banks and a scratchpad per TP; the L2's and the scene buffer's banks.
+pub fn leakage_w(c: &crate::config::Config) -> f64 {
+    let e = &c.energy;
+    let tm = c.tm.l1.banks as f64 * e.l1_leak_mw_per_bank
+        + 2.0 * e.staging_leak_mw_per_bank
+        + c.tm.tps as f64 * e.scratchpad_leak_mw;
+    let l2 = if c.chip.l2.enabled {
+        c.chip.l2.banks as f64 * e.l2_leak_mw_per_bank
+    } else {
+        0.0
+    };
+    (c.chip.tms as f64 * tm
+        + l2
+        + c.chip.scene_buffer.banks as f64 * e.scene_buffer_leak_mw_per_bank)
+        * 1e-3
 }
 
 /// Charges `a` with the per-event energies of `c`.
@@ -235,6 +285,7 @@ pub fn energy(c: &EnergyCfg, a: &Activity) -> Energy {
         compute_j: compute.iter().map(|p| p.1).sum(),
         onchip_j: onchip.iter().map(|p| p.1).sum(),
         parts: compute.into_iter().chain(onchip).collect(),
+        leakage_j: None,
     }
 }
 
@@ -303,12 +354,39 @@ pub fn frame_energy(c: &crate::config::Config, f: &crate::render::Frame) -> Ener
             act.instructions += shading_instructions(&c.tm.costs, w.shade_uses);
         }
     }
-    energy(&c.energy, &act)
+    let mut e = energy(&c.energy, &act);
+    if c.energy.leakage
+        && let Some(ch) = &f.chip
+    {
+        let seconds = ch.total_cycles as f64 * ch.core_ps as f64 * 1e-12;
+        e.leakage_j = Some(leakage_w(c) * seconds);
+    }
+    e
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn leakage_counts_every_sram_bank_and_scales_with_the_chip() {
+        let mut c = crate::config::Config::default();
+        let e = &c.energy;
+        let per_tm = 8.0 * e.l1_leak_mw_per_bank
+            + 2.0 * e.staging_leak_mw_per_bank
+            + 16.0 * e.scratchpad_leak_mw;
+        let global = 32.0 * e.l2_leak_mw_per_bank + 32.0 * e.scene_buffer_leak_mw_per_bank;
+        let want = (128.0 * per_tm + global) * 1e-3;
+        assert!((leakage_w(&c) - want).abs() < 1e-9, "{}", leakage_w(&c));
+        c.chip.tms = 64;
+        assert!((leakage_w(&c) - (64.0 * per_tm + global) * 1e-3).abs() < 1e-9);
+        c.chip.l2.enabled = false;
+        assert!(leakage_w(&c) < (64.0 * per_tm + global) * 1e-3 - 1e-3);
+        assert!(
+            !EnergyCfg::default().leakage,
+            "off by default, as the paper's figures"
+        );
+    }
 
     #[test]
     fn each_event_is_charged_its_listed_energy() {

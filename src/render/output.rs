@@ -137,6 +137,9 @@ pub fn summary(f: &Frame) -> String {
         for (k, j) in &e.parts {
             s += &format!("    {:<32} {:>12.4}\n", k, j);
         }
+        if let Some(l) = e.leakage_j {
+            s += &format!("  {:<34} {:>12.4}\n", "SRAM leakage (J, not in totals)", l);
+        }
         if f.chip.as_ref().is_some_and(|c| c.dram.is_some()) {
             s += "  (DRAM energy: the gddr5 figures below; L2 and scene buffer counted in cycle mode only)\n";
         } else {
