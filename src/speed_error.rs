@@ -41,8 +41,8 @@ pub struct ModeResult {
 }
 
 /// A first-order timing estimate of a functional frame: per wavefront the largest
-/// of its resource bounds (DRAM bandwidth, the ray and scene streams' one line per
-/// cycle, box and triangle pipelines, TP issue), plus the shading pass's bounds.
+/// of its resource bounds (DRAM bandwidth, the ray and scene streams' lines per
+/// cycle, box and triangle pipelines, TP occupancy), plus the shading pass's bounds.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct Estimate {
     pub cycles: f64,
@@ -81,8 +81,14 @@ pub fn estimate(c: &Config, f: &Frame) -> Estimate {
                 * t.tri_tests;
         let bounds = [
             ("DRAM bandwidth", w.total_lines() as f64 * line / peak),
-            ("ray stream", w.ray_lines() as f64),
-            ("scene stream", w.scene_lines as f64),
+            (
+                "ray stream",
+                w.ray_lines() as f64 / c.chip.scheduler.ray_lines_per_cycle as f64,
+            ),
+            (
+                "scene stream",
+                w.scene_lines as f64 / c.chip.scheduler.scene_lines_per_cycle as f64,
+            ),
             (
                 "box pipes",
                 t.nodes as f64 * c.box_pipe.interval as f64 / tms,

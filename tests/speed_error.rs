@@ -68,9 +68,10 @@ fn the_estimate_is_at_least_every_resource_bound() {
         nodes += w.traversal.nodes;
         ray_lines += w.ray_lines();
     }
-    // Box tests at one per TM per cycle, ray-stream lines at one per cycle.
+    // Box tests at one per TM per cycle, ray-stream lines at their lanes per cycle.
     assert!(e.cycles >= nodes as f64 / c.chip.tms as f64);
-    assert!(e.cycles >= ray_lines as f64);
+    let lanes = c.chip.scheduler.ray_lines_per_cycle as f64;
+    assert!(e.cycles >= ray_lines as f64 / lanes);
     // Twice the TMs cannot make the compute bounds slower.
     let mut big = c.clone();
     big.chip.tms *= 2;
