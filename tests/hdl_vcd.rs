@@ -386,7 +386,8 @@ fn chip_top_wires_every_unit_and_lints() {
                 String::from_utf8_lossy(&o.stderr)
             );
         }
-        if have("yosys") {
+        // yosys reads every module (seconds): once, on the top with every loop.
+        if name == "gddr5" && have("yosys") {
             // Every instance's ports exist and match; the top has one driver per
             // net (the modules themselves are checked file by file above).
             let all: Vec<String> = std::fs::read_dir(&dir)
