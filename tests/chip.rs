@@ -413,7 +413,7 @@ fn tp_shading_is_invariant_under_sleeping_shadow_and_shuffles() {
 fn passes_end_promptly_after_their_last_rays() {
     const BOUND: u64 = 500;
     let s = scene(dualstream::scene::DEFAULT_SCENE, 16, 12, 2);
-    for (tms, tps, gddr5) in [(1, 16, false), (8, 16, false), (4, 8, true)] {
+    for (tms, tps, gddr5) in [(1, 16, false), (8, 16, false), (4, 8, true), (2, 16, true)] {
         let cfg = if gddr5 {
             gddr5_cfg(tms, tps)
         } else {
