@@ -325,12 +325,19 @@ fn chip_top_wires_every_unit_and_lints() {
         assert!(committed.contains(inst), "chip.v lacks {inst}");
     }
     assert!(!committed.contains("u_host"), "the host is not hardware");
-    // The memory unit as instantiated: the scheduler, scene and hit ports and one
-    // global-memory port per TM (memory.v is emitted from the same chip).
+    // The memory unit as instantiated (memory.v is emitted from the same chip):
+    // the module has the instance's requester ports.
     let memory = std::fs::read_to_string(repo().join("hdl/memory.v")).unwrap();
-    let ports = 3 + cfg.chip.tms;
-    assert!(memory.contains(&format!("parameter integer PORTS = {ports}")));
-    assert!(committed.contains(&format!(".PORTS({ports})")));
+    let ports: u32 = memory
+        .split("parameter integer PORTS = ")
+        .nth(1)
+        .and_then(|r| r.split(|c: char| !c.is_ascii_digit()).next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(committed.contains(&format!("memory #(.PORTS({ports}),")));
+    assert_eq!(memory.matches("input  wire req_").count() as u32, ports);
+    assert!(committed.contains(&format!(".req_{}_valid(", ports - 1)));
     // Every scheduler fill port drives its TM's slice.
     for k in [0, cfg.chip.tms - 1] {
         assert!(committed.contains(&format!(".fill_{k}_valid(tm_fill_valid[{k}])")));
