@@ -295,6 +295,8 @@ pub fn frame_energy(c: &crate::config::Config, f: &crate::render::Frame) -> Ener
     let mut act = tm_activity(&f.total.traversal, f.total.enqueues, &c.tm.costs);
     if let Some(ch) = &f.chip {
         act.scene_buffer_accesses = ch.waves.iter().map(|w| w.scene_buffer_reads).sum();
+        // Every L2 data-array access: client accesses, fills, writebacks.
+        act.l2_accesses = ch.waves.iter().map(|w| w.l2.array_accesses()).sum();
         // The shading pass's instructions (on the TPs only; its global loads and
         // stores are charged where they are served).
         for w in &ch.waves {

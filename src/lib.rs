@@ -12,6 +12,7 @@ pub mod render;
 pub mod report;
 pub mod rtl;
 pub mod scene;
+pub mod speed_error;
 #[path = "../testbench/mod.rs"]
 pub mod testbench;
 pub mod units;

@@ -152,13 +152,30 @@ enum Cmd {
         #[arg(long, default_value = "hdl")]
         out: PathBuf,
     },
-    /// Measure the simulator's speed (kernel: pipelines of 128 TMs at several activities).
+    /// Measure the simulator: kernel (pipelines of 128 TMs at several activities),
+    /// dram (the memory model's replay speed), speed-error (every faster mode's wall
+    /// time and error against the full cycle model on a scene).
     Bench {
-        /// What to measure: kernel.
+        /// What to measure: kernel, dram or speed-error.
         what: String,
-        /// Scale the simulated cycles (1.0 = the full benchmark).
+        /// Scale the simulated cycles (1.0 = the full benchmark; kernel and dram).
         #[arg(long, default_value_t = 1.0)]
         scale: f64,
+        /// speed-error: the scene (builtin name, .toml or .obj).
+        #[arg(long, default_value = "cornell")]
+        scene: String,
+        /// speed-error: resolution WxH.
+        #[arg(long, default_value = "64x64")]
+        res: String,
+        /// speed-error: TMs of the small-chip mode.
+        #[arg(long, default_value_t = 8)]
+        small_tms: u32,
+        /// speed-error: write the rows as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// speed-error: write the speedup-against-error plot (SVG) here.
+        #[arg(long)]
+        plot: Option<PathBuf>,
     },
     /// The memory system: replay a DRAMsim3-format trace and print statistics, or
     /// generate a trace (random, stream, mixed).
@@ -583,16 +600,50 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             Ok(())
         }
-        Cmd::Bench { what, scale } => {
+        Cmd::Bench {
+            what,
+            scale,
+            scene,
+            res,
+            small_tms,
+            json,
+            plot,
+        } => {
             if scale.is_nan() || scale <= 0.0 {
                 return Err("--scale must be positive".into());
             }
             match what.as_str() {
                 "kernel" => print!("{}", dualstream::bench::kernel_report(scale)),
                 "dram" => print!("{}", dualstream::mem::bench::report(scale)?),
+                "speed-error" => {
+                    use dualstream::speed_error as se;
+                    let mut sc = dualstream::scene::load(&scene)?;
+                    (sc.settings.width, sc.settings.height) = parse_res(&res)?;
+                    sc.settings.validate()?;
+                    let rows = se::run(&sc, &config, &se::SpeedErrorOpts { small_tms })?;
+                    println!(
+                        "speed against error: {} {}x{} on {} x {} TPs (reference: cycle mode, GDDR5)",
+                        sc.name,
+                        sc.settings.width,
+                        sc.settings.height,
+                        config.chip.tms,
+                        config.tm.tps
+                    );
+                    print!("{}", se::table(&rows));
+                    if let Some(p) = json {
+                        let text =
+                            serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+                        std::fs::write(&p, text)
+                            .map_err(|e| format!("cannot write '{}': {e}", p.display()))?;
+                    }
+                    if let Some(p) = plot {
+                        std::fs::write(&p, se::plot(&rows))
+                            .map_err(|e| format!("cannot write '{}': {e}", p.display()))?;
+                    }
+                }
                 _ => {
                     return Err(format!(
-                        "unknown benchmark '{what}'; available: kernel, dram"
+                        "unknown benchmark '{what}'; available: kernel, dram, speed-error"
                     ));
                 }
             }

@@ -227,3 +227,46 @@ fn paper_comparison_rows() {
     // Dragon Box ours and paper: 2 groups of 4 stream bars, plus 4 legend boxes.
     assert_eq!(figs[1].1.matches("<rect x=").count(), 2 * 4 + 4);
 }
+
+#[test]
+fn cycle_rows_add_the_time_and_dram_energy_figures() {
+    use dualstream::machine::config::MemoryModel;
+    use dualstream::report::paper::{TABLE2, compare, figures};
+    let s = small("tiny", 8);
+    let mut c = dualstream::config::Config::default();
+    c.chip.tms = 2;
+    c.tm.tps = 4;
+    c.chip.memory.model = MemoryModel::Gddr5;
+    let rc = RenderCfg {
+        chip: Some(Box::new(dualstream::render::ChipRun {
+            config: c,
+            ..Default::default()
+        })),
+        ..cfg(8)
+    };
+    let f = render(&s, Mode::Cycle, &rc, &mut |_| {}).unwrap();
+    let rows = compare(&TABLE2[1], &f);
+    let time = rows
+        .iter()
+        .find(|r| r.metric == "render time (ms)")
+        .unwrap();
+    let cycles = f.chip.as_ref().unwrap().total_cycles as f64;
+    assert!(
+        (time.ours.unwrap() - cycles * 1e-6).abs() < 1e-12,
+        "1 GHz core"
+    );
+    let figs = figures(&rows);
+    let names: Vec<&str> = figs.iter().map(|f| f.0.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "fig4_render_time.svg",
+            "fig5_dram_energy.svg",
+            "fig7_ray_duplication.svg",
+            "fig8_memory_traffic.svg"
+        ]
+    );
+    assert!(figs[0].1.contains("Figure 4") && figs[1].1.contains("Figure 5"));
+    // One scene: ours and paper bars plus the two legend boxes.
+    assert_eq!(figs[0].1.matches("<rect x=").count(), 2 + 2);
+}

@@ -147,6 +147,93 @@ impl Default for HitUpdaterCfg {
     }
 }
 
+/// The L2 cache (`units/l2.rs`): everything that is not a stream goes through it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct L2Cfg {
+    /// `false`: the hit record updater and the TMs' global-memory ports go
+    /// straight to memory ports (to measure the L2's effect).
+    pub enabled: bool,
+    /// 512 KB [DS17 Table 1].
+    pub bytes: u32,
+    /// 32 banks [DS17 Table 1], one access per bank per cycle.
+    pub banks: u32,
+    /// 64 B, the DRAM line of the data contract.
+    pub line_bytes: u32,
+    /// Assumption: 8 ways (a common L2 associativity; 32 sets per bank at the
+    /// defaults). The hit records and path states are large arrays whose lines are
+    /// touched once per pass each, so associativity matters little; 8 keeps the
+    /// tag compare small.
+    pub ways: u32,
+    /// Cycles from acceptance to the answer visible at the client (response link
+    /// included). Assumption: 10 (a 512 KB banked SRAM at 1 GHz plus the crossbar).
+    pub hit_latency: u32,
+    /// Miss registers. Assumption: 64.
+    pub mshrs: u32,
+    /// Accesses merged into one miss register. Assumption: 8.
+    pub targets: u32,
+    /// Writeback buffer entries (plus one reserved per MSHR). Assumption: 16.
+    pub writebacks: u32,
+    /// Requests per client accepted and not yet answered. Assumption: 64.
+    pub port_queue: u32,
+}
+
+impl Default for L2Cfg {
+    fn default() -> Self {
+        L2Cfg {
+            enabled: true,
+            bytes: 512 << 10,
+            banks: 32,
+            line_bytes: 64,
+            ways: 8,
+            hit_latency: 10,
+            mshrs: 64,
+            targets: 8,
+            writebacks: 16,
+            port_queue: 64,
+        }
+    }
+}
+
+impl L2Cfg {
+    /// Checks the cache's geometry and sizes; `link_delay` is part of `hit_latency`.
+    pub fn validate(&self, link_delay: u32) -> Result<(), String> {
+        if self.line_bytes != 64 {
+            return Err(format!(
+                "chip.l2.line_bytes = {}: the data contract's DRAM line is 64 B; give 64",
+                self.line_bytes
+            ));
+        }
+        if self.banks == 0 || self.ways == 0 {
+            return Err("chip.l2.banks and chip.l2.ways must be at least 1".into());
+        }
+        let unit = self.banks as u64 * self.ways as u64 * self.line_bytes as u64;
+        if self.bytes == 0 || !(self.bytes as u64).is_multiple_of(unit) {
+            return Err(format!(
+                "chip.l2.bytes = {} is not a positive multiple of banks x ways x line_bytes = {} x {} x {} = {unit}; every bank needs whole sets",
+                self.bytes, self.banks, self.ways, self.line_bytes
+            ));
+        }
+        if self.hit_latency <= link_delay {
+            return Err(format!(
+                "chip.l2.hit_latency = {} must exceed the response link delay ({link_delay}, chip.links.delay), which is part of it",
+                self.hit_latency
+            ));
+        }
+        for (name, v) in [
+            ("mshrs", self.mshrs),
+            ("targets", self.targets),
+            ("writebacks", self.writebacks),
+            ("port_queue", self.port_queue),
+        ] {
+            if v == 0 {
+                return Err(format!("chip.l2.{name} = 0: give at least 1"));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// The chip top.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -161,6 +248,7 @@ pub struct ChipCfg {
     pub scene_buffer: SceneBufferCfg,
     pub scheduler: SchedulerCfg,
     pub hit_updater: HitUpdaterCfg,
+    pub l2: L2Cfg,
     /// `tps` (default) or `host`.
     pub shading: Shading,
 }
@@ -175,6 +263,7 @@ impl Default for ChipCfg {
             scene_buffer: SceneBufferCfg::default(),
             scheduler: SchedulerCfg::default(),
             hit_updater: HitUpdaterCfg::default(),
+            l2: L2Cfg::default(),
             shading: Shading::Tps,
         }
     }
@@ -249,6 +338,7 @@ impl ChipCfg {
         if self.hit_updater.queue == 0 || self.hit_updater.in_flight == 0 {
             return Err("chip.hit_updater.queue and in_flight must be at least 1".into());
         }
+        self.l2.validate(d)?;
         if self.watchdog_cycles == 0 {
             return Err("chip.watchdog_cycles = 0: give a positive number of cycles".into());
         }

@@ -8,7 +8,10 @@ use std::collections::VecDeque;
 
 use crate::contract::RayRec;
 use crate::rtl::decl::{Samples, StateList};
-use crate::rtl::{Ctx, Declared, Logic, Next, Out, Payload, PortDecl, PortDir, Status, UnitDecl};
+use crate::rtl::{
+    Ctx, Declared, In, Logic, Next, Out, Payload, PortDecl, PortDir, Status, UnitDecl,
+};
+use crate::units::l2::L2Flush;
 use crate::units::stream_scheduler::WaveStart;
 use crate::units::tp::RayWrite;
 
@@ -18,6 +21,11 @@ pub struct Host {
     rays: VecDeque<RayRec>,
     wave: Option<(u32, u32)>,
     pub sent: u64,
+    /// The L2's flush ports (when the chip has an L2).
+    pub flush: Option<(Out<L2Flush>, In<L2Flush>)>,
+    flush_req: Option<bool>,
+    /// Flushes answered.
+    pub flushed: u64,
 }
 
 impl Host {
@@ -28,7 +36,20 @@ impl Host {
             rays: VecDeque::new(),
             wave: None,
             sent: 0,
+            flush: None,
+            flush_req: None,
+            flushed: 0,
         }
+    }
+    /// Connects the L2's `flush` / `flush_done` ports.
+    pub fn with_flush(mut self, req: Out<L2Flush>, done: In<L2Flush>) -> Self {
+        self.flush = Some((req, done));
+        self
+    }
+    /// Asks the L2 to write back (and with `invalidate` drop) every line; wake
+    /// the unit afterwards. The answer is counted in `flushed`.
+    pub fn request_flush(&mut self, invalidate: bool) {
+        self.flush_req = Some(invalidate);
     }
     /// Queues a wavefront: `rays` to emit, then `start` (with `shade_pixels` > 0
     /// the shading pass emits the rays); wake the unit afterwards.
@@ -50,7 +71,7 @@ impl Declared for Host {
         }
     }
     fn ports(&self) -> Vec<PortDecl> {
-        vec![
+        let mut v = vec![
             PortDecl {
                 name: "emit",
                 dir: PortDir::Out,
@@ -63,7 +84,22 @@ impl Declared for Host {
                 width: WaveStart::BITS,
                 link: self.start.id,
             },
-        ]
+        ];
+        if let Some((q, d)) = &self.flush {
+            v.push(PortDecl {
+                name: "flush",
+                dir: PortDir::Out,
+                width: L2Flush::BITS,
+                link: q.id,
+            });
+            v.push(PortDecl {
+                name: "flush_done",
+                dir: PortDir::In,
+                width: L2Flush::BITS,
+                link: d.id,
+            });
+        }
+        v
     }
     fn sample_state(&self, _cycle: u64, _out: &mut Samples) {}
     fn commit_state(&mut self) {}
@@ -75,6 +111,20 @@ impl Declared for Host {
 
 impl Logic for Host {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        if let Some((_, done)) = &self.flush
+            && ctx.pop(done).is_some()
+        {
+            self.flushed += 1;
+        }
+        if let (Some(inv), Some((q, _))) = (self.flush_req, &self.flush) {
+            if ctx.offer(q, L2Flush { invalidate: inv }) {
+                self.flush_req = None;
+                ctx.set_status(Status::Busy);
+                return Next::Cycle;
+            }
+            ctx.set_status(Status::OutputBlocked);
+            return Next::Idle;
+        }
         if let Some(r) = self.rays.front() {
             let w = RayWrite {
                 seg: 0,
@@ -103,6 +153,6 @@ impl Logic for Host {
         Next::Idle
     }
     fn counters(&self) -> Vec<(&'static str, u64)> {
-        vec![("sent", self.sent)]
+        vec![("sent", self.sent), ("flushed", self.flushed)]
     }
 }

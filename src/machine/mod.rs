@@ -10,7 +10,11 @@
 //! - scheduler `slot_map` -> scene buffer;
 //! - memory port 0: scheduler `mem_req`/`mem_resp` (ray stream, segment table);
 //!   port 1: scheduler `scene_req` -> memory -> scene buffer `fill` (scene stream);
-//!   port 2: hit record updater (hit records);
+//!   port 2: the L2's memory side (`chip.l2.enabled`, the default), else the hit
+//!   record updater and, from port 3 on, TM k's `gmem_req`/`gmem_resp`;
+//! - L2 (`units/l2.rs`) clients: `req[0]` hit record updater, `req[1 + k]` TM k's
+//!   global-memory port (the shading pass); host `flush` -> L2 -> `flush_done`
+//!   (every run ends with a flush, docs/chip.md "L2");
 //! - `chip.memory.model = "gddr5"`: memory `ch_req[c]`/`ch_resp[c]` <-> `chip.mem_ctrl{c}`
 //!   (one per channel, on the DRAM clock; docs/chip.md "Memory timing").
 //!
@@ -37,6 +41,7 @@ use crate::render::shade::ShadeConsts;
 use crate::rtl::{ClockId, Sim, SimOptions, UnitId};
 use crate::units::hit_record_updater::HitRecordUpdater;
 use crate::units::l1::{L1Req, L1Resp};
+use crate::units::l2::{L2, L2Flush};
 use crate::units::mem_ctrl::MemCtrl;
 use crate::units::memory::{MemLineReq, MemLineResp, Memory};
 use crate::units::scene_buffer::{SceneBuffer, SlotMap};
@@ -49,7 +54,9 @@ use host::Host;
 /// Memory ports.
 pub const PORT_SCHED: usize = 0;
 pub const PORT_SCENE: usize = 1;
+/// The hit record updater's port, or the L2's memory side when the chip has one.
 pub const PORT_HITS: usize = 2;
+pub const PORT_L2: usize = 2;
 
 /// The GDDR5 model's figures over one wavefront (all zero with `fixed`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -173,11 +180,66 @@ pub struct WaveCycles {
     pub shade_cycles: u64,
     /// Cycles from the last finished work (the last end marker of a ray or a
     /// shading item taken by the scheduler) to the run's end (every unit idle):
-    /// the pass's drain (hit record writes, retirement, answers in flight).
+    /// the pass's drain (hit record writes, retirement, answers in flight),
+    /// without the end-of-run L2 flush (`l2.flush_cycles`).
     pub drain_cycles: u64,
     /// Actions of the TPs' shading states (`tm.costs` shade_load, shade,
     /// shade_emit, shade_store), for the energy model.
     pub shade_uses: [u64; 4],
+    /// The L2 (zero without): client accesses, hits, misses (merges included),
+    /// misses merged into a live MSHR, bank-conflict stall cycles, lines filled
+    /// and dirty lines written back (the end-of-run flush included).
+    pub l2: L2Wave,
+}
+
+/// The L2's counters over one run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct L2Wave {
+    pub accesses: u64,
+    pub hits: u64,
+    pub misses: u64,
+    pub merges: u64,
+    pub bank_conflicts: u64,
+    pub fills: u64,
+    pub writebacks: u64,
+    /// Cycles of the end-of-run flush (part of the run's cycles).
+    pub flush_cycles: u64,
+}
+
+impl L2Wave {
+    pub fn hit_rate(&self) -> f64 {
+        if self.accesses == 0 {
+            0.0
+        } else {
+            self.hits as f64 / self.accesses as f64
+        }
+    }
+    /// Data-array accesses (client accesses, fills, writebacks), for the energy.
+    pub fn array_accesses(&self) -> u64 {
+        self.accesses + self.fills + self.writebacks
+    }
+    fn sub(&self, b: &L2Wave) -> L2Wave {
+        L2Wave {
+            accesses: self.accesses - b.accesses,
+            hits: self.hits - b.hits,
+            misses: self.misses - b.misses,
+            merges: self.merges - b.merges,
+            bank_conflicts: self.bank_conflicts - b.bank_conflicts,
+            fills: self.fills - b.fills,
+            writebacks: self.writebacks - b.writebacks,
+            flush_cycles: self.flush_cycles - b.flush_cycles,
+        }
+    }
+    pub fn add(&mut self, o: &L2Wave) {
+        self.accesses += o.accesses;
+        self.hits += o.hits;
+        self.misses += o.misses;
+        self.merges += o.merges;
+        self.bank_conflicts += o.bank_conflicts;
+        self.fills += o.fills;
+        self.writebacks += o.writebacks;
+        self.flush_cycles += o.flush_cycles;
+    }
 }
 
 /// The chip, elaborated once per frame.
@@ -190,6 +252,12 @@ pub struct Chip {
     pub hit_updater: UnitId,
     pub memory: UnitId,
     pub host: UnitId,
+    /// The L2 (`chip.l2.enabled`), and whether its end-of-run flush also
+    /// invalidates (host shading writes DRAM between runs).
+    pub l2: Option<UnitId>,
+    l2_invalidate: bool,
+    /// Cycles spent in L2 flushes so far.
+    flush_cycles: u64,
     dram: Option<Dram>,
     watchdog: u64,
     segments: usize,
@@ -229,7 +297,9 @@ impl Chip {
         let mut mreq_i = Vec::new();
         let mut mresp_o = Vec::new();
         let mut mresp_i = Vec::new();
-        for (k, who) in ["sched", "scene", "hits"].iter().enumerate() {
+        let with_l2 = ch.l2.enabled;
+        let port2 = if with_l2 { "l2" } else { "hits" };
+        for (k, who) in ["sched", "scene", port2].iter().enumerate() {
             let (a, b) = sim.link::<MemLineReq>(&format!("chip.mem_req{k}_{who}"), l);
             mreq_o.push(Some(a));
             mreq_i.push(b);
@@ -272,7 +342,37 @@ impl Chip {
                 gmem_resp: gri,
             });
         }
-        let host = sim.add("chip.host", clock, Host::new(emit_o, start_o));
+        // The L2 between its clients and memory port 2.
+        let mut l2_unit = None;
+        let mut host_unit = Host::new(emit_o, start_o);
+        let (hru_req, hru_resp) = if with_l2 {
+            let (ho, hi) = sim.link::<MemLineReq>("chip.l2_req0_hits", l);
+            let (hro, hri) = sim.link::<MemLineResp>("chip.l2_resp0_hits", l);
+            let (fo, fi) = sim.link::<L2Flush>("chip.l2_flush", l);
+            let (fdo, fdi) = sim.link::<L2Flush>("chip.l2_flush_done", l);
+            host_unit = host_unit.with_flush(fo, fdi);
+            let mut reqs = vec![hi];
+            reqs.append(&mut gmem_i);
+            let mut resps = vec![hro];
+            resps.append(&mut gmem_o);
+            l2_unit = Some(L2::new(
+                &ch.l2,
+                l.delay,
+                reqs,
+                resps,
+                mreq_o[PORT_L2].take().expect("port"),
+                mresp_i[PORT_L2].take().expect("port"),
+                fi,
+                fdo,
+            ));
+            (ho, hri)
+        } else {
+            (
+                mreq_o[PORT_HITS].take().expect("port"),
+                mresp_i[PORT_HITS].take().expect("port"),
+            )
+        };
+        let host = sim.add("chip.host", clock, host_unit);
         let scheduler = sim.add(
             "chip.scheduler",
             clock,
@@ -306,15 +406,11 @@ impl Chip {
         let hit_updater = sim.add(
             "chip.hit_updater",
             clock,
-            HitRecordUpdater::new(
-                &ch.hit_updater,
-                map.hits,
-                hit_i,
-                mreq_o[PORT_HITS].take().expect("port"),
-                mresp_i[PORT_HITS].take().expect("port"),
-            ),
+            HitRecordUpdater::new(&ch.hit_updater, map.hits, hit_i, hru_req, hru_resp),
         );
-        // The TMs' global-memory ports (the shading pass) go to the memory too.
+        let l2 = l2_unit.map(|u| sim.add("chip.l2", clock, u));
+        // Without the L2 the TMs' global-memory ports (the shading pass) go to
+        // the memory too (empty with it).
         mreq_i.extend(gmem_i);
         mresp_o.extend(gmem_o);
         let mut memory_unit = Memory::new(
@@ -389,6 +485,9 @@ impl Chip {
             hit_updater,
             memory,
             host,
+            l2,
+            l2_invalidate: ch.shading == config::Shading::Host,
+            flush_cycles: 0,
             dram,
             watchdog: ch.watchdog_cycles,
             segments,
@@ -493,6 +592,19 @@ impl Chip {
             drain_cycles: 0,
             shade_uses: ["shade_load", "shade", "shade_emit", "shade_store"]
                 .map(|n| self.sum_tp(n)),
+            l2: self.l2.map_or(L2Wave::default(), |u| {
+                let st = s.unit_ref::<L2>(u).stats;
+                L2Wave {
+                    accesses: st.accesses,
+                    hits: st.hits,
+                    misses: st.misses,
+                    merges: st.merges,
+                    bank_conflicts: st.bank_conflicts,
+                    fills: st.fills,
+                    writebacks: st.writebacks,
+                    flush_cycles: self.flush_cycles,
+                }
+            }),
         }
     }
 
@@ -515,6 +627,18 @@ impl Chip {
                 h.st.r().queue.len(),
                 h.st.r().in_flight.len()
             ));
+        }
+        if let Some(u) = self.l2 {
+            let l2 = s.unit_ref::<L2>(u);
+            if l2.busy() {
+                let st = l2.st.r();
+                v.push(format!(
+                    "chip.l2: {} MSHRs live, {} memory requests queued, {} at the memory",
+                    st.mshrs.iter().filter(|m| m.is_some()).count(),
+                    st.out_q.len(),
+                    st.mem_busy.len()
+                ));
+            }
         }
         let m = s.unit_ref::<Memory>(self.memory);
         if m.in_flight() > 0 {
@@ -583,7 +707,17 @@ impl Chip {
             .load(rays.to_vec(), self.wave, shade_pixels);
         self.sim.wake(self.host);
         self.wave += 1;
-        let res = self.run_until_idle();
+        let mut res = self.run_until_idle();
+        if res.is_ok() && self.l2.is_some() {
+            // The host reads DRAM next: write the L2's dirty lines back (its
+            // cycles count in the run).
+            let inv = self.l2_invalidate;
+            let c0 = self.sim.cycle(self.clock);
+            self.sim.unit_mut::<Host>(self.host).request_flush(inv);
+            self.sim.wake(self.host);
+            res = self.run_until_idle();
+            self.flush_cycles += self.sim.cycle(self.clock) - c0;
+        }
         std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
         res?;
         let after = self.snapshot();
@@ -624,7 +758,11 @@ impl Chip {
             scene_buffer_reads: after.scene_buffer_reads - before.scene_buffer_reads,
             evals: after.evals - before.evals,
             dram: after.dram.sub(&before.dram),
+            l2: after.l2.sub(&before.l2),
+            // The end-of-run L2 flush is not the pass draining: it is counted
+            // apart (`l2.flush_cycles`).
             drain_cycles: after.cycles
+                - (after.l2.flush_cycles - before.l2.flush_cycles)
                 - self
                     .sim
                     .unit_ref::<StreamScheduler>(self.scheduler)

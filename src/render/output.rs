@@ -138,9 +138,9 @@ pub fn summary(f: &Frame) -> String {
             s += &format!("    {:<32} {:>12.4}\n", k, j);
         }
         if f.chip.as_ref().is_some_and(|c| c.dram.is_some()) {
-            s += "  (L2 energy: not modelled yet; DRAM energy: the gddr5 figures below)\n";
+            s += "  (DRAM energy: the gddr5 figures below; L2 and scene buffer counted in cycle mode only)\n";
         } else {
-            s += "  (DRAM and L2 energy: not modelled yet (chip.memory.model = \"gddr5\" in cycle mode); the scene buffer is counted in cycle mode only)\n";
+            s += "  (DRAM energy: not modelled yet (chip.memory.model = \"gddr5\" in cycle mode); the L2 and the scene buffer are counted in cycle mode only)\n";
         }
     }
     if f.verified_rays > 0 {
@@ -173,6 +173,19 @@ pub fn summary(f: &Frame) -> String {
                 w.scene_buffer_stall_cycles,
                 w.hit_merged
             );
+            if w.l2.accesses > 0 {
+                s += &format!(
+                    "      L2: {:>8} accesses  hits {:>5.1}%  {} misses ({} merged)  {} bank-conflict stalls  {} fills  {} writebacks  flush {} cycles\n",
+                    w.l2.accesses,
+                    100.0 * w.l2.hit_rate(),
+                    w.l2.misses,
+                    w.l2.merges,
+                    w.l2.bank_conflicts,
+                    w.l2.fills,
+                    w.l2.writebacks,
+                    w.l2.flush_cycles
+                );
+            }
             if c.dram.is_some() {
                 s += &format!(
                     "      DRAM: {:>9} lines  {:>7.1} GB/s  row hits {:>5.1}%  energy {} (paper) {} (physical)\n",
@@ -186,6 +199,19 @@ pub fn summary(f: &Frame) -> String {
         }
         s += &format!("  {:<34} {:>12}\n", "total cycles", c.total_cycles);
         s += &format!("  {:<34} {:>12}\n", "memory timing model", c.memory_model);
+        let mut l2 = crate::machine::L2Wave::default();
+        c.waves.iter().for_each(|w| l2.add(&w.l2));
+        if l2.accesses > 0 {
+            s += &format!(
+                "  {:<34} {:>12}\n  {:<34} {:>12.1}\n  {:<34} {:>12}\n",
+                "L2 accesses",
+                l2.accesses,
+                "L2 hit rate (%)",
+                100.0 * l2.hit_rate(),
+                "L2 fills / writebacks",
+                format!("{} / {}", l2.fills, l2.writebacks)
+            );
+        }
         let lines: u64 = c
             .waves
             .iter()

@@ -238,8 +238,9 @@ pub fn table(rows: &[Compared]) -> String {
     s
 }
 
-/// The paper-style figures for the compared rows: ray duplication (Figure 7) and
-/// cache lines per stream (Figure 8), ours beside the paper's. Returns
+/// The paper-style figures for the compared rows: render time (Figure 4) and DRAM
+/// energy (Figure 5) when the rows come from the chip, ray duplication (Figure 7)
+/// and cache lines per stream (Figure 8), ours beside the paper's. Returns
 /// (file name, SVG text).
 pub fn figures(rows: &[Compared]) -> Vec<(String, String)> {
     use super::svg::{Group, grouped_bars};
@@ -265,7 +266,41 @@ pub fn figures(rows: &[Compared]) -> Vec<(String, String)> {
             })
         })
         .collect();
-    let mut out = vec![(
+    let mut out = Vec::new();
+    // Figures 4 and 5 (render time, DRAM energy per frame) exist only for rows
+    // that came from the chip (`--mode cycle`).
+    for (file, title, unit, metric) in [
+        (
+            "fig4_render_time.svg",
+            "Render time per frame (Figure 4)",
+            "ms",
+            "render time (ms)",
+        ),
+        (
+            "fig5_dram_energy.svg",
+            "DRAM energy per frame (Figure 5)",
+            "J",
+            "DRAM energy (J)",
+        ),
+    ] {
+        let groups: Vec<Group> = scenes
+            .iter()
+            .filter_map(|s| {
+                let r = get(s, metric)?;
+                Some(Group {
+                    label: short(s),
+                    values: vec![r.ours?, r.paper],
+                })
+            })
+            .collect();
+        if !groups.is_empty() {
+            out.push((
+                file.to_string(),
+                grouped_bars(title, unit, &["ours", "paper"], &groups),
+            ));
+        }
+    }
+    out.push((
         "fig7_ray_duplication.svg".to_string(),
         grouped_bars(
             "Ray duplication (Figure 7)",
@@ -273,7 +308,7 @@ pub fn figures(rows: &[Compared]) -> Vec<(String, String)> {
             &["ours", "paper"],
             &dup,
         ),
-    )];
+    ));
     let streams = [
         "ray stream $ lines (M)",
         "scene stream $ lines (M)",

@@ -3,6 +3,7 @@ pub mod box_pipe;
 pub mod divider;
 pub mod hit_record_updater;
 pub mod l1;
+pub mod l2;
 pub mod mem_ctrl;
 pub mod memory;
 pub mod scene_buffer;

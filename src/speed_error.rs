@@ -1,0 +1,385 @@
+//! `dualstream bench speed-error`: every faster way of getting a frame's figures,
+//! with its wall time and its error against the full cycle model (the chip with the
+//! GDDR5 memory, `chip.memory.model = "gddr5"`) on the same scene and config.
+//!
+//! Modes:
+//! - `cycle` — the reference: the chip, GDDR5, every pixel;
+//! - `cycle-fixed` — the chip with the fixed-latency memory (no DRAM timing);
+//! - `functional+estimate` — functional dual streaming (no clock) and a first-order
+//!   timing estimate from its traffic and operation counts ([`estimate`]);
+//! - `small-chip` — the chip with fewer TMs, cycles scaled linearly to the full TM
+//!   count (the question being whether that is ever accurate);
+//! - `quarter-pixels` — the cycle model on a frame of half the width and height,
+//!   every count and the cycles scaled by the pixel ratio (4).
+//!
+//! Energy everywhere is compute + on-chip ([`crate::energy::frame_energy`]) + DRAM
+//! with the `paper` preset; where the mode has no DRAM timing its DRAM energy is
+//! estimated from the line counts ([`dram_energy_estimate`]).
+
+use crate::config::Config;
+use crate::machine::config::MemoryModel;
+use crate::render::{self, Frame, Mode, RenderCfg};
+use crate::scene::Scene;
+use std::fmt::Write;
+
+/// One mode's figures and errors (relative, signed: (mode - reference) / reference).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ModeResult {
+    pub mode: String,
+    pub wall_s: f64,
+    pub speedup: f64,
+    pub cycles: f64,
+    pub lines: f64,
+    pub energy_j: f64,
+    pub err_cycles: f64,
+    pub err_lines: f64,
+    pub err_energy: f64,
+    /// Whether the mode's image equals the reference's bit for bit (`None`: it
+    /// renders a different frame).
+    pub image_identical: Option<bool>,
+    pub note: String,
+}
+
+/// A first-order timing estimate of a functional frame: per wavefront the largest
+/// of its resource bounds (DRAM bandwidth, the ray and scene streams' one line per
+/// cycle, box and triangle pipelines, TP issue), plus the shading pass's bounds.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Estimate {
+    pub cycles: f64,
+    /// Per wavefront: the binding bound's name and its cycles.
+    pub binding: Vec<(&'static str, f64)>,
+}
+
+/// Peak DRAM bytes per core cycle (all channels, every beat used).
+fn peak_bytes_per_cycle(c: &Config) -> f64 {
+    let g = &c.mem.geometry;
+    let per_ck = g.channels as f64 * g.bus_bits as f64 / 8.0 * g.transfers_per_ck as f64;
+    per_ck * c.clocks.core_ps as f64 / c.clocks.dram_ps as f64
+}
+
+/// See [`Estimate`]. Uses only counts that do not depend on timing.
+pub fn estimate(c: &Config, f: &Frame) -> Estimate {
+    let line = crate::contract::LINE_BYTES as f64;
+    let tms = c.chip.tms as f64;
+    let tps = tms * c.tm.tps as f64;
+    let peak = peak_bytes_per_cycle(c);
+    let k = &c.tm.costs;
+    let mut e = Estimate::default();
+    for w in &f.waves {
+        let t = &w.traversal;
+        // TP occupancy: every state's listed cycles plus the pipeline latency a TP
+        // waits for its test's result, spread over all TPs.
+        let tp_cycles = (k.fetch.cycles as u64 + k.init.cycles as u64 + k.finish.cycles as u64)
+            * w.enqueues
+            + k.pop.cycles as u64 * t.pops
+            + k.exit.cycles as u64 * t.exits
+            + (k.node_fetch.cycles + k.box_issue.cycles + k.node_push.cycles + c.box_pipe.latency)
+                as u64
+                * t.nodes
+            + (k.tri_fetch.cycles + k.tri_issue.cycles + k.tri_result.cycles + c.tri_pipe.latency)
+                as u64
+                * t.tri_tests;
+        let bounds = [
+            ("DRAM bandwidth", w.total_lines() as f64 * line / peak),
+            ("ray stream", w.ray_lines() as f64),
+            ("scene stream", w.scene_lines as f64),
+            (
+                "box pipes",
+                t.nodes as f64 * c.box_pipe.interval as f64 / tms,
+            ),
+            (
+                "triangle pipes",
+                t.tri_tests as f64 * c.tri_pipe.interval as f64 / (tms * c.tm.tri_pipes as f64),
+            ),
+            ("TP occupancy", tp_cycles as f64 / tps),
+        ];
+        let (name, cyc) = bounds
+            .into_iter()
+            .fold(("", 0.0), |a, b| if b.1 > a.1 { b } else { a });
+        // Shading: one item per path still alive, its loads and stores at DRAM
+        // latency on one TP each (a latency-bound pass), or bandwidth-bound.
+        let shade = (w.shading_lines as f64 * line / peak).max(
+            (w.hits + w.occluded) as f64 / tps
+                * (k.shade_load.cycles + k.shade.cycles + k.shade_store.cycles) as f64,
+        );
+        e.binding.push((name, cyc));
+        e.cycles += cyc + shade;
+    }
+    e
+}
+
+/// DRAM energy (J, `paper` preset) of `lines` line transfers over `cycles` core
+/// cycles when no DRAM timing was simulated: the bursts of every line, one activate
+/// per row of lines, refresh and active standby for the whole time on every channel.
+pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
+    let g = &c.mem.geometry;
+    let m = crate::mem::energy::EnergyModel::new(
+        &crate::mem::config::EnergyCfg::by_name("paper", g)?,
+        &c.mem.timing,
+        g.burst_cycles(),
+        c.clocks.dram_ps,
+    );
+    let t = &f.total;
+    let line = crate::contract::LINE_BYTES as f64;
+    let bursts_per_line = line / (g.bus_bits as f64 / 8.0 * g.burst_length as f64);
+    let lines_per_row = c.memory.row_bytes as f64 / line;
+    let reads =
+        (t.ray_lines_read + t.scene_lines + t.hit_lines_read) as f64 + t.shading_lines as f64 / 2.0;
+    let writes = t.total_lines() as f64 - reads;
+    // Streams, hit records and path state are all walked in address order (by
+    // segment, bucket, ray id or pixel), so one activate per row of lines.
+    let acts = t.total_lines() as f64 / lines_per_row;
+    let dram_cycles = cycles * c.clocks.core_ps as f64 / c.clocks.dram_ps as f64;
+    let refs = dram_cycles / c.mem.timing.refi as f64 * g.channels as f64;
+    let pj = reads * bursts_per_line * (m.rd_burst_pj + m.rd_io_pj)
+        + writes * bursts_per_line * m.wr_burst_pj
+        + acts * m.act_pre_pj
+        + refs * m.ref_pj
+        + dram_cycles * g.channels as f64 * m.act_stby_pj;
+    Ok(pj * 1e-12)
+}
+
+fn total_energy(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
+    let e = crate::energy::frame_energy(c, f);
+    let dram = match f.chip.as_ref().and_then(|ch| ch.dram) {
+        Some(d) => d.energy_paper_j,
+        None => dram_energy_estimate(c, f, cycles)?,
+    };
+    Ok(e.compute_j + e.onchip_j + dram)
+}
+
+fn render_with(scene: &Scene, mode: Mode, c: &Config) -> Result<Frame, String> {
+    let rc = RenderCfg {
+        accel: c.accel.clone(),
+        memory: c.memory.clone(),
+        verify: false,
+        dump_rays: None,
+        chip: Some(Box::new(render::ChipRun {
+            config: c.clone(),
+            sim: Default::default(),
+            trace: None,
+        })),
+    };
+    render::render(scene, mode, &rc, &mut |_| {})
+}
+
+/// Options of the comparison.
+#[derive(Clone, Debug)]
+pub struct SpeedErrorOpts {
+    /// TMs of the `small-chip` mode.
+    pub small_tms: u32,
+}
+
+impl Default for SpeedErrorOpts {
+    fn default() -> Self {
+        SpeedErrorOpts { small_tms: 8 }
+    }
+}
+
+/// Runs every mode on `scene` with `config` (its memory model is set per mode).
+pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<ModeResult>, String> {
+    if o.small_tms == 0 || o.small_tms >= config.chip.tms {
+        return Err(format!(
+            "--small-tms {} must be between 1 and chip.tms - 1 ({}); choose a smaller chip",
+            o.small_tms,
+            config.chip.tms.saturating_sub(1)
+        ));
+    }
+    let mut gddr5 = config.clone();
+    gddr5.chip.memory.model = MemoryModel::Gddr5;
+    let reference = render_with(scene, Mode::Cycle, &gddr5)?;
+    let ref_cycles = reference.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
+    let ref_lines = reference.total.total_lines() as f64;
+    let ref_energy = total_energy(&gddr5, &reference, ref_cycles)?;
+    let rel = |x: f64, r: f64| if r == 0.0 { 0.0 } else { (x - r) / r };
+    let mut out = Vec::new();
+    let mut push = |mode: &str,
+                    f: &Frame,
+                    cycles: f64,
+                    lines: f64,
+                    energy: f64,
+                    same: Option<bool>,
+                    note: &str| {
+        out.push(ModeResult {
+            mode: mode.into(),
+            wall_s: f.wall_s,
+            speedup: reference.wall_s / f.wall_s.max(1e-9),
+            cycles,
+            lines,
+            energy_j: energy,
+            err_cycles: rel(cycles, ref_cycles),
+            err_lines: rel(lines, ref_lines),
+            err_energy: rel(energy, ref_energy),
+            image_identical: same,
+            note: note.into(),
+        })
+    };
+    push(
+        "cycle",
+        &reference,
+        ref_cycles,
+        ref_lines,
+        ref_energy,
+        Some(true),
+        "reference: the chip with GDDR5",
+    );
+
+    let mut fixed = config.clone();
+    fixed.chip.memory.model = MemoryModel::Fixed;
+    let f = render_with(scene, Mode::Cycle, &fixed)?;
+    let cyc = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
+    push(
+        "cycle-fixed",
+        &f,
+        cyc,
+        f.total.total_lines() as f64,
+        total_energy(&fixed, &f, cyc)?,
+        Some(f.radiance == reference.radiance),
+        "fixed-latency memory; DRAM energy estimated from lines",
+    );
+
+    let f = render_with(scene, Mode::Functional, config)?;
+    let est = estimate(&gddr5, &f);
+    push(
+        "functional+estimate",
+        &f,
+        est.cycles,
+        f.total.total_lines() as f64,
+        total_energy(&gddr5, &f, est.cycles)?,
+        Some(f.radiance == reference.radiance),
+        "no clock; cycles = per-wave max of resource bounds",
+    );
+
+    let mut small = gddr5.clone();
+    small.chip.tms = o.small_tms;
+    let f = render_with(scene, Mode::Cycle, &small)?;
+    let scale = o.small_tms as f64 / config.chip.tms as f64;
+    let cyc = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64 * scale;
+    push(
+        "small-chip",
+        &f,
+        cyc,
+        f.total.total_lines() as f64,
+        total_energy(&small, &f, cyc)?,
+        Some(f.radiance == reference.radiance),
+        &format!("{} TMs, cycles x {scale}", o.small_tms),
+    );
+
+    let mut quarter = scene.clone();
+    quarter.settings.width = (scene.settings.width / 2).max(1);
+    quarter.settings.height = (scene.settings.height / 2).max(1);
+    let ratio = (scene.settings.width * scene.settings.height) as f64
+        / (quarter.settings.width * quarter.settings.height) as f64;
+    let f = render_with(&quarter, Mode::Cycle, &gddr5)?;
+    let cyc = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
+    push(
+        "quarter-pixels",
+        &f,
+        cyc * ratio,
+        f.total.total_lines() as f64 * ratio,
+        total_energy(&gddr5, &f, cyc)? * ratio,
+        None,
+        &format!(
+            "{}x{} frame, everything x {ratio}",
+            quarter.settings.width, quarter.settings.height
+        ),
+    );
+    Ok(out)
+}
+
+/// The comparison as a text table.
+pub fn table(rows: &[ModeResult]) -> String {
+    let mut s = format!(
+        "{:<20} {:>9} {:>8} {:>13} {:>9} {:>9} {:>9}  {:<6} note\n",
+        "mode", "wall (s)", "speedup", "cycles", "err cyc", "err lines", "err J", "image"
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{:<20} {:>9.2} {:>7.1}x {:>13.0} {:>+8.1}% {:>+8.1}% {:>+8.1}%  {:<6} {}",
+            r.mode,
+            r.wall_s,
+            r.speedup,
+            r.cycles,
+            r.err_cycles * 100.0,
+            r.err_lines * 100.0,
+            r.err_energy * 100.0,
+            match r.image_identical {
+                Some(true) => "same",
+                Some(false) => "DIFF",
+                None => "-",
+            },
+            r.note
+        );
+    }
+    s
+}
+
+/// Speedup (log scale) against the absolute error in cycles, one point per mode.
+pub fn plot(rows: &[ModeResult]) -> String {
+    let (w, h, left, bottom, top, right) = (640.0, 400.0, 70.0, 50.0, 40.0, 160.0);
+    let max_err = rows
+        .iter()
+        .map(|r| r.err_cycles.abs() * 100.0)
+        .fold(1.0f64, f64::max);
+    let max_sp = rows.iter().map(|r| r.speedup).fold(10.0f64, f64::max);
+    let lmax = max_sp.log10().ceil().max(1.0);
+    let (pw, ph) = (w - left - right, h - top - bottom);
+    let x = |sp: f64| left + sp.max(1e-3).log10().clamp(-1.0, lmax) / lmax * pw;
+    let y = |e: f64| top + ph - e / max_err * ph;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(s, r#"<rect width="{w}" height="{h}" fill="white"/>"#);
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="22" text-anchor="middle" font-size="15">Speed against error (cycles)</text>"#,
+        left + pw / 2.0
+    );
+    let _ = writeln!(
+        s,
+        r#"<line x1="{left}" y1="{}" x2="{}" y2="{}" stroke="black"/><line x1="{left}" y1="{top}" x2="{left}" y2="{}" stroke="black"/>"#,
+        top + ph,
+        left + pw,
+        top + ph,
+        top + ph
+    );
+    for d in 0..=lmax as i32 {
+        let sp = 10f64.powi(d);
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}" text-anchor="middle">{sp}x</text>"#,
+            x(sp),
+            top + ph + 18.0
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}" text-anchor="middle">speedup over cycle mode (log)</text>"#,
+        left + pw / 2.0,
+        h - 10.0
+    );
+    for i in 0..=4 {
+        let e = max_err * i as f64 / 4.0;
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}" text-anchor="end">{e:.1}%</text>"#,
+            left - 6.0,
+            y(e) + 4.0
+        );
+    }
+    for r in rows {
+        let (px, py) = (x(r.speedup), y(r.err_cycles.abs() * 100.0));
+        let _ = writeln!(
+            s,
+            r##"<circle cx="{px:.1}" cy="{py:.1}" r="5" fill="#4477aa"/><text x="{:.1}" y="{:.1}">{}</text>"##,
+            px + 8.0,
+            py + 4.0,
+            r.mode
+        );
+    }
+    s += "</svg>\n";
+    s
+}

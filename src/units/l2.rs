@@ -1,0 +1,640 @@
+//! The L2 cache (paper Table 1: 512 KB, 32 banks): everything that is not a
+//! stream goes through it (the hit record updater's read-compare-writes, the TPs'
+//! shading loads and stores). It sits between line clients and the memory unit
+//! with the same `MemLineReq`/`MemLineResp` types on both sides.
+//!
+//! - Geometry (`chip.l2`): `bytes / line_bytes` lines in `sets = lines / ways`
+//!   sets of `ways`; line `i` maps to set `i mod sets` and bank `i mod banks`.
+//!   Tags are whole line addresses. Replacement: least recently used per set
+//!   (a per-line stamp from a running access counter), an invalid way first.
+//! - Banks: each bank serves one access per cycle (a returning fill and a flush
+//!   writeback take their bank's cycle first); client requests are taken
+//!   round-robin from client `cycle mod clients` on (a function of absolute time,
+//!   so sleeping cannot change it), the loser of a bank waits (a bank-conflict
+//!   stall).
+//! - Write-back. A full-line write (mask all ones) that misses allocates the line
+//!   without reading it (write-allocate); a read or a partial write that misses
+//!   takes a miss register (MSHR) and reads the line. Any access to a line with a
+//!   live MSHR joins it as a target (a merge; `targets` per MSHR, else it waits):
+//!   when the line comes back the targets are applied in arrival order (reads get
+//!   the bytes as of their turn, writes merge their masked bytes), so per line the
+//!   order of application is the order of acceptance, whatever the client: a read
+//!   accepted after a write sees it. Hits are applied when accepted.
+//! - Answers (writes too) leave `hit_latency` cycles after acceptance (or after
+//!   the fill), response link included, in order per client. A client has at most
+//!   `port_queue` requests accepted and not answered (then it waits).
+//! - Memory side: one request per cycle on `mem_req` (fills: tag of the first
+//!   target; writebacks: tag of the line's last write). At most one request per
+//!   line is at the memory at once, and requests for one line leave in order: the
+//!   memory unit may reorder a read before an older write to the same line, so a
+//!   fill waits for an earlier writeback of its line to be answered. The
+//!   writeback buffer holds `writebacks` entries plus one reserved per MSHR, so a
+//!   returning fill can always evict its victim (fills never block, and the
+//!   memory side never waits for the clients).
+//! - Flush: `flush` (`L2Flush { invalidate }`) stops accepting client requests,
+//!   writes back every dirty line (one per cycle, lowest slot first), waits for
+//!   every MSHR and memory request to finish, invalidates every line if asked,
+//!   then answers on `flush_done`. The chip flushes after every run so the host
+//!   reads DRAM; it invalidates when the host may write DRAM between runs.
+
+use std::collections::{BTreeSet, VecDeque};
+
+use crate::machine::config::L2Cfg;
+use crate::mem::StreamTag;
+use crate::rtl::decl::{Samples, StateDecl, StateList};
+use crate::rtl::model::{Behavioural, Model};
+use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
+
+use super::l1::Line;
+use super::memory::{MemLineReq, MemLineResp};
+
+crate::payload_struct! {
+    /// A flush request (and its answer on `flush_done`).
+    pub struct L2Flush {
+        /// Also invalidate every line (the host will write DRAM).
+        pub invalidate: bool,
+    }
+}
+
+/// One cache line's tag state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct L2Tag {
+    /// Line address + 1; 0 = invalid.
+    pub tag: u64,
+    pub dirty: bool,
+    /// Last use (LRU).
+    pub stamp: u64,
+    /// Stream tag of the last write (for the writeback's DRAM statistics).
+    pub mtag: StreamTag,
+}
+
+/// A miss register: the line, its targets (client, cycle accepted, request).
+#[derive(Clone, Debug)]
+pub struct L2Mshr {
+    pub addr: u64,
+    pub targets: Vec<(u16, u64, MemLineReq)>,
+}
+
+/// An entry of the serialisation log (`L2::enable_log`): the access as applied
+/// to the cache, with the client and the cycle it was accepted.
+#[derive(Clone, Debug, PartialEq)]
+pub struct L2Applied {
+    pub port: u16,
+    pub accepted: u64,
+    pub req: MemLineReq,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct L2State {
+    /// Indexed by slot = set * ways + way.
+    pub tags: Vec<L2Tag>,
+    pub data: Vec<Line>,
+    pub mshrs: Vec<Option<L2Mshr>>,
+    /// Requests towards the memory, in order.
+    pub out_q: VecDeque<MemLineReq>,
+    /// Lines with a request at the memory.
+    pub mem_busy: BTreeSet<u64>,
+    /// Writebacks in `out_q` (the writeback buffer's fill).
+    pub wb_queued: u32,
+    /// Per client: answers in order, with the cycle they may leave.
+    pub resp_q: Vec<VecDeque<(u64, MemLineResp)>>,
+    /// Per client: requests accepted and not yet answered.
+    pub outstanding: Vec<u32>,
+    /// Dirty slots (the flush's priority encoder).
+    pub dirty: BTreeSet<u32>,
+    pub flushing: Option<bool>,
+    pub stamp: u64,
+}
+
+impl L2State {
+    fn mshr_of(&self, addr: u64) -> Option<usize> {
+        self.mshrs
+            .iter()
+            .position(|m| m.as_ref().is_some_and(|m| m.addr == addr))
+    }
+    fn live_mshrs(&self) -> usize {
+        self.mshrs.iter().filter(|m| m.is_some()).count()
+    }
+    /// Nothing held: no miss, no memory request, no answer, no flush.
+    pub fn idle(&self) -> bool {
+        self.live_mshrs() == 0
+            && self.out_q.is_empty()
+            && self.mem_busy.is_empty()
+            && self.resp_q.iter().all(|q| q.is_empty())
+            && self.flushing.is_none()
+    }
+}
+
+impl Behavioural for L2State {
+    fn declare(&self, out: &mut StateList) {
+        let n = self.tags.len() as u32;
+        out.items.push(StateDecl::array("tags", 64, n));
+        out.items.push(StateDecl::array("dirty", 1, n));
+        out.items.push(StateDecl::array("lru", 64, n));
+        out.items.push(StateDecl::array("data", 512, n));
+        out.items
+            .push(StateDecl::array("mshr_addr", 64, self.mshrs.len() as u32));
+        out.items.push(StateDecl::reg("mshrs_live", 16));
+        out.items.push(StateDecl::reg("mem_queued", 16));
+        out.items.push(StateDecl::reg("flushing", 1));
+    }
+    fn sample(&self, out: &mut Samples) {
+        out.slot().push(self.live_mshrs() as u64, 16);
+        out.slot().push(self.out_q.len() as u64, 16);
+        out.slot().push(self.flushing.is_some() as u64, 1);
+    }
+    fn reset(&mut self) {
+        self.tags.iter_mut().for_each(|t| *t = L2Tag::default());
+        self.data.iter_mut().for_each(|d| *d = Line::default());
+        self.mshrs.iter_mut().for_each(|m| *m = None);
+        self.out_q.clear();
+        self.mem_busy.clear();
+        self.wb_queued = 0;
+        self.resp_q.iter_mut().for_each(|q| q.clear());
+        self.outstanding.iter_mut().for_each(|o| *o = 0);
+        self.dirty.clear();
+        self.flushing = None;
+        self.stamp = 0;
+    }
+}
+
+/// Event counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct L2Stats {
+    /// Client requests accepted.
+    pub accesses: u64,
+    pub hits: u64,
+    /// Misses (a new MSHR, a merge into a live one, or a full-line write allocated).
+    pub misses: u64,
+    /// Misses that joined a live MSHR.
+    pub merges: u64,
+    /// Request-cycles lost to another access on the same bank.
+    pub bank_conflicts: u64,
+    /// Request-cycles waiting for a free MSHR, target or writeback entry.
+    pub mshr_stalls: u64,
+    /// Lines read from memory, and dirty lines written back.
+    pub fills: u64,
+    pub writebacks: u64,
+    pub flushes: u64,
+}
+
+crate::unit! {
+    /// L2: banked set-associative write-back cache between line clients and the memory unit.
+    pub struct L2 : "l2" {
+        params {
+            bytes: u32 => "BYTES",
+            banks: u32 => "BANKS",
+            ways: u32 => "WAYS",
+            line_bytes: u32 => "LINE_BYTES",
+            hit_latency: u32 => "HIT_LATENCY",
+            mshr_count: u32 => "MSHRS",
+            targets: u32 => "TARGETS",
+            writebacks: u32 => "WRITEBACKS",
+            port_queue: u32 => "PORT_QUEUE"
+        }
+        inputs { mem_resp: MemLineResp, flush: L2Flush }
+        outputs { mem_req: MemLineReq, flush_done: L2Flush }
+        in_arrays { req: MemLineReq }
+        out_arrays { resp: MemLineResp }
+        state { st: Model<L2State> }
+        extra { out_delay: u32, stats: L2Stats, log: Option<Vec<L2Applied>> }
+    }
+}
+
+/// Applies the masked bytes of a write to a line.
+fn merge(line: &mut Line, r: &MemLineReq) {
+    if r.mask == u64::MAX {
+        line.0 = r.data.0;
+        return;
+    }
+    for i in 0..64 {
+        if r.mask >> i & 1 == 1 {
+            line.0[i] = r.data.0[i];
+        }
+    }
+}
+
+impl L2 {
+    /// `req[k]`/`resp[k]`: client k; `mem_req`/`mem_resp`: the memory unit;
+    /// `out_delay`: the response links' delay (part of `hit_latency`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        cfg: &L2Cfg,
+        out_delay: u32,
+        req: Vec<In<MemLineReq>>,
+        resp: Vec<Out<MemLineResp>>,
+        mem_req: Out<MemLineReq>,
+        mem_resp: In<MemLineResp>,
+        flush: In<L2Flush>,
+        flush_done: Out<L2Flush>,
+    ) -> Self {
+        assert_eq!(req.len(), resp.len(), "one response port per client");
+        let lines = (cfg.bytes / cfg.line_bytes) as usize;
+        let n = req.len();
+        L2 {
+            bytes: cfg.bytes,
+            banks: cfg.banks,
+            ways: cfg.ways,
+            line_bytes: cfg.line_bytes,
+            hit_latency: cfg.hit_latency,
+            mshr_count: cfg.mshrs,
+            targets: cfg.targets,
+            writebacks: cfg.writebacks,
+            port_queue: cfg.port_queue,
+            mem_resp,
+            flush,
+            mem_req,
+            flush_done,
+            req,
+            resp,
+            st: Model::new(L2State {
+                tags: vec![L2Tag::default(); lines],
+                data: vec![Line::default(); lines],
+                mshrs: vec![None; cfg.mshrs as usize],
+                resp_q: vec![VecDeque::new(); n],
+                outstanding: vec![0; n],
+                ..L2State::default()
+            }),
+            out_delay,
+            stats: L2Stats::default(),
+            log: None,
+        }
+    }
+
+    /// Records every access as applied (tests replay the order).
+    pub fn enable_log(&mut self) {
+        self.log = Some(Vec::new());
+    }
+
+    pub fn busy(&self) -> bool {
+        !self.st.r().idle()
+    }
+
+    fn sets(&self) -> u64 {
+        (self.bytes / self.line_bytes / self.ways) as u64
+    }
+    fn line_index(&self, addr: u64) -> u64 {
+        addr / self.line_bytes as u64
+    }
+    fn bank_of(&self, addr: u64) -> usize {
+        (self.line_index(addr) % self.banks as u64) as usize
+    }
+    fn set_of(&self, addr: u64) -> usize {
+        (self.line_index(addr) % self.sets()) as usize
+    }
+    fn slot_bank(&self, slot: u32) -> usize {
+        (slot as usize / self.ways as usize) % self.banks as usize
+    }
+    /// The slot holding `addr`, if cached.
+    fn find(&self, addr: u64) -> Option<usize> {
+        let w = self.ways as usize;
+        let base = self.set_of(addr) * w;
+        (base..base + w).find(|&s| self.st.r().tags[s].tag == addr + 1)
+    }
+    /// The way to replace in `addr`'s set: an invalid one, else the LRU.
+    fn victim(&self, addr: u64) -> usize {
+        let w = self.ways as usize;
+        let base = self.set_of(addr) * w;
+        let t = &self.st.r().tags;
+        (base..base + w)
+            .find(|&s| t[s].tag == 0)
+            .unwrap_or_else(|| (base..base + w).min_by_key(|&s| t[s].stamp).expect("ways"))
+    }
+
+    fn touch(&mut self, slot: usize) {
+        let st = self.st.m();
+        st.stamp += 1;
+        st.tags[slot].stamp = st.stamp;
+    }
+
+    /// Evicts `slot` (queues its writeback if dirty).
+    fn evict(&mut self, slot: usize) {
+        let t = self.st.r().tags[slot];
+        if t.tag != 0 && t.dirty {
+            let st = self.st.m();
+            st.out_q.push_back(MemLineReq {
+                addr: t.tag - 1,
+                write: true,
+                tag: t.mtag,
+                id: 0,
+                mask: u64::MAX,
+                data: st.data[slot].clone(),
+            });
+            st.wb_queued += 1;
+            st.dirty.remove(&(slot as u32));
+            self.stats.writebacks += 1;
+        }
+        self.st.m().tags[slot] = L2Tag::default();
+    }
+
+    /// Applies one access to a cached slot and queues its answer, due at `due`.
+    fn apply(&mut self, slot: usize, port: u16, accepted: u64, r: MemLineReq, due: u64) {
+        let st = self.st.m();
+        let mut data = Line::default();
+        if r.write {
+            merge(&mut st.data[slot], &r);
+            st.tags[slot].dirty = true;
+            st.tags[slot].mtag = r.tag;
+            st.dirty.insert(slot as u32);
+        } else {
+            data = st.data[slot].clone();
+        }
+        st.resp_q[port as usize].push_back((
+            due,
+            MemLineResp {
+                addr: r.addr,
+                write: r.write,
+                tag: r.tag,
+                id: r.id,
+                data,
+            },
+        ));
+        self.touch(slot);
+        if let Some(log) = &mut self.log {
+            log.push(L2Applied {
+                port,
+                accepted,
+                req: r,
+            });
+        }
+    }
+
+    /// A line from the memory: install it, apply its MSHR's targets.
+    fn fill(&mut self, f: MemLineResp, c: u64) {
+        let k = self
+            .st
+            .r()
+            .mshr_of(f.addr)
+            .expect("a line comes back only for a miss register");
+        let m = self.st.m().mshrs[k].take().expect("live");
+        let slot = self.victim(f.addr);
+        self.evict(slot);
+        let st = self.st.m();
+        st.tags[slot] = L2Tag {
+            tag: f.addr + 1,
+            dirty: false,
+            stamp: 0,
+            mtag: m.targets[0].2.tag,
+        };
+        st.data[slot] = f.data;
+        self.stats.fills += 1;
+        let due = c + (self.hit_latency - self.out_delay) as u64;
+        for (port, acc, r) in m.targets {
+            self.apply(slot, port, acc, r, due);
+        }
+    }
+
+    /// One client request in cycle `c`: true if accepted.
+    fn access(&mut self, p: usize, r: &MemLineReq, c: u64) -> bool {
+        let due = c + (self.hit_latency - self.out_delay) as u64;
+        let addr = r.addr;
+        let port = p as u16;
+        if let Some(k) = self.st.r().mshr_of(addr) {
+            let m = self.st.r().mshrs[k].as_ref().expect("live");
+            if m.targets.len() >= self.targets as usize {
+                self.stats.mshr_stalls += 1;
+                return false;
+            }
+            self.st.m().mshrs[k]
+                .as_mut()
+                .expect("live")
+                .targets
+                .push((port, c, r.clone()));
+            self.stats.misses += 1;
+            self.stats.merges += 1;
+        } else if let Some(slot) = self.find(addr) {
+            self.apply(slot, port, c, r.clone(), due);
+            self.stats.hits += 1;
+        } else if r.write && r.mask == u64::MAX {
+            // Write-allocate: the whole line is written, nothing to read.
+            let slot = self.victim(addr);
+            let t = self.st.r().tags[slot];
+            if t.tag != 0 && t.dirty && self.st.r().wb_queued >= self.writebacks {
+                self.stats.mshr_stalls += 1;
+                return false;
+            }
+            self.evict(slot);
+            self.st.m().tags[slot] = L2Tag {
+                tag: addr + 1,
+                dirty: false,
+                stamp: 0,
+                mtag: r.tag,
+            };
+            self.apply(slot, port, c, r.clone(), due);
+            self.stats.misses += 1;
+        } else {
+            let Some(k) = self.st.r().mshrs.iter().position(|m| m.is_none()) else {
+                self.stats.mshr_stalls += 1;
+                return false;
+            };
+            let st = self.st.m();
+            st.mshrs[k] = Some(L2Mshr {
+                addr,
+                targets: vec![(port, c, r.clone())],
+            });
+            st.out_q.push_back(MemLineReq::read(addr, r.tag, k as u32));
+            self.stats.misses += 1;
+        }
+        self.st.m().outstanding[p] += 1;
+        self.stats.accesses += 1;
+        true
+    }
+
+    /// The first request in `out_q` whose line has nothing at the memory and no
+    /// older request queued.
+    fn issuable(&self) -> Option<usize> {
+        let st = self.st.r();
+        let mut seen = BTreeSet::new();
+        for (i, r) in st.out_q.iter().enumerate() {
+            if !st.mem_busy.contains(&r.addr) && !seen.contains(&r.addr) {
+                return Some(i);
+            }
+            seen.insert(r.addr);
+        }
+        None
+    }
+}
+
+impl Logic for L2 {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let n = self.req.len();
+        let mut worked = false;
+        let mut waiting = false;
+        let mut blocked = false;
+        let mut bank_busy = vec![false; self.banks as usize];
+        // 1. The memory's answer: a fill (takes its bank) or a writeback's ack.
+        if let Some(f) = ctx.pop(&self.mem_resp) {
+            self.st.m().mem_busy.remove(&f.addr);
+            if !f.write {
+                bank_busy[self.bank_of(f.addr)] = true;
+                self.fill(f, c);
+            }
+            worked = true;
+        }
+        // 2. Answers whose time has come, one per client per cycle.
+        let mut next_due: Option<u64> = None;
+        for p in 0..n {
+            let head = self.st.r().resp_q[p].front().map(|(d, _)| *d);
+            let Some(d) = head else { continue };
+            if d > c {
+                next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
+                continue;
+            }
+            if !ctx.can_push(&self.resp[p]) {
+                blocked = true;
+                continue;
+            }
+            let st = self.st.m();
+            let (_, r) = st.resp_q[p].pop_front().expect("head");
+            st.outstanding[p] -= 1;
+            ctx.push(&self.resp[p], r);
+            worked = true;
+            if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
+                next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
+            }
+        }
+        // 3. A flush request.
+        if self.st.r().flushing.is_none()
+            && let Some(f) = ctx.pop(&self.flush)
+        {
+            self.st.m().flushing = Some(f.invalidate);
+            self.stats.flushes += 1;
+            worked = true;
+        }
+        if let Some(inv) = self.st.r().flushing {
+            // 4f. Write back the lowest dirty line, then finish.
+            let first = self.st.r().dirty.iter().next().copied();
+            if let Some(slot) = first {
+                let b = self.slot_bank(slot);
+                if self.st.r().wb_queued < self.writebacks && !bank_busy[b] {
+                    bank_busy[b] = true;
+                    let st = self.st.m();
+                    let t = &mut st.tags[slot as usize];
+                    t.dirty = false;
+                    let wb = MemLineReq {
+                        addr: t.tag - 1,
+                        write: true,
+                        tag: t.mtag,
+                        id: 0,
+                        mask: u64::MAX,
+                        data: st.data[slot as usize].clone(),
+                    };
+                    st.out_q.push_back(wb);
+                    st.wb_queued += 1;
+                    st.dirty.remove(&slot);
+                    self.stats.writebacks += 1;
+                    worked = true;
+                } else {
+                    waiting = true;
+                }
+            } else {
+                let s = self.st.r();
+                let drained = s.live_mshrs() == 0
+                    && s.out_q.is_empty()
+                    && s.mem_busy.is_empty()
+                    && s.resp_q.iter().all(|q| q.is_empty());
+                if drained {
+                    if ctx.can_push(&self.flush_done) {
+                        let st = self.st.m();
+                        if inv {
+                            st.tags.iter_mut().for_each(|t| *t = L2Tag::default());
+                        }
+                        st.flushing = None;
+                        ctx.push(&self.flush_done, L2Flush { invalidate: inv });
+                        worked = true;
+                    } else {
+                        blocked = true;
+                    }
+                }
+            }
+        }
+        // 4. Client requests, one per bank, round-robin from client `c mod n`
+        // (none while flushing).
+        if self.st.r().flushing.is_none() {
+            let start = (c % n.max(1) as u64) as usize;
+            for j in 0..n {
+                let p = (start + j) % n;
+                let Some(r) = ctx.peek(&self.req[p]).cloned() else {
+                    continue;
+                };
+                let b = self.bank_of(r.addr);
+                if bank_busy[b] {
+                    self.stats.bank_conflicts += 1;
+                    waiting = true;
+                    continue;
+                }
+                if self.st.r().outstanding[p] >= self.port_queue {
+                    waiting = true;
+                    continue;
+                }
+                if self.access(p, &r, c) {
+                    ctx.pop(&self.req[p]);
+                    bank_busy[b] = true;
+                    worked = true;
+                    if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
+                        next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
+                    }
+                } else {
+                    waiting = true;
+                }
+            }
+        } else if self.req.iter().any(|q| ctx.peek(q).is_some()) {
+            waiting = true;
+        }
+        // 5. One request to the memory.
+        if let Some(i) = self.issuable() {
+            if ctx.can_push(&self.mem_req) {
+                let st = self.st.m();
+                let r = st.out_q.remove(i).expect("issuable");
+                if r.write {
+                    st.wb_queued -= 1;
+                }
+                st.mem_busy.insert(r.addr);
+                ctx.push(&self.mem_req, r);
+                worked = true;
+            } else {
+                blocked = true;
+            }
+        }
+        ctx.set_status(if blocked {
+            Status::OutputBlocked
+        } else if waiting {
+            Status::ResourceBusy
+        } else if worked || self.busy() {
+            Status::Busy
+        } else {
+            Status::WaitInput
+        });
+        if worked || waiting || blocked || self.issuable().is_some() {
+            Next::Cycle
+        } else if let Some(d) = next_due {
+            Next::AtCycle(d.max(c + 1))
+        } else {
+            // Memory answers, requests and flushes wake us.
+            Next::Idle
+        }
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        let s = &self.stats;
+        vec![
+            ("accesses", s.accesses),
+            ("hits", s.hits),
+            ("misses", s.misses),
+            ("merges", s.merges),
+            ("bank_conflicts", s.bank_conflicts),
+            ("mshr_stalls", s.mshr_stalls),
+            ("fills", s.fills),
+            ("writebacks", s.writebacks),
+            ("flushes", s.flushes),
+        ]
+    }
+
+    fn reset_counters(&mut self) {
+        self.stats = L2Stats::default();
+        if let Some(l) = &mut self.log {
+            l.clear();
+        }
+    }
+}
