@@ -21,10 +21,6 @@ module divider #(
     reg pipe_frozen;
     reg [1:0] pipe_ii_count;
     reg [111:0] pipe_stage_data [0:16];
-    wire [16:0] _unused_pipe_stage_data;
-    for (genvar i = 0; i < 17; i++) begin : g_unused_pipe_stage_data
-        assign _unused_pipe_stage_data[i] = ^pipe_stage_data[i];
-    end
 
     // Skeleton behaviour: state resets and holds; outputs are tied low.
     always_ff @(posedge clk) begin
@@ -39,5 +35,5 @@ module divider #(
     assign req_ready = 1'b0;
     assign resp_valid = 1'b0;
     assign resp_data = '0;
-    wire _unused_ok = &{1'b0, req_valid, req_data, resp_ready, pipe_stage_valid, pipe_frozen, pipe_ii_count, _unused_pipe_stage_data, LATENCY[0], II[0], 1'b0};
+    wire _unused_ok = &{1'b0, req_valid, req_data, resp_ready, pipe_stage_valid, pipe_frozen, pipe_ii_count, ^pipe_stage_data[0], LATENCY[0], II[0], 1'b0};
 endmodule

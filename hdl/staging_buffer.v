@@ -63,10 +63,6 @@ module staging_buffer #(
 );
 
     reg [255:0] rays [0:127];
-    wire [127:0] _unused_rays;
-    for (genvar i = 0; i < 128; i++) begin : g_unused_rays
-        assign _unused_rays[i] = ^rays[i];
-    end
     reg drain_half;
     reg [15:0] count0;
     reg [15:0] count1;
@@ -124,5 +120,5 @@ module staging_buffer #(
     assign ray_14_data = '0;
     assign ray_15_valid = 1'b0;
     assign ray_15_data = '0;
-    wire _unused_ok = &{1'b0, fill_valid, fill_data, ray_0_ready, ray_1_ready, ray_2_ready, ray_3_ready, ray_4_ready, ray_5_ready, ray_6_ready, ray_7_ready, ray_8_ready, ray_9_ready, ray_10_ready, ray_11_ready, ray_12_ready, ray_13_ready, ray_14_ready, ray_15_ready, _unused_rays, drain_half, count0, count1, sealed0, sealed1, hdr0, hdr1, read_idx, HALF_RAYS[0], TPS[0], 1'b0};
+    wire _unused_ok = &{1'b0, fill_valid, fill_data, ray_0_ready, ray_1_ready, ray_2_ready, ray_3_ready, ray_4_ready, ray_5_ready, ray_6_ready, ray_7_ready, ray_8_ready, ray_9_ready, ray_10_ready, ray_11_ready, ray_12_ready, ray_13_ready, ray_14_ready, ray_15_ready, ^rays[0], drain_half, count0, count1, sealed0, sealed1, hdr0, hdr1, read_idx, HALF_RAYS[0], TPS[0], 1'b0};
 endmodule

@@ -81,10 +81,6 @@ module tp #(
     reg [31:0] sh_emitted;
     reg [31:0] sh_acks;
     reg [95:0] stack [0:41];
-    wire [41:0] _unused_stack;
-    for (genvar i = 0; i < 42; i++) begin : g_unused_stack
-        assign _unused_stack[i] = ^stack[i];
-    end
 
     // Skeleton behaviour: state resets and holds; outputs are tied low.
     always_ff @(posedge clk) begin
@@ -142,5 +138,5 @@ module tp #(
     assign hit_data = '0;
     assign gmem_req_valid = 1'b0;
     assign gmem_req_data = '0;
-    wire _unused_ok = &{1'b0, ray_valid, ray_data, div_resp_valid, div_resp_data, box_resp_valid, box_resp_data, tri_resp_valid, tri_resp_data, mem_resp_valid, mem_resp_data, gmem_resp_valid, gmem_resp_data, div_req_ready, box_req_ready, tri_req_ready, mem_req_ready, ray_write_ready, hit_ready, gmem_req_ready, state, ray_index, node_addr, stack_depth, act_at, req_at, cur, inv_dir, best, entry, line0, line1, box0, box1, box_got, tri_k, tri_end, tri_hit, done_sent, sh_step, sh_addr, sh_tri_addr, sh_tri0, sh_tri1, sh_albedo, sh_shadow, sh_bounce, sh_emitted, sh_acks, _unused_stack, INDEX[0], STACK_ENTRIES[0], 1'b0};
+    wire _unused_ok = &{1'b0, ray_valid, ray_data, div_resp_valid, div_resp_data, box_resp_valid, box_resp_data, tri_resp_valid, tri_resp_data, mem_resp_valid, mem_resp_data, gmem_resp_valid, gmem_resp_data, div_req_ready, box_req_ready, tri_req_ready, mem_req_ready, ray_write_ready, hit_ready, gmem_req_ready, state, ray_index, node_addr, stack_depth, act_at, req_at, cur, inv_dir, best, entry, line0, line1, box0, box1, box_got, tri_k, tri_end, tri_hit, done_sent, sh_step, sh_addr, sh_tri_addr, sh_tri0, sh_tri1, sh_albedo, sh_shadow, sh_bounce, sh_emitted, sh_acks, ^stack[0], INDEX[0], STACK_ENTRIES[0], 1'b0};
 endmodule

@@ -458,7 +458,7 @@ fn the_l2_serves_hit_records_and_shading_and_saves_dram_lines() {
 fn passes_end_promptly_after_their_last_rays() {
     const BOUND: u64 = 500;
     let s = scene(dualstream::scene::DEFAULT_SCENE, 16, 12, 2);
-    for (tms, tps, gddr5) in [(1, 16, false), (8, 16, false), (4, 8, true)] {
+    for (tms, tps, gddr5) in [(1, 16, false), (8, 16, false), (4, 8, true), (2, 16, true)] {
         let cfg = if gddr5 {
             gddr5_cfg(tms, tps)
         } else {

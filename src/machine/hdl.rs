@@ -78,6 +78,22 @@ fn family(top: &str) -> (&str, Option<usize>) {
     }
 }
 
+/// Numbered instances `<base>0..<base>n-1` form a family (a generate loop);
+/// a lone number that does not start at 0 is part of a name (`l2`).
+fn families<'a>(tops: impl IntoIterator<Item = &'a str>) -> BTreeMap<String, Vec<usize>> {
+    let mut f: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+    for top in tops {
+        if let (base, Some(k)) = family(top) {
+            f.entry(base.to_string()).or_default().push(k);
+        }
+    }
+    f.retain(|_, ks| {
+        ks.sort_unstable();
+        ks.iter().enumerate().all(|(i, &k)| i == k)
+    });
+    f
+}
+
 fn range(w: u32) -> String {
     if w == 1 {
         String::new()
@@ -168,19 +184,8 @@ pub fn emit_chip(cfg: &Config) -> Result<String, String> {
         nets.push((*id, p.clone(), c.clone()));
     }
     // Families: members with the same module and ports become a generate loop.
-    let mut families: BTreeMap<String, Vec<usize>> = BTreeMap::new();
-    for top in insts.keys() {
-        if let (base, Some(k)) = family(top) {
-            families.entry(base.to_string()).or_default().push(k);
-        }
-    }
-    // A lone instance whose name merely ends in a digit (`l2`) is no family.
-    families.retain(|_, ks| ks.len() > 1 || ks[0] == 0);
-    for (base, ks) in &mut families {
-        ks.sort_unstable();
-        if ks.iter().enumerate().any(|(i, &k)| i != k) {
-            return Err(format!("{base}: members are not numbered 0..n"));
-        }
+    let families = families(insts.keys().map(String::as_str));
+    for (base, ks) in &families {
         let first = &insts[&format!("{base}0")];
         for &k in ks.iter() {
             let m = &insts[&format!("{base}{k}")];
@@ -395,4 +400,64 @@ pub fn emit_chip(cfg: &Config) -> Result<String, String> {
     let _ = writeln!(v, "    wire _unused_ok = &{{1'b0, TPS[0], 1'b0}};");
     let _ = writeln!(v, "endmodule");
     Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbered_instances_from_zero_are_families() {
+        let f = families(["tm0", "tm1", "tm2", "l2", "scheduler", "mem_ctrl0", "host"]);
+        assert_eq!(f.keys().collect::<Vec<_>>(), ["mem_ctrl", "tm"]);
+        assert_eq!(f["tm"], [0, 1, 2]);
+        assert_eq!(family("tm12"), ("tm", Some(12)));
+        assert_eq!(family("scene_buffer"), ("scene_buffer", None));
+        assert_eq!(top_of("chip.tm3.l1"), "tm3");
+    }
+
+    #[test]
+    fn the_top_instantiates_every_unit_of_a_small_chip() {
+        let mut cfg = Config::default();
+        cfg.chip.tms = 3;
+        cfg.tm.tps = 2;
+        let v = emit_chip(&cfg).unwrap();
+        assert!(v.contains("localparam integer TMS = 3;"));
+        assert!(v.contains("localparam integer TPS = 2;"));
+        assert_eq!(v.matches("        tm u_tm (").count(), 1, "one loop");
+        for u in ["u_scheduler", "u_scene_buffer", "u_hit_updater", "u_memory"] {
+            assert_eq!(v.matches(&format!("{u} (")).count(), 1, "{u}");
+        }
+        // Each TM's seven links, on both ends.
+        for p in [
+            "fill",
+            "miss_req",
+            "miss_resp",
+            "ray_write",
+            "hit",
+            "gmem_req",
+            "gmem_resp",
+        ] {
+            assert!(v.contains(&format!(".{p}_valid(tm_{p}_valid[k])")), "{p}");
+        }
+        assert!(v.contains(".fill_2_valid(tm_fill_valid[2])"));
+        // TM 2's other ends are wired to some global unit's port.
+        for p in [
+            "miss_req",
+            "miss_resp",
+            "ray_write",
+            "hit",
+            "gmem_req",
+            "gmem_resp",
+        ] {
+            assert_eq!(
+                v.matches(&format!("_valid(tm_{p}_valid[2])")).count(),
+                1,
+                "{p}"
+            );
+        }
+        let mut bad = cfg.clone();
+        bad.chip.tms = 0;
+        assert!(emit_chip(&bad).unwrap_err().contains("chip.tms"));
+    }
 }

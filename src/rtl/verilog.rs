@@ -81,15 +81,9 @@ pub fn emit_module(d: &UnitDecl) -> String {
             }
             Some(depth) => {
                 let _ = writeln!(w, "    reg {}{} [0:{}];", range(s.width), s.name, depth - 1);
-                let _ = writeln!(w, "    wire {}_unused_{};", range(depth), s.name);
-                let _ = writeln!(
-                    w,
-                    "    for (genvar i = 0; i < {depth}; i++) begin : g_unused_{}",
-                    s.name
-                );
-                let _ = writeln!(w, "        assign _unused_{}[i] = ^{}[i];", s.name, s.name);
-                let _ = writeln!(w, "    end");
-                used.push(format!("_unused_{}", s.name));
+                // One element marks the array used (no per-element loop: deep
+                // arrays exceed the tools' unroll limits).
+                used.push(format!("^{}[0]", s.name));
             }
         }
         if let Some(names) = s.enum_names {
