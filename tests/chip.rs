@@ -78,7 +78,11 @@ fn same_frame(f: &Frame, c: &Frame, what: &str) {
 
 #[test]
 fn every_ray_agrees_on_small_chips() {
-    for (name, w, h, seg_kb) in [("tiny", 16, 16, 8), ("cornell", 16, 12, 8)] {
+    for (name, w, h, seg_kb) in [
+        ("tiny", 16, 16, 8),
+        ("cornell", 16, 12, 8),
+        ("spheres", 8, 8, 64),
+    ] {
         let s = scene(name, w, h, 3);
         let f = render(&s, Mode::Functional, &rcfg(seg_kb, None), &mut |_| {}).unwrap();
         assert!(
