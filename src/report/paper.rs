@@ -106,8 +106,11 @@ pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
     let mrays = ms
         .filter(|&t| t > 0.0)
         .map(|t| f.total.rays as f64 / (t * 1e-3) / 1e6);
-    let partial =
-        "TMs only (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store)";
+    let partial = if chip.is_some() {
+        "TMs (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store), L2, scene buffer"
+    } else {
+        "TMs only (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store)"
+    };
     let e = f.energy.as_ref();
     let rows: Vec<(&'static str, Option<f64>, f64, &'static str)> = vec![
         (
