@@ -618,3 +618,66 @@ fn render_cycle_writes_a_waveform_of_the_chosen_units_and_window() {
         &["--vcd"],
     );
 }
+
+#[test]
+fn bench_speed_error_prints_every_mode_with_json_and_plot() {
+    let cfg = tmp("se.toml");
+    std::fs::write(&cfg, "[chip]\ntms = 2\n[tm]\ntps = 4\n").unwrap();
+    let (json, svg) = (tmp("se.json"), tmp("se.svg"));
+    let o = run(&[
+        "--config",
+        cfg.to_str().unwrap(),
+        "bench",
+        "speed-error",
+        "--scene",
+        "tiny",
+        "--res",
+        "8x8",
+        "--small-tms",
+        "1",
+        "--json",
+        json.to_str().unwrap(),
+        "--plot",
+        svg.to_str().unwrap(),
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for mode in [
+        "cycle ",
+        "cycle-fixed",
+        "functional+estimate",
+        "small-chip",
+        "quarter-pixels",
+    ] {
+        assert!(out.contains(mode), "{mode} missing: {out}");
+    }
+    let rows: Vec<serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(rows.len(), 5);
+    assert_eq!(rows[0]["err_cycles"], 0.0);
+    assert!(rows[1]["speedup"].as_f64().unwrap() > 0.0);
+    let plot = std::fs::read_to_string(&svg).unwrap();
+    assert_eq!(plot.matches("<circle").count(), 5);
+    fails_with(
+        &[
+            "--config",
+            cfg.to_str().unwrap(),
+            "bench",
+            "speed-error",
+            "--scene",
+            "tiny",
+            "--res",
+            "8x8",
+            "--small-tms",
+            "2",
+        ],
+        &["--small-tms 2", "chip.tms"],
+    );
+    fails_with(
+        &["bench", "nonsense"],
+        &["unknown benchmark", "speed-error"],
+    );
+    for p in [cfg, json, svg] {
+        let _ = std::fs::remove_file(p);
+    }
+}
