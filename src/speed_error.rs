@@ -9,6 +9,8 @@
 //!   timing estimate from its traffic and operation counts ([`estimate`]);
 //! - `small-chip` — the chip with fewer TMs, cycles scaled linearly to the full TM
 //!   count (the question being whether that is ever accurate);
+//! - `small-chips-fit` — two small chips (s and 2s TMs), cycles fitted as
+//!   a + b / TMs and evaluated at the full count (when 2s < `chip.tms`);
 //! - `quarter-pixels` — the cycle model on a frame of half the width and height,
 //!   every count and the cycles scaled by the pixel ratio (4).
 //!
@@ -270,6 +272,36 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         Some(f.radiance == reference.radiance),
         &format!("{} TMs, cycles x {scale}", o.small_tms),
     );
+    // Two small chips, s and 2s TMs, fit cycles = a + b / TMs (a serial part and a
+    // part that divides over the TMs), evaluated at the full TM count.
+    let (s1, s2) = (o.small_tms, 2 * o.small_tms);
+    let mut fit = None;
+    if s2 < config.chip.tms {
+        let c1 = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
+        let mut small2 = gddr5.clone();
+        small2.chip.tms = s2;
+        let f2 = render_with(scene, Mode::Cycle, &small2)?;
+        let c2 = f2.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
+        let b = (c1 - c2) / (1.0 / s1 as f64 - 1.0 / s2 as f64);
+        let a = c2 - b / s2 as f64;
+        let cyc = (a + b / config.chip.tms as f64).max(0.0);
+        let wall = f.wall_s + f2.wall_s;
+        let energy = total_energy(&small2, &f2, cyc)?;
+        let lines = f2.total.total_lines() as f64;
+        fit = Some(ModeResult {
+            mode: "small-chips-fit".into(),
+            wall_s: wall,
+            speedup: reference.wall_s / wall.max(1e-9),
+            cycles: cyc,
+            lines,
+            energy_j: energy,
+            err_cycles: rel(cyc, ref_cycles),
+            err_lines: rel(lines, ref_lines),
+            err_energy: rel(energy, ref_energy),
+            image_identical: Some(f2.radiance == reference.radiance),
+            note: format!("{s1} and {s2} TMs ({c1:.0}, {c2:.0} cycles), a + b/TMs"),
+        });
+    }
 
     let mut quarter = scene.clone();
     quarter.settings.width = (scene.settings.width / 2).max(1);
@@ -290,6 +322,9 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             quarter.settings.width, quarter.settings.height
         ),
     );
+    if let Some(r) = fit {
+        out.insert(4, r);
+    }
     Ok(out)
 }
 

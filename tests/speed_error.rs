@@ -84,3 +84,17 @@ fn an_impossible_small_chip_is_named() {
     let e = run(&s, &c, &SpeedErrorOpts { small_tms: 4 }).unwrap_err();
     assert!(e.contains("--small-tms 4") && e.contains("chip.tms"), "{e}");
 }
+
+#[test]
+fn two_small_chips_fit_a_serial_and_a_parallel_part() {
+    let (s, mut c) = tiny();
+    c.chip.tms = 8;
+    let rows = run(&s, &c, &SpeedErrorOpts { small_tms: 2 }).unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r.mode.as_str()).collect();
+    assert_eq!(names[3..5], ["small-chip", "small-chips-fit"]);
+    let fit = &rows[4];
+    assert_eq!(fit.image_identical, Some(true));
+    assert!(fit.note.contains("2 and 4 TMs"), "{}", fit.note);
+    // Both small runs together take longer than the linear mode's one run.
+    assert!(fit.wall_s >= rows[3].wall_s);
+}
