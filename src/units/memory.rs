@@ -1,7 +1,9 @@
 //! The memory unit: owns the DRAM image (`contract::SparseMem`) and serves 64 B
 //! line reads (data in the response) and line or partial writes (data and byte
-//! mask in the request), one request/response port pair per client. Every request
-//! is answered, writes too (the requester learns its write is done).
+//! mask in the request), one request/response port pair per client lane (a client
+//! that moves several lines per cycle, such as the stream scheduler's ray and scene
+//! lanes, has a port per line per cycle). Every request is answered, writes too
+//! (the requester learns its write is done).
 //!
 //! Timing model `fixed` (`chip.memory.model`, the default): a request accepted in cycle `a` is answered
 //! so that the response is visible at `a + latency`; at most `bytes_per_cycle / 64`
