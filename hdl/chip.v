@@ -98,6 +98,24 @@ module chip (
     wire slot_map_valid;
     wire slot_map_ready;
     wire [119:0] slot_map_data;
+    wire mem_req_l2_lane1_valid;
+    wire mem_req_l2_lane1_ready;
+    wire [675:0] mem_req_l2_lane1_data;
+    wire mem_resp_l2_lane1_valid;
+    wire mem_resp_l2_lane1_ready;
+    wire [611:0] mem_resp_l2_lane1_data;
+    wire mem_req_l2_lane2_valid;
+    wire mem_req_l2_lane2_ready;
+    wire [675:0] mem_req_l2_lane2_data;
+    wire mem_resp_l2_lane2_valid;
+    wire mem_resp_l2_lane2_ready;
+    wire [611:0] mem_resp_l2_lane2_data;
+    wire mem_req_l2_lane3_valid;
+    wire mem_req_l2_lane3_ready;
+    wire [675:0] mem_req_l2_lane3_data;
+    wire mem_resp_l2_lane3_valid;
+    wire mem_resp_l2_lane3_ready;
+    wire [611:0] mem_resp_l2_lane3_data;
     wire l2_req0_hits_valid;
     wire l2_req0_hits_ready;
     wire [675:0] l2_req0_hits_data;
@@ -498,15 +516,15 @@ module chip (
         .mem_resp_ready(l2_resp0_hits_ready),
         .mem_resp_data(l2_resp0_hits_data)
     );
-    l2 #(.BYTES(524288), .BANKS(32), .WAYS(8), .LINE_BYTES(64), .HIT_LATENCY(10), .MSHRS(64), .TARGETS(8), .WRITEBACKS(16), .PORT_QUEUE(64)) u_l2 (
+    l2 #(.BYTES(524288), .BANKS(32), .WAYS(8), .LINE_BYTES(64), .HIT_LATENCY(10), .MSHRS(64), .TARGETS(8), .WRITEBACKS(16), .PORT_QUEUE(64), .MEM_LANES(4)) u_l2 (
         .clk(clk),
         .rst(rst),
-        .mem_req_valid(mem_req2_l2_valid),
-        .mem_req_ready(mem_req2_l2_ready),
-        .mem_req_data(mem_req2_l2_data),
-        .mem_resp_valid(mem_resp2_l2_valid),
-        .mem_resp_ready(mem_resp2_l2_ready),
-        .mem_resp_data(mem_resp2_l2_data),
+        .mem_req_0_valid(mem_req2_l2_valid),
+        .mem_req_0_ready(mem_req2_l2_ready),
+        .mem_req_0_data(mem_req2_l2_data),
+        .mem_resp_0_valid(mem_resp2_l2_valid),
+        .mem_resp_0_ready(mem_resp2_l2_ready),
+        .mem_resp_0_data(mem_resp2_l2_data),
         .req_1_valid(tm_gmem_req_valid[0]),
         .req_1_ready(tm_gmem_req_ready[0]),
         .req_1_data(tm_gmem_req_data[675:0]),
@@ -1275,6 +1293,24 @@ module chip (
         .resp_128_valid(tm_gmem_resp_valid[127]),
         .resp_128_ready(tm_gmem_resp_ready[127]),
         .resp_128_data(tm_gmem_resp_data[78335:77724]),
+        .mem_req_1_valid(mem_req_l2_lane1_valid),
+        .mem_req_1_ready(mem_req_l2_lane1_ready),
+        .mem_req_1_data(mem_req_l2_lane1_data),
+        .mem_resp_1_valid(mem_resp_l2_lane1_valid),
+        .mem_resp_1_ready(mem_resp_l2_lane1_ready),
+        .mem_resp_1_data(mem_resp_l2_lane1_data),
+        .mem_req_2_valid(mem_req_l2_lane2_valid),
+        .mem_req_2_ready(mem_req_l2_lane2_ready),
+        .mem_req_2_data(mem_req_l2_lane2_data),
+        .mem_resp_2_valid(mem_resp_l2_lane2_valid),
+        .mem_resp_2_ready(mem_resp_l2_lane2_ready),
+        .mem_resp_2_data(mem_resp_l2_lane2_data),
+        .mem_req_3_valid(mem_req_l2_lane3_valid),
+        .mem_req_3_ready(mem_req_l2_lane3_ready),
+        .mem_req_3_data(mem_req_l2_lane3_data),
+        .mem_resp_3_valid(mem_resp_l2_lane3_valid),
+        .mem_resp_3_ready(mem_resp_l2_lane3_ready),
+        .mem_resp_3_data(mem_resp_l2_lane3_data),
         .req_0_valid(l2_req0_hits_valid),
         .req_0_ready(l2_req0_hits_ready),
         .req_0_data(l2_req0_hits_data),
@@ -1288,7 +1324,7 @@ module chip (
         .flush_done_ready(flush_done_ready),
         .flush_done_data(flush_done_data)
     );
-    memory #(.PORTS(9), .LATENCY(100), .LINES_PER_CYCLE(8), .CHANNELS(0)) u_memory (
+    memory #(.PORTS(12), .LATENCY(100), .LINES_PER_CYCLE(8), .CHANNELS(0)) u_memory (
         .clk(clk),
         .rst(rst),
         .req_0_valid(mem_req0_sched_valid),
@@ -1344,7 +1380,25 @@ module chip (
         .req_8_data(mem_req_scene3_data),
         .resp_8_valid(mem_resp_scene3_valid),
         .resp_8_ready(mem_resp_scene3_ready),
-        .resp_8_data(mem_resp_scene3_data)
+        .resp_8_data(mem_resp_scene3_data),
+        .req_9_valid(mem_req_l2_lane1_valid),
+        .req_9_ready(mem_req_l2_lane1_ready),
+        .req_9_data(mem_req_l2_lane1_data),
+        .resp_9_valid(mem_resp_l2_lane1_valid),
+        .resp_9_ready(mem_resp_l2_lane1_ready),
+        .resp_9_data(mem_resp_l2_lane1_data),
+        .req_10_valid(mem_req_l2_lane2_valid),
+        .req_10_ready(mem_req_l2_lane2_ready),
+        .req_10_data(mem_req_l2_lane2_data),
+        .resp_10_valid(mem_resp_l2_lane2_valid),
+        .resp_10_ready(mem_resp_l2_lane2_ready),
+        .resp_10_data(mem_resp_l2_lane2_data),
+        .req_11_valid(mem_req_l2_lane3_valid),
+        .req_11_ready(mem_req_l2_lane3_ready),
+        .req_11_data(mem_req_l2_lane3_data),
+        .resp_11_valid(mem_resp_l2_lane3_valid),
+        .resp_11_ready(mem_resp_l2_lane3_ready),
+        .resp_11_data(mem_resp_l2_lane3_data)
     );
     scene_buffer #(.SLOTS(64), .SLOT_LINES(1024), .BANKS(32), .LATENCY(4), .TMS(128)) u_scene_buffer (
         .clk(clk),

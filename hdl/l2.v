@@ -12,19 +12,14 @@ module l2 #(
     parameter integer MSHRS = 64,
     parameter integer TARGETS = 8,
     parameter integer WRITEBACKS = 16,
-    parameter integer PORT_QUEUE = 64
+    parameter integer PORT_QUEUE = 64,
+    parameter integer MEM_LANES = 4
 ) (
     input  wire clk,
     input  wire rst,
-    input  wire mem_resp_valid,
-    output wire mem_resp_ready,
-    input  wire [611:0] mem_resp_data,
     input  wire flush_valid,
     output wire flush_ready,
     input  wire flush_data,
-    output wire mem_req_valid,
-    input  wire mem_req_ready,
-    output wire [675:0] mem_req_data,
     output wire flush_done_valid,
     input  wire flush_done_ready,
     output wire flush_done_data,
@@ -415,6 +410,18 @@ module l2 #(
     input  wire req_128_valid,
     output wire req_128_ready,
     input  wire [675:0] req_128_data,
+    input  wire mem_resp_0_valid,
+    output wire mem_resp_0_ready,
+    input  wire [611:0] mem_resp_0_data,
+    input  wire mem_resp_1_valid,
+    output wire mem_resp_1_ready,
+    input  wire [611:0] mem_resp_1_data,
+    input  wire mem_resp_2_valid,
+    output wire mem_resp_2_ready,
+    input  wire [611:0] mem_resp_2_data,
+    input  wire mem_resp_3_valid,
+    output wire mem_resp_3_ready,
+    input  wire [611:0] mem_resp_3_data,
     output wire resp_0_valid,
     input  wire resp_0_ready,
     output wire [611:0] resp_0_data,
@@ -801,7 +808,19 @@ module l2 #(
     output wire [611:0] resp_127_data,
     output wire resp_128_valid,
     input  wire resp_128_ready,
-    output wire [611:0] resp_128_data
+    output wire [611:0] resp_128_data,
+    output wire mem_req_0_valid,
+    input  wire mem_req_0_ready,
+    output wire [675:0] mem_req_0_data,
+    output wire mem_req_1_valid,
+    input  wire mem_req_1_ready,
+    output wire [675:0] mem_req_1_data,
+    output wire mem_req_2_valid,
+    input  wire mem_req_2_ready,
+    output wire [675:0] mem_req_2_data,
+    output wire mem_req_3_valid,
+    input  wire mem_req_3_ready,
+    output wire [675:0] mem_req_3_data
 );
 
     reg [63:0] mshr_addr [0:63];
@@ -819,10 +838,7 @@ module l2 #(
         end
     end
 
-    assign mem_resp_ready = 1'b0;
     assign flush_ready = 1'b0;
-    assign mem_req_valid = 1'b0;
-    assign mem_req_data = '0;
     assign flush_done_valid = 1'b0;
     assign flush_done_data = '0;
     assign req_0_ready = 1'b0;
@@ -954,6 +970,10 @@ module l2 #(
     assign req_126_ready = 1'b0;
     assign req_127_ready = 1'b0;
     assign req_128_ready = 1'b0;
+    assign mem_resp_0_ready = 1'b0;
+    assign mem_resp_1_ready = 1'b0;
+    assign mem_resp_2_ready = 1'b0;
+    assign mem_resp_3_ready = 1'b0;
     assign resp_0_valid = 1'b0;
     assign resp_0_data = '0;
     assign resp_1_valid = 1'b0;
@@ -1212,5 +1232,13 @@ module l2 #(
     assign resp_127_data = '0;
     assign resp_128_valid = 1'b0;
     assign resp_128_data = '0;
-    wire _unused_ok = &{1'b0, mem_resp_valid, mem_resp_data, flush_valid, flush_data, mem_req_ready, flush_done_ready, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, req_9_valid, req_9_data, req_10_valid, req_10_data, req_11_valid, req_11_data, req_12_valid, req_12_data, req_13_valid, req_13_data, req_14_valid, req_14_data, req_15_valid, req_15_data, req_16_valid, req_16_data, req_17_valid, req_17_data, req_18_valid, req_18_data, req_19_valid, req_19_data, req_20_valid, req_20_data, req_21_valid, req_21_data, req_22_valid, req_22_data, req_23_valid, req_23_data, req_24_valid, req_24_data, req_25_valid, req_25_data, req_26_valid, req_26_data, req_27_valid, req_27_data, req_28_valid, req_28_data, req_29_valid, req_29_data, req_30_valid, req_30_data, req_31_valid, req_31_data, req_32_valid, req_32_data, req_33_valid, req_33_data, req_34_valid, req_34_data, req_35_valid, req_35_data, req_36_valid, req_36_data, req_37_valid, req_37_data, req_38_valid, req_38_data, req_39_valid, req_39_data, req_40_valid, req_40_data, req_41_valid, req_41_data, req_42_valid, req_42_data, req_43_valid, req_43_data, req_44_valid, req_44_data, req_45_valid, req_45_data, req_46_valid, req_46_data, req_47_valid, req_47_data, req_48_valid, req_48_data, req_49_valid, req_49_data, req_50_valid, req_50_data, req_51_valid, req_51_data, req_52_valid, req_52_data, req_53_valid, req_53_data, req_54_valid, req_54_data, req_55_valid, req_55_data, req_56_valid, req_56_data, req_57_valid, req_57_data, req_58_valid, req_58_data, req_59_valid, req_59_data, req_60_valid, req_60_data, req_61_valid, req_61_data, req_62_valid, req_62_data, req_63_valid, req_63_data, req_64_valid, req_64_data, req_65_valid, req_65_data, req_66_valid, req_66_data, req_67_valid, req_67_data, req_68_valid, req_68_data, req_69_valid, req_69_data, req_70_valid, req_70_data, req_71_valid, req_71_data, req_72_valid, req_72_data, req_73_valid, req_73_data, req_74_valid, req_74_data, req_75_valid, req_75_data, req_76_valid, req_76_data, req_77_valid, req_77_data, req_78_valid, req_78_data, req_79_valid, req_79_data, req_80_valid, req_80_data, req_81_valid, req_81_data, req_82_valid, req_82_data, req_83_valid, req_83_data, req_84_valid, req_84_data, req_85_valid, req_85_data, req_86_valid, req_86_data, req_87_valid, req_87_data, req_88_valid, req_88_data, req_89_valid, req_89_data, req_90_valid, req_90_data, req_91_valid, req_91_data, req_92_valid, req_92_data, req_93_valid, req_93_data, req_94_valid, req_94_data, req_95_valid, req_95_data, req_96_valid, req_96_data, req_97_valid, req_97_data, req_98_valid, req_98_data, req_99_valid, req_99_data, req_100_valid, req_100_data, req_101_valid, req_101_data, req_102_valid, req_102_data, req_103_valid, req_103_data, req_104_valid, req_104_data, req_105_valid, req_105_data, req_106_valid, req_106_data, req_107_valid, req_107_data, req_108_valid, req_108_data, req_109_valid, req_109_data, req_110_valid, req_110_data, req_111_valid, req_111_data, req_112_valid, req_112_data, req_113_valid, req_113_data, req_114_valid, req_114_data, req_115_valid, req_115_data, req_116_valid, req_116_data, req_117_valid, req_117_data, req_118_valid, req_118_data, req_119_valid, req_119_data, req_120_valid, req_120_data, req_121_valid, req_121_data, req_122_valid, req_122_data, req_123_valid, req_123_data, req_124_valid, req_124_data, req_125_valid, req_125_data, req_126_valid, req_126_data, req_127_valid, req_127_data, req_128_valid, req_128_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, resp_9_ready, resp_10_ready, resp_11_ready, resp_12_ready, resp_13_ready, resp_14_ready, resp_15_ready, resp_16_ready, resp_17_ready, resp_18_ready, resp_19_ready, resp_20_ready, resp_21_ready, resp_22_ready, resp_23_ready, resp_24_ready, resp_25_ready, resp_26_ready, resp_27_ready, resp_28_ready, resp_29_ready, resp_30_ready, resp_31_ready, resp_32_ready, resp_33_ready, resp_34_ready, resp_35_ready, resp_36_ready, resp_37_ready, resp_38_ready, resp_39_ready, resp_40_ready, resp_41_ready, resp_42_ready, resp_43_ready, resp_44_ready, resp_45_ready, resp_46_ready, resp_47_ready, resp_48_ready, resp_49_ready, resp_50_ready, resp_51_ready, resp_52_ready, resp_53_ready, resp_54_ready, resp_55_ready, resp_56_ready, resp_57_ready, resp_58_ready, resp_59_ready, resp_60_ready, resp_61_ready, resp_62_ready, resp_63_ready, resp_64_ready, resp_65_ready, resp_66_ready, resp_67_ready, resp_68_ready, resp_69_ready, resp_70_ready, resp_71_ready, resp_72_ready, resp_73_ready, resp_74_ready, resp_75_ready, resp_76_ready, resp_77_ready, resp_78_ready, resp_79_ready, resp_80_ready, resp_81_ready, resp_82_ready, resp_83_ready, resp_84_ready, resp_85_ready, resp_86_ready, resp_87_ready, resp_88_ready, resp_89_ready, resp_90_ready, resp_91_ready, resp_92_ready, resp_93_ready, resp_94_ready, resp_95_ready, resp_96_ready, resp_97_ready, resp_98_ready, resp_99_ready, resp_100_ready, resp_101_ready, resp_102_ready, resp_103_ready, resp_104_ready, resp_105_ready, resp_106_ready, resp_107_ready, resp_108_ready, resp_109_ready, resp_110_ready, resp_111_ready, resp_112_ready, resp_113_ready, resp_114_ready, resp_115_ready, resp_116_ready, resp_117_ready, resp_118_ready, resp_119_ready, resp_120_ready, resp_121_ready, resp_122_ready, resp_123_ready, resp_124_ready, resp_125_ready, resp_126_ready, resp_127_ready, resp_128_ready, ^mshr_addr[0], mshrs_live, mem_queued, flushing, BYTES[0], BANKS[0], WAYS[0], LINE_BYTES[0], HIT_LATENCY[0], MSHRS[0], TARGETS[0], WRITEBACKS[0], PORT_QUEUE[0], 1'b0};
+    assign mem_req_0_valid = 1'b0;
+    assign mem_req_0_data = '0;
+    assign mem_req_1_valid = 1'b0;
+    assign mem_req_1_data = '0;
+    assign mem_req_2_valid = 1'b0;
+    assign mem_req_2_data = '0;
+    assign mem_req_3_valid = 1'b0;
+    assign mem_req_3_data = '0;
+    wire _unused_ok = &{1'b0, flush_valid, flush_data, flush_done_ready, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, req_9_valid, req_9_data, req_10_valid, req_10_data, req_11_valid, req_11_data, req_12_valid, req_12_data, req_13_valid, req_13_data, req_14_valid, req_14_data, req_15_valid, req_15_data, req_16_valid, req_16_data, req_17_valid, req_17_data, req_18_valid, req_18_data, req_19_valid, req_19_data, req_20_valid, req_20_data, req_21_valid, req_21_data, req_22_valid, req_22_data, req_23_valid, req_23_data, req_24_valid, req_24_data, req_25_valid, req_25_data, req_26_valid, req_26_data, req_27_valid, req_27_data, req_28_valid, req_28_data, req_29_valid, req_29_data, req_30_valid, req_30_data, req_31_valid, req_31_data, req_32_valid, req_32_data, req_33_valid, req_33_data, req_34_valid, req_34_data, req_35_valid, req_35_data, req_36_valid, req_36_data, req_37_valid, req_37_data, req_38_valid, req_38_data, req_39_valid, req_39_data, req_40_valid, req_40_data, req_41_valid, req_41_data, req_42_valid, req_42_data, req_43_valid, req_43_data, req_44_valid, req_44_data, req_45_valid, req_45_data, req_46_valid, req_46_data, req_47_valid, req_47_data, req_48_valid, req_48_data, req_49_valid, req_49_data, req_50_valid, req_50_data, req_51_valid, req_51_data, req_52_valid, req_52_data, req_53_valid, req_53_data, req_54_valid, req_54_data, req_55_valid, req_55_data, req_56_valid, req_56_data, req_57_valid, req_57_data, req_58_valid, req_58_data, req_59_valid, req_59_data, req_60_valid, req_60_data, req_61_valid, req_61_data, req_62_valid, req_62_data, req_63_valid, req_63_data, req_64_valid, req_64_data, req_65_valid, req_65_data, req_66_valid, req_66_data, req_67_valid, req_67_data, req_68_valid, req_68_data, req_69_valid, req_69_data, req_70_valid, req_70_data, req_71_valid, req_71_data, req_72_valid, req_72_data, req_73_valid, req_73_data, req_74_valid, req_74_data, req_75_valid, req_75_data, req_76_valid, req_76_data, req_77_valid, req_77_data, req_78_valid, req_78_data, req_79_valid, req_79_data, req_80_valid, req_80_data, req_81_valid, req_81_data, req_82_valid, req_82_data, req_83_valid, req_83_data, req_84_valid, req_84_data, req_85_valid, req_85_data, req_86_valid, req_86_data, req_87_valid, req_87_data, req_88_valid, req_88_data, req_89_valid, req_89_data, req_90_valid, req_90_data, req_91_valid, req_91_data, req_92_valid, req_92_data, req_93_valid, req_93_data, req_94_valid, req_94_data, req_95_valid, req_95_data, req_96_valid, req_96_data, req_97_valid, req_97_data, req_98_valid, req_98_data, req_99_valid, req_99_data, req_100_valid, req_100_data, req_101_valid, req_101_data, req_102_valid, req_102_data, req_103_valid, req_103_data, req_104_valid, req_104_data, req_105_valid, req_105_data, req_106_valid, req_106_data, req_107_valid, req_107_data, req_108_valid, req_108_data, req_109_valid, req_109_data, req_110_valid, req_110_data, req_111_valid, req_111_data, req_112_valid, req_112_data, req_113_valid, req_113_data, req_114_valid, req_114_data, req_115_valid, req_115_data, req_116_valid, req_116_data, req_117_valid, req_117_data, req_118_valid, req_118_data, req_119_valid, req_119_data, req_120_valid, req_120_data, req_121_valid, req_121_data, req_122_valid, req_122_data, req_123_valid, req_123_data, req_124_valid, req_124_data, req_125_valid, req_125_data, req_126_valid, req_126_data, req_127_valid, req_127_data, req_128_valid, req_128_data, mem_resp_0_valid, mem_resp_0_data, mem_resp_1_valid, mem_resp_1_data, mem_resp_2_valid, mem_resp_2_data, mem_resp_3_valid, mem_resp_3_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, resp_9_ready, resp_10_ready, resp_11_ready, resp_12_ready, resp_13_ready, resp_14_ready, resp_15_ready, resp_16_ready, resp_17_ready, resp_18_ready, resp_19_ready, resp_20_ready, resp_21_ready, resp_22_ready, resp_23_ready, resp_24_ready, resp_25_ready, resp_26_ready, resp_27_ready, resp_28_ready, resp_29_ready, resp_30_ready, resp_31_ready, resp_32_ready, resp_33_ready, resp_34_ready, resp_35_ready, resp_36_ready, resp_37_ready, resp_38_ready, resp_39_ready, resp_40_ready, resp_41_ready, resp_42_ready, resp_43_ready, resp_44_ready, resp_45_ready, resp_46_ready, resp_47_ready, resp_48_ready, resp_49_ready, resp_50_ready, resp_51_ready, resp_52_ready, resp_53_ready, resp_54_ready, resp_55_ready, resp_56_ready, resp_57_ready, resp_58_ready, resp_59_ready, resp_60_ready, resp_61_ready, resp_62_ready, resp_63_ready, resp_64_ready, resp_65_ready, resp_66_ready, resp_67_ready, resp_68_ready, resp_69_ready, resp_70_ready, resp_71_ready, resp_72_ready, resp_73_ready, resp_74_ready, resp_75_ready, resp_76_ready, resp_77_ready, resp_78_ready, resp_79_ready, resp_80_ready, resp_81_ready, resp_82_ready, resp_83_ready, resp_84_ready, resp_85_ready, resp_86_ready, resp_87_ready, resp_88_ready, resp_89_ready, resp_90_ready, resp_91_ready, resp_92_ready, resp_93_ready, resp_94_ready, resp_95_ready, resp_96_ready, resp_97_ready, resp_98_ready, resp_99_ready, resp_100_ready, resp_101_ready, resp_102_ready, resp_103_ready, resp_104_ready, resp_105_ready, resp_106_ready, resp_107_ready, resp_108_ready, resp_109_ready, resp_110_ready, resp_111_ready, resp_112_ready, resp_113_ready, resp_114_ready, resp_115_ready, resp_116_ready, resp_117_ready, resp_118_ready, resp_119_ready, resp_120_ready, resp_121_ready, resp_122_ready, resp_123_ready, resp_124_ready, resp_125_ready, resp_126_ready, resp_127_ready, resp_128_ready, mem_req_0_ready, mem_req_1_ready, mem_req_2_ready, mem_req_3_ready, ^mshr_addr[0], mshrs_live, mem_queued, flushing, BYTES[0], BANKS[0], WAYS[0], LINE_BYTES[0], HIT_LATENCY[0], MSHRS[0], TARGETS[0], WRITEBACKS[0], PORT_QUEUE[0], MEM_LANES[0], 1'b0};
 endmodule

@@ -4,7 +4,7 @@
 // Ports are valid/ready links; data is the payload packed LSB-first.
 // State: 16 bits.
 module memory #(
-    parameter integer PORTS = 9,
+    parameter integer PORTS = 12,
     parameter integer LATENCY = 100,
     parameter integer LINES_PER_CYCLE = 8,
     parameter integer CHANNELS = 0
@@ -38,6 +38,15 @@ module memory #(
     input  wire req_8_valid,
     output wire req_8_ready,
     input  wire [675:0] req_8_data,
+    input  wire req_9_valid,
+    output wire req_9_ready,
+    input  wire [675:0] req_9_data,
+    input  wire req_10_valid,
+    output wire req_10_ready,
+    input  wire [675:0] req_10_data,
+    input  wire req_11_valid,
+    output wire req_11_ready,
+    input  wire [675:0] req_11_data,
     output wire resp_0_valid,
     input  wire resp_0_ready,
     output wire [611:0] resp_0_data,
@@ -64,7 +73,16 @@ module memory #(
     output wire [611:0] resp_7_data,
     output wire resp_8_valid,
     input  wire resp_8_ready,
-    output wire [611:0] resp_8_data
+    output wire [611:0] resp_8_data,
+    output wire resp_9_valid,
+    input  wire resp_9_ready,
+    output wire [611:0] resp_9_data,
+    output wire resp_10_valid,
+    input  wire resp_10_ready,
+    output wire [611:0] resp_10_data,
+    output wire resp_11_valid,
+    input  wire resp_11_ready,
+    output wire [611:0] resp_11_data
 );
 
     reg [15:0] in_flight;
@@ -85,6 +103,9 @@ module memory #(
     assign req_6_ready = 1'b0;
     assign req_7_ready = 1'b0;
     assign req_8_ready = 1'b0;
+    assign req_9_ready = 1'b0;
+    assign req_10_ready = 1'b0;
+    assign req_11_ready = 1'b0;
     assign resp_0_valid = 1'b0;
     assign resp_0_data = '0;
     assign resp_1_valid = 1'b0;
@@ -103,5 +124,11 @@ module memory #(
     assign resp_7_data = '0;
     assign resp_8_valid = 1'b0;
     assign resp_8_data = '0;
-    wire _unused_ok = &{1'b0, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, in_flight, PORTS[0], LATENCY[0], LINES_PER_CYCLE[0], CHANNELS[0], 1'b0};
+    assign resp_9_valid = 1'b0;
+    assign resp_9_data = '0;
+    assign resp_10_valid = 1'b0;
+    assign resp_10_data = '0;
+    assign resp_11_valid = 1'b0;
+    assign resp_11_data = '0;
+    wire _unused_ok = &{1'b0, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, req_9_valid, req_9_data, req_10_valid, req_10_data, req_11_valid, req_11_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, resp_9_ready, resp_10_ready, resp_11_ready, in_flight, PORTS[0], LATENCY[0], LINES_PER_CYCLE[0], CHANNELS[0], 1'b0};
 endmodule

@@ -2,9 +2,11 @@
 //! requests (reads, full-line writes, partial writes with random byte masks) to a
 //! small pool of lines (more than the cache holds, few per set, so hits, merges,
 //! bank conflicts and dirty evictions all happen) into `req[k]`; one sink per
-//! client takes the answers with a seeded ready pattern; a memory stand-in
-//! (`LineMem`: fixed latency, seeded back-pressure) holds the DRAM image. A flush
-//! with invalidation is sent in the middle of the traffic and a plain one after it.
+//! client takes the answers with a seeded ready pattern; the memory stand-in is
+//! one `LineMem` (fixed latency, seeded back-pressure per lane) per memory lane
+//! (`l2.mem_lines_per_cycle`), each holding the DRAM image of its lane's lines. A
+//! flush with invalidation is sent in the middle of the traffic and a plain one
+//! after it.
 //!
 //! Scoreboard (the unit logs every access in the order it applies them):
 //! - replaying the log on a reference image, every read's answer equals the
@@ -16,6 +18,8 @@
 //! - after the final flush the DRAM image equals the reference on every line;
 //! - the memory never holds two requests for one line at once (it may reorder a
 //!   read before an older write);
+//! - every memory request went out on its line's lane (`line index mod lanes`),
+//!   and its answer came back there (each lane's stand-in answers on its lane);
 //! - counters: accesses = requests, hits + misses = accesses, fills = memory
 //!   reads, writebacks = memory writes, two flushes answered.
 
@@ -104,11 +108,15 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
     let line_addr = |i: u64| BASE + i * 64;
     // The initial image: seeded bytes on every line of the pool.
     let cap = BASE + (b.lines as u64 + 1) * 64;
-    let (mut image, mut initial) = (SparseMem::new(cap), SparseMem::new(cap));
+    let lanes = cfg.chip.l2.mem_lines_per_cycle as usize;
+    let lane_of = |addr: u64| (addr / 64 % lanes as u64) as usize;
+    // One DRAM image per memory lane, holding the lane's lines.
+    let mut images: Vec<SparseMem> = (0..lanes).map(|_| SparseMem::new(cap)).collect();
+    let mut initial = SparseMem::new(cap);
     for i in 0..b.lines as u64 {
         let mut l = [0u8; 64];
         l.iter_mut().for_each(|x| *x = rng.below(256) as u8);
-        image.write(line_addr(i), &l);
+        images[lane_of(line_addr(i))].write(line_addr(i), &l);
         initial.write(line_addr(i), &l);
     }
     let mut sim = Sim::new(opts.sim.clone());
@@ -128,8 +136,15 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
         resp_o.push(o);
         resp_ins.push(i);
     }
-    let (mqo, mqi) = sim.link::<MemLineReq>("l2.mem_req", link);
-    let (mro, mri) = sim.link::<MemLineResp>("l2.mem_resp", link);
+    let (mut mqo, mut mqi, mut mro, mut mri) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for j in 0..lanes {
+        let (o, i) = sim.link::<MemLineReq>(&format!("l2.mem_req{j}"), link);
+        mqo.push(o);
+        mqi.push(i);
+        let (o, i) = sim.link::<MemLineResp>(&format!("l2.mem_resp{j}"), link);
+        mro.push(o);
+        mri.push(i);
+    }
     let (fo, fi) = sim.link::<L2Flush>("l2.flush", link);
     let (fdo, fdi) = sim.link::<L2Flush>("l2.flush_done", link);
     for (k, (o, i)) in req_outs.into_iter().zip(resp_ins).enumerate() {
@@ -145,18 +160,24 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
     let mut unit = L2::new(&cfg.chip.l2, link.delay, req_i, resp_o, mqo, mri, fi, fdo);
     unit.enable_log();
     let dut = sim.add("tb.l2", clk, unit);
-    let mut mem = LineMem::new(
-        mqi,
-        mro,
-        image,
-        b.mem_latency,
-        link.delay,
-        opts.ready_p,
-        opts.seed ^ 0x5EED,
-        0,
-    );
-    mem.faults = b.faults.clone();
-    let memu = sim.add("tb.mem", clk, mem);
+    // One stand-in per lane (the faults go to lane 0's).
+    let mut memus = Vec::new();
+    for (j, ((q, r), image)) in mqi.into_iter().zip(mro).zip(images).enumerate() {
+        let mut mem = LineMem::new(
+            q,
+            r,
+            image,
+            b.mem_latency,
+            link.delay,
+            opts.ready_p,
+            opts.seed ^ 0x5EED ^ (j as u64) << 8,
+            0,
+        );
+        if j == 0 {
+            mem.faults = b.faults.clone();
+        }
+        memus.push(sim.add(&format!("tb.mem{j}"), clk, mem));
+    }
     sim.elaborate().map_err(|e| e.to_string())?;
     if let Some(buf) = &b.trace_buf {
         let t = Tracer::new(Box::new(buf.clone()), opts.trace.clone())?;
@@ -306,11 +327,13 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             }
         }
     }
-    // DRAM after the final flush.
-    let m = sim.unit_ref::<LineMem>(memu);
+    // DRAM after the final flush (each line from its lane's stand-in).
+    let mems: Vec<&LineMem> = memus.iter().map(|&u| sim.unit_ref::<LineMem>(u)).collect();
     for i in 0..b.lines as u64 {
         let (mut got, mut want) = ([0u8; 64], [0u8; 64]);
-        m.image.read(line_addr(i), &mut got);
+        mems[lane_of(line_addr(i))]
+            .image
+            .read(line_addr(i), &mut got);
         reference.read(line_addr(i), &mut want);
         if got != want {
             errors.push(format!(
@@ -319,31 +342,50 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             ));
         }
     }
-    // The memory side: never two requests for one line at once (answers are in
-    // acceptance order in the stand-in).
-    let mut busy_until: BTreeMap<u64, u64> = BTreeMap::new();
-    for ((ca, r), (cr, _)) in m.accepted.iter().zip(m.answered.iter()) {
-        if let Some(&t) = busy_until.get(&r.addr)
-            && *ca <= t
-        {
+    // The memory side: every request on its line's lane, never two requests for
+    // one line at once (a line has one lane, whose stand-in answers in acceptance
+    // order); the most lines accepted in one cycle over the lanes.
+    let mut per_cycle: BTreeMap<u64, u64> = BTreeMap::new();
+    for (j, m) in mems.iter().enumerate() {
+        let mut busy_until: BTreeMap<u64, u64> = BTreeMap::new();
+        for ((ca, r), (cr, _)) in m.accepted.iter().zip(m.answered.iter()) {
+            *per_cycle.entry(*ca).or_default() += 1;
+            if lane_of(r.addr) != j {
+                errors.push(format!(
+                    "line {:#x}: a memory request on lane {j}, its lane is {}",
+                    r.addr,
+                    lane_of(r.addr)
+                ));
+            }
+            if let Some(&t) = busy_until.get(&r.addr)
+                && *ca <= t
+            {
+                errors.push(format!(
+                    "line {:#x}: a memory request accepted in cycle {ca} while another was in flight until {t}",
+                    r.addr
+                ));
+            }
+            busy_until.insert(r.addr, *cr);
+        }
+        if m.accepted.len() != m.answered.len() {
             errors.push(format!(
-                "line {:#x}: a memory request accepted in cycle {ca} while another was in flight until {t}",
-                r.addr
+                "memory lane {j} accepted {} requests and answered {}",
+                m.accepted.len(),
+                m.answered.len()
             ));
         }
-        busy_until.insert(r.addr, *cr);
     }
-    if m.accepted.len() != m.answered.len() {
-        errors.push(format!(
-            "the memory accepted {} requests and answered {}",
-            m.accepted.len(),
-            m.answered.len()
-        ));
-    }
+    let mem_lines_peak = per_cycle.values().copied().max().unwrap_or(0);
     let st = sim.unit_stats(dut);
     let s = u.stats;
-    let mreads = m.accepted.iter().filter(|(_, r)| !r.write).count() as u64;
-    let mwrites = m.accepted.len() as u64 - mreads;
+    let maccepted: u64 = mems.iter().map(|m| m.accepted.len() as u64).sum();
+    let mreads = mems
+        .iter()
+        .flat_map(|m| m.accepted.iter())
+        .filter(|(_, r)| !r.write)
+        .count() as u64;
+    let mwrites = maccepted - mreads;
+    let lane0_writes = mems[0].accepted.iter().filter(|(_, r)| r.write).count() as u64;
     if s.accesses != sent || s.hits + s.misses != s.accesses {
         errors.push(format!(
             "accesses {} (sent {sent}), hits {} + misses {} must equal them",
@@ -387,6 +429,8 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             ("writebacks", s.writebacks),
             ("flushes", s.flushes),
             ("client_blocked_cycles", blocked),
+            ("mem_lines_peak", mem_lines_peak),
+            ("lane0_writes", lane0_writes),
             ("lines_checked", b.lines as u64),
         ],
     };

@@ -328,14 +328,23 @@ fn chip_top_wires_every_unit_and_lints() {
     // The memory unit as instantiated (memory.v is emitted from the same chip):
     // the scheduler, scene and L2 ports (the L2 serves the hit record updater and
     // the TMs' global-memory ports; without the L2, the hit port and one
-    // global-memory port per TM), then the scheduler's further ray and scene lanes.
+    // global-memory port per TM), then the scheduler's further ray and scene lanes,
+    // then the L2's further memory lanes.
     let memory = std::fs::read_to_string(repo().join("hdl/memory.v")).unwrap();
     let lanes =
         cfg.chip.scheduler.ray_lines_per_cycle - 1 + cfg.chip.scheduler.scene_lines_per_cycle - 1;
     let ports = lanes
         + if cfg.chip.l2.enabled {
             assert!(committed.contains("u_l2 ("), "chip.v lacks the L2");
-            3
+            let l2 = std::fs::read_to_string(repo().join("hdl/l2.v")).unwrap();
+            let l2_lanes = cfg.chip.l2.mem_lines_per_cycle;
+            assert!(l2.contains(&format!("parameter integer MEM_LANES = {l2_lanes}")));
+            assert_eq!(
+                l2.matches("input  wire mem_req_").count() as u32,
+                l2_lanes,
+                "one memory request port per L2 lane"
+            );
+            3 + l2_lanes - 1
         } else {
             3 + cfg.chip.tms
         };

@@ -198,6 +198,13 @@ pub struct L2Cfg {
     pub writebacks: u32,
     /// Requests per client accepted and not yet answered. Assumption: 64.
     pub port_queue: u32,
+    /// Lines per cycle between the L2 and the memory (fills and writebacks, the
+    /// end-of-run flush too): one memory port (lane) each, a line always on lane
+    /// `line index mod lanes` (docs/chip.md "L2"). 4 (256 GB/s at 1 GHz): half
+    /// the 8 lines per cycle of the paper's 512 GB/s GDDR5 (§5.1), the other half
+    /// left to the two streams; one lane (64 GB/s) bounded the shading pass and
+    /// made every end-of-run flush write back one line per cycle. 1 to 16.
+    pub mem_lines_per_cycle: u32,
 }
 
 impl Default for L2Cfg {
@@ -213,6 +220,7 @@ impl Default for L2Cfg {
             targets: 8,
             writebacks: 16,
             port_queue: 64,
+            mem_lines_per_cycle: 4,
         }
     }
 }
@@ -251,6 +259,12 @@ impl L2Cfg {
             if v == 0 {
                 return Err(format!("chip.l2.{name} = 0: give at least 1"));
             }
+        }
+        if self.mem_lines_per_cycle == 0 || self.mem_lines_per_cycle > MAX_STREAM_LANES {
+            return Err(format!(
+                "chip.l2.mem_lines_per_cycle = {}: give 1 to {MAX_STREAM_LANES} lines per cycle (one memory port each; 8 lines per cycle is already the 512 GB/s GDDR5 peak)",
+                self.mem_lines_per_cycle
+            ));
         }
         Ok(())
     }

@@ -14,6 +14,8 @@
 //!   record updater and, from port 3 on, TM k's `gmem_req`/`gmem_resp`; then the
 //!   scheduler's further ray lanes `mem_req[j]` and scene lanes `scene_req[j]`,
 //!   j >= 1 (`chip.scheduler.ray_lines_per_cycle`, `scene_lines_per_cycle`);
+//!   then the L2's further memory lanes `mem_req[j]`/`mem_resp[j]`, j >= 1
+//!   (`chip.l2.mem_lines_per_cycle`, with the L2 only);
 //! - L2 (`units/l2.rs`) clients: `req[0]` hit record updater, `req[1 + k]` TM k's
 //!   global-memory port (the shading pass); host `flush` -> L2 -> `flush_done`
 //!   (every run ends with a flush, docs/chip.md "L2");
@@ -401,7 +403,20 @@ impl Chip {
         // The L2 between its clients and memory port 2.
         let mut l2_unit = None;
         let mut host_unit = Host::new(emit_o, start_o);
+        let (mut l2_lane_req_i, mut l2_lane_resp_o) = (Vec::new(), Vec::new());
         let (hru_req, hru_resp) = if with_l2 {
+            // The L2's memory lanes: lane 0 is port 2, the further ones are
+            // appended after the scheduler's lanes.
+            let mut l2_mreq = vec![mreq_o[PORT_L2].take().expect("port")];
+            let mut l2_mresp = vec![mresp_i[PORT_L2].take().expect("port")];
+            for j in 1..ch.l2.mem_lines_per_cycle {
+                let (a, b) = sim.link::<MemLineReq>(&format!("chip.mem_req_l2_lane{j}"), l);
+                l2_mreq.push(a);
+                l2_lane_req_i.push(b);
+                let (a, b) = sim.link::<MemLineResp>(&format!("chip.mem_resp_l2_lane{j}"), l);
+                l2_lane_resp_o.push(a);
+                l2_mresp.push(b);
+            }
             let (ho, hi) = sim.link::<MemLineReq>("chip.l2_req0_hits", l);
             let (hro, hri) = sim.link::<MemLineResp>("chip.l2_resp0_hits", l);
             let (fo, fi) = sim.link::<L2Flush>("chip.l2_flush", l);
@@ -412,14 +427,7 @@ impl Chip {
             let mut resps = vec![hro];
             resps.append(&mut gmem_o);
             l2_unit = Some(L2::new(
-                &ch.l2,
-                l.delay,
-                reqs,
-                resps,
-                mreq_o[PORT_L2].take().expect("port"),
-                mresp_i[PORT_L2].take().expect("port"),
-                fi,
-                fdo,
+                &ch.l2, l.delay, reqs, resps, l2_mreq, l2_mresp, fi, fdo,
             ));
             (ho, hri)
         } else {
@@ -464,6 +472,8 @@ impl Chip {
         mresp_o.extend(gmem_o);
         mreq_i.extend(lane_req_i);
         mresp_o.extend(lane_resp_o);
+        mreq_i.extend(l2_lane_req_i);
+        mresp_o.extend(l2_lane_resp_o);
         let mut memory_unit = Memory::new(
             &ch.memory,
             l.delay,

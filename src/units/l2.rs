@@ -23,16 +23,24 @@
 //! - Answers (writes too) leave `hit_latency` cycles after acceptance (or after
 //!   the fill), response link included, in order per client. A client has at most
 //!   `port_queue` requests accepted and not answered (then it waits).
-//! - Memory side: one request per cycle on `mem_req` (fills: tag of the first
-//!   target; writebacks: tag of the line's last write). At most one request per
-//!   line is at the memory at once, and requests for one line leave in order: the
-//!   memory unit may reorder a read before an older write to the same line, so a
-//!   fill waits for an earlier writeback of its line to be answered. The
+//! - Memory side: `mem_lines_per_cycle` lanes `mem_req[j]`/`mem_resp[j]`, one
+//!   request per lane per cycle (fills: tag of the first target; writebacks: tag
+//!   of the line's last write); line `i` always uses lane `i mod lanes` and its
+//!   answer comes back on that lane. Each lane issues the oldest queued request of
+//!   its lines that may go. At most one request per line is at the memory at
+//!   once, and requests for one line leave in order: the memory unit may reorder
+//!   a read before an older write to the same line, so a fill waits for an
+//!   earlier writeback of its line to be answered. Returning fills are taken in
+//!   lane order, one per bank per cycle (a fill whose bank another lane's fill
+//!   took waits in its link a cycle; with lanes dividing banks this never
+//!   happens, a line's bank fixing its lane). The
 //!   writeback buffer holds `writebacks` entries plus one reserved per MSHR, so a
 //!   returning fill can always evict its victim (fills never block, and the
 //!   memory side never waits for the clients).
 //! - Flush: `flush` (`L2Flush { invalidate }`) stops accepting client requests,
-//!   writes back every dirty line (one per cycle, lowest slot first), waits for
+//!   writes back every dirty line (up to one per lane per cycle, on distinct
+//!   banks and lanes: the lowest dirty slots that qualify, looking at most at
+//!   `2 x ways x lanes` of them per cycle), waits for
 //!   every MSHR and memory request to finish, invalidates every line if asked,
 //!   then answers on `flush_done`. The chip flushes after every run so the host
 //!   reads DRAM; it invalidates when the host may write DRAM between runs.
@@ -188,12 +196,13 @@ crate::unit! {
             mshr_count: u32 => "MSHRS",
             targets: u32 => "TARGETS",
             writebacks: u32 => "WRITEBACKS",
-            port_queue: u32 => "PORT_QUEUE"
+            port_queue: u32 => "PORT_QUEUE",
+            mem_lanes: u32 => "MEM_LANES"
         }
-        inputs { mem_resp: MemLineResp, flush: L2Flush }
-        outputs { mem_req: MemLineReq, flush_done: L2Flush }
-        in_arrays { req: MemLineReq }
-        out_arrays { resp: MemLineResp }
+        inputs { flush: L2Flush }
+        outputs { flush_done: L2Flush }
+        in_arrays { req: MemLineReq, mem_resp: MemLineResp }
+        out_arrays { resp: MemLineResp, mem_req: MemLineReq }
         state { st: Model<L2State> }
         extra { out_delay: u32, stats: L2Stats, log: Option<Vec<L2Applied>> }
     }
@@ -213,20 +222,27 @@ fn merge(line: &mut Line, r: &MemLineReq) {
 }
 
 impl L2 {
-    /// `req[k]`/`resp[k]`: client k; `mem_req`/`mem_resp`: the memory unit;
-    /// `out_delay`: the response links' delay (part of `hit_latency`).
+    /// `req[k]`/`resp[k]`: client k; `mem_req[j]`/`mem_resp[j]`: memory lane j
+    /// (`cfg.mem_lines_per_cycle` of them); `out_delay`: the response links' delay
+    /// (part of `hit_latency`).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         cfg: &L2Cfg,
         out_delay: u32,
         req: Vec<In<MemLineReq>>,
         resp: Vec<Out<MemLineResp>>,
-        mem_req: Out<MemLineReq>,
-        mem_resp: In<MemLineResp>,
+        mem_req: Vec<Out<MemLineReq>>,
+        mem_resp: Vec<In<MemLineResp>>,
         flush: In<L2Flush>,
         flush_done: Out<L2Flush>,
     ) -> Self {
         assert_eq!(req.len(), resp.len(), "one response port per client");
+        assert_eq!(
+            mem_req.len(),
+            cfg.mem_lines_per_cycle as usize,
+            "one memory request port per lane (chip.l2.mem_lines_per_cycle)"
+        );
+        assert_eq!(mem_req.len(), mem_resp.len(), "one answer port per lane");
         let lines = (cfg.bytes / cfg.line_bytes) as usize;
         let n = req.len();
         L2 {
@@ -239,6 +255,7 @@ impl L2 {
             targets: cfg.targets,
             writebacks: cfg.writebacks,
             port_queue: cfg.port_queue,
+            mem_lanes: cfg.mem_lines_per_cycle,
             mem_resp,
             flush,
             mem_req,
@@ -273,6 +290,10 @@ impl L2 {
     }
     fn line_index(&self, addr: u64) -> u64 {
         addr / self.line_bytes as u64
+    }
+    /// The memory lane of a line (a function of its address only).
+    fn lane_of(&self, addr: u64) -> usize {
+        (self.line_index(addr) % self.mem_lanes as u64) as usize
     }
     fn bank_of(&self, addr: u64) -> usize {
         (self.line_index(addr) % self.banks as u64) as usize
@@ -438,18 +459,24 @@ impl L2 {
         true
     }
 
-    /// The first request in `out_q` whose line has nothing at the memory and no
-    /// older request queued.
-    fn issuable(&self) -> Option<usize> {
+    /// The first request in `out_q` for lane `lane` whose line has nothing at
+    /// the memory and no older request queued.
+    fn issuable(&self, lane: usize) -> Option<usize> {
         let st = self.st.r();
         let mut seen = BTreeSet::new();
         for (i, r) in st.out_q.iter().enumerate() {
+            if self.lane_of(r.addr) != lane {
+                continue;
+            }
             if !st.mem_busy.contains(&r.addr) && !seen.contains(&r.addr) {
                 return Some(i);
             }
             seen.insert(r.addr);
         }
         None
+    }
+    fn any_issuable(&self) -> bool {
+        (0..self.mem_lanes as usize).any(|j| self.issuable(j).is_some())
     }
 }
 
@@ -461,11 +488,22 @@ impl Logic for L2 {
         let mut waiting = false;
         let mut blocked = false;
         let mut bank_busy = vec![false; self.banks as usize];
-        // 1. The memory's answer: a fill (takes its bank) or a writeback's ack.
-        if let Some(f) = ctx.pop(&self.mem_resp) {
+        // 1. The memory's answers, one per lane in lane order: a fill (takes its
+        // bank, or waits a cycle if another lane's fill took it) or a writeback's
+        // ack.
+        for j in 0..self.mem_resp.len() {
+            let Some(f) = ctx.peek(&self.mem_resp[j]) else {
+                continue;
+            };
+            let (write, b) = (f.write, self.bank_of(f.addr));
+            if !write && bank_busy[b] {
+                waiting = true;
+                continue;
+            }
+            let f = ctx.pop(&self.mem_resp[j]).expect("peeked");
             self.st.m().mem_busy.remove(&f.addr);
-            if !f.write {
-                bank_busy[self.bank_of(f.addr)] = true;
+            if !write {
+                bank_busy[b] = true;
                 self.fill(f, c);
             }
             worked = true;
@@ -501,12 +539,32 @@ impl Logic for L2 {
             worked = true;
         }
         if let Some(inv) = self.st.r().flushing {
-            // 4f. Write back the lowest dirty line, then finish.
-            let first = self.st.r().dirty.iter().next().copied();
-            if let Some(slot) = first {
+            // 4f. Write back up to one dirty line per lane (the lowest slots on
+            // free banks and distinct lanes, from a window of the lowest
+            // `2 x ways x lanes`), then finish.
+            let lanes = self.mem_lanes as usize;
+            let window = 2 * self.ways as usize * lanes;
+            let mut lane_used = vec![false; lanes];
+            let mut picked = Vec::new();
+            for &slot in self.st.r().dirty.iter().take(window) {
+                if picked.len() == lanes
+                    || self.st.r().wb_queued as usize + picked.len() >= self.writebacks as usize
+                {
+                    break;
+                }
                 let b = self.slot_bank(slot);
-                if self.st.r().wb_queued < self.writebacks && !bank_busy[b] {
+                let lane = self.lane_of(self.st.r().tags[slot as usize].tag - 1);
+                if !bank_busy[b] && !lane_used[lane] {
                     bank_busy[b] = true;
+                    lane_used[lane] = true;
+                    picked.push(slot);
+                }
+            }
+            if !self.st.r().dirty.is_empty() {
+                if picked.is_empty() {
+                    waiting = true;
+                }
+                for slot in picked {
                     let st = self.st.m();
                     let t = &mut st.tags[slot as usize];
                     t.dirty = false;
@@ -523,8 +581,6 @@ impl Logic for L2 {
                     st.dirty.remove(&slot);
                     self.stats.writebacks += 1;
                     worked = true;
-                } else {
-                    waiting = true;
                 }
             } else {
                 let s = self.st.r();
@@ -580,16 +636,17 @@ impl Logic for L2 {
         } else if self.req.iter().any(|q| ctx.peek(q).is_some()) {
             waiting = true;
         }
-        // 5. One request to the memory.
-        if let Some(i) = self.issuable() {
-            if ctx.can_push(&self.mem_req) {
+        // 5. One request to the memory per lane.
+        for j in 0..self.mem_req.len() {
+            let Some(i) = self.issuable(j) else { continue };
+            if ctx.can_push(&self.mem_req[j]) {
                 let st = self.st.m();
                 let r = st.out_q.remove(i).expect("issuable");
                 if r.write {
                     st.wb_queued -= 1;
                 }
                 st.mem_busy.insert(r.addr);
-                ctx.push(&self.mem_req, r);
+                ctx.push(&self.mem_req[j], r);
                 worked = true;
             } else {
                 blocked = true;
@@ -604,7 +661,7 @@ impl Logic for L2 {
         } else {
             Status::WaitInput
         });
-        if worked || waiting || blocked || self.issuable().is_some() {
+        if worked || waiting || blocked || self.any_issuable() {
             Next::Cycle
         } else if let Some(d) = next_due {
             Next::AtCycle(d.max(c + 1))
