@@ -462,18 +462,17 @@ impl L2 {
     /// The first request in `out_q` for lane `lane` whose line has nothing at
     /// the memory and no older request queued.
     fn issuable(&self, lane: usize) -> Option<usize> {
+        // No set of seen lines: a line has one lane, so "no older request for the
+        // line" is a scan of the entries ahead (the queue is short; this runs
+        // every cycle per lane).
         let st = self.st.r();
-        let mut seen = BTreeSet::new();
-        for (i, r) in st.out_q.iter().enumerate() {
-            if self.lane_of(r.addr) != lane {
-                continue;
-            }
-            if !st.mem_busy.contains(&r.addr) && !seen.contains(&r.addr) {
-                return Some(i);
-            }
-            seen.insert(r.addr);
-        }
-        None
+        let q = &st.out_q;
+        (0..q.len()).find(|&i| {
+            let a = q[i].addr;
+            self.lane_of(a) == lane
+                && !st.mem_busy.contains(&a)
+                && !q.iter().take(i).any(|o| o.addr == a)
+        })
     }
     fn any_issuable(&self) -> bool {
         (0..self.mem_lanes as usize).any(|j| self.issuable(j).is_some())
