@@ -205,6 +205,11 @@ pub struct L2Cfg {
     /// left to the two streams; one lane (64 GB/s) bounded the shading pass and
     /// made every end-of-run flush write back one line per cycle. 1 to 16.
     pub mem_lines_per_cycle: u32,
+    /// Bank index = XOR of the line index's bank-wide bit fields (true) or the
+    /// line index modulo the banks (false). Assumption: hashed, as banked GPU L2s
+    /// do, so strided line sequences spread over the banks (cornell 128x128 on
+    /// 128 x 16 with GDDR5: 476,011 cycles with modulo, 467,173 hashed).
+    pub bank_hash: bool,
 }
 
 impl Default for L2Cfg {
@@ -221,6 +226,7 @@ impl Default for L2Cfg {
             writebacks: 16,
             port_queue: 64,
             mem_lines_per_cycle: 4,
+            bank_hash: true,
         }
     }
 }

@@ -197,7 +197,8 @@ crate::unit! {
             targets: u32 => "TARGETS",
             writebacks: u32 => "WRITEBACKS",
             port_queue: u32 => "PORT_QUEUE",
-            mem_lanes: u32 => "MEM_LANES"
+            mem_lanes: u32 => "MEM_LANES",
+            bank_hash: u32 => "BANK_HASH"
         }
         inputs { flush: L2Flush }
         outputs { flush_done: L2Flush }
@@ -256,6 +257,7 @@ impl L2 {
             writebacks: cfg.writebacks,
             port_queue: cfg.port_queue,
             mem_lanes: cfg.mem_lines_per_cycle,
+            bank_hash: cfg.bank_hash as u32,
             mem_resp,
             flush,
             mem_req,
@@ -295,11 +297,31 @@ impl L2 {
     fn lane_of(&self, addr: u64) -> usize {
         (self.line_index(addr) % self.mem_lanes as u64) as usize
     }
+    /// The bank of a line: its index modulo the banks, or (`chip.l2.bank_hash`)
+    /// the XOR of all its bank-index-wide bit fields, so strided accesses (TM k
+    /// reading pixel 16 k + i) spread over the banks instead of piling onto two.
     fn bank_of(&self, addr: u64) -> usize {
-        (self.line_index(addr) % self.banks as u64) as usize
+        let line = self.line_index(addr);
+        let b = self.banks as u64;
+        if self.bank_hash == 0 || b == 1 {
+            return (line % b) as usize;
+        }
+        let bits = 64 - (b - 1).leading_zeros();
+        let (mut h, mut x) = (0u64, line);
+        while x != 0 {
+            h ^= x & ((1u64 << bits) - 1);
+            x >>= bits;
+        }
+        (h % b) as usize
     }
+    /// The set of a line: its bank's sets are `bank`, `bank + banks`, ... (so a
+    /// slot's bank is its set mod banks), the one picked by the line index above
+    /// the bank. Without the hash this is the line index modulo the sets.
     fn set_of(&self, addr: u64) -> usize {
-        (self.line_index(addr) % self.sets()) as usize
+        let b = self.banks as u64;
+        let per_bank = self.sets() / b;
+        let line = self.line_index(addr);
+        (((line / b) % per_bank) * b + self.bank_of(addr) as u64) as usize
     }
     fn slot_bank(&self, slot: u32) -> usize {
         (slot as usize / self.ways as usize) % self.banks as usize
