@@ -516,7 +516,7 @@ module chip (
         .mem_resp_ready(l2_resp0_hits_ready),
         .mem_resp_data(l2_resp0_hits_data)
     );
-    l2 #(.BYTES(524288), .BANKS(32), .WAYS(8), .LINE_BYTES(64), .HIT_LATENCY(10), .MSHRS(64), .TARGETS(8), .WRITEBACKS(16), .PORT_QUEUE(64), .MEM_LANES(4), .BANK_HASH(1)) u_l2 (
+    l2 #(.BYTES(524288), .BANKS(32), .WAYS(8), .LINE_BYTES(64), .HIT_LATENCY(10), .MSHRS(64), .TARGETS(8), .WRITEBACKS(16), .PORT_QUEUE(64), .MEM_LANES(4), .BANK_HASH(1), .COMBINE_READS(1)) u_l2 (
         .clk(clk),
         .rst(rst),
         .mem_req_0_valid(mem_req2_l2_valid),

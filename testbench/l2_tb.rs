@@ -428,6 +428,7 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             ("fills", s.fills),
             ("writebacks", s.writebacks),
             ("flushes", s.flushes),
+            ("combined", s.combined),
             ("client_blocked_cycles", blocked),
             ("mem_lines_peak", mem_lines_peak),
             ("lane0_writes", lane0_writes),

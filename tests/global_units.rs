@@ -473,3 +473,31 @@ fn l2_sleep_shadow_shuffle_invariance() {
         }
     }
 }
+
+/// Reads of one line by several clients in one cycle take one bank slot with
+/// `chip.l2.combine_reads` (and the scoreboard still holds); without it, none is
+/// combined.
+#[test]
+fn l2_combines_same_line_reads_in_a_bank() {
+    for combine in [true, false] {
+        let mut b = L2TbCfg {
+            clients: 8,
+            lines: 4,
+            ..L2TbCfg::default()
+        };
+        b.l2.combine_reads = combine;
+        let o = TbOptions {
+            load: 1.0,
+            ready_p: 1.0,
+            ..opts(5)
+        };
+        let r = l2tb::run_with(&o, &b).unwrap();
+        assert!(r.passed(), "{r}");
+        let n = counter(&r, "combined");
+        assert_eq!(
+            n > 0,
+            combine,
+            "combined {n} with combine_reads = {combine}: {r}"
+        );
+    }
+}

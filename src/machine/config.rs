@@ -210,6 +210,12 @@ pub struct L2Cfg {
     /// do, so strided line sequences spread over the banks (cornell 128x128 on
     /// 128 x 16 with GDDR5: 476,011 cycles with modulo, 467,173 hashed).
     pub bank_hash: bool,
+    /// A bank serving a read of a line serves other clients' reads of the same
+    /// line in that cycle too (one array read, the data multicast). Assumption:
+    /// on; shading's clients read the same triangles and materials, and about
+    /// two thirds of the bank conflicts were such same-line reads (cornell
+    /// 128x128).
+    pub combine_reads: bool,
 }
 
 impl Default for L2Cfg {
@@ -227,6 +233,7 @@ impl Default for L2Cfg {
             port_queue: 64,
             mem_lines_per_cycle: 4,
             bank_hash: true,
+            combine_reads: true,
         }
     }
 }

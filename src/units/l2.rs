@@ -182,6 +182,8 @@ pub struct L2Stats {
     pub fills: u64,
     pub writebacks: u64,
     pub flushes: u64,
+    /// Reads served by a bank already reading the same line that cycle.
+    pub combined: u64,
 }
 
 crate::unit! {
@@ -198,7 +200,8 @@ crate::unit! {
             writebacks: u32 => "WRITEBACKS",
             port_queue: u32 => "PORT_QUEUE",
             mem_lanes: u32 => "MEM_LANES",
-            bank_hash: u32 => "BANK_HASH"
+            bank_hash: u32 => "BANK_HASH",
+            combine_reads: u32 => "COMBINE_READS"
         }
         inputs { flush: L2Flush }
         outputs { flush_done: L2Flush }
@@ -258,6 +261,7 @@ impl L2 {
             port_queue: cfg.port_queue,
             mem_lanes: cfg.mem_lines_per_cycle,
             bank_hash: cfg.bank_hash as u32,
+            combine_reads: cfg.combine_reads as u32,
             mem_resp,
             flush,
             mem_req,
@@ -626,6 +630,17 @@ impl Logic for L2 {
         }
         // 4. Client requests, one per bank, round-robin from client `c mod n`
         // (none while flushing).
+        // A bank that served only reads of one line this cycle serves further reads
+        // of that line too (`chip.l2.combine_reads`: one array read, its data
+        // multicast through the crossbar).
+        let mut bank_read = vec![
+            u64::MAX;
+            if self.combine_reads != 0 {
+                bank_busy.len()
+            } else {
+                0
+            }
+        ];
         if self.st.r().flushing.is_none() {
             let start = (c % n.max(1) as u64) as usize;
             for j in 0..n {
@@ -634,7 +649,8 @@ impl Logic for L2 {
                     continue;
                 };
                 let b = self.bank_of(r.addr);
-                if bank_busy[b] {
+                let combined = !r.write && bank_read.get(b) == Some(&r.addr);
+                if bank_busy[b] && !combined {
                     self.stats.bank_conflicts += 1;
                     waiting = true;
                     continue;
@@ -645,6 +661,14 @@ impl Logic for L2 {
                 }
                 if self.access(p, &r, c) {
                     ctx.pop(&self.req[p]);
+                    if !bank_busy[b] && !r.write && !bank_read.is_empty() {
+                        bank_read[b] = r.addr;
+                    } else if r.write && !bank_read.is_empty() {
+                        bank_read[b] = u64::MAX;
+                    }
+                    if combined {
+                        self.stats.combined += 1;
+                    }
                     bank_busy[b] = true;
                     worked = true;
                     if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
@@ -704,6 +728,7 @@ impl Logic for L2 {
             ("fills", s.fills),
             ("writebacks", s.writebacks),
             ("flushes", s.flushes),
+            ("combined", s.combined),
         ]
     }
 
