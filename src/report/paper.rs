@@ -165,7 +165,7 @@ pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
             "compute energy (J)",
             e.map(|e| e.compute_j),
             row.compute_j,
-            partial,
+            "box and triangle tests, divider, TP arithmetic",
         ),
         (
             "average bandwidth (GB/s)",
