@@ -418,22 +418,16 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
         vcd_changes: 0,
         vcd_bytes: 0,
         status_cycles: st.status_cycles,
-        counters: vec![
-            ("accesses", s.accesses),
-            ("hits", s.hits),
-            ("misses", s.misses),
-            ("merges", s.merges),
-            ("bank_conflicts", s.bank_conflicts),
-            ("mshr_stalls", s.mshr_stalls),
-            ("fills", s.fills),
-            ("writebacks", s.writebacks),
-            ("flushes", s.flushes),
-            ("combined", s.combined),
-            ("client_blocked_cycles", blocked),
-            ("mem_lines_peak", mem_lines_peak),
-            ("lane0_writes", lane0_writes),
-            ("lines_checked", b.lines as u64),
-        ],
+        // The unit's own counters, then the bench's.
+        counters: crate::rtl::Logic::counters(u)
+            .into_iter()
+            .chain([
+                ("client_blocked_cycles", blocked),
+                ("mem_lines_peak", mem_lines_peak),
+                ("lane0_writes", lane0_writes),
+                ("lines_checked", b.lines as u64),
+            ])
+            .collect(),
     };
     if let Some(r) = sim.finish_trace() {
         let s = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
