@@ -437,7 +437,15 @@ fn the_l2_serves_hit_records_and_shading_and_saves_dram_lines() {
         assert!(w.l2.accesses > 0 && w.l2.hits > 0, "run {k}: {:?}", w.l2);
         assert_eq!(w.l2.hits + w.l2.misses, w.l2.accesses, "run {k}");
         assert!(w.l2.flush_cycles > 0 && w.l2.flush_cycles < w.cycles);
+        // Combined reads are accesses without an array read of their own.
+        assert!(w.l2.combined <= w.l2.hits + w.l2.misses, "run {k}");
+        assert_eq!(
+            w.l2.array_accesses(),
+            w.l2.accesses - w.l2.combined + w.l2.fills + w.l2.writebacks
+        );
     }
+    // Shading's clients read the same triangles and materials in the same cycle.
+    assert!(on.waves.iter().map(|w| w.l2.combined).sum::<u64>() > 0);
     assert!(off.waves.iter().all(|w| w.l2.accesses == 0));
     for t in [StreamTag::Hit, StreamTag::Shading] {
         let (a, b) = (lines(&on, t), lines(&off, t));

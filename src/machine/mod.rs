@@ -213,6 +213,9 @@ pub struct L2Wave {
     pub writebacks: u64,
     /// Cycles of the end-of-run flush (part of the run's cycles).
     pub flush_cycles: u64,
+    /// Reads served by a bank already reading their line (`chip.l2.combine_reads`):
+    /// accesses, but no array read of their own.
+    pub combined: u64,
 }
 
 impl L2Wave {
@@ -223,9 +226,10 @@ impl L2Wave {
             self.hits as f64 / self.accesses as f64
         }
     }
-    /// Data-array accesses (client accesses, fills, writebacks), for the energy.
+    /// Data-array accesses (client accesses but combined reads, fills,
+    /// writebacks), for the energy.
     pub fn array_accesses(&self) -> u64 {
-        self.accesses + self.fills + self.writebacks
+        self.accesses - self.combined + self.fills + self.writebacks
     }
     fn sub(&self, b: &L2Wave) -> L2Wave {
         L2Wave {
@@ -237,6 +241,7 @@ impl L2Wave {
             fills: self.fills - b.fills,
             writebacks: self.writebacks - b.writebacks,
             flush_cycles: self.flush_cycles - b.flush_cycles,
+            combined: self.combined - b.combined,
         }
     }
     pub fn add(&mut self, o: &L2Wave) {
@@ -248,6 +253,7 @@ impl L2Wave {
         self.fills += o.fills;
         self.writebacks += o.writebacks;
         self.flush_cycles += o.flush_cycles;
+        self.combined += o.combined;
     }
 }
 
@@ -664,6 +670,7 @@ impl Chip {
                     fills: st.fills,
                     writebacks: st.writebacks,
                     flush_cycles: self.flush_cycles,
+                    combined: st.combined,
                 }
             }),
             tm_rays_max: 0,

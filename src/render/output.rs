@@ -178,8 +178,9 @@ pub fn summary(f: &Frame) -> String {
             );
             if w.l2.accesses > 0 {
                 s += &format!(
-                    "      L2: {:>8} accesses  hits {:>5.1}%  {} misses ({} merged)  {} bank-conflict stalls  {} fills  {} writebacks  flush {} cycles\n",
+                    "      L2: {:>8} accesses ({} combined)  hits {:>5.1}%  {} misses ({} merged)  {} bank-conflict stalls  {} fills  {} writebacks  flush {} cycles\n",
                     w.l2.accesses,
+                    w.l2.combined,
                     100.0 * w.l2.hit_rate(),
                     w.l2.misses,
                     w.l2.merges,
