@@ -208,9 +208,14 @@ crate::unit! {
         in_arrays { req: MemLineReq, mem_resp: MemLineResp }
         out_arrays { resp: MemLineResp, mem_req: MemLineReq }
         state { st: Model<L2State> }
-        extra { out_delay: u32, stats: L2Stats, log: Option<Vec<L2Applied>> }
+        extra { out_delay: u32, stats: L2Stats, log: Option<Vec<L2Applied>>, bank_use: Vec<u64> }
     }
 }
+
+/// A bank not used this cycle, and one used by anything but a read (neither is a
+/// line address: those are multiples of the line size).
+const FREE: u64 = u64::MAX;
+const BUSY: u64 = u64::MAX - 1;
 
 /// Applies the masked bytes of a write to a line.
 fn merge(line: &mut Line, r: &MemLineReq) {
@@ -279,6 +284,7 @@ impl L2 {
             out_delay,
             stats: L2Stats::default(),
             log: None,
+            bank_use: Vec::new(),
         }
     }
 
@@ -512,7 +518,12 @@ impl Logic for L2 {
         let mut worked = false;
         let mut waiting = false;
         let mut blocked = false;
-        let mut bank_busy = vec![false; self.banks as usize];
+        // This cycle's use of each bank: FREE, BUSY, or the line a read took it
+        // for (reads of that line may join, `chip.l2.combine_reads`). Reused, so
+        // the per-cycle path does not allocate.
+        let mut bank = std::mem::take(&mut self.bank_use);
+        bank.clear();
+        bank.resize(self.banks as usize, FREE);
         // 1. The memory's answers, one per lane in lane order: a fill (takes its
         // bank, or waits a cycle if another lane's fill took it) or a writeback's
         // ack.
@@ -521,14 +532,14 @@ impl Logic for L2 {
                 continue;
             };
             let (write, b) = (f.write, self.bank_of(f.addr));
-            if !write && bank_busy[b] {
+            if !write && (bank[b] != FREE) {
                 waiting = true;
                 continue;
             }
             let f = ctx.pop(&self.mem_resp[j]).expect("peeked");
             self.st.m().mem_busy.remove(&f.addr);
             if !write {
-                bank_busy[b] = true;
+                bank[b] = BUSY;
                 self.fill(f, c);
             }
             worked = true;
@@ -579,8 +590,8 @@ impl Logic for L2 {
                 }
                 let b = self.slot_bank(slot);
                 let lane = self.lane_of(self.st.r().tags[slot as usize].tag - 1);
-                if !bank_busy[b] && !lane_used[lane] {
-                    bank_busy[b] = true;
+                if bank[b] == FREE && !lane_used[lane] {
+                    bank[b] = BUSY;
                     lane_used[lane] = true;
                     picked.push(slot);
                 }
@@ -630,17 +641,6 @@ impl Logic for L2 {
         }
         // 4. Client requests, one per bank, round-robin from client `c mod n`
         // (none while flushing).
-        // A bank that served only reads of one line this cycle serves further reads
-        // of that line too (`chip.l2.combine_reads`: one array read, its data
-        // multicast through the crossbar).
-        let mut bank_read = vec![
-            u64::MAX;
-            if self.combine_reads != 0 {
-                bank_busy.len()
-            } else {
-                0
-            }
-        ];
         if self.st.r().flushing.is_none() {
             let start = (c % n.max(1) as u64) as usize;
             for j in 0..n {
@@ -649,8 +649,8 @@ impl Logic for L2 {
                     continue;
                 };
                 let b = self.bank_of(r.addr);
-                let combined = !r.write && bank_read.get(b) == Some(&r.addr);
-                if bank_busy[b] && !combined {
+                let combined = !r.write && self.combine_reads != 0 && bank[b] == r.addr;
+                if bank[b] != FREE && !combined {
                     self.stats.bank_conflicts += 1;
                     waiting = true;
                     continue;
@@ -661,15 +661,10 @@ impl Logic for L2 {
                 }
                 if self.access(p, &r, c) {
                     ctx.pop(&self.req[p]);
-                    if !bank_busy[b] && !r.write && !bank_read.is_empty() {
-                        bank_read[b] = r.addr;
-                    } else if r.write && !bank_read.is_empty() {
-                        bank_read[b] = u64::MAX;
-                    }
                     if combined {
                         self.stats.combined += 1;
                     }
-                    bank_busy[b] = true;
+                    bank[b] = if r.write { BUSY } else { r.addr };
                     worked = true;
                     if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
                         next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
@@ -697,6 +692,7 @@ impl Logic for L2 {
                 blocked = true;
             }
         }
+        self.bank_use = bank;
         ctx.set_status(if blocked {
             Status::OutputBlocked
         } else if waiting {
