@@ -253,32 +253,7 @@ fn verilog_passes_verilator_iverilog_and_yosys() {
         .collect();
     assert!(files.len() >= 3);
     for f in &files {
-        if have("verilator") {
-            let o = Command::new("verilator")
-                .args(["--lint-only", "-Wall", "-y"])
-                .arg(repo().join("hdl"))
-                .arg(f)
-                .output()
-                .unwrap();
-            assert!(
-                o.status.success(),
-                "verilator: {}",
-                String::from_utf8_lossy(&o.stderr)
-            );
-        }
-        if have("iverilog") {
-            let o = Command::new("iverilog")
-                .args(["-g2012", "-o", "/dev/null", "-y"])
-                .arg(repo().join("hdl"))
-                .arg(f)
-                .output()
-                .unwrap();
-            assert!(
-                o.status.success(),
-                "iverilog: {}",
-                String::from_utf8_lossy(&o.stderr)
-            );
-        }
+        lint_with_library(&repo().join("hdl"), f, "");
         if have("yosys") {
             // A structural module (tm.v) reads its parts from the other files.
             let all: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
@@ -381,32 +356,7 @@ fn chip_top_wires_every_unit_and_lints() {
         } else {
             assert!(!text.contains("mem_ctrl"));
         }
-        if have("verilator") {
-            let o = Command::new("verilator")
-                .args(["--lint-only", "-Wall", "-y"])
-                .arg(&dir)
-                .arg(&top)
-                .output()
-                .unwrap();
-            assert!(
-                o.status.success(),
-                "verilator ({name}): {}",
-                String::from_utf8_lossy(&o.stderr)
-            );
-        }
-        if have("iverilog") {
-            let o = Command::new("iverilog")
-                .args(["-g2012", "-o", "/dev/null", "-y"])
-                .arg(&dir)
-                .arg(&top)
-                .output()
-                .unwrap();
-            assert!(
-                o.status.success(),
-                "iverilog ({name}): {}",
-                String::from_utf8_lossy(&o.stderr)
-            );
-        }
+        lint_with_library(&dir, &top, &format!(" ({name})"));
         // yosys reads every module (seconds): once, on the top with every loop.
         if name == "gddr5" && have("yosys") {
             // Every instance's ports exist and match; the top has one driver per
@@ -435,5 +385,36 @@ fn chip_top_wires_every_unit_and_lints() {
             );
         }
         assert!(!text.contains("lint_off"), "no lint pragmas");
+    }
+}
+
+/// Verilator (`-Wall`) and Icarus lint `file`, finding the modules it instantiates
+/// in `lib` (each skipped when the tool is missing; `have` requires it under CI).
+fn lint_with_library(lib: &std::path::Path, file: &std::path::Path, what: &str) {
+    if have("verilator") {
+        let o = Command::new("verilator")
+            .args(["--lint-only", "-Wall", "-y"])
+            .arg(lib)
+            .arg(file)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "verilator{what}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    if have("iverilog") {
+        let o = Command::new("iverilog")
+            .args(["-g2012", "-o", "/dev/null", "-y"])
+            .arg(lib)
+            .arg(file)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "iverilog{what}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
     }
 }
