@@ -19,6 +19,11 @@ struct Cli {
     /// Configuration file (TOML); missing keys take the paper's values.
     #[arg(long, global = true)]
     config: Option<PathBuf>,
+    /// Simulator threads in cycle mode: 1, or 2 (each evaluates half of the TMs;
+    /// the results are bit-identical to 1). Default: 2 on a machine with 2 cores or
+    /// more.
+    #[arg(long, global = true)]
+    threads: Option<usize>,
     #[command(subcommand)]
     cmd: Cmd,
 }
@@ -237,7 +242,18 @@ fn parse_res(s: &str) -> Result<(u32, u32), String> {
     ))
 }
 
-fn render_cfg(config: &Config) -> dualstream::render::RenderCfg {
+/// `--threads`, checked, or its default.
+fn sim_threads(threads: Option<usize>) -> Result<usize, String> {
+    match threads {
+        None => Ok(std::thread::available_parallelism().map_or(1, |n| n.get().min(2))),
+        Some(n @ (1 | 2)) => Ok(n),
+        Some(n) => Err(format!(
+            "--threads {n}: the simulator runs on 1 or 2 threads; give --threads 1 or --threads 2"
+        )),
+    }
+}
+
+fn render_cfg(config: &Config, threads: usize) -> dualstream::render::RenderCfg {
     dualstream::render::RenderCfg {
         accel: config.accel.clone(),
         memory: config.memory.clone(),
@@ -245,7 +261,10 @@ fn render_cfg(config: &Config) -> dualstream::render::RenderCfg {
         dump_rays: None,
         chip: Some(Box::new(dualstream::render::ChipRun {
             config: config.clone(),
-            sim: Default::default(),
+            sim: SimOptions {
+                threads,
+                ..Default::default()
+            },
             trace: None,
         })),
     }
@@ -260,6 +279,7 @@ fn load_config(path: &Option<PathBuf>) -> Result<Config, String> {
 
 fn run(cli: Cli) -> Result<(), String> {
     let config = load_config(&cli.config)?;
+    let threads = sim_threads(cli.threads)?;
     match cli.cmd {
         Cmd::Tb {
             unit,
@@ -300,6 +320,7 @@ fn run(cli: Cli) -> Result<(), String> {
                     sleep: !no_sleep,
                     shadow,
                     shuffle_seed: None,
+                    threads: 1,
                 },
                 config,
             };
@@ -437,7 +458,7 @@ fn run(cli: Cli) -> Result<(), String> {
                         })?;
                 }
             }
-            let mut rc = render_cfg(&config);
+            let mut rc = render_cfg(&config, threads);
             if let (Some(path), Some(run)) = (&vcd, rc.chip.as_mut()) {
                 run.trace = Some(render::ChipTrace {
                     path: path.clone(),
@@ -526,7 +547,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 }
                 let t0 = std::time::Instant::now();
                 let mut frame =
-                    dualstream::render::render(&sc, mode, &render_cfg(&cfg), &mut |_| {})?;
+                    dualstream::render::render(&sc, mode, &render_cfg(&cfg, threads), &mut |_| {})?;
                 eprintln!("  {:.1} s", t0.elapsed().as_secs_f64());
                 frame.energy = Some(dualstream::energy::frame_energy(&cfg, &frame));
                 rows.extend(dualstream::report::paper::compare(row, &frame));
@@ -565,7 +586,7 @@ fn run(cli: Cli) -> Result<(), String> {
             for w in &sc.warnings {
                 eprintln!("warning: {w}");
             }
-            let p = dualstream::render::prepare(&sc, &render_cfg(&config))?;
+            let p = dualstream::render::prepare(&sc, &render_cfg(&config, threads))?;
             let i = &p.info;
             println!("scene {}", sc.name);
             println!("  triangles            {}", i.triangles);

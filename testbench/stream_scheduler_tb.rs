@@ -45,7 +45,7 @@ use super::pipe_tb::{TbOptions, TbReport};
 pub struct FakeTm {
     pub fill: In<SbFill>,
     pub out: Out<RayWrite>,
-    children: std::rc::Rc<Vec<Vec<u32>>>,
+    children: std::sync::Arc<Vec<Vec<u32>>>,
     dup_p: f64,
     ready_p: f64,
     seed: u64,
@@ -333,7 +333,7 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
         .map(|s| s.children.clone())
         .collect();
     let parent: Vec<Option<u32>> = prep.seg.segments.iter().map(|s| s.parent).collect();
-    let children = std::rc::Rc::new(children);
+    let children = std::sync::Arc::new(children);
     let link = cfg.chip.links;
     let p = cfg.clocks.core_ps;
     let mut sim = Sim::new(opts.sim.clone());

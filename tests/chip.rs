@@ -177,7 +177,13 @@ fn run_tiny_chip(opts: SimOptions) -> Outcome {
 }
 
 /// `trace`: the units to trace (`TraceSpec::filter`, empty: all).
-fn run_tiny_chip_with(mut cfg: Config, opts: SimOptions, trace: &str) -> Outcome {
+fn run_tiny_chip_with(cfg: Config, opts: SimOptions, trace: &str) -> Outcome {
+    run_tiny_chip_traced(cfg, opts, Some(trace)).0
+}
+
+/// Also returns the steps evaluated on two threads. `trace: None`: no waveform
+/// (two threads are used only without one).
+fn run_tiny_chip_traced(mut cfg: Config, opts: SimOptions, trace: Option<&str>) -> (Outcome, u64) {
     let s = scene("cornell", 8, 8, 1);
     let rc = rcfg(8, None);
     let mut p = dualstream::render::prepare(&s, &rc).unwrap();
@@ -189,22 +195,26 @@ fn run_tiny_chip_with(mut cfg: Config, opts: SimOptions, trace: &str) -> Outcome
     let consts = dualstream::render::shade_consts(&s, &p);
     let mut chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), &consts, opts).unwrap();
     let buf = Buf::default();
-    chip.sim
-        .attach_tracer(
-            Tracer::new(
-                Box::new(buf.clone()),
-                TraceSpec {
-                    filter: trace.into(),
-                    ..TraceSpec::all()
-                },
+    if let Some(trace) = trace {
+        chip.sim
+            .attach_tracer(
+                Tracer::new(
+                    Box::new(buf.clone()),
+                    TraceSpec {
+                        filter: trace.into(),
+                        ..TraceSpec::all()
+                    },
+                )
+                .unwrap(),
             )
-            .unwrap(),
-        )
-        .unwrap();
+            .unwrap();
+    }
     let w = chip.trace_wave(&mut p.mem, &rays).unwrap();
-    chip.sim.finish_trace().unwrap().unwrap();
+    if trace.is_some() {
+        chip.sim.finish_trace().unwrap().unwrap();
+    }
     let vcd = buf.0.lock().unwrap().clone();
-    Outcome {
+    let out = Outcome {
         cycles: w.cycles,
         stats: chip.sim.all_stats(),
         vcd_hash: fnv(&vcd),
@@ -215,7 +225,59 @@ fn run_tiny_chip_with(mut cfg: Config, opts: SimOptions, trace: &str) -> Outcome
                 [h.t.to_bits(), h.tri_id, h.u.to_bits(), h.v.to_bits()]
             })
             .collect(),
+    };
+    (out, chip.sim.parallel_steps)
+}
+
+/// Two evaluation threads (half of the TMs each) give the same cycles, statistics
+/// of every unit and hit records as one, with the fixed-latency memory and with
+/// GDDR5 on its own clock.
+#[test]
+fn two_threads_change_nothing() {
+    for (what, cfg) in [("fixed", chip_cfg(4, 4)), ("gddr5", gddr5_cfg(4, 4))] {
+        let one = SimOptions::default();
+        let two = SimOptions {
+            threads: 2,
+            ..SimOptions::default()
+        };
+        let (base, p1) = run_tiny_chip_traced(cfg.clone(), one, None);
+        let (r, p2) = run_tiny_chip_traced(cfg, two, None);
+        assert!(base.cycles > 0);
+        assert_eq!(p1, 0, "{what}: one thread handed steps to a worker");
+        assert!(p2 > 0, "{what}: two threads never evaluated in parallel");
+        assert!(
+            r == base,
+            "{what}: two threads changed cycles, statistics or hits"
+        );
     }
+}
+
+/// A whole frame (5 bounces, shading on the TPs, L2, GDDR5) on two threads is
+/// bit-identical to one thread.
+#[test]
+fn a_frame_on_two_threads_is_bit_identical() {
+    let s = scene("cornell", 16, 16, 5);
+    let run = |threads: usize| {
+        let rc = rcfg(
+            8,
+            Some((
+                gddr5_cfg(4, 4),
+                SimOptions {
+                    threads,
+                    ..SimOptions::default()
+                },
+            )),
+        );
+        dualstream::render::render(&s, Mode::Cycle, &rc, &mut |_| {}).unwrap()
+    };
+    let (a, b) = (run(1), run(2));
+    assert_eq!(a.radiance, b.radiance);
+    let (ca, cb) = (a.chip.as_ref().unwrap(), b.chip.as_ref().unwrap());
+    assert!(ca.total_cycles > 0);
+    assert_eq!(ca.total_cycles, cb.total_cycles);
+    assert_eq!(format!("{:?}", a.waves), format!("{:?}", b.waves));
+    assert_eq!(format!("{:?}", ca.waves), format!("{:?}", cb.waves));
+    assert_eq!(format!("{:?}", ca.dram), format!("{:?}", cb.dram));
 }
 
 fn variants() -> [(&'static str, SimOptions); 3] {
@@ -239,6 +301,7 @@ fn variants() -> [(&'static str, SimOptions); 3] {
             "shuffle",
             SimOptions {
                 shuffle_seed: Some(7),
+                threads: 1,
                 ..SimOptions::default()
             },
         ),

@@ -29,21 +29,25 @@ fn modes() -> Vec<SimOptions> {
             sleep: false,
             shadow: false,
             shuffle_seed: None,
+            threads: 1,
         },
         SimOptions {
             sleep: false,
             shadow: true,
             shuffle_seed: None,
+            threads: 1,
         },
         SimOptions {
             sleep: true,
             shadow: false,
             shuffle_seed: Some(1),
+            threads: 1,
         },
         SimOptions {
             sleep: false,
             shadow: true,
             shuffle_seed: Some(2),
+            threads: 1,
         },
     ]
 }

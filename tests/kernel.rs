@@ -82,8 +82,23 @@ fn design(opts: SimOptions, seed: u64) -> Outcome {
         drivers.push((d, 2));
     }
     let buf = dualstream::rtl::SharedBuf::default();
-    sim.attach_tracer(Tracer::new(Box::new(buf.clone()), TraceSpec::all()).unwrap())
-        .unwrap();
+    // Two threads: each TM's units in a partition of their own, and no waveform
+    // (a traced run uses one thread).
+    let threads = sim.options().threads >= 2;
+    if threads {
+        for u in 0..sim.unit_count() {
+            let id = dualstream::rtl::UnitId(u as u32);
+            let part = if sim.unit_path(id).starts_with("chip.tm0.") {
+                1
+            } else {
+                2
+            };
+            sim.set_part(id, part).unwrap();
+        }
+    } else {
+        sim.attach_tracer(Tracer::new(Box::new(buf.clone()), TraceSpec::all()).unwrap())
+            .unwrap();
+    }
     for &(d, kind) in &drivers {
         for n in 0..60u64 {
             let at = rng.below(400);
@@ -131,7 +146,14 @@ fn design(opts: SimOptions, seed: u64) -> Outcome {
         sim.wake(d);
     }
     sim.run_to_idle(10_000_000_000).expect("runs clean");
-    sim.finish_trace().unwrap().unwrap();
+    if threads {
+        assert!(
+            sim.parallel_steps > 0,
+            "two threads never evaluated in parallel"
+        );
+    } else {
+        sim.finish_trace().unwrap().unwrap();
+    }
     let vcd = buf.0.lock().unwrap().clone();
     Outcome {
         end_ps: sim.now(),
@@ -152,26 +174,31 @@ fn order_and_sleeping_change_nothing() {
             sleep: false,
             shadow: false,
             shuffle_seed: None,
+            threads: 1,
         },
         SimOptions {
             sleep: false,
             shadow: true,
             shuffle_seed: None,
+            threads: 1,
         },
         SimOptions {
             sleep: true,
             shadow: false,
             shuffle_seed: Some(1),
+            threads: 1,
         },
         SimOptions {
             sleep: true,
             shadow: false,
             shuffle_seed: Some(2),
+            threads: 1,
         },
         SimOptions {
             sleep: false,
             shadow: true,
             shuffle_seed: Some(3),
+            threads: 1,
         },
     ];
     for m in modes {
@@ -300,6 +327,7 @@ fn shadow_evaluation_catches_a_sleep_bug() {
             sleep: !shadow,
             shadow,
             shuffle_seed: None,
+            threads: 1,
         });
         let c = sim.clock("core", 1000).unwrap();
         sim.add("s", c, Sleeper { count: Reg::new(0) });
@@ -319,8 +347,55 @@ fn shadow_evaluation_catches_a_sleep_bug() {
     }
 }
 
+/// Two threads (one TM each) end at the same time with the same statistics of
+/// every unit and link as one.
+#[test]
+fn two_threads_change_nothing() {
+    let untraced = |o: Outcome| Outcome {
+        vcd_hash: 0,
+        vcd_len: 0,
+        ..o
+    };
+    let base = untraced(design(SimOptions::default(), 5));
+    let two = design(
+        SimOptions {
+            threads: 2,
+            ..SimOptions::default()
+        },
+        5,
+    );
+    assert_eq!(two.vcd_len, 0);
+    assert!(base == untraced(two), "two threads changed the outcome");
+}
+
 #[test]
 fn netlist_errors_are_named() {
+    // A link between the two threads' partitions.
+    let mut sim = Sim::default();
+    let c = sim.clock("core", 1000).unwrap();
+    let (o, i) = sim.link::<u32>("across", LinkCfg::default());
+    let p = sim.add(
+        "p",
+        c,
+        Pusher {
+            out: o,
+            n: Reg::new(0),
+            change_payload: false,
+            drop_valid: false,
+        },
+    );
+    let d = sim.add("d", c, Deaf { inp: i });
+    sim.set_part(p, 1).unwrap();
+    sim.set_part(d, 2).unwrap();
+    let e = sim.run(1000).unwrap_err().to_string();
+    assert!(e.contains("across") && e.contains("partition"), "{e}");
+    assert!(
+        sim.set_part(p, 3)
+            .unwrap_err()
+            .to_string()
+            .contains("partitions are 0, 1 and 2")
+    );
+
     let mut sim = Sim::default();
     let c = sim.clock("core", 1000).unwrap();
     let (o, _i) = sim.link::<u32>("dangling", LinkCfg::default());

@@ -300,16 +300,19 @@ mod unit {
                 sleep: false,
                 shadow: false,
                 shuffle_seed: None,
+                threads: 1,
             },
             SimOptions {
                 sleep: false,
                 shadow: true,
                 shuffle_seed: None,
+                threads: 1,
             },
             SimOptions {
                 sleep: true,
                 shadow: false,
                 shuffle_seed: Some(3),
+                threads: 1,
             },
         ] {
             assert!(run(opts.clone()) == base, "{opts:?} changed the outcome");

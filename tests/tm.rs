@@ -423,16 +423,19 @@ fn sleeping_and_evaluation_order_change_nothing() {
             sleep: false,
             shadow: true,
             shuffle_seed: None,
+            threads: 1,
         },
         SimOptions {
             sleep: true,
             shadow: false,
             shuffle_seed: Some(7),
+            threads: 1,
         },
         SimOptions {
             sleep: false,
             shadow: true,
             shuffle_seed: Some(8),
+            threads: 1,
         },
     ] {
         let o = outcome(m.clone());

@@ -536,6 +536,16 @@ impl Chip {
                 ports,
             ));
         }
+        // Two evaluation threads: each takes half of the TMs (TMs talk only to the
+        // global units, which run after both halves).
+        if sim.options().threads >= 2 && n >= 2 {
+            for (k, t) in tms.iter().enumerate() {
+                let part = if k < n / 2 { 1 } else { 2 };
+                for u in t.all() {
+                    sim.set_part(u, part).map_err(|e| e.to_string())?;
+                }
+            }
+        }
         sim.elaborate().map_err(|e| e.to_string())?;
         let shading = ShadeRegs::new(*shade, map);
         for t in &tms {

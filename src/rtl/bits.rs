@@ -77,7 +77,7 @@ impl Bits {
 }
 
 /// A value with a fixed hardware bit width.
-pub trait Payload: Clone + std::fmt::Debug + PartialEq + 'static {
+pub trait Payload: Clone + std::fmt::Debug + PartialEq + Send + 'static {
     /// Width in bits of the packed value (the Verilog vector width).
     const BITS: u32;
     /// Appends exactly `BITS` bits to `out`.

@@ -312,7 +312,7 @@ pub(crate) struct EdgeResult {
 }
 
 /// Type-erased link interface used by the simulator for commit and tracing.
-pub(crate) trait LinkDyn: Any {
+pub(crate) trait LinkDyn: Any + Send {
     fn name(&self) -> &str;
     /// Clock edge: moves this cycle's violations to `violations`, retires this
     /// cycle's pop, and tells the simulator what it mirrors (one virtual call per

@@ -13,7 +13,9 @@
 //! nothing (no register, link, status or counter), which checks the sleep contract.
 
 use std::any::Any;
+use std::cell::UnsafeCell;
 use std::fmt;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::bits::Payload;
 use super::link::{In, Link, LinkCfg, LinkDyn, LinkEvent, LinkId, LinkStats, Out, Violation};
@@ -45,6 +47,12 @@ pub struct SimOptions {
     pub shadow: bool,
     /// Evaluate the units of each step in a seeded random order (tests).
     pub shuffle_seed: Option<u64>,
+    /// Evaluation threads: 1, or 2 to evaluate the units of partition 1 (see
+    /// [`Sim::set_part`]) on a worker thread while the caller's thread evaluates
+    /// those of partition 2, then partition 0 alone. The result is bit-identical to
+    /// one thread (evaluation order never changes a result). Only with `sleep` on
+    /// and `shadow` off; otherwise one thread is used.
+    pub threads: usize,
 }
 
 impl Default for SimOptions {
@@ -53,6 +61,7 @@ impl Default for SimOptions {
             sleep: true,
             shadow: false,
             shuffle_seed: None,
+            threads: 1,
         }
     }
 }
@@ -119,6 +128,8 @@ struct Slot {
     /// Output links with a refused offer that must be repeated (the monitor checks
     /// only these after each evaluation, not every output link).
     stalled_outs: Vec<LinkId>,
+    /// Evaluation partition (see [`Sim::set_part`]).
+    part: u8,
 }
 
 /// Statistics of one unit.
@@ -131,17 +142,98 @@ pub struct UnitStats {
     pub counters: Vec<(&'static str, u64)>,
 }
 
+/// The netlist's shared arrays as raw pointers, so that the two evaluation threads
+/// (see [`SimOptions::threads`]) can each reach the links of their own partition
+/// while the other does the same: elaboration checks that no link joins units of
+/// two different partitions, so no element is ever reached from both threads.
+#[derive(Clone, Copy)]
+struct Net {
+    links: *mut Box<dyn LinkDyn>,
+    heads: *mut Time,
+    space: *mut bool,
+    len: usize,
+}
+
+impl Net {
+    fn of(links: &mut [Box<dyn LinkDyn>], heads: &mut [Time], space: &mut [bool]) -> Net {
+        assert!(links.len() == heads.len() && links.len() == space.len());
+        Net {
+            links: links.as_mut_ptr(),
+            heads: heads.as_mut_ptr(),
+            space: space.as_mut_ptr(),
+            len: links.len(),
+        }
+    }
+    #[inline]
+    fn link(&mut self, i: usize) -> &mut dyn LinkDyn {
+        assert!(i < self.len);
+        // SAFETY: in bounds (checked); the arrays outlive every evaluation (they are
+        // the simulator's and are not resized after elaboration), and only the one
+        // thread evaluating a link's producer or consumer reaches it (see `Net`).
+        unsafe { &mut **self.links.add(i) }
+    }
+    #[inline]
+    fn link_ref(&self, i: usize) -> &dyn LinkDyn {
+        assert!(i < self.len);
+        // SAFETY: as in `link`.
+        unsafe { &**self.links.add(i) }
+    }
+    #[inline]
+    fn head(&self, i: usize) -> Time {
+        assert!(i < self.len);
+        // SAFETY: as in `link`.
+        unsafe { *self.heads.add(i) }
+    }
+    #[inline]
+    fn space(&self, i: usize) -> bool {
+        assert!(i < self.len);
+        // SAFETY: as in `link`.
+        unsafe { *self.space.add(i) }
+    }
+    #[inline]
+    fn set(&mut self, i: usize, head: Time, space: bool) {
+        assert!(i < self.len);
+        // SAFETY: as in `link`.
+        unsafe {
+            *self.heads.add(i) = head;
+            *self.space.add(i) = space;
+        }
+    }
+    #[inline]
+    fn set_head(&mut self, i: usize, head: Time) {
+        assert!(i < self.len);
+        // SAFETY: as in `link`.
+        unsafe { *self.heads.add(i) = head }
+    }
+}
+
+/// What one evaluation thread produces in a step, merged by the main thread at the
+/// clock edge.
+#[derive(Default)]
+struct LaneOut {
+    touched: Vec<LinkId>,
+    wakes: Vec<(UnitId, Time)>,
+    nexts: Vec<(u32, Next)>,
+    evals: u64,
+}
+
+impl LaneOut {
+    fn append(&mut self, o: &mut LaneOut) {
+        self.touched.append(&mut o.touched);
+        self.wakes.append(&mut o.wakes);
+        self.nexts.append(&mut o.nexts);
+        self.evals += std::mem::take(&mut o.evals);
+    }
+}
+
 /// What a unit sees while it is evaluated: the time, its links, and its status.
 pub struct Ctx<'a> {
     now: Time,
     period: Time,
     unit: UnitId,
-    links: &'a mut [Box<dyn LinkDyn>],
-    /// `LinkDyn::head_time` of every link, kept current by every push, pop and commit.
-    heads: &'a mut [Time],
-    /// `LinkDyn::has_space` of every link, kept current by every push and commit (a
-    /// pop frees space only after the edge).
-    space: &'a mut [bool],
+    /// Every link, with `LinkDyn::head_time` and `LinkDyn::has_space` of each kept
+    /// current by every push, pop and commit (a pop frees space only after the edge).
+    net: Net,
     touched: &'a mut Vec<LinkId>,
     wakes: &'a mut Vec<(UnitId, Time)>,
     /// Output links of this unit with a refused offer outstanding.
@@ -170,7 +262,7 @@ impl<'a> Ctx<'a> {
 
     #[inline]
     fn link<T: Payload>(&mut self, id: LinkId) -> &mut Link<T> {
-        let l: &mut dyn LinkDyn = &mut *self.links[id.0 as usize];
+        let l: &mut dyn LinkDyn = self.net.link(id.0 as usize);
         (l as &mut dyn Any)
             .downcast_mut::<Link<T>>()
             .expect("link payload type matches its handle")
@@ -187,7 +279,7 @@ impl<'a> Ctx<'a> {
     #[inline]
     pub fn peek<T: Payload>(&mut self, port: &In<T>) -> Option<&T> {
         let now = self.now;
-        if self.heads[port.id.0 as usize] > now {
+        if self.net.head(port.id.0 as usize) > now {
             return None;
         }
         self.link::<T>(port.id).peek(now)
@@ -199,8 +291,8 @@ impl<'a> Ctx<'a> {
     #[inline]
     pub fn has_input<T: Payload>(&self, port: &In<T>) -> bool {
         let i = port.id.0 as usize;
-        debug_assert_eq!(self.heads[i], self.links[i].head_time());
-        self.heads[i] <= self.now
+        debug_assert_eq!(self.net.head(i), self.net.link_ref(i).head_time());
+        self.net.head(i) <= self.now
     }
 
     /// Bit `i` set when `ports[i]` has a visible head this cycle (`has_input` of up
@@ -211,8 +303,8 @@ impl<'a> Ctx<'a> {
         let mut m = 0u64;
         for (i, p) in ports.iter().enumerate() {
             let id = p.id.0 as usize;
-            debug_assert_eq!(self.heads[id], self.links[id].head_time());
-            m |= ((self.heads[id] <= self.now) as u64) << i;
+            debug_assert_eq!(self.net.head(id), self.net.link_ref(id).head_time());
+            m |= ((self.net.head(id) <= self.now) as u64) << i;
         }
         m
     }
@@ -228,7 +320,7 @@ impl<'a> Ctx<'a> {
         let v = l.pop(now);
         let t = l.touched;
         let head = l.head_time();
-        self.heads[port.id.0 as usize] = head;
+        self.net.set_head(port.id.0 as usize, head);
         self.link_ops += v.is_some() as u32;
         self.mark(port.id, was || !t);
         v
@@ -237,7 +329,7 @@ impl<'a> Ctx<'a> {
     /// Whether the output link can take a payload this cycle (registered ready).
     #[inline]
     pub fn can_push<T: Payload>(&mut self, port: &Out<T>) -> bool {
-        let s = self.space[port.id.0 as usize];
+        let s = self.net.space(port.id.0 as usize);
         debug_assert_eq!(s, self.link::<T>(port.id).can_push());
         s
     }
@@ -251,8 +343,7 @@ impl<'a> Ctx<'a> {
         let consumer = l.consumer;
         let vis = l.push(now, v);
         let (head, space) = (l.head_time(), l.can_push());
-        self.heads[port.id.0 as usize] = head;
-        self.space[port.id.0 as usize] = space;
+        self.net.set(port.id.0 as usize, head, space);
         self.link_ops += 1;
         self.mark(port.id, was);
         if let (Some(vis), Some(c)) = (vis, consumer) {
@@ -271,8 +362,7 @@ impl<'a> Ctx<'a> {
         let held = l.is_stalled();
         let vis = l.offer(now, v);
         let (head, space) = (l.head_time(), l.can_push());
-        self.heads[port.id.0 as usize] = head;
-        self.space[port.id.0 as usize] = space;
+        self.net.set(port.id.0 as usize, head, space);
         // Repeating a refused offer (the payload held while stalled) changes nothing.
         if vis.is_some() || !held {
             self.link_ops += 1;
@@ -314,16 +404,21 @@ pub struct Sim {
     opts: SimOptions,
     rng: Option<Rng>,
     elaborated: bool,
-    touched: Vec<LinkId>,
-    wakes: Vec<(UnitId, Time)>,
     due: Vec<(u32, bool)>,
     taken: Vec<u32>,
-    nexts: Vec<(u32, Next)>,
     tracer: Option<Tracer>,
+    /// This thread's evaluation results of the current step.
+    out: LaneOut,
+    /// Due units of partitions 1 and 2 (two threads only).
+    lane_due: [Vec<(u32, bool)>; 2],
+    /// Steps handed to the worker in the current run (two threads only).
+    lane_seq: u64,
     /// Unit evaluations so far (due ones, not shadow ones).
     pub evals: u64,
     /// Steps (distinct times) processed so far.
     pub steps: u64,
+    /// Steps whose partitions 1 and 2 were evaluated on two threads.
+    pub parallel_steps: u64,
 }
 
 impl Default for Sim {
@@ -348,13 +443,14 @@ impl Sim {
             opts,
             rng,
             elaborated: false,
-            touched: Vec::new(),
-            wakes: Vec::new(),
             due: Vec::new(),
-            nexts: Vec::new(),
             tracer: None,
+            out: LaneOut::default(),
+            lane_due: [Vec::new(), Vec::new()],
+            lane_seq: 0,
             evals: 0,
             steps: 0,
+            parallel_steps: 0,
         }
     }
 
@@ -408,9 +504,31 @@ impl Sim {
             evals: 0,
             out_links: Vec::new(),
             stalled_outs: Vec::new(),
+            part: 0,
         });
         self.elaborated = false;
         UnitId(self.slots.len() as u32 - 1)
+    }
+
+    /// Puts a unit in evaluation partition 0 (the default: evaluated by the
+    /// caller's thread after the others), 1 or 2 (evaluated concurrently with the
+    /// other of the two when `threads` is 2). A link may join partition 0 to any
+    /// partition, but never 1 to 2 (elaboration checks this).
+    pub fn set_part(&mut self, u: UnitId, part: u8) -> Result<(), SimError> {
+        if part > 2 {
+            return Err(SimError::Elaboration(format!(
+                "unit '{}' put in partition {part}; partitions are 0, 1 and 2",
+                self.slots[u.0 as usize].path
+            )));
+        }
+        self.slots[u.0 as usize].part = part;
+        self.elaborated = false;
+        Ok(())
+    }
+
+    /// Whether a step may evaluate partitions 1 and 2 on two threads.
+    fn parallel(&self) -> bool {
+        self.opts.threads >= 2 && self.opts.sleep && !self.opts.shadow
     }
 
     /// Binds every link to its producer and consumer and checks the netlist.
@@ -460,6 +578,18 @@ impl Sim {
                     if p.is_none() { "producer" } else { "consumer" }
                 )));
             };
+            let (pp, cp) = (
+                self.slots[p.0 as usize].part,
+                self.slots[c.expect("checked above").0 as usize].part,
+            );
+            if pp != 0 && cp != 0 && pp != cp {
+                return Err(SimError::Elaboration(format!(
+                    "link '{}' joins '{}' (partition {pp}) to '{}' (partition {cp}); units evaluated on different threads must not share a link",
+                    l.name(),
+                    self.slots[p.0 as usize].path,
+                    self.slots[c.expect("checked above").0 as usize].path
+                )));
+            }
             l.set_ends(Some(*p), *c);
             l.set_delay_ps(l.cfg().delay as Time * self.slots[p.0 as usize].period);
         }
@@ -476,6 +606,7 @@ impl Sim {
         self.cal.clear();
         self.evals = 0;
         self.steps = 0;
+        self.parallel_steps = 0;
         for l in &mut self.links {
             l.reset();
         }
@@ -483,8 +614,7 @@ impl Sim {
         for (s, l) in self.space.iter_mut().zip(&self.links) {
             *s = l.has_space();
         }
-        self.touched.clear();
-        self.wakes.clear();
+        self.out = LaneOut::default();
         for (i, s) in self.slots.iter_mut().enumerate() {
             s.unit.reset();
             s.status = Status::WaitInput;
@@ -554,6 +684,25 @@ impl Sim {
 
     fn run_inner(&mut self, limit: Time, stop_when_idle: bool) -> Result<RunEnd, SimError> {
         self.elaborate()?;
+        if !self.parallel() || self.tracer.is_some() {
+            return self.run_loop(limit, stop_when_idle, None);
+        }
+        let worker = Worker::new();
+        self.lane_seq = 0;
+        std::thread::scope(|s| {
+            s.spawn(|| worker_loop(&worker));
+            let r = self.run_loop(limit, stop_when_idle, Some(&worker));
+            worker.go.store(QUIT, Ordering::Release);
+            r
+        })
+    }
+
+    fn run_loop(
+        &mut self,
+        limit: Time,
+        stop_when_idle: bool,
+        worker: Option<&Worker>,
+    ) -> Result<RunEnd, SimError> {
         loop {
             match self.next_time() {
                 None => {
@@ -570,7 +719,7 @@ impl Sim {
                     }
                     return Ok(RunEnd::Limit);
                 }
-                Some(t) => self.step_at(t)?,
+                Some(t) => self.step_at(t, worker)?,
             }
         }
     }
@@ -592,7 +741,7 @@ impl Sim {
         }
     }
 
-    fn step_at(&mut self, t: Time) -> Result<(), SimError> {
+    fn step_at(&mut self, t: Time, worker: Option<&Worker>) -> Result<(), SimError> {
         self.now = t;
         self.stepped = true;
         self.steps += 1;
@@ -618,8 +767,38 @@ impl Sim {
         if let Some(rng) = &mut self.rng {
             rng.shuffle(&mut self.due);
         }
-        self.nexts.clear();
-        let due = std::mem::take(&mut self.due);
+        let mut due = std::mem::take(&mut self.due);
+        if let Some(w) = worker {
+            // Partitions 1 and 2 on two threads, each unit committed by its thread
+            // (no unit reads another's registers, so committing right after its own
+            // evaluation is the same as at the edge); partition 0 after, below.
+            let slots = &self.slots;
+            let [l1, l2] = &mut self.lane_due;
+            l1.clear();
+            l2.clear();
+            due.retain(|&(u, d)| match slots[u as usize].part {
+                1 => {
+                    l1.push((u, d));
+                    false
+                }
+                2 => {
+                    l2.push((u, d));
+                    false
+                }
+                _ => true,
+            });
+            if !l1.is_empty() && !l2.is_empty() {
+                self.run_lanes(w, t)?;
+            } else {
+                // Only one partition has work: no hand-over.
+                let mut l = std::mem::take(&mut self.lane_due);
+                for &(u, d) in l[0].iter().chain(&l[1]) {
+                    self.eval_unit(u, d)?;
+                    self.slots[u as usize].unit.commit();
+                }
+                std::mem::swap(&mut l, &mut self.lane_due);
+            }
+        }
         for &(u, is_due) in &due {
             self.eval_unit(u, is_due)?;
         }
@@ -632,8 +811,9 @@ impl Sim {
             self.slots[u as usize].unit.commit();
         }
         self.due = due;
+        self.evals += std::mem::take(&mut self.out.evals);
         let mut violations = Vec::new();
-        for &l in &self.touched {
+        for &l in &self.out.touched {
             let link = &mut self.links[l.0 as usize];
             let e = link.edge(&mut violations);
             self.heads[l.0 as usize] = e.head;
@@ -641,15 +821,15 @@ impl Sim {
             if e.wake_producer {
                 let (p, _) = link.ends();
                 let p = p.expect("elaborated link has a producer");
-                self.wakes.push((p, t + 1));
+                self.out.wakes.push((p, t + 1));
             }
         }
-        self.touched.clear();
+        self.out.touched.clear();
         if !violations.is_empty() {
             return Err(SimError::Protocol(violations));
         }
-        for i in 0..self.nexts.len() {
-            let (u, n) = self.nexts[i];
+        for i in 0..self.out.nexts.len() {
+            let (u, n) = self.out.nexts[i];
             let s = &self.slots[u as usize];
             let at = match n {
                 Next::Cycle => t + s.period,
@@ -665,85 +845,57 @@ impl Sim {
             };
             Self::schedule(&mut self.slots, &mut self.cal, u, at);
         }
-        for (u, w) in self.wakes.drain(..) {
+        self.out.nexts.clear();
+        for (u, w) in self.out.wakes.drain(..) {
             Self::schedule(&mut self.slots, &mut self.cal, u.0, w);
         }
         Ok(())
     }
 
-    fn eval_unit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
-        let t = self.now;
-        let slot = &mut self.slots[u as usize];
-        let shadow = !is_due && self.opts.shadow;
-        let before = if shadow {
-            Some(slot.unit.counters())
-        } else {
-            None
-        };
-        let mut ctx = Ctx {
-            now: t,
-            period: slot.period,
-            unit: UnitId(u),
-            links: &mut self.links,
-            heads: &mut self.heads,
-            space: &mut self.space,
-            touched: &mut self.touched,
-            wakes: &mut self.wakes,
-            stalls: &mut slot.stalled_outs,
-            new_status: None,
-            link_ops: 0,
-        };
-        let next = slot.unit.eval(&mut ctx);
-        let (new_status, link_ops) = (ctx.new_status, ctx.link_ops);
-        if !slot.stalled_outs.is_empty() {
-            let links = &mut self.links;
-            let touched = &mut self.touched;
-            slot.stalled_outs.retain(|&l| {
-                let link = &mut links[l.0 as usize];
-                if link.check_offer_held(t) {
-                    touched.push(l);
-                }
-                link.is_stalled()
-            });
-        }
-        if shadow {
-            let what = if link_ops > 0 {
-                Some("a link (it pushed, popped or offered)".to_string())
-            } else if slot.unit.state_pending() {
-                Some("its registers".to_string())
-            } else if new_status.is_some_and(|s| s != slot.status) {
-                Some(format!(
-                    "its status ({} -> {})",
-                    slot.status.name(),
-                    new_status.unwrap().name()
-                ))
-            } else if before.as_ref() != Some(&slot.unit.counters()) {
-                Some("its counters".to_string())
-            } else {
-                None
-            };
-            if let Some(what) = what {
-                return Err(SimError::Shadow {
-                    unit: slot.path.clone(),
-                    at: t,
-                    what,
-                });
-            }
-            return Ok(());
-        }
-        if let Some(s) = new_status
-            && s != slot.status
+    /// Evaluates and commits the due units of partition 1 on the worker and those
+    /// of partition 2 on this thread, at the same time.
+    fn run_lanes(&mut self, w: &Worker, t: Time) -> Result<(), SimError> {
+        let net = Net::of(&mut self.links, &mut self.heads, &mut self.space);
+        let n = self.slots.len();
+        let slots = self.slots.as_mut_ptr();
         {
-            slot.status_ps[slot.status as usize] += t - slot.since;
-            slot.status = s;
-            slot.since = t;
+            // SAFETY: the worker is waiting for `go` and does not touch the job.
+            let job = unsafe { &mut *w.job.get() };
+            job.now = t;
+            job.slots = slots;
+            job.n_slots = n;
+            job.net = net;
+            std::mem::swap(&mut job.due, &mut self.lane_due[0]);
         }
-        if is_due {
-            slot.evals += 1;
-            self.evals += 1;
-            self.nexts.push((u, next));
+        self.lane_seq += 1;
+        self.parallel_steps += 1;
+        w.go.store(self.lane_seq, Ordering::Release);
+        // From here until `done`, this thread reaches slots and links only through
+        // `slots` and `net`, and only those of partition 2.
+        let mut result = Ok(());
+        for &(u, d) in &self.lane_due[1] {
+            assert!((u as usize) < n);
+            // SAFETY: in bounds; a unit of partition 2, which the worker never reaches.
+            let slot = unsafe { &mut *slots.add(u as usize) };
+            result = eval_slot(slot, u, t, net, &mut self.out, d, false);
+            if result.is_err() {
+                break;
+            }
+            slot.unit.commit();
         }
-        Ok(())
+        wait_for(&w.done, self.lane_seq);
+        // SAFETY: the worker is done with this step and waits for the next `go`.
+        let job = unsafe { &mut *w.job.get() };
+        std::mem::swap(&mut job.due, &mut self.lane_due[0]);
+        self.out.append(&mut job.out);
+        result.and(std::mem::replace(&mut job.result, Ok(())))
+    }
+
+    fn eval_unit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
+        let net = Net::of(&mut self.links, &mut self.heads, &mut self.space);
+        let shadow = !is_due && self.opts.shadow;
+        let slot = &mut self.slots[u as usize];
+        eval_slot(slot, u, self.now, net, &mut self.out, is_due, shadow)
     }
 
     pub fn unit_count(&self) -> usize {
@@ -843,5 +995,210 @@ impl Sim {
             .iter()
             .map(|s| (s.path.clone(), s.unit.decl()))
             .collect()
+    }
+}
+
+/// Evaluates one unit (the body of a step for it): builds its context, runs its
+/// logic, re-checks its held offers and records its status and next wake-up.
+#[allow(clippy::too_many_arguments)]
+fn eval_slot(
+    slot: &mut Slot,
+    u: u32,
+    t: Time,
+    net: Net,
+    out: &mut LaneOut,
+    is_due: bool,
+    shadow: bool,
+) -> Result<(), SimError> {
+    let before = if shadow {
+        Some(slot.unit.counters())
+    } else {
+        None
+    };
+    let mut ctx = Ctx {
+        now: t,
+        period: slot.period,
+        unit: UnitId(u),
+        net,
+        touched: &mut out.touched,
+        wakes: &mut out.wakes,
+        stalls: &mut slot.stalled_outs,
+        new_status: None,
+        link_ops: 0,
+    };
+    let next = slot.unit.eval(&mut ctx);
+    let (new_status, link_ops) = (ctx.new_status, ctx.link_ops);
+    if !slot.stalled_outs.is_empty() {
+        let mut net = net;
+        let touched = &mut out.touched;
+        slot.stalled_outs.retain(|&l| {
+            let link = net.link(l.0 as usize);
+            if link.check_offer_held(t) {
+                touched.push(l);
+            }
+            link.is_stalled()
+        });
+    }
+    if shadow {
+        let what = if link_ops > 0 {
+            Some("a link (it pushed, popped or offered)".to_string())
+        } else if slot.unit.state_pending() {
+            Some("its registers".to_string())
+        } else if new_status.is_some_and(|s| s != slot.status) {
+            Some(format!(
+                "its status ({} -> {})",
+                slot.status.name(),
+                new_status.unwrap().name()
+            ))
+        } else if before.as_ref() != Some(&slot.unit.counters()) {
+            Some("its counters".to_string())
+        } else {
+            None
+        };
+        if let Some(what) = what {
+            return Err(SimError::Shadow {
+                unit: slot.path.clone(),
+                at: t,
+                what,
+            });
+        }
+        return Ok(());
+    }
+    if let Some(s) = new_status
+        && s != slot.status
+    {
+        slot.status_ps[slot.status as usize] += t - slot.since;
+        slot.status = s;
+        slot.since = t;
+    }
+    if is_due {
+        slot.evals += 1;
+        out.evals += 1;
+        out.nexts.push((u, next));
+    }
+    Ok(())
+}
+
+/// `Worker::go` value that ends the worker.
+const QUIT: u64 = u64::MAX;
+/// `Worker::done` value of a worker that panicked.
+const PANICKED: u64 = u64::MAX;
+
+/// The hand-over between the caller's thread and the worker of a two-thread run:
+/// a spin barrier, as a step is a few microseconds (too short to sleep on).
+struct Worker {
+    /// The step the worker is to run next (`QUIT`: stop).
+    go: AtomicU64,
+    /// The last step the worker finished (`PANICKED`: it panicked).
+    done: AtomicU64,
+    job: UnsafeCell<Job>,
+}
+
+/// One step's work for the worker and what it produced.
+struct Job {
+    now: Time,
+    slots: *mut Slot,
+    n_slots: usize,
+    net: Net,
+    due: Vec<(u32, bool)>,
+    out: LaneOut,
+    result: Result<(), SimError>,
+}
+
+// SAFETY: `job` is accessed by the main thread only while the worker waits for `go`
+// and by the worker only between `go` and `done` (release/acquire on the two
+// atomics hand it over); the slots and links it points to are reached by the worker
+// only for units of partition 1 and their links (see `Net`), and units and
+// payloads are `Send`.
+unsafe impl Sync for Worker {}
+
+impl Worker {
+    fn new() -> Worker {
+        Worker {
+            go: AtomicU64::new(0),
+            done: AtomicU64::new(0),
+            job: UnsafeCell::new(Job {
+                now: 0,
+                slots: std::ptr::null_mut(),
+                n_slots: 0,
+                net: Net {
+                    links: std::ptr::null_mut::<Box<dyn LinkDyn>>(),
+                    heads: std::ptr::null_mut(),
+                    space: std::ptr::null_mut(),
+                    len: 0,
+                },
+                due: Vec::new(),
+                out: LaneOut::default(),
+                result: Ok(()),
+            }),
+        }
+    }
+}
+
+/// Spins until `a` holds `v`, yielding the core after a while (so that an
+/// oversubscribed machine, such as parallel tests, still makes progress).
+fn wait_for(a: &AtomicU64, v: u64) {
+    let mut spins = 0u32;
+    loop {
+        let x = a.load(Ordering::Acquire);
+        if x == v {
+            return;
+        }
+        if x == PANICKED {
+            panic!("the simulator's worker thread panicked (see its message above)");
+        }
+        if spins < 1 << 12 {
+            spins += 1;
+            std::hint::spin_loop();
+        } else {
+            std::thread::yield_now();
+        }
+    }
+}
+
+fn worker_loop(w: &Worker) {
+    /// Tells the main thread if this thread unwinds, so that it does not wait forever.
+    struct Alarm<'a>(&'a AtomicU64);
+    impl Drop for Alarm<'_> {
+        fn drop(&mut self) {
+            if std::thread::panicking() {
+                self.0.store(PANICKED, Ordering::Release);
+            }
+        }
+    }
+    let _alarm = Alarm(&w.done);
+    let mut last = 0;
+    loop {
+        let mut spins = 0u32;
+        let go = loop {
+            let g = w.go.load(Ordering::Acquire);
+            if g != last {
+                break g;
+            }
+            if spins < 1 << 12 {
+                spins += 1;
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
+        };
+        if go == QUIT {
+            return;
+        }
+        last = go;
+        // SAFETY: the main thread handed the job over with `go` and waits for `done`.
+        let job = unsafe { &mut *w.job.get() };
+        for &(u, d) in &job.due {
+            assert!((u as usize) < job.n_slots);
+            // SAFETY: in bounds; a unit of partition 1, which the main thread does not
+            // reach until `done`.
+            let slot = unsafe { &mut *job.slots.add(u as usize) };
+            job.result = eval_slot(slot, u, job.now, job.net, &mut job.out, d, false);
+            if job.result.is_err() {
+                break;
+            }
+            slot.unit.commit();
+        }
+        w.done.store(last, Ordering::Release);
     }
 }

@@ -72,7 +72,7 @@ pub trait Logic {
 }
 
 /// What the simulator holds: a declared unit with logic.
-pub trait Unit: Any {
+pub trait Unit: Any + Send {
     fn decl(&self) -> UnitDecl;
     fn ports(&self) -> Vec<PortDecl>;
     fn eval(&mut self, ctx: &mut Ctx) -> Next;
@@ -83,7 +83,7 @@ pub trait Unit: Any {
     fn counters(&self) -> Vec<(&'static str, u64)>;
 }
 
-impl<U: Declared + Logic + 'static> Unit for U {
+impl<U: Declared + Logic + Send + 'static> Unit for U {
     fn decl(&self) -> UnitDecl {
         Declared::decl(self)
     }

@@ -359,6 +359,18 @@ pub struct TmUnits {
     pub divider: UnitId,
 }
 
+impl TmUnits {
+    /// Every unit of the TM.
+    pub fn all(&self) -> impl Iterator<Item = UnitId> + '_ {
+        self.tps
+            .iter()
+            .copied()
+            .chain([self.staging_buffer, self.l1, self.xbar, self.box_pipe])
+            .chain(self.tri_pipes.iter().copied())
+            .chain([self.divider])
+    }
+}
+
 /// The TM's outside ports, as seen from the TM.
 pub struct TmPorts {
     pub fill: In<SbFill>,
