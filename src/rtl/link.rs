@@ -17,6 +17,7 @@
 //! is taken (valid may not drop and data may not change while stalled).
 
 use std::any::Any;
+use std::cell::UnsafeCell;
 use std::collections::VecDeque;
 use std::marker::PhantomData;
 
@@ -136,58 +137,127 @@ pub struct LinkStats {
     pub max_occupancy: u32,
 }
 
-pub struct Link<T: Payload> {
-    pub(crate) name: String,
+/// What the consumer changes during a cycle: the FIFO itself is only read (a pop is
+/// retired at the edge), so the producer's half never touches it.
+pub(crate) struct ConsSide<T> {
     q: VecDeque<Entry<T>>,
-    depth: u32,
-    pub(crate) cfg: LinkCfg,
-    pub(crate) delay_ps: Time,
     pops_now: u32,
-    pushes_now: u32,
     /// Whether the FIFO was full at the start of this cycle (pops then wake the producer).
     full_at_start: bool,
-    pub(crate) touched: bool,
-    last_data: Option<T>,
+    touched: bool,
+    pops: u64,
+    /// Boxed: rare (testbenches), and a link's size is cache footprint.
+    #[allow(clippy::box_collection)]
+    log: Option<Box<Vec<LinkEvent>>>,
+    violations: Vec<(Time, String)>,
+}
+
+/// What the producer changes during a cycle: this cycle's push waits here for the
+/// edge (it is not visible before), so the consumer's half never sees it.
+pub(crate) struct ProdSide<T> {
+    pending: Option<Entry<T>>,
+    /// Whether the FIFO had room at the start of this cycle (set at the edge).
+    space_at_start: bool,
+    touched: bool,
     /// Payload of a refused offer that must be offered again.
     stalled: Option<T>,
     offered_now: bool,
+    pushes: u64,
+    refused_offers: u64,
+    /// Boxed as `ConsSide::log`.
+    #[allow(clippy::box_collection)]
+    log: Option<Box<Vec<LinkEvent>>>,
+    violations: Vec<(Time, String)>,
+}
+
+/// A link: its two halves are each changed only by the unit at that end, so the
+/// producer and the consumer may be evaluated on two threads at once (see
+/// `Sim`'s `Net`); the clock edge, on one thread, joins them.
+pub struct Link<T: Payload> {
+    pub(crate) name: String,
+    pub(crate) depth: u32,
+    pub(crate) cfg: LinkCfg,
+    pub(crate) delay_ps: Time,
     pub(crate) producer: Option<UnitId>,
     pub(crate) consumer: Option<UnitId>,
-    pub(crate) stats: LinkStats,
+    max_occupancy: u32,
+    /// Merged transfer log of both halves (filled at the edge).
     log: Option<Vec<LinkEvent>>,
-    violations: Vec<Violation>,
+    cons: UnsafeCell<ConsSide<T>>,
+    prod: UnsafeCell<ProdSide<T>>,
 }
+
+// SAFETY: between edges the consumer half is reached only by the consumer's thread
+// and the producer half only by the producer's (`Link::cons`, `Link::prod`); the
+// rest is written only with `&mut Link` (elaboration, the edge, reset), when no
+// thread holds a half. Payloads are `Send`.
+unsafe impl<T: Payload> Sync for Link<T> {}
 
 impl<T: Payload> Link<T> {
     pub(crate) fn new(name: String, cfg: LinkCfg) -> Self {
         Link {
             name,
-            q: VecDeque::with_capacity(cfg.depth as usize),
             depth: cfg.depth,
             cfg,
             delay_ps: 0,
-            pops_now: 0,
-            pushes_now: 0,
-            full_at_start: false,
-            touched: false,
-            last_data: None,
-            stalled: None,
-            offered_now: false,
             producer: None,
             consumer: None,
-            stats: LinkStats::default(),
+            max_occupancy: 0,
             log: None,
-            violations: Vec::new(),
+            cons: UnsafeCell::new(ConsSide {
+                q: VecDeque::with_capacity(cfg.depth as usize),
+                pops_now: 0,
+                full_at_start: false,
+                touched: false,
+                pops: 0,
+                log: None,
+                violations: Vec::new(),
+            }),
+            prod: UnsafeCell::new(ProdSide {
+                pending: None,
+                space_at_start: true,
+                touched: false,
+                stalled: None,
+                offered_now: false,
+                pushes: 0,
+                refused_offers: 0,
+                log: None,
+                violations: Vec::new(),
+            }),
         }
     }
 
-    fn violation(&mut self, at: Time, what: String) {
-        self.touched = true;
-        self.violations.push(Violation {
-            link: self.name.clone(),
-            at,
-            what,
-        });
+    /// The consumer's half.
+    /// SAFETY: only the link's consumer, on its evaluation thread, may call this
+    /// between edges, and it must not hold two results at once.
+    #[inline]
+    #[allow(clippy::mut_from_ref)]
+    pub(crate) unsafe fn cons(&self) -> &mut ConsSide<T> {
+        // SAFETY: see the function's contract.
+        unsafe { &mut *self.cons.get() }
+    }
+
+    /// The producer's half (contract as `cons`, for the producer).
+    #[inline]
+    #[allow(clippy::mut_from_ref)]
+    pub(crate) unsafe fn prod(&self) -> &mut ProdSide<T> {
+        // SAFETY: see the function's contract.
+        unsafe { &mut *self.prod.get() }
+    }
+
+    fn cons_ref(&self) -> &ConsSide<T> {
+        // SAFETY: used only between steps or at the edge (one thread, no half out).
+        unsafe { &*self.cons.get() }
+    }
+    fn prod_ref(&self) -> &ProdSide<T> {
+        // SAFETY: as `cons_ref`.
+        unsafe { &*self.prod.get() }
+    }
+}
+
+impl<T> ConsSide<T> {
+    pub(crate) fn touched(&self) -> bool {
+        self.touched
     }
 
     /// The head entry if it is visible at `now` and not yet popped this cycle.
@@ -208,44 +278,55 @@ impl<T: Payload> Link<T> {
         }
     }
 
-    /// Pops the head; returns the payload and whether the producer must be woken.
+    /// Pops the head if it is visible (the entry leaves the FIFO at the edge).
     #[inline]
-    pub(crate) fn pop(&mut self, now: Time) -> Option<T> {
+    pub(crate) fn pop(&mut self, now: Time, depth: u32) -> Option<T>
+    where
+        T: Clone,
+    {
         if self.pops_now > 0 {
-            self.violation(
+            self.touched = true;
+            self.violations.push((
                 now,
                 "second pop in one cycle (a link moves one payload per cycle)".into(),
-            );
+            ));
             return None;
         }
         let e = self.q.front().filter(|e| e.visible <= now)?;
         let data = e.data.clone();
         self.pops_now = 1;
-        self.full_at_start = self.q.len() as u32 - self.pushes_now >= self.depth;
-        self.stats.pops += 1;
+        self.full_at_start = self.q.len() as u32 >= depth;
+        self.pops += 1;
         if let Some(log) = &mut self.log {
             log.push(LinkEvent::Pop { at: now });
         }
         self.touched = true;
         Some(data)
     }
+}
+
+impl<T: Payload> ProdSide<T> {
+    fn violation(&mut self, at: Time, what: &str) {
+        self.touched = true;
+        self.violations.push((at, what.into()));
+    }
 
     /// Space at the start of this cycle, minus this cycle's push.
     #[inline]
     pub(crate) fn can_push(&self) -> bool {
-        self.pushes_now == 0 && (self.q.len() as u32) < self.depth
+        self.pending.is_none() && self.space_at_start
     }
 
     /// Pushes; returns the time the payload becomes visible.
     #[inline]
-    pub(crate) fn push(&mut self, now: Time, data: T) -> Option<Time> {
+    pub(crate) fn push(&mut self, now: Time, delay_ps: Time, data: T) -> Option<Time> {
         if !self.can_push() {
-            let why = if self.pushes_now > 0 {
+            let why = if self.pending.is_some() {
                 "second push in one cycle"
             } else {
                 "push into a full FIFO (ready was low)"
             };
-            self.violation(now, why.into());
+            self.violation(now, why);
             return None;
         }
         if let Some(s) = self.stalled.take()
@@ -253,19 +334,13 @@ impl<T: Payload> Link<T> {
         {
             self.violation(
                 now,
-                "payload changed while stalled (valid data must hold until ready)".into(),
+                "payload changed while stalled (valid data must hold until ready)",
             );
         }
-        let visible = now + self.delay_ps;
-        self.q.push_back(Entry {
-            visible,
-            data: data.clone(),
-        });
-        self.last_data = Some(data);
-        self.pushes_now = 1;
+        let visible = now + delay_ps;
+        self.pending = Some(Entry { visible, data });
         self.offered_now = true;
-        self.stats.pushes += 1;
-        self.stats.max_occupancy = self.stats.max_occupancy.max(self.q.len() as u32);
+        self.pushes += 1;
         if let Some(log) = &mut self.log {
             log.push(LinkEvent::Push { at: now, visible });
         }
@@ -277,27 +352,44 @@ impl<T: Payload> Link<T> {
         self.stalled.is_some()
     }
 
+    pub(crate) fn touched(&self) -> bool {
+        self.touched
+    }
+
     /// Offer: push if there is space, else remember the payload as stalled.
     #[inline]
-    pub(crate) fn offer(&mut self, now: Time, data: T) -> Option<Time> {
+    pub(crate) fn offer(&mut self, now: Time, delay_ps: Time, data: T) -> Option<Time> {
         if self.can_push() {
-            return self.push(now, data);
+            return self.push(now, delay_ps, data);
         }
         if let Some(s) = &self.stalled
             && !s.same_bits(&data)
         {
             self.violation(
                 now,
-                "payload changed while stalled (valid data must hold until ready)".into(),
+                "payload changed while stalled (valid data must hold until ready)",
             );
         }
         if self.stalled.is_none() {
-            self.stats.refused_offers += 1;
+            self.refused_offers += 1;
         }
         self.stalled = Some(data);
         self.offered_now = true;
         self.touched = true;
         None
+    }
+
+    /// Called after the producer's evaluation: a stalled offer must be repeated.
+    fn check_offer_held(&mut self, now: Time) -> bool {
+        if self.stalled.is_some() && !self.offered_now {
+            self.violation(
+                now,
+                "valid dropped while stalled (a refused payload must be offered until taken)",
+            );
+            self.stalled = None;
+            return true;
+        }
+        false
     }
 }
 
@@ -312,11 +404,13 @@ pub(crate) struct EdgeResult {
 }
 
 /// Type-erased link interface used by the simulator for commit and tracing.
-pub(crate) trait LinkDyn: Any + Send {
+pub(crate) trait LinkDyn: Any + Send + Sync {
     fn name(&self) -> &str;
+    /// Whether either half was touched since the last edge.
+    fn touched(&self) -> bool;
     /// Clock edge: moves this cycle's violations to `violations`, retires this
-    /// cycle's pop, and tells the simulator what it mirrors (one virtual call per
-    /// touched link and edge).
+    /// cycle's pop, enqueues this cycle's push, and tells the simulator what it
+    /// mirrors (one virtual call per touched link and edge).
     fn edge(&mut self, violations: &mut Vec<Violation>) -> EdgeResult;
     fn sample_consumer(&self, now: Time, out: [&mut Bits; 3]);
     fn sample_producer(&self, out: [&mut Bits; 3]);
@@ -325,7 +419,10 @@ pub(crate) trait LinkDyn: Any + Send {
     fn set_delay_ps(&mut self, ps: Time);
     fn cfg(&self) -> LinkCfg;
     fn reset(&mut self);
-    fn check_offer_held(&mut self, now: Time) -> bool;
+    /// See `ProdSide::check_offer_held`; only the producer's thread may call this
+    /// between edges.
+    fn check_offer_held(&self, now: Time) -> bool;
+    /// Only the producer's thread may call this between edges.
     fn is_stalled(&self) -> bool;
     /// When the head becomes visible to the consumer: `Time::MAX` if the FIFO is
     /// empty or its head was popped this cycle (the simulator keeps these in one flat
@@ -343,32 +440,54 @@ impl<T: Payload> LinkDyn for Link<T> {
     fn name(&self) -> &str {
         &self.name
     }
+    fn touched(&self) -> bool {
+        self.cons_ref().touched || self.prod_ref().touched
+    }
     fn edge(&mut self, violations: &mut Vec<Violation>) -> EdgeResult {
-        if !self.violations.is_empty() {
-            violations.append(&mut self.violations);
+        let name = &self.name;
+        let c = self.cons.get_mut();
+        let p = self.prod.get_mut();
+        if !c.violations.is_empty() || !p.violations.is_empty() {
+            for (at, what) in c.violations.drain(..).chain(p.violations.drain(..)) {
+                violations.push(Violation {
+                    link: name.clone(),
+                    at,
+                    what,
+                });
+            }
         }
-        // Retire this cycle's pop; a pop that made room in a full FIFO wakes the
-        // producer.
-        let wake_producer = self.pops_now > 0 && self.full_at_start;
-        if self.pops_now > 0 {
-            self.q.pop_front();
+        if let Some(log) = &mut self.log {
+            log.extend(c.log.iter_mut().flat_map(|l| l.drain(..)));
+            log.extend(p.log.iter_mut().flat_map(|l| l.drain(..)));
         }
-        self.pops_now = 0;
-        self.pushes_now = 0;
-        self.offered_now = false;
-        self.full_at_start = false;
-        self.touched = false;
+        // Enqueue this cycle's push, then retire this cycle's pop; a pop that made
+        // room in a full FIFO wakes the producer.
+        if let Some(e) = p.pending.take() {
+            c.q.push_back(e);
+            self.max_occupancy = self.max_occupancy.max(c.q.len() as u32);
+        }
+        let wake_producer = c.pops_now > 0 && c.full_at_start;
+        if c.pops_now > 0 {
+            c.q.pop_front();
+        }
+        c.pops_now = 0;
+        p.offered_now = false;
+        c.full_at_start = false;
+        c.touched = false;
+        p.touched = false;
+        p.space_at_start = (c.q.len() as u32) < self.depth;
         EdgeResult {
             wake_producer,
-            head: self.head_time(),
-            space: self.can_push(),
+            head: c.head_time(),
+            space: p.can_push(),
         }
     }
     fn sample_consumer(&self, now: Time, out: [&mut Bits; 3]) {
         let [valid, ready, data] = out;
-        let head = self.q.front().filter(|e| e.visible <= now);
+        let c = self.cons_ref();
+        let head = c.q.front().filter(|e| e.visible <= now);
         valid.push(head.is_some() as u64, 1);
-        ready.push((self.pops_now > 0) as u64, 1);
+        ready.push((c.pops_now > 0) as u64, 1);
         match head {
             Some(e) => e.data.pack(data),
             None => data.clear(), // empty = hold the previous value
@@ -376,16 +495,13 @@ impl<T: Payload> LinkDyn for Link<T> {
     }
     fn sample_producer(&self, out: [&mut Bits; 3]) {
         let [valid, ready, data] = out;
-        valid.push((self.pushes_now > 0 || self.stalled.is_some()) as u64, 1);
-        let start_len = self.q.len() as u32 - self.pushes_now;
-        ready.push((start_len < self.depth) as u64, 1);
-        if let Some(s) = &self.stalled {
+        let p = self.prod_ref();
+        valid.push((p.pending.is_some() || p.stalled.is_some()) as u64, 1);
+        ready.push(p.space_at_start as u64, 1);
+        if let Some(s) = &p.stalled {
             s.pack(data);
-        } else if self.pushes_now > 0 {
-            self.last_data
-                .as_ref()
-                .expect("pushed this cycle")
-                .pack(data);
+        } else if let Some(e) = &p.pending {
+            e.data.pack(data);
         } else {
             data.clear();
         }
@@ -404,52 +520,63 @@ impl<T: Payload> LinkDyn for Link<T> {
         self.cfg
     }
     fn reset(&mut self) {
-        self.q.clear();
-        self.pops_now = 0;
-        self.pushes_now = 0;
-        self.full_at_start = false;
-        self.touched = false;
-        self.last_data = None;
-        self.stalled = None;
-        self.offered_now = false;
-        self.stats = LinkStats::default();
+        let c = self.cons.get_mut();
+        c.q.clear();
+        c.pops_now = 0;
+        c.full_at_start = false;
+        c.touched = false;
+        c.pops = 0;
+        c.violations.clear();
+        let p = self.prod.get_mut();
+        p.pending = None;
+        p.space_at_start = self.depth > 0;
+        p.touched = false;
+        p.stalled = None;
+        p.offered_now = false;
+        p.pushes = 0;
+        p.refused_offers = 0;
+        p.violations.clear();
+        self.max_occupancy = 0;
         if let Some(l) = &mut self.log {
             l.clear();
         }
-        self.violations.clear();
-    }
-    /// Called after the producer's evaluation: a stalled offer must be repeated.
-    fn check_offer_held(&mut self, now: Time) -> bool {
-        if self.stalled.is_some() && !self.offered_now {
-            self.violation(
-                now,
-                "valid dropped while stalled (a refused payload must be offered until taken)"
-                    .into(),
-            );
-            self.stalled = None;
-            return true;
+        for l in [&mut c.log, &mut p.log].into_iter().flatten() {
+            l.clear();
         }
-        false
+    }
+    fn check_offer_held(&self, now: Time) -> bool {
+        // SAFETY: called by the producer's thread after its evaluation (see trait).
+        unsafe { self.prod() }.check_offer_held(now)
     }
     fn stats(&self) -> LinkStats {
-        self.stats
+        let (c, p) = (self.cons_ref(), self.prod_ref());
+        LinkStats {
+            pushes: p.pushes,
+            pops: c.pops,
+            refused_offers: p.refused_offers,
+            max_occupancy: self.max_occupancy,
+        }
     }
     fn is_stalled(&self) -> bool {
-        self.stalled.is_some()
+        // SAFETY: called by the producer's thread (see trait).
+        unsafe { self.prod() }.is_stalled()
     }
     #[inline]
     fn head_time(&self) -> Time {
-        self.head_time()
+        self.cons_ref().head_time()
     }
     #[inline]
     fn has_space(&self) -> bool {
-        self.can_push()
+        self.prod_ref().can_push()
     }
     fn occupancy(&self) -> u32 {
-        self.q.len() as u32
+        let (c, p) = (self.cons_ref(), self.prod_ref());
+        c.q.len() as u32 + p.pending.is_some() as u32
     }
     fn set_log(&mut self, on: bool) {
-        self.log = if on { Some(Vec::new()) } else { None };
+        self.log = on.then(Vec::new);
+        self.cons.get_mut().log = on.then(Box::default);
+        self.prod.get_mut().log = on.then(Box::default);
     }
     fn log(&self) -> &[LinkEvent] {
         self.log.as_deref().unwrap_or(&[])

@@ -119,15 +119,23 @@ struct Slot {
     status: Status,
     since: Time,
     status_ps: [Time; 4],
-    /// Last wake-up time pushed onto the heap (skips immediate duplicates).
-    last_wake: Time,
-    /// Time of the last evaluation (skips duplicate heap entries).
-    last_eval: Time,
     evals: u64,
     out_links: Vec<LinkId>,
     /// Output links with a refused offer that must be repeated (the monitor checks
     /// only these after each evaluation, not every output link).
     stalled_outs: Vec<LinkId>,
+}
+
+/// What the step loop needs of a unit, apart from the `Slot` that its evaluation
+/// changes: compact, and written only by the thread that runs the step loop.
+#[derive(Clone, Copy)]
+struct Sched {
+    period: Time,
+    /// Last wake-up time put in the calendar (skips immediate duplicates).
+    last_wake: Time,
+    /// Time of the last evaluation (skips duplicate calendar entries).
+    last_eval: Time,
+    clock: u16,
     /// Evaluation partition (see [`Sim::set_part`]).
     part: u8,
 }
@@ -164,45 +172,58 @@ impl Net {
             len: links.len(),
         }
     }
+    /// A shared reference to link `i`: each end changes only its own half of a
+    /// link (`Link::cons`, `Link::prod`), so producer and consumer may be on two
+    /// threads. The lifetime is the evaluation's (the caller's to respect).
     #[inline]
-    fn link(&mut self, i: usize) -> &mut dyn LinkDyn {
+    fn link_ref<'x>(&self, i: usize) -> &'x dyn LinkDyn {
         assert!(i < self.len);
-        // SAFETY: in bounds (checked); the arrays outlive every evaluation (they are
-        // the simulator's and are not resized after elaboration), and only the one
-        // thread evaluating a link's producer or consumer reaches it (see `Net`).
+        // SAFETY: in bounds (checked); the array outlives every evaluation (it is
+        // the simulator's and is not resized after elaboration), and no `&mut` to a
+        // link exists while units are evaluated (only the edge takes one, on one
+        // thread, after every evaluation of the step).
+        unsafe { &**self.links.add(i) }
+    }
+    /// Link `i` for its clock edge.
+    /// SAFETY: the caller's thread evaluates both ends of the link and no other
+    /// reference to it is alive.
+    #[inline]
+    unsafe fn link_mut<'x>(&self, i: usize) -> &'x mut dyn LinkDyn {
+        assert!(i < self.len);
+        // SAFETY: in bounds; exclusive by the function's contract.
         unsafe { &mut **self.links.add(i) }
     }
     #[inline]
-    fn link_ref(&self, i: usize) -> &dyn LinkDyn {
-        assert!(i < self.len);
-        // SAFETY: as in `link`.
-        unsafe { &**self.links.add(i) }
+    fn typed<'x, T: Payload>(&self, id: LinkId) -> &'x Link<T> {
+        let l: &'x dyn LinkDyn = self.link_ref(id.0 as usize);
+        (l as &dyn Any)
+            .downcast_ref::<Link<T>>()
+            .expect("link payload type matches its handle")
     }
     #[inline]
     fn head(&self, i: usize) -> Time {
         assert!(i < self.len);
-        // SAFETY: as in `link`.
+        // SAFETY: in bounds; read by the consumer, the only writer during a step.
         unsafe { *self.heads.add(i) }
     }
     #[inline]
     fn space(&self, i: usize) -> bool {
         assert!(i < self.len);
-        // SAFETY: as in `link`.
+        // SAFETY: in bounds; read by the producer, the only writer during a step.
         unsafe { *self.space.add(i) }
     }
+    /// Only the link's producer writes its `space` during a step.
     #[inline]
-    fn set(&mut self, i: usize, head: Time, space: bool) {
+    fn set_space(&mut self, i: usize, space: bool) {
         assert!(i < self.len);
-        // SAFETY: as in `link`.
-        unsafe {
-            *self.heads.add(i) = head;
-            *self.space.add(i) = space;
-        }
+        // SAFETY: in bounds; one element, written only by the producer's thread.
+        unsafe { *self.space.add(i) = space }
     }
+    /// Only the link's consumer writes its `head` during a step.
     #[inline]
     fn set_head(&mut self, i: usize, head: Time) {
         assert!(i < self.len);
-        // SAFETY: as in `link`.
+        // SAFETY: in bounds; one element, written only by the consumer's thread.
         unsafe { *self.heads.add(i) = head }
     }
 }
@@ -215,6 +236,8 @@ struct LaneOut {
     wakes: Vec<(UnitId, Time)>,
     nexts: Vec<(u32, Next)>,
     evals: u64,
+    /// Protocol violations found at the edges of the thread's own links.
+    violations: Vec<Violation>,
 }
 
 impl LaneOut {
@@ -222,6 +245,7 @@ impl LaneOut {
         self.touched.append(&mut o.touched);
         self.wakes.append(&mut o.wakes);
         self.nexts.append(&mut o.nexts);
+        self.violations.append(&mut o.violations);
         self.evals += std::mem::take(&mut o.evals);
     }
 }
@@ -261,14 +285,6 @@ impl<'a> Ctx<'a> {
     }
 
     #[inline]
-    fn link<T: Payload>(&mut self, id: LinkId) -> &mut Link<T> {
-        let l: &mut dyn LinkDyn = self.net.link(id.0 as usize);
-        (l as &mut dyn Any)
-            .downcast_mut::<Link<T>>()
-            .expect("link payload type matches its handle")
-    }
-
-    #[inline]
     fn mark(&mut self, id: LinkId, was_touched: bool) {
         if !was_touched {
             self.touched.push(id);
@@ -282,7 +298,9 @@ impl<'a> Ctx<'a> {
         if self.net.head(port.id.0 as usize) > now {
             return None;
         }
-        self.link::<T>(port.id).peek(now)
+        let l = self.net.typed::<T>(port.id);
+        // SAFETY: `port` is an input of the unit being evaluated: its consumer.
+        unsafe { l.cons() }.peek(now)
     }
 
     /// Whether a payload is visible at the head of an input link this cycle: a
@@ -314,12 +332,14 @@ impl<'a> Ctx<'a> {
     pub fn pop<T: Payload>(&mut self, port: &In<T>) -> Option<T> {
         let now = self.now;
         let me = self.unit;
-        let l = self.link::<T>(port.id);
-        let was = l.touched;
+        let l = self.net.typed::<T>(port.id);
         debug_assert_eq!(l.consumer, Some(me), "unit pops a link it does not consume");
-        let v = l.pop(now);
-        let t = l.touched;
-        let head = l.head_time();
+        // SAFETY: `port` is an input of the unit being evaluated: its consumer.
+        let c = unsafe { l.cons() };
+        let was = c.touched();
+        let v = c.pop(now, l.depth);
+        let t = c.touched();
+        let head = c.head_time();
         self.net.set_head(port.id.0 as usize, head);
         self.link_ops += v.is_some() as u32;
         self.mark(port.id, was || !t);
@@ -330,7 +350,8 @@ impl<'a> Ctx<'a> {
     #[inline]
     pub fn can_push<T: Payload>(&mut self, port: &Out<T>) -> bool {
         let s = self.net.space(port.id.0 as usize);
-        debug_assert_eq!(s, self.link::<T>(port.id).can_push());
+        // SAFETY: `port` is an output of the unit being evaluated: its producer.
+        debug_assert_eq!(s, unsafe { self.net.typed::<T>(port.id).prod() }.can_push());
         s
     }
 
@@ -338,12 +359,13 @@ impl<'a> Ctx<'a> {
     #[inline]
     pub fn push<T: Payload>(&mut self, port: &Out<T>, v: T) {
         let now = self.now;
-        let l = self.link::<T>(port.id);
-        let was = l.touched;
+        let l = self.net.typed::<T>(port.id);
+        // SAFETY: `port` is an output of the unit being evaluated: its producer.
+        let p = unsafe { l.prod() };
+        let was = p.touched();
         let consumer = l.consumer;
-        let vis = l.push(now, v);
-        let (head, space) = (l.head_time(), l.can_push());
-        self.net.set(port.id.0 as usize, head, space);
+        let vis = p.push(now, l.delay_ps, v);
+        self.net.set_space(port.id.0 as usize, p.can_push());
         self.link_ops += 1;
         self.mark(port.id, was);
         if let (Some(vis), Some(c)) = (vis, consumer) {
@@ -356,13 +378,14 @@ impl<'a> Ctx<'a> {
     #[inline]
     pub fn offer<T: Payload>(&mut self, port: &Out<T>, v: T) -> bool {
         let now = self.now;
-        let l = self.link::<T>(port.id);
-        let was = l.touched;
+        let l = self.net.typed::<T>(port.id);
+        // SAFETY: `port` is an output of the unit being evaluated: its producer.
+        let p = unsafe { l.prod() };
+        let was = p.touched();
         let consumer = l.consumer;
-        let held = l.is_stalled();
-        let vis = l.offer(now, v);
-        let (head, space) = (l.head_time(), l.can_push());
-        self.net.set(port.id.0 as usize, head, space);
+        let held = p.is_stalled();
+        let vis = p.offer(now, l.delay_ps, v);
+        self.net.set_space(port.id.0 as usize, p.can_push());
         // Repeating a refused offer (the payload held while stalled) changes nothing.
         if vis.is_some() || !held {
             self.link_ops += 1;
@@ -392,11 +415,17 @@ impl<'a> Ctx<'a> {
 pub struct Sim {
     clocks: Vec<Clock>,
     slots: Vec<Slot>,
+    sched: Vec<Sched>,
     links: Vec<Box<dyn LinkDyn>>,
     /// Head visibility time of every link (see `Ctx::heads`).
     heads: Vec<Time>,
     /// Whether every link can take a push (see `Ctx::space`).
     space: Vec<bool>,
+    /// Time of every link's last edge (a link touched at both ends is listed twice).
+    edged: Vec<Time>,
+    /// Per link: the partition of both its ends (1 or 2; its thread then takes its
+    /// edge too), or 0 (ends in different partitions, or in partition 0).
+    local: Vec<u8>,
     now: Time,
     /// Whether the step at `now` has been processed.
     stepped: bool,
@@ -433,9 +462,12 @@ impl Sim {
         Sim {
             clocks: Vec::new(),
             slots: Vec::new(),
+            sched: Vec::new(),
             links: Vec::new(),
             heads: Vec::new(),
             space: Vec::new(),
+            edged: Vec::new(),
+            local: Vec::new(),
             now: 0,
             stepped: false,
             cal: super::calendar::Calendar::new(),
@@ -484,6 +516,7 @@ impl Sim {
             .push(Box::new(Link::<T>::new(name.to_string(), cfg)));
         self.heads.push(Time::MAX);
         self.space.push(true);
+        self.edged.push(Time::MAX);
         self.elaborated = false;
         (Out::new(id), In::new(id))
     }
@@ -499,11 +532,15 @@ impl Sim {
             status: Status::WaitInput,
             since: 0,
             status_ps: [0; 4],
-            last_wake: Time::MAX,
-            last_eval: Time::MAX,
             evals: 0,
             out_links: Vec::new(),
             stalled_outs: Vec::new(),
+        });
+        self.sched.push(Sched {
+            period,
+            last_wake: Time::MAX,
+            last_eval: Time::MAX,
+            clock: clock.0,
             part: 0,
         });
         self.elaborated = false;
@@ -512,8 +549,8 @@ impl Sim {
 
     /// Puts a unit in evaluation partition 0 (the default: evaluated by the
     /// caller's thread after the others), 1 or 2 (evaluated concurrently with the
-    /// other of the two when `threads` is 2). A link may join partition 0 to any
-    /// partition, but never 1 to 2 (elaboration checks this).
+    /// other of the two when `threads` is 2). Links may join any partitions: each
+    /// end changes only its own half of a link.
     pub fn set_part(&mut self, u: UnitId, part: u8) -> Result<(), SimError> {
         if part > 2 {
             return Err(SimError::Elaboration(format!(
@@ -521,7 +558,7 @@ impl Sim {
                 self.slots[u.0 as usize].path
             )));
         }
-        self.slots[u.0 as usize].part = part;
+        self.sched[u.0 as usize].part = part;
         self.elaborated = false;
         Ok(())
     }
@@ -567,6 +604,7 @@ impl Sim {
                 }
             }
         }
+        let mut local = Vec::with_capacity(self.links.len());
         for (l, (p, c)) in self.links.iter_mut().zip(&ends) {
             l.cfg()
                 .validate(&format!("link '{}'", l.name()))
@@ -578,21 +616,13 @@ impl Sim {
                     if p.is_none() { "producer" } else { "consumer" }
                 )));
             };
-            let (pp, cp) = (
-                self.slots[p.0 as usize].part,
-                self.slots[c.expect("checked above").0 as usize].part,
-            );
-            if pp != 0 && cp != 0 && pp != cp {
-                return Err(SimError::Elaboration(format!(
-                    "link '{}' joins '{}' (partition {pp}) to '{}' (partition {cp}); units evaluated on different threads must not share a link",
-                    l.name(),
-                    self.slots[p.0 as usize].path,
-                    self.slots[c.expect("checked above").0 as usize].path
-                )));
-            }
             l.set_ends(Some(*p), *c);
+            let pp = self.sched[p.0 as usize].part;
+            let cp = c.map_or(0, |c| self.sched[c.0 as usize].part);
+            local.push(if pp == cp { pp } else { 0 });
             l.set_delay_ps(l.cfg().delay as Time * self.slots[p.0 as usize].period);
         }
+        self.local = local;
         self.elaborated = true;
         self.reset();
         Ok(())
@@ -611,6 +641,7 @@ impl Sim {
             l.reset();
         }
         self.heads.iter_mut().for_each(|h| *h = Time::MAX);
+        self.edged.iter_mut().for_each(|h| *h = Time::MAX);
         for (s, l) in self.space.iter_mut().zip(&self.links) {
             *s = l.has_space();
         }
@@ -622,9 +653,10 @@ impl Sim {
             s.status_ps = [0; 4];
             s.evals = 0;
             s.stalled_outs.clear();
-            s.last_wake = 0;
-            s.last_eval = Time::MAX;
-            self.cal.push(s.clock.0 as usize, i as u32, 0);
+            let sc = &mut self.sched[i];
+            sc.last_wake = 0;
+            sc.last_eval = Time::MAX;
+            self.cal.push(sc.clock as usize, i as u32, 0);
         }
     }
 
@@ -640,13 +672,13 @@ impl Sim {
     /// Every wake-up is kept (a unit may be woken by a link before the time it asked
     /// for, and must still run at that time); duplicates of one time are skipped.
     #[inline]
-    fn schedule(slots: &mut [Slot], cal: &mut super::calendar::Calendar, u: u32, t: Time) {
-        let s = &mut slots[u as usize];
+    fn schedule(sched: &mut [Sched], cal: &mut super::calendar::Calendar, u: u32, t: Time) {
+        let s = &mut sched[u as usize];
         let p = s.period;
         let t = t.div_ceil(p) * p;
         if t != s.last_wake {
             s.last_wake = t;
-            cal.push(s.clock.0 as usize, u, t);
+            cal.push(s.clock as usize, u, t);
         }
     }
 
@@ -654,7 +686,7 @@ impl Sim {
     /// between runs).
     pub fn wake(&mut self, u: UnitId) {
         let t = if self.stepped { self.now + 1 } else { self.now };
-        Self::schedule(&mut self.slots, &mut self.cal, u.0, t);
+        Self::schedule(&mut self.sched, &mut self.cal, u.0, t);
     }
 
     /// Time of the next step, if any unit is scheduled.
@@ -749,7 +781,7 @@ impl Sim {
         self.due.clear();
         self.cal.take(t, &mut self.taken);
         for &u in &self.taken {
-            let s = &mut self.slots[u as usize];
+            let s = &mut self.sched[u as usize];
             if s.last_eval != t {
                 s.last_eval = t;
                 self.due.push((u, true));
@@ -758,7 +790,7 @@ impl Sim {
         self.taken.clear();
         // Sleep off: every unit whose clock has an edge now, due or not.
         if !self.opts.sleep {
-            for (i, s) in self.slots.iter().enumerate() {
+            for (i, s) in self.sched.iter().enumerate() {
                 if t.is_multiple_of(s.period) && s.last_eval != t {
                     self.due.push((i as u32, false));
                 }
@@ -772,11 +804,11 @@ impl Sim {
             // Partitions 1 and 2 on two threads, each unit committed by its thread
             // (no unit reads another's registers, so committing right after its own
             // evaluation is the same as at the edge); partition 0 after, below.
-            let slots = &self.slots;
+            let sched = &self.sched;
             let [l1, l2] = &mut self.lane_due;
             l1.clear();
             l2.clear();
-            due.retain(|&(u, d)| match slots[u as usize].part {
+            due.retain(|&(u, d)| match sched[u as usize].part {
                 1 => {
                     l1.push((u, d));
                     false
@@ -812,9 +844,15 @@ impl Sim {
         }
         self.due = due;
         self.evals += std::mem::take(&mut self.out.evals);
-        let mut violations = Vec::new();
+        let mut violations = std::mem::take(&mut self.out.violations);
         for &l in &self.out.touched {
+            // Producer and consumer each list a link they touched: edge it once.
+            if self.edged[l.0 as usize] == t {
+                continue;
+            }
+            self.edged[l.0 as usize] = t;
             let link = &mut self.links[l.0 as usize];
+            debug_assert!(link.touched());
             let e = link.edge(&mut violations);
             self.heads[l.0 as usize] = e.head;
             self.space[l.0 as usize] = e.space;
@@ -830,24 +868,24 @@ impl Sim {
         }
         for i in 0..self.out.nexts.len() {
             let (u, n) = self.out.nexts[i];
-            let s = &self.slots[u as usize];
+            let p = self.sched[u as usize].period;
             let at = match n {
-                Next::Cycle => t + s.period,
+                Next::Cycle => t + p,
                 Next::AtCycle(c) => {
                     assert!(
-                        c * s.period > t,
+                        c * p > t,
                         "unit '{}' asked to wake at cycle {c}, which is not in the future",
-                        s.path
+                        self.slots[u as usize].path
                     );
-                    c * s.period
+                    c * p
                 }
                 Next::Idle => continue,
             };
-            Self::schedule(&mut self.slots, &mut self.cal, u, at);
+            Self::schedule(&mut self.sched, &mut self.cal, u, at);
         }
         self.out.nexts.clear();
         for (u, w) in self.out.wakes.drain(..) {
-            Self::schedule(&mut self.slots, &mut self.cal, u.0, w);
+            Self::schedule(&mut self.sched, &mut self.cal, u.0, w);
         }
         Ok(())
     }
@@ -856,33 +894,26 @@ impl Sim {
     /// of partition 2 on this thread, at the same time.
     fn run_lanes(&mut self, w: &Worker, t: Time) -> Result<(), SimError> {
         let net = Net::of(&mut self.links, &mut self.heads, &mut self.space);
-        let n = self.slots.len();
-        let slots = self.slots.as_mut_ptr();
+        let lanes = Lanes {
+            slots: self.slots.as_mut_ptr(),
+            n_slots: self.slots.len(),
+            net,
+            local: self.local.as_ptr(),
+        };
         {
             // SAFETY: the worker is waiting for `go` and does not touch the job.
             let job = unsafe { &mut *w.job.get() };
             job.now = t;
-            job.slots = slots;
-            job.n_slots = n;
-            job.net = net;
+            job.lanes = lanes;
             std::mem::swap(&mut job.due, &mut self.lane_due[0]);
         }
         self.lane_seq += 1;
         self.parallel_steps += 1;
         w.go.store(self.lane_seq, Ordering::Release);
         // From here until `done`, this thread reaches slots and links only through
-        // `slots` and `net`, and only those of partition 2.
-        let mut result = Ok(());
-        for &(u, d) in &self.lane_due[1] {
-            assert!((u as usize) < n);
-            // SAFETY: in bounds; a unit of partition 2, which the worker never reaches.
-            let slot = unsafe { &mut *slots.add(u as usize) };
-            result = eval_slot(slot, u, t, net, &mut self.out, d, false);
-            if result.is_err() {
-                break;
-            }
-            slot.unit.commit();
-        }
+        // `lanes`, and only those of partition 2.
+        // SAFETY: partition 2 is this thread's; the worker takes partition 1.
+        let result = unsafe { run_lane(lanes, 2, &self.lane_due[1], t, &mut self.out) };
         wait_for(&w.done, self.lane_seq);
         // SAFETY: the worker is done with this step and waits for the next `go`.
         let job = unsafe { &mut *w.job.get() };
@@ -1029,10 +1060,10 @@ fn eval_slot(
     let next = slot.unit.eval(&mut ctx);
     let (new_status, link_ops) = (ctx.new_status, ctx.link_ops);
     if !slot.stalled_outs.is_empty() {
-        let mut net = net;
         let touched = &mut out.touched;
         slot.stalled_outs.retain(|&l| {
-            let link = net.link(l.0 as usize);
+            // The unit is the producer of its stalled outputs.
+            let link = net.link_ref(l.0 as usize);
             if link.check_offer_held(t) {
                 touched.push(l);
             }
@@ -1097,9 +1128,7 @@ struct Worker {
 /// One step's work for the worker and what it produced.
 struct Job {
     now: Time,
-    slots: *mut Slot,
-    n_slots: usize,
-    net: Net,
+    lanes: Lanes,
     due: Vec<(u32, bool)>,
     out: LaneOut,
     result: Result<(), SimError>,
@@ -1119,13 +1148,16 @@ impl Worker {
             done: AtomicU64::new(0),
             job: UnsafeCell::new(Job {
                 now: 0,
-                slots: std::ptr::null_mut(),
-                n_slots: 0,
-                net: Net {
-                    links: std::ptr::null_mut::<Box<dyn LinkDyn>>(),
-                    heads: std::ptr::null_mut(),
-                    space: std::ptr::null_mut(),
-                    len: 0,
+                lanes: Lanes {
+                    slots: std::ptr::null_mut(),
+                    n_slots: 0,
+                    net: Net {
+                        links: std::ptr::null_mut::<Box<dyn LinkDyn>>(),
+                        heads: std::ptr::null_mut(),
+                        space: std::ptr::null_mut(),
+                        len: 0,
+                    },
+                    local: std::ptr::null(),
                 },
                 due: Vec::new(),
                 out: LaneOut::default(),
@@ -1188,17 +1220,65 @@ fn worker_loop(w: &Worker) {
         last = go;
         // SAFETY: the main thread handed the job over with `go` and waits for `done`.
         let job = unsafe { &mut *w.job.get() };
-        for &(u, d) in &job.due {
-            assert!((u as usize) < job.n_slots);
-            // SAFETY: in bounds; a unit of partition 1, which the main thread does not
-            // reach until `done`.
-            let slot = unsafe { &mut *job.slots.add(u as usize) };
-            job.result = eval_slot(slot, u, job.now, job.net, &mut job.out, d, false);
-            if job.result.is_err() {
-                break;
-            }
-            slot.unit.commit();
-        }
+        // SAFETY: partition 1 is the worker's; the main thread takes partition 2.
+        job.result = unsafe { run_lane(job.lanes, 1, &job.due, job.now, &mut job.out) };
         w.done.store(last, Ordering::Release);
     }
+}
+
+/// The simulator's arrays as the two evaluation threads reach them.
+#[derive(Clone, Copy)]
+struct Lanes {
+    slots: *mut Slot,
+    n_slots: usize,
+    net: Net,
+    local: *const u8,
+}
+
+/// Evaluates and commits `due`, units of partition `part`, then takes the clock
+/// edge of the links whose both ends are in `part` (the others are left in
+/// `out.touched` for the edge after both threads).
+/// SAFETY: no other thread reaches a unit of `part` or a link local to it, and
+/// every unit in `due` is in `part`.
+unsafe fn run_lane(
+    l: Lanes,
+    part: u8,
+    due: &[(u32, bool)],
+    t: Time,
+    out: &mut LaneOut,
+) -> Result<(), SimError> {
+    for &(u, d) in due {
+        assert!((u as usize) < l.n_slots);
+        // SAFETY: in bounds; a unit of `part` (the function's contract).
+        let slot = unsafe { &mut *l.slots.add(u as usize) };
+        eval_slot(slot, u, t, l.net, out, d, false)?;
+        slot.unit.commit();
+    }
+    let mut net = l.net;
+    let mut k = 0;
+    while k < out.touched.len() {
+        let i = out.touched[k].0 as usize;
+        assert!(i < net.len);
+        // SAFETY: in bounds; `local` has an entry per link.
+        if unsafe { *l.local.add(i) } != part {
+            k += 1;
+            continue;
+        }
+        out.touched.swap_remove(k);
+        // SAFETY: both ends of the link are in `part`, evaluated by this thread.
+        let link = unsafe { net.link_mut(i) };
+        // Listed by both of its ends: edge it once.
+        if !link.touched() {
+            continue;
+        }
+        let e = link.edge(&mut out.violations);
+        net.set_head(i, e.head);
+        net.set_space(i, e.space);
+        if e.wake_producer {
+            let (p, _) = link.ends();
+            out.wakes
+                .push((p.expect("elaborated link has a producer"), t + 1));
+        }
+    }
+    Ok(())
 }
