@@ -175,6 +175,21 @@ enum Cmd {
         /// speed-error: TMs of the small-chip mode.
         #[arg(long, default_value_t = 8)]
         small_tms: u32,
+        /// speed-error: the modes to run besides the reference, comma-separated
+        /// (cycle-fixed, functional+estimate, small-chip, small-chips-fit,
+        /// quarter-pixels, sampled). Default: all.
+        #[arg(long)]
+        modes: Option<String>,
+        /// speed-error, sampled: keep one tile in this many per sample.
+        #[arg(long, default_value_t = 16)]
+        sample_every: u32,
+        /// speed-error, sampled: tile side in pixels.
+        #[arg(long, default_value_t = 16)]
+        tile: u32,
+        /// speed-error, sampled: disjoint samples, each a cycle run (2 or more
+        /// estimate the sampling error).
+        #[arg(long, default_value_t = 2)]
+        subsets: u32,
         /// speed-error: write the rows as JSON here.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -267,6 +282,7 @@ fn render_cfg(config: &Config, threads: usize) -> dualstream::render::RenderCfg 
             },
             trace: None,
         })),
+        pixels: None,
     }
 }
 
@@ -627,6 +643,10 @@ fn run(cli: Cli) -> Result<(), String> {
             scene,
             res,
             small_tms,
+            modes,
+            sample_every,
+            tile,
+            subsets,
             json,
             plot,
         } => {
@@ -641,7 +661,15 @@ fn run(cli: Cli) -> Result<(), String> {
                     let mut sc = dualstream::scene::load(&scene)?;
                     (sc.settings.width, sc.settings.height) = parse_res(&res)?;
                     sc.settings.validate()?;
-                    let rows = se::run(&sc, &config, &se::SpeedErrorOpts { small_tms })?;
+                    let opts = se::SpeedErrorOpts {
+                        small_tms,
+                        sample_every,
+                        tile,
+                        subsets,
+                        modes: modes.map(|m| m.split(',').map(|x| x.trim().to_string()).collect()),
+                        threads,
+                    };
+                    let rows = se::run(&sc, &config, &opts)?;
                     println!(
                         "speed against error: {} {}x{} on {} x {} TPs (reference: cycle mode, GDDR5)",
                         sc.name,

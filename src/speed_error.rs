@@ -12,7 +12,15 @@
 //! - `small-chips-fit` — two small chips (s and 2s TMs), cycles fitted as
 //!   a + b / TMs and evaluated at the full count (when 2s < `chip.tms`);
 //! - `quarter-pixels` — the cycle model on a frame of half the width and height,
-//!   every count and the cycles scaled by the pixel ratio (4).
+//!   every count and the cycles scaled by the pixel ratio (4);
+//! - `sampled` — the cycle model on `subsets` disjoint samples of the frame's tiles
+//!   (one T x T tile in k each, [`tile_sample`]), each traced as a frame of its own
+//!   with the pixels' own rays; two estimates from the same runs: `sampled` (a ratio
+//!   estimator: the functional model's figures for the whole frame times the mean
+//!   over the samples of cycle-model / functional-model figures, the functional
+//!   cycles being [`estimate`]) and `sampled-scaled` (the samples' figures times
+//!   the pixel ratio). Each states its sampling error as the standard error of the
+//!   mean over the samples (relative), next to its actual error.
 //!
 //! Energy everywhere is compute + on-chip ([`crate::energy::frame_energy`]) + DRAM
 //! with the `paper` preset; where the mode has no DRAM timing its DRAM energy is
@@ -37,8 +45,11 @@ pub struct ModeResult {
     pub err_lines: f64,
     pub err_energy: f64,
     /// Whether the mode's image equals the reference's bit for bit (`None`: it
-    /// renders a different frame).
+    /// renders a different frame; sampled modes: on the pixels they render).
     pub image_identical: Option<bool>,
+    /// The mode's own estimate of its relative error (one standard error) in
+    /// cycles, lines and energy, where it has one (sampled modes).
+    pub est_err: Option<[f64; 3]>,
     pub note: String,
 }
 
@@ -156,7 +167,13 @@ fn total_energy(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
     Ok(e.compute_j + e.onchip_j + dram)
 }
 
-fn render_with(scene: &Scene, mode: Mode, c: &Config) -> Result<Frame, String> {
+fn render_pixels(
+    scene: &Scene,
+    mode: Mode,
+    c: &Config,
+    pixels: Option<Vec<u32>>,
+    threads: usize,
+) -> Result<Frame, String> {
     let rc = RenderCfg {
         accel: c.accel.clone(),
         memory: c.memory.clone(),
@@ -164,54 +181,149 @@ fn render_with(scene: &Scene, mode: Mode, c: &Config) -> Result<Frame, String> {
         dump_rays: None,
         chip: Some(Box::new(render::ChipRun {
             config: c.clone(),
-            sim: Default::default(),
+            sim: crate::rtl::SimOptions {
+                threads,
+                ..Default::default()
+            },
             trace: None,
         })),
+        pixels,
     };
     render::render(scene, mode, &rc, &mut |_| {})
 }
+
+/// The pixels of one tile sample: the `tile` x `tile` tiles `(tx, ty)` with
+/// `(tx + 3 ty) mod every == offset`, in raster order. Shifting each tile row by 3
+/// spreads the kept tiles over the frame (a plain `index mod every` keeps whole
+/// columns when `every` divides the tiles per row); the `every` offsets partition
+/// the frame.
+pub fn tile_sample(w: u32, h: u32, tile: u32, every: u32, offset: u32) -> Result<Vec<u32>, String> {
+    if tile == 0 || tile > w.min(h) {
+        return Err(format!(
+            "--tile {tile} must be between 1 and the frame's smaller side ({}); choose a smaller tile",
+            w.min(h)
+        ));
+    }
+    if every == 0 {
+        return Err("--sample-every 0 keeps nothing; give 1 (every tile) or more".into());
+    }
+    let keep = |x: u32, y: u32| ((x / tile) + 3 * (y / tile)) % every == offset % every;
+    let v: Vec<u32> = (0..h)
+        .flat_map(|y| (0..w).filter(move |&x| keep(x, y)).map(move |x| y * w + x))
+        .collect();
+    if v.is_empty() {
+        return Err(format!(
+            "a {w}x{h} frame has too few {tile}x{tile} tiles for one in {every}; use a smaller --tile or --sample-every"
+        ));
+    }
+    Ok(v)
+}
+
+/// The modes besides the reference (`--modes`; `sampled` gives two rows).
+pub const MODES: [&str; 6] = [
+    "cycle-fixed",
+    "functional+estimate",
+    "small-chip",
+    "small-chips-fit",
+    "quarter-pixels",
+    "sampled",
+];
 
 /// Options of the comparison.
 #[derive(Clone, Debug)]
 pub struct SpeedErrorOpts {
     /// TMs of the `small-chip` mode.
     pub small_tms: u32,
+    /// `sampled`: keep one tile in this many (k) per sample.
+    pub sample_every: u32,
+    /// `sampled`: tile side in pixels.
+    pub tile: u32,
+    /// `sampled`: disjoint samples (each its own cycle run; 2 or more give the
+    /// sampling error).
+    pub subsets: u32,
+    /// The modes to run besides the reference (`None`: all of [`MODES`]).
+    pub modes: Option<Vec<String>>,
+    /// Simulator threads of the cycle runs (every mode, the reference too).
+    pub threads: usize,
 }
 
 impl Default for SpeedErrorOpts {
     fn default() -> Self {
-        SpeedErrorOpts { small_tms: 8 }
+        SpeedErrorOpts {
+            small_tms: 8,
+            sample_every: 16,
+            tile: 16,
+            subsets: 2,
+            modes: None,
+            threads: 1,
+        }
     }
 }
 
-/// Runs every mode on `scene` with `config` (its memory model is set per mode).
+/// Runs the reference and the chosen modes on `scene` with `config` (its memory
+/// model is set per mode).
 pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<ModeResult>, String> {
-    if o.small_tms == 0 || o.small_tms >= config.chip.tms {
+    if let Some(m) = &o.modes {
+        for x in m {
+            if !MODES.contains(&x.as_str()) {
+                return Err(format!(
+                    "--modes: unknown mode '{x}'; choose from {}",
+                    MODES.join(", ")
+                ));
+            }
+        }
+    }
+    let want = |m: &str| o.modes.as_ref().is_none_or(|v| v.iter().any(|x| x == m));
+    if (want("small-chip") || want("small-chips-fit"))
+        && (o.small_tms == 0 || o.small_tms >= config.chip.tms)
+    {
         return Err(format!(
             "--small-tms {} must be between 1 and chip.tms - 1 ({}); choose a smaller chip",
             o.small_tms,
             config.chip.tms.saturating_sub(1)
         ));
     }
+    let (w, h) = (scene.settings.width, scene.settings.height);
+    let mut samples = Vec::new();
+    if want("sampled") {
+        if o.sample_every == 0 {
+            return Err("--sample-every 0 keeps nothing; give 1 (every tile) or more".into());
+        }
+        if o.subsets == 0 || o.subsets > o.sample_every {
+            return Err(format!(
+                "--subsets {} must be between 1 and --sample-every ({}): the samples are disjoint",
+                o.subsets, o.sample_every
+            ));
+        }
+        for s in 0..o.subsets {
+            samples.push(tile_sample(
+                w,
+                h,
+                o.tile,
+                o.sample_every,
+                s * o.sample_every / o.subsets,
+            )?);
+        }
+    }
+    let t = o.threads;
     let mut gddr5 = config.clone();
     gddr5.chip.memory.model = MemoryModel::Gddr5;
-    let reference = render_with(scene, Mode::Cycle, &gddr5)?;
+    let reference = render_pixels(scene, Mode::Cycle, &gddr5, None, t)?;
     let ref_cycles = reference.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
     let ref_lines = reference.total.total_lines() as f64;
     let ref_energy = total_energy(&gddr5, &reference, ref_cycles)?;
     let rel = |x: f64, r: f64| if r == 0.0 { 0.0 } else { (x - r) / r };
     let mut out = Vec::new();
     let mut push = |mode: &str,
-                    f: &Frame,
-                    cycles: f64,
-                    lines: f64,
-                    energy: f64,
+                    wall: f64,
+                    [cycles, lines, energy]: [f64; 3],
                     same: Option<bool>,
+                    est_err: Option<[f64; 3]>,
                     note: &str| {
         out.push(ModeResult {
             mode: mode.into(),
-            wall_s: f.wall_s,
-            speedup: reference.wall_s / f.wall_s.max(1e-9),
+            wall_s: wall,
+            speedup: reference.wall_s / wall.max(1e-9),
             cycles,
             lines,
             energy_j: energy,
@@ -219,125 +331,238 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             err_lines: rel(lines, ref_lines),
             err_energy: rel(energy, ref_energy),
             image_identical: same,
+            est_err,
             note: note.into(),
         })
     };
     push(
         "cycle",
-        &reference,
-        ref_cycles,
-        ref_lines,
-        ref_energy,
+        reference.wall_s,
+        [ref_cycles, ref_lines, ref_energy],
         Some(true),
+        None,
         "reference: the chip with GDDR5",
     );
+    let cycles_of = |f: &Frame| f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
 
-    let mut fixed = config.clone();
-    fixed.chip.memory.model = MemoryModel::Fixed;
-    let f = render_with(scene, Mode::Cycle, &fixed)?;
-    let cyc = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
-    push(
-        "cycle-fixed",
-        &f,
-        cyc,
-        f.total.total_lines() as f64,
-        total_energy(&fixed, &f, cyc)?,
-        Some(f.radiance == reference.radiance),
-        "fixed-latency memory; DRAM energy estimated from lines",
-    );
-
-    let f = render_with(scene, Mode::Functional, config)?;
-    let est = estimate(&gddr5, &f);
-    push(
-        "functional+estimate",
-        &f,
-        est.cycles,
-        f.total.total_lines() as f64,
-        total_energy(&gddr5, &f, est.cycles)?,
-        Some(f.radiance == reference.radiance),
-        "no clock; cycles = per-wave max of resource bounds",
-    );
-
-    let mut small = gddr5.clone();
-    small.chip.tms = o.small_tms;
-    let f = render_with(scene, Mode::Cycle, &small)?;
-    let scale = o.small_tms as f64 / config.chip.tms as f64;
-    let cyc = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64 * scale;
-    push(
-        "small-chip",
-        &f,
-        cyc,
-        f.total.total_lines() as f64,
-        total_energy(&small, &f, cyc)?,
-        Some(f.radiance == reference.radiance),
-        &format!("{} TMs, cycles x {scale}", o.small_tms),
-    );
-    // Two small chips, s and 2s TMs, fit cycles = a + b / TMs (a serial part and a
-    // part that divides over the TMs), evaluated at the full TM count.
-    let (s1, s2) = (o.small_tms, 2 * o.small_tms);
-    let mut fit = None;
-    if s2 < config.chip.tms {
-        let c1 = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
-        let mut small2 = gddr5.clone();
-        small2.chip.tms = s2;
-        let f2 = render_with(scene, Mode::Cycle, &small2)?;
-        let c2 = f2.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
-        let b = (c1 - c2) / (1.0 / s1 as f64 - 1.0 / s2 as f64);
-        let a = c2 - b / s2 as f64;
-        let cyc = (a + b / config.chip.tms as f64).max(0.0);
-        let wall = f.wall_s + f2.wall_s;
-        let energy = total_energy(&small2, &f2, cyc)?;
-        let lines = f2.total.total_lines() as f64;
-        fit = Some(ModeResult {
-            mode: "small-chips-fit".into(),
-            wall_s: wall,
-            speedup: reference.wall_s / wall.max(1e-9),
-            cycles: cyc,
-            lines,
-            energy_j: energy,
-            err_cycles: rel(cyc, ref_cycles),
-            err_lines: rel(lines, ref_lines),
-            err_energy: rel(energy, ref_energy),
-            image_identical: Some(f2.radiance == reference.radiance),
-            note: format!("{s1} and {s2} TMs ({c1:.0}, {c2:.0} cycles), a + b/TMs"),
-        });
+    if want("cycle-fixed") {
+        let mut fixed = config.clone();
+        fixed.chip.memory.model = MemoryModel::Fixed;
+        let f = render_pixels(scene, Mode::Cycle, &fixed, None, t)?;
+        let cyc = cycles_of(&f);
+        push(
+            "cycle-fixed",
+            f.wall_s,
+            [
+                cyc,
+                f.total.total_lines() as f64,
+                total_energy(&fixed, &f, cyc)?,
+            ],
+            Some(f.radiance == reference.radiance),
+            None,
+            "fixed-latency memory; DRAM energy estimated from lines",
+        );
     }
 
-    let mut quarter = scene.clone();
-    quarter.settings.width = (scene.settings.width / 2).max(1);
-    quarter.settings.height = (scene.settings.height / 2).max(1);
-    let ratio = (scene.settings.width * scene.settings.height) as f64
-        / (quarter.settings.width * quarter.settings.height) as f64;
-    let f = render_with(&quarter, Mode::Cycle, &gddr5)?;
-    let cyc = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
-    push(
-        "quarter-pixels",
-        &f,
-        cyc * ratio,
-        f.total.total_lines() as f64 * ratio,
-        total_energy(&gddr5, &f, cyc)? * ratio,
-        None,
-        &format!(
-            "{}x{} frame, everything x {ratio}",
-            quarter.settings.width, quarter.settings.height
-        ),
-    );
-    if let Some(r) = fit {
-        out.insert(4, r);
+    // The functional frame and its estimate (also the sampled modes' auxiliary).
+    let mut functional = None;
+    if want("functional+estimate") || want("sampled") {
+        let f = render_pixels(scene, Mode::Functional, config, None, t)?;
+        let est = estimate(&gddr5, &f).cycles;
+        let fig = [
+            est,
+            f.total.total_lines() as f64,
+            total_energy(&gddr5, &f, est)?,
+        ];
+        if want("functional+estimate") {
+            push(
+                "functional+estimate",
+                f.wall_s,
+                fig,
+                Some(f.radiance == reference.radiance),
+                None,
+                "no clock; cycles = per-wave max of resource bounds",
+            );
+        }
+        functional = Some((f.wall_s, fig));
+    }
+
+    let mut fit = None;
+    if want("small-chip") || want("small-chips-fit") {
+        let mut small = gddr5.clone();
+        small.chip.tms = o.small_tms;
+        let f = render_pixels(scene, Mode::Cycle, &small, None, t)?;
+        let scale = o.small_tms as f64 / config.chip.tms as f64;
+        let c1 = cycles_of(&f);
+        if want("small-chip") {
+            let cyc = c1 * scale;
+            push(
+                "small-chip",
+                f.wall_s,
+                [
+                    cyc,
+                    f.total.total_lines() as f64,
+                    total_energy(&small, &f, cyc)?,
+                ],
+                Some(f.radiance == reference.radiance),
+                None,
+                &format!("{} TMs, cycles x {scale}", o.small_tms),
+            );
+        }
+        // Two small chips, s and 2s TMs, fit cycles = a + b / TMs (a serial part and
+        // a part that divides over the TMs), evaluated at the full TM count.
+        let (s1, s2) = (o.small_tms, 2 * o.small_tms);
+        if want("small-chips-fit") && s2 < config.chip.tms {
+            let mut small2 = gddr5.clone();
+            small2.chip.tms = s2;
+            let f2 = render_pixels(scene, Mode::Cycle, &small2, None, t)?;
+            let c2 = cycles_of(&f2);
+            let b = (c1 - c2) / (1.0 / s1 as f64 - 1.0 / s2 as f64);
+            let a = c2 - b / s2 as f64;
+            let cyc = (a + b / config.chip.tms as f64).max(0.0);
+            fit = Some((
+                f.wall_s + f2.wall_s,
+                [
+                    cyc,
+                    f2.total.total_lines() as f64,
+                    total_energy(&small2, &f2, cyc)?,
+                ],
+                Some(f2.radiance == reference.radiance),
+                format!("{s1} and {s2} TMs ({c1:.0}, {c2:.0} cycles), a + b/TMs"),
+            ));
+        }
+    }
+    if let Some((wall, fig, same, note)) = fit {
+        push("small-chips-fit", wall, fig, same, None, &note);
+    }
+
+    if want("quarter-pixels") {
+        let mut quarter = scene.clone();
+        quarter.settings.width = (w / 2).max(1);
+        quarter.settings.height = (h / 2).max(1);
+        let ratio = (w * h) as f64 / (quarter.settings.width * quarter.settings.height) as f64;
+        let f = render_pixels(&quarter, Mode::Cycle, &gddr5, None, t)?;
+        let cyc = cycles_of(&f);
+        push(
+            "quarter-pixels",
+            f.wall_s,
+            [
+                cyc * ratio,
+                f.total.total_lines() as f64 * ratio,
+                total_energy(&gddr5, &f, cyc)? * ratio,
+            ],
+            None,
+            None,
+            &format!(
+                "{}x{} frame, everything x {ratio}",
+                quarter.settings.width, quarter.settings.height
+            ),
+        );
+    }
+
+    if let Some((func_wall, full_aux)) = functional.filter(|_| want("sampled")) {
+        // Per sample: the cycle model's figures, and their ratio to the functional
+        // model's on the same pixels.
+        let mut wall = func_wall;
+        let (mut ratio, mut scaled) = (Vec::new(), Vec::new());
+        let mut same = true;
+        for pix in &samples {
+            let frac = pix.len() as f64 / (w * h) as f64;
+            let fc = render_pixels(scene, Mode::Cycle, &gddr5, Some(pix.clone()), t)?;
+            let ff = render_pixels(scene, Mode::Functional, config, Some(pix.clone()), t)?;
+            wall += fc.wall_s + ff.wall_s;
+            same &= pix
+                .iter()
+                .all(|&p| fc.radiance[p as usize] == reference.radiance[p as usize]);
+            let cyc = cycles_of(&fc);
+            let fig = [
+                cyc,
+                fc.total.total_lines() as f64,
+                total_energy(&gddr5, &fc, cyc)?,
+            ];
+            let est = estimate(&gddr5, &ff).cycles;
+            let aux = [
+                est,
+                ff.total.total_lines() as f64,
+                total_energy(&gddr5, &ff, est)?,
+            ];
+            ratio.push([0, 1, 2].map(|i| fig[i] / aux[i].max(1e-300)));
+            scaled.push(fig.map(|x| x / frac));
+        }
+        let m = samples.len();
+        let note = format!(
+            "{m} sample(s) of one {0}x{0} tile in {1} ({2:.1}% of the pixels each)",
+            o.tile,
+            o.sample_every,
+            100.0 * samples[0].len() as f64 / (w * h) as f64
+        );
+        let r = mean_se(&ratio);
+        push(
+            "sampled",
+            wall,
+            [0, 1, 2].map(|i| full_aux[i] * r.0[i]),
+            Some(same),
+            r.1,
+            &format!("{note}; functional frame x cycle/functional of the samples"),
+        );
+        let sc = mean_se(&scaled);
+        push(
+            "sampled-scaled",
+            wall - func_wall,
+            sc.0,
+            Some(same),
+            sc.1,
+            &format!("{note}; x the pixel ratio"),
+        );
     }
     Ok(out)
+}
+
+/// Mean of each component over the samples and its relative standard error
+/// (`None` with fewer than two samples).
+fn mean_se(v: &[[f64; 3]]) -> ([f64; 3], Option<[f64; 3]>) {
+    let n = v.len() as f64;
+    let mean = [0, 1, 2].map(|i| v.iter().map(|x| x[i]).sum::<f64>() / n);
+    if v.len() < 2 {
+        return (mean, None);
+    }
+    let se = [0, 1, 2].map(|i| {
+        let var = v.iter().map(|x| (x[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0);
+        if mean[i] == 0.0 {
+            0.0
+        } else {
+            (var / n).sqrt() / mean[i].abs()
+        }
+    });
+    (mean, Some(se))
 }
 
 /// The comparison as a text table.
 pub fn table(rows: &[ModeResult]) -> String {
     let mut s = format!(
-        "{:<20} {:>9} {:>8} {:>13} {:>9} {:>9} {:>9}  {:<6} note\n",
-        "mode", "wall (s)", "speedup", "cycles", "err cyc", "err lines", "err J", "image"
+        "{:<20} {:>9} {:>8} {:>13} {:>9} {:>9} {:>9}  {:<20}  {:<6} note\n",
+        "mode",
+        "wall (s)",
+        "speedup",
+        "cycles",
+        "err cyc",
+        "err lines",
+        "err J",
+        "own estimate (1 SE)",
+        "image"
     );
     for r in rows {
+        let own = r.est_err.map_or("-".to_string(), |e| {
+            format!(
+                "±{:.1}/{:.1}/{:.1}%",
+                e[0] * 100.0,
+                e[1] * 100.0,
+                e[2] * 100.0
+            )
+        });
         let _ = writeln!(
             s,
-            "{:<20} {:>9.2} {:>7.1}x {:>13.0} {:>+8.1}% {:>+8.1}% {:>+8.1}%  {:<6} {}",
+            "{:<20} {:>9.2} {:>7.1}x {:>13.0} {:>+8.1}% {:>+8.1}% {:>+8.1}%  {:<20}  {:<6} {}",
             r.mode,
             r.wall_s,
             r.speedup,
@@ -345,6 +570,7 @@ pub fn table(rows: &[ModeResult]) -> String {
             r.err_cycles * 100.0,
             r.err_lines * 100.0,
             r.err_energy * 100.0,
+            own,
             match r.image_identical {
                 Some(true) => "same",
                 Some(false) => "DIFF",

@@ -2,7 +2,7 @@
 //! the same frame, and the figures are consistent with the modes' own runs.
 
 use dualstream::config::Config;
-use dualstream::speed_error::{SpeedErrorOpts, estimate, plot, run, table};
+use dualstream::speed_error::{SpeedErrorOpts, estimate, plot, run, table, tile_sample};
 
 fn tiny() -> (dualstream::scene::Scene, Config) {
     let mut s = dualstream::scene::load("tiny").unwrap();
@@ -19,7 +19,13 @@ fn tiny() -> (dualstream::scene::Scene, Config) {
 #[test]
 fn every_mode_against_the_cycle_model() {
     let (s, c) = tiny();
-    let rows = run(&s, &c, &SpeedErrorOpts { small_tms: 2 }).unwrap();
+    let o = SpeedErrorOpts {
+        small_tms: 2,
+        sample_every: 4,
+        tile: 4,
+        ..SpeedErrorOpts::default()
+    };
+    let rows = run(&s, &c, &o).unwrap();
     let names: Vec<&str> = rows.iter().map(|r| r.mode.as_str()).collect();
     assert_eq!(
         names,
@@ -28,7 +34,9 @@ fn every_mode_against_the_cycle_model() {
             "cycle-fixed",
             "functional+estimate",
             "small-chip",
-            "quarter-pixels"
+            "quarter-pixels",
+            "sampled",
+            "sampled-scaled"
         ]
     );
     let r = &rows[0];
@@ -44,12 +52,19 @@ fn every_mode_against_the_cycle_model() {
         assert_eq!(m.image_identical, Some(true), "{}", m.mode);
     }
     assert_eq!(rows[4].image_identical, None);
+    // The samples' pixels are the whole frame's, and two samples give an error bar.
+    for m in &rows[5..] {
+        assert_eq!(m.image_identical, Some(true), "{}", m.mode);
+        let e = m.est_err.expect("two samples estimate their error");
+        assert!(e.iter().all(|x| x.is_finite() && *x >= 0.0), "{e:?}");
+    }
+    assert!(rows[..5].iter().all(|m| m.est_err.is_none()));
     // The stream lines do not depend on timing: the chip with either memory moves
     // as many lines within the timing-dependent hit-record merging.
     assert!(rows[1].err_lines.abs() < 0.1, "{}", rows[1].err_lines);
     let t = table(&rows);
-    assert_eq!(t.lines().count(), 6, "{t}");
-    assert_eq!(plot(&rows).matches("<circle").count(), 5);
+    assert_eq!(t.lines().count(), 8, "{t}");
+    assert_eq!(plot(&rows).matches("<circle").count(), 7);
 }
 
 #[test]
@@ -81,7 +96,15 @@ fn the_estimate_is_at_least_every_resource_bound() {
 #[test]
 fn an_impossible_small_chip_is_named() {
     let (s, c) = tiny();
-    let e = run(&s, &c, &SpeedErrorOpts { small_tms: 4 }).unwrap_err();
+    let e = run(
+        &s,
+        &c,
+        &SpeedErrorOpts {
+            small_tms: 4,
+            ..SpeedErrorOpts::default()
+        },
+    )
+    .unwrap_err();
     assert!(e.contains("--small-tms 4") && e.contains("chip.tms"), "{e}");
 }
 
@@ -89,7 +112,17 @@ fn an_impossible_small_chip_is_named() {
 fn two_small_chips_fit_a_serial_and_a_parallel_part() {
     let (s, mut c) = tiny();
     c.chip.tms = 8;
-    let rows = run(&s, &c, &SpeedErrorOpts { small_tms: 2 }).unwrap();
+    let rows = run(
+        &s,
+        &c,
+        &SpeedErrorOpts {
+            small_tms: 2,
+            tile: 4,
+            sample_every: 4,
+            ..SpeedErrorOpts::default()
+        },
+    )
+    .unwrap();
     let names: Vec<&str> = rows.iter().map(|r| r.mode.as_str()).collect();
     assert_eq!(names[3..5], ["small-chip", "small-chips-fit"]);
     let fit = &rows[4];
@@ -97,4 +130,100 @@ fn two_small_chips_fit_a_serial_and_a_parallel_part() {
     assert!(fit.note.contains("2 and 4 TMs"), "{}", fit.note);
     // Both small runs together take longer than the linear mode's one run.
     assert!(fit.wall_s >= rows[3].wall_s);
+}
+
+/// A pixel sample renders exactly its pixels, each as in the whole frame.
+#[test]
+fn a_pixel_sample_renders_its_pixels_as_the_whole_frame_does() {
+    let (s, c) = tiny();
+    let rc = |pixels: Option<Vec<u32>>| dualstream::render::RenderCfg {
+        accel: c.accel.clone(),
+        pixels,
+        ..Default::default()
+    };
+    let mode = dualstream::render::Mode::Functional;
+    let full = dualstream::render::render(&s, mode, &rc(None), &mut |_| {}).unwrap();
+    let pix = tile_sample(16, 16, 4, 4, 1).unwrap();
+    assert_eq!(pix.len(), 64, "a quarter of the 16 tiles");
+    let part = dualstream::render::render(&s, mode, &rc(Some(pix.clone())), &mut |_| {}).unwrap();
+    assert!(part.total.rays < full.total.rays);
+    let lit = pix
+        .iter()
+        .filter(|&&p| full.radiance[p as usize] != glam::Vec3::ZERO)
+        .count();
+    assert!(lit > 0, "the test needs lit pixels in the sample");
+    for p in 0..256u32 {
+        let want = if pix.contains(&p) {
+            full.radiance[p as usize]
+        } else {
+            glam::Vec3::ZERO
+        };
+        assert_eq!(
+            part.radiance[p as usize].to_array().map(f32::to_bits),
+            want.to_array().map(f32::to_bits),
+            "pixel {p}"
+        );
+    }
+    // The samples of the offsets partition the frame.
+    let mut all: Vec<u32> = (0..4)
+        .flat_map(|o| tile_sample(16, 16, 4, 4, o).unwrap())
+        .collect();
+    all.sort();
+    assert_eq!(all, (0..256).collect::<Vec<u32>>());
+    // A bad sample is named.
+    for bad in [vec![], vec![3, 3], vec![5, 2], vec![256]] {
+        let e =
+            dualstream::render::render(&s, mode, &rc(Some(bad.clone())), &mut |_| {}).unwrap_err();
+        assert!(e.contains("pixel sample"), "{bad:?}: {e}");
+    }
+}
+
+/// Sampling every tile in one sample is the whole frame: both estimates equal the
+/// reference.
+#[test]
+fn sampling_every_tile_is_the_whole_frame() {
+    let (s, c) = tiny();
+    let o = SpeedErrorOpts {
+        sample_every: 1,
+        subsets: 1,
+        tile: 4,
+        modes: Some(vec!["sampled".into()]),
+        ..SpeedErrorOpts::default()
+    };
+    let rows = run(&s, &c, &o).unwrap();
+    assert_eq!(rows.len(), 3);
+    for m in &rows[1..] {
+        for e in [m.err_cycles, m.err_lines, m.err_energy] {
+            assert!(e.abs() < 1e-9, "{}: {e}", m.mode);
+        }
+        assert_eq!(m.est_err, None, "one sample has no error bar");
+    }
+}
+
+#[test]
+fn bad_speed_error_options_are_named() {
+    let (s, c) = tiny();
+    let with = |f: &dyn Fn(&mut SpeedErrorOpts)| {
+        let mut o = SpeedErrorOpts {
+            modes: Some(vec!["sampled".into()]),
+            tile: 4,
+            sample_every: 4,
+            ..SpeedErrorOpts::default()
+        };
+        f(&mut o);
+        run(&s, &c, &o).unwrap_err()
+    };
+    assert!(with(&|o| o.sample_every = 0).contains("--sample-every 0"));
+    assert!(with(&|o| o.tile = 0).contains("--tile 0"));
+    assert!(with(&|o| o.tile = 17).contains("--tile 17"));
+    assert!(with(&|o| o.subsets = 5).contains("--subsets 5"));
+    assert!(with(&|o| o.modes = Some(vec!["warp".into()])).contains("unknown mode 'warp'"));
+    assert!(
+        with(&|o| {
+            o.tile = 16;
+            o.sample_every = 4;
+            o.subsets = 4
+        })
+        .contains("too few")
+    );
 }
