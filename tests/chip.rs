@@ -183,7 +183,18 @@ fn run_tiny_chip_with(cfg: Config, opts: SimOptions, trace: &str) -> Outcome {
 
 /// Also returns the steps evaluated on two threads. `trace: None`: no waveform
 /// (two threads are used only without one).
-fn run_tiny_chip_traced(mut cfg: Config, opts: SimOptions, trace: Option<&str>) -> (Outcome, u64) {
+fn run_tiny_chip_traced(cfg: Config, opts: SimOptions, trace: Option<&str>) -> (Outcome, u64) {
+    run_tiny_chip_balanced(cfg, opts, trace, false)
+}
+
+/// `moving`: two threads move a TM between them every 8 parallel steps (asserted
+/// to happen).
+fn run_tiny_chip_balanced(
+    mut cfg: Config,
+    opts: SimOptions,
+    trace: Option<&str>,
+    moving: bool,
+) -> (Outcome, u64) {
     let s = scene("cornell", 8, 8, 1);
     let rc = rcfg(8, None);
     let mut p = dualstream::render::prepare(&s, &rc).unwrap();
@@ -194,6 +205,9 @@ fn run_tiny_chip_traced(mut cfg: Config, opts: SimOptions, trace: Option<&str>) 
     cfg.accel = rc.accel.clone();
     let consts = dualstream::render::shade_consts(&s, &p);
     let mut chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), &consts, opts).unwrap();
+    if moving {
+        chip.sim.set_balance(8, true);
+    }
     let buf = Buf::default();
     if let Some(trace) = trace {
         chip.sim
@@ -226,6 +240,12 @@ fn run_tiny_chip_traced(mut cfg: Config, opts: SimOptions, trace: Option<&str>) 
             })
             .collect(),
     };
+    if moving {
+        assert!(
+            chip.sim.balance_moves() > 0,
+            "no TM moved between the threads"
+        );
+    }
     (out, chip.sim.parallel_steps)
 }
 
@@ -241,6 +261,12 @@ fn two_threads_change_nothing() {
             ..SimOptions::default()
         };
         let (base, p1) = run_tiny_chip_traced(cfg.clone(), one, None);
+        // The same with a TM moving between the threads every 8 steps.
+        let (m, _) = run_tiny_chip_balanced(cfg.clone(), two.clone(), None, true);
+        assert!(
+            m == base,
+            "{what}: moving TMs between the threads changed the outcome"
+        );
         let (r, p2) = run_tiny_chip_traced(cfg, two, None);
         assert!(base.cycles > 0);
         assert_eq!(p1, 0, "{what}: one thread handed steps to a worker");

@@ -636,6 +636,10 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
         "8x8",
         "--small-tms",
         "1",
+        "--tile",
+        "2",
+        "--sample-every",
+        "4",
         "--json",
         json.to_str().unwrap(),
         "--plot",
@@ -649,16 +653,18 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
         "functional+estimate",
         "small-chip",
         "quarter-pixels",
+        "sampled ",
+        "sampled-scaled",
     ] {
         assert!(out.contains(mode), "{mode} missing: {out}");
     }
     let rows: Vec<serde_json::Value> =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    assert_eq!(rows.len(), 5);
+    assert_eq!(rows.len(), 7);
     assert_eq!(rows[0]["err_cycles"], 0.0);
     assert!(rows[1]["speedup"].as_f64().unwrap() > 0.0);
     let plot = std::fs::read_to_string(&svg).unwrap();
-    assert_eq!(plot.matches("<circle").count(), 5);
+    assert_eq!(plot.matches("<circle").count(), 7);
     fails_with(
         &[
             "--config",

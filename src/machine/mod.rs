@@ -554,6 +554,7 @@ impl Chip {
                     sim.set_part(u, part).map_err(|e| e.to_string())?;
                 }
             }
+            sim.set_groups(tms.iter().map(|t| t.all().collect()).collect());
             for u in 0..sim.unit_count() {
                 let u = UnitId(u as u32);
                 let worker = u == hit_updater || u == scene_buffer;

@@ -442,6 +442,7 @@ pub struct Sim {
     lane_due: [Vec<(u32, bool)>; 2],
     /// Steps handed to the worker in the current run (two threads only).
     lane_seq: u64,
+    balance: Balance,
     /// Unit evaluations so far (due ones, not shadow ones).
     pub evals: u64,
     /// Steps (distinct times) processed so far.
@@ -480,6 +481,7 @@ impl Sim {
             out: LaneOut::default(),
             lane_due: [Vec::new(), Vec::new()],
             lane_seq: 0,
+            balance: Balance::default(),
             evals: 0,
             steps: 0,
             parallel_steps: 0,
@@ -913,13 +915,95 @@ impl Sim {
         // From here until `done`, this thread reaches slots and links only through
         // `lanes`, and only those of partition 2.
         // SAFETY: partition 2 is this thread's; the worker takes partition 1.
+        let t0 = std::time::Instant::now();
         let result = unsafe { run_lane(lanes, 2, &self.lane_due[1], t, &mut self.out) };
+        let main_ns = t0.elapsed().as_nanos() as u64;
         wait_for(&w.done, self.lane_seq);
         // SAFETY: the worker is done with this step and waits for the next `go`.
         let job = unsafe { &mut *w.job.get() };
         std::mem::swap(&mut job.due, &mut self.lane_due[0]);
         self.out.append(&mut job.out);
+        self.balance.lane_ns[0] += job.lane_ns;
+        self.balance.lane_ns[1] += main_ns;
+        self.balance.steps += 1;
+        if self.balance.steps >= self.balance.window {
+            self.rebalance();
+        }
         result.and(std::mem::replace(&mut job.result, Ok(())))
+    }
+
+    /// Declares groups of units that move between partitions 1 and 2 together
+    /// (a TM each): with two threads, every `BALANCE_STEPS` parallel steps the
+    /// group of the slower thread's partition with the highest index (1) or
+    /// lowest (2) moves to the other, when the threads' times differ by more than
+    /// a group's share. Wall-clock driven, and so not reproducible in speed, but
+    /// results do not depend on the partition (see `set_part`).
+    pub fn set_groups(&mut self, groups: Vec<Vec<UnitId>>) {
+        self.balance.groups = groups
+            .into_iter()
+            .map(|g| g.into_iter().map(|u| u.0).collect())
+            .collect();
+    }
+
+    /// Load balancing every `window` parallel steps (default `BALANCE_STEPS`);
+    /// `always_move` moves a group at every decision, from the partition with more
+    /// groups, whatever the times (tests: a deterministic exercise of the moves).
+    pub fn set_balance(&mut self, window: u64, always_move: bool) {
+        self.balance.window = window.max(1);
+        self.balance.always_move = always_move;
+    }
+
+    /// Groups moved between the partitions so far (see `set_groups`).
+    pub fn balance_moves(&self) -> u64 {
+        self.balance.moves
+    }
+
+    fn rebalance(&mut self) {
+        let b = &mut self.balance;
+        let [w, m] = std::mem::take(&mut b.lane_ns);
+        b.steps = 0;
+        let part_of = |g: &Vec<u32>| g.first().map(|&u| self.sched[u as usize].part);
+        let n1 = b.groups.iter().filter(|g| part_of(g) == Some(1)).count();
+        let n2 = b.groups.iter().filter(|g| part_of(g) == Some(2)).count();
+        let (from, to, n) = if b.always_move {
+            if n1 >= n2 { (1, 2, n1) } else { (2, 1, n2) }
+        } else {
+            // Move when the gap exceeds the cost of one group of the slower side.
+            let (from, to, n, slow, fast) = if w > m {
+                (1, 2, n1, w, m)
+            } else {
+                (2, 1, n2, m, w)
+            };
+            if (slow - fast) as f64 <= slow as f64 / n.max(1) as f64 {
+                return;
+            }
+            (from, to, n)
+        };
+        if n < 2 {
+            return;
+        }
+        // The group at the boundary between the partitions (TMs stay contiguous).
+        let pick = if from == 1 {
+            b.groups.iter().rposition(|g| part_of(g) == Some(1))
+        } else {
+            b.groups.iter().position(|g| part_of(g) == Some(2))
+        };
+        let Some(k) = pick else { return };
+        for &u in &b.groups[k] {
+            self.sched[u as usize].part = to;
+        }
+        self.balance.moves += 1;
+        self.relocal();
+    }
+
+    /// Recomputes which partition takes each link's edge.
+    fn relocal(&mut self) {
+        for (i, l) in self.links.iter().enumerate() {
+            let (p, c) = l.ends();
+            let pp = p.map_or(0, |p| self.sched[p.0 as usize].part);
+            let cp = c.map_or(0, |c| self.sched[c.0 as usize].part);
+            self.local[i] = if pp == cp { pp } else { 0 };
+        }
     }
 
     fn eval_unit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
@@ -1132,6 +1216,8 @@ struct Job {
     due: Vec<(u32, bool)>,
     out: LaneOut,
     result: Result<(), SimError>,
+    /// Wall time of the worker's part of the step (load balancing only).
+    lane_ns: u64,
 }
 
 // SAFETY: `job` is accessed by the main thread only while the worker waits for `go`
@@ -1162,6 +1248,7 @@ impl Worker {
                 due: Vec::new(),
                 out: LaneOut::default(),
                 result: Ok(()),
+                lane_ns: 0,
             }),
         }
     }
@@ -1221,7 +1308,9 @@ fn worker_loop(w: &Worker) {
         // SAFETY: the main thread handed the job over with `go` and waits for `done`.
         let job = unsafe { &mut *w.job.get() };
         // SAFETY: partition 1 is the worker's; the main thread takes partition 2.
+        let t0 = std::time::Instant::now();
         job.result = unsafe { run_lane(job.lanes, 1, &job.due, job.now, &mut job.out) };
+        job.lane_ns = t0.elapsed().as_nanos() as u64;
         w.done.store(last, Ordering::Release);
     }
 }
@@ -1281,4 +1370,32 @@ unsafe fn run_lane(
         }
     }
     Ok(())
+}
+
+/// Parallel steps between two load-balancing decisions (`Sim::set_groups`).
+const BALANCE_STEPS: u64 = 4096;
+
+/// Load balancing of the two threads (`Sim::set_groups`).
+struct Balance {
+    groups: Vec<Vec<u32>>,
+    window: u64,
+    always_move: bool,
+    /// Wall time of the worker's and this thread's partitions since the last decision.
+    lane_ns: [u64; 2],
+    steps: u64,
+    /// Groups moved so far.
+    moves: u64,
+}
+
+impl Default for Balance {
+    fn default() -> Self {
+        Balance {
+            groups: Vec::new(),
+            window: BALANCE_STEPS,
+            always_move: false,
+            lane_ns: [0; 2],
+            steps: 0,
+            moves: 0,
+        }
+    }
 }
