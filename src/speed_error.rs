@@ -353,11 +353,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         push(
             "cycle-fixed",
             f.wall_s,
-            [
-                cyc,
-                f.total.total_lines() as f64,
-                total_energy(&fixed, &f, cyc)?,
-            ],
+            figures(&fixed, &f, cyc)?,
             Some(f.radiance == reference.radiance),
             None,
             "fixed-latency memory; DRAM energy estimated from lines",
@@ -369,11 +365,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
     if want("functional+estimate") || want("sampled") {
         let f = render_pixels(scene, Mode::Functional, config, None, t)?;
         let est = estimate(&gddr5, &f).cycles;
-        let fig = [
-            est,
-            f.total.total_lines() as f64,
-            total_energy(&gddr5, &f, est)?,
-        ];
+        let fig = figures(&gddr5, &f, est)?;
         if want("functional+estimate") {
             push(
                 "functional+estimate",
@@ -399,11 +391,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             push(
                 "small-chip",
                 f.wall_s,
-                [
-                    cyc,
-                    f.total.total_lines() as f64,
-                    total_energy(&small, &f, cyc)?,
-                ],
+                figures(&small, &f, cyc)?,
                 Some(f.radiance == reference.radiance),
                 None,
                 &format!("{} TMs, cycles x {scale}", o.small_tms),
@@ -422,11 +410,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             let cyc = (a + b / config.chip.tms as f64).max(0.0);
             fit = Some((
                 f.wall_s + f2.wall_s,
-                [
-                    cyc,
-                    f2.total.total_lines() as f64,
-                    total_energy(&small2, &f2, cyc)?,
-                ],
+                figures(&small2, &f2, cyc)?,
                 Some(f2.radiance == reference.radiance),
                 format!("{s1} and {s2} TMs ({c1:.0}, {c2:.0} cycles), a + b/TMs"),
             ));
@@ -475,17 +459,9 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                 .iter()
                 .all(|&p| fc.radiance[p as usize] == reference.radiance[p as usize]);
             let cyc = cycles_of(&fc);
-            let fig = [
-                cyc,
-                fc.total.total_lines() as f64,
-                total_energy(&gddr5, &fc, cyc)?,
-            ];
+            let fig = figures(&gddr5, &fc, cyc)?;
             let est = estimate(&gddr5, &ff).cycles;
-            let aux = [
-                est,
-                ff.total.total_lines() as f64,
-                total_energy(&gddr5, &ff, est)?,
-            ];
+            let aux = figures(&gddr5, &ff, est)?;
             ratio.push([0, 1, 2].map(|i| fig[i] / aux[i].max(1e-300)));
             scaled.push(fig.map(|x| x / frac));
         }
@@ -516,6 +492,15 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         );
     }
     Ok(out)
+}
+
+/// A frame's cycles (given: simulated or estimated), DRAM lines and energy.
+fn figures(c: &Config, f: &Frame, cycles: f64) -> Result<[f64; 3], String> {
+    Ok([
+        cycles,
+        f.total.total_lines() as f64,
+        total_energy(c, f, cycles)?,
+    ])
 }
 
 /// Mean of each component over the samples and its relative standard error

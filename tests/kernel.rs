@@ -370,21 +370,22 @@ fn two_threads_change_nothing() {
     assert!(base == untraced(two), "two threads changed the outcome");
 }
 
+/// A well-behaved `Pusher` on `out`.
+fn pusher(out: Out<u32>) -> Pusher {
+    Pusher {
+        out,
+        n: Reg::new(0),
+        change_payload: false,
+        drop_valid: false,
+    }
+}
+
 #[test]
 fn netlist_errors_are_named() {
     let mut sim = Sim::default();
     let c = sim.clock("core", 1000).unwrap();
     let (o, i) = sim.link::<u32>("l", LinkCfg::default());
-    let p = sim.add(
-        "p",
-        c,
-        Pusher {
-            out: o,
-            n: Reg::new(0),
-            change_payload: false,
-            drop_valid: false,
-        },
-    );
+    let p = sim.add("p", c, pusher(o));
     sim.add("d", c, Deaf { inp: i });
     assert!(
         sim.set_part(p, 3)
@@ -396,32 +397,14 @@ fn netlist_errors_are_named() {
     let mut sim = Sim::default();
     let c = sim.clock("core", 1000).unwrap();
     let (o, _i) = sim.link::<u32>("dangling", LinkCfg::default());
-    sim.add(
-        "p",
-        c,
-        Pusher {
-            out: o,
-            n: Reg::new(0),
-            change_payload: false,
-            drop_valid: false,
-        },
-    );
+    sim.add("p", c, pusher(o));
     let e = sim.run(1000).unwrap_err().to_string();
     assert!(e.contains("dangling") && e.contains("no consumer"), "{e}");
 
     let mut sim = Sim::default();
     let c = sim.clock("core", 1000).unwrap();
     let (o, i) = sim.link::<u32>("zero", LinkCfg { depth: 1, delay: 0 });
-    sim.add(
-        "p",
-        c,
-        Pusher {
-            out: o,
-            n: Reg::new(0),
-            change_payload: false,
-            drop_valid: false,
-        },
-    );
+    sim.add("p", c, pusher(o));
     sim.add("d", c, Deaf { inp: i });
     let e = sim.run(1000).unwrap_err().to_string();
     assert!(e.contains("combinational"), "{e}");

@@ -606,7 +606,6 @@ impl Sim {
                 }
             }
         }
-        let mut local = Vec::with_capacity(self.links.len());
         for (l, (p, c)) in self.links.iter_mut().zip(&ends) {
             l.cfg()
                 .validate(&format!("link '{}'", l.name()))
@@ -619,12 +618,10 @@ impl Sim {
                 )));
             };
             l.set_ends(Some(*p), *c);
-            let pp = self.sched[p.0 as usize].part;
-            let cp = c.map_or(0, |c| self.sched[c.0 as usize].part);
-            local.push(if pp == cp { pp } else { 0 });
             l.set_delay_ps(l.cfg().delay as Time * self.slots[p.0 as usize].period);
         }
-        self.local = local;
+        self.local = vec![0; self.links.len()];
+        self.relocal();
         self.elaborated = true;
         self.reset();
         Ok(())
@@ -1254,18 +1251,11 @@ impl Worker {
     }
 }
 
-/// Spins until `a` holds `v`, yielding the core after a while (so that an
+/// Spins until `done` holds, yielding the core after a while (so that an
 /// oversubscribed machine, such as parallel tests, still makes progress).
-fn wait_for(a: &AtomicU64, v: u64) {
+fn spin_until(mut done: impl FnMut() -> bool) {
     let mut spins = 0u32;
-    loop {
-        let x = a.load(Ordering::Acquire);
-        if x == v {
-            return;
-        }
-        if x == PANICKED {
-            panic!("the simulator's worker thread panicked (see its message above)");
-        }
+    while !done() {
         if spins < 1 << 12 {
             spins += 1;
             std::hint::spin_loop();
@@ -1273,6 +1263,17 @@ fn wait_for(a: &AtomicU64, v: u64) {
             std::thread::yield_now();
         }
     }
+}
+
+/// Waits until `a` holds `v` (panics if the worker panicked).
+fn wait_for(a: &AtomicU64, v: u64) {
+    spin_until(|| {
+        let x = a.load(Ordering::Acquire);
+        if x == PANICKED {
+            panic!("the simulator's worker thread panicked (see its message above)");
+        }
+        x == v
+    });
 }
 
 fn worker_loop(w: &Worker) {
@@ -1288,19 +1289,11 @@ fn worker_loop(w: &Worker) {
     let _alarm = Alarm(&w.done);
     let mut last = 0;
     loop {
-        let mut spins = 0u32;
-        let go = loop {
-            let g = w.go.load(Ordering::Acquire);
-            if g != last {
-                break g;
-            }
-            if spins < 1 << 12 {
-                spins += 1;
-                std::hint::spin_loop();
-            } else {
-                std::thread::yield_now();
-            }
-        };
+        let mut go = last;
+        spin_until(|| {
+            go = w.go.load(Ordering::Acquire);
+            go != last
+        });
         if go == QUIT {
             return;
         }
