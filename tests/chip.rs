@@ -406,6 +406,47 @@ fn a_full_destination_table_stops_with_a_named_error() {
 }
 
 #[test]
+fn the_destination_table_holds_only_the_working_sets_destinations() {
+    // 8 KB segments: the cornell box's segment tree is several levels deep, so
+    // with a table of exactly the most children of any segment a child can only
+    // be admitted if its closed siblings' queues have left the table (as queue
+    // records in DRAM), as the paper sizes it (§4.1).
+    let s = scene("cornell", 16, 16, 2);
+    let base = rcfg(8, None);
+    let p = dualstream::render::prepare(&s, &base).unwrap();
+    let max = p.info.children_max;
+    assert!(
+        max >= 2 && (p.info.segments as u64) > max + 1,
+        "the scene needs grandchildren of the root: {} segments, at most {max} children",
+        p.info.segments
+    );
+    let f = render(&s, Mode::Functional, &base, &mut |_| {}).unwrap();
+    let mut cfg = chip_cfg(2, 4);
+    cfg.chip.scheduler.dest_entries = max as u32;
+    let c = render(
+        &s,
+        Mode::Cycle,
+        &rcfg(8, Some((cfg.clone(), SimOptions::default()))),
+        &mut |_| {},
+    )
+    .unwrap();
+    same_frame(&f, &c, "a table of the most children");
+    // One entry fewer can never admit that segment: named before simulating.
+    cfg.chip.scheduler.dest_entries = max as u32 - 1;
+    let e = render(
+        &s,
+        Mode::Cycle,
+        &rcfg(8, Some((cfg, SimOptions::default()))),
+        &mut |_| {},
+    )
+    .unwrap_err();
+    assert!(
+        e.contains(&format!("has {max} children")) && e.contains("at least"),
+        "{e}"
+    );
+}
+
+#[test]
 fn the_watchdog_names_the_units_holding_work() {
     // A scene buffer that never answers: lines longer than the watchdog.
     let s = scene("cornell", 8, 8, 1);

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{HIT_BYTES, PATH_BYTES, SEG_ENTRY_BYTES};
+use super::{HIT_BYTES, PATH_BYTES, QUEUE_REC_BYTES, SEG_ENTRY_BYTES};
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -78,6 +78,8 @@ pub struct MemoryMap {
     pub hits: u64,
     /// Path state: one per pixel.
     pub path: u64,
+    /// Queue records: 16 B per segment (a closed queue waiting for admission).
+    pub queue_recs: u64,
     pub end: u64,
     pub capacity: u64,
 }
@@ -109,7 +111,11 @@ impl MemoryMap {
         let bucket_count = cfg.bucket_pool_bytes / cfg.bucket_bytes;
         let hits = align(buckets + bucket_count * cfg.bucket_bytes, row);
         let path = align(hits + pixels * 2 * HIT_BYTES as u64, row);
-        let end = align(path + pixels * PATH_BYTES as u64, row);
+        let queue_recs = align(path + pixels * PATH_BYTES as u64, row);
+        let end = align(
+            queue_recs + segment_bytes.len() as u64 * QUEUE_REC_BYTES as u64,
+            row,
+        );
         if end > cfg.capacity_bytes {
             return Err(format!(
                 "the scene ({} MB of segments), the ray-bucket pool ({} MB) and {pixels} pixels of hit records and path state need {} MB, more than the configured DRAM ({} MB); raise memory.capacity_bytes or lower memory.bucket_pool_bytes or the resolution",
@@ -132,6 +138,7 @@ impl MemoryMap {
             bucket_count,
             hits,
             path,
+            queue_recs,
             end,
             capacity: cfg.capacity_bytes,
         })
@@ -148,6 +155,9 @@ impl MemoryMap {
     }
     pub fn seg_entry_addr(&self, seg: u32) -> u64 {
         self.seg_table + seg as u64 * SEG_ENTRY_BYTES as u64
+    }
+    pub fn queue_rec_addr(&self, seg: u32) -> u64 {
+        self.queue_recs + seg as u64 * QUEUE_REC_BYTES as u64
     }
 }
 
@@ -166,12 +176,13 @@ mod tests {
             64 * 64,
         )
         .unwrap();
-        for a in [m.scene, m.buckets, m.hits, m.path, m.end] {
+        for a in [m.scene, m.buckets, m.hits, m.path, m.queue_recs, m.end] {
             assert_eq!(a % 8192, 0);
         }
         assert_eq!(m.scene_bytes, 65536 + 8192 + 16384);
         assert!(m.seg_table < m.child_list && m.child_list < m.scene && m.scene < m.buckets);
         assert_eq!(m.bucket_count, (512 << 20) / 2048);
+        assert!(m.path < m.queue_recs && m.queue_recs + 3 * 16 <= m.end);
         assert_eq!(MemoryMapCfg::default().rays_per_bucket(), 63);
     }
 

@@ -206,6 +206,38 @@ pub struct SegEntry {
     pub child_count: u32,
 }
 
+// ---- queue records ----
+
+/// A closed ray queue waiting for its segment's admission: the stream scheduler
+/// writes it when the queue leaves the destination table (whose entries hold only
+/// the working set's write destinations, paper §4.1) and reads it back at admission.
+pub const QUEUE_REC_BYTES: u32 = 16;
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct QueueRec {
+    /// Address of the queue's first bucket.
+    pub head: u64,
+    pub buckets: u32,
+    pub rays: u32,
+}
+
+impl QueueRec {
+    pub fn encode(&self) -> [u8; QUEUE_REC_BYTES as usize] {
+        let mut b = [0u8; QUEUE_REC_BYTES as usize];
+        b[0..8].copy_from_slice(&self.head.to_le_bytes());
+        put_u32(&mut b, 8, self.buckets);
+        put_u32(&mut b, 12, self.rays);
+        b
+    }
+    pub fn decode(b: &[u8]) -> QueueRec {
+        QueueRec {
+            head: u64::from_le_bytes(b[0..8].try_into().expect("8 bytes")),
+            buckets: u32_at(b, 8),
+            rays: u32_at(b, 12),
+        }
+    }
+}
+
 // ---- codecs over the sparse DRAM image ----
 
 // Each record is encoded to / decoded from its bytes in one piece, so a record

@@ -104,8 +104,9 @@ pub const MAX_STREAM_LANES: u32 = 16;
 pub struct SchedulerCfg {
     /// Segments streamed into the scene buffer at once: 8 [DS17 §4.1].
     pub streams: u32,
-    /// Destination table: ray queues the scheduler tracks at once (pending child
-    /// queues included): about a thousand [DS17 §4.1].
+    /// Destination table: the working set's potential write destinations (its
+    /// segments' children; closed queues wait in DRAM as queue records): about a
+    /// thousand [DS17 §4.1].
     pub dest_entries: u32,
     /// Ray writes (duplicates and end markers) accepted per cycle from the TMs.
     /// Assumption: 4.

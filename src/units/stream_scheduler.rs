@@ -26,20 +26,27 @@
 //!   child with an empty queue is dropped with its whole subtree (its descendants
 //!   can only get rays from it). The root is eligible when `start` arrives.
 //! - **Admission** of the smallest eligible segment: its segment-table entry and
-//!   child list are read (tag `other`), then it needs a free scene-buffer slot, a
-//!   free stream (at most `streams` segments stream at once), room in the
-//!   destination table for all its children, and its queue's writes answered.
+//!   child list are read (tag `other`), and its queue record once the queue has
+//!   left the destination table; then it needs a free scene-buffer slot, a
+//!   free stream (at most `streams` segments stream at once) and room in the
+//!   destination table for all its children.
 //!   It is mapped into the slot (`slot_map`) and its stream starts: one line read
 //!   per `scene_req` lane per cycle, lane j serving active stream
 //!   `(cycle + j) mod streams`, every line of the segment (so the scene lines
 //!   equal the functional model's). A slot is reused only when its
 //!   segment has retired and its stream has issued every line; late lines of an
 //!   old generation are dropped by the scene buffer.
-//! - **Destination table** (`dest_entries`): one entry per ray queue that holds
-//!   rays or may get them (the children of the working set are reserved at
-//!   admission). A segment waits for admission while its children do not fit;
-//!   if nothing can free an entry the chip stops with an error naming
-//!   `chip.scheduler.dest_entries` (reported by the chip top, `dest_blocked`).
+//! - **Destination table** (`dest_entries`): one entry per potential write
+//!   destination, the children of the working set (paper §4.1: "the total number
+//!   of children of all segments currently in the working set"), reserved at
+//!   admission. When a retired parent closes a queue that holds rays, the queue's
+//!   record (first bucket, bucket and ray counts; `QueueRec`) is written to DRAM
+//!   (tag `other`) and its entry is freed once every write of the queue is
+//!   answered; the segment waits for admission as an id in the eligible set. A
+//!   segment waits for admission while its children do not fit; if nothing can
+//!   free an entry (one segment with more children than entries) the chip stops
+//!   with an error naming `chip.scheduler.dest_entries` (reported by the chip
+//!   top, `dest_blocked`).
 //! - **Queues** mirror `render/queues.rs`: buckets from a pool of row-sized chunks
 //!   (a LIFO free list, lowest chunk first), a chunk per queue at a time, a bucket
 //!   freed when read, a chunk when all its buckets are; a header written when a
@@ -70,8 +77,8 @@
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 
 use crate::contract::{
-    BUCKET_HEADER_BYTES, LINE_BYTES, MemoryMap, RAY_BYTES, RayRec, SEG_ENTRY_BYTES, SegEntry,
-    lines_touched,
+    BUCKET_HEADER_BYTES, LINE_BYTES, MemoryMap, QUEUE_REC_BYTES, QueueRec, RAY_BYTES, RayRec,
+    SEG_ENTRY_BYTES, SegEntry, lines_touched,
 };
 use crate::machine::config::{SceneBufferCfg, SchedulerCfg};
 use crate::mem::StreamTag;
@@ -111,6 +118,7 @@ const K_INFO: u32 = 1;
 const K_CHILD: u32 = 2;
 const K_BUCKET: u32 = 3;
 const K_WRITE: u32 = 4;
+const K_QREC: u32 = 5;
 
 /// One ray queue (a destination table entry).
 #[derive(Clone, Debug, Default)]
@@ -156,6 +164,9 @@ pub struct Fetch {
     pub entry: Option<SegEntry>,
     pub child_lines: Vec<Option<Line>>,
     pub children: Option<Vec<u32>>,
+    /// The queue record was asked for (once the queue has left the table).
+    pub rec_asked: bool,
+    pub rec: Option<QueueRec>,
 }
 
 #[derive(Clone, Debug)]
@@ -630,8 +641,9 @@ impl StreamScheduler {
         self.pub_enqueued[seg as usize] += 1;
     }
 
-    /// Seals a queue's open bucket (its parent is done) and returns its chunk's
-    /// unused buckets; needs 2 free memory-queue entries.
+    /// Seals a queue's open bucket (its parent is done), returns its chunk's
+    /// unused buckets and writes its queue record; needs 3 free memory-queue
+    /// entries.
     fn close(&mut self, seg: u32) {
         if !self.st.r().dest.contains_key(&seg) {
             return;
@@ -645,10 +657,31 @@ impl StreamScheduler {
             self.seal(seg, tail, n, 0);
         }
         let per_chunk = self.per_chunk;
+        let a = self.map.queue_rec_addr(seg);
         let st = self.st.m();
         let q = st.dest.get_mut(&seg).expect("queue");
         q.closed = true;
         let left = std::mem::take(&mut q.chunk_left);
+        // The closed queue is no write destination any more: its record goes to
+        // DRAM, and its table entry is freed when every write of it is answered.
+        let rec = QueueRec {
+            head: q.head,
+            buckets: u32::try_from(q.buckets).expect("buckets of one queue fit 32 bits"),
+            rays: u32::try_from(q.len).expect("rays of one queue fit 32 bits"),
+        };
+        q.writes_in_flight += 1;
+        let line_a = a & !(LINE_BYTES - 1);
+        let off = (a - line_a) as usize;
+        let mut data = Line::default();
+        data.0[off..off + QUEUE_REC_BYTES as usize].copy_from_slice(&rec.encode());
+        st.out.push_back(MemLineReq {
+            addr: line_a,
+            write: true,
+            tag: StreamTag::Other,
+            id: K_WRITE << KIND_SHIFT | seg,
+            mask: ((1u64 << QUEUE_REC_BYTES) - 1) << off,
+            data,
+        });
         for b in left {
             Self::free_bucket(st, per_chunk, b);
         }
@@ -663,7 +696,19 @@ impl StreamScheduler {
                 let st = self.st.m();
                 if let Some(q) = st.dest.get_mut(&low) {
                     q.writes_in_flight -= 1;
+                    if q.closed && q.writes_in_flight == 0 {
+                        // Its record is in DRAM: the entry is free.
+                        st.dest.remove(&low);
+                    }
                 }
+            }
+            K_QREC => {
+                let st = self.st.m();
+                let f = st.fetch.as_mut().expect("fetch in progress");
+                let off = (self.map.queue_rec_addr(f.seg) % LINE_BYTES) as usize;
+                f.rec = Some(QueueRec::decode(
+                    &r.data.0[off..off + QUEUE_REC_BYTES as usize],
+                ));
             }
             K_INFO => {
                 let st = self.st.m();
@@ -834,7 +879,7 @@ impl Logic for StreamScheduler {
         // 2. Wave start: close the root queue, make it eligible.
         // (The host pushes `start` after its last ray: once `start` is visible with
         // the emit link empty, every ray of the wavefront has been taken.)
-        if self.out_room() >= 2 && ctx.peek(&self.start).is_some() && ctx.peek(&self.emit).is_none()
+        if self.out_room() >= 3 && ctx.peek(&self.start).is_some() && ctx.peek(&self.emit).is_none()
         {
             let ws = ctx.pop(&self.start).expect("peeked");
             if ws.shade_pixels > 0 {
@@ -858,7 +903,7 @@ impl Logic for StreamScheduler {
             .shade
             .as_ref()
             .is_some_and(|p| p.next == p.end && p.done == p.out);
-        if shaded && self.out_room() >= 2 {
+        if shaded && self.out_room() >= 3 {
             self.st.m().shade = None;
             self.last_shade_end = c;
             self.close(0);
@@ -905,7 +950,7 @@ impl Logic for StreamScheduler {
         }
 
         // 4. Closing the children of retired segments, one per cycle.
-        if self.out_room() >= 2 && !self.st.r().closing.is_empty() {
+        if self.out_room() >= 3 && !self.st.r().closing.is_empty() {
             let s = self.st.m().closing.pop_front().expect("non-empty");
             if self.st.r().dest.contains_key(&s) {
                 self.close(s);
@@ -925,6 +970,8 @@ impl Logic for StreamScheduler {
                 entry: None,
                 child_lines: Vec::new(),
                 children: None,
+                rec_asked: false,
+                rec: None,
             });
             let a = self.map.seg_entry_addr(s);
             debug_assert!(
@@ -933,6 +980,23 @@ impl Logic for StreamScheduler {
             );
             st.out
                 .push_back(MemLineReq::read(a, StreamTag::Other, K_INFO << KIND_SHIFT));
+            worked = true;
+        }
+        // The queue record, once the queue's writes (the record's too) are answered.
+        let ask = self.st.r().fetch.as_ref().and_then(|f| {
+            (!f.rec_asked && !self.st.r().dest.contains_key(&f.seg)).then_some(f.seg)
+        });
+        if let Some(s) = ask
+            && self.out_room() >= 1
+        {
+            let a = self.map.queue_rec_addr(s);
+            let st = self.st.m();
+            st.fetch.as_mut().expect("fetch").rec_asked = true;
+            st.out.push_back(MemLineReq::read(
+                a & !(LINE_BYTES - 1),
+                StreamTag::Other,
+                K_QREC << KIND_SHIFT,
+            ));
             worked = true;
         }
         if let Some(pm) = self.st.r().pending_map.clone()
@@ -954,12 +1018,19 @@ impl Logic for StreamScheduler {
             let e = f.entry.expect("entry");
             let kids = e.child_count as usize;
             let slot = s.slot_free.iter().position(|&x| x);
-            let q_ready = s
-                .dest
-                .get(&f.seg)
-                .is_some_and(|q| q.closed && q.writes_in_flight == 0);
+            let q_ready = f.rec.is_some();
             let dest_ok = s.dest.len() + s.reserved.len() + kids <= self.dest_entries as usize;
             let stream_ok = s.streams.len() < self.streams_n as usize;
+            if kids > self.dest_entries as usize {
+                // No amount of waiting frees enough entries: stop with the fix.
+                let msg = format!(
+                    "segment {} has {kids} children, more than the destination table holds (chip.scheduler.dest_entries = {}): raise it to at least {kids}",
+                    f.seg, self.dest_entries
+                );
+                self.st.m().error = Some(msg);
+                ctx.set_status(Status::WaitInput);
+                return Next::Idle;
+            }
             let blocked_now = !dest_ok;
             if blocked_now != s.dest_blocked {
                 self.st.m().dest_blocked = blocked_now;
@@ -968,7 +1039,7 @@ impl Logic for StreamScheduler {
             if let (Some(slot), true, true, true) = (slot, q_ready, dest_ok, stream_ok) {
                 let st = self.st.m();
                 let f = st.fetch.take().expect("fetch");
-                let q = st.dest.remove(&f.seg).expect("queue");
+                let q = f.rec.expect("queue record");
                 let generation = st.slot_gen[slot].wrapping_add(1);
                 st.slot_gen[slot] = generation;
                 st.slot_free[slot] = false;
@@ -997,7 +1068,7 @@ impl Logic for StreamScheduler {
                     entry: e,
                     children,
                     head: q.head,
-                    buckets_left: q.buckets,
+                    buckets_left: q.buckets as u64,
                     header_pending: false,
                     buckets_on_chip: 0,
                     rays_fwd: 0,
