@@ -17,7 +17,9 @@ pub use bits::{Bits, Payload};
 pub use decl::{PortDecl, PortDir, SignalDecl, StateDecl, UnitDecl};
 pub use link::{In, LinkCfg, LinkEvent, LinkId, Out};
 pub use pipe::FixedPipe;
-pub use sim::{ClockId, Ctx, RunEnd, Sim, SimError, SimOptions, Time, UnitId, UnitStats};
+pub use sim::{
+    ClockId, Ctx, RunEnd, Sim, SimError, SimOptions, Time, UnitId, UnitStats, round_robin,
+};
 pub use state::{Ram, Reg, State};
 pub use trace::{SharedBuf, TraceSpec, TraceStats, Tracer};
 pub use unit::{Declared, Logic, Next, Status, Unit};

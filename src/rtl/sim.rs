@@ -159,18 +159,44 @@ struct Net {
     links: *mut Box<dyn LinkDyn>,
     heads: *mut Time,
     space: *mut bool,
+    /// One byte per link: whether its FIFO holds an entry (`heads` is not
+    /// `Time::MAX`), written with `heads`. A byte, not a bit: links of one word
+    /// may have consumers on both threads, and a bit would need an atomic
+    /// read-modify-write (a fence that stalls this memory-bound loop, measured).
+    nonempty: *mut u8,
     len: usize,
 }
 
 impl Net {
-    fn of(links: &mut [Box<dyn LinkDyn>], heads: &mut [Time], space: &mut [bool]) -> Net {
-        assert!(links.len() == heads.len() && links.len() == space.len());
+    fn of(
+        links: &mut [Box<dyn LinkDyn>],
+        heads: &mut [Time],
+        space: &mut [bool],
+        nonempty: &mut [u8],
+    ) -> Net {
+        assert!(
+            links.len() == heads.len()
+                && links.len() == space.len()
+                && links.len() == nonempty.len()
+        );
         Net {
             links: links.as_mut_ptr(),
             heads: heads.as_mut_ptr(),
             space: space.as_mut_ptr(),
+            nonempty: nonempty.as_mut_ptr(),
             len: links.len(),
         }
+    }
+    /// Links `first..first + n` (n <= 64) that hold an entry, as a bit mask.
+    #[inline]
+    fn nonempty_bits(&self, first: usize, n: usize) -> u64 {
+        assert!(n <= 64 && first + n <= self.len);
+        let mut b = 0u64;
+        for k in 0..n {
+            // SAFETY: in bounds; read by the consumer, the only writer during a step.
+            b |= ((unsafe { *self.nonempty.add(first + k) } != 0) as u64) << k;
+        }
+        b
     }
     /// A shared reference to link `i`: each end changes only its own half of a
     /// link (`Link::cons`, `Link::prod`), so producer and consumer may be on two
@@ -224,7 +250,10 @@ impl Net {
     fn set_head(&mut self, i: usize, head: Time) {
         assert!(i < self.len);
         // SAFETY: in bounds; one element, written only by the consumer's thread.
-        unsafe { *self.heads.add(i) = head }
+        unsafe {
+            *self.heads.add(i) = head;
+            *self.nonempty.add(i) = (head != Time::MAX) as u8;
+        }
     }
 }
 
@@ -318,6 +347,37 @@ impl<'a> Ctx<'a> {
     #[inline]
     pub fn visible_mask<T: Payload>(&self, ports: &[In<T>]) -> u64 {
         assert!(ports.len() <= 64, "visible_mask takes at most 64 ports");
+        let Some(first) = ports.first().map(|p| p.id.0 as usize) else {
+            return 0;
+        };
+        if ports
+            .iter()
+            .enumerate()
+            .all(|(k, p)| p.id.0 as usize == first + k)
+        {
+            // Consecutive links (a port array): only the non-empty ones' heads are
+            // loaded, which keeps an arbiter's scan to a word or two of the bitset.
+            let mut b = self.net.nonempty_bits(first, ports.len());
+            let mut m = 0u64;
+            while b != 0 {
+                let k = b.trailing_zeros() as usize;
+                b &= b - 1;
+                m |= ((self.net.head(first + k) <= self.now) as u64) << k;
+            }
+            debug_assert_eq!(m, self.visible_mask_scan(ports));
+            return m;
+        }
+        self.visible_mask_scan(ports)
+    }
+
+    /// `visible_mask` over any number of ports: bit `k % 64` of word `k / 64` for
+    /// port `k` (`words` is resized to fit).
+    pub fn visible_words<T: Payload>(&self, ports: &[In<T>], words: &mut Vec<u64>) {
+        words.clear();
+        words.extend(ports.chunks(64).map(|c| self.visible_mask(c)));
+    }
+
+    fn visible_mask_scan<T: Payload>(&self, ports: &[In<T>]) -> u64 {
         let mut m = 0u64;
         for (i, p) in ports.iter().enumerate() {
             let id = p.id.0 as usize;
@@ -411,6 +471,23 @@ impl<'a> Ctx<'a> {
     }
 }
 
+/// The set bits of `words` (see `Ctx::visible_words`) in round-robin order: from
+/// `start` up, then from 0 up to `start`.
+pub fn round_robin(words: &[u64], start: usize) -> impl Iterator<Item = usize> + '_ {
+    let bits = move || {
+        words.iter().enumerate().flat_map(|(w, &b)| {
+            std::iter::successors((b != 0).then_some(b), |&r| {
+                let r = r & (r - 1);
+                (r != 0).then_some(r)
+            })
+            .map(move |r| w * 64 + r.trailing_zeros() as usize)
+        })
+    };
+    bits()
+        .filter(move |&k| k >= start)
+        .chain(bits().take_while(move |&k| k < start))
+}
+
 /// The simulator.
 pub struct Sim {
     clocks: Vec<Clock>,
@@ -421,6 +498,8 @@ pub struct Sim {
     heads: Vec<Time>,
     /// Whether every link can take a push (see `Ctx::space`).
     space: Vec<bool>,
+    /// Whether every link's FIFO holds an entry (see `Net`).
+    nonempty: Vec<u8>,
     /// Time of every link's last edge (a link touched at both ends is listed twice).
     edged: Vec<Time>,
     /// Per link: the partition of both its ends (1 or 2; its thread then takes its
@@ -467,6 +546,7 @@ impl Sim {
             links: Vec::new(),
             heads: Vec::new(),
             space: Vec::new(),
+            nonempty: Vec::new(),
             edged: Vec::new(),
             local: Vec::new(),
             now: 0,
@@ -518,6 +598,7 @@ impl Sim {
             .push(Box::new(Link::<T>::new(name.to_string(), cfg)));
         self.heads.push(Time::MAX);
         self.space.push(true);
+        self.nonempty.push(0);
         self.edged.push(Time::MAX);
         self.elaborated = false;
         (Out::new(id), In::new(id))
@@ -640,6 +721,7 @@ impl Sim {
             l.reset();
         }
         self.heads.iter_mut().for_each(|h| *h = Time::MAX);
+        self.nonempty.iter_mut().for_each(|b| *b = 0);
         self.edged.iter_mut().for_each(|h| *h = Time::MAX);
         for (s, l) in self.space.iter_mut().zip(&self.links) {
             *s = l.has_space();
@@ -854,6 +936,7 @@ impl Sim {
             debug_assert!(link.touched());
             let e = link.edge(&mut violations);
             self.heads[l.0 as usize] = e.head;
+            self.nonempty[l.0 as usize] = (e.head != Time::MAX) as u8;
             self.space[l.0 as usize] = e.space;
             if e.wake_producer {
                 let (p, _) = link.ends();
@@ -892,7 +975,12 @@ impl Sim {
     /// Evaluates and commits the due units of partition 1 on the worker and those
     /// of partition 2 on this thread, at the same time.
     fn run_lanes(&mut self, w: &Worker, t: Time) -> Result<(), SimError> {
-        let net = Net::of(&mut self.links, &mut self.heads, &mut self.space);
+        let net = Net::of(
+            &mut self.links,
+            &mut self.heads,
+            &mut self.space,
+            &mut self.nonempty,
+        );
         let lanes = Lanes {
             slots: self.slots.as_mut_ptr(),
             n_slots: self.slots.len(),
@@ -1004,7 +1092,12 @@ impl Sim {
     }
 
     fn eval_unit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
-        let net = Net::of(&mut self.links, &mut self.heads, &mut self.space);
+        let net = Net::of(
+            &mut self.links,
+            &mut self.heads,
+            &mut self.space,
+            &mut self.nonempty,
+        );
         let shadow = !is_due && self.opts.shadow;
         let slot = &mut self.slots[u as usize];
         eval_slot(slot, u, self.now, net, &mut self.out, is_due, shadow)
@@ -1238,6 +1331,7 @@ impl Worker {
                         links: std::ptr::null_mut::<Box<dyn LinkDyn>>(),
                         heads: std::ptr::null_mut(),
                         space: std::ptr::null_mut(),
+                        nonempty: std::ptr::null_mut(),
                         len: 0,
                     },
                     local: std::ptr::null(),
@@ -1390,5 +1484,22 @@ impl Default for Balance {
             steps: 0,
             moves: 0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::round_robin;
+
+    #[test]
+    fn round_robin_visits_set_bits_from_start_then_wraps() {
+        // Bits 3, 64, 70 and 127 of two words.
+        let w = [1u64 << 3, 1 | 1 << 6 | 1 << 63];
+        let all = |s| round_robin(&w, s).collect::<Vec<_>>();
+        assert_eq!(all(0), [3, 64, 70, 127]);
+        assert_eq!(all(4), [64, 70, 127, 3]);
+        assert_eq!(all(70), [70, 127, 3, 64]);
+        assert_eq!(all(128), [3, 64, 70, 127]);
+        assert!(round_robin(&[0, 0], 5).next().is_none());
     }
 }

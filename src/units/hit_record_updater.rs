@@ -22,7 +22,7 @@ use crate::machine::config::HitUpdaterCfg;
 use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
-use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
+use crate::rtl::{Ctx, In, Logic, Next, Out, Status, round_robin};
 
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
@@ -30,8 +30,11 @@ use super::tp::HitUpdate;
 
 #[derive(Clone, Debug, Default)]
 pub struct HruState {
-    /// Pending updates in arrival order (index, best hit so far).
-    pub queue: VecDeque<(u32, HitRec)>,
+    /// Pending updates in arrival order: the record indices, and beside them
+    /// (same positions) the best hit so far. Two queues so that the search for a
+    /// merge scans the indices alone.
+    pub queue: VecDeque<u32>,
+    pub queue_hit: VecDeque<HitRec>,
     /// Read-compare-writes in flight: index -> (update, write issued).
     pub in_flight: std::collections::BTreeMap<u32, (HitRec, bool)>,
     /// Writes decided, waiting for the memory port.
@@ -49,6 +52,7 @@ impl Behavioural for HruState {
     }
     fn reset(&mut self) {
         self.queue.clear();
+        self.queue_hit.clear();
         self.in_flight.clear();
         self.writes.clear();
     }
@@ -68,7 +72,9 @@ crate::unit! {
             merged: u64,
             reads: u64,
             writes: u64,
-            hazard_waits: u64
+            hazard_waits: u64,
+            // Scratch: the TMs with a visible update this cycle.
+            visible: Vec<u64>
         }
     }
 }
@@ -96,6 +102,7 @@ impl HitRecordUpdater {
             reads: 0,
             writes: 0,
             hazard_waits: 0,
+            visible: Vec::new(),
         }
     }
 
@@ -162,15 +169,15 @@ impl Logic for HitRecordUpdater {
             } else if self.st.r().in_flight.len() < self.in_flight_n as usize {
                 let pick = {
                     let s = self.st.r();
-                    s.queue
-                        .iter()
-                        .position(|(i, _)| !s.in_flight.contains_key(i))
+                    s.queue.iter().position(|i| !s.in_flight.contains_key(i))
                 };
                 if let Some(k) = pick {
                     if k > 0 {
                         self.hazard_waits += 1;
                     }
-                    let (idx, h) = self.st.m().queue.remove(k).expect("picked");
+                    let st = self.st.m();
+                    let idx = st.queue.remove(k).expect("picked");
+                    let h = st.queue_hit.remove(k).expect("beside");
                     let a = self.addr(idx);
                     self.st.m().in_flight.insert(idx, (h, false));
                     ctx.push(&self.mem_req, MemLineReq::read(a, StreamTag::Hit, idx));
@@ -179,25 +186,26 @@ impl Logic for HitRecordUpdater {
                 }
             }
         }
-        // One update accepted per cycle.
-        for j in 0..n {
-            let k = (c as usize + j) % n;
-            let Some(u) = ctx.peek(&self.hit[k]).cloned() else {
-                continue;
-            };
-            let pos = self.st.r().queue.iter().position(|(i, _)| *i == u.index);
+        // One update accepted per cycle, round-robin over the TMs with one.
+        let mut visible = std::mem::take(&mut self.visible);
+        ctx.visible_words(&self.hit, &mut visible);
+        for k in round_robin(&visible, c as usize % n) {
+            let u = ctx.peek(&self.hit[k]).cloned().expect("visible");
+            let pos = self.st.r().queue.iter().position(|&i| i == u.index);
             match pos {
                 Some(p) => {
                     ctx.pop(&self.hit[k]);
-                    let e = &mut self.st.m().queue[p];
-                    if u.hit.closer_than(&e.1) {
-                        e.1 = u.hit;
+                    let e = &mut self.st.m().queue_hit[p];
+                    if u.hit.closer_than(e) {
+                        *e = u.hit;
                     }
                     self.merged += 1;
                 }
                 None if self.st.r().queue.len() < self.queue_n as usize => {
                     ctx.pop(&self.hit[k]);
-                    self.st.m().queue.push_back((u.index, u.hit));
+                    let st = self.st.m();
+                    st.queue.push_back(u.index);
+                    st.queue_hit.push_back(u.hit);
                 }
                 None => {
                     // Queue full: this TM waits, another TM's update may still
@@ -212,6 +220,7 @@ impl Logic for HitRecordUpdater {
             full = false;
             break;
         }
+        self.visible = visible;
         ctx.set_status(if full {
             Status::ResourceBusy
         } else if worked || self.busy() {
@@ -223,7 +232,7 @@ impl Logic for HitRecordUpdater {
         let s = self.st.r();
         let can_issue = !s.writes.is_empty()
             || (s.in_flight.len() < self.in_flight_n as usize
-                && s.queue.iter().any(|(i, _)| !s.in_flight.contains_key(i)));
+                && s.queue.iter().any(|i| !s.in_flight.contains_key(i)));
         if worked || can_issue {
             Next::Cycle
         } else {

@@ -84,7 +84,7 @@ use crate::machine::config::{SceneBufferCfg, SchedulerCfg};
 use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
-use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
+use crate::rtl::{Ctx, In, Logic, Next, Out, Status, round_robin};
 
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
@@ -323,7 +323,9 @@ crate::unit! {
             last_marker: u64,
             root_log: Option<Vec<RayRec>>,
             tm_rays: Vec<u64>,
-            stats: SchedStats
+            stats: SchedStats,
+            // Scratch: the TMs with a visible ray write this cycle.
+            visible: Vec<u64>
         }
     }
 }
@@ -409,6 +411,7 @@ impl StreamScheduler {
             root_log: None,
             tm_rays: vec![0; tms],
             stats: SchedStats::default(),
+            visible: Vec::new(),
         }
     }
 
@@ -916,14 +919,18 @@ impl Logic for StreamScheduler {
         // 3. Ray writes: up to `writes_per_cycle`, TMs round-robin, then `emit`.
         let n = self.tms_n as usize;
         let mut taken = 0;
-        for j in 0..=n {
+        let mut visible = std::mem::take(&mut self.visible);
+        ctx.visible_words(&self.ray_write, &mut visible);
+        let order = round_robin(&visible, c as usize % n)
+            .map(Some)
+            .chain(std::iter::once(None));
+        for src in order {
             if taken >= self.writes_per_cycle || self.out_room() < 3 {
                 break;
             }
-            let w = if j == n {
-                ctx.peek(&self.emit).cloned()
-            } else {
-                ctx.peek(&self.ray_write[(c as usize + j) % n]).cloned()
+            let w = match src {
+                Some(k) => ctx.peek(&self.ray_write[k]).cloned(),
+                None => ctx.peek(&self.emit).cloned(),
             };
             let Some(w) = w else { continue };
             if !w.done && !self.st.r().dest.contains_key(&w.seg) {
@@ -933,14 +940,11 @@ impl Logic for StreamScheduler {
                     continue; // the table is full: the write waits in its link
                 }
             }
-            let tm = if j == n {
-                ctx.pop(&self.emit);
-                None
-            } else {
-                let k = (c as usize + j) % n;
-                ctx.pop(&self.ray_write[k]);
-                Some(k)
+            match src {
+                Some(k) => ctx.pop(&self.ray_write[k]),
+                None => ctx.pop(&self.emit),
             };
+            let tm = src;
             if w.done {
                 self.last_marker = c;
             }
@@ -948,6 +952,7 @@ impl Logic for StreamScheduler {
             taken += 1;
             worked = true;
         }
+        self.visible = visible;
 
         // 4. Closing the children of retired segments, one per cycle.
         if self.out_room() >= 3 && !self.st.r().closing.is_empty() {
