@@ -821,7 +821,38 @@ fn dram(mut config: Config, a: DramArgs) -> Result<(), String> {
     Ok(())
 }
 
+/// Restarts the program with glibc's heap on transparent huge pages when the
+/// kernel gives them only on request (`madvise` mode) and the user set no glibc
+/// tunables: the chip's per-cycle working set spans megabytes of small heap
+/// objects, and 2 MB pages save most of its TLB misses (Dragon Box 160x160, one
+/// thread: 5-10% less wall time, measured in alternating runs). No `unsafe`: the
+/// allocator does the `madvise`. `DUALSTREAM_HUGEPAGES=0` turns it off.
+#[cfg(target_os = "linux")]
+fn with_huge_pages() {
+    use std::os::unix::process::CommandExt;
+    const TUNABLE: &str = "glibc.malloc.hugetlb=1";
+    if std::env::var_os("GLIBC_TUNABLES").is_some()
+        || std::env::var_os("DUALSTREAM_HUGEPAGES").is_some_and(|v| v == "0")
+    {
+        return;
+    }
+    let madvise = std::fs::read_to_string("/sys/kernel/mm/transparent_hugepage/enabled")
+        .is_ok_and(|m| m.contains("[madvise]"));
+    let Ok(exe) = std::env::current_exe() else {
+        return;
+    };
+    if madvise {
+        // `exec` returns only if it failed: then carry on as we are.
+        let _ = std::process::Command::new(exe)
+            .args(std::env::args_os().skip(1))
+            .env("GLIBC_TUNABLES", TUNABLE)
+            .exec();
+    }
+}
+
 fn main() -> ExitCode {
+    #[cfg(target_os = "linux")]
+    with_huge_pages();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
