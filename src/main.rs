@@ -838,10 +838,7 @@ fn with_huge_pages() {
     }
     let madvise = std::fs::read_to_string("/sys/kernel/mm/transparent_hugepage/enabled")
         .is_ok_and(|m| m.contains("[madvise]"));
-    let Ok(exe) = std::env::current_exe() else {
-        return;
-    };
-    if madvise {
+    if let (true, Ok(exe)) = (madvise, std::env::current_exe()) {
         // `exec` returns only if it failed: then carry on as we are.
         let _ = std::process::Command::new(exe)
             .args(std::env::args_os().skip(1))

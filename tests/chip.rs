@@ -389,18 +389,22 @@ fn bad_chip_configs_are_named() {
     assert!(e.contains("fixed") && e.contains("gddr5"), "{e}");
 }
 
+/// A cycle-mode frame with 8 KB segments on the given chip.
+fn cycle_frame(s: &dualstream::scene::Scene, cfg: Config) -> Result<Frame, String> {
+    render(
+        s,
+        Mode::Cycle,
+        &rcfg(8, Some((cfg, SimOptions::default()))),
+        &mut |_| {},
+    )
+}
+
 #[test]
 fn a_full_destination_table_stops_with_a_named_error() {
     let s = scene("cornell", 8, 8, 1);
     let mut cfg = chip_cfg(1, 4);
     cfg.chip.scheduler.dest_entries = 1;
-    let e = render(
-        &s,
-        Mode::Cycle,
-        &rcfg(8, Some((cfg, SimOptions::default()))),
-        &mut |_| {},
-    )
-    .unwrap_err();
+    let e = cycle_frame(&s, cfg).unwrap_err();
     assert!(e.contains("dest_entries"), "{e}");
     assert!(e.contains("chip.scheduler"), "{e}");
 }
@@ -423,23 +427,11 @@ fn the_destination_table_holds_only_the_working_sets_destinations() {
     let f = render(&s, Mode::Functional, &base, &mut |_| {}).unwrap();
     let mut cfg = chip_cfg(2, 4);
     cfg.chip.scheduler.dest_entries = max as u32;
-    let c = render(
-        &s,
-        Mode::Cycle,
-        &rcfg(8, Some((cfg.clone(), SimOptions::default()))),
-        &mut |_| {},
-    )
-    .unwrap();
+    let c = cycle_frame(&s, cfg.clone()).unwrap();
     same_frame(&f, &c, "a table of the most children");
-    // One entry fewer can never admit that segment: named before simulating.
+    // One entry fewer can never admit that segment: the scheduler names it.
     cfg.chip.scheduler.dest_entries = max as u32 - 1;
-    let e = render(
-        &s,
-        Mode::Cycle,
-        &rcfg(8, Some((cfg, SimOptions::default()))),
-        &mut |_| {},
-    )
-    .unwrap_err();
+    let e = cycle_frame(&s, cfg).unwrap_err();
     assert!(
         e.contains(&format!("has {max} children")) && e.contains("at least"),
         "{e}"

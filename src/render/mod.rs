@@ -374,14 +374,6 @@ pub fn render(
         chip_cfg.accel = cfg.accel.clone();
         chip_cfg.memory = cfg.memory.clone();
         let consts = shade_consts(scene, &p);
-        let dest = chip_cfg.chip.scheduler.dest_entries as u64;
-        if p.info.children_max > dest {
-            // Admitting that segment reserves an entry per child: it never fits.
-            return Err(format!(
-                "a segment of this scene has {} children, more than the stream scheduler's destination table holds (chip.scheduler.dest_entries = {dest}): raise it to at least {}",
-                p.info.children_max, p.info.children_max
-            ));
-        }
         let mut c = crate::machine::Chip::new(&chip_cfg, &p.map, nseg, &consts, run.sim)?;
         if let Some(t) = &run.trace {
             let paths: Vec<String> = (0..c.sim.unit_count())

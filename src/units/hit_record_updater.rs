@@ -178,8 +178,8 @@ impl Logic for HitRecordUpdater {
                     let st = self.st.m();
                     let idx = st.queue.remove(k).expect("picked");
                     let h = st.queue_hit.remove(k).expect("beside");
+                    st.in_flight.insert(idx, (h, false));
                     let a = self.addr(idx);
-                    self.st.m().in_flight.insert(idx, (h, false));
                     ctx.push(&self.mem_req, MemLineReq::read(a, StreamTag::Hit, idx));
                     self.reads += 1;
                     worked = true;

@@ -553,11 +553,12 @@ impl StreamScheduler {
         }
     }
 
-    fn write_req(seg: u32, addr: u64, data: Line, mask: u64) -> MemLineReq {
+    /// A write of one of queue `seg`'s lines (counted in its `writes_in_flight`).
+    fn write_req(seg: u32, tag: StreamTag, addr: u64, data: Line, mask: u64) -> MemLineReq {
         MemLineReq {
             addr,
             write: true,
-            tag: StreamTag::Ray,
+            tag,
             id: K_WRITE << KIND_SHIFT | seg,
             mask,
             data,
@@ -569,7 +570,8 @@ impl StreamScheduler {
         let q = st.dest.get_mut(&seg).expect("queue");
         if let Some((a, data, mask)) = q.line.take() {
             q.writes_in_flight += 1;
-            st.out.push_back(Self::write_req(seg, a, data, mask));
+            st.out
+                .push_back(Self::write_req(seg, StreamTag::Ray, a, data, mask));
         }
     }
 
@@ -583,6 +585,7 @@ impl StreamScheduler {
         st.dest.get_mut(&seg).expect("queue").writes_in_flight += 1;
         st.out.push_back(Self::write_req(
             seg,
+            StreamTag::Ray,
             a,
             data,
             (1u64 << BUCKET_HEADER_BYTES) - 1,
@@ -677,14 +680,13 @@ impl StreamScheduler {
         let off = (a - line_a) as usize;
         let mut data = Line::default();
         data.0[off..off + QUEUE_REC_BYTES as usize].copy_from_slice(&rec.encode());
-        st.out.push_back(MemLineReq {
-            addr: line_a,
-            write: true,
-            tag: StreamTag::Other,
-            id: K_WRITE << KIND_SHIFT | seg,
-            mask: ((1u64 << QUEUE_REC_BYTES) - 1) << off,
+        st.out.push_back(Self::write_req(
+            seg,
+            StreamTag::Other,
+            line_a,
             data,
-        });
+            ((1u64 << QUEUE_REC_BYTES) - 1) << off,
+        ));
         for b in left {
             Self::free_bucket(st, per_chunk, b);
         }
@@ -944,11 +946,10 @@ impl Logic for StreamScheduler {
                 Some(k) => ctx.pop(&self.ray_write[k]),
                 None => ctx.pop(&self.emit),
             };
-            let tm = src;
             if w.done {
                 self.last_marker = c;
             }
-            self.accept_write(&w, tm);
+            self.accept_write(&w, src);
             taken += 1;
             worked = true;
         }
