@@ -190,6 +190,15 @@ enum Cmd {
         /// estimate the sampling error).
         #[arg(long, default_value_t = 2)]
         subsets: u32,
+        /// speed-error: compare with this finished reference instead of rendering
+        /// one: the --stats JSON of `render --mode cycle` with GDDR5 on the same
+        /// scene, resolution and config.
+        #[arg(long)]
+        reference: Option<PathBuf>,
+        /// speed-error, with --reference: that run's PNG, to check the modes' images
+        /// (as 8-bit sRGB).
+        #[arg(long, requires = "reference")]
+        reference_image: Option<PathBuf>,
         /// speed-error: write the rows as JSON here.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -647,6 +656,8 @@ fn run(cli: Cli) -> Result<(), String> {
             sample_every,
             tile,
             subsets,
+            reference,
+            reference_image,
             json,
             plot,
         } => {
@@ -661,7 +672,17 @@ fn run(cli: Cli) -> Result<(), String> {
                     let mut sc = dualstream::scene::load(&scene)?;
                     (sc.settings.width, sc.settings.height) = parse_res(&res)?;
                     sc.settings.validate()?;
+                    let reference = match &reference {
+                        Some(p) => Some(se::Reference::load(
+                            p,
+                            reference_image.as_deref(),
+                            &sc,
+                            &config,
+                        )?),
+                        None => None,
+                    };
                     let opts = se::SpeedErrorOpts {
+                        reference,
                         small_tms,
                         sample_every,
                         tile,

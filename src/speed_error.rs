@@ -31,6 +31,7 @@ use crate::machine::config::MemoryModel;
 use crate::render::{self, Frame, Mode, RenderCfg};
 use crate::scene::Scene;
 use std::fmt::Write;
+use std::path::Path;
 
 /// One mode's figures and errors (relative, signed: (mode - reference) / reference).
 #[derive(Clone, Debug, serde::Serialize)]
@@ -219,6 +220,121 @@ pub fn tile_sample(w: u32, h: u32, tile: u32, every: u32, offset: u32) -> Result
     Ok(v)
 }
 
+/// A cycle-mode reference read back from a finished run (`render --mode cycle
+/// --stats f.json --out f.png` with GDDR5), so that a paper-size comparison need not
+/// re-run a reference that takes half an hour. Its figures are formed exactly as the
+/// bench forms them from a frame it renders itself.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    pub cycles: f64,
+    pub lines: f64,
+    pub energy_j: f64,
+    pub wall_s: f64,
+    /// Rays traced: every mode that traces the whole frame must trace exactly these.
+    pub rays: u64,
+    /// The reference's PNG (8-bit sRGB, row-major RGB), when given.
+    pub rgb8: Option<Vec<u8>>,
+}
+
+impl Reference {
+    /// Reads `stats` (and `png`) and checks that they are a GDDR5 cycle-mode frame of
+    /// this scene, resolution and chip.
+    pub fn load(
+        stats: &Path,
+        png: Option<&Path>,
+        scene: &Scene,
+        c: &Config,
+    ) -> Result<Self, String> {
+        let name = stats.display();
+        let text = std::fs::read_to_string(stats)
+            .map_err(|e| format!("cannot read the reference '{name}': {e}"))?;
+        let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+            format!(
+                "the reference '{name}' is not JSON ({e}); give the file `render --stats` wrote"
+            )
+        })?;
+        let num = |path: &str| -> Result<f64, String> {
+            v.pointer(path).and_then(|x| x.as_f64()).ok_or_else(|| {
+                format!("the reference '{name}' has no number at {path}; give the --stats file of a `render --mode cycle` run")
+            })
+        };
+        let text_at = |path: &str| v.pointer(path).and_then(|x| x.as_str()).unwrap_or("");
+        let (w, h) = (scene.settings.width, scene.settings.height);
+        let mut wrong = Vec::new();
+        if text_at("/mode") != "cycle" {
+            wrong.push(format!("mode '{}', not cycle", text_at("/mode")));
+        }
+        if text_at("/chip/memory_model") != "gddr5" {
+            wrong.push(format!(
+                "memory model '{}', not gddr5",
+                text_at("/chip/memory_model")
+            ));
+        }
+        if text_at("/scene") != scene.name {
+            wrong.push(format!(
+                "scene '{}', not '{}'",
+                text_at("/scene"),
+                scene.name
+            ));
+        }
+        let (rw, rh) = (num("/width")? as u32, num("/height")? as u32);
+        if (rw, rh) != (w, h) {
+            wrong.push(format!("{rw}x{rh}, not {w}x{h}"));
+        }
+        let (tms, tps) = (num("/chip/tms")? as u32, num("/chip/tps_per_tm")? as u32);
+        if (tms, tps) != (c.chip.tms, c.tm.tps) {
+            wrong.push(format!(
+                "{tms} x {tps} TPs, not {} x {}",
+                c.chip.tms, c.tm.tps
+            ));
+        }
+        if !wrong.is_empty() {
+            return Err(format!(
+                "the reference '{name}' does not match this comparison ({}); render it with `render --mode cycle` and [chip.memory] model = \"gddr5\" on the same scene, --res and config",
+                wrong.join(", ")
+            ));
+        }
+        let lines = [
+            "ray_lines_read",
+            "ray_lines_written",
+            "scene_lines",
+            "hit_lines_read",
+            "hit_lines_written",
+            "shading_lines",
+        ]
+        .iter()
+        .map(|k| num(&format!("/total/{k}")))
+        .sum::<Result<f64, String>>()?;
+        let rgb8 = match png {
+            None => None,
+            Some(p) => {
+                let img = image::open(p)
+                    .map_err(|e| format!("cannot read the reference image '{}': {e}", p.display()))?
+                    .to_rgb8();
+                if img.dimensions() != (w, h) {
+                    return Err(format!(
+                        "the reference image '{}' is {}x{}, not {w}x{h}; give the PNG of the same run",
+                        p.display(),
+                        img.width(),
+                        img.height()
+                    ));
+                }
+                Some(img.into_raw())
+            }
+        };
+        Ok(Reference {
+            cycles: num("/chip/total_cycles")?,
+            lines,
+            energy_j: num("/energy/compute_j")?
+                + num("/energy/onchip_j")?
+                + num("/chip/dram/energy_paper_j")?,
+            wall_s: num("/wall_s")?,
+            rays: num("/total/rays")? as u64,
+            rgb8,
+        })
+    }
+}
+
 /// The modes besides the reference (`--modes`; `sampled` gives two rows).
 pub const MODES: [&str; 6] = [
     "cycle-fixed",
@@ -245,6 +361,8 @@ pub struct SpeedErrorOpts {
     pub modes: Option<Vec<String>>,
     /// Simulator threads of the cycle runs (every mode, the reference too).
     pub threads: usize,
+    /// A finished reference run to compare with instead of rendering one.
+    pub reference: Option<Reference>,
 }
 
 impl Default for SpeedErrorOpts {
@@ -256,6 +374,7 @@ impl Default for SpeedErrorOpts {
             subsets: 2,
             modes: None,
             threads: 1,
+            reference: None,
         }
     }
 }
@@ -308,10 +427,62 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
     let t = o.threads;
     let mut gddr5 = config.clone();
     gddr5.chip.memory.model = MemoryModel::Gddr5;
-    let reference = render_pixels(scene, Mode::Cycle, &gddr5, None, t)?;
-    let ref_cycles = reference.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
-    let ref_lines = reference.total.total_lines() as f64;
-    let ref_energy = total_energy(&gddr5, &reference, ref_cycles)?;
+    // The reference: rendered here, or read back from a finished run.
+    let (rendered, r) = match &o.reference {
+        Some(r) => (None, r.clone()),
+        None => {
+            let f = render_pixels(scene, Mode::Cycle, &gddr5, None, t)?;
+            let cycles = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
+            let r = Reference {
+                cycles,
+                lines: f.total.total_lines() as f64,
+                energy_j: total_energy(&gddr5, &f, cycles)?,
+                wall_s: f.wall_s,
+                rays: f.total.rays,
+                rgb8: None,
+            };
+            (Some(f), r)
+        }
+    };
+    let (ref_cycles, ref_lines, ref_energy) = (r.cycles, r.lines, r.energy_j);
+    // Whether a mode's image equals the reference's on the pixels it renders: bit for
+    // bit against a rendered reference, as 8-bit sRGB against a reference's PNG,
+    // unknown without either.
+    let same_image = |f: &Frame, pixels: Option<&[u32]>| -> Option<bool> {
+        let all: Vec<u32>;
+        let pix = match pixels {
+            Some(p) => p,
+            None => {
+                all = (0..f.radiance.len() as u32).collect();
+                &all
+            }
+        };
+        if let Some(rf) = &rendered {
+            Some(
+                pix.iter()
+                    .all(|&p| f.radiance[p as usize] == rf.radiance[p as usize]),
+            )
+        } else {
+            r.rgb8.as_ref().map(|png| {
+                pix.iter().all(|&p| {
+                    let i = 3 * p as usize;
+                    render::output::rgb8(f.radiance[p as usize])[..] == png[i..i + 3]
+                })
+            })
+        }
+    };
+    // A mode that traces the whole frame traces exactly the reference's rays; if not,
+    // the reference is another frame (seed, bounces, scene file) and no error means
+    // anything.
+    let same_rays = |f: &Frame| -> Result<(), String> {
+        if f.total.rays != r.rays {
+            return Err(format!(
+                "this frame traces {} rays, the reference {}: the reference was rendered with another scene, seed, bounce count or config; re-render it with this one",
+                f.total.rays, r.rays
+            ));
+        }
+        Ok(())
+    };
     let rel = |x: f64, r: f64| if r == 0.0 { 0.0 } else { (x - r) / r };
     let mut out = Vec::new();
     let mut push = |mode: &str,
@@ -323,7 +494,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         out.push(ModeResult {
             mode: mode.into(),
             wall_s: wall,
-            speedup: reference.wall_s / wall.max(1e-9),
+            speedup: r.wall_s / wall.max(1e-9),
             cycles,
             lines,
             energy_j: energy,
@@ -337,11 +508,15 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
     };
     push(
         "cycle",
-        reference.wall_s,
+        r.wall_s,
         [ref_cycles, ref_lines, ref_energy],
         Some(true),
         None,
-        "reference: the chip with GDDR5",
+        if rendered.is_some() {
+            "reference: the chip with GDDR5"
+        } else {
+            "reference: the chip with GDDR5, read from --reference"
+        },
     );
     let cycles_of = |f: &Frame| f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
 
@@ -349,12 +524,13 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         let mut fixed = config.clone();
         fixed.chip.memory.model = MemoryModel::Fixed;
         let f = render_pixels(scene, Mode::Cycle, &fixed, None, t)?;
+        same_rays(&f)?;
         let cyc = cycles_of(&f);
         push(
             "cycle-fixed",
             f.wall_s,
             figures(&fixed, &f, cyc)?,
-            Some(f.radiance == reference.radiance),
+            same_image(&f, None),
             None,
             "fixed-latency memory; DRAM energy estimated from lines",
         );
@@ -364,6 +540,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
     let mut functional = None;
     if want("functional+estimate") || want("sampled") {
         let f = render_pixels(scene, Mode::Functional, config, None, t)?;
+        same_rays(&f)?;
         let est = estimate(&gddr5, &f).cycles;
         let fig = figures(&gddr5, &f, est)?;
         if want("functional+estimate") {
@@ -371,7 +548,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                 "functional+estimate",
                 f.wall_s,
                 fig,
-                Some(f.radiance == reference.radiance),
+                same_image(&f, None),
                 None,
                 "no clock; cycles = per-wave max of resource bounds",
             );
@@ -384,6 +561,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         let mut small = gddr5.clone();
         small.chip.tms = o.small_tms;
         let f = render_pixels(scene, Mode::Cycle, &small, None, t)?;
+        same_rays(&f)?;
         let scale = o.small_tms as f64 / config.chip.tms as f64;
         let c1 = cycles_of(&f);
         if want("small-chip") {
@@ -392,7 +570,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                 "small-chip",
                 f.wall_s,
                 figures(&small, &f, cyc)?,
-                Some(f.radiance == reference.radiance),
+                same_image(&f, None),
                 None,
                 &format!("{} TMs, cycles x {scale}", o.small_tms),
             );
@@ -411,7 +589,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             fit = Some((
                 f.wall_s + f2.wall_s,
                 figures(&small2, &f2, cyc)?,
-                Some(f2.radiance == reference.radiance),
+                same_image(&f2, None),
                 format!("{s1} and {s2} TMs ({c1:.0}, {c2:.0} cycles), a + b/TMs"),
             ));
         }
@@ -449,15 +627,16 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         // model's on the same pixels.
         let mut wall = func_wall;
         let (mut ratio, mut scaled) = (Vec::new(), Vec::new());
-        let mut same = true;
+        let mut same = Some(true);
         for pix in &samples {
             let frac = pix.len() as f64 / (w * h) as f64;
             let fc = render_pixels(scene, Mode::Cycle, &gddr5, Some(pix.clone()), t)?;
             let ff = render_pixels(scene, Mode::Functional, config, Some(pix.clone()), t)?;
             wall += fc.wall_s + ff.wall_s;
-            same &= pix
-                .iter()
-                .all(|&p| fc.radiance[p as usize] == reference.radiance[p as usize]);
+            same = match (same, same_image(&fc, Some(pix))) {
+                (Some(a), Some(b)) => Some(a && b),
+                _ => None,
+            };
             let cyc = cycles_of(&fc);
             let fig = figures(&gddr5, &fc, cyc)?;
             let est = estimate(&gddr5, &ff).cycles;
@@ -477,7 +656,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             "sampled",
             wall,
             [0, 1, 2].map(|i| full_aux[i] * r.0[i]),
-            Some(same),
+            same,
             r.1,
             &format!("{note}; functional frame x cycle/functional of the samples"),
         );
@@ -486,7 +665,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             "sampled-scaled",
             wall - func_wall,
             sc.0,
-            Some(same),
+            same,
             sc.1,
             &format!("{note}; x the pixel ratio"),
         );

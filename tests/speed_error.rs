@@ -227,3 +227,125 @@ fn bad_speed_error_options_are_named() {
         .contains("too few")
     );
 }
+
+/// Renders `s` on the chip with GDDR5 as `render --mode cycle --stats --out` would and
+/// writes its statistics and PNG; returns their paths.
+fn reference_files(
+    s: &dualstream::scene::Scene,
+    c: &Config,
+    tag: &str,
+) -> (std::path::PathBuf, std::path::PathBuf) {
+    use dualstream::render::{self, ChipRun, Mode, RenderCfg};
+    let mut g = c.clone();
+    g.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    let rc = RenderCfg {
+        accel: g.accel.clone(),
+        memory: g.memory.clone(),
+        chip: Some(Box::new(ChipRun {
+            config: g.clone(),
+            sim: Default::default(),
+            trace: None,
+        })),
+        ..Default::default()
+    };
+    let mut f = render::render(s, Mode::Cycle, &rc, &mut |_| {}).unwrap();
+    f.energy = Some(dualstream::energy::frame_energy(&g, &f));
+    let dir = std::env::temp_dir().join(format!("ds-se-ref-{}-{tag}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (j, p) = (dir.join("ref.json"), dir.join("ref.png"));
+    render::output::write_json(&f, &j).unwrap();
+    render::output::write_png(&f, &p).unwrap();
+    (j, p)
+}
+
+#[test]
+fn a_reference_read_back_gives_the_same_errors() {
+    use dualstream::speed_error::Reference;
+    let (s, c) = tiny();
+    let (j, p) = reference_files(&s, &c, "same");
+    let modes = Some(vec![
+        "functional+estimate".to_string(),
+        "sampled".to_string(),
+    ]);
+    let o = SpeedErrorOpts {
+        sample_every: 4,
+        tile: 4,
+        modes: modes.clone(),
+        ..SpeedErrorOpts::default()
+    };
+    let own = run(&s, &c, &o).unwrap();
+    let read = run(
+        &s,
+        &c,
+        &SpeedErrorOpts {
+            reference: Some(Reference::load(&j, Some(&p), &s, &c).unwrap()),
+            ..o.clone()
+        },
+    )
+    .unwrap();
+    assert_eq!(own.len(), read.len());
+    for (a, b) in own.iter().zip(&read) {
+        assert_eq!(a.mode, b.mode);
+        // Same figures and errors (the energy goes through the JSON's decimal text).
+        for (x, y) in [
+            (a.cycles, b.cycles),
+            (a.lines, b.lines),
+            (a.err_cycles, b.err_cycles),
+            (a.err_lines, b.err_lines),
+            (a.err_energy, b.err_energy),
+        ] {
+            assert!(
+                (x - y).abs() <= 1e-9 * x.abs().max(1.0),
+                "{}: {x} {y}",
+                a.mode
+            );
+        }
+        assert_eq!(b.image_identical, Some(true), "{}", b.mode);
+    }
+    // Without the PNG the images are not checked.
+    let r = Reference::load(&j, None, &s, &c).unwrap();
+    let rows = run(
+        &s,
+        &c,
+        &SpeedErrorOpts {
+            reference: Some(r),
+            ..o
+        },
+    )
+    .unwrap();
+    assert!(rows[1..].iter().all(|m| m.image_identical.is_none()));
+}
+
+#[test]
+fn a_reference_of_another_frame_is_refused() {
+    use dualstream::speed_error::Reference;
+    let (s, c) = tiny();
+    let (j, p) = reference_files(&s, &c, "other");
+    // Another resolution is named from the file alone.
+    let mut wide = s.clone();
+    wide.settings.width = 32;
+    let e = Reference::load(&j, Some(&p), &wide, &c).unwrap_err();
+    assert!(e.contains("16x16, not 32x16"), "{e}");
+    // Another bounce count is the same size on paper: the traced rays tell.
+    let mut deeper = s.clone();
+    deeper.settings.bounces = 3;
+    let r = Reference::load(&j, Some(&p), &deeper, &c).unwrap();
+    let e = run(
+        &deeper,
+        &c,
+        &SpeedErrorOpts {
+            reference: Some(r),
+            modes: Some(vec!["functional+estimate".to_string()]),
+            ..SpeedErrorOpts::default()
+        },
+    )
+    .unwrap_err();
+    assert!(e.contains("rays") && e.contains("re-render"), "{e}");
+    // A functional-mode file is not a reference.
+    let text = std::fs::read_to_string(&j)
+        .unwrap()
+        .replace("\"cycle\"", "\"functional\"");
+    std::fs::write(&j, text).unwrap();
+    let e = Reference::load(&j, None, &s, &c).unwrap_err();
+    assert!(e.contains("not cycle"), "{e}");
+}

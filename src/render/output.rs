@@ -19,10 +19,15 @@ fn encode(x: f32) -> u8 {
     (s * 255.0 + 0.5) as u8
 }
 
+/// A pixel's radiance as the PNG stores it (8-bit sRGB).
+pub fn rgb8(c: glam::Vec3) -> [u8; 3] {
+    [encode(c.x), encode(c.y), encode(c.z)]
+}
+
 pub fn write_png(frame: &Frame, path: &Path) -> Result<(), String> {
     let mut buf = Vec::with_capacity(frame.radiance.len() * 3);
     for c in &frame.radiance {
-        buf.extend_from_slice(&[encode(c.x), encode(c.y), encode(c.z)]);
+        buf.extend_from_slice(&rgb8(*c));
     }
     image::save_buffer(
         path,
