@@ -119,7 +119,8 @@ module l1 #(
     reg [63:0] tags [0:255];
     reg [511:0] data [0:255];
     reg [129:0] mshr [0:7];
-    reg [640:0] pending [0:15];
+    reg [128:0] pending [0:15];
+    reg [511:0] pending_line [0:15];
     reg [31:0] next_seq;
 
     // Skeleton behaviour: state resets and holds; outputs are tied low.
@@ -129,6 +130,7 @@ module l1 #(
             for (int i = 0; i < 256; i++) data[i] <= '0;
             for (int i = 0; i < 8; i++) mshr[i] <= '0;
             for (int i = 0; i < 16; i++) pending[i] <= '0;
+            for (int i = 0; i < 16; i++) pending_line[i] <= '0;
             next_seq <= '0;
         end
     end
@@ -184,5 +186,5 @@ module l1 #(
     assign resp_14_data = '0;
     assign resp_15_valid = 1'b0;
     assign resp_15_data = '0;
-    wire _unused_ok = &{1'b0, miss_resp_valid, miss_resp_data, miss_req_ready, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, req_9_valid, req_9_data, req_10_valid, req_10_data, req_11_valid, req_11_data, req_12_valid, req_12_data, req_13_valid, req_13_data, req_14_valid, req_14_data, req_15_valid, req_15_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, resp_9_ready, resp_10_ready, resp_11_ready, resp_12_ready, resp_13_ready, resp_14_ready, resp_15_ready, ^tags[0], ^data[0], ^mshr[0], ^pending[0], next_seq, BYTES[0], BANKS[0], LINE_BYTES[0], HIT_LATENCY[0], MSHRS[0], 1'b0};
+    wire _unused_ok = &{1'b0, miss_resp_valid, miss_resp_data, miss_req_ready, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, req_9_valid, req_9_data, req_10_valid, req_10_data, req_11_valid, req_11_data, req_12_valid, req_12_data, req_13_valid, req_13_data, req_14_valid, req_14_data, req_15_valid, req_15_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, resp_9_ready, resp_10_ready, resp_11_ready, resp_12_ready, resp_13_ready, resp_14_ready, resp_15_ready, ^tags[0], ^data[0], ^mshr[0], ^pending[0], ^pending_line[0], next_seq, BYTES[0], BANKS[0], LINE_BYTES[0], HIT_LATENCY[0], MSHRS[0], 1'b0};
 endmodule

@@ -73,13 +73,14 @@ crate::payload_struct! {
 }
 
 crate::payload_struct! {
-    /// A hit on its way out of the data array.
-    #[derive(Default)]
+    /// A hit on its way out of the data array: the port's response slot. Its line
+    /// is in `pending_line`, a separate array, so the scan of the slots every
+    /// evaluation touches a few bytes per port instead of a line.
+    #[derive(Default, Copy)]
     pub struct Pending {
         pub valid: bool,
         pub due: u64,
         pub addr: u64,
-        pub line: Line,
     }
 }
 
@@ -102,6 +103,7 @@ crate::unit! {
             data: Ram<Line>,
             mshr: Ram<Mshr>,
             pending: Ram<Pending>,
+            pending_line: Ram<Line>,
             next_seq: crate::rtl::Reg<u32>
         }
         extra { out_delay: u32, stats: L1Stats, log: Option<Vec<(u16, u64)>>, scratch: L1Scratch }
@@ -159,6 +161,7 @@ impl L1 {
             data: Ram::new(lines, 1, Line::default()),
             mshr: Ram::new(cfg.mshrs, cfg.mshrs, Mshr::default()),
             pending: Ram::new(n, n, Pending::default()),
+            pending_line: Ram::new(n, n, Line::default()),
             next_seq: crate::rtl::Reg::new(0),
             out_delay,
             stats: L1Stats::default(),
@@ -233,14 +236,14 @@ impl Logic for L1 {
         // 2. Hits whose data array access is done.
         let mut next_due: Option<u64> = None;
         for (p, slot) in pend.iter_mut().enumerate() {
-            let e = self.pending.read(p as u32);
+            let e = *self.pending.read(p as u32);
             if !e.valid {
                 continue;
             }
             if e.due <= c {
                 let r = L1Resp {
                     addr: e.addr,
-                    line: e.line.clone(),
+                    line: self.pending_line.read(p as u32).clone(),
                 };
                 if ctx.offer(&self.resp[p], r) {
                     *slot = Some(Pending::default());
@@ -295,8 +298,8 @@ impl Logic for L1 {
                             valid: true,
                             due,
                             addr: r.addr,
-                            line,
                         });
+                        self.pending_line.write(p as u32, line);
                         next_due = Some(next_due.map_or(due, |d| d.min(due)));
                     }
                 }
