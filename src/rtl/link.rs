@@ -278,6 +278,13 @@ impl<T> ConsSide<T> {
         }
     }
 
+    /// Entries in the FIFO that this cycle's pop (if any) leaves behind, visible or
+    /// not (this cycle's push joins at the edge and is not counted).
+    #[inline]
+    pub(crate) fn left_after_pop(&self) -> usize {
+        self.q.len() - self.pops_now as usize
+    }
+
     /// Pops the head if it is visible (the entry leaves the FIFO at the edge).
     #[inline]
     pub(crate) fn pop(&mut self, now: Time, depth: u32) -> Option<T>

@@ -149,8 +149,9 @@ impl<T: Payload> FixedPipe<T> {
         if let Some((a, _)) = oldest.or(self.pending_accept.as_ref()) {
             wake = Some(a + self.stages as u64);
         }
-        if waiting || accepted_now {
-            // A request may be waiting behind the one just taken: retry when allowed.
+        // A request behind the one just taken: retry when the interval allows. With
+        // none queued, the next push wakes us.
+        if waiting || (accepted_now && ctx.holds_more(input)) {
             let l = if accepted_now {
                 local
             } else {

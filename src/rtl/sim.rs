@@ -332,6 +332,16 @@ impl<'a> Ctx<'a> {
         unsafe { l.cons() }.peek(now)
     }
 
+    /// Whether an input link still holds an entry behind this cycle's pop (visible or
+    /// not). A consumer that pops must look again while this holds: only a push wakes
+    /// it, and the entry behind may have been pushed (and its wake-up passed) earlier.
+    #[inline]
+    pub fn holds_more<T: Payload>(&self, port: &In<T>) -> bool {
+        let l = self.net.typed::<T>(port.id);
+        // SAFETY: `port` is an input of the unit being evaluated: its consumer.
+        unsafe { l.cons() }.left_after_pop() > 0
+    }
+
     /// Whether a payload is visible at the head of an input link this cycle: a
     /// cheaper `peek(..).is_some()` for arbiters that scan many inputs (no
     /// payload-type check).

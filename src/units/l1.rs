@@ -195,7 +195,11 @@ impl Logic for L1 {
         let c = ctx.cycle();
         let n = self.req.len();
         let mut worked = false;
+        // `waiting`: a request could not be served (bank, slot, MSHRs): try again
+        // next cycle. `blocked`: only an output is full; the pop that frees it wakes
+        // us, so we sleep meanwhile (re-offering changes nothing).
         let mut waiting = false;
+        let mut blocked = false;
         let L1Scratch {
             mut mshr,
             mut mshr_dirty,
@@ -230,7 +234,7 @@ impl Logic for L1 {
                 filled = Some(f);
                 worked = true;
             } else {
-                waiting = true;
+                blocked = true;
             }
         }
         // 2. Hits whose data array access is done.
@@ -249,7 +253,7 @@ impl Logic for L1 {
                     *slot = Some(Pending::default());
                     worked = true;
                 } else {
-                    waiting = true;
+                    blocked = true;
                 }
             } else {
                 next_due = Some(next_due.map_or(e.due, |d: u64| d.min(e.due)));
@@ -351,7 +355,7 @@ impl Logic for L1 {
                 mshr_dirty[k] = true;
                 worked = true;
             } else {
-                waiting = true;
+                blocked = true;
             }
         }
         for (k, m) in mshr.drain(..).enumerate() {
@@ -372,7 +376,7 @@ impl Logic for L1 {
         };
         ctx.set_status(if worked {
             Status::Busy
-        } else if waiting {
+        } else if waiting || blocked {
             Status::ResourceBusy
         } else {
             Status::WaitInput
