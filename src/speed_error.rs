@@ -542,7 +542,8 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         let f = render_pixels(scene, Mode::Functional, config, None, t)?;
         same_rays(&f)?;
         let est = estimate(&gddr5, &f).cycles;
-        let fig = figures(&gddr5, &f, est)?;
+        let full_parts = parts(&gddr5, &f, est)?;
+        let fig = combine(&full_parts);
         if want("functional+estimate") {
             push(
                 "functional+estimate",
@@ -553,7 +554,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                 "no clock; cycles = per-wave max of resource bounds",
             );
         }
-        functional = Some((f.wall_s, fig));
+        functional = Some((f.wall_s, full_parts));
     }
 
     let mut fit = None;
@@ -622,9 +623,13 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         );
     }
 
-    if let Some((func_wall, full_aux)) = functional.filter(|_| want("sampled")) {
-        // Per sample: the cycle model's figures, and their ratio to the functional
-        // model's on the same pixels.
+    if let Some((func_wall, full_parts)) = functional.filter(|_| want("sampled")) {
+        // Per sample: the cycle model's figures, and per part (cycles, each stream's
+        // lines, energy) their ratio to the functional model's on the same pixels,
+        // applied to the functional whole frame's part. By part, because the parts
+        // scale differently with the pixels: the scene stream not at all, while the
+        // L2 filters only hit-record and shading lines, so one ratio of the totals
+        // carries a small frame's mix of streams into the whole frame's.
         let mut wall = func_wall;
         let (mut ratio, mut scaled) = (Vec::new(), Vec::new());
         let mut same = Some(true);
@@ -638,11 +643,16 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                 _ => None,
             };
             let cyc = cycles_of(&fc);
-            let fig = figures(&gddr5, &fc, cyc)?;
+            let pc = parts(&gddr5, &fc, cyc)?;
             let est = estimate(&gddr5, &ff).cycles;
-            let aux = figures(&gddr5, &ff, est)?;
-            ratio.push([0, 1, 2].map(|i| fig[i] / aux[i].max(1e-300)));
-            scaled.push(fig.map(|x| x / frac));
+            let pf = parts(&gddr5, &ff, est)?;
+            // A part the functional sample lacks contributes the whole frame's own.
+            let by_part: [f64; 7] = std::array::from_fn(|i| {
+                let r = if pf[i] > 0.0 { pc[i] / pf[i] } else { 1.0 };
+                full_parts[i] * r
+            });
+            ratio.push(combine(&by_part));
+            scaled.push(combine(&pc).map(|x| x / frac));
         }
         let m = samples.len();
         let note = format!(
@@ -655,10 +665,10 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         push(
             "sampled",
             wall,
-            [0, 1, 2].map(|i| full_aux[i] * r.0[i]),
+            r.0,
             same,
             r.1,
-            &format!("{note}; functional frame x cycle/functional of the samples"),
+            &format!("{note}; functional frame x cycle/functional of the samples, by part"),
         );
         let sc = mean_se(&scaled);
         push(
@@ -671,6 +681,32 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         );
     }
     Ok(out)
+}
+
+/// A frame's figures by part, for the ratio estimator: cycles (given: simulated or
+/// estimated); DRAM lines of the ray stream, the scene stream, the hit records and
+/// the shading pass; compute + on-chip energy; DRAM energy.
+fn parts(c: &Config, f: &Frame, cycles: f64) -> Result<[f64; 7], String> {
+    let t = &f.total;
+    let e = crate::energy::frame_energy(c, f);
+    let dram = match f.chip.as_ref().and_then(|ch| ch.dram) {
+        Some(d) => d.energy_paper_j,
+        None => dram_energy_estimate(c, f, cycles)?,
+    };
+    Ok([
+        cycles,
+        t.ray_lines() as f64,
+        t.scene_lines as f64,
+        t.hit_lines() as f64,
+        t.shading_lines as f64,
+        e.compute_j + e.onchip_j,
+        dram,
+    ])
+}
+
+/// Cycles, DRAM lines and energy from [`parts`].
+fn combine(p: &[f64; 7]) -> [f64; 3] {
+    [p[0], p[1] + p[2] + p[3] + p[4], p[5] + p[6]]
 }
 
 /// A frame's cycles (given: simulated or estimated), DRAM lines and energy.
