@@ -160,12 +160,7 @@ pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, S
 }
 
 fn total_energy(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
-    let e = crate::energy::frame_energy(c, f);
-    let dram = match f.chip.as_ref().and_then(|ch| ch.dram) {
-        Some(d) => d.energy_paper_j,
-        None => dram_energy_estimate(c, f, cycles)?,
-    };
-    Ok(e.compute_j + e.onchip_j + dram)
+    Ok(figures(c, f, cycles)?[2])
 }
 
 fn render_pixels(
@@ -711,11 +706,7 @@ fn combine(p: &[f64; 7]) -> [f64; 3] {
 
 /// A frame's cycles (given: simulated or estimated), DRAM lines and energy.
 fn figures(c: &Config, f: &Frame, cycles: f64) -> Result<[f64; 3], String> {
-    Ok([
-        cycles,
-        f.total.total_lines() as f64,
-        total_energy(c, f, cycles)?,
-    ])
+    Ok(combine(&parts(c, f, cycles)?))
 }
 
 /// Mean of each component over the samples and its relative standard error
