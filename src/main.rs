@@ -190,6 +190,19 @@ enum Cmd {
         /// estimate the sampling error).
         #[arg(long, default_value_t = 2)]
         subsets: u32,
+        /// speed-error, windows (time sampling): a measured window every this many
+        /// segment passes of a wavefront.
+        #[arg(long, default_value_t = 1024)]
+        window_every: u64,
+        /// speed-error, windows: segment passes simulated before a window's
+        /// measurement (to fill the working set) and measured.
+        #[arg(long, default_value_t = 64)]
+        window_warm: u64,
+        #[arg(long, default_value_t = 32)]
+        window_measure: u64,
+        /// speed-error, windows: shading windows per shading pass.
+        #[arg(long, default_value_t = 4)]
+        shade_windows: u32,
         /// speed-error: compare with this finished reference instead of rendering
         /// one: the --stats JSON of `render --mode cycle` with GDDR5 on the same
         /// scene, resolution and config.
@@ -292,6 +305,7 @@ fn render_cfg(config: &Config, threads: usize) -> dualstream::render::RenderCfg 
             trace: None,
         })),
         pixels: None,
+        windows: None,
     }
 }
 
@@ -656,6 +670,10 @@ fn run(cli: Cli) -> Result<(), String> {
             sample_every,
             tile,
             subsets,
+            window_every,
+            window_warm,
+            window_measure,
+            shade_windows,
             reference,
             reference_image,
             json,
@@ -689,6 +707,13 @@ fn run(cli: Cli) -> Result<(), String> {
                         subsets,
                         modes: modes.map(|m| m.split(',').map(|x| x.trim().to_string()).collect()),
                         threads,
+                        windows: dualstream::render::WindowPlan {
+                            every: window_every,
+                            warm: window_warm,
+                            measure: window_measure,
+                            shade_windows,
+                            ..se::default_windows()
+                        },
                     };
                     let rows = se::run(&sc, &config, &opts)?;
                     println!(

@@ -159,6 +159,22 @@ pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, S
     Ok(pj * 1e-12)
 }
 
+/// DRAM energy (J, `paper` preset) of writing one line: its bursts and a share of
+/// an activate (lines written back in address order share rows).
+fn line_write_j(c: &Config) -> Result<f64, String> {
+    let g = &c.mem.geometry;
+    let m = crate::mem::energy::EnergyModel::new(
+        &crate::mem::config::EnergyCfg::by_name("paper", g)?,
+        &c.mem.timing,
+        g.burst_cycles(),
+        c.clocks.dram_ps,
+    );
+    let line = crate::contract::LINE_BYTES as f64;
+    let bursts_per_line = line / (g.bus_bits as f64 / 8.0 * g.burst_length as f64);
+    let lines_per_row = c.memory.row_bytes as f64 / line;
+    Ok((bursts_per_line * m.wr_burst_pj + m.act_pre_pj / lines_per_row) * 1e-12)
+}
+
 fn total_energy(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
     Ok(figures(c, f, cycles)?[2])
 }
@@ -170,7 +186,12 @@ fn render_pixels(
     pixels: Option<Vec<u32>>,
     threads: usize,
 ) -> Result<Frame, String> {
-    let rc = RenderCfg {
+    let rc = render_cfg(c, pixels, threads);
+    render::render(scene, mode, &rc, &mut |_| {})
+}
+
+fn render_cfg(c: &Config, pixels: Option<Vec<u32>>, threads: usize) -> RenderCfg {
+    RenderCfg {
         accel: c.accel.clone(),
         memory: c.memory.clone(),
         verify: false,
@@ -184,8 +205,8 @@ fn render_pixels(
             trace: None,
         })),
         pixels,
-    };
-    render::render(scene, mode, &rc, &mut |_| {})
+        windows: None,
+    }
 }
 
 /// The pixels of one tile sample: the `tile` x `tile` tiles `(tx, ty)` with
@@ -331,13 +352,14 @@ impl Reference {
 }
 
 /// The modes besides the reference (`--modes`; `sampled` gives two rows).
-pub const MODES: [&str; 6] = [
+pub const MODES: [&str; 7] = [
     "cycle-fixed",
     "functional+estimate",
     "small-chip",
     "small-chips-fit",
     "quarter-pixels",
     "sampled",
+    "windows",
 ];
 
 /// Options of the comparison.
@@ -358,6 +380,8 @@ pub struct SpeedErrorOpts {
     pub threads: usize,
     /// A finished reference run to compare with instead of rendering one.
     pub reference: Option<Reference>,
+    /// `windows`: the time-sampling plan.
+    pub windows: render::WindowPlan,
 }
 
 impl Default for SpeedErrorOpts {
@@ -370,8 +394,276 @@ impl Default for SpeedErrorOpts {
             modes: None,
             threads: 1,
             reference: None,
+            windows: default_windows(),
         }
     }
+}
+
+/// The default time-sampling plan: the first 16 segment passes of every wavefront,
+/// then 32 measured after 64 of warm-up (the scene buffer's 64 slots: a full
+/// working set) every 1024; four shading windows of 2048 items after 4096.
+pub fn default_windows() -> render::WindowPlan {
+    render::WindowPlan {
+        head: 16,
+        warm: 64,
+        measure: 32,
+        every: 1024,
+        shade_windows: 4,
+        shade_warm: 4096,
+        shade_measure: 2048,
+    }
+}
+
+/// First-order cycles of one segment pass from its functional work: the largest
+/// of the bounds `estimate` takes per wavefront. The proxy time sampling scales by.
+fn seg_proxy(c: &Config, w: &render::SegWork) -> f64 {
+    let line = crate::contract::LINE_BYTES as f64;
+    let tms = c.chip.tms as f64;
+    let tps = tms * c.tm.tps as f64;
+    let k = &c.tm.costs;
+    let tp = (k.fetch.cycles + k.init.cycles + k.finish.cycles) as f64 * w.rays as f64
+        + k.pop.cycles as f64 * w.pops as f64
+        + k.exit.cycles as f64 * w.exits as f64
+        + (k.node_fetch.cycles + k.box_issue.cycles + k.node_push.cycles + c.box_pipe.latency)
+            as f64
+            * w.nodes as f64
+        + (k.tri_fetch.cycles + k.tri_issue.cycles + k.tri_result.cycles + c.tri_pipe.latency)
+            as f64
+            * w.tri_tests as f64;
+    [
+        (w.scene_lines + w.ray_lines + w.hit_lines) as f64 * line / peak_bytes_per_cycle(c),
+        w.ray_lines as f64 / c.chip.scheduler.ray_lines_per_cycle as f64,
+        w.scene_lines as f64 / c.chip.scheduler.scene_lines_per_cycle as f64,
+        w.nodes as f64 * c.box_pipe.interval as f64 / tms,
+        w.tri_tests as f64 * c.tri_pipe.interval as f64 / (tms * c.tm.tri_pipes as f64),
+        tp / tps,
+    ]
+    .into_iter()
+    .fold(0.0, f64::max)
+}
+
+/// Each of [`window_counts`]' functional proxy for one segment pass: the
+/// first-order cycles for the cycles, DRAM energy and the shading actions; the
+/// functional model's own lines for each stream; box and triangle tests for the
+/// scene-buffer reads (L1 misses); hit-record lines for the L2.
+fn seg_proxies(c: &Config, w: &render::SegWork) -> [f64; WCOUNTS] {
+    let cyc = seg_proxy(c, w);
+    [
+        cyc,
+        w.ray_lines as f64,
+        w.scene_lines as f64,
+        w.hit_lines as f64,
+        0.0,
+        cyc,
+        (w.nodes + w.tri_tests) as f64,
+        w.hit_lines as f64,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+    ]
+}
+
+/// What time sampling scales, per window: cycles; lines of the ray, scene, hit and
+/// shading streams; DRAM energy (`paper`); scene-buffer reads, L2 array accesses
+/// and the four shading actions (for the on-chip energy).
+const WCOUNTS: usize = 12;
+
+/// A window's counts; the writebacks it owes (`WindowRun::dirtied`) are added to
+/// their stream's lines and charged `wb_j` each.
+fn window_counts(r: &crate::machine::WindowRun, wb_j: f64) -> [f64; WCOUNTS] {
+    use crate::mem::StreamTag as T;
+    let w = &r.counts;
+    let l = |t: T| {
+        (w.lines_read[t as usize] + w.lines_written[t as usize]) as f64
+            + r.dirtied[t as usize] as f64
+    };
+    let owed: i64 = r.dirtied.iter().sum();
+    [
+        w.cycles as f64,
+        l(T::Ray),
+        l(T::Scene),
+        l(T::Hit),
+        l(T::Shading),
+        w.dram.energy_paper_j + owed as f64 * wb_j,
+        w.scene_buffer_reads as f64,
+        w.l2.array_accesses() as f64,
+        w.shade_uses[0] as f64,
+        w.shade_uses[1] as f64,
+        w.shade_uses[2] as f64,
+        w.shade_uses[3] as f64,
+    ]
+}
+
+/// The time-sampled frame's parts (as [`parts`]) from the functional frame `f`
+/// rendered with windows. Per wavefront, the trace is its head (simulated as is)
+/// plus the rest scaled from the measured windows by the proxy (`seg_proxy`) of
+/// the rest over that of the windows' measured passes; each shading pass is its
+/// windows scaled by the pixels over the measured items. Also the relative
+/// standard error of the cycles from the windows' spread.
+fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], f64), String> {
+    let rec = f
+        .windows
+        .as_ref()
+        .ok_or("the functional frame was rendered without windows")?;
+    let wb_j = line_write_j(c)?;
+    let mut total = [0.0; WCOUNTS];
+    let add = |t: &mut [f64; WCOUNTS], x: &[f64; WCOUNTS], k: f64| {
+        for i in 0..WCOUNTS {
+            t[i] += x[i] * k;
+        }
+    };
+    // Pooled over the frame, for a wavefront too short to hold a window.
+    let (mut pool_x, mut pool_p) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+    let mut per_wave = Vec::new();
+    for (wave, segs) in rec.segs.iter().enumerate() {
+        // Per segment pass, each count's functional proxy (`seg_proxies`).
+        let proxy: Vec<[f64; WCOUNTS]> = segs.iter().map(|s| seg_proxies(c, s)).collect();
+        let sum = |r: &[[f64; WCOUNTS]]| {
+            let mut t = [0.0; WCOUNTS];
+            for x in r {
+                add(&mut t, x, 1.0);
+            }
+            t
+        };
+        let mut head = [0.0; WCOUNTS];
+        let mut head_end = 0usize;
+        let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+        let mut ratios = Vec::new();
+        for smp in rec
+            .samples
+            .iter()
+            .filter(|s| s.wave == wave && s.kind == render::SampleKind::Trace)
+        {
+            let a = (smp.first as usize).min(segs.len());
+            let b = (a + smp.run.marks as usize).min(segs.len());
+            let wc = window_counts(&smp.run, wb_j);
+            if a == 0 {
+                head = wc;
+                head_end = b;
+                continue;
+            }
+            let p = sum(&proxy[a..b]);
+            add(&mut x, &wc, 1.0);
+            add(&mut px, &p, 1.0);
+            if p[0] > 0.0 {
+                ratios.push(wc[0] / p[0]);
+            }
+        }
+        add(&mut total, &head, 1.0);
+        let rest = sum(&proxy[head_end.min(proxy.len())..]);
+        per_wave.push((rest, x, px, ratios));
+        add(&mut pool_x, &x, 1.0);
+        add(&mut pool_p, &px, 1.0);
+    }
+    let mut var = 0.0;
+    for (rest, x, px, ratios) in &per_wave {
+        if rest[0] == 0.0 {
+            continue;
+        }
+        let (x, px) = if px[0] > 0.0 {
+            (x, px)
+        } else {
+            (&pool_x, &pool_p)
+        };
+        if px[0] == 0.0 {
+            return Err(
+                "time sampling measured no window after the head; lower --window-every".into(),
+            );
+        }
+        // Each count scaled by its own proxy (the cycles' where the windows saw
+        // none of it).
+        for i in 0..WCOUNTS {
+            let j = if px[i] > 0.0 { i } else { 0 };
+            total[i] += x[i] * rest[j] / px[j];
+        }
+        // Variance of the rest's cycles from the spread of the windows' ratios.
+        let n = ratios.len() as f64;
+        if n >= 2.0 {
+            let m = ratios.iter().sum::<f64>() / n;
+            let v = ratios.iter().map(|r| (r - m).powi(2)).sum::<f64>() / (n - 1.0);
+            var += rest[0] * rest[0] * v / n;
+        }
+    }
+    // Shading passes: by items.
+    let passes = rec
+        .samples
+        .iter()
+        .filter(|s| s.kind == render::SampleKind::Shade)
+        .map(|s| s.wave)
+        .max();
+    for wave in 0..passes.map_or(0, |m| m + 1) {
+        let (mut x, mut n) = ([0.0; WCOUNTS], 0.0);
+        for smp in rec
+            .samples
+            .iter()
+            .filter(|s| s.wave == wave && s.kind == render::SampleKind::Shade)
+        {
+            add(&mut x, &window_counts(&smp.run, wb_j), 1.0);
+            n += smp.run.marks as f64;
+        }
+        if n > 0.0 {
+            add(&mut total, &x, rec.pixels as f64 / n);
+        }
+    }
+    // Ray generation: the host emits every primary ray (one per pixel). Its lines
+    // go by `render`'s attribution, as in the cycle frame: the root queue's writes
+    // nowhere, a hit record reset and a path state written per pixel.
+    for smp in rec
+        .samples
+        .iter()
+        .filter(|s| s.kind == render::SampleKind::Emit)
+    {
+        if smp.run.marks > 0 {
+            let k = rec.pixels as f64 / smp.run.marks as f64;
+            let mut wc = window_counts(&smp.run, wb_j);
+            wc[1] = 0.0;
+            add(&mut total, &wc, k);
+            total[3] += rec.pixels as f64;
+            total[4] += rec.pixels as f64;
+        }
+    }
+    // On-chip energy: the functional frame's traversal with the estimated global
+    // units' activity, as a cycle frame would have it.
+    let mut g = f.clone();
+    let mut w = crate::machine::WaveCycles {
+        scene_buffer_reads: total[6].round() as u64,
+        shade_uses: std::array::from_fn(|k| total[8 + k].round() as u64),
+        ..Default::default()
+    };
+    w.l2.accesses = total[7].round() as u64;
+    g.chip = Some(render::ChipFrame {
+        shading_on_tps: true,
+        tms: c.chip.tms,
+        tps_per_tm: c.tm.tps,
+        waves: vec![w],
+        total_cycles: total[0].round() as u64,
+        sim_wall_s: 0.0,
+        cycles_per_s: 0.0,
+        memory_model: "gddr5".into(),
+        core_ps: c.clocks.core_ps,
+        line_bytes: crate::contract::LINE_BYTES,
+        dram: None,
+        vcd: None,
+    });
+    let e = crate::energy::frame_energy(c, &g);
+    let se = if total[0] > 0.0 {
+        var.sqrt() / total[0]
+    } else {
+        0.0
+    };
+    Ok((
+        [
+            total[0],
+            total[1],
+            total[2],
+            total[3],
+            total[4],
+            e.compute_j + e.onchip_j,
+            total[5],
+        ],
+        se,
+    ))
 }
 
 /// Runs the reference and the chosen modes on `scene` with `config` (its memory
@@ -388,6 +680,10 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         }
     }
     let want = |m: &str| o.modes.as_ref().is_none_or(|v| v.iter().any(|x| x == m));
+    if want("windows") {
+        // Before the reference, which may take long.
+        o.windows.validate()?;
+    }
     if (want("small-chip") || want("small-chips-fit"))
         && (o.small_tms == 0 || o.small_tms >= config.chip.tms)
     {
@@ -673,6 +969,37 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             same,
             sc.1,
             &format!("{note}; x the pixel ratio"),
+        );
+    }
+    if want("windows") {
+        let mut rc = render_cfg(config, None, t);
+        rc.windows = Some(o.windows.clone());
+        if let Some(ch) = rc.chip.as_mut() {
+            ch.config = gddr5.clone();
+        }
+        let f = render::render(scene, Mode::Functional, &rc, &mut |_| {})?;
+        same_rays(&f)?;
+        let (p, se) = windowed_parts(&gddr5, &f)?;
+        let rec = f.windows.as_ref().expect("rendered with windows");
+        let wp = &o.windows;
+        push(
+            "windows",
+            f.wall_s,
+            combine(&p),
+            same_image(&f, None),
+            Some([se, 0.0, 0.0]),
+            &format!(
+                "time sampling: {} windows ({:.0} s of it in the chip); per wavefront the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {}",
+                rec.samples.len(),
+                rec.chip_s,
+                wp.head,
+                wp.measure,
+                wp.warm,
+                wp.every,
+                wp.shade_windows,
+                wp.shade_measure,
+                wp.shade_warm
+            ),
         );
     }
     Ok(out)

@@ -655,16 +655,17 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
         "quarter-pixels",
         "sampled ",
         "sampled-scaled",
+        "windows",
     ] {
         assert!(out.contains(mode), "{mode} missing: {out}");
     }
     let rows: Vec<serde_json::Value> =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    assert_eq!(rows.len(), 7);
+    assert_eq!(rows.len(), 8);
     assert_eq!(rows[0]["err_cycles"], 0.0);
     assert!(rows[1]["speedup"].as_f64().unwrap() > 0.0);
     let plot = std::fs::read_to_string(&svg).unwrap();
-    assert_eq!(plot.matches("<circle").count(), 7);
+    assert_eq!(plot.matches("<circle").count(), 8);
     fails_with(
         &[
             "--config",
@@ -680,6 +681,15 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
         ],
         &["--small-tms 2", "chip.tms"],
     );
+    for (flags, want) in [
+        (["--window-measure", "2000"], "windows overlap"),
+        (["--shade-windows", "0"], "--shade-windows 0"),
+    ] {
+        let mut a = vec!["bench", "speed-error", "--scene", "tiny", "--res", "8x8"];
+        a.extend(["--modes", "windows"]);
+        a.extend(flags);
+        fails_with(&a, &[want]);
+    }
     fails_with(
         &["bench", "nonsense"],
         &["unknown benchmark", "speed-error"],

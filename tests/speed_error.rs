@@ -36,7 +36,8 @@ fn every_mode_against_the_cycle_model() {
             "small-chip",
             "quarter-pixels",
             "sampled",
-            "sampled-scaled"
+            "sampled-scaled",
+            "windows"
         ]
     );
     let r = &rows[0];
@@ -47,13 +48,14 @@ fn every_mode_against_the_cycle_model() {
         assert!((m.err_cycles - want).abs() < 1e-12, "{}", m.mode);
         assert!(m.cycles > 0.0 && m.energy_j > 0.0, "{}", m.mode);
     }
-    // Modes that render the same frame render the same image: every ray agrees.
-    for m in &rows[1..4] {
+    // Modes that render the same frame render the same image: every ray agrees
+    // (time sampling's windows leave the functional model's image untouched).
+    for m in rows[1..4].iter().chain(&rows[7..]) {
         assert_eq!(m.image_identical, Some(true), "{}", m.mode);
     }
     assert_eq!(rows[4].image_identical, None);
     // The samples' pixels are the whole frame's, and two samples give an error bar.
-    for m in &rows[5..] {
+    for m in &rows[5..7] {
         assert_eq!(m.image_identical, Some(true), "{}", m.mode);
         let e = m.est_err.expect("two samples estimate their error");
         assert!(e.iter().all(|x| x.is_finite() && *x >= 0.0), "{e:?}");
@@ -63,8 +65,8 @@ fn every_mode_against_the_cycle_model() {
     // as many lines within the timing-dependent hit-record merging.
     assert!(rows[1].err_lines.abs() < 0.1, "{}", rows[1].err_lines);
     let t = table(&rows);
-    assert_eq!(t.lines().count(), 8, "{t}");
-    assert_eq!(plot(&rows).matches("<circle").count(), 7);
+    assert_eq!(t.lines().count(), 9, "{t}");
+    assert_eq!(plot(&rows).matches("<circle").count(), 8);
 }
 
 #[test]
@@ -348,4 +350,123 @@ fn a_reference_of_another_frame_is_refused() {
     std::fs::write(&j, text).unwrap();
     let e = Reference::load(&j, None, &s, &c).unwrap_err();
     assert!(e.contains("not cycle"), "{e}");
+}
+
+fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
+    dualstream::render::WindowPlan {
+        head,
+        warm: 0,
+        measure: every,
+        every,
+        shade_windows: 1,
+        shade_warm: 0,
+        shade_measure: u64::MAX,
+    }
+}
+
+fn render_windows(
+    s: &dualstream::scene::Scene,
+    c: &Config,
+    plan: dualstream::render::WindowPlan,
+) -> dualstream::render::Frame {
+    let rc = dualstream::render::RenderCfg {
+        accel: c.accel.clone(),
+        chip: Some(Box::new(dualstream::render::ChipRun {
+            config: c.clone(),
+            ..Default::default()
+        })),
+        windows: Some(plan),
+        ..Default::default()
+    };
+    dualstream::render::render(s, dualstream::render::Mode::Functional, &rc, &mut |_| {}).unwrap()
+}
+
+/// Time sampling: the chip takes a wavefront over at a segment boundary of the
+/// functional model and does exactly the work the functional model has left (the
+/// same segment passes, box and triangle tests), and the window leaves no trace
+/// in the functional model's frame.
+#[test]
+fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
+    use dualstream::render::SampleKind;
+    let (_, mut c) = tiny();
+    // The Cornell box in segments of one DRAM row: a wavefront has passes to take
+    // over.
+    let mut s = dualstream::scene::load("cornell").unwrap();
+    s.settings.width = 16;
+    s.settings.height = 16;
+    s.settings.bounces = 2;
+    c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    c.accel.segment_bytes = c.memory.row_bytes as u32;
+    let plain = render_windows(&s, &c, windows_plan(1, 1 << 20));
+    let rec = plain.windows.as_ref().unwrap();
+    for head in [1u64, 3] {
+        let f = render_windows(&s, &c, windows_plan(head, 1 << 20));
+        assert_eq!(f.radiance, plain.radiance, "windows do not touch the frame");
+        let rec = f.windows.as_ref().unwrap();
+        let mut mids = 0;
+        for smp in rec.samples.iter().filter(|x| x.kind == SampleKind::Trace) {
+            let segs = &rec.segs[smp.wave];
+            let first = smp.first as usize;
+            if first == 0 {
+                continue;
+            }
+            mids += 1;
+            assert!(smp.run.ended, "measured to the wavefront's end");
+            assert_eq!(smp.run.marks as usize, segs.len() - first);
+            let rest = &segs[first..];
+            let nodes: u64 = rest.iter().map(|w| w.nodes).sum();
+            let tris: u64 = rest.iter().map(|w| w.tri_tests).sum();
+            let dup: u64 = rest.iter().map(|w| w.enqueues).sum();
+            let scene: u64 = rest.iter().map(|w| w.scene_lines).sum();
+            let k = &smp.run.counts;
+            assert_eq!(k.box_tests, 2 * nodes, "wave {} from {first}", smp.wave);
+            assert_eq!(k.tri_tests, tris, "wave {} from {first}", smp.wave);
+            assert_eq!(k.duplicates, dup, "wave {} from {first}", smp.wave);
+            let sl = k.lines_read[dualstream::mem::StreamTag::Scene as usize];
+            assert_eq!(sl, scene, "wave {} from {first}", smp.wave);
+            assert!(k.cycles > 0);
+        }
+        assert!(
+            mids >= 2,
+            "a window after the head in each wavefront ({mids})"
+        );
+    }
+    // Every wavefront's head ran from its start, the shading passes and the ray
+    // generation were measured whole.
+    let kinds: Vec<_> = rec.samples.iter().map(|x| (x.kind, x.first)).collect();
+    assert!(kinds.contains(&(SampleKind::Emit, 0)), "{kinds:?}");
+    assert!(kinds.contains(&(SampleKind::Shade, 0)), "{kinds:?}");
+}
+
+/// A plan whose windows cover everything (each wavefront's head runs to its end,
+/// each shading pass and the ray generation whole) is the cycle model but for the
+/// hand-overs between runs (the L2's end-of-run flush, the DRAM's open rows).
+#[test]
+fn windows_that_cover_the_frame_agree_with_the_cycle_model() {
+    let (s, mut c) = tiny();
+    // An L2 far smaller than a pass's hit records and path states, as at the
+    // paper's size (a window's L2 starts cold, while the whole frame's carries the
+    // tiny frame's path states from pass to pass).
+    c.chip.l2.bytes = 2048;
+    c.chip.l2.banks = 4;
+    let rows = run(
+        &s,
+        &c,
+        &SpeedErrorOpts {
+            modes: Some(vec!["windows".into()]),
+            windows: windows_plan(1 << 20, 1 << 20),
+            ..SpeedErrorOpts::default()
+        },
+    )
+    .unwrap();
+    let w = &rows[1];
+    assert_eq!(w.mode, "windows");
+    for (what, e) in [
+        ("cycles", w.err_cycles),
+        ("lines", w.err_lines),
+        ("energy", w.err_energy),
+    ] {
+        assert!(e.abs() < 0.03, "{what}: {e:+.4}");
+    }
+    assert_eq!(w.image_identical, Some(true));
 }

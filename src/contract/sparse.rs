@@ -4,10 +4,18 @@
 const PAGE_BITS: u32 = 16;
 const PAGE: usize = 1 << PAGE_BITS;
 
+/// One page of the image (`None`: never written, reads 0).
+type Page = Option<Box<[u8]>>;
+
 pub struct SparseMem {
     capacity: u64,
     pages: Vec<Option<Box<[u8]>>>,
     allocated: usize,
+    /// Undo journal (see [`SparseMem::journal`]): each page's content before its
+    /// first write since the journal started. Simulation bookkeeping: a window of
+    /// the chip runs on the image and is then undone, not a copy of the image.
+    undo: Option<Vec<(usize, Page)>>,
+    saved: Vec<bool>,
 }
 
 impl SparseMem {
@@ -18,7 +26,29 @@ impl SparseMem {
             capacity,
             pages: (0..n).map(|_| None).collect(),
             allocated: 0,
+            undo: None,
+            saved: Vec::new(),
         }
+    }
+
+    /// Starts recording every page's content before its first write, so that
+    /// [`SparseMem::rollback`] can put the image back as it is now.
+    pub fn journal(&mut self) {
+        assert!(self.undo.is_none(), "one journal at a time");
+        self.undo = Some(Vec::new());
+        self.saved = vec![false; self.pages.len()];
+    }
+
+    /// Undoes every write since [`SparseMem::journal`] and stops journaling.
+    pub fn rollback(&mut self) {
+        let undo = self.undo.take().expect("rollback without a journal");
+        for (p, old) in undo.into_iter().rev() {
+            if old.is_none() && self.pages[p].is_some() {
+                self.allocated -= 1;
+            }
+            self.pages[p] = old;
+        }
+        self.saved = Vec::new();
     }
 
     pub fn capacity(&self) -> u64 {
@@ -61,6 +91,12 @@ impl SparseMem {
             let addr = a + done as u64;
             let (p, off) = ((addr >> PAGE_BITS) as usize, (addr as usize) & (PAGE - 1));
             let n = (PAGE - off).min(data.len() - done);
+            if let Some(u) = &mut self.undo
+                && !self.saved[p]
+            {
+                self.saved[p] = true;
+                u.push((p, self.pages[p].clone()));
+            }
             let pg = self.pages[p].get_or_insert_with(|| {
                 self.allocated += 1;
                 vec![0u8; PAGE].into_boxed_slice()
@@ -114,6 +150,28 @@ mod tests {
         assert_eq!(m.resident_bytes(), 2 << 16, "two pages touched");
         m.write_f32(3 << 30, -2.5);
         assert_eq!(m.read_f32(3 << 30), -2.5);
+    }
+
+    #[test]
+    fn rollback_restores_the_image() {
+        let mut m = SparseMem::new(1 << 30);
+        m.write_u64(100, 7);
+        m.journal();
+        m.write_u64(100, 8);
+        m.write_u64(100, 9);
+        m.write_u32(5 << 20, 1);
+        assert_eq!(m.read_u64(100), 9);
+        assert_eq!(m.resident_bytes(), 2 << 16);
+        m.rollback();
+        assert_eq!(m.read_u64(100), 7, "the first write's old page came back");
+        assert_eq!(m.read_u32(5 << 20), 0);
+        assert_eq!(
+            m.resident_bytes(),
+            1 << 16,
+            "the page the journal saw allocated is gone"
+        );
+        m.write_u64(100, 10);
+        assert_eq!(m.read_u64(100), 10, "no journal: writes stay");
     }
 
     #[test]

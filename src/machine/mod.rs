@@ -258,6 +258,48 @@ impl L2Wave {
 }
 
 impl WaveCycles {
+    /// The counts between two snapshots of one run (`self` the later).
+    fn since(&self, b: &WaveCycles) -> WaveCycles {
+        let d = |a: u64, b: u64| a - b;
+        WaveCycles {
+            cycles: d(self.cycles, b.cycles),
+            rays_emitted: 0,
+            duplicates: d(self.duplicates, b.duplicates),
+            segments_loaded: d(self.segments_loaded, b.segments_loaded),
+            box_tests: d(self.box_tests, b.box_tests),
+            tri_tests: d(self.tri_tests, b.tri_tests),
+            exits: d(self.exits, b.exits),
+            pops: d(self.pops, b.pops),
+            tri_hits: d(self.tri_hits, b.tri_hits),
+            l1_lines: d(self.l1_lines, b.l1_lines),
+            max_stack: 0,
+            hits_sent: d(self.hits_sent, b.hits_sent),
+            lines_read: std::array::from_fn(|k| d(self.lines_read[k], b.lines_read[k])),
+            lines_written: std::array::from_fn(|k| d(self.lines_written[k], b.lines_written[k])),
+            hit_merged: d(self.hit_merged, b.hit_merged),
+            scene_buffer_stalls: d(self.scene_buffer_stalls, b.scene_buffer_stalls),
+            scene_buffer_stall_cycles: d(
+                self.scene_buffer_stall_cycles,
+                b.scene_buffer_stall_cycles,
+            ),
+            scene_buffer_reads: d(self.scene_buffer_reads, b.scene_buffer_reads),
+            evals: d(self.evals, b.evals),
+            dram: self.dram.sub(&b.dram),
+            shade_items: d(self.shade_items, b.shade_items),
+            shade_rays: d(self.shade_rays, b.shade_rays),
+            shade_shadow_rays: d(self.shade_shadow_rays, b.shade_shadow_rays),
+            shade_hits: d(self.shade_hits, b.shade_hits),
+            shade_occluded: d(self.shade_occluded, b.shade_occluded),
+            shade_cycles: 0,
+            drain_cycles: 0,
+            shade_uses: std::array::from_fn(|k| d(self.shade_uses[k], b.shade_uses[k])),
+            l2: self.l2.sub(&b.l2),
+            tm_rays_max: 0,
+            tm_rays_min: 0,
+            tms_with_rays: 0,
+        }
+    }
+
     /// Rays handed to the TMs in this run (duplicates included).
     pub fn rays_traced(&self) -> u64 {
         self.rays_emitted + self.duplicates
@@ -279,6 +321,39 @@ impl WaveCycles {
 /// setting only: any split gives bit-identical results. Measured on the Dragon
 /// Box, 128 TMs: the worker waited about half of the time at 8/16.
 const WORKER_TM_SIXTEENTHS: usize = 8;
+
+/// Cycles between two looks at a sampling window's marks: the resolution of its
+/// start and end (a window spans tens of thousands of cycles).
+const WINDOW_STEP: u64 = 32;
+
+/// What a sampling window runs (see [`Chip::trace_window`]).
+pub enum WindowKind {
+    /// The rest of a wavefront from a segment boundary; marks are admissions.
+    Trace(crate::render::queues::Boundary),
+    /// The host emitting these rays into the root queue; marks are rays taken.
+    Emit(Vec<RayRec>),
+    /// The shading pass over pixels `first..pixels`; marks are finished
+    /// shading items.
+    Shade { first: u32, pixels: u32 },
+}
+
+/// A sampling window's measurement.
+#[derive(Clone, Debug, Default)]
+pub struct WindowRun {
+    /// The chip's counts over the measured stretch (cycles, lines, DRAM, ...).
+    pub counts: WaveCycles,
+    /// Marks in the measured stretch (admissions or shading items).
+    pub marks: u64,
+    /// The wavefront (or shading pass) ended inside the measurement, so `counts`
+    /// include its drain.
+    pub ended: bool,
+    /// The warm-up's counts (simulated but not measured).
+    pub warm: WaveCycles,
+    /// Dirty L2 lines at the measurement's end less those at its start, by
+    /// stream tag: writebacks the stretch owes (a dirty line is written back
+    /// once, later), which an abandoned window never sees.
+    pub dirtied: [i64; StreamTag::COUNT],
+}
 
 /// The chip, elaborated once per frame.
 pub struct Chip {
@@ -912,6 +987,136 @@ impl Chip {
             }
         }
         Ok(w)
+    }
+
+    /// Time sampling: the chip takes a wavefront over at a segment boundary of the
+    /// functional model (`b`: the queues holding rays and the bucket pool, laid out
+    /// in `mem`), runs `warm` admissions to fill the working set, then measures the
+    /// next `measure` admissions (or, with `kind` = [`WindowKind::Shade`], the
+    /// shading pass over `0..pixels` from item `warm` to item `warm + measure`),
+    /// and stops. The window is a sample, not a finished wavefront: the chip is
+    /// spent (its state is abandoned mid-flight) and every write it made to `mem`
+    /// is undone, so the functional model carries on as if it had not run.
+    /// `None` when the wavefront ends before the measurement starts; a measurement
+    /// cut short by the wavefront's end covers the rest of it (`WindowRun::ended`).
+    pub fn trace_window(
+        mut self,
+        mem: &mut SparseMem,
+        kind: WindowKind,
+        warm: u64,
+        measure: u64,
+    ) -> Result<Option<WindowRun>, String> {
+        mem.journal();
+        let r = self.window_inner(mem, kind, warm, measure);
+        std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
+        mem.rollback();
+        r
+    }
+
+    fn window_inner(
+        &mut self,
+        mem: &mut SparseMem,
+        kind: WindowKind,
+        warm: u64,
+        measure: u64,
+    ) -> Result<Option<WindowRun>, String> {
+        let sch = self.scheduler;
+        if let WindowKind::Trace(b) = &kind {
+            let map = self.sim.unit_ref::<StreamScheduler>(sch).map.clone();
+            for (s, rec) in &b.queues {
+                mem.write(map.queue_rec_addr(*s), &rec.encode());
+            }
+        }
+        std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
+        match &kind {
+            WindowKind::Trace(b) => {
+                self.sim.unit_mut::<StreamScheduler>(sch).resume(b);
+                self.sim.wake(sch);
+            }
+            WindowKind::Emit(rays) => {
+                self.sim
+                    .unit_mut::<Host>(self.host)
+                    .load(rays.clone(), 0, 0);
+                self.sim.wake(self.host);
+            }
+            WindowKind::Shade { first, pixels } => {
+                self.sim.unit_mut::<StreamScheduler>(sch).shade_from(*first);
+                self.sim
+                    .unit_mut::<Host>(self.host)
+                    .load(Vec::new(), 1, *pixels);
+                self.sim.wake(self.host);
+            }
+        }
+        // What is counted, and when the stretch is over without the wavefront's
+        // end: all rays emitted, or all items of a shading pass done (the chip
+        // would go on to trace what was emitted).
+        let (mark, all) = match &kind {
+            WindowKind::Trace(_) => (0, u64::MAX),
+            WindowKind::Emit(rays) => (1, rays.len() as u64),
+            WindowKind::Shade { first, pixels } => (2, (pixels - first.min(pixels)) as u64),
+        };
+        let count = |c: &Chip| {
+            let st = c.sim.unit_ref::<StreamScheduler>(c.scheduler).stats();
+            [st.segments_loaded, st.enqueues, st.shade_done][mark]
+        };
+        let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
+        let start = self.snapshot();
+        let dirty = |c: &Chip| {
+            c.l2.map_or([0; StreamTag::COUNT], |u| {
+                c.sim.unit_ref::<L2>(u).dirty_by_tag()
+            })
+        };
+        let owed = |a: &[u64; StreamTag::COUNT], b: &[u64; StreamTag::COUNT]| {
+            std::array::from_fn(|k| b[k] as i64 - a[k] as i64)
+        };
+        let mut from: Option<(WaveCycles, u64, [u64; StreamTag::COUNT])> = None;
+        let mut idle_run = 0u64;
+        loop {
+            let n = count(self);
+            if from.is_none() && n >= warm {
+                from = Some((self.snapshot(), n, dirty(self)));
+            }
+            if from.is_none() && n >= all {
+                return Ok(None);
+            }
+            if let Some((a, n0, d0)) = &from
+                && (n >= n0 + measure || n >= all)
+            {
+                return Ok(Some(WindowRun {
+                    counts: self.snapshot().since(a),
+                    marks: n - n0,
+                    ended: n >= all,
+                    warm: a.since(&start),
+                    dirtied: owed(d0, &dirty(self)),
+                }));
+            }
+            let end = self
+                .sim
+                .run_until(self.sim.now() + WINDOW_STEP * period)
+                .map_err(|e| e.to_string())?;
+            if let Some(e) = self.sim.unit_ref::<StreamScheduler>(sch).error() {
+                return Err(e.to_string());
+            }
+            if end == crate::rtl::RunEnd::Idle {
+                let Some((a, n0, d0)) = &from else {
+                    return Ok(None);
+                };
+                return Ok(Some(WindowRun {
+                    counts: self.snapshot().since(a),
+                    marks: count(self) - n0,
+                    ended: true,
+                    warm: a.since(&start),
+                    dirtied: owed(d0, &dirty(self)),
+                }));
+            }
+            idle_run += WINDOW_STEP;
+            if idle_run > self.watchdog.max(WINDOW_STEP) * 64 {
+                return Err(self.stuck("a sampling window did not reach its marks"));
+            }
+            if count(self) > n {
+                idle_run = 0;
+            }
+        }
     }
 
     /// Runs in watchdog windows until every unit sleeps with nothing scheduled.

@@ -62,6 +62,85 @@ pub struct RenderCfg {
     /// whole frame, so its radiance is the whole frame's; the others stay black.
     /// For sampled simulation (`bench speed-error`).
     pub pixels: Option<Vec<u32>>,
+    /// Functional mode with time sampling: the chip (`chip`) simulates windows
+    /// of each wavefront taken over from the functional model (see [`WindowPlan`]).
+    pub windows: Option<WindowPlan>,
+}
+
+/// Time sampling (`bench speed-error --modes windows`): while the functional model
+/// traces a wavefront segment by segment, the chip takes it over at some segment
+/// boundaries (`Chip::trace_window`) and is measured for a stretch of admissions;
+/// after each wavefront it measures stretches of the shading pass that follows.
+/// Counts are in segments that hold rays (admissions), in the order the functional
+/// model and the scheduler both take them.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WindowPlan {
+    /// Admissions measured from each wavefront's start (always simulated: the
+    /// root and the top of the tree go one segment at a time).
+    pub head: u64,
+    /// Admissions simulated before a window's measurement (to fill the working
+    /// set, the TMs and the caches) and measured.
+    pub warm: u64,
+    pub measure: u64,
+    /// One window's measurement starts every `every` admissions after the head.
+    pub every: u64,
+    /// Shading windows per pass (evenly spread over the pixels), their warm-up
+    /// and measured items.
+    pub shade_windows: u32,
+    pub shade_warm: u64,
+    pub shade_measure: u64,
+}
+
+/// Functional work of one segment pass (for the ratio estimator of time sampling).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct SegWork {
+    /// Rays the segment's queue held.
+    pub rays: u64,
+    pub nodes: u64,
+    pub tri_tests: u64,
+    pub pops: u64,
+    pub exits: u64,
+    /// Rays written into child queues.
+    pub enqueues: u64,
+    pub scene_lines: u64,
+    pub ray_lines: u64,
+    pub hit_lines: u64,
+}
+
+/// One measured window of time sampling.
+#[derive(Clone, Debug)]
+pub struct WindowSample {
+    /// The functional wavefront it belongs to (a shading window: the pass that
+    /// shades this wavefront's hits).
+    pub wave: usize,
+    pub kind: SampleKind,
+    /// First measured admission (its ordinal in the wavefront), shading item or
+    /// emitted ray.
+    pub first: u64,
+    pub run: crate::machine::WindowRun,
+}
+
+/// What a window measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleKind {
+    /// The host emitting the primary rays (before the first wavefront).
+    Emit,
+    /// Segment passes of a wavefront.
+    Trace,
+    /// The shading pass after a wavefront.
+    Shade,
+}
+
+/// What time sampling recorded (see [`WindowPlan`]).
+#[derive(Clone, Debug, Default)]
+pub struct WindowRecord {
+    /// Per functional wavefront, per segment pass in order.
+    pub segs: Vec<Vec<SegWork>>,
+    pub samples: Vec<WindowSample>,
+    /// Shading items per pass (the frame's pixels) = primary rays.
+    pub pixels: u32,
+    /// Wall time in the chip windows (building the chip included).
+    pub chip_s: f64,
 }
 
 /// How to build and run the chip in cycle mode.
@@ -242,6 +321,9 @@ pub struct Frame {
     pub energy: Option<crate::energy::Energy>,
     /// Cycle mode only.
     pub chip: Option<ChipFrame>,
+    /// Functional mode with [`RenderCfg::windows`].
+    #[serde(skip)]
+    pub windows: Option<WindowRecord>,
 }
 
 /// The scene built for the chip: BVH, segments and the DRAM image.
@@ -391,6 +473,36 @@ pub fn render(
         chip = Some(c);
         q.divert();
     }
+    let mut windows = match &cfg.windows {
+        None => None,
+        Some(plan) => {
+            if mode != Mode::Functional {
+                return Err("time sampling (windows) runs in functional mode".into());
+            }
+            plan.validate()?;
+            let run = cfg.chip.as_deref().cloned().unwrap_or_default();
+            let mut c = run.config;
+            c.accel = cfg.accel.clone();
+            c.memory = cfg.memory.clone();
+            if c.chip.shading != crate::machine::config::Shading::Tps {
+                return Err(
+                    "time sampling needs the shading pass on the TPs (chip.shading = \"tps\")"
+                        .into(),
+                );
+            }
+            Some(Windows {
+                plan: plan.clone(),
+                consts: shade_consts(scene, &p),
+                cfg: c,
+                sim: run.sim,
+                segments: nseg,
+                rec: WindowRecord {
+                    pixels,
+                    ..WindowRecord::default()
+                },
+            })
+        }
+    };
     // Cycle mode with shading on the TPs: every chip run after the first shades the
     // finished wavefront and traces the one it emits.
     let tp_shading =
@@ -437,6 +549,24 @@ pub fn render(
     }
     let mut work: Vec<u32> = (0..pixels).collect();
     q.close(&mut p.mem, &p.map, 0);
+    if let Some(win) = windows.as_mut() {
+        let n = (win.plan.shade_warm + win.plan.shade_measure).min(pixels as u64) as u32;
+        let rays = (0..n)
+            .map(|pix| {
+                let real = sample[pix as usize];
+                let mut rng = pixel_seed(scene.settings.seed, real);
+                let jitter = (next_f32(&mut rng), next_f32(&mut rng));
+                let (o, d) = scene.camera.ray(real % w, real / w, w, h, jitter);
+                RayRec {
+                    origin: o,
+                    dir: d,
+                    ray_id: pix,
+                    entry: root_entry,
+                }
+            })
+            .collect();
+        win.emit_window(&mut p, rays)?;
+    }
 
     while !work.is_empty() {
         let mut prog = Progress {
@@ -450,11 +580,74 @@ pub fn render(
         let t0 = Instant::now();
         let (r0, w0) = (q.traffic.lines_read, q.traffic.lines_written);
         match mode {
-            Mode::Functional => trace_functional(&mut p, &mut q, &mut st, &mut |done, known| {
-                prog.done = done;
-                prog.known = known;
-                progress(&prog)
-            })?,
+            Mode::Functional => {
+                let wave = waves.len();
+                let mut segs = Vec::new();
+                let mut ord = 0u64;
+                let mut prev: Option<(u64, WorkSoFar)> = None;
+                let mut hook = |s: u32,
+                                p: &mut Prepared,
+                                q: &RayQueues,
+                                st: &WaveStats|
+                 -> Result<(), String> {
+                    let now = WorkSoFar::of(st, q);
+                    if let Some((rays, b)) = prev.take() {
+                        segs.push(now.since(&b, rays));
+                    }
+                    if s == u32::MAX {
+                        return Ok(());
+                    }
+                    prev = Some((q.len(s), now));
+                    let k = ord;
+                    ord += 1;
+                    let (Some(plan), Some(w)) = (&cfg.windows, windows.as_mut()) else {
+                        return Ok(());
+                    };
+                    let (warm, measure) = if k == 0 {
+                        (0, plan.head)
+                    } else if k + plan.warm >= plan.head
+                        && (k + plan.warm - plan.head).is_multiple_of(plan.every)
+                    {
+                        (plan.warm, plan.measure)
+                    } else {
+                        return Ok(());
+                    };
+                    let t = Instant::now();
+                    let chip = w.build(&p.map)?;
+                    let b = q.boundary(&p.map);
+                    let r = chip.trace_window(
+                        &mut p.mem,
+                        crate::machine::WindowKind::Trace(b),
+                        warm,
+                        measure,
+                    )?;
+                    w.rec.chip_s += t.elapsed().as_secs_f64();
+                    if let Some(run) = r {
+                        w.rec.samples.push(WindowSample {
+                            wave,
+                            kind: SampleKind::Trace,
+                            first: k + warm,
+                            run,
+                        });
+                    }
+                    Ok(())
+                };
+                trace_functional(
+                    &mut p,
+                    &mut q,
+                    &mut st,
+                    &mut |done, known| {
+                        prog.done = done;
+                        prog.known = known;
+                        progress(&prog)
+                    },
+                    &mut hook,
+                )?;
+                if let Some(w) = windows.as_mut() {
+                    w.rec.segs.push(segs);
+                    w.shade_windows(&mut p, wave, pixels)?;
+                }
+            }
             Mode::Reference => trace_reference(&mut p, &mut q, scene, &mut st),
             Mode::Cycle => {
                 let chip = chip.as_mut().expect("built for cycle mode");
@@ -549,6 +742,7 @@ pub fn render(
         radiance[real as usize] = PathRec::read(&p.mem, p.map.path_addr(pix as u64)).radiance;
     }
     Ok(Frame {
+        windows: windows.map(|w| w.rec),
         scene: scene.name.clone(),
         mode,
         width: w,
@@ -664,11 +858,14 @@ fn emit(
 /// Dual streaming, functional: segments in depth-first order, each loaded once if
 /// its queue has rays; every ray of the queue traverses the segment locally and is
 /// duplicated into the queue of each child segment it exits into.
+/// `hook` is called before each segment that holds rays (with its id) and once at
+/// the end (with `u32::MAX`).
 fn trace_functional(
     p: &mut Prepared,
     q: &mut RayQueues,
     st: &mut WaveStats,
     progress: &mut dyn FnMut(u64, u64),
+    hook: &mut SegHook,
 ) -> Result<(), String> {
     let mut done = 0u64;
     let mut rays = Vec::new();
@@ -680,6 +877,7 @@ fn trace_functional(
             // subtree are skipped.
             continue;
         }
+        hook(s, p, q, st)?;
         let e = SegEntry::read(&p.mem, p.map.seg_entry_addr(s));
         let view = SegmentView::load(&p.mem, e.base, s, e.nodes, e.tris);
         st.segments_loaded += 1;
@@ -712,7 +910,145 @@ fn trace_functional(
             q.close(&mut p.mem, &p.map, c);
         }
     }
-    Ok(())
+    hook(u32::MAX, p, q, st)
+}
+
+/// Time sampling's chip side: a fresh chip per window.
+struct Windows {
+    plan: WindowPlan,
+    consts: ShadeConsts,
+    cfg: crate::config::Config,
+    sim: crate::rtl::SimOptions,
+    segments: usize,
+    rec: WindowRecord,
+}
+
+impl Windows {
+    fn build(&self, map: &MemoryMap) -> Result<crate::machine::Chip, String> {
+        crate::machine::Chip::new(
+            &self.cfg,
+            map,
+            self.segments,
+            &self.consts,
+            self.sim.clone(),
+        )
+    }
+
+    /// The host emitting the primary rays: its first `rays`, measured after the
+    /// shading windows' warm-up (emission is the same for every ray).
+    fn emit_window(&mut self, p: &mut Prepared, rays: Vec<RayRec>) -> Result<(), String> {
+        let t = Instant::now();
+        let chip = self.build(&p.map)?;
+        let r = chip.trace_window(
+            &mut p.mem,
+            crate::machine::WindowKind::Emit(rays),
+            self.plan.shade_warm,
+            self.plan.shade_measure,
+        )?;
+        self.rec.chip_s += t.elapsed().as_secs_f64();
+        if let Some(run) = r {
+            self.rec.samples.push(WindowSample {
+                wave: 0,
+                kind: SampleKind::Emit,
+                first: self.plan.shade_warm,
+                run,
+            });
+        }
+        Ok(())
+    }
+
+    /// The shading pass after wavefront `wave`: windows spread over the pixels.
+    fn shade_windows(&mut self, p: &mut Prepared, wave: usize, pixels: u32) -> Result<(), String> {
+        let n = self.plan.shade_windows;
+        for j in 0..n {
+            let first = (j as u64 * pixels as u64 / n as u64) as u32;
+            let t = Instant::now();
+            let chip = self.build(&p.map)?;
+            let r = chip.trace_window(
+                &mut p.mem,
+                crate::machine::WindowKind::Shade { first, pixels },
+                self.plan.shade_warm,
+                self.plan.shade_measure,
+            )?;
+            self.rec.chip_s += t.elapsed().as_secs_f64();
+            if let Some(run) = r {
+                self.rec.samples.push(WindowSample {
+                    wave,
+                    kind: SampleKind::Shade,
+                    first: first as u64 + self.plan.shade_warm,
+                    run,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl WindowPlan {
+    pub fn validate(&self) -> Result<(), String> {
+        if self.head == 0 || self.measure == 0 || self.every == 0 {
+            return Err(format!(
+                "time sampling needs a head, a measured stretch and a period of at least one segment admission (head {}, --window-measure {}, --window-every {}); raise the zero one",
+                self.head, self.measure, self.every
+            ));
+        }
+        if self.measure > self.every {
+            return Err(format!(
+                "windows overlap: --window-measure {} admissions every --window-every {}; measure at most every",
+                self.measure, self.every
+            ));
+        }
+        if self.shade_windows == 0 || self.shade_measure == 0 {
+            return Err(format!(
+                "--shade-windows {} of {} measured items: the shading passes would go unmeasured; use at least one window of one item",
+                self.shade_windows, self.shade_measure
+            ));
+        }
+        Ok(())
+    }
+}
+
+type SegHook<'a> = dyn FnMut(u32, &mut Prepared, &RayQueues, &WaveStats) -> Result<(), String> + 'a;
+
+/// Running totals of the functional model's work, for [`SegWork`] by difference.
+#[derive(Clone, Copy, Default)]
+struct WorkSoFar {
+    nodes: u64,
+    tri_tests: u64,
+    pops: u64,
+    exits: u64,
+    enqueues: u64,
+    scene_lines: u64,
+    ray_lines: u64,
+    hit_lines: u64,
+}
+
+impl WorkSoFar {
+    fn of(st: &WaveStats, q: &RayQueues) -> Self {
+        WorkSoFar {
+            nodes: st.traversal.nodes,
+            tri_tests: st.traversal.tri_tests,
+            pops: st.traversal.pops,
+            exits: st.traversal.exits,
+            enqueues: st.enqueues,
+            scene_lines: st.scene_lines,
+            ray_lines: q.traffic.lines_read + q.traffic.lines_written,
+            hit_lines: st.hit_lines_read + st.hit_lines_written,
+        }
+    }
+    fn since(&self, b: &WorkSoFar, rays: u64) -> SegWork {
+        SegWork {
+            rays,
+            nodes: self.nodes - b.nodes,
+            tri_tests: self.tri_tests - b.tri_tests,
+            pops: self.pops - b.pops,
+            exits: self.exits - b.exits,
+            enqueues: self.enqueues - b.enqueues,
+            scene_lines: self.scene_lines - b.scene_lines,
+            ray_lines: self.ray_lines - b.ray_lines,
+            hit_lines: self.hit_lines - b.hit_lines,
+        }
+    }
 }
 
 /// The reference: every ray of the root queue traced through the whole BVH.
@@ -866,7 +1202,13 @@ pub fn trace_rays(
     }
     q.close(&mut p.mem, &p.map, 0);
     match mode {
-        Mode::Functional => trace_functional(&mut p, &mut q, &mut st, &mut |_, _| {})?,
+        Mode::Functional => trace_functional(
+            &mut p,
+            &mut q,
+            &mut st,
+            &mut |_, _| {},
+            &mut |_, _, _, _| Ok(()),
+        )?,
         Mode::Reference => trace_reference(&mut p, &mut q, &sc, &mut st),
         Mode::Cycle => {
             return Err(

@@ -11,8 +11,21 @@
 //! the lines of its header and its rays.
 
 use crate::contract::{
-    BUCKET_HEADER_BYTES, BucketHeader, MemoryMap, RAY_BYTES, RayRec, SparseMem, lines_touched,
+    BUCKET_HEADER_BYTES, BucketHeader, MemoryMap, QueueRec, RAY_BYTES, RayRec, SparseMem,
+    lines_touched,
 };
+
+/// The ray stream between two segments of a wavefront, in the order the functional
+/// model takes them: every queue holding rays (all closed: their parents are done)
+/// as the record the stream scheduler reads, and the bucket pool. What a chip needs
+/// to take the wavefront over at that point (`Chip::trace_window`).
+#[derive(Clone, Debug, Default)]
+pub struct Boundary {
+    pub queues: Vec<(u32, QueueRec)>,
+    pub free_chunks: Vec<u64>,
+    pub chunk_live: Vec<u8>,
+    pub live_buckets: u64,
+}
 
 /// Traffic of the ray stream, in 64 B lines.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -233,6 +246,32 @@ impl RayQueues {
         self.live_buckets -= 1;
         self.free_bucket(b);
         true
+    }
+
+    /// The queues and the pool as they stand (see [`Boundary`]); queues still open
+    /// are a modelling error, since the chip could not take them over.
+    pub fn boundary(&self, map: &MemoryMap) -> Boundary {
+        let mut queues = Vec::new();
+        for (s, q) in self.queues.iter().enumerate() {
+            if q.len == 0 {
+                continue;
+            }
+            debug_assert!(q.chunk_left.is_empty(), "segment {s}: queue still open");
+            queues.push((
+                s as u32,
+                QueueRec {
+                    head: map.bucket_addr(*q.buckets.front().expect("rays in buckets")),
+                    buckets: q.buckets.len() as u32,
+                    rays: q.len as u32,
+                },
+            ));
+        }
+        Boundary {
+            queues,
+            free_chunks: self.free_chunks.clone(),
+            chunk_live: self.chunk_live.clone(),
+            live_buckets: self.live_buckets,
+        }
     }
 
     /// Buckets currently holding rays.

@@ -855,6 +855,12 @@ impl Sim {
     }
 
     /// Runs until idle, failing if that takes longer than `limit` ps.
+    /// Runs until every unit sleeps with nothing scheduled or until `limit`,
+    /// whichever comes first (a run cut into pieces gives the same result).
+    pub fn run_until(&mut self, limit: Time) -> Result<RunEnd, SimError> {
+        self.run_inner(limit, true)
+    }
+
     pub fn run_to_idle(&mut self, limit: Time) -> Result<Time, SimError> {
         match self.run_inner(limit, true)? {
             RunEnd::Idle => Ok(self.now),

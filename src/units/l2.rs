@@ -297,6 +297,17 @@ impl L2 {
         !self.st.r().idle()
     }
 
+    /// Dirty lines held, by the stream tag of their last write: each will be
+    /// written back once (time sampling counts them where they were dirtied).
+    pub fn dirty_by_tag(&self) -> [u64; StreamTag::COUNT] {
+        let st = self.st.r();
+        let mut n = [0; StreamTag::COUNT];
+        for &slot in &st.dirty {
+            n[st.tags[slot as usize].mtag as usize] += 1;
+        }
+        n
+    }
+
     fn sets(&self) -> u64 {
         (self.bytes / self.line_bytes / self.ways) as u64
     }

@@ -318,6 +318,9 @@ crate::unit! {
             pub_enqueued: Vec<u64>,
             pub_done: Vec<u64>,
             last_shade_end: u64,
+            // First pixel of the next shading pass (0 but in a sampling window,
+            // `Chip::trace_window`): simulation control, not hardware.
+            shade_first: u32,
             // Cycle the last end marker (a ray's or a shading item's) arrived:
             // the chip's last finished work, for the drain figure.
             last_marker: u64,
@@ -407,6 +410,7 @@ impl StreamScheduler {
             pub_enqueued: vec![0; segments],
             pub_done: vec![0; segments],
             last_shade_end: 0,
+            shade_first: 0,
             last_marker: 0,
             root_log: None,
             tm_rays: vec![0; tms],
@@ -494,6 +498,30 @@ impl StreamScheduler {
             .as_mut()
             .map(std::mem::take)
             .unwrap_or_default()
+    }
+
+    /// Takes a wavefront over between two segments (`Chip::trace_window`): the
+    /// queues that hold rays become eligible (their records are in DRAM, so they are
+    /// read at admission as for any queue that left the destination table) and the
+    /// bucket pool is the one that laid them out. Only on a fresh scheduler.
+    pub fn resume(&mut self, b: &crate::render::queues::Boundary) {
+        assert!(self.idle(), "resume on an idle scheduler");
+        assert_eq!(
+            b.chunk_live.len(),
+            self.st.r().chunk_live.len(),
+            "the same bucket pool"
+        );
+        let st = self.st.m();
+        st.eligible = b.queues.iter().map(|&(s, _)| s).collect();
+        st.free_chunks = b.free_chunks.clone();
+        st.chunk_live = b.chunk_live.clone();
+        st.live_buckets = b.live_buckets;
+        crate::rtl::State::commit(&mut self.st);
+    }
+
+    /// A sampling window's shading pass starts at pixel `first` (see `shade_first`).
+    pub fn shade_from(&mut self, first: u32) {
+        self.shade_first = first;
     }
 
     /// Clears the per-segment wavefront counts.
@@ -888,7 +916,9 @@ impl Logic for StreamScheduler {
         {
             let ws = ctx.pop(&self.start).expect("peeked");
             if ws.shade_pixels > 0 {
+                let first = self.shade_first.min(ws.shade_pixels);
                 self.st.m().shade = Some(ShadePass {
+                    next: first,
                     end: ws.shade_pixels,
                     ..ShadePass::default()
                 });
