@@ -177,7 +177,7 @@ enum Cmd {
         small_tms: u32,
         /// speed-error: the modes to run besides the reference, comma-separated
         /// (cycle-fixed, functional+estimate, small-chip, small-chips-fit,
-        /// quarter-pixels, sampled). Default: all.
+        /// quarter-pixels, sampled, windows). Default: all.
         #[arg(long)]
         modes: Option<String>,
         /// speed-error, sampled: keep one tile in this many per sample.
@@ -190,17 +190,32 @@ enum Cmd {
         /// estimate the sampling error).
         #[arg(long, default_value_t = 2)]
         subsets: u32,
-        /// speed-error, windows (time sampling): a measured window every this many
-        /// segment passes of a wavefront.
+        /// speed-error, windows (time sampling): a window's measurement starts
+        /// every this many segment passes of a wavefront (after its head).
         #[arg(long, default_value_t = 1024)]
         window_every: u64,
-        /// speed-error, windows: segment passes simulated before a window's
-        /// measurement (to fill the working set) and measured.
+        /// speed-error, windows: segment passes simulated whole at the start of
+        /// each wavefront (the root and the treelets below it, where the rays are).
+        #[arg(long, default_value_t = 16)]
+        window_head: u64,
+        /// speed-error, windows: the root pass of each wavefront simulated over
+        /// the last this many rays of its queue, the rest extrapolated.
+        #[arg(long, default_value_t = 16384)]
+        window_root_rays: u64,
+        /// speed-error, windows: each wavefront's tail, from the first boundary
+        /// with at most this many queues holding rays, simulated to its end (0:
+        /// none, the tail scaled like the rest).
+        #[arg(long, default_value_t = 128)]
+        window_tail: u64,
+        /// speed-error, windows: segment passes the chip runs before a window's
+        /// measurement, unmeasured, to fill its buffers, caches and queues.
         #[arg(long, default_value_t = 64)]
         window_warm: u64,
+        /// speed-error, windows: segment passes measured per window.
         #[arg(long, default_value_t = 32)]
         window_measure: u64,
-        /// speed-error, windows: shading windows per shading pass.
+        /// speed-error, windows: shading windows per shading pass (each warms up
+        /// on 4096 items and measures 2048).
         #[arg(long, default_value_t = 4)]
         shade_windows: u32,
         /// speed-error: compare with this finished reference instead of rendering
@@ -671,6 +686,9 @@ fn run(cli: Cli) -> Result<(), String> {
             tile,
             subsets,
             window_every,
+            window_head,
+            window_root_rays,
+            window_tail,
             window_warm,
             window_measure,
             shade_windows,
@@ -709,6 +727,9 @@ fn run(cli: Cli) -> Result<(), String> {
                         threads,
                         windows: dualstream::render::WindowPlan {
                             every: window_every,
+                            head: window_head,
+                            root_rays: window_root_rays,
+                            tail_pending: window_tail,
                             warm: window_warm,
                             measure: window_measure,
                             shade_windows,

@@ -405,12 +405,14 @@ impl Default for SpeedErrorOpts {
 pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
+        root_rays: 16384,
         warm: 64,
         measure: 32,
         every: 1024,
         shade_windows: 4,
         shade_warm: 4096,
         shade_measure: 2048,
+        tail_pending: 128,
     }
 }
 
@@ -496,12 +498,15 @@ fn window_counts(r: &crate::machine::WindowRun, wb_j: f64) -> [f64; WCOUNTS] {
 }
 
 /// The time-sampled frame's parts (as [`parts`]) from the functional frame `f`
-/// rendered with windows. Per wavefront, the trace is its head (simulated as is)
-/// plus the rest scaled from the measured windows by the proxy (`seg_proxy`) of
-/// the rest over that of the windows' measured passes; each shading pass is its
-/// windows scaled by the pixels over the measured items. Also the relative
-/// standard error of the cycles from the windows' spread.
-fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], f64), String> {
+/// rendered with windows. Per wavefront, the trace is its head (the root window
+/// scaled by its rays, then the passes up to `head` simulated as is), its tail
+/// (simulated as is) and between them the rest, scaled from the measured windows
+/// by the proxy (`seg_proxy`) of the rest over that of the windows' measured
+/// passes; each shading pass is its windows
+/// scaled by the pixels over the measured items. Also the relative standard
+/// error of the rest's cycles, lines and DRAM energy from the windows' spread
+/// (`None` where a wavefront had fewer than two windows).
+fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>), String> {
     let rec = f
         .windows
         .as_ref()
@@ -526,8 +531,34 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], f64), String> {
             }
             t
         };
+        // The head: the root pass (its window's run scaled up by the rays it left
+        // out: the pass's cost goes with its rays, start-up and drain included),
+        // then the window from the next segment on, if any (measured whole).
         let mut head = [0.0; WCOUNTS];
         let mut head_end = 0usize;
+        for smp in rec
+            .samples
+            .iter()
+            .filter(|s| s.wave == wave && s.kind == render::SampleKind::Root)
+        {
+            if smp.run.marks > 0 {
+                let k = (smp.first + smp.run.marks) as f64 / smp.run.marks as f64;
+                add(&mut head, &window_counts(&smp.run, wb_j), k);
+            }
+            // The window ends with the root pass (or before the children, if
+            // its sample sent no ray on); the rest is measured after it.
+            head_end = 1;
+        }
+        // The tail, measured to the end, as is.
+        let mut tail_start = segs.len();
+        for smp in rec
+            .samples
+            .iter()
+            .filter(|s| s.wave == wave && s.kind == render::SampleKind::Tail)
+        {
+            add(&mut total, &window_counts(&smp.run, wb_j), 1.0);
+            tail_start = (smp.first as usize).clamp(head_end.min(segs.len()), segs.len());
+        }
         let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
         let mut ratios = Vec::new();
         for smp in rec
@@ -538,8 +569,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], f64), String> {
             let a = (smp.first as usize).min(segs.len());
             let b = (a + smp.run.marks as usize).min(segs.len());
             let wc = window_counts(&smp.run, wb_j);
-            if a == 0 {
-                head = wc;
+            if a == 1 && head_end == 1 {
+                // Right after the root pass, with no warm-up: the head's rest.
+                add(&mut head, &wc, 1.0);
                 head_end = b;
                 continue;
             }
@@ -547,16 +579,27 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], f64), String> {
             add(&mut x, &wc, 1.0);
             add(&mut px, &p, 1.0);
             if p[0] > 0.0 {
-                ratios.push(wc[0] / p[0]);
+                ratios.push((wc, p));
             }
         }
         add(&mut total, &head, 1.0);
-        let rest = sum(&proxy[head_end.min(proxy.len())..]);
+        let rest = sum(&proxy[head_end.min(tail_start)..tail_start]);
         per_wave.push((rest, x, px, ratios));
         add(&mut pool_x, &x, 1.0);
         add(&mut pool_p, &px, 1.0);
     }
-    let mut var = 0.0;
+    // Each count of the rest scaled from windows `x` with proxies `px`: each by
+    // its own proxy, the cycles' where the windows saw none of it.
+    let scale = |rest: &[f64; WCOUNTS], x: &[f64; WCOUNTS], px: &[f64; WCOUNTS]| {
+        std::array::from_fn::<f64, WCOUNTS, _>(|i| {
+            let j = if px[i] > 0.0 { i } else { 0 };
+            x[i] * rest[j] / px[j]
+        })
+    };
+    // Cycles, lines and DRAM energy of a scaled rest.
+    let figs = |t: &[f64; WCOUNTS]| [t[0], t[1] + t[2] + t[3] + t[4], t[5]];
+    let mut var = [0.0; 3];
+    let mut se_known = true;
     for (rest, x, px, ratios) in &per_wave {
         if rest[0] == 0.0 {
             continue;
@@ -571,18 +614,22 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], f64), String> {
                 "time sampling measured no window after the head; lower --window-every".into(),
             );
         }
-        // Each count scaled by its own proxy (the cycles' where the windows saw
-        // none of it).
-        for i in 0..WCOUNTS {
-            let j = if px[i] > 0.0 { i } else { 0 };
-            total[i] += x[i] * rest[j] / px[j];
-        }
-        // Variance of the rest's cycles from the spread of the windows' ratios.
-        let n = ratios.len() as f64;
-        if n >= 2.0 {
-            let m = ratios.iter().sum::<f64>() / n;
-            let v = ratios.iter().map(|r| (r - m).powi(2)).sum::<f64>() / (n - 1.0);
-            var += rest[0] * rest[0] * v / n;
+        add(&mut total, &scale(rest, x, px), 1.0);
+        // Variance of the rest from the spread of what each window alone would
+        // say of it.
+        let n = ratios.len();
+        if n >= 2 {
+            let each: Vec<[f64; 3]> = ratios
+                .iter()
+                .map(|(w, p)| figs(&scale(rest, w, p)))
+                .collect();
+            for k in 0..3 {
+                let m = each.iter().map(|e| e[k]).sum::<f64>() / n as f64;
+                let v = each.iter().map(|e| (e[k] - m).powi(2)).sum::<f64>() / (n - 1) as f64;
+                var[k] += v / n as f64;
+            }
+        } else {
+            se_known = false;
         }
     }
     // Shading passes: by items.
@@ -647,23 +694,18 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], f64), String> {
         vcd: None,
     });
     let e = crate::energy::frame_energy(c, &g);
-    let se = if total[0] > 0.0 {
-        var.sqrt() / total[0]
-    } else {
-        0.0
-    };
-    Ok((
-        [
-            total[0],
-            total[1],
-            total[2],
-            total[3],
-            total[4],
-            e.compute_j + e.onchip_j,
-            total[5],
-        ],
-        se,
-    ))
+    let p = [
+        total[0],
+        total[1],
+        total[2],
+        total[3],
+        total[4],
+        e.compute_j + e.onchip_j,
+        total[5],
+    ];
+    let f3 = combine(&p);
+    let se = se_known.then(|| std::array::from_fn(|k| var[k].sqrt() / f3[k].max(1e-30)));
+    Ok((p, se))
 }
 
 /// Runs the reference and the chosen modes on `scene` with `config` (its memory
@@ -987,7 +1029,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             f.wall_s,
             combine(&p),
             same_image(&f, None),
-            Some([se, 0.0, 0.0]),
+            se,
             &format!(
                 "time sampling: {} windows ({:.0} s of it in the chip); per wavefront the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {}",
                 rec.samples.len(),

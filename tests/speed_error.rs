@@ -355,12 +355,14 @@ fn a_reference_of_another_frame_is_refused() {
 fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
     dualstream::render::WindowPlan {
         head,
+        root_rays: u64::MAX,
         warm: 0,
         measure: every,
         every,
         shade_windows: 1,
         shade_warm: 0,
         shade_measure: u64::MAX,
+        tail_pending: 0,
     }
 }
 
@@ -407,7 +409,9 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
         for smp in rec.samples.iter().filter(|x| x.kind == SampleKind::Trace) {
             let segs = &rec.segs[smp.wave];
             let first = smp.first as usize;
-            if first == 0 {
+            if first == 1 && head > 1 {
+                // The head's rest after the root window: admissions, not passes.
+                assert_eq!(smp.run.marks, head - 1);
                 continue;
             }
             mids += 1;
@@ -426,10 +430,70 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
             assert_eq!(sl, scene, "wave {} from {first}", smp.wave);
             assert!(k.cycles > 0);
         }
+        // The root window, on its whole queue, is the root pass exactly.
+        for smp in rec.samples.iter().filter(|x| x.kind == SampleKind::Root) {
+            let root = rec.segs[smp.wave][0];
+            let k = &smp.run.counts;
+            assert_eq!(smp.first, 0, "no ray left out");
+            assert_eq!(smp.run.marks, root.rays);
+            assert_eq!(k.box_tests, 2 * root.nodes, "wave {}", smp.wave);
+            assert_eq!(k.tri_tests, root.tri_tests, "wave {}", smp.wave);
+            assert_eq!(k.duplicates, root.enqueues, "wave {}", smp.wave);
+        }
         assert!(
             mids >= 2,
             "a window after the head in each wavefront ({mids})"
         );
+    }
+    // A tail window from the first boundary after the head (every wavefront
+    // has few queues left by this plan's count) measures the rest whole.
+    let mut tail = windows_plan(1, 1 << 20);
+    tail.tail_pending = u64::MAX;
+    let f = render_windows(&s, &c, tail);
+    assert_eq!(f.radiance, plain.radiance);
+    let r = f.windows.as_ref().unwrap();
+    let tails: Vec<_> = r
+        .samples
+        .iter()
+        .filter(|x| x.kind == SampleKind::Tail)
+        .collect();
+    assert!(!tails.is_empty());
+    assert!(
+        !r.samples.iter().any(|x| x.kind == SampleKind::Trace),
+        "no window after the tail's start"
+    );
+    for smp in tails {
+        let rest = &r.segs[smp.wave][1..];
+        assert_eq!((smp.first, smp.run.ended), (1, true));
+        assert_eq!(smp.run.marks as usize, rest.len());
+        let nodes: u64 = rest.iter().map(|w| w.nodes).sum();
+        assert_eq!(smp.run.counts.box_tests, 2 * nodes);
+    }
+    // A root window on a thinned queue: the rays it kept plus those it left
+    // out are the root pass's, and undoing its relinked buckets leaves the
+    // frame as it was.
+    let mut thin = windows_plan(1, 1 << 20);
+    thin.root_rays = 40;
+    let f = render_windows(&s, &c, thin);
+    assert_eq!(
+        f.radiance, plain.radiance,
+        "a thinned root window leaves no trace"
+    );
+    let r = f.windows.as_ref().unwrap();
+    let roots: Vec<_> = r
+        .samples
+        .iter()
+        .filter(|x| x.kind == SampleKind::Root)
+        .collect();
+    assert_eq!(roots.len(), r.segs.len(), "one root window per wavefront");
+    for smp in roots {
+        let rays = r.segs[smp.wave][0].rays;
+        assert!(
+            smp.first > 0 && smp.run.marks < 80,
+            "{} of {rays}",
+            smp.run.marks
+        );
+        assert_eq!(smp.first + smp.run.marks, rays);
     }
     // Every wavefront's head ran from its start, the shading passes and the ray
     // generation were measured whole.

@@ -335,6 +335,11 @@ pub enum WindowKind {
     /// The shading pass over pixels `first..pixels`; marks are finished
     /// shading items.
     Shade { first: u32, pixels: u32 },
+    /// A wavefront's root pass over a sample of its queue (the boundary's root
+    /// queue, thinned), run to the next admission (the root done) or the
+    /// wavefront's end; marks are the rays of the thinned queue (warm-up and
+    /// measure do not apply: the window is the pass).
+    Root(crate::render::queues::Boundary),
 }
 
 /// A sampling window's measurement.
@@ -1021,15 +1026,18 @@ impl Chip {
         measure: u64,
     ) -> Result<Option<WindowRun>, String> {
         let sch = self.scheduler;
-        if let WindowKind::Trace(b) = &kind {
+        if let WindowKind::Trace(b) | WindowKind::Root(b) = &kind {
             let map = self.sim.unit_ref::<StreamScheduler>(sch).map.clone();
             for (s, rec) in &b.queues {
                 mem.write(map.queue_rec_addr(*s), &rec.encode());
             }
+            for &(a, next) in &b.relink {
+                mem.write_u64(a, next);
+            }
         }
         std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
         match &kind {
-            WindowKind::Trace(b) => {
+            WindowKind::Trace(b) | WindowKind::Root(b) => {
                 self.sim.unit_mut::<StreamScheduler>(sch).resume(b);
                 self.sim.wake(sch);
             }
@@ -1047,11 +1055,16 @@ impl Chip {
                 self.sim.wake(self.host);
             }
         }
+        if let WindowKind::Root(b) = &kind {
+            // At a wavefront's start only the root queue holds rays.
+            let rays = b.queues.iter().map(|(_, q)| q.rays as u64).sum();
+            return self.root_window(rays).map(Some);
+        }
         // What is counted, and when the stretch is over without the wavefront's
         // end: all rays emitted, or all items of a shading pass done (the chip
         // would go on to trace what was emitted).
         let (mark, all) = match &kind {
-            WindowKind::Trace(_) => (0, u64::MAX),
+            WindowKind::Trace(_) | WindowKind::Root(_) => (0, u64::MAX),
             WindowKind::Emit(rays) => (1, rays.len() as u64),
             WindowKind::Shade { first, pixels } => (2, (pixels - first.min(pixels)) as u64),
         };
@@ -1080,7 +1093,7 @@ impl Chip {
                 return Ok(None);
             }
             if let Some((a, n0, d0)) = &from
-                && (n >= n0 + measure || n >= all)
+                && (n >= n0.saturating_add(measure) || n >= all)
             {
                 return Ok(Some(WindowRun {
                     counts: self.snapshot().since(a),
@@ -1114,6 +1127,58 @@ impl Chip {
                 return Err(self.stuck("a sampling window did not reach its marks"));
             }
             if count(self) > n {
+                idle_run = 0;
+            }
+        }
+    }
+
+    /// [`WindowKind::Root`]'s run: from the start to the second admission (the
+    /// root pass over) or the wavefront's end; marks are the queue's `rays`
+    /// (the run is checked in steps, so a child's first rays may have gone out).
+    fn root_window(&mut self, rays: u64) -> Result<WindowRun, String> {
+        let sch = self.scheduler;
+        let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
+        let stats = |c: &Chip| {
+            let st = c.sim.unit_ref::<StreamScheduler>(c.scheduler).stats();
+            (st.rays_forwarded, st.segments_loaded)
+        };
+        let dirty = |c: &Chip| {
+            c.l2.map_or([0; StreamTag::COUNT], |u| {
+                c.sim.unit_ref::<L2>(u).dirty_by_tag()
+            })
+        };
+        let start = self.snapshot();
+        let mut idle_run = 0u64;
+        loop {
+            let now = stats(self);
+            let ended = if now.1 >= 2 {
+                Some(false)
+            } else {
+                let e = self
+                    .sim
+                    .run_until(self.sim.now() + WINDOW_STEP * period)
+                    .map_err(|e| e.to_string())?;
+                if let Some(e) = self.sim.unit_ref::<StreamScheduler>(sch).error() {
+                    return Err(e.to_string());
+                }
+                (e == crate::rtl::RunEnd::Idle).then_some(true)
+            };
+            if let Some(ended) = ended {
+                let d = dirty(self);
+                return Ok(WindowRun {
+                    counts: self.snapshot().since(&start),
+                    marks: rays,
+                    ended,
+                    warm: WaveCycles::default(),
+                    // The L2 started empty.
+                    dirtied: d.map(|x| x as i64),
+                });
+            }
+            idle_run += WINDOW_STEP;
+            if idle_run > self.watchdog.max(WINDOW_STEP) * 64 {
+                return Err(self.stuck("a root window did not reach the root pass's end"));
+            }
+            if stats(self) != now {
                 idle_run = 0;
             }
         }

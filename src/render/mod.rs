@@ -75,9 +75,13 @@ pub struct RenderCfg {
 /// model and the scheduler both take them.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct WindowPlan {
-    /// Admissions measured from each wavefront's start (always simulated: the
-    /// root and the top of the tree go one segment at a time).
+    /// Admissions measured from each wavefront's start: the root pass (by its
+    /// root window) and the next `head - 1` admissions simulated whole (the top
+    /// of the tree, where the rays are).
     pub head: u64,
+    /// Rays of the root window: the root pass simulated over about this many
+    /// rays of its queue (one bucket in k) and scaled up by its rays.
+    pub root_rays: u64,
     /// Admissions simulated before a window's measurement (to fill the working
     /// set, the TMs and the caches) and measured.
     pub warm: u64,
@@ -89,6 +93,9 @@ pub struct WindowPlan {
     pub shade_windows: u32,
     pub shade_warm: u64,
     pub shade_measure: u64,
+    /// The tail window starts (its warm-up) at the first boundary after the
+    /// head where at most this many queues hold rays.
+    pub tail_pending: u64,
 }
 
 /// Functional work of one segment pass (for the ratio estimator of time sampling).
@@ -118,6 +125,8 @@ pub struct WindowSample {
     /// emitted ray.
     pub first: u64,
     pub run: crate::machine::WindowRun,
+    /// Simulator wall time of the window (building the chip included).
+    pub wall_s: f64,
 }
 
 /// What a window measured.
@@ -125,8 +134,15 @@ pub struct WindowSample {
 pub enum SampleKind {
     /// The host emitting the primary rays (before the first wavefront).
     Emit,
+    /// A wavefront's root pass over a sample of its queue (`first`: the rays
+    /// left out), to the next admission.
+    Root,
     /// Segment passes of a wavefront.
     Trace,
+    /// A wavefront's last segment passes (from the first boundary after the
+    /// head with at most `WindowPlan::tail_pending` queues holding rays),
+    /// measured to its end.
+    Tail,
     /// The shading pass after a wavefront.
     Shade,
 }
@@ -550,7 +566,8 @@ pub fn render(
     let mut work: Vec<u32> = (0..pixels).collect();
     q.close(&mut p.mem, &p.map, 0);
     if let Some(win) = windows.as_mut() {
-        let n = (win.plan.shade_warm + win.plan.shade_measure).min(pixels as u64) as u32;
+        let n =
+            (win.plan.shade_warm.saturating_add(win.plan.shade_measure)).min(pixels as u64) as u32;
         let rays = (0..n)
             .map(|pix| {
                 let real = sample[pix as usize];
@@ -584,6 +601,7 @@ pub fn render(
                 let wave = waves.len();
                 let mut segs = Vec::new();
                 let mut ord = 0u64;
+                let mut tail_started = false;
                 let mut prev: Option<(u64, WorkSoFar)> = None;
                 let mut hook = |s: u32,
                                 p: &mut Prepared,
@@ -603,16 +621,54 @@ pub fn render(
                     let (Some(plan), Some(w)) = (&cfg.windows, windows.as_mut()) else {
                         return Ok(());
                     };
-                    let (warm, measure) = if k == 0 {
-                        (0, plan.head)
+                    let t = Instant::now();
+                    if k == 0 {
+                        // The root pass (every ray of the wavefront): over one
+                        // bucket in `every`, about `root_rays` rays.
+                        let rpb = q.rays_per_bucket() as u64;
+                        let n = q.len(s);
+                        let every = n.div_ceil(rpb).div_ceil(plan.root_rays.div_ceil(rpb));
+                        let chip = w.build(&p.map)?;
+                        let (b, kept) = q.boundary_strided(&p.map, s as usize, every as usize);
+                        let r = chip.trace_window(
+                            &mut p.mem,
+                            crate::machine::WindowKind::Root(b),
+                            0,
+                            0,
+                        )?;
+                        let wall_s = t.elapsed().as_secs_f64();
+                        w.rec.chip_s += wall_s;
+                        if let Some(run) = r {
+                            w.rec.samples.push(WindowSample {
+                                wave,
+                                kind: SampleKind::Root,
+                                first: n - kept,
+                                run,
+                                wall_s,
+                            });
+                        }
+                        return Ok(());
+                    }
+                    if tail_started {
+                        return Ok(());
+                    }
+                    let pending = q.pending() as u64;
+                    let (warm, measure, kind) = if k == 1 && plan.head > 1 {
+                        (0, plan.head - 1, SampleKind::Trace)
+                    } else if k >= plan.head && pending <= plan.tail_pending {
+                        // The wavefront's tail: too few queues left to fill the
+                        // chip, so the passes go by their dependency chain rather
+                        // than the throughput the windows measure; measured to
+                        // the end.
+                        tail_started = true;
+                        (plan.warm, u64::MAX, SampleKind::Tail)
                     } else if k + plan.warm >= plan.head
                         && (k + plan.warm - plan.head).is_multiple_of(plan.every)
                     {
-                        (plan.warm, plan.measure)
+                        (plan.warm, plan.measure, SampleKind::Trace)
                     } else {
                         return Ok(());
                     };
-                    let t = Instant::now();
                     let chip = w.build(&p.map)?;
                     let b = q.boundary(&p.map);
                     let r = chip.trace_window(
@@ -621,13 +677,15 @@ pub fn render(
                         warm,
                         measure,
                     )?;
-                    w.rec.chip_s += t.elapsed().as_secs_f64();
+                    let wall_s = t.elapsed().as_secs_f64();
+                    w.rec.chip_s += wall_s;
                     if let Some(run) = r {
                         w.rec.samples.push(WindowSample {
                             wave,
-                            kind: SampleKind::Trace,
+                            kind,
                             first: k + warm,
                             run,
+                            wall_s,
                         });
                     }
                     Ok(())
@@ -945,13 +1003,15 @@ impl Windows {
             self.plan.shade_warm,
             self.plan.shade_measure,
         )?;
-        self.rec.chip_s += t.elapsed().as_secs_f64();
+        let wall_s = t.elapsed().as_secs_f64();
+        self.rec.chip_s += wall_s;
         if let Some(run) = r {
             self.rec.samples.push(WindowSample {
                 wave: 0,
                 kind: SampleKind::Emit,
                 first: self.plan.shade_warm,
                 run,
+                wall_s,
             });
         }
         Ok(())
@@ -970,13 +1030,15 @@ impl Windows {
                 self.plan.shade_warm,
                 self.plan.shade_measure,
             )?;
-            self.rec.chip_s += t.elapsed().as_secs_f64();
+            let wall_s = t.elapsed().as_secs_f64();
+            self.rec.chip_s += wall_s;
             if let Some(run) = r {
                 self.rec.samples.push(WindowSample {
                     wave,
                     kind: SampleKind::Shade,
                     first: first as u64 + self.plan.shade_warm,
                     run,
+                    wall_s,
                 });
             }
         }
@@ -990,6 +1052,12 @@ impl WindowPlan {
             return Err(format!(
                 "time sampling needs a head, a measured stretch and a period of at least one segment admission (head {}, --window-measure {}, --window-every {}); raise the zero one",
                 self.head, self.measure, self.every
+            ));
+        }
+        if self.root_rays < 4 {
+            return Err(format!(
+                "--window-root-rays {}: the root window needs at least 4 rays (a warm-up and a steady stretch); raise it",
+                self.root_rays
             ));
         }
         if self.measure > self.every {

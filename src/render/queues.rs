@@ -25,6 +25,9 @@ pub struct Boundary {
     pub free_chunks: Vec<u64>,
     pub chunk_live: Vec<u8>,
     pub live_buckets: u64,
+    /// Bucket headers to rewrite (address, next bucket's address or 0) before
+    /// the chip reads them: a thinned queue's chain (`boundary_strided`).
+    pub relink: Vec<(u64, u64)>,
 }
 
 /// Traffic of the ray stream, in 64 B lines.
@@ -101,6 +104,11 @@ impl RayQueues {
 
     pub fn len(&self, seg: u32) -> u64 {
         self.queues[seg as usize].len
+    }
+
+    /// Queues holding rays (segments with work pending).
+    pub fn pending(&self) -> usize {
+        self.queues.iter().filter(|q| q.len > 0).count()
     }
 
     pub fn is_empty(&self, seg: u32) -> bool {
@@ -251,6 +259,47 @@ impl RayQueues {
     /// The queues and the pool as they stand (see [`Boundary`]); queues still open
     /// are a modelling error, since the chip could not take them over.
     pub fn boundary(&self, map: &MemoryMap) -> Boundary {
+        self.boundary_inner(map)
+    }
+
+    /// [`RayQueues::boundary`] with segment `seg`'s queue thinned to one bucket
+    /// in `every` (a root window: the pass over a sample of its rays, spread over
+    /// the queue since its rays come in pixel order). The kept buckets are
+    /// chained by rewriting their headers (`Boundary::relink`, written into the
+    /// window's journaled image); the others stay allocated in the pool, as rays
+    /// the pass already took would sit in its children's queues. Also the rays
+    /// kept.
+    pub fn boundary_strided(&self, map: &MemoryMap, seg: usize, every: usize) -> (Boundary, u64) {
+        let mut b = self.boundary_inner(map);
+        let q = &self.queues[seg];
+        if every <= 1 || q.len == 0 {
+            return (b, q.len);
+        }
+        let kept: Vec<usize> = (0..q.buckets.len()).step_by(every).collect();
+        let last = q.buckets.len() - 1;
+        let rpb = self.rays_per_bucket as u64;
+        let tail = q.len - last as u64 * rpb;
+        let rays: u64 = kept
+            .iter()
+            .map(|&i| if i == last { tail } else { rpb })
+            .sum();
+        for (j, &i) in kept.iter().enumerate() {
+            let next = kept
+                .get(j + 1)
+                .map_or(0, |&n| map.bucket_addr(q.buckets[n]));
+            b.relink.push((map.bucket_addr(q.buckets[i]), next));
+        }
+        let r = b
+            .queues
+            .iter_mut()
+            .find(|(s, _)| *s as usize == seg)
+            .expect("the queue holds rays");
+        r.1.buckets = kept.len() as u32;
+        r.1.rays = rays as u32;
+        (b, rays)
+    }
+
+    fn boundary_inner(&self, map: &MemoryMap) -> Boundary {
         let mut queues = Vec::new();
         for (s, q) in self.queues.iter().enumerate() {
             if q.len == 0 {
@@ -271,7 +320,12 @@ impl RayQueues {
             free_chunks: self.free_chunks.clone(),
             chunk_live: self.chunk_live.clone(),
             live_buckets: self.live_buckets,
+            relink: Vec::new(),
         }
+    }
+
+    pub fn rays_per_bucket(&self) -> u32 {
+        self.rays_per_bucket
     }
 
     /// Buckets currently holding rays.
