@@ -214,10 +214,17 @@ enum Cmd {
         /// speed-error, windows: segment passes measured per window.
         #[arg(long, default_value_t = 32)]
         window_measure: u64,
-        /// speed-error, windows: shading windows per shading pass (each warms up
-        /// on 4096 items and measures 2048).
+        /// speed-error, windows: shading windows per shading pass (and of the
+        /// ray generation: one).
         #[arg(long, default_value_t = 4)]
         shade_windows: u32,
+        /// speed-error, windows: shading items (pixels) a shading window runs
+        /// before its measurement.
+        #[arg(long, default_value_t = 4096)]
+        shade_warm: u64,
+        /// speed-error, windows: shading items measured per shading window.
+        #[arg(long, default_value_t = 2048)]
+        shade_measure: u64,
         /// speed-error: compare with this finished reference instead of rendering
         /// one: the --stats JSON of `render --mode cycle` with GDDR5 on the same
         /// scene, resolution and config.
@@ -692,6 +699,8 @@ fn run(cli: Cli) -> Result<(), String> {
             window_warm,
             window_measure,
             shade_windows,
+            shade_warm,
+            shade_measure,
             reference,
             reference_image,
             json,
@@ -733,7 +742,8 @@ fn run(cli: Cli) -> Result<(), String> {
                             warm: window_warm,
                             measure: window_measure,
                             shade_windows,
-                            ..se::default_windows()
+                            shade_warm,
+                            shade_measure,
                         },
                     };
                     let rows = se::run(&sc, &config, &opts)?;
