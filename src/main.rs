@@ -225,6 +225,10 @@ enum Cmd {
         /// speed-error, windows: shading items measured per shading window.
         #[arg(long, default_value_t = 2048)]
         shade_measure: u64,
+        /// speed-error, windows: items of each shading pass simulated from its
+        /// start as they are (the start-up phase, which windows do not see).
+        #[arg(long, default_value_t = 16384)]
+        shade_head: u64,
         /// speed-error: compare with this finished reference instead of rendering
         /// one: the --stats JSON of `render --mode cycle` with GDDR5 on the same
         /// scene, resolution and config.
@@ -701,6 +705,7 @@ fn run(cli: Cli) -> Result<(), String> {
             shade_windows,
             shade_warm,
             shade_measure,
+            shade_head,
             reference,
             reference_image,
             json,
@@ -744,6 +749,7 @@ fn run(cli: Cli) -> Result<(), String> {
                             shade_windows,
                             shade_warm,
                             shade_measure,
+                            shade_head,
                         },
                     };
                     let rows = se::run(&sc, &config, &opts)?;

@@ -412,6 +412,7 @@ pub fn default_windows() -> render::WindowPlan {
         shade_windows: 4,
         shade_warm: 4096,
         shade_measure: 2048,
+        shade_head: 16384,
         tail_pending: 128,
     }
 }
@@ -632,14 +633,28 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
             se_known = false;
         }
     }
-    // Shading passes: by items.
+    // Shading passes: the head as is, the other items by the windows.
     let passes = rec
         .samples
         .iter()
-        .filter(|s| s.kind == render::SampleKind::Shade)
+        .filter(|s| {
+            matches!(
+                s.kind,
+                render::SampleKind::Shade | render::SampleKind::ShadeHead
+            )
+        })
         .map(|s| s.wave)
         .max();
     for wave in 0..passes.map_or(0, |m| m + 1) {
+        let mut left = rec.pixels as f64;
+        for smp in rec
+            .samples
+            .iter()
+            .filter(|s| s.wave == wave && s.kind == render::SampleKind::ShadeHead)
+        {
+            add(&mut total, &window_counts(&smp.run, wb_j), 1.0);
+            left -= smp.run.marks as f64;
+        }
         let (mut x, mut n) = ([0.0; WCOUNTS], 0.0);
         for smp in rec
             .samples
@@ -649,8 +664,8 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
             add(&mut x, &window_counts(&smp.run, wb_j), 1.0);
             n += smp.run.marks as f64;
         }
-        if n > 0.0 {
-            add(&mut total, &x, rec.pixels as f64 / n);
+        if n > 0.0 && left > 0.0 {
+            add(&mut total, &x, left / n);
         }
     }
     // Ray generation: the host emits every primary ray (one per pixel). Its lines

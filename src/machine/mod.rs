@@ -332,9 +332,13 @@ pub enum WindowKind {
     Trace(crate::render::queues::Boundary),
     /// The host emitting these rays into the root queue; marks are rays taken.
     Emit(Vec<RayRec>),
-    /// The shading pass over pixels `first..pixels`; marks are finished
-    /// shading items.
-    Shade { first: u32, pixels: u32 },
+    /// The shading pass over pixels `first..pixels`, its rays into the bucket
+    /// pool `pool` (its queues empty); marks are finished shading items.
+    Shade {
+        first: u32,
+        pixels: u32,
+        pool: crate::render::queues::Boundary,
+    },
     /// A wavefront's root pass over a sample of its queue (the boundary's root
     /// queue, thinned), run to the next admission (the root done) or the
     /// wavefront's end; marks are the rays of the thinned queue (warm-up and
@@ -1047,8 +1051,14 @@ impl Chip {
                     .load(rays.clone(), 0, 0);
                 self.sim.wake(self.host);
             }
-            WindowKind::Shade { first, pixels } => {
-                self.sim.unit_mut::<StreamScheduler>(sch).shade_from(*first);
+            WindowKind::Shade {
+                first,
+                pixels,
+                pool,
+            } => {
+                let u = self.sim.unit_mut::<StreamScheduler>(sch);
+                u.resume(pool);
+                u.shade_from(*first);
                 self.sim
                     .unit_mut::<Host>(self.host)
                     .load(Vec::new(), 1, *pixels);
@@ -1066,7 +1076,7 @@ impl Chip {
         let (mark, all) = match &kind {
             WindowKind::Trace(_) | WindowKind::Root(_) => (0, u64::MAX),
             WindowKind::Emit(rays) => (1, rays.len() as u64),
-            WindowKind::Shade { first, pixels } => (2, (pixels - first.min(pixels)) as u64),
+            WindowKind::Shade { first, pixels, .. } => (2, (pixels - first.min(pixels)) as u64),
         };
         let count = |c: &Chip| {
             let st = c.sim.unit_ref::<StreamScheduler>(c.scheduler).stats();

@@ -93,6 +93,8 @@ pub struct WindowPlan {
     pub shade_windows: u32,
     pub shade_warm: u64,
     pub shade_measure: u64,
+    /// Items of each shading pass simulated from its start, as is.
+    pub shade_head: u64,
     /// The tail window starts (its warm-up) at the first boundary after the
     /// head where at most this many queues hold rays.
     pub tail_pending: u64,
@@ -145,6 +147,8 @@ pub enum SampleKind {
     Tail,
     /// The shading pass after a wavefront.
     Shade,
+    /// A shading pass's first `WindowPlan::shade_head` items, from its start.
+    ShadeHead,
 }
 
 /// What time sampling recorded (see [`WindowPlan`]).
@@ -703,7 +707,8 @@ pub fn render(
                 )?;
                 if let Some(w) = windows.as_mut() {
                     w.rec.segs.push(segs);
-                    w.shade_windows(&mut p, wave, pixels)?;
+                    let pool = q.boundary(&p.map);
+                    w.shade_windows(&mut p, wave, pixels, &pool)?;
                 }
             }
             Mode::Reference => trace_reference(&mut p, &mut q, scene, &mut st),
@@ -1017,26 +1022,53 @@ impl Windows {
         Ok(())
     }
 
-    /// The shading pass after wavefront `wave`: windows spread over the pixels.
-    fn shade_windows(&mut self, p: &mut Prepared, wave: usize, pixels: u32) -> Result<(), String> {
+    /// The shading pass after wavefront `wave`: windows spread over the pixels,
+    /// each with the bucket pool as the wavefront left it (`pool`, no queue
+    /// holding rays), where the pass's rays go.
+    fn shade_windows(
+        &mut self,
+        p: &mut Prepared,
+        wave: usize,
+        pixels: u32,
+        pool: &queues::Boundary,
+    ) -> Result<(), String> {
+        // The pass's start as is (its first `shade_head` items: the caches and
+        // the memory's queues fill), then windows spread over the other pixels.
+        let head = self.plan.shade_head.min(pixels as u64) as u32;
         let n = self.plan.shade_windows;
-        for j in 0..n {
-            let first = (j as u64 * pixels as u64 / n as u64) as u32;
+        let plan: Vec<(u32, u64, u64, SampleKind)> = (head > 0)
+            .then_some((0, 0, head as u64, SampleKind::ShadeHead))
+            .into_iter()
+            .chain((0..n).map(|j| {
+                let first = head + (j as u64 * (pixels - head) as u64 / n as u64) as u32;
+                (
+                    first,
+                    self.plan.shade_warm,
+                    self.plan.shade_measure,
+                    SampleKind::Shade,
+                )
+            }))
+            .collect();
+        for (first, warm, measure, kind) in plan {
             let t = Instant::now();
             let chip = self.build(&p.map)?;
             let r = chip.trace_window(
                 &mut p.mem,
-                crate::machine::WindowKind::Shade { first, pixels },
-                self.plan.shade_warm,
-                self.plan.shade_measure,
+                crate::machine::WindowKind::Shade {
+                    first,
+                    pixels,
+                    pool: pool.clone(),
+                },
+                warm,
+                measure,
             )?;
             let wall_s = t.elapsed().as_secs_f64();
             self.rec.chip_s += wall_s;
             if let Some(run) = r {
                 self.rec.samples.push(WindowSample {
                     wave,
-                    kind: SampleKind::Shade,
-                    first: first as u64 + self.plan.shade_warm,
+                    kind,
+                    first: first as u64 + warm,
                     run,
                     wall_s,
                 });
