@@ -208,8 +208,10 @@ enum Cmd {
         #[arg(long, default_value_t = 128)]
         window_tail: u64,
         /// speed-error, windows: segment passes the chip runs before a window's
-        /// measurement, unmeasured, to fill its buffers, caches and queues.
-        #[arg(long, default_value_t = 64)]
+        /// measurement, unmeasured, to fill its buffers, caches and queues (at
+        /// the paper's size the cycle error is +53% with 64, +12% with 256, +10%
+        /// with 512: docs/speed-error.md).
+        #[arg(long, default_value_t = 256)]
         window_warm: u64,
         /// speed-error, windows: segment passes measured per window.
         #[arg(long, default_value_t = 32)]

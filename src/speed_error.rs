@@ -406,7 +406,7 @@ pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
         root_rays: 16384,
-        warm: 64,
+        warm: 256,
         measure: 32,
         every: 1024,
         shade_windows: 4,

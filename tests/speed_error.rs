@@ -472,18 +472,36 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
     }
     // A shading pass's head runs from its first item; its windows start after.
     let mut sh = windows_plan(1, 1 << 20);
-    (sh.shade_head, sh.shade_windows, sh.shade_warm, sh.shade_measure) = (50, 2, 10, 20);
+    (
+        sh.shade_head,
+        sh.shade_windows,
+        sh.shade_warm,
+        sh.shade_measure,
+    ) = (50, 2, 10, 20);
     let f = render_windows(&s, &c, sh);
     assert_eq!(f.radiance, plain.radiance);
     let r = f.windows.as_ref().unwrap();
-    let heads: Vec<_> = r.samples.iter().filter(|x| x.kind == SampleKind::ShadeHead).collect();
+    let heads: Vec<_> = r
+        .samples
+        .iter()
+        .filter(|x| x.kind == SampleKind::ShadeHead)
+        .collect();
     assert_eq!(heads.len(), r.segs.len(), "one per shading pass");
     for h in heads {
         // Checked every few cycles: a few items past the mark.
-        assert!(h.first == 0 && (50..80).contains(&h.run.marks), "{}", h.run.marks);
+        assert!(
+            h.first == 0 && (50..80).contains(&h.run.marks),
+            "{}",
+            h.run.marks
+        );
     }
     for w in r.samples.iter().filter(|x| x.kind == SampleKind::Shade) {
-        assert!(w.first >= 60 && (20..50).contains(&w.run.marks), "{} {}", w.first, w.run.marks);
+        assert!(
+            w.first >= 60 && (20..50).contains(&w.run.marks),
+            "{} {}",
+            w.first,
+            w.run.marks
+        );
     }
     // A root window on a thinned queue: the rays it kept plus those it left
     // out are the root pass's, and undoing its relinked buckets leaves the
