@@ -192,44 +192,44 @@ enum Cmd {
         subsets: u32,
         /// speed-error, windows (time sampling): a window's measurement starts
         /// every this many segment passes of a wavefront (after its head).
-        #[arg(long, default_value_t = 1024)]
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().every)]
         window_every: u64,
-        /// speed-error, windows: segment passes simulated whole at the start of
-        /// each wavefront (the root and the treelets below it, where the rays are).
-        #[arg(long, default_value_t = 16)]
+        /// speed-error, windows: admissions measured from each wavefront's start:
+        /// the root pass (by its root window), then the next ones simulated whole.
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().head)]
         window_head: u64,
         /// speed-error, windows: the root pass of each wavefront simulated over
-        /// the last this many rays of its queue, the rest extrapolated.
-        #[arg(long, default_value_t = 16384)]
+        /// about this many rays (one bucket in k of its queue), scaled by its rays.
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().root_rays)]
         window_root_rays: u64,
         /// speed-error, windows: each wavefront's tail, from the first boundary
         /// with at most this many queues holding rays, simulated to its end (0:
         /// none, the tail scaled like the rest).
-        #[arg(long, default_value_t = 128)]
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().tail_pending)]
         window_tail: u64,
         /// speed-error, windows: segment passes the chip runs before a window's
         /// measurement, unmeasured, to fill its buffers, caches and queues (at
         /// the paper's size the cycle error is +53% with 64, +12% with 256, +10%
         /// with 512: docs/speed-error.md).
-        #[arg(long, default_value_t = 256)]
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().warm)]
         window_warm: u64,
         /// speed-error, windows: segment passes measured per window.
-        #[arg(long, default_value_t = 32)]
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().measure)]
         window_measure: u64,
         /// speed-error, windows: shading windows per shading pass (and of the
         /// ray generation: one).
-        #[arg(long, default_value_t = 4)]
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_windows)]
         shade_windows: u32,
         /// speed-error, windows: shading items (pixels) a shading window runs
         /// before its measurement.
-        #[arg(long, default_value_t = 4096)]
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_warm)]
         shade_warm: u64,
         /// speed-error, windows: shading items measured per shading window.
-        #[arg(long, default_value_t = 2048)]
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_measure)]
         shade_measure: u64,
         /// speed-error, windows: items of each shading pass simulated from its
         /// start as they are (the start-up phase, which windows do not see).
-        #[arg(long, default_value_t = 16384)]
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_head)]
         shade_head: u64,
         /// speed-error: compare with this finished reference instead of rendering
         /// one: the --stats JSON of `render --mode cycle` with GDDR5 on the same

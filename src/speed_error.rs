@@ -128,10 +128,9 @@ pub fn estimate(c: &Config, f: &Frame) -> Estimate {
     e
 }
 
-/// DRAM energy (J, `paper` preset) of `lines` line transfers over `cycles` core
-/// cycles when no DRAM timing was simulated: the bursts of every line, one activate
-/// per row of lines, refresh and active standby for the whole time on every channel.
-pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
+/// The `paper` preset's DRAM energy model, the bursts per line and the lines
+/// per DRAM row.
+fn paper_dram(c: &Config) -> Result<(crate::mem::energy::EnergyModel, f64, f64), String> {
     let g = &c.mem.geometry;
     let m = crate::mem::energy::EnergyModel::new(
         &crate::mem::config::EnergyCfg::by_name("paper", g)?,
@@ -139,10 +138,18 @@ pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, S
         g.burst_cycles(),
         c.clocks.dram_ps,
     );
-    let t = &f.total;
     let line = crate::contract::LINE_BYTES as f64;
     let bursts_per_line = line / (g.bus_bits as f64 / 8.0 * g.burst_length as f64);
-    let lines_per_row = c.memory.row_bytes as f64 / line;
+    Ok((m, bursts_per_line, c.memory.row_bytes as f64 / line))
+}
+
+/// DRAM energy (J, `paper` preset) of `lines` line transfers over `cycles` core
+/// cycles when no DRAM timing was simulated: the bursts of every line, one activate
+/// per row of lines, refresh and active standby for the whole time on every channel.
+pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
+    let g = &c.mem.geometry;
+    let (m, bursts_per_line, lines_per_row) = paper_dram(c)?;
+    let t = &f.total;
     let reads =
         (t.ray_lines_read + t.scene_lines + t.hit_lines_read) as f64 + t.shading_lines as f64 / 2.0;
     let writes = t.total_lines() as f64 - reads;
@@ -162,16 +169,7 @@ pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, S
 /// DRAM energy (J, `paper` preset) of writing one line: its bursts and a share of
 /// an activate (lines written back in address order share rows).
 fn line_write_j(c: &Config) -> Result<f64, String> {
-    let g = &c.mem.geometry;
-    let m = crate::mem::energy::EnergyModel::new(
-        &crate::mem::config::EnergyCfg::by_name("paper", g)?,
-        &c.mem.timing,
-        g.burst_cycles(),
-        c.clocks.dram_ps,
-    );
-    let line = crate::contract::LINE_BYTES as f64;
-    let bursts_per_line = line / (g.bus_bits as f64 / 8.0 * g.burst_length as f64);
-    let lines_per_row = c.memory.row_bytes as f64 / line;
+    let (m, bursts_per_line, lines_per_row) = paper_dram(c)?;
     Ok((bursts_per_line * m.wr_burst_pj + m.act_pre_pj / lines_per_row) * 1e-12)
 }
 

@@ -1084,11 +1084,6 @@ impl Chip {
         };
         let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
         let start = self.snapshot();
-        let dirty = |c: &Chip| {
-            c.l2.map_or([0; StreamTag::COUNT], |u| {
-                c.sim.unit_ref::<L2>(u).dirty_by_tag()
-            })
-        };
         let owed = |a: &[u64; StreamTag::COUNT], b: &[u64; StreamTag::COUNT]| {
             std::array::from_fn(|k| b[k] as i64 - a[k] as i64)
         };
@@ -1097,7 +1092,7 @@ impl Chip {
         loop {
             let n = count(self);
             if from.is_none() && n >= warm {
-                from = Some((self.snapshot(), n, dirty(self)));
+                from = Some((self.snapshot(), n, self.l2_dirty()));
             }
             if from.is_none() && n >= all {
                 return Ok(None);
@@ -1110,7 +1105,7 @@ impl Chip {
                     marks: n - n0,
                     ended: n >= all,
                     warm: a.since(&start),
-                    dirtied: owed(d0, &dirty(self)),
+                    dirtied: owed(d0, &self.l2_dirty()),
                 }));
             }
             let end = self
@@ -1129,7 +1124,7 @@ impl Chip {
                     marks: count(self) - n0,
                     ended: true,
                     warm: a.since(&start),
-                    dirtied: owed(d0, &dirty(self)),
+                    dirtied: owed(d0, &self.l2_dirty()),
                 }));
             }
             idle_run += WINDOW_STEP;
@@ -1145,17 +1140,19 @@ impl Chip {
     /// [`WindowKind::Root`]'s run: from the start to the second admission (the
     /// root pass over) or the wavefront's end; marks are the queue's `rays`
     /// (the run is checked in steps, so a child's first rays may have gone out).
+    /// Dirty L2 lines by stream tag (none without an L2).
+    fn l2_dirty(&self) -> [u64; StreamTag::COUNT] {
+        self.l2.map_or([0; StreamTag::COUNT], |u| {
+            self.sim.unit_ref::<L2>(u).dirty_by_tag()
+        })
+    }
+
     fn root_window(&mut self, rays: u64) -> Result<WindowRun, String> {
         let sch = self.scheduler;
         let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
         let stats = |c: &Chip| {
             let st = c.sim.unit_ref::<StreamScheduler>(c.scheduler).stats();
             (st.rays_forwarded, st.segments_loaded)
-        };
-        let dirty = |c: &Chip| {
-            c.l2.map_or([0; StreamTag::COUNT], |u| {
-                c.sim.unit_ref::<L2>(u).dirty_by_tag()
-            })
         };
         let start = self.snapshot();
         let mut idle_run = 0u64;
@@ -1174,7 +1171,7 @@ impl Chip {
                 (e == crate::rtl::RunEnd::Idle).then_some(true)
             };
             if let Some(ended) = ended {
-                let d = dirty(self);
+                let d = self.l2_dirty();
                 return Ok(WindowRun {
                     counts: self.snapshot().since(&start),
                     marks: rays,

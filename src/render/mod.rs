@@ -625,32 +625,15 @@ pub fn render(
                     let (Some(plan), Some(w)) = (&cfg.windows, windows.as_mut()) else {
                         return Ok(());
                     };
-                    let t = Instant::now();
                     if k == 0 {
                         // The root pass (every ray of the wavefront): over one
                         // bucket in `every`, about `root_rays` rays.
                         let rpb = q.rays_per_bucket() as u64;
                         let n = q.len(s);
                         let every = n.div_ceil(rpb).div_ceil(plan.root_rays.div_ceil(rpb));
-                        let chip = w.build(&p.map)?;
                         let (b, kept) = q.boundary_strided(&p.map, s as usize, every as usize);
-                        let r = chip.trace_window(
-                            &mut p.mem,
-                            crate::machine::WindowKind::Root(b),
-                            0,
-                            0,
-                        )?;
-                        let wall_s = t.elapsed().as_secs_f64();
-                        w.rec.chip_s += wall_s;
-                        if let Some(run) = r {
-                            w.rec.samples.push(WindowSample {
-                                wave,
-                                kind: SampleKind::Root,
-                                first: n - kept,
-                                run,
-                                wall_s,
-                            });
-                        }
+                        let what = crate::machine::WindowKind::Root(b);
+                        w.run(p, what, 0, 0, wave, SampleKind::Root, n - kept)?;
                         return Ok(());
                     }
                     if tail_started {
@@ -673,25 +656,8 @@ pub fn render(
                     } else {
                         return Ok(());
                     };
-                    let chip = w.build(&p.map)?;
-                    let b = q.boundary(&p.map);
-                    let r = chip.trace_window(
-                        &mut p.mem,
-                        crate::machine::WindowKind::Trace(b),
-                        warm,
-                        measure,
-                    )?;
-                    let wall_s = t.elapsed().as_secs_f64();
-                    w.rec.chip_s += wall_s;
-                    if let Some(run) = r {
-                        w.rec.samples.push(WindowSample {
-                            wave,
-                            kind,
-                            first: k + warm,
-                            run,
-                            wall_s,
-                        });
-                    }
+                    let what = crate::machine::WindowKind::Trace(q.boundary(&p.map));
+                    w.run(p, what, warm, measure, wave, kind, k + warm)?;
                     Ok(())
                 };
                 trace_functional(
@@ -997,29 +963,42 @@ impl Windows {
         )
     }
 
-    /// The host emitting the primary rays: its first `rays`, measured after the
-    /// shading windows' warm-up (emission is the same for every ray).
-    fn emit_window(&mut self, p: &mut Prepared, rays: Vec<RayRec>) -> Result<(), String> {
+    /// Runs one window on a fresh chip and records what it measured as a sample
+    /// of `kind` in wavefront `wave`, its first measured mark `first`.
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &mut self,
+        p: &mut Prepared,
+        what: crate::machine::WindowKind,
+        warm: u64,
+        measure: u64,
+        wave: usize,
+        kind: SampleKind,
+        first: u64,
+    ) -> Result<(), String> {
         let t = Instant::now();
         let chip = self.build(&p.map)?;
-        let r = chip.trace_window(
-            &mut p.mem,
-            crate::machine::WindowKind::Emit(rays),
-            self.plan.shade_warm,
-            self.plan.shade_measure,
-        )?;
+        let r = chip.trace_window(&mut p.mem, what, warm, measure)?;
         let wall_s = t.elapsed().as_secs_f64();
         self.rec.chip_s += wall_s;
         if let Some(run) = r {
             self.rec.samples.push(WindowSample {
-                wave: 0,
-                kind: SampleKind::Emit,
-                first: self.plan.shade_warm,
+                wave,
+                kind,
+                first,
                 run,
                 wall_s,
             });
         }
         Ok(())
+    }
+
+    /// The host emitting the primary rays: its first `rays`, measured after the
+    /// shading windows' warm-up (emission is the same for every ray).
+    fn emit_window(&mut self, p: &mut Prepared, rays: Vec<RayRec>) -> Result<(), String> {
+        let (warm, measure) = (self.plan.shade_warm, self.plan.shade_measure);
+        let what = crate::machine::WindowKind::Emit(rays);
+        self.run(p, what, warm, measure, 0, SampleKind::Emit, warm)
     }
 
     /// The shading pass after wavefront `wave`: windows spread over the pixels,
@@ -1050,29 +1029,12 @@ impl Windows {
             }))
             .collect();
         for (first, warm, measure, kind) in plan {
-            let t = Instant::now();
-            let chip = self.build(&p.map)?;
-            let r = chip.trace_window(
-                &mut p.mem,
-                crate::machine::WindowKind::Shade {
-                    first,
-                    pixels,
-                    pool: pool.clone(),
-                },
-                warm,
-                measure,
-            )?;
-            let wall_s = t.elapsed().as_secs_f64();
-            self.rec.chip_s += wall_s;
-            if let Some(run) = r {
-                self.rec.samples.push(WindowSample {
-                    wave,
-                    kind,
-                    first: first as u64 + warm,
-                    run,
-                    wall_s,
-                });
-            }
+            let what = crate::machine::WindowKind::Shade {
+                first,
+                pixels,
+                pool: pool.clone(),
+            };
+            self.run(p, what, warm, measure, wave, kind, first as u64 + warm)?;
         }
         Ok(())
     }
