@@ -107,6 +107,10 @@ enum Cmd {
         /// Write each wavefront's rays and hit records into this directory.
         #[arg(long)]
         dump_rays: Option<PathBuf>,
+        /// cycle: write every segment pass (chip run, segment, rays, admission
+        /// and retirement cycle) as CSV here.
+        #[arg(long)]
+        pass_log: Option<PathBuf>,
         /// cycle: write a VCD waveform of the chip here (open with gtkwave).
         #[arg(long)]
         vcd: Option<PathBuf>,
@@ -231,6 +235,11 @@ enum Cmd {
         /// start as they are (the start-up phase, which windows do not see).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_head)]
         shade_head: u64,
+        /// speed-error, windows: write every window (kind, position, warm-up and
+        /// measured counts, the segment passes it retired) and the functional
+        /// model's segment passes as JSON here.
+        #[arg(long)]
+        window_log: Option<PathBuf>,
         /// speed-error: compare with this finished reference instead of rendering
         /// one: the --stats JSON of `render --mode cycle` with GDDR5 on the same
         /// scene, resolution and config.
@@ -334,6 +343,7 @@ fn render_cfg(config: &Config, threads: usize) -> dualstream::render::RenderCfg 
         })),
         pixels: None,
         windows: None,
+        pass_log: false,
     }
 }
 
@@ -451,6 +461,7 @@ fn run(cli: Cli) -> Result<(), String> {
             stats,
             verify,
             dump_rays,
+            pass_log,
             vcd,
             trace_units,
             trace_window,
@@ -536,6 +547,12 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             rc.verify = verify;
             rc.dump_rays = dump_rays;
+            if pass_log.is_some() && mode != Mode::Cycle {
+                return Err(
+                    "--pass-log records the chip's segment passes; use it with --mode cycle".into(),
+                );
+            }
+            rc.pass_log = pass_log.is_some();
             let bar = indicatif::ProgressBar::new((sc.settings.bounces as u64 + 1) * 1000);
             bar.set_style(
                 indicatif::ProgressStyle::with_template(
@@ -557,6 +574,9 @@ fn run(cli: Cli) -> Result<(), String> {
                 frame.energy = Some(dualstream::energy::frame_energy(&config, &frame));
             }
             output::write_png(&frame, &out)?;
+            if let Some(path) = &pass_log {
+                output::write_pass_log(&frame, path)?;
+            }
             print!("{}", output::summary(&frame));
             println!("image: {}", out.display());
             if let (Some(p), Some(v)) = (&vcd, frame.chip.as_ref().and_then(|c| c.vcd)) {
@@ -708,6 +728,7 @@ fn run(cli: Cli) -> Result<(), String> {
             shade_warm,
             shade_measure,
             shade_head,
+            window_log,
             reference,
             reference_image,
             json,
@@ -753,6 +774,7 @@ fn run(cli: Cli) -> Result<(), String> {
                             shade_measure,
                             shade_head,
                         },
+                        window_log,
                     };
                     let rows = se::run(&sc, &config, &opts)?;
                     println!(

@@ -204,6 +204,7 @@ fn render_cfg(c: &Config, pixels: Option<Vec<u32>>, threads: usize) -> RenderCfg
         })),
         pixels,
         windows: None,
+        pass_log: false,
     }
 }
 
@@ -380,6 +381,9 @@ pub struct SpeedErrorOpts {
     pub reference: Option<Reference>,
     /// `windows`: the time-sampling plan.
     pub windows: render::WindowPlan,
+    /// `windows`: write every window's measurement and the functional passes
+    /// (JSON) here.
+    pub window_log: Option<std::path::PathBuf>,
 }
 
 impl Default for SpeedErrorOpts {
@@ -393,6 +397,7 @@ impl Default for SpeedErrorOpts {
             threads: 1,
             reference: None,
             windows: default_windows(),
+            window_log: None,
         }
     }
 }
@@ -1036,6 +1041,15 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         same_rays(&f)?;
         let (p, se) = windowed_parts(&gddr5, &f)?;
         let rec = f.windows.as_ref().expect("rendered with windows");
+        if let Some(path) = &o.window_log {
+            let text = serde_json::to_string(rec).expect("window record serialises");
+            std::fs::write(path, text).map_err(|e| {
+                format!(
+                    "cannot write the window log '{}': {e}; choose a writable --window-log",
+                    path.display()
+                )
+            })?;
+        }
         let wp = &o.windows;
         push(
             "windows",

@@ -733,3 +733,43 @@ fn bad_stream_lanes_are_named() {
         assert!(e.contains(&format!("chip.scheduler.{key} = {v}")), "{e}");
     }
 }
+
+#[test]
+fn the_pass_log_lists_every_segment_pass_once() {
+    let s = scene("cornell", 16, 12, 3);
+    let f = render(&s, Mode::Functional, &rcfg(8, None), &mut |_| {}).unwrap();
+    let mut cfg = rcfg(8, Some((chip_cfg(2, 16), SimOptions::default())));
+    cfg.pass_log = true;
+    let c = render(&s, Mode::Cycle, &cfg, &mut |_| {}).unwrap();
+    let chip = c.chip.as_ref().unwrap();
+    assert_eq!(c.passes.len(), chip.waves.len(), "a log per chip run");
+    let mut last = 0;
+    for (k, (log, w)) in c.passes.iter().zip(&chip.waves).enumerate() {
+        assert_eq!(
+            log.len() as u64,
+            w.segments_loaded,
+            "run {k}: every admission"
+        );
+        let mut segs: Vec<u32> = log.iter().map(|p| p.seg).collect();
+        segs.sort_unstable();
+        segs.dedup();
+        assert_eq!(
+            segs.len(),
+            log.len(),
+            "run {k}: a segment once per wavefront"
+        );
+        for p in log {
+            assert!(
+                p.admit < p.retire && p.retire >= last,
+                "run {k}: {p:?} in order"
+            );
+            last = p.retire;
+        }
+        // Run k traces wavefront k: every ray written into a queue (the root
+        // queue's by the emission or the shading pass) is traced by one pass.
+        let rays: u64 = log.iter().map(|p| p.rays).sum();
+        let want = f.waves.get(k).map_or(0, |w| w.enqueues);
+        assert_eq!(rays, want, "run {k}: rays of its passes");
+    }
+    assert!(c.passes[0].len() > 1, "several segments");
+}

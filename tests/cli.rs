@@ -698,3 +698,37 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
         let _ = std::fs::remove_file(p);
     }
 }
+
+#[test]
+fn the_pass_log_is_written_in_cycle_mode_and_refused_elsewhere() {
+    let (csv, png) = (tmp("passes.csv"), tmp("passes.png"));
+    let args = [
+        "render",
+        "--scene",
+        "cornell",
+        "--res",
+        "16x16",
+        "--bounces",
+        "1",
+        "--out",
+        png.to_str().unwrap(),
+        "--pass-log",
+        csv.to_str().unwrap(),
+    ];
+    fails_with(
+        &[&args[..], &["--mode", "functional"]].concat(),
+        &["--pass-log", "--mode cycle"],
+    );
+    let o = run(&[&args[..], &["--mode", "cycle"]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("run,segment,rays,admit,retire"));
+    let rows: Vec<Vec<u64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    // The primary rays' root pass retires first, carrying every ray.
+    assert_eq!(rows[0][..3], [0, 0, 256]);
+    assert!(rows.iter().all(|r| r.len() == 5 && r[3] < r[4]));
+    assert!(rows.iter().any(|r| r[0] == 1), "the bounce's passes too");
+}

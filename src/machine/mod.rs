@@ -347,7 +347,7 @@ pub enum WindowKind {
 }
 
 /// A sampling window's measurement.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct WindowRun {
     /// The chip's counts over the measured stretch (cycles, lines, DRAM, ...).
     pub counts: WaveCycles,
@@ -362,6 +362,9 @@ pub struct WindowRun {
     /// stream tag: writebacks the stretch owes (a dirty line is written back
     /// once, later), which an abandoned window never sees.
     pub dirtied: [i64; StreamTag::COUNT],
+    /// The segment passes the window retired, warm-up included (cycles from the
+    /// window's start; the measurement starts at `warm.cycles`).
+    pub passes: Vec<crate::units::stream_scheduler::PassEvent>,
 }
 
 /// The chip, elaborated once per frame.
@@ -847,6 +850,20 @@ impl Chip {
         v
     }
 
+    /// Records every segment pass's admission and retirement (see
+    /// `take_pass_log`).
+    pub fn enable_pass_log(&mut self) {
+        self.sim
+            .unit_mut::<StreamScheduler>(self.scheduler)
+            .enable_pass_log();
+    }
+    /// The segment passes retired since the last call.
+    pub fn take_pass_log(&mut self) -> Vec<crate::units::stream_scheduler::PassEvent> {
+        self.sim
+            .unit_mut::<StreamScheduler>(self.scheduler)
+            .take_pass_log()
+    }
+
     /// Records the rays written into the root queue (see `take_root_log`).
     pub fn enable_root_log(&mut self) {
         self.sim
@@ -1106,6 +1123,7 @@ impl Chip {
                     ended: n >= all,
                     warm: a.since(&start),
                     dirtied: owed(d0, &self.l2_dirty()),
+                    passes: self.take_pass_log(),
                 }));
             }
             let end = self
@@ -1125,6 +1143,7 @@ impl Chip {
                     ended: true,
                     warm: a.since(&start),
                     dirtied: owed(d0, &self.l2_dirty()),
+                    passes: self.take_pass_log(),
                 }));
             }
             idle_run += WINDOW_STEP;
@@ -1179,6 +1198,7 @@ impl Chip {
                     warm: WaveCycles::default(),
                     // The L2 started empty.
                     dirtied: d.map(|x| x as i64),
+                    passes: self.take_pass_log(),
                 });
             }
             idle_run += WINDOW_STEP;

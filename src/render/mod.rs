@@ -65,6 +65,9 @@ pub struct RenderCfg {
     /// Functional mode with time sampling: the chip (`chip`) simulates windows
     /// of each wavefront taken over from the functional model (see [`WindowPlan`]).
     pub windows: Option<WindowPlan>,
+    /// Cycle mode: record every segment pass's admission and retirement
+    /// ([`Frame::passes`]).
+    pub pass_log: bool,
 }
 
 /// Time sampling (`bench speed-error --modes windows`): while the functional model
@@ -103,6 +106,8 @@ pub struct WindowPlan {
 /// Functional work of one segment pass (for the ratio estimator of time sampling).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct SegWork {
+    /// The segment.
+    pub seg: u32,
     /// Rays the segment's queue held.
     pub rays: u64,
     pub nodes: u64,
@@ -117,7 +122,7 @@ pub struct SegWork {
 }
 
 /// One measured window of time sampling.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Serialize)]
 pub struct WindowSample {
     /// The functional wavefront it belongs to (a shading window: the pass that
     /// shades this wavefront's hits).
@@ -132,7 +137,7 @@ pub struct WindowSample {
 }
 
 /// What a window measured.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub enum SampleKind {
     /// The host emitting the primary rays (before the first wavefront).
     Emit,
@@ -152,7 +157,7 @@ pub enum SampleKind {
 }
 
 /// What time sampling recorded (see [`WindowPlan`]).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct WindowRecord {
     /// Per functional wavefront, per segment pass in order.
     pub segs: Vec<Vec<SegWork>>,
@@ -344,6 +349,10 @@ pub struct Frame {
     /// Functional mode with [`RenderCfg::windows`].
     #[serde(skip)]
     pub windows: Option<WindowRecord>,
+    /// Cycle mode with [`RenderCfg::pass_log`]: per chip run, the segment passes
+    /// in retirement order.
+    #[serde(skip)]
+    pub passes: Vec<Vec<crate::units::stream_scheduler::PassEvent>>,
 }
 
 /// The scene built for the chip: BVH, segments and the DRAM image.
@@ -490,6 +499,9 @@ pub fn render(
         if cfg.verify || cfg.dump_rays.is_some() {
             c.enable_root_log();
         }
+        if cfg.pass_log {
+            c.enable_pass_log();
+        }
         chip = Some(c);
         q.divert();
     }
@@ -532,6 +544,7 @@ pub fn render(
     let mut trace_s = 0.0;
     let mut verified = 0u64;
     let mut rays_this_wave: Vec<RayRec> = Vec::new();
+    let mut passes = Vec::new();
     let keep = cfg.verify || cfg.dump_rays.is_some();
     if let Some(dir) = &cfg.dump_rays {
         std::fs::create_dir_all(dir).map_err(|e| {
@@ -606,20 +619,20 @@ pub fn render(
                 let mut segs = Vec::new();
                 let mut ord = 0u64;
                 let mut tail_started = false;
-                let mut prev: Option<(u64, WorkSoFar)> = None;
+                let mut prev: Option<(u32, u64, WorkSoFar)> = None;
                 let mut hook = |s: u32,
                                 p: &mut Prepared,
                                 q: &RayQueues,
                                 st: &WaveStats|
                  -> Result<(), String> {
                     let now = WorkSoFar::of(st, q);
-                    if let Some((rays, b)) = prev.take() {
-                        segs.push(now.since(&b, rays));
+                    if let Some((seg, rays, b)) = prev.take() {
+                        segs.push(now.since(&b, seg, rays));
                     }
                     if s == u32::MAX {
                         return Ok(());
                     }
-                    prev = Some((q.len(s), now));
+                    prev = Some((s, q.len(s), now));
                     let k = ord;
                     ord += 1;
                     let (Some(plan), Some(w)) = (&cfg.windows, windows.as_mut()) else {
@@ -699,6 +712,9 @@ pub fn render(
                     add_chip_wave(&mut st, &w, rpb);
                 }
                 chip_waves.push(w);
+                if cfg.pass_log {
+                    passes.push(chip.take_pass_log());
+                }
                 if last {
                     // The shading pass of the last wavefront emitted nothing.
                     trace_s += t0.elapsed().as_secs_f64();
@@ -772,6 +788,7 @@ pub fn render(
     }
     Ok(Frame {
         windows: windows.map(|w| w.rec),
+        passes,
         scene: scene.name.clone(),
         mode,
         width: w,
@@ -977,7 +994,8 @@ impl Windows {
         first: u64,
     ) -> Result<(), String> {
         let t = Instant::now();
-        let chip = self.build(&p.map)?;
+        let mut chip = self.build(&p.map)?;
+        chip.enable_pass_log();
         let r = chip.trace_window(&mut p.mem, what, warm, measure)?;
         let wall_s = t.elapsed().as_secs_f64();
         self.rec.chip_s += wall_s;
@@ -1098,8 +1116,9 @@ impl WorkSoFar {
             hit_lines: st.hit_lines_read + st.hit_lines_written,
         }
     }
-    fn since(&self, b: &WorkSoFar, rays: u64) -> SegWork {
+    fn since(&self, b: &WorkSoFar, seg: u32, rays: u64) -> SegWork {
         SegWork {
+            seg,
             rays,
             nodes: self.nodes - b.nodes,
             tri_tests: self.tri_tests - b.tri_tests,

@@ -44,6 +44,26 @@ pub fn write_png(frame: &Frame, path: &Path) -> Result<(), String> {
     })
 }
 
+/// The segment passes of a cycle-mode frame (`RenderCfg::pass_log`) as CSV, one
+/// row per pass in retirement order: the chip run (run k > 0 shades wavefront
+/// k - 1, then traces wavefront k), the segment, its rays, and the core cycles
+/// it was admitted (took a scene-buffer slot) and retired.
+pub fn write_pass_log(frame: &Frame, path: &Path) -> Result<(), String> {
+    use std::fmt::Write;
+    let mut s = String::from("run,segment,rays,admit,retire\n");
+    for (run, passes) in frame.passes.iter().enumerate() {
+        for p in passes {
+            let _ = writeln!(s, "{run},{},{},{},{}", p.seg, p.rays, p.admit, p.retire);
+        }
+    }
+    std::fs::write(path, s).map_err(|e| {
+        format!(
+            "cannot write the pass log '{}': {e}; choose a writable --pass-log",
+            path.display()
+        )
+    })
+}
+
 pub fn write_json(frame: &Frame, path: &Path) -> Result<(), String> {
     let text = serde_json::to_string_pretty(frame).expect("stats serialise");
     std::fs::write(path, text).map_err(|e| {

@@ -85,6 +85,7 @@ use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
 use crate::rtl::{Ctx, In, Logic, Next, Out, Status, round_robin};
+use serde::Serialize;
 
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
@@ -325,12 +326,25 @@ crate::unit! {
             // the chip's last finished work, for the drain figure.
             last_marker: u64,
             root_log: Option<Vec<RayRec>>,
+            // Admission and retirement of every segment pass (`--pass-log`): a
+            // probe, not hardware. Admission cycles of the working set by segment.
+            pass_log: Option<(BTreeMap<u32, u64>, Vec<PassEvent>)>,
             tm_rays: Vec<u64>,
             stats: SchedStats,
             // Scratch: the TMs with a visible ray write this cycle.
             visible: Vec<u64>
         }
     }
+}
+
+/// One segment pass as the scheduler saw it (`--pass-log`): admitted (slot
+/// taken) and retired (every ray's end marker back) at these core cycles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct PassEvent {
+    pub seg: u32,
+    pub rays: u64,
+    pub admit: u64,
+    pub retire: u64,
 }
 
 /// Event counters.
@@ -413,6 +427,7 @@ impl StreamScheduler {
             shade_first: 0,
             last_marker: 0,
             root_log: None,
+            pass_log: None,
             tm_rays: vec![0; tms],
             stats: SchedStats::default(),
             visible: Vec::new(),
@@ -492,6 +507,17 @@ impl StreamScheduler {
     /// on the ray writes, not hardware).
     pub fn enable_root_log(&mut self) {
         self.root_log = Some(Vec::new());
+    }
+    /// Records every segment pass: admission, retirement, rays (a probe).
+    pub fn enable_pass_log(&mut self) {
+        self.pass_log = Some(Default::default());
+    }
+    /// The passes retired since the last call, in retirement order.
+    pub fn take_pass_log(&mut self) -> Vec<PassEvent> {
+        self.pass_log
+            .as_mut()
+            .map(|(_, v)| std::mem::take(v))
+            .unwrap_or_default()
     }
     pub fn take_root_log(&mut self) -> Vec<RayRec> {
         self.root_log
@@ -1112,6 +1138,9 @@ impl Logic for StreamScheduler {
                 });
                 self.stats.segments_loaded += 1;
                 self.stats.scene_lines += lines as u64;
+                if let Some((adm, _)) = &mut self.pass_log {
+                    adm.insert(f.seg, c);
+                }
                 worked = true;
             }
         }
@@ -1323,6 +1352,14 @@ impl Logic for StreamScheduler {
                 st.closing.push_back(k);
             }
             self.stats.retired += 1;
+            if let Some((adm, log)) = &mut self.pass_log {
+                log.push(PassEvent {
+                    seg: w.seg,
+                    rays: w.rays_done,
+                    admit: adm.remove(&w.seg).unwrap_or(c),
+                    retire: c,
+                });
+            }
             worked = true;
         }
 
