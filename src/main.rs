@@ -211,6 +211,10 @@ enum Cmd {
         /// none, the tail scaled like the rest).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().tail_pending)]
         window_tail: u64,
+        /// speed-error, windows: admissions the tail window runs unmeasured
+        /// first (counted in the rest).
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().tail_warm)]
+        window_tail_warm: u64,
         /// speed-error, windows: segment passes the chip runs before a window's
         /// measurement, unmeasured, to fill its buffers, caches and queues (at
         /// the paper's size the cycle error is +53% with 64, +12% with 256, +10%
@@ -719,6 +723,7 @@ fn run(cli: Cli) -> Result<(), String> {
             tile,
             subsets,
             window_every,
+            window_tail_warm,
             window_head,
             window_root_rays,
             window_tail,
@@ -767,6 +772,7 @@ fn run(cli: Cli) -> Result<(), String> {
                             head: window_head,
                             root_rays: window_root_rays,
                             tail_pending: window_tail,
+                            tail_warm: window_tail_warm,
                             warm: window_warm,
                             measure: window_measure,
                             shade_windows,

@@ -30,6 +30,7 @@ use crate::config::Config;
 use crate::machine::config::MemoryModel;
 use crate::render::{self, Frame, Mode, RenderCfg};
 use crate::scene::Scene;
+use serde::Serialize;
 use std::fmt::Write;
 use std::path::Path;
 
@@ -417,6 +418,7 @@ pub fn default_windows() -> render::WindowPlan {
         shade_measure: 2048,
         shade_head: 16384,
         tail_pending: 128,
+        tail_warm: 0,
     }
 }
 
@@ -510,7 +512,26 @@ fn window_counts(r: &crate::machine::WindowRun, wb_j: f64) -> [f64; WCOUNTS] {
 /// scaled by the pixels over the measured items. Also the relative standard
 /// error of the rest's cycles, lines and DRAM energy from the windows' spread
 /// (`None` where a wavefront had fewer than two windows).
-fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>), String> {
+/// One part of a time-sampled frame as [`windowed_parts`] estimated it: per
+/// wavefront the `root` pass, the `head` (the admissions after it simulated
+/// whole), the scaled `rest`, the `tail`; per pass `shade`; `emit` (ray
+/// generation). `first..end`: admission ordinals of a trace part (the root is
+/// 0..1), else 0..0.
+#[derive(Clone, Debug, Serialize)]
+pub struct WindowPart {
+    pub wave: usize,
+    pub part: &'static str,
+    pub first: u64,
+    pub end: u64,
+    pub cycles: f64,
+    pub lines: f64,
+    pub dram_j: f64,
+}
+
+fn windowed_parts(
+    c: &Config,
+    f: &Frame,
+) -> Result<([f64; 7], Option<[f64; 3]>, Vec<WindowPart>), String> {
     let rec = f
         .windows
         .as_ref()
@@ -524,6 +545,16 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
     };
     // Pooled over the frame, for a wavefront too short to hold a window.
     let (mut pool_x, mut pool_p) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+    let mut parts = Vec::new();
+    let part = |wave, part, first, end, t: &[f64; WCOUNTS]| WindowPart {
+        wave,
+        part,
+        first,
+        end,
+        cycles: t[0],
+        lines: t[1] + t[2] + t[3] + t[4],
+        dram_j: t[5],
+    };
     let mut per_wave = Vec::new();
     for (wave, segs) in rec.segs.iter().enumerate() {
         // Per segment pass, each count's functional proxy (`seg_proxies`).
@@ -548,6 +579,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
             if smp.run.marks > 0 {
                 let k = (smp.first + smp.run.marks) as f64 / smp.run.marks as f64;
                 add(&mut head, &window_counts(&smp.run, wb_j), k);
+                parts.push(part(wave, "root", 0, 1, &head));
             }
             // The window ends with the root pass (or before the children, if
             // its sample sent no ray on); the rest is measured after it.
@@ -562,6 +594,8 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
         {
             add(&mut total, &window_counts(&smp.run, wb_j), 1.0);
             tail_start = (smp.first as usize).clamp(head_end.min(segs.len()), segs.len());
+            let t = window_counts(&smp.run, wb_j);
+            parts.push(part(wave, "tail", tail_start as u64, segs.len() as u64, &t));
         }
         let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
         let mut ratios = Vec::new();
@@ -577,6 +611,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
                 // Right after the root pass, with no warm-up: the head's rest.
                 add(&mut head, &wc, 1.0);
                 head_end = b;
+                parts.push(part(wave, "head", a as u64, b as u64, &wc));
                 continue;
             }
             let p = sum(&proxy[a..b]);
@@ -588,7 +623,15 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
         }
         add(&mut total, &head, 1.0);
         let rest = sum(&proxy[head_end.min(tail_start)..tail_start]);
-        per_wave.push((rest, x, px, ratios));
+        per_wave.push((
+            wave,
+            head_end.min(tail_start),
+            tail_start,
+            rest,
+            x,
+            px,
+            ratios,
+        ));
         add(&mut pool_x, &x, 1.0);
         add(&mut pool_p, &px, 1.0);
     }
@@ -604,7 +647,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
     let figs = |t: &[f64; WCOUNTS]| [t[0], t[1] + t[2] + t[3] + t[4], t[5]];
     let mut var = [0.0; 3];
     let mut se_known = true;
-    for (rest, x, px, ratios) in &per_wave {
+    for (wave, a, b, rest, x, px, ratios) in &per_wave {
         if rest[0] == 0.0 {
             continue;
         }
@@ -618,7 +661,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
                 "time sampling measured no window after the head; lower --window-every".into(),
             );
         }
-        add(&mut total, &scale(rest, x, px), 1.0);
+        let r = scale(rest, x, px);
+        add(&mut total, &r, 1.0);
+        parts.push(part(*wave, "rest", *a as u64, *b as u64, &r));
         // Variance of the rest from the spread of what each window alone would
         // say of it.
         let n = ratios.len();
@@ -650,12 +695,13 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
         .max();
     for wave in 0..passes.map_or(0, |m| m + 1) {
         let mut left = rec.pixels as f64;
+        let mut pass = [0.0; WCOUNTS];
         for smp in rec
             .samples
             .iter()
             .filter(|s| s.wave == wave && s.kind == render::SampleKind::ShadeHead)
         {
-            add(&mut total, &window_counts(&smp.run, wb_j), 1.0);
+            add(&mut pass, &window_counts(&smp.run, wb_j), 1.0);
             left -= smp.run.marks as f64;
         }
         let (mut x, mut n) = ([0.0; WCOUNTS], 0.0);
@@ -668,8 +714,10 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
             n += smp.run.marks as f64;
         }
         if n > 0.0 && left > 0.0 {
-            add(&mut total, &x, left / n);
+            add(&mut pass, &x, left / n);
         }
+        add(&mut total, &pass, 1.0);
+        parts.push(part(wave, "shade", 0, 0, &pass));
     }
     // Ray generation: the host emits every primary ray (one per pixel). Its lines
     // go by `render`'s attribution, as in the cycle frame: the root queue's writes
@@ -686,6 +734,10 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
             add(&mut total, &wc, k);
             total[3] += rec.pixels as f64;
             total[4] += rec.pixels as f64;
+            let mut e = wc.map(|x| x * k);
+            e[3] += rec.pixels as f64;
+            e[4] += rec.pixels as f64;
+            parts.push(part(0, "emit", 0, 0, &e));
         }
     }
     // On-chip energy: the functional frame's traversal with the estimated global
@@ -723,7 +775,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<([f64; 7], Option<[f64; 3]>),
     ];
     let f3 = combine(&p);
     let se = se_known.then(|| std::array::from_fn(|k| var[k].sqrt() / f3[k].max(1e-30)));
-    Ok((p, se))
+    Ok((p, se, parts))
 }
 
 /// Runs the reference and the chosen modes on `scene` with `config` (its memory
@@ -1039,10 +1091,19 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         }
         let f = render::render(scene, Mode::Functional, &rc, &mut |_| {})?;
         same_rays(&f)?;
-        let (p, se) = windowed_parts(&gddr5, &f)?;
+        let (p, se, parts) = windowed_parts(&gddr5, &f)?;
         let rec = f.windows.as_ref().expect("rendered with windows");
         if let Some(path) = &o.window_log {
-            let text = serde_json::to_string(rec).expect("window record serialises");
+            #[derive(Serialize)]
+            struct Log<'a> {
+                parts: &'a [WindowPart],
+                record: &'a render::WindowRecord,
+            }
+            let log = Log {
+                parts: &parts,
+                record: rec,
+            };
+            let text = serde_json::to_string(&log).expect("window log serialises");
             std::fs::write(path, text).map_err(|e| {
                 format!(
                     "cannot write the window log '{}': {e}; choose a writable --window-log",

@@ -364,6 +364,7 @@ fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
         shade_measure: u64::MAX,
         shade_head: 0,
         tail_pending: 0,
+        tail_warm: 0,
     }
 }
 
@@ -450,6 +451,8 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
     // has few queues left by this plan's count) measures the rest whole.
     let mut tail = windows_plan(1, 1 << 20);
     tail.tail_pending = u64::MAX;
+    // The windows' warm-up (longer than any wavefront) is not the tail's.
+    tail.warm = 1 << 20;
     let f = render_windows(&s, &c, tail);
     assert_eq!(f.radiance, plain.radiance);
     let r = f.windows.as_ref().unwrap();

@@ -101,6 +101,9 @@ pub struct WindowPlan {
     /// The tail window starts (its warm-up) at the first boundary after the
     /// head where at most this many queues hold rays.
     pub tail_pending: u64,
+    /// Admissions the tail window runs before its measurement (the tail is
+    /// shorter than a window's warm-up, so it has its own).
+    pub tail_warm: u64,
 }
 
 /// Functional work of one segment pass (for the ratio estimator of time sampling).
@@ -661,7 +664,7 @@ pub fn render(
                         // than the throughput the windows measure; measured to
                         // the end.
                         tail_started = true;
-                        (plan.warm, u64::MAX, SampleKind::Tail)
+                        (plan.tail_warm, u64::MAX, SampleKind::Tail)
                     } else if k + plan.warm >= plan.head
                         && (k + plan.warm - plan.head).is_multiple_of(plan.every)
                     {
