@@ -528,10 +528,16 @@ pub struct WindowPart {
     pub dram_j: f64,
 }
 
-fn windowed_parts(
-    c: &Config,
-    f: &Frame,
-) -> Result<([f64; 7], Option<[f64; 3]>, Vec<WindowPart>), String> {
+/// A time-sampled frame's estimate: its parts (as [`parts`]), the relative
+/// standard error of cycles, lines and DRAM energy (if known) and the estimate
+/// by part of the frame.
+struct Windowed {
+    parts: [f64; 7],
+    se: Option<[f64; 3]>,
+    breakdown: Vec<WindowPart>,
+}
+
+fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     let rec = f
         .windows
         .as_ref()
@@ -775,7 +781,11 @@ fn windowed_parts(
     ];
     let f3 = combine(&p);
     let se = se_known.then(|| std::array::from_fn(|k| var[k].sqrt() / f3[k].max(1e-30)));
-    Ok((p, se, parts))
+    Ok(Windowed {
+        parts: p,
+        se,
+        breakdown: parts,
+    })
 }
 
 /// Runs the reference and the chosen modes on `scene` with `config` (its memory
@@ -1091,7 +1101,11 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         }
         let f = render::render(scene, Mode::Functional, &rc, &mut |_| {})?;
         same_rays(&f)?;
-        let (p, se, parts) = windowed_parts(&gddr5, &f)?;
+        let Windowed {
+            parts: p,
+            se,
+            breakdown: parts,
+        } = windowed_parts(&gddr5, &f)?;
         let rec = f.windows.as_ref().expect("rendered with windows");
         if let Some(path) = &o.window_log {
             #[derive(Serialize)]
