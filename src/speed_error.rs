@@ -403,21 +403,23 @@ impl Default for SpeedErrorOpts {
     }
 }
 
-/// The default time-sampling plan: the first 16 segment passes of every wavefront,
-/// then 32 measured after 64 of warm-up (the scene buffer's 64 slots: a full
-/// working set) every 1024; four shading windows of 2048 items after 4096.
+/// The default time-sampling plan (chosen at the paper's size, docs/speed-error.md):
+/// the root pass over about 64 K rays; the first 16 segment passes of every
+/// wavefront; then 64 admissions measured after 128 of warm-up (two turnovers
+/// of the scene buffer's 64 slots) every 1024; the tail from 32 pending
+/// queues; four shading windows of 2048 items after 4096, after the first 16384.
 pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
-        root_rays: 16384,
-        warm: 256,
-        measure: 32,
+        root_rays: 65536,
+        warm: 128,
+        measure: 64,
         every: 1024,
         shade_windows: 4,
         shade_warm: 4096,
         shade_measure: 2048,
         shade_head: 16384,
-        tail_pending: 128,
+        tail_pending: 32,
         tail_warm: 0,
     }
 }
@@ -565,6 +567,8 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     for (wave, segs) in rec.segs.iter().enumerate() {
         // Per segment pass, each count's functional proxy (`seg_proxies`).
         let proxy: Vec<[f64; WCOUNTS]> = segs.iter().map(|s| seg_proxies(c, s)).collect();
+        let index: std::collections::HashMap<u32, usize> =
+            segs.iter().enumerate().map(|(i, s)| (s.seg, i)).collect();
         let sum = |r: &[[f64; WCOUNTS]]| {
             let mut t = [0.0; WCOUNTS];
             for x in r {
@@ -620,7 +624,23 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
                 parts.push(part(wave, "head", a as u64, b as u64, &wc));
                 continue;
             }
-            let p = sum(&proxy[a..b]);
+            // The work the stretch did: each segment's proxy by the share of
+            // its rays finished in it (passes straddle the stretch's ends, and
+            // with 64 in flight the admissions alone are bursty); by the
+            // admitted passes where the window did not say.
+            let p = if smp.run.done.is_empty() {
+                sum(&proxy[a..b])
+            } else {
+                let mut t = [0.0; WCOUNTS];
+                for &(sg, d) in &smp.run.done {
+                    if let Some(&i) = index.get(&sg)
+                        && segs[i].rays > 0
+                    {
+                        add(&mut t, &proxy[i], d as f64 / segs[i].rays as f64);
+                    }
+                }
+                t
+            };
             add(&mut x, &wc, 1.0);
             add(&mut px, &p, 1.0);
             if p[0] > 0.0 {

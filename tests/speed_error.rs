@@ -431,6 +431,15 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
             let sl = k.lines_read[dualstream::mem::StreamTag::Scene as usize];
             assert_eq!(sl, scene, "wave {} from {first}", smp.wave);
             assert!(k.cycles > 0);
+            // Rays finished by segment: every ray of every remaining pass, and
+            // the passes it retired are those passes.
+            let mut want: Vec<(u32, u64)> = rest.iter().map(|w| (w.seg, w.rays)).collect();
+            want.sort_unstable();
+            assert_eq!(smp.run.done, want, "wave {} from {first}", smp.wave);
+            let mut retired: Vec<(u32, u64)> =
+                smp.run.passes.iter().map(|p| (p.seg, p.rays)).collect();
+            retired.sort_unstable();
+            assert_eq!(retired, want, "wave {} from {first}", smp.wave);
         }
         // The root window, on its whole queue, is the root pass exactly.
         for smp in rec.samples.iter().filter(|x| x.kind == SampleKind::Root) {

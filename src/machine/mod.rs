@@ -365,6 +365,9 @@ pub struct WindowRun {
     /// The segment passes the window retired, warm-up included (cycles from the
     /// window's start; the measurement starts at `warm.cycles`).
     pub passes: Vec<crate::units::stream_scheduler::PassEvent>,
+    /// Rays finished (end markers) in the measured stretch, by segment: the
+    /// work the stretch did, however its passes straddle its ends.
+    pub done: Vec<(u32, u64)>,
 }
 
 /// The chip, elaborated once per frame.
@@ -1105,11 +1108,22 @@ impl Chip {
             std::array::from_fn(|k| b[k] as i64 - a[k] as i64)
         };
         let mut from: Option<(WaveCycles, u64, [u64; StreamTag::COUNT])> = None;
+        let mut done0 = Vec::new();
+        let done_since = |c: &Chip, d0: &[u64]| -> Vec<(u32, u64)> {
+            let d = &c.sim.unit_ref::<StreamScheduler>(c.scheduler).pub_done;
+            d.iter()
+                .zip(d0)
+                .enumerate()
+                .filter(|(_, (a, b))| a > b)
+                .map(|(s, (a, b))| (s as u32, a - b))
+                .collect()
+        };
         let mut idle_run = 0u64;
         loop {
             let n = count(self);
             if from.is_none() && n >= warm {
                 from = Some((self.snapshot(), n, self.l2_dirty()));
+                done0 = self.sim.unit_ref::<StreamScheduler>(sch).pub_done.clone();
             }
             if from.is_none() && n >= all {
                 return Ok(None);
@@ -1124,6 +1138,7 @@ impl Chip {
                     warm: a.since(&start),
                     dirtied: owed(d0, &self.l2_dirty()),
                     passes: self.take_pass_log(),
+                    done: done_since(self, &done0),
                 }));
             }
             let end = self
@@ -1144,6 +1159,7 @@ impl Chip {
                     warm: a.since(&start),
                     dirtied: owed(d0, &self.l2_dirty()),
                     passes: self.take_pass_log(),
+                    done: done_since(self, &done0),
                 }));
             }
             idle_run += WINDOW_STEP;
@@ -1199,6 +1215,7 @@ impl Chip {
                     // The L2 started empty.
                     dirtied: d.map(|x| x as i64),
                     passes: self.take_pass_log(),
+                    done: Vec::new(),
                 });
             }
             idle_run += WINDOW_STEP;
