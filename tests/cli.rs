@@ -624,7 +624,7 @@ fn render_cycle_writes_a_waveform_of_the_chosen_units_and_window() {
 fn bench_speed_error_prints_every_mode_with_json_and_plot() {
     let cfg = tmp("se.toml");
     std::fs::write(&cfg, "[chip]\ntms = 2\n[tm]\ntps = 4\n").unwrap();
-    let (json, svg) = (tmp("se.json"), tmp("se.svg"));
+    let (json, svg, wlog) = (tmp("se.json"), tmp("se.svg"), tmp("se-windows.json"));
     let o = run(&[
         "--config",
         cfg.to_str().unwrap(),
@@ -644,6 +644,8 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
         json.to_str().unwrap(),
         "--plot",
         svg.to_str().unwrap(),
+        "--window-log",
+        wlog.to_str().unwrap(),
     ]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -666,6 +668,29 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
     assert!(rows[1]["speedup"].as_f64().unwrap() > 0.0);
     let plot = std::fs::read_to_string(&svg).unwrap();
     assert_eq!(plot.matches("<circle").count(), 8);
+    // The window log: the estimate by part and every window with its passes.
+    let log: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&wlog).unwrap()).unwrap();
+    let parts = log["parts"].as_array().unwrap();
+    for part in ["root", "shade", "emit"] {
+        assert!(
+            parts.iter().any(|p| p["part"] == part),
+            "{part} in {parts:?}"
+        );
+    }
+    let estimated: f64 = parts.iter().map(|p| p["cycles"].as_f64().unwrap()).sum();
+    let windows = rows.iter().find(|r| r["mode"] == "windows").unwrap();
+    let cycles = windows["cycles"].as_f64().unwrap();
+    assert!(
+        (estimated - cycles).abs() <= 1e-6 * cycles,
+        "{estimated} vs {cycles}"
+    );
+    let samples = log["record"]["samples"].as_array().unwrap();
+    assert!(
+        samples
+            .iter()
+            .any(|s| s["kind"] == "Root" && !s["run"]["passes"].as_array().unwrap().is_empty())
+    );
     fails_with(
         &[
             "--config",
@@ -694,7 +719,7 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
         &["bench", "nonsense"],
         &["unknown benchmark", "speed-error"],
     );
-    for p in [cfg, json, svg] {
+    for p in [cfg, json, svg, wlog] {
         let _ = std::fs::remove_file(p);
     }
 }

@@ -1017,7 +1017,11 @@ impl Windows {
     /// The host emitting the primary rays: its first `rays`, measured after the
     /// shading windows' warm-up (emission is the same for every ray).
     fn emit_window(&mut self, p: &mut Prepared, rays: Vec<RayRec>) -> Result<(), String> {
-        let (warm, measure) = (self.plan.shade_warm, self.plan.shade_measure);
+        let (mut warm, measure) = (self.plan.shade_warm, self.plan.shade_measure);
+        if (rays.len() as u64) < warm.saturating_add(measure) {
+            // A frame smaller than the window: all of it, measured.
+            warm = 0;
+        }
         let what = crate::machine::WindowKind::Emit(rays);
         self.run(p, what, warm, measure, 0, SampleKind::Emit, warm)
     }
