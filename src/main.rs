@@ -216,9 +216,9 @@ enum Cmd {
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().tail_warm)]
         window_tail_warm: u64,
         /// speed-error, windows: segment passes the chip runs before a window's
-        /// measurement, unmeasured, to fill its buffers, caches and queues (at
-        /// the paper's size the cycle error is +53% with 64, +12% with 256, +10%
-        /// with 512: docs/speed-error.md).
+        /// measurement, unmeasured, to fill its buffers, caches and queues and
+        /// stagger its 64 scene-buffer slots (docs/speed-error.md: 64 leaves
+        /// every window 12-19% fast at the paper's size).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().warm)]
         window_warm: u64,
         /// speed-error, windows: segment passes measured per window.

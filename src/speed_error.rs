@@ -505,15 +505,6 @@ fn window_counts(r: &crate::machine::WindowRun, wb_j: f64) -> [f64; WCOUNTS] {
     ]
 }
 
-/// The time-sampled frame's parts (as [`parts`]) from the functional frame `f`
-/// rendered with windows. Per wavefront, the trace is its head (the root window
-/// scaled by its rays, then the passes up to `head` simulated as is), its tail
-/// (simulated as is) and between them the rest, scaled from the measured windows
-/// by the proxy (`seg_proxy`) of the rest over that of the windows' measured
-/// passes; each shading pass is its windows
-/// scaled by the pixels over the measured items. Also the relative standard
-/// error of the rest's cycles, lines and DRAM energy from the windows' spread
-/// (`None` where a wavefront had fewer than two windows).
 /// One part of a time-sampled frame as [`windowed_parts`] estimated it: per
 /// wavefront the `root` pass, the `head` (the admissions after it simulated
 /// whole), the scaled `rest`, the `tail`; per pass `shade`; `emit` (ray
@@ -530,6 +521,17 @@ pub struct WindowPart {
     pub dram_j: f64,
 }
 
+/// A wavefront's rest (its passes between head and tail): the passes, their
+/// summed proxies, the windows' summed counts and proxies, and each window's.
+struct Rest {
+    wave: usize,
+    passes: std::ops::Range<usize>,
+    proxy: [f64; WCOUNTS],
+    x: [f64; WCOUNTS],
+    px: [f64; WCOUNTS],
+    ratios: Vec<([f64; WCOUNTS], [f64; WCOUNTS])>,
+}
+
 /// A time-sampled frame's estimate: its parts (as [`parts`]), the relative
 /// standard error of cycles, lines and DRAM energy (if known) and the estimate
 /// by part of the frame.
@@ -539,6 +541,15 @@ struct Windowed {
     breakdown: Vec<WindowPart>,
 }
 
+/// The time-sampled frame's parts (as [`parts`]) from the functional frame `f`
+/// rendered with windows. Per wavefront, the trace is its head (the root window
+/// scaled by its rays, then the passes up to `head` simulated as is), its tail
+/// (simulated as is) and between them the rest, scaled from the measured windows
+/// by the proxy (`seg_proxy`) of the rest over that of the work the windows did
+/// (rays finished by segment); each shading pass is its head as is and its
+/// windows scaled by the items left over the measured items. Also the relative standard
+/// error of the rest's cycles, lines and DRAM energy from the windows' spread
+/// (`None` where a wavefront had fewer than two windows).
 fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     let rec = f
         .windows
@@ -588,8 +599,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         {
             if smp.run.marks > 0 {
                 let k = (smp.first + smp.run.marks) as f64 / smp.run.marks as f64;
-                add(&mut head, &window_counts(&smp.run, wb_j), k);
-                parts.push(part(wave, "root", 0, 1, &head));
+                let root = window_counts(&smp.run, wb_j).map(|x| x * k);
+                add(&mut head, &root, 1.0);
+                parts.push(part(wave, "root", 0, 1, &root));
             }
             // The window ends with the root pass (or before the children, if
             // its sample sent no ray on); the rest is measured after it.
@@ -602,9 +614,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             .iter()
             .filter(|s| s.wave == wave && s.kind == render::SampleKind::Tail)
         {
-            add(&mut total, &window_counts(&smp.run, wb_j), 1.0);
-            tail_start = (smp.first as usize).clamp(head_end.min(segs.len()), segs.len());
             let t = window_counts(&smp.run, wb_j);
+            add(&mut total, &t, 1.0);
+            tail_start = (smp.first as usize).clamp(head_end.min(segs.len()), segs.len());
             parts.push(part(wave, "tail", tail_start as u64, segs.len() as u64, &t));
         }
         let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
@@ -649,15 +661,14 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         }
         add(&mut total, &head, 1.0);
         let rest = sum(&proxy[head_end.min(tail_start)..tail_start]);
-        per_wave.push((
+        per_wave.push(Rest {
             wave,
-            head_end.min(tail_start),
-            tail_start,
-            rest,
+            passes: head_end.min(tail_start)..tail_start,
+            proxy: rest,
             x,
             px,
             ratios,
-        ));
+        });
         add(&mut pool_x, &x, 1.0);
         add(&mut pool_p, &px, 1.0);
     }
@@ -673,7 +684,15 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     let figs = |t: &[f64; WCOUNTS]| [t[0], t[1] + t[2] + t[3] + t[4], t[5]];
     let mut var = [0.0; 3];
     let mut se_known = true;
-    for (wave, a, b, rest, x, px, ratios) in &per_wave {
+    for Rest {
+        wave,
+        passes,
+        proxy: rest,
+        x,
+        px,
+        ratios,
+    } in &per_wave
+    {
         if rest[0] == 0.0 {
             continue;
         }
@@ -689,7 +708,13 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         }
         let r = scale(rest, x, px);
         add(&mut total, &r, 1.0);
-        parts.push(part(*wave, "rest", *a as u64, *b as u64, &r));
+        parts.push(part(
+            *wave,
+            "rest",
+            passes.start as u64,
+            passes.end as u64,
+            &r,
+        ));
         // Variance of the rest from the spread of what each window alone would
         // say of it.
         let n = ratios.len();
@@ -755,14 +780,11 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     {
         if smp.run.marks > 0 {
             let k = rec.pixels as f64 / smp.run.marks as f64;
-            let mut wc = window_counts(&smp.run, wb_j);
-            wc[1] = 0.0;
-            add(&mut total, &wc, k);
-            total[3] += rec.pixels as f64;
-            total[4] += rec.pixels as f64;
-            let mut e = wc.map(|x| x * k);
+            let mut e = window_counts(&smp.run, wb_j).map(|x| x * k);
+            e[1] = 0.0;
             e[3] += rec.pixels as f64;
             e[4] += rec.pixels as f64;
+            add(&mut total, &e, 1.0);
             parts.push(part(0, "emit", 0, 0, &e));
         }
     }

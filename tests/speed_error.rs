@@ -368,6 +368,14 @@ fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
     }
 }
 
+/// The windows of one kind, in the order they ran.
+fn of_kind(
+    r: &dualstream::render::WindowRecord,
+    kind: dualstream::render::SampleKind,
+) -> Vec<&dualstream::render::WindowSample> {
+    r.samples.iter().filter(|x| x.kind == kind).collect()
+}
+
 fn render_windows(
     s: &dualstream::scene::Scene,
     c: &Config,
@@ -408,7 +416,7 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
         assert_eq!(f.radiance, plain.radiance, "windows do not touch the frame");
         let rec = f.windows.as_ref().unwrap();
         let mut mids = 0;
-        for smp in rec.samples.iter().filter(|x| x.kind == SampleKind::Trace) {
+        for smp in of_kind(rec, SampleKind::Trace) {
             let segs = &rec.segs[smp.wave];
             let first = smp.first as usize;
             if first == 1 && head > 1 {
@@ -442,7 +450,7 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
             assert_eq!(retired, want, "wave {} from {first}", smp.wave);
         }
         // The root window, on its whole queue, is the root pass exactly.
-        for smp in rec.samples.iter().filter(|x| x.kind == SampleKind::Root) {
+        for smp in of_kind(rec, SampleKind::Root) {
             let root = rec.segs[smp.wave][0];
             let k = &smp.run.counts;
             assert_eq!(smp.first, 0, "no ray left out");
@@ -465,11 +473,7 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
     let f = render_windows(&s, &c, tail);
     assert_eq!(f.radiance, plain.radiance);
     let r = f.windows.as_ref().unwrap();
-    let tails: Vec<_> = r
-        .samples
-        .iter()
-        .filter(|x| x.kind == SampleKind::Tail)
-        .collect();
+    let tails = of_kind(r, SampleKind::Tail);
     assert!(!tails.is_empty());
     assert!(
         !r.samples.iter().any(|x| x.kind == SampleKind::Trace),
@@ -493,11 +497,7 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
     let f = render_windows(&s, &c, sh);
     assert_eq!(f.radiance, plain.radiance);
     let r = f.windows.as_ref().unwrap();
-    let heads: Vec<_> = r
-        .samples
-        .iter()
-        .filter(|x| x.kind == SampleKind::ShadeHead)
-        .collect();
+    let heads = of_kind(r, SampleKind::ShadeHead);
     assert_eq!(heads.len(), r.segs.len(), "one per shading pass");
     for h in heads {
         // Checked every few cycles: a few items past the mark.
@@ -507,7 +507,7 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
             h.run.marks
         );
     }
-    for w in r.samples.iter().filter(|x| x.kind == SampleKind::Shade) {
+    for w in of_kind(r, SampleKind::Shade) {
         assert!(
             w.first >= 60 && (20..50).contains(&w.run.marks),
             "{} {}",
@@ -526,11 +526,7 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
         "a thinned root window leaves no trace"
     );
     let r = f.windows.as_ref().unwrap();
-    let roots: Vec<_> = r
-        .samples
-        .iter()
-        .filter(|x| x.kind == SampleKind::Root)
-        .collect();
+    let roots = of_kind(r, SampleKind::Root);
     assert_eq!(roots.len(), r.segs.len(), "one root window per wavefront");
     for smp in roots {
         let rays = r.segs[smp.wave][0].rays;

@@ -1172,9 +1172,6 @@ impl Chip {
         }
     }
 
-    /// [`WindowKind::Root`]'s run: from the start to the second admission (the
-    /// root pass over) or the wavefront's end; marks are the queue's `rays`
-    /// (the run is checked in steps, so a child's first rays may have gone out).
     /// Dirty L2 lines by stream tag (none without an L2).
     fn l2_dirty(&self) -> [u64; StreamTag::COUNT] {
         self.l2.map_or([0; StreamTag::COUNT], |u| {
@@ -1182,6 +1179,9 @@ impl Chip {
         })
     }
 
+    /// [`WindowKind::Root`]'s run: from the start to the second admission (the
+    /// root pass over) or the wavefront's end; marks are the queue's `rays`
+    /// (the run is checked in steps, so a child's first rays may have gone out).
     fn root_window(&mut self, rays: u64) -> Result<WindowRun, String> {
         let sch = self.scheduler;
         let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
