@@ -500,3 +500,102 @@ fn stall_counters_integrate_absolute_time() {
     let _: Option<In<u8>> = None;
     let _: Option<Out<u8>> = None;
 }
+
+dualstream::unit! {
+    /// Pushes when there is room on cycles chosen by a hash of the cycle and its seed.
+    pub struct Burst : "burst" {
+        params { seed: u64 => "SEED" }
+        inputs { }
+        outputs { out: u32 }
+        state { }
+        extra { }
+    }
+}
+impl Logic for Burst {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let h = (c ^ self.seed).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 60;
+        if h < 5 && ctx.can_push(&self.out) {
+            ctx.push(&self.out, c as u32);
+        }
+        Next::Cycle
+    }
+}
+
+dualstream::unit! {
+    /// An arbiter's view of a port array: `visible_mask` / `visible_words` against
+    /// `has_input` port by port; pops a pseudo-random subset so links fill and drain.
+    pub struct MaskCheck : "mask_check" {
+        params { }
+        inputs { }
+        outputs { }
+        in_arrays { ins: u32 }
+        state { }
+        extra { mismatches: u64, seen_bits: u64, widest: u32 }
+    }
+}
+impl Logic for MaskCheck {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let mut words = Vec::new();
+        ctx.visible_words(&self.ins, &mut words);
+        for (k, p) in self.ins.iter().enumerate() {
+            let bit = words[k / 64] >> (k % 64) & 1 == 1;
+            if bit != ctx.has_input(p) {
+                self.mismatches += 1;
+            }
+        }
+        if self.ins.len() <= 64 && ctx.visible_mask(&self.ins) != words[0] {
+            self.mismatches += 1;
+        }
+        for (k, p) in self.ins.iter().enumerate() {
+            if ctx.has_input(p) && !(c + k as u64).is_multiple_of(3) {
+                ctx.pop(p);
+                self.seen_bits += 1;
+                self.widest = self.widest.max(k as u32 + 1);
+            }
+        }
+        Next::Cycle
+    }
+}
+
+/// The arbiters' bit masks (packed eight links per multiply) agree with `has_input`
+/// on port arrays of every remainder, wider than a word, with entries in flight.
+#[test]
+fn visible_masks_match_has_input() {
+    for n in [1usize, 7, 8, 13, 16, 23, 64, 130] {
+        let mut sim = Sim::new(SimOptions::default());
+        let c = sim.clock("core", 1000).unwrap();
+        let mut ins = Vec::new();
+        for k in 0..n {
+            let (o, i) = sim.link::<u32>(&format!("l{k}"), LinkCfg { depth: 4, delay: 2 });
+            sim.add(
+                &format!("b{k}"),
+                c,
+                Burst {
+                    seed: k as u64 * 77 + n as u64,
+                    out: o,
+                },
+            );
+            ins.push(i);
+        }
+        let id = sim.add(
+            "check",
+            c,
+            MaskCheck {
+                ins,
+                mismatches: 0,
+                seen_bits: 0,
+                widest: 0,
+            },
+        );
+        sim.run(3_000_000).unwrap();
+        let u = dualstream::rtl::unit::downcast_ref::<MaskCheck>(sim.unit(id)).unwrap();
+        assert_eq!(u.mismatches, 0, "{n} ports");
+        assert!(
+            u.seen_bits > 100 * n as u64,
+            "{n} ports: too few entries taken"
+        );
+        assert_eq!(u.widest as usize, n, "{n} ports: the last port never seen");
+    }
+}
