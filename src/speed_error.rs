@@ -684,15 +684,8 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     let figs = |t: &[f64; WCOUNTS]| [t[0], t[1] + t[2] + t[3] + t[4], t[5]];
     let mut var = [0.0; 3];
     let mut se_known = true;
-    for Rest {
-        wave,
-        passes,
-        proxy: rest,
-        x,
-        px,
-        ratios,
-    } in &per_wave
-    {
+    for w in &per_wave {
+        let (rest, x, px) = (&w.proxy, &w.x, &w.px);
         if rest[0] == 0.0 {
             continue;
         }
@@ -708,18 +701,14 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         }
         let r = scale(rest, x, px);
         add(&mut total, &r, 1.0);
-        parts.push(part(
-            *wave,
-            "rest",
-            passes.start as u64,
-            passes.end as u64,
-            &r,
-        ));
+        let (a, b) = (w.passes.start as u64, w.passes.end as u64);
+        parts.push(part(w.wave, "rest", a, b, &r));
         // Variance of the rest from the spread of what each window alone would
         // say of it.
-        let n = ratios.len();
+        let n = w.ratios.len();
         if n >= 2 {
-            let each: Vec<[f64; 3]> = ratios
+            let each: Vec<[f64; 3]> = w
+                .ratios
                 .iter()
                 .map(|(w, p)| figs(&scale(rest, w, p)))
                 .collect();

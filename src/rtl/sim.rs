@@ -316,6 +316,20 @@ impl<'a> Ctx<'a> {
     pub fn cycle(&self) -> u64 {
         self.now / self.period
     }
+
+    /// Where a round-robin arbiter over `n` requesters starts this cycle:
+    /// `cycle mod n` (0 for none), a function of absolute time, so it does not
+    /// depend on when the unit was evaluated. A mask when `n` is a power of two
+    /// (the TPs of a TM): the crossbar's 64-bit division was 1% of the paper frame.
+    #[inline]
+    pub fn round_robin_start(&self, n: usize) -> usize {
+        let (c, n) = (self.cycle(), n as u64);
+        if n.is_power_of_two() {
+            (c & (n - 1)) as usize
+        } else {
+            c.checked_rem(n).unwrap_or(0) as usize
+        }
+    }
     #[inline]
     pub fn period(&self) -> Time {
         self.period

@@ -262,7 +262,7 @@ impl Logic for L1 {
         // 3. Requests: one per bank per cycle, round-robin from TP `c mod n`.
         bank_busy.clear();
         bank_busy.resize(self.banks as usize, false);
-        let start = (c % n as u64) as usize;
+        let start = ctx.round_robin_start(n);
         let visible = if n <= 64 {
             ctx.visible_mask(&self.req)
         } else {

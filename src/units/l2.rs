@@ -653,7 +653,7 @@ impl Logic for L2 {
         // 4. Client requests, one per bank, round-robin from client `c mod n`
         // (none while flushing).
         if self.st.r().flushing.is_none() {
-            let start = (c % n.max(1) as u64) as usize;
+            let start = ctx.round_robin_start(n);
             for j in 0..n {
                 let p = (start + j) % n;
                 let Some(r) = ctx.peek(&self.req[p]).cloned() else {

@@ -119,7 +119,6 @@ impl StagingBuffer {
 
 impl Logic for StagingBuffer {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
-        let c = ctx.cycle();
         let d = self.drain_half.val();
         let f = !d;
         let mut worked = false;
@@ -146,7 +145,7 @@ impl Logic for StagingBuffer {
         let ri = self.read_idx.val();
         if ri < self.count(d) {
             let n = self.ray.len();
-            let start = (c % n as u64) as usize;
+            let start = ctx.round_robin_start(n);
             let free = (0..n)
                 .map(|j| (start + j) % n)
                 .find(|&p| ctx.can_push(&self.ray[p]));

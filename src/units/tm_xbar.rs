@@ -142,14 +142,7 @@ fn flush_wait(s: &mut XbarStats, c: u64) {
 impl Logic for TmXbar {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
-        // A 64-bit division was 1% of the whole run; the TPs per TM are a power of
-        // two in every preset, where a mask gives the same.
-        let tps = self.tps as u64;
-        let start = if tps.is_power_of_two() {
-            c & (tps - 1)
-        } else {
-            c % tps
-        } as usize;
+        let start = ctx.round_robin_start(self.tps as usize);
         let mut worked = false;
         let mut waiting = false;
         // This cycle's conflicts, per class (added to the stats at the end).
