@@ -381,16 +381,80 @@ fn render_windows(
     c: &Config,
     plan: dualstream::render::WindowPlan,
 ) -> dualstream::render::Frame {
+    render_windows_on(s, c, plan, 1)
+}
+
+/// With `threads` simulator threads (above one: the windows run side by side).
+fn render_windows_on(
+    s: &dualstream::scene::Scene,
+    c: &Config,
+    plan: dualstream::render::WindowPlan,
+    threads: usize,
+) -> dualstream::render::Frame {
     let rc = dualstream::render::RenderCfg {
         accel: c.accel.clone(),
         chip: Some(Box::new(dualstream::render::ChipRun {
             config: c.clone(),
+            sim: dualstream::rtl::SimOptions {
+                threads,
+                ..Default::default()
+            },
             ..Default::default()
         })),
         windows: Some(plan),
         ..Default::default()
     };
     dualstream::render::render(s, dualstream::render::Mode::Functional, &rc, &mut |_| {}).unwrap()
+}
+
+/// With two threads the windows run side by side, each on a snapshot of the
+/// image taken when the functional model reached it: the same record, in the
+/// order the windows were taken, and the same frame as one thread.
+#[test]
+fn windows_side_by_side_record_what_one_thread_does() {
+    let (_, mut c) = tiny();
+    let mut s = dualstream::scene::load("cornell").unwrap();
+    s.settings.width = 16;
+    s.settings.height = 16;
+    s.settings.bounces = 2;
+    c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    c.accel.segment_bytes = c.memory.row_bytes as u32;
+    let mut plan = windows_plan(2, 3);
+    plan.warm = 1;
+    plan.measure = 1;
+    plan.shade_windows = 2;
+    plan.shade_measure = 32;
+    plan.tail_pending = 2;
+    let one = render_windows_on(&s, &c, plan.clone(), 1);
+    let two = render_windows_on(&s, &c, plan, 2);
+    assert_eq!(one.radiance, two.radiance);
+    // Everything but the wall times.
+    let record = |f: &dualstream::render::Frame| {
+        let mut v = serde_json::to_value(f.windows.as_ref().unwrap()).unwrap();
+        v.as_object_mut().unwrap().remove("chip_s");
+        for smp in v["samples"].as_array_mut().unwrap() {
+            smp.as_object_mut().unwrap().remove("wall_s");
+        }
+        v
+    };
+    let (a, b) = (record(&one), record(&two));
+    let (sa, sb) = (
+        a["samples"].as_array().unwrap(),
+        b["samples"].as_array().unwrap(),
+    );
+    assert!(sa.len() >= 8, "enough windows to overlap ({})", sa.len());
+    assert_eq!(sa.len(), sb.len());
+    for (i, (x, y)) in sa.iter().zip(sb).enumerate() {
+        assert!(
+            x == y,
+            "window {i} differs: {} {} against {} {}",
+            x["kind"],
+            x["first"],
+            y["kind"],
+            y["first"]
+        );
+    }
+    assert!(a == b, "the functional passes differ");
 }
 
 /// Time sampling: the chip takes a wavefront over at a segment boundary of the

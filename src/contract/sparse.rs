@@ -1,21 +1,22 @@
 //! The simulated DRAM image: sparse, as a page table. Nothing is sized to the
 //! capacity; a 64 KB page is allocated when first written. Unwritten bytes read 0.
+//!
+//! Pages are shared copy-on-write, so `clone` is a snapshot that costs the page
+//! table alone: a time-sampling window runs the chip on a snapshot of the
+//! functional model's image (on a worker thread, while the functional model goes
+//! on), and a page is copied only when one side writes it.
+
+use std::sync::Arc;
 
 const PAGE_BITS: u32 = 16;
 const PAGE: usize = 1 << PAGE_BITS;
 
-/// One page of the image (`None`: never written, reads 0).
-type Page = Option<Box<[u8]>>;
-
+#[derive(Clone)]
 pub struct SparseMem {
     capacity: u64,
-    pages: Vec<Option<Box<[u8]>>>,
+    /// `None`: never written, reads 0.
+    pages: Vec<Option<Arc<[u8]>>>,
     allocated: usize,
-    /// Undo journal (see [`SparseMem::journal`]): each page's content before its
-    /// first write since the journal started. Simulation bookkeeping: a window of
-    /// the chip runs on the image and is then undone, not a copy of the image.
-    undo: Option<Vec<(usize, Page)>>,
-    saved: Vec<bool>,
 }
 
 impl SparseMem {
@@ -24,38 +25,17 @@ impl SparseMem {
         let n = capacity.div_ceil(PAGE as u64) as usize;
         SparseMem {
             capacity,
-            pages: (0..n).map(|_| None).collect(),
+            pages: vec![None; n],
             allocated: 0,
-            undo: None,
-            saved: Vec::new(),
         }
-    }
-
-    /// Starts recording every page's content before its first write, so that
-    /// [`SparseMem::rollback`] can put the image back as it is now.
-    pub fn journal(&mut self) {
-        assert!(self.undo.is_none(), "one journal at a time");
-        self.undo = Some(Vec::new());
-        self.saved = vec![false; self.pages.len()];
-    }
-
-    /// Undoes every write since [`SparseMem::journal`] and stops journaling.
-    pub fn rollback(&mut self) {
-        let undo = self.undo.take().expect("rollback without a journal");
-        for (p, old) in undo.into_iter().rev() {
-            if old.is_none() && self.pages[p].is_some() {
-                self.allocated -= 1;
-            }
-            self.pages[p] = old;
-        }
-        self.saved = Vec::new();
     }
 
     pub fn capacity(&self) -> u64 {
         self.capacity
     }
 
-    /// Bytes of host memory the image occupies.
+    /// Bytes of the pages this image has written (a page shared with a snapshot
+    /// counts in both).
     pub fn resident_bytes(&self) -> u64 {
         (self.allocated * PAGE) as u64
     }
@@ -91,16 +71,12 @@ impl SparseMem {
             let addr = a + done as u64;
             let (p, off) = ((addr >> PAGE_BITS) as usize, (addr as usize) & (PAGE - 1));
             let n = (PAGE - off).min(data.len() - done);
-            if let Some(u) = &mut self.undo
-                && !self.saved[p]
-            {
-                self.saved[p] = true;
-                u.push((p, self.pages[p].clone()));
-            }
             let pg = self.pages[p].get_or_insert_with(|| {
                 self.allocated += 1;
-                vec![0u8; PAGE].into_boxed_slice()
+                Arc::from(vec![0u8; PAGE])
             });
+            // Copies the page if a snapshot shares it.
+            let pg = Arc::make_mut(pg);
             pg[off..off + n].copy_from_slice(&data[done..done + n]);
             done += n;
         }
@@ -153,25 +129,30 @@ mod tests {
     }
 
     #[test]
-    fn rollback_restores_the_image() {
+    fn a_snapshot_is_isolated_both_ways() {
         let mut m = SparseMem::new(1 << 30);
         m.write_u64(100, 7);
-        m.journal();
-        m.write_u64(100, 8);
-        m.write_u64(100, 9);
-        m.write_u32(5 << 20, 1);
-        assert_eq!(m.read_u64(100), 9);
-        assert_eq!(m.resident_bytes(), 2 << 16);
-        m.rollback();
-        assert_eq!(m.read_u64(100), 7, "the first write's old page came back");
-        assert_eq!(m.read_u32(5 << 20), 0);
+        let mut snap = m.clone();
+        snap.write_u64(100, 8);
+        snap.write_u32(5 << 20, 1);
         assert_eq!(
-            m.resident_bytes(),
-            1 << 16,
-            "the page the journal saw allocated is gone"
+            m.read_u64(100),
+            7,
+            "the snapshot's write stays in the snapshot"
         );
+        assert_eq!(m.read_u32(5 << 20), 0);
+        assert_eq!(m.resident_bytes(), 1 << 16);
+        assert_eq!(snap.resident_bytes(), 2 << 16);
+        m.write_u64(108, 9);
+        assert_eq!(
+            snap.read_u64(108),
+            0,
+            "the original's write stays out of it"
+        );
+        assert_eq!((snap.read_u64(100), m.read_u64(100)), (8, 7));
+        drop(snap);
         m.write_u64(100, 10);
-        assert_eq!(m.read_u64(100), 10, "no journal: writes stay");
+        assert_eq!(m.read_u64(100), 10);
     }
 
     #[test]

@@ -1024,27 +1024,24 @@ impl Chip {
     /// next `measure` admissions (or, with `kind` = [`WindowKind::Shade`], the
     /// shading pass over `0..pixels` from item `warm` to item `warm + measure`),
     /// and stops. The window is a sample, not a finished wavefront: the chip is
-    /// spent (its state is abandoned mid-flight) and every write it made to `mem`
-    /// is undone, so the functional model carries on as if it had not run.
+    /// spent (its state is abandoned mid-flight), and so is `mem`, a snapshot of
+    /// the functional model's image (`SparseMem::clone`), which carries on as if
+    /// the window had not run.
     /// `None` when the wavefront ends before the measurement starts; a measurement
     /// cut short by the wavefront's end covers the rest of it (`WindowRun::ended`).
     pub fn trace_window(
         mut self,
-        mem: &mut SparseMem,
+        mem: SparseMem,
         kind: WindowKind,
         warm: u64,
         measure: u64,
     ) -> Result<Option<WindowRun>, String> {
-        mem.journal();
-        let r = self.window_inner(mem, kind, warm, measure);
-        std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
-        mem.rollback();
-        r
+        self.window_inner(mem, kind, warm, measure)
     }
 
     fn window_inner(
         &mut self,
-        mem: &mut SparseMem,
+        mut mem: SparseMem,
         kind: WindowKind,
         warm: u64,
         measure: u64,
@@ -1059,7 +1056,7 @@ impl Chip {
                 mem.write_u64(a, next);
             }
         }
-        std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
+        self.sim.unit_mut::<Memory>(self.memory).image = mem;
         match &kind {
             WindowKind::Trace(b) | WindowKind::Root(b) => {
                 self.sim.unit_mut::<StreamScheduler>(sch).resume(b);

@@ -13,6 +13,7 @@ pub mod output;
 pub mod queues;
 pub mod shade;
 pub mod traverse;
+mod windows;
 
 use std::time::Instant;
 
@@ -525,17 +526,15 @@ pub fn render(
                         .into(),
                 );
             }
-            Some(Windows {
-                plan: plan.clone(),
-                consts: shade_consts(scene, &p),
-                cfg: c,
-                sim: run.sim,
-                segments: nseg,
-                rec: WindowRecord {
-                    pixels,
-                    ..WindowRecord::default()
-                },
-            })
+            Some(windows::Windows::new(
+                plan.clone(),
+                c,
+                p.map.clone(),
+                shade_consts(scene, &p),
+                nseg,
+                run.sim,
+                pixels,
+            )?)
         }
     };
     // Cycle mode with shading on the TPs: every chip run after the first shades the
@@ -602,7 +601,7 @@ pub fn render(
                 }
             })
             .collect();
-        win.emit_window(&mut p, rays)?;
+        win.emit_window(&p, rays)?;
     }
 
     while !work.is_empty() {
@@ -690,7 +689,7 @@ pub fn render(
                 if let Some(w) = windows.as_mut() {
                     w.rec.segs.push(segs);
                     let pool = q.boundary(&p.map);
-                    w.shade_windows(&mut p, wave, pixels, &pool)?;
+                    w.shade_windows(&p, wave, pixels, &pool)?;
                 }
             }
             Mode::Reference => trace_reference(&mut p, &mut q, scene, &mut st),
@@ -769,6 +768,7 @@ pub fn render(
         st = next;
         work = next_work;
     }
+    let windows = windows.map(|w| w.finish()).transpose()?;
     let mut total = WaveStats::default();
     for wv in &waves {
         total.add(wv);
@@ -790,7 +790,7 @@ pub fn render(
         radiance[real as usize] = PathRec::read(&p.mem, p.map.path_addr(pix as u64)).radiance;
     }
     Ok(Frame {
-        windows: windows.map(|w| w.rec),
+        windows,
         passes,
         scene: scene.name.clone(),
         mode,
@@ -960,109 +960,6 @@ fn trace_functional(
         }
     }
     hook(u32::MAX, p, q, st)
-}
-
-/// Time sampling's chip side: a fresh chip per window.
-struct Windows {
-    plan: WindowPlan,
-    consts: ShadeConsts,
-    cfg: crate::config::Config,
-    sim: crate::rtl::SimOptions,
-    segments: usize,
-    rec: WindowRecord,
-}
-
-impl Windows {
-    fn build(&self, map: &MemoryMap) -> Result<crate::machine::Chip, String> {
-        crate::machine::Chip::new(
-            &self.cfg,
-            map,
-            self.segments,
-            &self.consts,
-            self.sim.clone(),
-        )
-    }
-
-    /// Runs one window on a fresh chip and records what it measured as a sample
-    /// of `kind` in wavefront `wave`, its first measured mark `first`.
-    #[allow(clippy::too_many_arguments)]
-    fn run(
-        &mut self,
-        p: &mut Prepared,
-        what: crate::machine::WindowKind,
-        warm: u64,
-        measure: u64,
-        wave: usize,
-        kind: SampleKind,
-        first: u64,
-    ) -> Result<(), String> {
-        let t = Instant::now();
-        let mut chip = self.build(&p.map)?;
-        chip.enable_pass_log();
-        let r = chip.trace_window(&mut p.mem, what, warm, measure)?;
-        let wall_s = t.elapsed().as_secs_f64();
-        self.rec.chip_s += wall_s;
-        if let Some(run) = r {
-            self.rec.samples.push(WindowSample {
-                wave,
-                kind,
-                first,
-                run,
-                wall_s,
-            });
-        }
-        Ok(())
-    }
-
-    /// The host emitting the primary rays: its first `rays`, measured after the
-    /// shading windows' warm-up (emission is the same for every ray).
-    fn emit_window(&mut self, p: &mut Prepared, rays: Vec<RayRec>) -> Result<(), String> {
-        let (mut warm, measure) = (self.plan.shade_warm, self.plan.shade_measure);
-        if (rays.len() as u64) < warm.saturating_add(measure) {
-            // A frame smaller than the window: all of it, measured.
-            warm = 0;
-        }
-        let what = crate::machine::WindowKind::Emit(rays);
-        self.run(p, what, warm, measure, 0, SampleKind::Emit, warm)
-    }
-
-    /// The shading pass after wavefront `wave`: windows spread over the pixels,
-    /// each with the bucket pool as the wavefront left it (`pool`, no queue
-    /// holding rays), where the pass's rays go.
-    fn shade_windows(
-        &mut self,
-        p: &mut Prepared,
-        wave: usize,
-        pixels: u32,
-        pool: &queues::Boundary,
-    ) -> Result<(), String> {
-        // The pass's start as is (its first `shade_head` items: the caches and
-        // the memory's queues fill), then windows spread over the other pixels.
-        let head = self.plan.shade_head.min(pixels as u64) as u32;
-        let n = self.plan.shade_windows;
-        let plan: Vec<(u32, u64, u64, SampleKind)> = (head > 0)
-            .then_some((0, 0, head as u64, SampleKind::ShadeHead))
-            .into_iter()
-            .chain((0..n).map(|j| {
-                let first = head + (j as u64 * (pixels - head) as u64 / n as u64) as u32;
-                (
-                    first,
-                    self.plan.shade_warm,
-                    self.plan.shade_measure,
-                    SampleKind::Shade,
-                )
-            }))
-            .collect();
-        for (first, warm, measure, kind) in plan {
-            let what = crate::machine::WindowKind::Shade {
-                first,
-                pixels,
-                pool: pool.clone(),
-            };
-            self.run(p, what, warm, measure, wave, kind, first as u64 + warm)?;
-        }
-        Ok(())
-    }
 }
 
 impl WindowPlan {

@@ -266,7 +266,7 @@ impl RayQueues {
     /// in `every` (a root window: the pass over a sample of its rays, spread over
     /// the queue since its rays come in pixel order). The kept buckets are
     /// chained by rewriting their headers (`Boundary::relink`, written into the
-    /// window's journaled image); the others stay allocated in the pool, as rays
+    /// window's snapshot of the image); the others stay allocated in the pool, as rays
     /// the pass already took would sit in its children's queues. Also the rays
     /// kept.
     pub fn boundary_strided(&self, map: &MemoryMap, seg: usize, every: usize) -> (Boundary, u64) {

@@ -1,0 +1,327 @@
+//! Time sampling's chip side: every window on a fresh chip, on a snapshot of the
+//! functional model's DRAM image. With more than one simulator thread the windows
+//! run on worker threads (one chip each, single-threaded) while the functional
+//! model goes on: a window reads nothing the functional model writes after its
+//! snapshot, and its samples are put back in the order the windows were taken, so
+//! the record is the same as with one thread.
+
+use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, sync_channel};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+use super::queues::Boundary;
+use super::shade::ShadeConsts;
+use super::{Prepared, RayRec, SampleKind, WindowPlan, WindowRecord, WindowSample};
+use crate::contract::{MemoryMap, SparseMem};
+use crate::machine::WindowKind;
+
+/// What every window of a frame is built from.
+struct WindowChip {
+    cfg: crate::config::Config,
+    map: MemoryMap,
+    consts: ShadeConsts,
+    segments: usize,
+    sim: crate::rtl::SimOptions,
+}
+
+/// One window to run: its snapshot of the image and what to measure.
+struct WindowJob {
+    /// Its place among the frame's windows (the record's order).
+    order: usize,
+    mem: SparseMem,
+    what: WindowKind,
+    warm: u64,
+    measure: u64,
+    wave: usize,
+    kind: SampleKind,
+    first: u64,
+}
+
+type Done = (usize, Result<Option<WindowSample>, String>);
+
+impl WindowChip {
+    /// Runs one window on a fresh chip; `None` when it measured nothing.
+    fn run(&self, job: WindowJob) -> Result<Option<WindowSample>, String> {
+        let t = Instant::now();
+        let mut chip = crate::machine::Chip::new(
+            &self.cfg,
+            &self.map,
+            self.segments,
+            &self.consts,
+            self.sim.clone(),
+        )?;
+        chip.enable_pass_log();
+        let r = chip.trace_window(job.mem, job.what, job.warm, job.measure)?;
+        Ok(r.map(|run| WindowSample {
+            wave: job.wave,
+            kind: job.kind,
+            first: job.first,
+            run,
+            wall_s: t.elapsed().as_secs_f64(),
+        }))
+    }
+}
+
+/// Worker threads taking windows from a queue of at most one per worker (each
+/// queued window holds a snapshot, whose pages the functional model's writes copy).
+struct Pool {
+    jobs: Option<SyncSender<WindowJob>>,
+    done: Receiver<Done>,
+    workers: Vec<JoinHandle<()>>,
+}
+
+impl Pool {
+    fn new(chip: &Arc<WindowChip>, workers: usize) -> Result<Pool, String> {
+        let (jobs, rx) = sync_channel::<WindowJob>(workers);
+        let rx = Arc::new(Mutex::new(rx));
+        let (tx, done) = std::sync::mpsc::channel::<Done>();
+        let workers = (0..workers)
+            .map(|k| {
+                let (chip, rx, tx) = (chip.clone(), rx.clone(), tx.clone());
+                std::thread::Builder::new()
+                    .name(format!("window-{k}"))
+                    .spawn(move || {
+                        loop {
+                            // The lock is held while waiting for a job only.
+                            let job = rx
+                                .lock()
+                                .map_err(|_| ())
+                                .and_then(|r| r.recv().map_err(|_| ()));
+                            let Ok(job) = job else { break };
+                            let order = job.order;
+                            if tx.send((order, chip.run(job))).is_err() {
+                                break;
+                            }
+                        }
+                    })
+                    .map_err(|e| format!("cannot start a time-sampling worker thread: {e}"))
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        Ok(Pool {
+            jobs: Some(jobs),
+            done,
+            workers,
+        })
+    }
+
+    /// Stops taking windows and waits for the workers; a worker's panic goes on
+    /// here, as it would have on the caller's thread.
+    fn close(&mut self) {
+        self.jobs = None;
+        for w in self.workers.drain(..) {
+            if let Err(p) = w.join() {
+                std::panic::resume_unwind(p);
+            }
+        }
+    }
+}
+
+impl Drop for Pool {
+    fn drop(&mut self) {
+        // On an early return (an error elsewhere) the running windows finish
+        // and are dropped; a panic while already unwinding is not raised again.
+        self.jobs = None;
+        for w in self.workers.drain(..) {
+            let _ = w.join();
+        }
+    }
+}
+
+/// Time sampling's windows of one frame, and what they measured.
+pub(super) struct Windows {
+    pub(super) plan: WindowPlan,
+    chip: Arc<WindowChip>,
+    pool: Option<Pool>,
+    /// Windows taken, and windows whose result is in.
+    sent: usize,
+    got: Vec<(usize, WindowSample)>,
+    answered: usize,
+    pub(super) rec: WindowRecord,
+}
+
+impl Windows {
+    /// `sim.threads` above one runs that many windows at once, each chip on one
+    /// thread.
+    pub(super) fn new(
+        plan: WindowPlan,
+        cfg: crate::config::Config,
+        map: MemoryMap,
+        consts: ShadeConsts,
+        segments: usize,
+        sim: crate::rtl::SimOptions,
+        pixels: u32,
+    ) -> Result<Windows, String> {
+        let workers = sim.threads;
+        let chip = Arc::new(WindowChip {
+            cfg,
+            map,
+            consts,
+            segments,
+            sim: crate::rtl::SimOptions { threads: 1, ..sim },
+        });
+        let pool = if workers > 1 {
+            Some(Pool::new(&chip, workers)?)
+        } else {
+            None
+        };
+        Ok(Windows {
+            plan,
+            chip,
+            pool,
+            sent: 0,
+            got: Vec::new(),
+            answered: 0,
+            rec: WindowRecord {
+                pixels,
+                ..WindowRecord::default()
+            },
+        })
+    }
+
+    /// Takes one window on a snapshot of the image now and records what it
+    /// measures as a sample of `kind` in wavefront `wave`, its first measured
+    /// mark `first`.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn run(
+        &mut self,
+        p: &Prepared,
+        what: WindowKind,
+        warm: u64,
+        measure: u64,
+        wave: usize,
+        kind: SampleKind,
+        first: u64,
+    ) -> Result<(), String> {
+        let job = WindowJob {
+            order: self.sent,
+            mem: p.mem.clone(),
+            what,
+            warm,
+            measure,
+            wave,
+            kind,
+            first,
+        };
+        self.sent += 1;
+        match &self.pool {
+            None => {
+                let r = self.chip.run(job);
+                self.keep(self.sent - 1, r)
+            }
+            Some(pool) => {
+                let jobs = pool.jobs.as_ref().expect("open until finish");
+                if jobs.send(job).is_err() {
+                    return Err(self.worker_lost());
+                }
+                self.collect(false)
+            }
+        }
+    }
+
+    fn keep(
+        &mut self,
+        order: usize,
+        r: Result<Option<WindowSample>, String>,
+    ) -> Result<(), String> {
+        self.answered += 1;
+        if let Some(s) = r? {
+            self.rec.chip_s += s.wall_s;
+            self.got.push((order, s));
+        }
+        Ok(())
+    }
+
+    /// Takes in the results that are there (`wait`: all that are owed).
+    fn collect(&mut self, wait: bool) -> Result<(), String> {
+        while self.answered < self.sent {
+            let pool = self.pool.as_ref().expect("only with workers");
+            let (order, r) = if wait {
+                match pool.done.recv() {
+                    Ok(d) => d,
+                    Err(_) => return Err(self.worker_lost()),
+                }
+            } else {
+                match pool.done.try_recv() {
+                    Ok(d) => d,
+                    Err(TryRecvError::Empty) => return Ok(()),
+                    Err(TryRecvError::Disconnected) => return Err(self.worker_lost()),
+                }
+            };
+            self.keep(order, r)?;
+        }
+        Ok(())
+    }
+
+    /// A worker died (a panic): close the pool, which raises it here.
+    fn worker_lost(&mut self) -> String {
+        if let Some(p) = self.pool.as_mut() {
+            p.close();
+        }
+        "a time-sampling worker thread stopped without a result".into()
+    }
+
+    /// Waits for every window and returns the record, its samples in the order
+    /// the windows were taken. `chip_s` is the windows' summed wall time (more
+    /// than the frame's when they ran side by side).
+    pub(super) fn finish(mut self) -> Result<WindowRecord, String> {
+        if self.pool.is_some() {
+            self.pool.as_mut().expect("checked").jobs = None;
+            self.collect(true)?;
+            self.pool.as_mut().expect("checked").close();
+        }
+        self.got.sort_by_key(|(o, _)| *o);
+        self.rec.samples = self.got.drain(..).map(|(_, s)| s).collect();
+        Ok(self.rec)
+    }
+
+    /// The host emitting the primary rays: its first `rays`, measured after the
+    /// shading windows' warm-up (emission is the same for every ray).
+    pub(super) fn emit_window(&mut self, p: &Prepared, rays: Vec<RayRec>) -> Result<(), String> {
+        let (mut warm, measure) = (self.plan.shade_warm, self.plan.shade_measure);
+        if (rays.len() as u64) < warm.saturating_add(measure) {
+            // A frame smaller than the window: all of it, measured.
+            warm = 0;
+        }
+        let what = WindowKind::Emit(rays);
+        self.run(p, what, warm, measure, 0, SampleKind::Emit, warm)
+    }
+
+    /// The shading pass after wavefront `wave`: windows spread over the pixels,
+    /// each with the bucket pool as the wavefront left it (`pool`, no queue
+    /// holding rays), where the pass's rays go.
+    pub(super) fn shade_windows(
+        &mut self,
+        p: &Prepared,
+        wave: usize,
+        pixels: u32,
+        pool: &Boundary,
+    ) -> Result<(), String> {
+        // The pass's start as is (its first `shade_head` items: the caches and
+        // the memory's queues fill), then windows spread over the other pixels.
+        let head = self.plan.shade_head.min(pixels as u64) as u32;
+        let n = self.plan.shade_windows;
+        let plan: Vec<(u32, u64, u64, SampleKind)> = (head > 0)
+            .then_some((0, 0, head as u64, SampleKind::ShadeHead))
+            .into_iter()
+            .chain((0..n).map(|j| {
+                let first = head + (j as u64 * (pixels - head) as u64 / n as u64) as u32;
+                (
+                    first,
+                    self.plan.shade_warm,
+                    self.plan.shade_measure,
+                    SampleKind::Shade,
+                )
+            }))
+            .collect();
+        for (first, warm, measure, kind) in plan {
+            let what = WindowKind::Shade {
+                first,
+                pixels,
+                pool: pool.clone(),
+            };
+            self.run(p, what, warm, measure, wave, kind, first as u64 + warm)?;
+        }
+        Ok(())
+    }
+}
