@@ -20,8 +20,8 @@ struct Cli {
     #[arg(long, global = true)]
     config: Option<PathBuf>,
     /// Simulator threads in cycle mode: 1, or 2 (each evaluates half of the TMs;
-    /// the results are bit-identical to 1). Default: 2 on a machine with 2 cores or
-    /// more.
+    /// time sampling runs two windows side by side instead; the results are
+    /// bit-identical to 1). Default: 2 on a machine with 2 cores or more.
     #[arg(long, global = true)]
     threads: Option<usize>,
     #[command(subcommand)]

@@ -1164,9 +1164,10 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             same_image(&f, None),
             se,
             &format!(
-                "time sampling: {} windows ({:.0} s of it in the chip); per wavefront the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {}",
+                "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); per wavefront the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {}",
                 rec.samples.len(),
                 rec.chip_s,
+                o.threads.max(1),
                 wp.head,
                 wp.measure,
                 wp.warm,
