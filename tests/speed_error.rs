@@ -407,11 +407,9 @@ fn render_windows_on(
     dualstream::render::render(s, dualstream::render::Mode::Functional, &rc, &mut |_| {}).unwrap()
 }
 
-/// With two threads the windows run side by side, each on a snapshot of the
-/// image taken when the functional model reached it: the same record, in the
-/// order the windows were taken, and the same frame as one thread.
-#[test]
-fn windows_side_by_side_record_what_one_thread_does() {
+/// The Cornell box, 16x16, 2 bounces, on the tiny chip with GDDR5, in segments
+/// of one DRAM row: a wavefront has passes to take over.
+fn cornell_in_rows() -> (dualstream::scene::Scene, Config) {
     let (_, mut c) = tiny();
     let mut s = dualstream::scene::load("cornell").unwrap();
     s.settings.width = 16;
@@ -419,6 +417,15 @@ fn windows_side_by_side_record_what_one_thread_does() {
     s.settings.bounces = 2;
     c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
     c.accel.segment_bytes = c.memory.row_bytes as u32;
+    (s, c)
+}
+
+/// With two threads the windows run side by side, each on a snapshot of the
+/// image taken when the functional model reached it: the same record, in the
+/// order the windows were taken, and the same frame as one thread.
+#[test]
+fn windows_side_by_side_record_what_one_thread_does() {
+    let (s, c) = cornell_in_rows();
     let mut plan = windows_plan(2, 3);
     plan.warm = 1;
     plan.measure = 1;
@@ -464,15 +471,7 @@ fn windows_side_by_side_record_what_one_thread_does() {
 #[test]
 fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
     use dualstream::render::SampleKind;
-    let (_, mut c) = tiny();
-    // The Cornell box in segments of one DRAM row: a wavefront has passes to take
-    // over.
-    let mut s = dualstream::scene::load("cornell").unwrap();
-    s.settings.width = 16;
-    s.settings.height = 16;
-    s.settings.bounces = 2;
-    c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
-    c.accel.segment_bytes = c.memory.row_bytes as u32;
+    let (s, c) = cornell_in_rows();
     let plain = render_windows(&s, &c, windows_plan(1, 1 << 20));
     let rec = plain.windows.as_ref().unwrap();
     for head in [1u64, 3] {

@@ -647,8 +647,15 @@ pub fn render(
                         let n = q.len(s);
                         let every = n.div_ceil(rpb).div_ceil(plan.root_rays.div_ceil(rpb));
                         let (b, kept) = q.boundary_strided(&p.map, s as usize, every as usize);
-                        let what = crate::machine::WindowKind::Root(b);
-                        w.run(p, what, 0, 0, wave, SampleKind::Root, n - kept)?;
+                        let spec = windows::WindowSpec {
+                            what: crate::machine::WindowKind::Root(b),
+                            warm: 0,
+                            measure: 0,
+                            wave,
+                            kind: SampleKind::Root,
+                            first: n - kept,
+                        };
+                        w.run(p, spec)?;
                         return Ok(());
                     }
                     if tail_started {
@@ -671,8 +678,15 @@ pub fn render(
                     } else {
                         return Ok(());
                     };
-                    let what = crate::machine::WindowKind::Trace(q.boundary(&p.map));
-                    w.run(p, what, warm, measure, wave, kind, k + warm)?;
+                    let spec = windows::WindowSpec {
+                        what: crate::machine::WindowKind::Trace(q.boundary(&p.map)),
+                        warm,
+                        measure,
+                        wave,
+                        kind,
+                        first: k + warm,
+                    };
+                    w.run(p, spec)?;
                     Ok(())
                 };
                 trace_functional(

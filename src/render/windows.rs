@@ -25,17 +25,23 @@ struct WindowChip {
     sim: crate::rtl::SimOptions,
 }
 
-/// One window to run: its snapshot of the image and what to measure.
+/// One window: what the chip runs (`Chip::trace_window`) and the sample it
+/// gives (`kind` in wavefront `wave`, its first measured mark `first`).
+pub(super) struct WindowSpec {
+    pub(super) what: WindowKind,
+    pub(super) warm: u64,
+    pub(super) measure: u64,
+    pub(super) wave: usize,
+    pub(super) kind: SampleKind,
+    pub(super) first: u64,
+}
+
+/// A window to run on its snapshot of the image.
 struct WindowJob {
     /// Its place among the frame's windows (the record's order).
     order: usize,
     mem: SparseMem,
-    what: WindowKind,
-    warm: u64,
-    measure: u64,
-    wave: usize,
-    kind: SampleKind,
-    first: u64,
+    spec: WindowSpec,
 }
 
 type Done = (usize, Result<Option<WindowSample>, String>);
@@ -52,11 +58,12 @@ impl WindowChip {
             self.sim.clone(),
         )?;
         chip.enable_pass_log();
-        let r = chip.trace_window(job.mem, job.what, job.warm, job.measure)?;
+        let w = job.spec;
+        let r = chip.trace_window(job.mem, w.what, w.warm, w.measure)?;
         Ok(r.map(|run| WindowSample {
-            wave: job.wave,
-            kind: job.kind,
-            first: job.first,
+            wave: w.wave,
+            kind: w.kind,
+            first: w.first,
             run,
             wall_s: t.elapsed().as_secs_f64(),
         }))
@@ -105,12 +112,14 @@ impl Pool {
         })
     }
 
-    /// Stops taking windows and waits for the workers; a worker's panic goes on
-    /// here, as it would have on the caller's thread.
-    fn close(&mut self) {
+    /// Stops taking windows and waits for the workers; with `raise`, a worker's
+    /// panic goes on here, as it would have on the caller's thread.
+    fn stop(&mut self, raise: bool) {
         self.jobs = None;
         for w in self.workers.drain(..) {
-            if let Err(p) = w.join() {
+            if let Err(p) = w.join()
+                && raise
+            {
                 std::panic::resume_unwind(p);
             }
         }
@@ -121,10 +130,7 @@ impl Drop for Pool {
     fn drop(&mut self) {
         // On an early return (an error elsewhere) the running windows finish
         // and are dropped; a panic while already unwinding is not raised again.
-        self.jobs = None;
-        for w in self.workers.drain(..) {
-            let _ = w.join();
-        }
+        self.stop(false);
     }
 }
 
@@ -179,29 +185,13 @@ impl Windows {
         })
     }
 
-    /// Takes one window on a snapshot of the image now and records what it
-    /// measures as a sample of `kind` in wavefront `wave`, its first measured
-    /// mark `first`.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn run(
-        &mut self,
-        p: &Prepared,
-        what: WindowKind,
-        warm: u64,
-        measure: u64,
-        wave: usize,
-        kind: SampleKind,
-        first: u64,
-    ) -> Result<(), String> {
+    /// Takes window `spec` on a snapshot of the image now and records what it
+    /// measures.
+    pub(super) fn run(&mut self, p: &Prepared, spec: WindowSpec) -> Result<(), String> {
         let job = WindowJob {
             order: self.sent,
             mem: p.mem.clone(),
-            what,
-            warm,
-            measure,
-            wave,
-            kind,
-            first,
+            spec,
         };
         self.sent += 1;
         match &self.pool {
@@ -256,7 +246,7 @@ impl Windows {
     /// A worker died (a panic): close the pool, which raises it here.
     fn worker_lost(&mut self) -> String {
         if let Some(p) = self.pool.as_mut() {
-            p.close();
+            p.stop(true);
         }
         "a time-sampling worker thread stopped without a result".into()
     }
@@ -265,10 +255,12 @@ impl Windows {
     /// the windows were taken. `chip_s` is the windows' summed wall time (more
     /// than the frame's when they ran side by side).
     pub(super) fn finish(mut self) -> Result<WindowRecord, String> {
-        if self.pool.is_some() {
-            self.pool.as_mut().expect("checked").jobs = None;
+        if let Some(p) = self.pool.as_mut() {
+            p.jobs = None;
             self.collect(true)?;
-            self.pool.as_mut().expect("checked").close();
+        }
+        if let Some(p) = self.pool.as_mut() {
+            p.stop(true);
         }
         self.got.sort_by_key(|(o, _)| *o);
         self.rec.samples = self.got.drain(..).map(|(_, s)| s).collect();
@@ -283,8 +275,15 @@ impl Windows {
             // A frame smaller than the window: all of it, measured.
             warm = 0;
         }
-        let what = WindowKind::Emit(rays);
-        self.run(p, what, warm, measure, 0, SampleKind::Emit, warm)
+        let spec = WindowSpec {
+            what: WindowKind::Emit(rays),
+            warm,
+            measure,
+            wave: 0,
+            kind: SampleKind::Emit,
+            first: warm,
+        };
+        self.run(p, spec)
     }
 
     /// The shading pass after wavefront `wave`: windows spread over the pixels,
@@ -320,7 +319,15 @@ impl Windows {
                 pixels,
                 pool: pool.clone(),
             };
-            self.run(p, what, warm, measure, wave, kind, first as u64 + warm)?;
+            let spec = WindowSpec {
+                what,
+                warm,
+                measure,
+                wave,
+                kind,
+                first: first as u64 + warm,
+            };
+            self.run(p, spec)?;
         }
         Ok(())
     }
