@@ -215,6 +215,12 @@ enum Cmd {
         /// first (counted in the rest).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().tail_warm)]
         window_tail_warm: u64,
+        /// speed-error, windows: wavefronts traced in windows: the first and
+        /// every N-th from the second on (1: all); the others take their trace's
+        /// cycles, lines and energy from their functional work times the ratios
+        /// the measured ones showed (their shading passes keep their windows).
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_every)]
+        window_waves: u64,
         /// speed-error, windows: segment passes the chip runs before a window's
         /// measurement, unmeasured, to fill its buffers, caches and queues and
         /// stagger its 64 scene-buffer slots (docs/speed-error.md: 64 leaves
@@ -724,6 +730,7 @@ fn run(cli: Cli) -> Result<(), String> {
             subsets,
             window_every,
             window_tail_warm,
+            window_waves,
             window_head,
             window_root_rays,
             window_tail,
@@ -773,6 +780,7 @@ fn run(cli: Cli) -> Result<(), String> {
                             root_rays: window_root_rays,
                             tail_pending: window_tail,
                             tail_warm: window_tail_warm,
+                            wave_every: window_waves,
                             warm: window_warm,
                             measure: window_measure,
                             shade_windows,

@@ -421,6 +421,7 @@ pub fn default_windows() -> render::WindowPlan {
         shade_head: 16384,
         tail_pending: 32,
         tail_warm: 0,
+        wave_every: 1,
     }
 }
 
@@ -519,6 +520,9 @@ pub struct WindowPart {
     pub cycles: f64,
     pub lines: f64,
     pub dram_j: f64,
+    /// Not simulated: the part's proxy times the measured wavefronts' ratio
+    /// (`WindowPlan::wave_every`).
+    pub borrowed: bool,
 }
 
 /// A wavefront's rest (its passes between head and tail): the passes, their
@@ -564,6 +568,18 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     };
     // Pooled over the frame, for a wavefront too short to hold a window.
     let (mut pool_x, mut pool_p) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+    // Per measured wavefront, per trace part (root, head, rest, tail), the
+    // measured counts and their proxies, for the wavefronts that borrow them.
+    type Pair = ([f64; WCOUNTS], [f64; WCOUNTS]);
+    let mut measured: Vec<(usize, [Pair; 4])> = Vec::new();
+    let mut pool_part = |k: usize, wave: usize, x: &[f64; WCOUNTS], px: &[f64; WCOUNTS]| {
+        if measured.last().is_none_or(|m| m.0 != wave) {
+            measured.push((wave, [([0.0; WCOUNTS], [0.0; WCOUNTS]); 4]));
+        }
+        let m = &mut measured.last_mut().expect("pushed").1[k];
+        add(&mut m.0, x, 1.0);
+        add(&mut m.1, px, 1.0);
+    };
     let mut parts = Vec::new();
     let part = |wave, part, first, end, t: &[f64; WCOUNTS]| WindowPart {
         wave,
@@ -573,20 +589,44 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         cycles: t[0],
         lines: t[1] + t[2] + t[3] + t[4],
         dram_j: t[5],
+        borrowed: false,
+    };
+    let sum = |r: &[[f64; WCOUNTS]]| {
+        let mut t = [0.0; WCOUNTS];
+        for x in r {
+            add(&mut t, x, 1.0);
+        }
+        t
+    };
+    // Per segment pass of each wavefront, each count's functional proxy
+    // (`seg_proxies`).
+    let proxies: Vec<Vec<[f64; WCOUNTS]>> = rec
+        .segs
+        .iter()
+        .map(|segs| segs.iter().map(|s| seg_proxies(c, s)).collect())
+        .collect();
+    // A root pass's cost goes with its rays (a root window is scaled by them):
+    // its proxy for the cycles and the DRAM energy, where the first-order bound
+    // follows the box tests and misjudges the root from one wavefront to the
+    // next (Dragon Box 256x256: 1.35-1.43 cycles per ray in every bounce
+    // wavefront, the bound's ratio off by up to 20%).
+    let root_proxy = |wave: usize| {
+        let mut p = proxies[wave][0];
+        let rays = rec.segs[wave][0].rays as f64;
+        p[0] = rays;
+        p[5] = rays;
+        p
     };
     let mut per_wave = Vec::new();
+    let mut borrowers = Vec::new();
     for (wave, segs) in rec.segs.iter().enumerate() {
-        // Per segment pass, each count's functional proxy (`seg_proxies`).
-        let proxy: Vec<[f64; WCOUNTS]> = segs.iter().map(|s| seg_proxies(c, s)).collect();
+        if !rec.measured.get(wave).copied().unwrap_or(true) {
+            borrowers.push(wave);
+            continue;
+        }
+        let proxy = &proxies[wave];
         let index: std::collections::HashMap<u32, usize> =
             segs.iter().enumerate().map(|(i, s)| (s.seg, i)).collect();
-        let sum = |r: &[[f64; WCOUNTS]]| {
-            let mut t = [0.0; WCOUNTS];
-            for x in r {
-                add(&mut t, x, 1.0);
-            }
-            t
-        };
         // The head: the root pass (its window's run scaled up by the rays it left
         // out: the pass's cost goes with its rays, start-up and drain included),
         // then the window from the next segment on, if any (measured whole).
@@ -601,6 +641,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
                 let k = (smp.first + smp.run.marks) as f64 / smp.run.marks as f64;
                 let root = window_counts(&smp.run, wb_j).map(|x| x * k);
                 add(&mut head, &root, 1.0);
+                if !segs.is_empty() {
+                    pool_part(0, wave, &root, &root_proxy(wave));
+                }
                 parts.push(part(wave, "root", 0, 1, &root));
             }
             // The window ends with the root pass (or before the children, if
@@ -617,6 +660,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             let t = window_counts(&smp.run, wb_j);
             add(&mut total, &t, 1.0);
             tail_start = (smp.first as usize).clamp(head_end.min(segs.len()), segs.len());
+            pool_part(3, wave, &t, &sum(&proxy[tail_start..]));
             parts.push(part(wave, "tail", tail_start as u64, segs.len() as u64, &t));
         }
         let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
@@ -633,6 +677,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
                 // Right after the root pass, with no warm-up: the head's rest.
                 add(&mut head, &wc, 1.0);
                 head_end = b;
+                pool_part(1, wave, &wc, &sum(&proxy[a..b]));
                 parts.push(part(wave, "head", a as u64, b as u64, &wc));
                 continue;
             }
@@ -671,6 +716,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         });
         add(&mut pool_x, &x, 1.0);
         add(&mut pool_p, &px, 1.0);
+        pool_part(2, wave, &x, &px);
     }
     // Each count of the rest scaled from windows `x` with proxies `px`: each by
     // its own proxy, the cycles' where the windows saw none of it.
@@ -721,6 +767,64 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             se_known = false;
         }
     }
+    // The wavefronts traced in no window: each part its proxy times the ratio
+    // of the nearest measured wavefronts before and after it among those that
+    // carry both bounce and shadow rays (neither the first nor the last, if
+    // there are such; else any).
+    for &wave in &borrowers {
+        let middle = |v: usize| v > 0 && v < rec.final_wave;
+        let pick = |ok: &dyn Fn(usize) -> bool| {
+            let before = measured.iter().rev().find(|m| m.0 < wave && ok(m.0));
+            let after = measured.iter().find(|m| m.0 > wave && ok(m.0));
+            let mut t = [([0.0; WCOUNTS], [0.0; WCOUNTS]); 4];
+            for m in before.into_iter().chain(after) {
+                for (t, (x, px)) in t.iter_mut().zip(&m.1) {
+                    add(&mut t.0, x, 1.0);
+                    add(&mut t.1, px, 1.0);
+                }
+            }
+            t
+        };
+        let pooled = [pick(&middle), pick(&|_| true)];
+        let (segs, proxy) = (&rec.segs[wave], &proxies[wave]);
+        let n = segs.len();
+        let head_end = (rec.head.max(1) as usize).min(n);
+        let tail_start =
+            (rec.tail_from.get(wave).copied().unwrap_or(n as u64) as usize).clamp(head_end, n);
+        let ranges = [
+            (0, "root", 0..n.min(1)),
+            (1, "head", n.min(1)..head_end),
+            (2, "rest", head_end..tail_start),
+            (3, "tail", tail_start..n),
+        ];
+        for (k, name, r) in ranges {
+            let p = if k == 0 {
+                root_proxy(wave)
+            } else {
+                sum(&proxy[r.clone()])
+            };
+            if p[0] == 0.0 {
+                continue;
+            }
+            // The measured wavefronts' part, else (never measured: a tail no
+            // measured wavefront had, a head of one admission) their rest.
+            let Some((x, px)) = [pooled[0][k], pooled[1][k], pooled[0][2], pooled[1][2]]
+                .into_iter()
+                .find(|(_, px)| px[0] > 0.0)
+            else {
+                return Err(format!(
+                    "time sampling: wavefront {wave} borrows the measured wavefronts' ratios, but none was measured; lower --window-waves"
+                ));
+            };
+            let t = scale(&p, &x, &px);
+            add(&mut total, &t, 1.0);
+            parts.push(WindowPart {
+                borrowed: true,
+                ..part(wave, name, r.start as u64, r.end as u64, &t)
+            });
+        }
+    }
+    parts.sort_by_key(|p| p.wave);
     // Shading passes: the head as is, the other items by the windows.
     let passes = rec
         .samples
@@ -1164,10 +1268,17 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             same_image(&f, None),
             se,
             &format!(
-                "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); per wavefront the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {}",
+                "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); {}: the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {}",
                 rec.samples.len(),
                 rec.chip_s,
                 o.threads.max(1),
+                match rec.measured.iter().filter(|m| !**m).count() {
+                    0 => "per wavefront".to_string(),
+                    n => format!(
+                        "{n} of {} wavefronts borrowed from their neighbours, in the others",
+                        rec.measured.len()
+                    ),
+                },
                 wp.head,
                 wp.measure,
                 wp.warm,

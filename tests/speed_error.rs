@@ -365,6 +365,7 @@ fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
         shade_head: 0,
         tail_pending: 0,
         tail_warm: 0,
+        wave_every: 1,
     }
 }
 
@@ -638,4 +639,114 @@ fn windows_that_cover_the_frame_agree_with_the_cycle_model() {
         assert!(e.abs() < 0.03, "{what}: {e:+.4}");
     }
     assert_eq!(w.image_identical, Some(true));
+}
+
+/// `wave_every`: a wavefront between the first and the last traced in no window
+/// borrows the ratios of its measured neighbours. Its root, head, rest and tail
+/// are estimated from its own functional work (marked borrowed in the log), its
+/// shading pass keeps its windows, and the frame's estimate stays close to the
+/// one that measured it.
+#[test]
+fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
+    use dualstream::render::SampleKind;
+    use dualstream::speed_error::Reference;
+    let (mut s, c) = cornell_in_rows();
+    s.settings.bounces = 4;
+    let (j, png) = reference_files(&s, &c, "borrowed");
+    let dir = j.parent().unwrap().to_path_buf();
+    let estimate = |wave_every: u64| {
+        let mut plan = windows_plan(4, 6);
+        plan.warm = 2;
+        plan.measure = 6;
+        plan.tail_pending = 2;
+        plan.wave_every = wave_every;
+        let log = dir.join(format!("w{wave_every}.json"));
+        let rows = run(
+            &s,
+            &c,
+            &SpeedErrorOpts {
+                modes: Some(vec!["windows".into()]),
+                windows: plan,
+                window_log: Some(log.clone()),
+                reference: Some(Reference::load(&j, Some(&png), &s, &c).unwrap()),
+                ..SpeedErrorOpts::default()
+            },
+        )
+        .unwrap();
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&log).unwrap()).unwrap();
+        (rows[1].clone(), v)
+    };
+    let (all, va) = estimate(1);
+    let (some, vs) = estimate(2);
+    // Waves 0..=4: 0 (primary), 1 and 3 (every second from 1) and 4 (the last,
+    // shadow rays only) measured; 2 borrows from 1 and 3.
+    assert_eq!(
+        vs["record"]["measured"],
+        serde_json::json!([true, true, false, true, true])
+    );
+    let kinds = |v: &serde_json::Value, wave: u64| -> Vec<String> {
+        v["record"]["samples"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|x| x["wave"] == wave)
+            .map(|x| x["kind"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let k2 = kinds(&vs, 2);
+    for k in [SampleKind::Root, SampleKind::Trace, SampleKind::Tail] {
+        let name = format!("{k:?}");
+        assert!(!k2.contains(&name), "wave 2 took a {name} window: {k2:?}");
+        assert!(
+            kinds(&va, 2).contains(&name),
+            "measured, wave 2 has a {name}"
+        );
+    }
+    assert!(k2.contains(&"Shade".to_string()), "{k2:?}");
+    assert_eq!(
+        kinds(&vs, 3),
+        kinds(&va, 3),
+        "the others are measured as before"
+    );
+    // Wave 2's parts are borrowed, the others' not; each borrowed part near
+    // what wave 2's windows measured, and together the same passes.
+    let parts = |v: &serde_json::Value, wave: u64| -> Vec<(String, f64, bool)> {
+        v["parts"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|p| p["wave"] == wave && p["part"] != "shade" && p["part"] != "emit")
+            .map(|p| {
+                (
+                    p["part"].as_str().unwrap().to_string(),
+                    p["cycles"].as_f64().unwrap(),
+                    p["borrowed"].as_bool().unwrap(),
+                )
+            })
+            .collect()
+    };
+    let (b, m) = (parts(&vs, 2), parts(&va, 2));
+    assert!(
+        b.iter().any(|p| p.0 == "root") && b.iter().all(|p| p.2),
+        "{b:?}"
+    );
+    assert!(m.iter().all(|p| !p.2) && parts(&vs, 3).iter().all(|p| !p.2));
+    let cyc = |p: &[(String, f64, bool)]| p.iter().map(|x| x.1).sum::<f64>();
+    let (cb, cm) = (cyc(&b), cyc(&m));
+    assert!(
+        (cb / cm - 1.0).abs() < 0.15,
+        "wave 2: borrowed {cb}, measured {cm}"
+    );
+    for (what, a, b) in [
+        ("cycles", all.err_cycles, some.err_cycles),
+        ("lines", all.err_lines, some.err_lines),
+        ("energy", all.err_energy, some.err_energy),
+    ] {
+        assert!(
+            (a - b).abs() < 0.05,
+            "{what}: measured {a:+.4}, borrowed {b:+.4}"
+        );
+    }
+    assert_eq!(some.image_identical, Some(true));
 }

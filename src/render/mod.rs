@@ -105,6 +105,21 @@ pub struct WindowPlan {
     /// Admissions the tail window runs before its measurement (the tail is
     /// shorter than a window's warm-up, so it has its own).
     pub tail_warm: u64,
+    /// Wavefronts traced in windows: the first (primary rays), the last (the
+    /// last hit points' shadow rays) and every `wave_every`-th from the second
+    /// on (1: all). The others take no trace window: their root, head, rest and
+    /// tail are their functional proxies times the ratios of the nearest
+    /// measured wavefronts between the first and the last (their shading
+    /// passes keep their windows).
+    pub wave_every: u64,
+}
+
+impl WindowPlan {
+    /// Whether wavefront `wave` of a frame whose last is `last` is traced in
+    /// windows (see `wave_every`).
+    pub fn measures_wave(&self, wave: usize, last: usize) -> bool {
+        wave == 0 || wave >= last || (wave as u64 - 1).is_multiple_of(self.wave_every.max(1))
+    }
 }
 
 /// Functional work of one segment pass (for the ratio estimator of time sampling).
@@ -170,6 +185,15 @@ pub struct WindowRecord {
     pub pixels: u32,
     /// Wall time in the chip windows (building the chip included).
     pub chip_s: f64,
+    /// The plan's head (admissions from each wavefront's start measured whole).
+    pub head: u64,
+    /// Per wavefront: whether it was traced in windows (`WindowPlan::wave_every`),
+    /// and the first admission of its tail (its pass count if it has none).
+    pub measured: Vec<bool>,
+    pub tail_from: Vec<u64>,
+    /// The frame's last possible wavefront (the shadow rays of the paths' last
+    /// hit points: the bounce count).
+    pub final_wave: usize,
 }
 
 /// How to build and run the chip in cycle mode.
@@ -621,6 +645,12 @@ pub fn render(
                 let mut segs = Vec::new();
                 let mut ord = 0u64;
                 let mut tail_started = false;
+                let mut tail_from = None;
+                let last = scene.settings.bounces as usize;
+                let measured = cfg
+                    .windows
+                    .as_ref()
+                    .is_some_and(|w| w.measures_wave(wave, last));
                 let mut prev: Option<(u32, u64, WorkSoFar)> = None;
                 let mut hook = |s: u32,
                                 p: &mut Prepared,
@@ -641,6 +671,9 @@ pub fn render(
                         return Ok(());
                     };
                     if k == 0 {
+                        if !measured {
+                            return Ok(());
+                        }
                         // The root pass (every ray of the wavefront): over one
                         // bucket in `every`, about `root_rays` rays.
                         let rpb = q.rays_per_bucket() as u64;
@@ -670,6 +703,7 @@ pub fn render(
                         // than the throughput the windows measure; measured to
                         // the end.
                         tail_started = true;
+                        tail_from = Some(k + plan.tail_warm);
                         (plan.tail_warm, u64::MAX, SampleKind::Tail)
                     } else if k + plan.warm >= plan.head
                         && (k + plan.warm - plan.head).is_multiple_of(plan.every)
@@ -678,6 +712,10 @@ pub fn render(
                     } else {
                         return Ok(());
                     };
+                    if !measured {
+                        // Borrowed: the tail's start is all this wavefront records.
+                        return Ok(());
+                    }
                     let spec = windows::WindowSpec {
                         what: crate::machine::WindowKind::Trace(q.boundary(&p.map)),
                         warm,
@@ -701,6 +739,11 @@ pub fn render(
                     &mut hook,
                 )?;
                 if let Some(w) = windows.as_mut() {
+                    w.rec
+                        .tail_from
+                        .push(tail_from.map_or(segs.len() as u64, |t| t.min(segs.len() as u64)));
+                    w.rec.measured.push(measured);
+                    w.rec.final_wave = last;
                     w.rec.segs.push(segs);
                     let pool = q.boundary(&p.map);
                     w.shade_windows(&p, wave, pixels, &pool)?;
@@ -983,6 +1026,11 @@ impl WindowPlan {
                 "time sampling needs a head, a measured stretch and a period of at least one segment admission (head {}, --window-measure {}, --window-every {}); raise the zero one",
                 self.head, self.measure, self.every
             ));
+        }
+        if self.wave_every == 0 {
+            return Err(
+                "--window-waves 0: every wavefront would borrow and none be measured; use 1 to trace every wavefront in windows, N to trace every N-th".into(),
+            );
         }
         if self.root_rays < 4 {
             return Err(format!(

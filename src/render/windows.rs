@@ -171,6 +171,7 @@ impl Windows {
         } else {
             None
         };
+        let head = plan.head;
         Ok(Windows {
             plan,
             chip,
@@ -180,6 +181,7 @@ impl Windows {
             answered: 0,
             rec: WindowRecord {
                 pixels,
+                head,
                 ..WindowRecord::default()
             },
         })
