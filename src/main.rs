@@ -215,16 +215,17 @@ enum Cmd {
         /// first (counted in the rest).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().tail_warm)]
         window_tail_warm: u64,
-        /// speed-error, windows: wavefronts traced in windows: the first and
-        /// every N-th from the second on (1: all); the others take their trace's
-        /// cycles, lines and energy from their functional work times the ratios
-        /// the measured ones showed (their shading passes keep their windows).
+        /// speed-error, windows: wavefronts traced in windows: the first, the
+        /// last and every N-th from the second on (1: all); the others take their
+        /// trace's cycles, lines and energy from their functional work times the
+        /// ratios of the nearest measured ones (their shading passes keep their
+        /// windows).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_every)]
         window_waves: u64,
         /// speed-error, windows: segment passes the chip runs before a window's
         /// measurement, unmeasured, to fill its buffers, caches and queues and
         /// stagger its 64 scene-buffer slots (docs/speed-error.md: 64 leaves
-        /// every window 12-19% fast at the paper's size).
+        /// every window 12-19% fast at the paper's size, 96 does not).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().warm)]
         window_warm: u64,
         /// speed-error, windows: segment passes measured per window.

@@ -404,24 +404,26 @@ impl Default for SpeedErrorOpts {
 }
 
 /// The default time-sampling plan (chosen at the paper's size, docs/speed-error.md):
-/// the root pass over about 64 K rays; the first 16 segment passes of every
-/// wavefront; then 64 admissions measured after 128 of warm-up (two turnovers
-/// of the scene buffer's 64 slots) every 1024; the tail from 32 pending
-/// queues; four shading windows of 2048 items after 4096, after the first 16384.
+/// wavefronts 0, 1, 3 and the last traced in windows, the others borrowing
+/// their neighbours' ratios; in each, the root pass over about 64 K rays; the
+/// first 16 segment passes; then 64 admissions measured after 96 of warm-up
+/// (one and a half turnovers of the scene buffer's 64 slots) every 1024; the
+/// tail from 16 pending queues; two shading windows of 2048 items after 4096,
+/// after the first 16384.
 pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
         root_rays: 65536,
-        warm: 128,
+        warm: 96,
         measure: 64,
         every: 1024,
-        shade_windows: 4,
+        shade_windows: 2,
         shade_warm: 4096,
         shade_measure: 2048,
         shade_head: 16384,
-        tail_pending: 32,
+        tail_pending: 16,
         tail_warm: 0,
-        wave_every: 1,
+        wave_every: 2,
     }
 }
 
