@@ -621,6 +621,10 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     };
     let mut per_wave = Vec::new();
     let mut borrowers = Vec::new();
+    // Root windows (wavefront, counts, proxy), and the wavefronts whose root
+    // pass borrows from them.
+    let mut roots: Vec<(usize, [f64; WCOUNTS], [f64; WCOUNTS])> = Vec::new();
+    let mut root_borrowers = Vec::new();
     for (wave, segs) in rec.segs.iter().enumerate() {
         if !rec.measured.get(wave).copied().unwrap_or(true) {
             borrowers.push(wave);
@@ -644,12 +648,18 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
                 let root = window_counts(&smp.run, wb_j).map(|x| x * k);
                 add(&mut head, &root, 1.0);
                 if !segs.is_empty() {
-                    pool_part(0, wave, &root, &root_proxy(wave));
+                    roots.push((wave, root, root_proxy(wave)));
                 }
                 parts.push(part(wave, "root", 0, 1, &root));
             }
             // The window ends with the root pass (or before the children, if
             // its sample sent no ray on); the rest is measured after it.
+            head_end = 1;
+        }
+        if head_end == 0 && !segs.is_empty() {
+            // No root window here: the root pass is borrowed, the rest is
+            // measured after it all the same.
+            root_borrowers.push(wave);
             head_end = 1;
         }
         // The tail, measured to the end, as is.
@@ -793,18 +803,16 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         let head_end = (rec.head.max(1) as usize).min(n);
         let tail_start =
             (rec.tail_from.get(wave).copied().unwrap_or(n as u64) as usize).clamp(head_end, n);
+        if n > 0 {
+            root_borrowers.push(wave);
+        }
         let ranges = [
-            (0, "root", 0..n.min(1)),
             (1, "head", n.min(1)..head_end),
             (2, "rest", head_end..tail_start),
             (3, "tail", tail_start..n),
         ];
         for (k, name, r) in ranges {
-            let p = if k == 0 {
-                root_proxy(wave)
-            } else {
-                sum(&proxy[r.clone()])
-            };
+            let p = sum(&proxy[r.clone()]);
             if p[0] == 0.0 {
                 continue;
             }
@@ -825,6 +833,34 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
                 ..part(wave, name, r.start as u64, r.end as u64, &t)
             });
         }
+    }
+    // Borrowed root passes: by the rays, as the nearest root windows before and
+    // after (a root pass's cost per ray is the same in every wavefront after
+    // the first, shadow rays or not: 1.30-1.39 cycles per ray at the paper's
+    // size), the first's only if no other has one.
+    for &wave in &root_borrowers {
+        let near = |ok: &dyn Fn(usize) -> bool| {
+            let before = roots.iter().rev().find(|r| r.0 < wave && ok(r.0));
+            let after = roots.iter().find(|r| r.0 > wave && ok(r.0));
+            let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+            for r in before.into_iter().chain(after) {
+                add(&mut x, &r.1, 1.0);
+                add(&mut px, &r.2, 1.0);
+            }
+            (x, px)
+        };
+        let (x, px) = [near(&|v| v > 0), near(&|_| true)]
+            .into_iter()
+            .find(|(_, px)| px[0] > 0.0)
+            .ok_or_else(|| {
+                format!("time sampling: wavefront {wave} borrows its root pass, but no wavefront took a root window")
+            })?;
+        let t = scale(&root_proxy(wave), &x, &px);
+        add(&mut total, &t, 1.0);
+        parts.push(WindowPart {
+            borrowed: true,
+            ..part(wave, "root", 0, 1, &t)
+        });
     }
     parts.sort_by_key(|p| p.wave);
     // Shading passes: the head as is, the other items by the windows.

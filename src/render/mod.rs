@@ -110,7 +110,10 @@ pub struct WindowPlan {
     /// on (1: all). The others take no trace window: their root, head, rest and
     /// tail are their functional proxies times the ratios of the nearest
     /// measured wavefronts between the first and the last (their shading
-    /// passes keep their windows).
+    /// passes keep their windows). With `wave_every` above 1, root windows run
+    /// in the first, second and last wavefronts only, and the other roots go
+    /// by the rays of the nearest of those after the first: a root pass costs
+    /// the same per ray in every wavefront after the first.
     pub wave_every: u64,
 }
 
@@ -119,6 +122,11 @@ impl WindowPlan {
     /// windows (see `wave_every`).
     pub fn measures_wave(&self, wave: usize, last: usize) -> bool {
         wave == 0 || wave >= last || (wave as u64 - 1).is_multiple_of(self.wave_every.max(1))
+    }
+
+    /// Whether wavefront `wave` takes a root window (see `wave_every`).
+    pub fn measures_root(&self, wave: usize, last: usize) -> bool {
+        self.wave_every <= 1 || wave <= 1 || wave >= last
     }
 }
 
@@ -671,7 +679,7 @@ pub fn render(
                         return Ok(());
                     };
                     if k == 0 {
-                        if !measured {
+                        if !measured || !plan.measures_root(wave, last) {
                             return Ok(());
                         }
                         // The root pass (every ray of the wavefront): over one
