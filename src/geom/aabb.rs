@@ -159,6 +159,7 @@ impl Aabb {
 /// not NaN; otherwise None. The guarantee assumes `t_min >= 0` (as for a valid
 /// [`Ray`](super::Ray)). The entry distance itself is not rounded down: it is
 /// within gamma(3) (relative) of the exact entry.
+#[inline]
 pub fn ray_box(origin: Vec3, inv_dir: Vec3, t_min: f32, t_max: f32, b: &Aabb) -> Option<f32> {
     ray_box_generic(
         [origin.x, origin.y, origin.z],

@@ -148,13 +148,16 @@ pub fn traverse_segment(
                 let n = &seg.nodes[i as usize];
                 let lim = cull(best.t.min(t_ray));
                 counts.box_tests += 2;
-                let hit = [0, 1].map(|side| {
-                    let b = Aabb {
-                        min: n.bmin[side],
-                        max: n.bmax[side],
-                    };
-                    ray_box(origin, inv, 0.0, lim, &b)
-                });
+                // Two plain calls rather than an array map: the map's closure
+                // was not inlined, and it was a quarter of the functional frame.
+                let side = |k: usize| Aabb {
+                    min: n.bmin[k],
+                    max: n.bmax[k],
+                };
+                let hit = [
+                    ray_box(origin, inv, 0.0, lim, &side(0)),
+                    ray_box(origin, inv, 0.0, lim, &side(1)),
+                ];
                 // Push the far child first so the near one is visited first.
                 let order = match (hit[0], hit[1]) {
                     (Some(a), Some(b)) if b < a => [0, 1],
