@@ -260,6 +260,11 @@ enum Cmd {
         /// (as 8-bit sRGB).
         #[arg(long, requires = "reference")]
         reference_image: Option<PathBuf>,
+        /// speed-error, with --reference: that run's --pass-log CSV, to check
+        /// the windows mode's estimate part by part (a reference the bench
+        /// renders itself is checked so without it).
+        #[arg(long, requires = "reference")]
+        reference_passes: Option<PathBuf>,
         /// speed-error: write the rows as JSON here.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -744,6 +749,7 @@ fn run(cli: Cli) -> Result<(), String> {
             window_log,
             reference,
             reference_image,
+            reference_passes,
             json,
             plot,
         } => {
@@ -759,12 +765,14 @@ fn run(cli: Cli) -> Result<(), String> {
                     (sc.settings.width, sc.settings.height) = parse_res(&res)?;
                     sc.settings.validate()?;
                     let reference = match &reference {
-                        Some(p) => Some(se::Reference::load(
-                            p,
-                            reference_image.as_deref(),
-                            &sc,
-                            &config,
-                        )?),
+                        Some(p) => {
+                            let mut r =
+                                se::Reference::load(p, reference_image.as_deref(), &sc, &config)?;
+                            if let Some(csv) = &reference_passes {
+                                r.read_passes(csv)?;
+                            }
+                            Some(r)
+                        }
                         None => None,
                     };
                     let opts = se::SpeedErrorOpts {
@@ -801,6 +809,9 @@ fn run(cli: Cli) -> Result<(), String> {
                         config.tm.tps
                     );
                     print!("{}", se::table(&rows));
+                    for r in rows.iter().filter(|r| !r.by_part.is_empty()) {
+                        print!("{}", se::part_table(&r.by_part));
+                    }
                     if let Some(p) = json {
                         let text =
                             serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;

@@ -53,6 +53,9 @@ pub struct ModeResult {
     /// cycles, lines and energy, where it has one (sampled modes).
     pub est_err: Option<[f64; 3]>,
     pub note: String,
+    /// `windows` with a reference pass log: the estimate by part against it.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub by_part: Vec<PartCheck>,
 }
 
 /// A first-order timing estimate of a functional frame: per wavefront the largest
@@ -250,6 +253,123 @@ pub struct Reference {
     pub rays: u64,
     /// The reference's PNG (8-bit sRGB, row-major RGB), when given.
     pub rgb8: Option<Vec<u8>>,
+    /// Per chip run: its shading pass's cycles, and (from its pass log) its
+    /// segment passes' admission cycles in admission order and its last
+    /// retirement. For the `windows` mode's check by part.
+    pub shade_cycles: Vec<u64>,
+    pub passes: Option<Vec<RunPasses>>,
+}
+
+/// One chip run of a reference's pass log: admission cycles in order, last
+/// retirement.
+#[derive(Clone, Debug, Default)]
+pub struct RunPasses {
+    pub admits: Vec<u64>,
+    pub end: u64,
+}
+
+impl RunPasses {
+    /// The reference's cycles of the admissions `first..end` (`end` past the
+    /// last: to the run's last retirement).
+    fn span(&self, first: u64, end: u64) -> f64 {
+        let at = |k: u64| {
+            self.admits
+                .get(k as usize)
+                .copied()
+                .unwrap_or(self.end)
+                .max(self.admits.first().copied().unwrap_or(0))
+        };
+        at(end).saturating_sub(at(first)) as f64
+    }
+
+    fn of_frame(f: &Frame) -> Vec<RunPasses> {
+        f.passes
+            .iter()
+            .map(|run| {
+                let mut admits: Vec<u64> = run.iter().map(|p| p.admit).collect();
+                admits.sort_unstable();
+                RunPasses {
+                    admits,
+                    end: run.iter().map(|p| p.retire).max().unwrap_or(0),
+                }
+            })
+            .collect()
+    }
+}
+
+/// One part of the `windows` estimate next to the reference's (with a pass log).
+#[derive(Clone, Debug, Serialize)]
+pub struct PartCheck {
+    pub wave: usize,
+    pub part: &'static str,
+    pub first: u64,
+    pub end: u64,
+    pub borrowed: bool,
+    pub cycles: f64,
+    pub ref_cycles: f64,
+    pub err: f64,
+}
+
+/// Each trace and shading part of a `windows` estimate against the reference:
+/// a trace part's reference cycles are those between the admissions that bound
+/// it in the reference's run of that wavefront (a part's passes overlap the
+/// next part's, as a pass lives for about 64 admissions), a shading pass's are
+/// the reference's shading cycles of the next run. Empty without a pass log.
+pub fn check_parts(parts: &[WindowPart], r: &Reference) -> Vec<PartCheck> {
+    let Some(runs) = &r.passes else {
+        return Vec::new();
+    };
+    parts
+        .iter()
+        .filter_map(|p| {
+            let refc = match p.part {
+                "shade" => *r.shade_cycles.get(p.wave + 1)? as f64,
+                "emit" => return None,
+                _ => runs.get(p.wave)?.span(p.first, p.end),
+            };
+            Some(PartCheck {
+                wave: p.wave,
+                part: p.part,
+                first: p.first,
+                end: p.end,
+                borrowed: p.borrowed,
+                cycles: p.cycles,
+                ref_cycles: refc,
+                err: if refc > 0.0 {
+                    p.cycles / refc - 1.0
+                } else {
+                    0.0
+                },
+            })
+        })
+        .collect()
+}
+
+/// [`check_parts`] as a table.
+pub fn part_table(checks: &[PartCheck]) -> String {
+    use std::fmt::Write;
+    let mut s = String::from(
+        "by part (windows against the reference's pass log):\nwave  part   admissions      estimate     reference      err\n",
+    );
+    for c in checks {
+        let span = if c.part == "shade" {
+            "-".to_string()
+        } else {
+            format!("{}..{}", c.first, c.end)
+        };
+        let _ = writeln!(
+            s,
+            "{:>4}  {:<5}  {:<11}  {:>12.0}  {:>12.0}  {:>+6.1}%{}",
+            c.wave,
+            c.part,
+            span,
+            c.cycles,
+            c.ref_cycles,
+            100.0 * c.err,
+            if c.borrowed { "  borrowed" } else { "" }
+        );
+    }
+    s
 }
 
 impl Reference {
@@ -347,7 +467,58 @@ impl Reference {
             wall_s: num("/wall_s")?,
             rays: num("/total/rays")? as u64,
             rgb8,
+            shade_cycles: v
+                .pointer("/chip/waves")
+                .and_then(|w| w.as_array())
+                .map(|w| {
+                    w.iter()
+                        .map(|x| x["shade_cycles"].as_u64().unwrap_or(0))
+                        .collect()
+                })
+                .unwrap_or_default(),
+            passes: None,
         })
+    }
+
+    /// Reads the reference's pass log (`render --mode cycle --pass-log`), for
+    /// the `windows` mode's check by part.
+    pub fn read_passes(&mut self, csv: &Path) -> Result<(), String> {
+        let name = csv.display();
+        let text = std::fs::read_to_string(csv)
+            .map_err(|e| format!("cannot read the reference's pass log '{name}': {e}"))?;
+        let mut runs: Vec<RunPasses> = Vec::new();
+        for (i, line) in text.lines().enumerate().skip(1) {
+            let f: Vec<u64> = line
+                .split(',')
+                .map(|x| x.trim().parse::<u64>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| {
+                    format!("the pass log '{name}', line {}: '{line}' is not run,segment,rays,admit,retire; give the file `render --pass-log` wrote", i + 1)
+                })?;
+            let [run, _, _, admit, retire] = f[..] else {
+                return Err(format!(
+                    "the pass log '{name}', line {}: {} fields, not 5 (run,segment,rays,admit,retire)",
+                    i + 1,
+                    f.len()
+                ));
+            };
+            let run = run as usize;
+            if runs.len() <= run {
+                runs.resize_with(run + 1, RunPasses::default);
+            }
+            runs[run].admits.push(admit);
+            runs[run].end = runs[run].end.max(retire);
+        }
+        if runs.is_empty() {
+            return Err(format!(
+                "the pass log '{name}' holds no segment pass; give the file `render --mode cycle --pass-log` wrote"
+            ));
+        }
+        for r in &mut runs {
+            r.admits.sort_unstable();
+        }
+        self.passes = Some(runs);
+        Ok(())
     }
 }
 
@@ -919,6 +1090,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             parts.push(part(0, "emit", 0, 0, &e));
         }
     }
+    // Wavefront by wavefront, its trace parts in admission order, then its
+    // shading pass; the ray generation last.
+    parts.sort_by_key(|p| (p.part == "emit", p.wave, p.part == "shade", p.first));
     // On-chip energy: the functional frame's traversal with the estimated global
     // units' activity, as a cycle frame would have it.
     let mut g = f.clone();
@@ -1017,7 +1191,10 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
     let (rendered, r) = match &o.reference {
         Some(r) => (None, r.clone()),
         None => {
-            let f = render_pixels(scene, Mode::Cycle, &gddr5, None, t)?;
+            // With its pass log, for the windows mode's check by part.
+            let mut rc = render_cfg(&gddr5, None, t);
+            rc.pass_log = true;
+            let f = render::render(scene, Mode::Cycle, &rc, &mut |_| {})?;
             let cycles = f.chip.as_ref().map_or(0, |c| c.total_cycles) as f64;
             let r = Reference {
                 cycles,
@@ -1026,6 +1203,12 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                 wall_s: f.wall_s,
                 rays: f.total.rays,
                 rgb8: None,
+                shade_cycles: f
+                    .chip
+                    .as_ref()
+                    .map(|c| c.waves.iter().map(|w| w.shade_cycles).collect())
+                    .unwrap_or_default(),
+                passes: Some(RunPasses::of_frame(&f)),
             };
             (Some(f), r)
         }
@@ -1090,6 +1273,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             image_identical: same,
             est_err,
             note: note.into(),
+            by_part: Vec::new(),
         })
     };
     push(
@@ -1280,14 +1464,17 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             breakdown: parts,
         } = windowed_parts(&gddr5, &f)?;
         let rec = f.windows.as_ref().expect("rendered with windows");
+        let checks = check_parts(&parts, &r);
         if let Some(path) = &o.window_log {
             #[derive(Serialize)]
             struct Log<'a> {
                 parts: &'a [WindowPart],
+                checks: &'a [PartCheck],
                 record: &'a render::WindowRecord,
             }
             let log = Log {
                 parts: &parts,
+                checks: &checks,
                 record: rec,
             };
             let text = serde_json::to_string(&log).expect("window log serialises");
@@ -1326,6 +1513,9 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                 wp.shade_warm
             ),
         );
+        if let Some(row) = out.last_mut() {
+            row.by_part = checks;
+        }
     }
     Ok(out)
 }

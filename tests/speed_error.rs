@@ -250,6 +250,10 @@ fn reference_files(
         })),
         ..Default::default()
     };
+    let rc = RenderCfg {
+        pass_log: true,
+        ..rc
+    };
     let mut f = render::render(s, Mode::Cycle, &rc, &mut |_| {}).unwrap();
     f.energy = Some(dualstream::energy::frame_energy(&g, &f));
     let dir = std::env::temp_dir().join(format!("ds-se-ref-{}-{tag}", std::process::id()));
@@ -257,6 +261,8 @@ fn reference_files(
     let (j, p) = (dir.join("ref.json"), dir.join("ref.png"));
     render::output::write_json(&f, &j).unwrap();
     render::output::write_png(&f, &p).unwrap();
+    // Beside them, as `render --pass-log passes.csv` writes it.
+    render::output::write_pass_log(&f, &dir.join("passes.csv")).unwrap();
     (j, p)
 }
 
@@ -639,6 +645,22 @@ fn windows_that_cover_the_frame_agree_with_the_cycle_model() {
         assert!(e.abs() < 0.03, "{what}: {e:+.4}");
     }
     assert_eq!(w.image_identical, Some(true));
+    // The reference rendered here carries its pass log: every wavefront's root
+    // and head (the whole trace, with this plan) and every shading pass are
+    // checked against it, and together they are the reference's trace and
+    // shading cycles within the window's error.
+    assert!(rows[0].by_part.is_empty(), "the reference row has no parts");
+    let by = &w.by_part;
+    let n = by.iter().filter(|c| c.part == "root").count();
+    assert!(n >= 2, "{by:?}");
+    assert_eq!(by.iter().filter(|c| c.part == "shade").count(), n);
+    for c in by {
+        assert!(c.ref_cycles > 0.0, "{c:?}");
+        assert!(!c.borrowed);
+    }
+    let est: f64 = by.iter().map(|c| c.cycles).sum();
+    let refc: f64 = by.iter().map(|c| c.ref_cycles).sum();
+    assert!((est / refc - 1.0).abs() < 0.05, "{est} against {refc}");
 }
 
 /// `wave_every`: a wavefront between the first and the last traced in no window
@@ -669,7 +691,11 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
                 modes: Some(vec!["windows".into()]),
                 windows: plan,
                 window_log: Some(log.clone()),
-                reference: Some(Reference::load(&j, Some(&png), &s, &c).unwrap()),
+                reference: Some({
+                    let mut r = Reference::load(&j, Some(&png), &s, &c).unwrap();
+                    r.read_passes(&dir.join("passes.csv")).unwrap();
+                    r
+                }),
                 ..SpeedErrorOpts::default()
             },
         )
@@ -678,6 +704,12 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
             serde_json::from_str(&std::fs::read_to_string(&log).unwrap()).unwrap();
         (rows[1].clone(), v)
     };
+    // A pass log that is not one is refused with what to give instead.
+    let bad = dir.join("bad.csv");
+    std::fs::write(&bad, "run,segment,rays,admit,retire\n0,1,2,three,4\n").unwrap();
+    let mut r = Reference::load(&j, None, &s, &c).unwrap();
+    let e = r.read_passes(&bad).unwrap_err();
+    assert!(e.contains("line 2") && e.contains("--pass-log"), "{e}");
     let (all, va) = estimate(1);
     let (some, vs) = estimate(2);
     // Waves 0..=4: 0 (primary), 1 and 3 (every second from 1) and 4 (the last,
@@ -757,4 +789,21 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
         );
     }
     assert_eq!(some.image_identical, Some(true));
+    // Checked part by part against the reference's pass log, borrowed parts
+    // marked; the sum of the parts is the frame's estimate but for emission.
+    let by = &some.by_part;
+    assert!(
+        by.iter()
+            .any(|p| p.borrowed && p.wave == 2 && p.part == "rest")
+    );
+    assert!(
+        by.iter()
+            .any(|p| !p.borrowed && p.wave == 3 && p.part == "rest")
+    );
+    for p in by {
+        assert!(p.ref_cycles > 0.0 || p.part == "head", "{p:?}");
+    }
+    let sum: f64 = by.iter().map(|p| p.ref_cycles).sum();
+    let frame = some.cycles / (1.0 + some.err_cycles);
+    assert!(sum > 0.8 * frame && sum <= frame, "{sum} of {frame}");
 }
