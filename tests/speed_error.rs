@@ -677,13 +677,16 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
     s.settings.bounces = 4;
     let (j, png) = reference_files(&s, &c, "borrowed");
     let dir = j.parent().unwrap().to_path_buf();
-    let estimate = |wave_every: u64| {
+    let estimate_with = |wave_every: u64, root_rays: u64| {
         let mut plan = windows_plan(4, 6);
         plan.warm = 2;
         plan.measure = 6;
         plan.tail_pending = 2;
         plan.wave_every = wave_every;
-        let log = dir.join(format!("w{wave_every}.json"));
+        // Root windows on a sample of each root pass (a pass no longer than a
+        // root window is simulated whole, never borrowed).
+        plan.root_rays = root_rays;
+        let log = dir.join(format!("w{wave_every}-{root_rays}.json"));
         let rows = run(
             &s,
             &c,
@@ -704,6 +707,7 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
             serde_json::from_str(&std::fs::read_to_string(&log).unwrap()).unwrap();
         (rows[1].clone(), v)
     };
+    let estimate = |wave_every: u64| estimate_with(wave_every, 64);
     // A pass log that is not one is refused with what to give instead.
     let bad = dir.join("bad.csv");
     std::fs::write(&bad, "run,segment,rays,admit,retire\n0,1,2,three,4\n").unwrap();
@@ -746,6 +750,10 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
     for w in [0, 1, 4] {
         assert_eq!(kinds(&vs, w), kinds(&va, w), "wave {w}");
     }
+    // Root windows that hold a whole root pass: every measured wavefront
+    // takes its own.
+    let (_, whole) = estimate_with(2, u64::MAX);
+    assert!(kinds(&whole, 3).contains(&"Root".to_string()));
     // Wave 2's parts are borrowed, the others' not; each borrowed part near
     // what wave 2's windows measured, and together the same passes.
     let parts = |v: &serde_json::Value, wave: u64| -> Vec<(String, f64, bool)> {

@@ -113,9 +113,18 @@ pub struct WindowPlan {
     /// passes keep their windows). With `wave_every` above 1, root windows run
     /// in the first, second and last wavefronts only, and the other roots go
     /// by the rays of the nearest of those after the first: a root pass costs
-    /// the same per ray in every wavefront after the first.
+    /// the same per ray in every wavefront after the first (once the root pass
+    /// is longer than a root window). A wavefront whose rays differ from the
+    /// last measured one's by more than [`BORROW_ALIKE`] is measured all the
+    /// same (trace, and root).
     pub wave_every: u64,
 }
+
+/// Time sampling borrows for a wavefront (its trace or its root pass) only if
+/// its rays are within this fraction of the last measured one's: the ratios it
+/// borrows were measured at that load, and a wavefront with fewer rays is more
+/// latency-bound (Dragon Box: every bounce wavefront within 3% of the next).
+pub const BORROW_ALIKE: f64 = 0.1;
 
 impl WindowPlan {
     /// Whether wavefront `wave` of a frame whose last is `last` is traced in
@@ -636,6 +645,9 @@ pub fn render(
         win.emit_window(&p, rays)?;
     }
 
+    // Time sampling: the rays of the last wavefront traced in windows and of the
+    // last that took a root window (see `BORROW_ALIKE`).
+    let (mut traced_rays, mut rooted_rays): (Option<u64>, Option<u64>) = (None, None);
     while !work.is_empty() {
         let mut prog = Progress {
             wave: waves.len(),
@@ -655,10 +667,8 @@ pub fn render(
                 let mut tail_started = false;
                 let mut tail_from = None;
                 let last = scene.settings.bounces as usize;
-                let measured = cfg
-                    .windows
-                    .as_ref()
-                    .is_some_and(|w| w.measures_wave(wave, last));
+                // Decided at the root pass, from the wavefront's rays.
+                let mut measured = true;
                 let mut prev: Option<(u32, u64, WorkSoFar)> = None;
                 let mut hook = |s: u32,
                                 p: &mut Prepared,
@@ -679,9 +689,30 @@ pub fn render(
                         return Ok(());
                     };
                     if k == 0 {
-                        if !measured || !plan.measures_root(wave, last) {
+                        // Borrowing needs neighbours alike: a wavefront whose rays
+                        // differ from the last measured one's by more than
+                        // `BORROW_ALIKE` is measured (an open scene's wavefronts
+                        // shrink, and a smaller one is more latency-bound).
+                        let rays = q.len(s);
+                        let alike = |m: Option<u64>| {
+                            m.is_some_and(|m| rays.abs_diff(m) as f64 <= BORROW_ALIKE * m as f64)
+                        };
+                        measured = plan.measures_wave(wave, last) || !alike(traced_rays);
+                        // A root pass no longer than a root window is simulated
+                        // whole: cheap, and latency-bound, so its cost per ray is
+                        // not its neighbours' (Cornell box 64x64: borrowed roots
+                        // 18-34% high).
+                        let root = measured
+                            && (plan.measures_root(wave, last)
+                                || !alike(rooted_rays)
+                                || rays <= plan.root_rays);
+                        if measured {
+                            traced_rays = Some(rays);
+                        }
+                        if !root {
                             return Ok(());
                         }
+                        rooted_rays = Some(rays);
                         // The root pass (every ray of the wavefront): over one
                         // bucket in `every`, about `root_rays` rays.
                         let rpb = q.rays_per_bucket() as u64;
