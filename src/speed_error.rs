@@ -297,6 +297,11 @@ impl RunPasses {
     }
 }
 
+/// Signed relative error of `x` against the reference `r` (0 for a zero reference).
+fn rel(x: f64, r: f64) -> f64 {
+    if r == 0.0 { 0.0 } else { (x - r) / r }
+}
+
 /// One part of the `windows` estimate next to the reference's (with a pass log).
 #[derive(Clone, Debug, Serialize)]
 pub struct PartCheck {
@@ -335,11 +340,7 @@ pub fn check_parts(parts: &[WindowPart], r: &Reference) -> Vec<PartCheck> {
                 borrowed: p.borrowed,
                 cycles: p.cycles,
                 ref_cycles: refc,
-                err: if refc > 0.0 {
-                    p.cycles / refc - 1.0
-                } else {
-                    0.0
-                },
+                err: rel(p.cycles, refc),
             })
         })
         .collect()
@@ -739,10 +740,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             t[i] += x[i] * k;
         }
     };
-    // Pooled over the frame, for a wavefront too short to hold a window.
-    let (mut pool_x, mut pool_p) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
     // Per measured wavefront, per trace part (root, head, rest, tail), the
-    // measured counts and their proxies, for the wavefronts that borrow them.
+    // measured counts and their proxies, for the wavefronts (or root passes)
+    // that borrow them, and pooled for a wavefront too short to hold a window.
     type Pair = ([f64; WCOUNTS], [f64; WCOUNTS]);
     let mut measured: Vec<(usize, [Pair; 4])> = Vec::new();
     let mut pool_part = |k: usize, wave: usize, x: &[f64; WCOUNTS], px: &[f64; WCOUNTS]| {
@@ -792,9 +792,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     };
     let mut per_wave = Vec::new();
     let mut borrowers = Vec::new();
-    // Root windows (wavefront, counts, proxy), and the wavefronts whose root
-    // pass borrows from them.
-    let mut roots: Vec<(usize, [f64; WCOUNTS], [f64; WCOUNTS])> = Vec::new();
+    // The wavefronts whose root pass borrows.
     let mut root_borrowers = Vec::new();
     for (wave, segs) in rec.segs.iter().enumerate() {
         if !rec.measured.get(wave).copied().unwrap_or(true) {
@@ -819,7 +817,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
                 let root = window_counts(&smp.run, wb_j).map(|x| x * k);
                 add(&mut head, &root, 1.0);
                 if !segs.is_empty() {
-                    roots.push((wave, root, root_proxy(wave)));
+                    pool_part(0, wave, &root, &root_proxy(wave));
                 }
                 parts.push(part(wave, "root", 0, 1, &root));
             }
@@ -897,10 +895,28 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             px,
             ratios,
         });
-        add(&mut pool_x, &x, 1.0);
-        add(&mut pool_p, &px, 1.0);
         pool_part(2, wave, &x, &px);
     }
+    // Part `k` summed over the measured wavefronts that have it and pass `ok`:
+    // the nearest before and after `wave` (`all`: every one).
+    let nearest = |k: usize, wave: usize, all: bool, ok: &dyn Fn(usize) -> bool| {
+        let has = |m: &&(usize, [Pair; 4])| m.1[k].1[0] > 0.0 && ok(m.0);
+        let picked: Vec<&(usize, [Pair; 4])> = if all {
+            measured.iter().filter(has).collect()
+        } else {
+            let before = measured.iter().rev().filter(|m| m.0 < wave).find(has);
+            let after = measured.iter().filter(|m| m.0 > wave).find(has);
+            before.into_iter().chain(after).collect()
+        };
+        let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+        for m in picked {
+            add(&mut x, &m.1[k].0, 1.0);
+            add(&mut px, &m.1[k].1, 1.0);
+        }
+        (px[0] > 0.0).then_some((x, px))
+    };
+    // Pooled over the frame, for a wavefront too short to hold a window.
+    let (pool_x, pool_p) = nearest(2, 0, true, &|_| true).unwrap_or_default();
     // Each count of the rest scaled from windows `x` with proxies `px`: each by
     // its own proxy, the cycles' where the windows saw none of it.
     let scale = |rest: &[f64; WCOUNTS], x: &[f64; WCOUNTS], px: &[f64; WCOUNTS]| {
@@ -956,19 +972,6 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     // there are such; else any).
     for &wave in &borrowers {
         let middle = |v: usize| v > 0 && v < rec.final_wave;
-        let pick = |ok: &dyn Fn(usize) -> bool| {
-            let before = measured.iter().rev().find(|m| m.0 < wave && ok(m.0));
-            let after = measured.iter().find(|m| m.0 > wave && ok(m.0));
-            let mut t = [([0.0; WCOUNTS], [0.0; WCOUNTS]); 4];
-            for m in before.into_iter().chain(after) {
-                for (t, (x, px)) in t.iter_mut().zip(&m.1) {
-                    add(&mut t.0, x, 1.0);
-                    add(&mut t.1, px, 1.0);
-                }
-            }
-            t
-        };
-        let pooled = [pick(&middle), pick(&|_| true)];
         let (segs, proxy) = (&rec.segs[wave], &proxies[wave]);
         let n = segs.len();
         let head_end = (rec.head.max(1) as usize).min(n);
@@ -989,9 +992,10 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             }
             // The measured wavefronts' part, else (never measured: a tail no
             // measured wavefront had, a head of one admission) their rest.
-            let Some((x, px)) = [pooled[0][k], pooled[1][k], pooled[0][2], pooled[1][2]]
-                .into_iter()
-                .find(|(_, px)| px[0] > 0.0)
+            let Some((x, px)) = nearest(k, wave, false, &middle)
+                .or_else(|| nearest(k, wave, false, &|_| true))
+                .or_else(|| nearest(2, wave, false, &middle))
+                .or_else(|| nearest(2, wave, false, &|_| true))
             else {
                 return Err(format!(
                     "time sampling: wavefront {wave} borrows the measured wavefronts' ratios, but none was measured; lower --window-waves"
@@ -1010,19 +1014,8 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     // the first, shadow rays or not: 1.30-1.39 cycles per ray at the paper's
     // size), the first's only if no other has one.
     for &wave in &root_borrowers {
-        let near = |ok: &dyn Fn(usize) -> bool| {
-            let before = roots.iter().rev().find(|r| r.0 < wave && ok(r.0));
-            let after = roots.iter().find(|r| r.0 > wave && ok(r.0));
-            let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
-            for r in before.into_iter().chain(after) {
-                add(&mut x, &r.1, 1.0);
-                add(&mut px, &r.2, 1.0);
-            }
-            (x, px)
-        };
-        let (x, px) = [near(&|v| v > 0), near(&|_| true)]
-            .into_iter()
-            .find(|(_, px)| px[0] > 0.0)
+        let (x, px) = nearest(0, wave, false, &|v| v > 0)
+            .or_else(|| nearest(0, wave, false, &|_| true))
             .ok_or_else(|| {
                 format!("time sampling: wavefront {wave} borrows its root pass, but no wavefront took a root window")
             })?;
@@ -1033,7 +1026,6 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             ..part(wave, "root", 0, 1, &t)
         });
     }
-    parts.sort_by_key(|p| p.wave);
     // Shading passes: the head as is, the other items by the windows.
     let passes = rec
         .samples
@@ -1252,7 +1244,6 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         }
         Ok(())
     };
-    let rel = |x: f64, r: f64| if r == 0.0 { 0.0 } else { (x - r) / r };
     let mut out = Vec::new();
     let mut push = |mode: &str,
                     wall: f64,

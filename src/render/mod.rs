@@ -567,7 +567,7 @@ pub fn render(
                         .into(),
                 );
             }
-            Some(windows::Windows::new(
+            let mut w = windows::Windows::new(
                 plan.clone(),
                 c,
                 p.map.clone(),
@@ -575,7 +575,9 @@ pub fn render(
                 nseg,
                 run.sim,
                 pixels,
-            )?)
+            )?;
+            w.rec.final_wave = scene.settings.bounces as usize;
+            Some(w)
         }
     };
     // Cycle mode with shading on the TPs: every chip run after the first shades the
@@ -782,7 +784,6 @@ pub fn render(
                         .tail_from
                         .push(tail_from.map_or(segs.len() as u64, |t| t.min(segs.len() as u64)));
                     w.rec.measured.push(measured);
-                    w.rec.final_wave = last;
                     w.rec.segs.push(segs);
                     let pool = q.boundary(&p.map);
                     w.shade_windows(&p, wave, pixels, &pool)?;
@@ -1068,7 +1069,7 @@ impl WindowPlan {
         }
         if self.wave_every == 0 {
             return Err(
-                "--window-waves 0: every wavefront would borrow and none be measured; use 1 to trace every wavefront in windows, N to trace every N-th".into(),
+                "--window-waves 0 has no period: use 1 to trace every wavefront in windows, N to trace the first, the last and every N-th from the second".into(),
             );
         }
         if self.root_rays < 4 {
