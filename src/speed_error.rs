@@ -928,7 +928,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     // Cycles, lines and DRAM energy of a scaled rest.
     let figs = |t: &[f64; WCOUNTS]| [t[0], t[1] + t[2] + t[3] + t[4], t[5]];
     let mut var = [0.0; 3];
-    let mut se_known = true;
+    // The spread is the rest windows'; with none (every wavefront simulated
+    // whole) there is nothing to spread.
+    let mut se_known = per_wave.iter().any(|w| w.proxy[0] > 0.0);
     for w in &per_wave {
         let (rest, x, px) = (&w.proxy, &w.x, &w.px);
         if rest[0] == 0.0 {
@@ -974,7 +976,14 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         let middle = |v: usize| v > 0 && v < rec.final_wave;
         let (segs, proxy) = (&rec.segs[wave], &proxies[wave]);
         let n = segs.len();
-        let head_end = (rec.head.max(1) as usize).min(n);
+        // A wavefront too short for a window is one part after its root, as in
+        // its measured neighbours.
+        let whole = rec.whole.get(wave).copied().unwrap_or(false);
+        let head_end = if whole {
+            n
+        } else {
+            (rec.head.max(1) as usize).min(n)
+        };
         let tail_start =
             (rec.tail_from.get(wave).copied().unwrap_or(n as u64) as usize).clamp(head_end, n);
         if n > 0 {
@@ -991,11 +1000,14 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
                 continue;
             }
             // The measured wavefronts' part, else (never measured: a tail no
-            // measured wavefront had, a head of one admission) their rest.
-            let Some((x, px)) = nearest(k, wave, false, &middle)
-                .or_else(|| nearest(k, wave, false, &|_| true))
-                .or_else(|| nearest(2, wave, false, &middle))
-                .or_else(|| nearest(2, wave, false, &|_| true))
+            // measured wavefront had, a head of one admission) their rest,
+            // else their head (all of a wavefront simulated whole).
+            let Some((x, px)) = [k, 2, 1]
+                .into_iter()
+                .flat_map(|j| [(j, true), (j, false)])
+                .find_map(|(j, mid)| {
+                    nearest(j, wave, false, if mid { &middle } else { &|_| true })
+                })
             else {
                 return Err(format!(
                     "time sampling: wavefront {wave} borrows the measured wavefronts' ratios, but none was measured; lower --window-waves"

@@ -815,3 +815,131 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
     let frame = some.cycles / (1.0 + some.err_cycles);
     assert!(sum > 0.8 * frame && sum <= frame, "{sum} of {frame}");
 }
+
+/// A wavefront with no more passes than where the plan's first measured
+/// stretch would start holds no window: it is simulated whole after its root
+/// pass (one head window to its end, no rest or tail), a borrowed one is one
+/// part after its root like its neighbours, and the frame is estimated instead
+/// of refused (Dabrovic Sponza: about 130 passes a wavefront against the
+/// default plan's first window at admission 1040).
+#[test]
+fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
+    use dualstream::render::SampleKind;
+    use dualstream::speed_error::Reference;
+    let (mut s, mut c) = cornell_in_rows();
+    s.settings.bounces = 4;
+    // An L2 smaller than a pass's hit records, as at the paper's size (see
+    // `windows_that_cover_the_frame_agree_with_the_cycle_model`).
+    c.chip.l2.bytes = 2048;
+    c.chip.l2.banks = 4;
+    let (j, png) = reference_files(&s, &c, "whole");
+    let dir = j.parent().unwrap().to_path_buf();
+    let estimate = |every: u64| {
+        let mut plan = windows_plan(4, every);
+        plan.warm = 3;
+        plan.measure = 6;
+        plan.tail_pending = 2;
+        plan.wave_every = 2;
+        let log = dir.join(format!("w{every}.json"));
+        let rows = run(
+            &s,
+            &c,
+            &SpeedErrorOpts {
+                modes: Some(vec!["windows".into()]),
+                windows: plan,
+                window_log: Some(log.clone()),
+                reference: Some({
+                    let mut r = Reference::load(&j, Some(&png), &s, &c).unwrap();
+                    r.read_passes(&dir.join("passes.csv")).unwrap();
+                    r
+                }),
+                ..SpeedErrorOpts::default()
+            },
+        )
+        .unwrap();
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&log).unwrap()).unwrap();
+        (rows[1].clone(), v)
+    };
+    // The first measured stretch starts at admission 10 with windows every 6
+    // (these wavefronts have about 27 passes), at 1004 with every 1000.
+    let (_, vf) = estimate(6);
+    let (short, vs) = estimate(1000);
+    assert!(
+        vf["record"]["whole"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|w| w == false)
+    );
+    assert!(
+        vs["record"]["whole"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|w| w == true)
+    );
+    let rec: Vec<(u64, String, u64, bool, u64)> = vs["record"]["samples"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| {
+            (
+                x["wave"].as_u64().unwrap(),
+                x["kind"].as_str().unwrap().to_string(),
+                x["first"].as_u64().unwrap(),
+                x["run"]["ended"].as_bool().unwrap(),
+                x["run"]["marks"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    let segs = vs["record"]["segs"].as_array().unwrap();
+    for (wave, measured) in vs["record"]["measured"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .enumerate()
+    {
+        let trace: Vec<_> = rec
+            .iter()
+            .filter(|r| r.0 == wave as u64 && (r.1 == "Trace" || r.1 == "Tail"))
+            .collect();
+        let passes = segs[wave].as_array().unwrap().len() as u64;
+        if measured.as_bool().unwrap() && passes > 1 {
+            // One window from the second admission to the wavefront's end.
+            assert_eq!(trace.len(), 1, "wave {wave}: {trace:?}");
+            let t = trace[0];
+            assert_eq!(t.1, format!("{:?}", SampleKind::Trace));
+            assert_eq!((t.2, t.3, t.4), (1, true, passes - 1), "wave {wave}");
+        } else {
+            assert!(trace.is_empty(), "wave {wave}: {trace:?}");
+        }
+    }
+    // Parts: a root and a head to the end in every wavefront, borrowed in
+    // wave 2 alike.
+    for p in vs["parts"].as_array().unwrap() {
+        let part = p["part"].as_str().unwrap();
+        assert!(
+            ["root", "head", "shade", "emit"].contains(&part),
+            "{part} in a wavefront simulated whole"
+        );
+        if part == "head" {
+            let wave = p["wave"].as_u64().unwrap() as usize;
+            assert_eq!(
+                p["end"].as_u64().unwrap() as usize,
+                segs[wave].as_array().unwrap().len()
+            );
+            assert_eq!(p["borrowed"].as_bool().unwrap(), wave == 2);
+        }
+    }
+    // Close to the reference: all but the borrowed wavefront is simulated.
+    for (what, e) in [
+        ("cycles", short.err_cycles),
+        ("lines", short.err_lines),
+        ("energy", short.err_energy),
+    ] {
+        assert!(e.abs() < 0.05, "{what}: whole {e:+.4}");
+    }
+    assert_eq!(short.image_identical, Some(true));
+    assert!(short.est_err.is_none(), "no rest windows, no spread");
+}

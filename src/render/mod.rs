@@ -133,6 +133,19 @@ impl WindowPlan {
         wave == 0 || wave >= last || (wave as u64 - 1).is_multiple_of(self.wave_every.max(1))
     }
 
+    /// The admission where a wavefront's first measured stretch starts: a
+    /// wavefront with no more passes holds no window, so it is simulated whole
+    /// after its root pass (its passes are guessed from the last wavefront's,
+    /// or from the segments for the first).
+    pub fn first_window_start(&self) -> u64 {
+        // A window starts at admission k >= 1 (>= 2 after a head window) with
+        // k + warm - head a multiple of `every` (see `render`'s hook).
+        let k_min = if self.head > 1 { 2 } else { 1 };
+        let lo = (k_min + self.warm).saturating_sub(self.head);
+        self.head
+            .saturating_add(lo.div_ceil(self.every.max(1)).saturating_mul(self.every))
+    }
+
     /// Whether wavefront `wave` takes a root window (see `wave_every`).
     pub fn measures_root(&self, wave: usize, last: usize) -> bool {
         self.wave_every <= 1 || wave <= 1 || wave >= last
@@ -208,6 +221,10 @@ pub struct WindowRecord {
     /// and the first admission of its tail (its pass count if it has none).
     pub measured: Vec<bool>,
     pub tail_from: Vec<u64>,
+    /// Per wavefront: whether it was too short to hold a window after its head
+    /// (`WindowPlan::first_window_start`), so simulated whole after its root pass
+    /// (borrowed: its part after the root is one, like its neighbours').
+    pub whole: Vec<bool>,
     /// The frame's last possible wavefront (the shadow rays of the paths' last
     /// hit points: the bounce count).
     pub final_wave: usize,
@@ -671,6 +688,9 @@ pub fn render(
                 let last = scene.settings.bounces as usize;
                 // Decided at the root pass, from the wavefront's rays.
                 let mut measured = true;
+                // Decided there too: a wavefront too short to hold a window
+                // after its head is simulated whole from its second admission.
+                let mut whole = false;
                 let mut prev: Option<(u32, u64, WorkSoFar)> = None;
                 let mut hook = |s: u32,
                                 p: &mut Prepared,
@@ -711,6 +731,10 @@ pub fn render(
                         if measured {
                             traced_rays = Some(rays);
                         }
+                        // Its passes: the last wavefront's, else one per segment.
+                        let expect =
+                            w.rec.segs.last().map_or(p.seg.segments.len(), |s| s.len()) as u64;
+                        whole = expect <= plan.first_window_start();
                         if !root {
                             return Ok(());
                         }
@@ -736,9 +760,15 @@ pub fn render(
                         return Ok(());
                     }
                     let pending = q.pending() as u64;
-                    let (warm, measure, kind) = if k == 1 && plan.head > 1 {
+                    let tail_now = k >= plan.head && pending <= plan.tail_pending;
+                    let (warm, measure, kind) = if whole && !tail_now {
+                        // No window would fit before the wavefront ends: all
+                        // of it after the root pass is measured as its head.
+                        tail_started = true;
+                        (0, u64::MAX, SampleKind::Trace)
+                    } else if k == 1 && plan.head > 1 {
                         (0, plan.head - 1, SampleKind::Trace)
-                    } else if k >= plan.head && pending <= plan.tail_pending {
+                    } else if tail_now {
                         // The wavefront's tail: too few queues left to fill the
                         // chip, so the passes go by their dependency chain rather
                         // than the throughput the windows measure; measured to
@@ -784,6 +814,7 @@ pub fn render(
                         .tail_from
                         .push(tail_from.map_or(segs.len() as u64, |t| t.min(segs.len() as u64)));
                     w.rec.measured.push(measured);
+                    w.rec.whole.push(whole);
                     w.rec.segs.push(segs);
                     let pool = q.boundary(&p.map);
                     w.shade_windows(&p, wave, pixels, &pool)?;
