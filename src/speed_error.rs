@@ -1051,7 +1051,24 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         .map(|s| s.wave)
         .max();
     for wave in 0..passes.map_or(0, |m| m + 1) {
-        let mut left = rec.pixels as f64;
+        // The work of the items from `a` on, `n` of them: their shading lines
+        // in the functional pass (a path that was done costs the chip its
+        // read, an active one its hit records, triangle and material too: in
+        // a later bounce of an open scene most pixels are done, and windows
+        // over the sky and over the model differ by far more than their
+        // items), else the items.
+        let lines = rec.shade_lines.get(wave).filter(|l| !l.is_empty());
+        let work = |a: u64, n: u64| -> f64 {
+            match lines {
+                Some(l) => {
+                    let a = (a as usize).min(l.len());
+                    let b = a.saturating_add(n as usize).min(l.len());
+                    l[a..b].iter().map(|&x| x as f64).sum()
+                }
+                None => n as f64,
+            }
+        };
+        let mut left = work(0, rec.pixels as u64);
         let mut pass = [0.0; WCOUNTS];
         for smp in rec
             .samples
@@ -1059,7 +1076,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             .filter(|s| s.wave == wave && s.kind == render::SampleKind::ShadeHead)
         {
             add(&mut pass, &window_counts(&smp.run, wb_j), 1.0);
-            left -= smp.run.marks as f64;
+            left -= work(smp.first, smp.run.marks);
         }
         let (mut x, mut n) = ([0.0; WCOUNTS], 0.0);
         for smp in rec
@@ -1068,7 +1085,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             .filter(|s| s.wave == wave && s.kind == render::SampleKind::Shade)
         {
             add(&mut x, &window_counts(&smp.run, wb_j), 1.0);
-            n += smp.run.marks as f64;
+            n += work(smp.first, smp.run.marks);
         }
         if n > 0.0 && left > 0.0 {
             add(&mut pass, &x, left / n);

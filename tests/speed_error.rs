@@ -943,3 +943,100 @@ fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
     assert_eq!(short.image_identical, Some(true));
     assert!(short.est_err.is_none(), "no rest windows, no spread");
 }
+
+/// Shading windows are scaled by the functional pass's shading lines per
+/// pixel, not by items: in an open scene's later passes most paths are done
+/// (one line, the path state the chip reads) and windows over the sky and over
+/// the model cost far apart.
+#[test]
+fn shading_windows_are_scaled_by_the_pixels_lines() {
+    use dualstream::speed_error::Reference;
+    let (_, mut c) = tiny();
+    c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    // An L2 far smaller than the path states, as at the paper's size (with the
+    // default one the tiny frame's path states stay in it from pass to pass,
+    // which a window's cold L2 does not see).
+    c.chip.l2.bytes = 2048;
+    c.chip.l2.banks = 4;
+    // A tetrahedron under the sky: rays that leave it are done.
+    let dir = std::env::temp_dir().join(format!("ds-se-tetra-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("tetra.obj");
+    std::fs::write(
+        &obj,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    let mut s = dualstream::scene::load(obj.to_str().unwrap()).unwrap();
+    s.settings.width = 48;
+    s.settings.height = 48;
+    s.settings.bounces = 3;
+    let (j, png) = reference_files(&s, &c, "shade-lines");
+    let dir = j.parent().unwrap().to_path_buf();
+    let mut plan = windows_plan(1 << 20, 1 << 20);
+    (
+        plan.shade_head,
+        plan.shade_windows,
+        plan.shade_warm,
+        plan.shade_measure,
+    ) = (0, 2, 512, 512);
+    let log = dir.join("w.json");
+    let rows = run(
+        &s,
+        &c,
+        &SpeedErrorOpts {
+            modes: Some(vec!["windows".into()]),
+            windows: plan.clone(),
+            window_log: Some(log.clone()),
+            reference: Some({
+                let mut r = Reference::load(&j, Some(&png), &s, &c).unwrap();
+                r.read_passes(&dir.join("passes.csv")).unwrap();
+                r
+            }),
+            ..SpeedErrorOpts::default()
+        },
+    )
+    .unwrap();
+    // The record: per shading pass, per pixel, its lines; a done path one.
+    let f = render_windows(&s, &c, plan);
+    let rec = f.windows.as_ref().unwrap();
+    assert_eq!(rec.shade_lines.len(), 2, "two shading passes");
+    for l in &rec.shade_lines {
+        assert_eq!(l.len(), 48 * 48);
+        assert!(l.iter().all(|&x| x >= 1));
+    }
+    let done = rec.shade_lines[1].iter().filter(|&&x| x == 1).count();
+    assert!(
+        done > 48 * 48 / 2,
+        "most paths done after the first bounce ({done})"
+    );
+    assert!(
+        rec.shade_lines[0].iter().all(|&x| x > 1),
+        "none done at first"
+    );
+    // The second pass, estimated from windows over mostly done paths: by
+    // their lines within 3% of the reference, by their items far off (here
+    // 0.0% against -8.6%).
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&log).unwrap()).unwrap();
+    let (mut cyc, mut items) = (0.0, 0.0);
+    for x in v["record"]["samples"].as_array().unwrap() {
+        if x["wave"] == 1 && x["kind"] == "Shade" {
+            cyc += x["run"]["counts"]["cycles"].as_f64().unwrap();
+            items += x["run"]["marks"].as_f64().unwrap();
+        }
+    }
+    let by_items = cyc * (48.0 * 48.0) / items;
+    let p = rows[1]
+        .by_part
+        .iter()
+        .find(|p| p.part == "shade" && p.wave == 1)
+        .unwrap();
+    let (e_lines, e_items) = (p.err.abs(), (by_items / p.ref_cycles - 1.0).abs());
+    assert!(
+        e_lines < 0.03 && e_items > e_lines + 0.05,
+        "by lines {:+.3}, by items {:+.3}",
+        p.err,
+        by_items / p.ref_cycles - 1.0
+    );
+}

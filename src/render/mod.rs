@@ -225,6 +225,11 @@ pub struct WindowRecord {
     /// (`WindowPlan::first_window_start`), so simulated whole after its root pass
     /// (borrowed: its part after the root is one, like its neighbours').
     pub whole: Vec<bool>,
+    /// Per shading pass, per pixel: the shading lines the functional model
+    /// moved for it (a path that was done: 1, the path state the chip reads),
+    /// the work proxy the pass's windows are scaled by. Not in the window log.
+    #[serde(skip)]
+    pub shade_lines: Vec<Vec<u8>>,
     /// The frame's last possible wavefront (the shadow rays of the paths' last
     /// hit points: the bounce count).
     pub final_wave: usize,
@@ -869,7 +874,10 @@ pub fn render(
         // Shading (produces the next wavefront into the root queue).
         let mut next_work = Vec::new();
         let mut next = WaveStats::default();
+        // Time sampling scales a shading pass's windows by its lines per pixel.
+        let mut lines = windows.as_ref().map(|_| vec![1u8; pixels as usize]);
         for &pix in &work {
+            let before = st.shading_lines;
             shade_pixel(
                 &mut p,
                 &mut q,
@@ -881,6 +889,12 @@ pub fn render(
                 &mut rays_this_wave,
                 &mut next_work,
             )?;
+            if let Some(l) = lines.as_mut() {
+                l[pix as usize] = (st.shading_lines - before).min(u8::MAX as u64) as u8;
+            }
+        }
+        if let (Some(w), Some(l)) = (windows.as_mut(), lines) {
+            w.rec.shade_lines.push(l);
         }
         q.close(&mut p.mem, &p.map, 0);
         st.ray_lines_read += q.traffic.lines_read - r0;
