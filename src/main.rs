@@ -239,6 +239,10 @@ enum Cmd {
         /// before its measurement.
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_warm)]
         shade_warm: u64,
+        /// speed-error, windows: cycles a shading window runs at least before
+        /// its measurement (with --shade-warm items).
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_warm_cycles)]
+        shade_warm_cycles: u64,
         /// speed-error, windows: shading items measured per shading window.
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_measure)]
         shade_measure: u64,
@@ -744,6 +748,7 @@ fn run(cli: Cli) -> Result<(), String> {
             window_measure,
             shade_windows,
             shade_warm,
+            shade_warm_cycles,
             shade_measure,
             shade_head,
             window_log,
@@ -794,6 +799,7 @@ fn run(cli: Cli) -> Result<(), String> {
                             measure: window_measure,
                             shade_windows,
                             shade_warm,
+                            shade_warm_cycles,
                             shade_measure,
                             shade_head,
                         },

@@ -580,8 +580,8 @@ impl Default for SpeedErrorOpts {
 /// their neighbours' ratios; in each, the root pass over about 64 K rays; the
 /// first 16 segment passes; then 64 admissions measured after 96 of warm-up
 /// (one and a half turnovers of the scene buffer's 64 slots) every 1024; the
-/// tail from 16 pending queues; two shading windows of 2048 items after 4096,
-/// after the first 16384.
+/// tail from 16 pending queues; two shading windows of 2048 items after 4096
+/// and at least 16384 cycles, after the first 16384.
 pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
@@ -592,6 +592,7 @@ pub fn default_windows() -> render::WindowPlan {
         shade_windows: 2,
         shade_warm: 4096,
         shade_measure: 2048,
+        shade_warm_cycles: 16384,
         shade_head: 16384,
         tail_pending: 16,
         tail_warm: 0,
@@ -1513,7 +1514,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             same_image(&f, None),
             se,
             &format!(
-                "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); {}: the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {}",
+                "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); {}: the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {} and {} cycles",
                 rec.samples.len(),
                 rec.chip_s,
                 o.threads.max(1),
@@ -1530,7 +1531,8 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                 wp.every,
                 wp.shade_windows,
                 wp.shade_measure,
-                wp.shade_warm
+                wp.shade_warm,
+                wp.shade_warm_cycles
             ),
         );
         if let Some(row) = out.last_mut() {

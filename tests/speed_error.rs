@@ -367,6 +367,7 @@ fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
         every,
         shade_windows: 1,
         shade_warm: 0,
+        shade_warm_cycles: 0,
         shade_measure: u64::MAX,
         shade_head: 0,
         tail_pending: 0,
@@ -1039,4 +1040,35 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
         p.err,
         by_items / p.ref_cycles - 1.0
     );
+}
+
+/// A shading window warms up for its items and at least its cycles (a pass's
+/// rate settles over time); its first measured item is where the warm-up
+/// really ended, which the lines proxy of its range reads.
+#[test]
+fn a_shading_window_warms_up_for_its_cycles_too() {
+    use dualstream::render::SampleKind;
+    let (s, c) = cornell_in_rows();
+    let mut sh = windows_plan(1, 1 << 20);
+    (sh.shade_windows, sh.shade_warm, sh.shade_measure) = (2, 8, 16);
+    let items = render_windows(&s, &c, sh.clone());
+    sh.shade_warm_cycles = 2000;
+    let cycles = render_windows(&s, &c, sh);
+    assert_eq!(items.radiance, cycles.radiance);
+    let (a, b) = (
+        of_kind(items.windows.as_ref().unwrap(), SampleKind::Shade),
+        of_kind(cycles.windows.as_ref().unwrap(), SampleKind::Shade),
+    );
+    assert_eq!(a.len(), b.len());
+    assert!(!a.is_empty());
+    for (x, y) in a.iter().zip(&b) {
+        // Where each window's pixels start: the first measured item less the
+        // items warmed up.
+        let start = x.first - x.run.from;
+        assert_eq!(y.first - y.run.from, start);
+        assert!(x.run.warm.cycles < 2000, "{}", x.run.warm.cycles);
+        assert!(y.run.warm.cycles >= 2000, "{}", y.run.warm.cycles);
+        assert!(y.run.from > x.run.from, "{} {}", y.run.from, x.run.from);
+        assert!(y.first > x.first);
+    }
 }

@@ -353,6 +353,9 @@ pub struct WindowRun {
     pub counts: WaveCycles,
     /// Marks in the measured stretch (admissions or shading items).
     pub marks: u64,
+    /// Marks of the warm-up (at least the asked ones: it is checked in steps,
+    /// and runs on for its cycles).
+    pub from: u64,
     /// The wavefront (or shading pass) ended inside the measurement, so `counts`
     /// include its drain.
     pub ended: bool,
@@ -1033,7 +1036,7 @@ impl Chip {
         mut self,
         mem: SparseMem,
         kind: WindowKind,
-        warm: u64,
+        warm: (u64, u64),
         measure: u64,
     ) -> Result<Option<WindowRun>, String> {
         self.window_inner(mem, kind, warm, measure)
@@ -1043,7 +1046,7 @@ impl Chip {
         &mut self,
         mut mem: SparseMem,
         kind: WindowKind,
-        warm: u64,
+        (warm, warm_cycles): (u64, u64),
         measure: u64,
     ) -> Result<Option<WindowRun>, String> {
         let sch = self.scheduler;
@@ -1116,9 +1119,10 @@ impl Chip {
                 .collect()
         };
         let mut idle_run = 0u64;
+        let t0 = self.sim.now();
         loop {
             let n = count(self);
-            if from.is_none() && n >= warm {
+            if from.is_none() && n >= warm && self.sim.now() - t0 >= warm_cycles * period {
                 from = Some((self.snapshot(), n, self.l2_dirty()));
                 done0 = self.sim.unit_ref::<StreamScheduler>(sch).pub_done.clone();
             }
@@ -1131,6 +1135,7 @@ impl Chip {
                 return Ok(Some(WindowRun {
                     counts: self.snapshot().since(a),
                     marks: n - n0,
+                    from: *n0,
                     ended: n >= all,
                     warm: a.since(&start),
                     dirtied: owed(d0, &self.l2_dirty()),
@@ -1152,6 +1157,7 @@ impl Chip {
                 return Ok(Some(WindowRun {
                     counts: self.snapshot().since(a),
                     marks: count(self) - n0,
+                    from: *n0,
                     ended: true,
                     warm: a.since(&start),
                     dirtied: owed(d0, &self.l2_dirty()),
@@ -1207,6 +1213,7 @@ impl Chip {
                 return Ok(WindowRun {
                     counts: self.snapshot().since(&start),
                     marks: rays,
+                    from: 0,
                     ended,
                     warm: WaveCycles::default(),
                     // The L2 started empty.

@@ -97,6 +97,11 @@ pub struct WindowPlan {
     pub shade_windows: u32,
     pub shade_warm: u64,
     pub shade_measure: u64,
+    /// And at least this many cycles of warm-up: a shading pass's rate
+    /// settles over time, not items (the Dragon at 256x256, a pass of done
+    /// paths: 0.50 cycles per item for its first 24 K items, 0.40 after, the
+    /// same with a 4x larger L2).
+    pub shade_warm_cycles: u64,
     /// Items of each shading pass simulated from its start, as is.
     pub shade_head: u64,
     /// The tail window starts (its warm-up) at the first boundary after the
@@ -753,6 +758,7 @@ pub fn render(
                         let spec = windows::WindowSpec {
                             what: crate::machine::WindowKind::Root(b),
                             warm: 0,
+                            warm_cycles: 0,
                             measure: 0,
                             wave,
                             kind: SampleKind::Root,
@@ -795,6 +801,7 @@ pub fn render(
                     let spec = windows::WindowSpec {
                         what: crate::machine::WindowKind::Trace(q.boundary(&p.map)),
                         warm,
+                        warm_cycles: 0,
                         measure,
                         wave,
                         kind,

@@ -30,6 +30,8 @@ struct WindowChip {
 pub(super) struct WindowSpec {
     pub(super) what: WindowKind,
     pub(super) warm: u64,
+    /// And at least these cycles of warm-up.
+    pub(super) warm_cycles: u64,
     pub(super) measure: u64,
     pub(super) wave: usize,
     pub(super) kind: SampleKind,
@@ -59,11 +61,18 @@ impl WindowChip {
         )?;
         chip.enable_pass_log();
         let w = job.spec;
-        let r = chip.trace_window(job.mem, w.what, w.warm, w.measure)?;
+        let r = chip.trace_window(job.mem, w.what, (w.warm, w.warm_cycles), w.measure)?;
         Ok(r.map(|run| WindowSample {
             wave: w.wave,
             kind: w.kind,
-            first: w.first,
+            // A shading window's measurement starts where its warm-up really
+            // ended: past the asked items (checked in steps, and run on for its
+            // cycles); the lines proxy reads that range.
+            first: if w.kind == SampleKind::Shade {
+                w.first - w.warm + run.from
+            } else {
+                w.first
+            },
             run,
             wall_s: t.elapsed().as_secs_f64(),
         }))
@@ -280,6 +289,7 @@ impl Windows {
         let spec = WindowSpec {
             what: WindowKind::Emit(rays),
             warm,
+            warm_cycles: 0,
             measure,
             wave: 0,
             kind: SampleKind::Emit,
@@ -324,6 +334,11 @@ impl Windows {
             let spec = WindowSpec {
                 what,
                 warm,
+                warm_cycles: if kind == SampleKind::Shade {
+                    self.plan.shade_warm_cycles
+                } else {
+                    0
+                },
                 measure,
                 wave,
                 kind,
