@@ -358,6 +358,37 @@ fn a_reference_of_another_frame_is_refused() {
     assert!(e.contains("not cycle"), "{e}");
 }
 
+/// The windows row against a rendered reference (`reference_files` beside
+/// `j`, with its pass log), and the window log it wrote to `log`.
+fn windows_against(
+    s: &dualstream::scene::Scene,
+    c: &Config,
+    plan: dualstream::render::WindowPlan,
+    (j, png): (&std::path::Path, &std::path::Path),
+    log: &std::path::Path,
+) -> (dualstream::speed_error::ModeResult, serde_json::Value) {
+    use dualstream::speed_error::Reference;
+    let rows = run(
+        s,
+        c,
+        &SpeedErrorOpts {
+            modes: Some(vec!["windows".into()]),
+            windows: plan,
+            window_log: Some(log.to_path_buf()),
+            reference: Some({
+                let mut r = Reference::load(j, Some(png), s, c).unwrap();
+                r.read_passes(&j.parent().unwrap().join("passes.csv"))
+                    .unwrap();
+                r
+            }),
+            ..SpeedErrorOpts::default()
+        },
+    )
+    .unwrap();
+    let v = serde_json::from_str(&std::fs::read_to_string(log).unwrap()).unwrap();
+    (rows[1].clone(), v)
+}
+
 fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
     dualstream::render::WindowPlan {
         head,
@@ -688,25 +719,7 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
         // root window is simulated whole, never borrowed).
         plan.root_rays = root_rays;
         let log = dir.join(format!("w{wave_every}-{root_rays}.json"));
-        let rows = run(
-            &s,
-            &c,
-            &SpeedErrorOpts {
-                modes: Some(vec!["windows".into()]),
-                windows: plan,
-                window_log: Some(log.clone()),
-                reference: Some({
-                    let mut r = Reference::load(&j, Some(&png), &s, &c).unwrap();
-                    r.read_passes(&dir.join("passes.csv")).unwrap();
-                    r
-                }),
-                ..SpeedErrorOpts::default()
-            },
-        )
-        .unwrap();
-        let v: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&log).unwrap()).unwrap();
-        (rows[1].clone(), v)
+        windows_against(&s, &c, plan, (&j, &png), &log)
     };
     let estimate = |wave_every: u64| estimate_with(wave_every, 64);
     // A pass log that is not one is refused with what to give instead.
@@ -826,7 +839,6 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
 #[test]
 fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
     use dualstream::render::SampleKind;
-    use dualstream::speed_error::Reference;
     let (mut s, mut c) = cornell_in_rows();
     s.settings.bounces = 4;
     // An L2 smaller than a pass's hit records, as at the paper's size (see
@@ -842,25 +854,7 @@ fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
         plan.tail_pending = 2;
         plan.wave_every = 2;
         let log = dir.join(format!("w{every}.json"));
-        let rows = run(
-            &s,
-            &c,
-            &SpeedErrorOpts {
-                modes: Some(vec!["windows".into()]),
-                windows: plan,
-                window_log: Some(log.clone()),
-                reference: Some({
-                    let mut r = Reference::load(&j, Some(&png), &s, &c).unwrap();
-                    r.read_passes(&dir.join("passes.csv")).unwrap();
-                    r
-                }),
-                ..SpeedErrorOpts::default()
-            },
-        )
-        .unwrap();
-        let v: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&log).unwrap()).unwrap();
-        (rows[1].clone(), v)
+        windows_against(&s, &c, plan, (&j, &png), &log)
     };
     // The first measured stretch starts at admission 10 with windows every 6
     // (these wavefronts have about 27 passes), at 1004 with every 1000.
@@ -951,7 +945,6 @@ fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
 /// the model cost far apart.
 #[test]
 fn shading_windows_are_scaled_by_the_pixels_lines() {
-    use dualstream::speed_error::Reference;
     let (_, mut c) = tiny();
     c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
     // An L2 far smaller than the path states, as at the paper's size (with the
@@ -982,22 +975,7 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
         plan.shade_measure,
     ) = (0, 2, 512, 512);
     let log = dir.join("w.json");
-    let rows = run(
-        &s,
-        &c,
-        &SpeedErrorOpts {
-            modes: Some(vec!["windows".into()]),
-            windows: plan.clone(),
-            window_log: Some(log.clone()),
-            reference: Some({
-                let mut r = Reference::load(&j, Some(&png), &s, &c).unwrap();
-                r.read_passes(&dir.join("passes.csv")).unwrap();
-                r
-            }),
-            ..SpeedErrorOpts::default()
-        },
-    )
-    .unwrap();
+    let (row, v) = windows_against(&s, &c, plan.clone(), (&j, &png), &log);
     // The record: per shading pass, per pixel, its lines; a done path one.
     let f = render_windows(&s, &c, plan);
     let rec = f.windows.as_ref().unwrap();
@@ -1018,8 +996,6 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
     // The second pass, estimated from windows over mostly done paths: by
     // their lines within 3% of the reference, by their items far off (here
     // 0.0% against -8.6%).
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&log).unwrap()).unwrap();
     let (mut cyc, mut items) = (0.0, 0.0);
     for x in v["record"]["samples"].as_array().unwrap() {
         if x["wave"] == 1 && x["kind"] == "Shade" {
@@ -1028,7 +1004,7 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
         }
     }
     let by_items = cyc * (48.0 * 48.0) / items;
-    let p = rows[1]
+    let p = row
         .by_part
         .iter()
         .find(|p| p.part == "shade" && p.wave == 1)
