@@ -202,8 +202,9 @@ enum Cmd {
         /// the root pass (by its root window), then the next ones simulated whole.
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().head)]
         window_head: u64,
-        /// speed-error, windows: the root pass of each wavefront simulated over
-        /// about this many rays (one bucket in k of its queue), scaled by its rays.
+        /// speed-error, windows: rays of each wavefront's root window (a shorter
+        /// root pass whole, a longer one over one run of 8 rays in k of its
+        /// queue, packed).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().root_rays)]
         window_root_rays: u64,
         /// speed-error, windows: each wavefront's tail, from the first boundary

@@ -803,27 +803,56 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         let proxy = &proxies[wave];
         let index: std::collections::HashMap<u32, usize> =
             segs.iter().enumerate().map(|(i, s)| (s.seg, i)).collect();
-        // The head: the root pass (its window's run scaled up by the rays it left
-        // out: the pass's cost goes with its rays, start-up and drain included),
-        // then the window from the next segment on, if any (measured whole).
+        // The head: the root pass (its window on one run of rays in k of the
+        // queue, see `WindowPlan::root_rays`), then the window from the next
+        // segment on, if any (measured whole).
         let mut head = [0.0; WCOUNTS];
         let mut head_end = 0usize;
         for smp in rec
             .samples
             .iter()
-            .filter(|s| s.wave == wave && s.kind == render::SampleKind::Root)
+            .filter(|s| s.wave == wave && s.kind == render::SampleKind::Root && s.run.marks > 0)
         {
-            if smp.run.marks > 0 {
-                let k = (smp.first + smp.run.marks) as f64 / smp.run.marks as f64;
-                let root = window_counts(&smp.run, wb_j).map(|x| x * k);
-                add(&mut head, &root, 1.0);
-                if !segs.is_empty() {
-                    pool_part(0, wave, &root, &root_proxy(wave));
-                }
-                parts.push(part(wave, "root", 0, 1, &root));
+            let plain = |w: &crate::machine::WaveCycles| {
+                let r = crate::machine::WindowRun {
+                    counts: *w,
+                    ..Default::default()
+                };
+                window_counts(&r, wb_j)
+            };
+            let r = &smp.run;
+            let mut root = window_counts(r, wb_j);
+            add(&mut root, &plain(&r.warm), 1.0);
+            add(&mut root, &plain(&r.after), 1.0);
+            // The rays it left out: as many cycles and joules each as in its
+            // steady stretch (the DRAM's energy goes with time as well as
+            // lines, and with the rows the lines fall in); the rest by the
+            // rays (its rays are spread over the queue, the stretch's are
+            // not), its segment's lines once.
+            let left = smp.first as f64;
+            let kept = segs.first().map_or(0, |s| s.rays) as f64 - left;
+            let k = left / kept.max(1.0);
+            let steady = plain(&r.counts);
+            let timed = [0, 5].map(|i| root[i] + left * steady[i] / r.marks as f64);
+            let scene = root[2];
+            for x in root.iter_mut() {
+                *x *= 1.0 + k;
             }
-            // The window ends with the root pass (or before the children, if
-            // its sample sent no ray on); the rest is measured after it.
+            root[2] -= k * scene;
+            (root[0], root[5]) = (timed[0], timed[1]);
+            add(&mut head, &root, 1.0);
+            if !segs.is_empty() {
+                pool_part(0, wave, &root, &root_proxy(wave));
+            }
+            parts.push(part(wave, "root", 0, 1, &root));
+        }
+        if rec
+            .samples
+            .iter()
+            .any(|s| s.wave == wave && s.kind == render::SampleKind::Root)
+        {
+            // The windows end with the root pass (or before the children, if
+            // it sent no ray on); the rest is measured after it.
             head_end = 1;
         }
         if head_end == 0 && !segs.is_empty() {

@@ -339,10 +339,11 @@ pub enum WindowKind {
         pixels: u32,
         pool: crate::render::queues::Boundary,
     },
-    /// A wavefront's root pass over a sample of its queue (the boundary's root
-    /// queue, thinned), run to the next admission (the root done) or the
-    /// wavefront's end; marks are the rays of the thinned queue (warm-up and
-    /// measure do not apply: the window is the pass).
+    /// A wavefront's root pass (the boundary's root queue, perhaps compacted);
+    /// marks are the rays finished in the root segment. The window runs to the
+    /// pass's end, at the next admission (its children's) or the wavefront's
+    /// end; the measurement is a stretch of it, at most to its last ray
+    /// finished.
     Root(crate::render::queues::Boundary),
 }
 
@@ -371,6 +372,9 @@ pub struct WindowRun {
     /// Rays finished (end markers) in the measured stretch, by segment: the
     /// work the stretch did, however its passes straddle its ends.
     pub done: Vec<(u32, u64)>,
+    /// A root window's counts from the measured stretch's end to the pass's
+    /// end (it runs to the end: `warm`, `counts` and `after` are the pass).
+    pub after: WaveCycles,
 }
 
 /// The chip, elaborated once per frame.
@@ -1055,8 +1059,8 @@ impl Chip {
             for (s, rec) in &b.queues {
                 mem.write(map.queue_rec_addr(*s), &rec.encode());
             }
-            for &(a, next) in &b.relink {
-                mem.write_u64(a, next);
+            for (a, bytes) in &b.writes {
+                mem.write(*a, bytes);
             }
         }
         self.sim.unit_mut::<Memory>(self.memory).image = mem;
@@ -1085,22 +1089,36 @@ impl Chip {
                 self.sim.wake(self.host);
             }
         }
-        if let WindowKind::Root(b) = &kind {
-            // At a wavefront's start only the root queue holds rays.
-            let rays = b.queues.iter().map(|(_, q)| q.rays as u64).sum();
-            return self.root_window(rays).map(Some);
-        }
         // What is counted, and when the stretch is over without the wavefront's
         // end: all rays emitted, or all items of a shading pass done (the chip
         // would go on to trace what was emitted).
         let (mark, all) = match &kind {
-            WindowKind::Trace(_) | WindowKind::Root(_) => (0, u64::MAX),
+            WindowKind::Trace(_) => (0, u64::MAX),
             WindowKind::Emit(rays) => (1, rays.len() as u64),
             WindowKind::Shade { first, pixels, .. } => (2, (pixels - first.min(pixels)) as u64),
+            // At a wavefront's start only the root queue holds rays.
+            WindowKind::Root(b) => (3, b.queues.iter().map(|(_, q)| q.rays as u64).sum()),
         };
+        let root = mark == 3;
         let count = |c: &Chip| {
-            let st = c.sim.unit_ref::<StreamScheduler>(c.scheduler).stats();
-            [st.segments_loaded, st.enqueues, st.shade_done][mark]
+            let u = c.sim.unit_ref::<StreamScheduler>(c.scheduler);
+            let st = u.stats();
+            [
+                st.segments_loaded,
+                st.enqueues,
+                st.shade_done,
+                u.pub_done.first().copied().unwrap_or(0),
+            ][mark]
+        };
+        // A root window's pass is over when its children are admitted (it is
+        // checked in steps, so their first rays may have gone out).
+        let root_over = |c: &Chip| {
+            root && c
+                .sim
+                .unit_ref::<StreamScheduler>(c.scheduler)
+                .stats()
+                .segments_loaded
+                >= 2
         };
         let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
         let start = self.snapshot();
@@ -1108,6 +1126,8 @@ impl Chip {
             std::array::from_fn(|k| b[k] as i64 - a[k] as i64)
         };
         let mut from: Option<(WaveCycles, u64, [u64; StreamTag::COUNT])> = None;
+        // A root window's measured stretch, once over (it runs on to the end).
+        let mut stretch: Option<(WaveCycles, u64)> = None;
         let mut done0 = Vec::new();
         let done_since = |c: &Chip, d0: &[u64]| -> Vec<(u32, u64)> {
             let d = &c.sim.unit_ref::<StreamScheduler>(c.scheduler).pub_done;
@@ -1123,25 +1143,37 @@ impl Chip {
         loop {
             let n = count(self);
             if from.is_none() && n >= warm && self.sim.now() - t0 >= warm_cycles * period {
-                from = Some((self.snapshot(), n, self.l2_dirty()));
+                // A root window's L2 started empty: all it dirties is owed.
+                let d0 = if root {
+                    [0; StreamTag::COUNT]
+                } else {
+                    self.l2_dirty()
+                };
+                from = Some((self.snapshot(), n, d0));
                 done0 = self.sim.unit_ref::<StreamScheduler>(sch).pub_done.clone();
             }
             if from.is_none() && n >= all {
                 return Ok(None);
             }
             if let Some((a, n0, d0)) = &from
+                && stretch.is_none()
                 && (n >= n0.saturating_add(measure) || n >= all)
             {
-                return Ok(Some(WindowRun {
-                    counts: self.snapshot().since(a),
-                    marks: n - n0,
-                    from: *n0,
-                    ended: n >= all,
-                    warm: a.since(&start),
-                    dirtied: owed(d0, &self.l2_dirty()),
-                    passes: self.take_pass_log(),
-                    done: done_since(self, &done0),
-                }));
+                if root {
+                    stretch = Some((self.snapshot(), n));
+                } else {
+                    return Ok(Some(WindowRun {
+                        counts: self.snapshot().since(a),
+                        marks: n - n0,
+                        from: *n0,
+                        ended: n >= all,
+                        warm: a.since(&start),
+                        dirtied: owed(d0, &self.l2_dirty()),
+                        passes: self.take_pass_log(),
+                        done: done_since(self, &done0),
+                        after: WaveCycles::default(),
+                    }));
+                }
             }
             let end = self
                 .sim
@@ -1150,19 +1182,22 @@ impl Chip {
             if let Some(e) = self.sim.unit_ref::<StreamScheduler>(sch).error() {
                 return Err(e.to_string());
             }
-            if end == crate::rtl::RunEnd::Idle {
+            if end == crate::rtl::RunEnd::Idle || root_over(self) {
                 let Some((a, n0, d0)) = &from else {
                     return Ok(None);
                 };
+                let now = self.snapshot();
+                let (b, n1) = stretch.unwrap_or((now, count(self)));
                 return Ok(Some(WindowRun {
-                    counts: self.snapshot().since(a),
-                    marks: count(self) - n0,
+                    counts: b.since(a),
+                    marks: n1 - n0,
                     from: *n0,
                     ended: true,
                     warm: a.since(&start),
                     dirtied: owed(d0, &self.l2_dirty()),
                     passes: self.take_pass_log(),
                     done: done_since(self, &done0),
+                    after: now.since(&b),
                 }));
             }
             idle_run += WINDOW_STEP;
@@ -1180,56 +1215,6 @@ impl Chip {
         self.l2.map_or([0; StreamTag::COUNT], |u| {
             self.sim.unit_ref::<L2>(u).dirty_by_tag()
         })
-    }
-
-    /// [`WindowKind::Root`]'s run: from the start to the second admission (the
-    /// root pass over) or the wavefront's end; marks are the queue's `rays`
-    /// (the run is checked in steps, so a child's first rays may have gone out).
-    fn root_window(&mut self, rays: u64) -> Result<WindowRun, String> {
-        let sch = self.scheduler;
-        let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
-        let stats = |c: &Chip| {
-            let st = c.sim.unit_ref::<StreamScheduler>(c.scheduler).stats();
-            (st.rays_forwarded, st.segments_loaded)
-        };
-        let start = self.snapshot();
-        let mut idle_run = 0u64;
-        loop {
-            let now = stats(self);
-            let ended = if now.1 >= 2 {
-                Some(false)
-            } else {
-                let e = self
-                    .sim
-                    .run_until(self.sim.now() + WINDOW_STEP * period)
-                    .map_err(|e| e.to_string())?;
-                if let Some(e) = self.sim.unit_ref::<StreamScheduler>(sch).error() {
-                    return Err(e.to_string());
-                }
-                (e == crate::rtl::RunEnd::Idle).then_some(true)
-            };
-            if let Some(ended) = ended {
-                let d = self.l2_dirty();
-                return Ok(WindowRun {
-                    counts: self.snapshot().since(&start),
-                    marks: rays,
-                    from: 0,
-                    ended,
-                    warm: WaveCycles::default(),
-                    // The L2 started empty.
-                    dirtied: d.map(|x| x as i64),
-                    passes: self.take_pass_log(),
-                    done: Vec::new(),
-                });
-            }
-            idle_run += WINDOW_STEP;
-            if idle_run > self.watchdog.max(WINDOW_STEP) * 64 {
-                return Err(self.stuck("a root window did not reach the root pass's end"));
-            }
-            if stats(self) != now {
-                idle_run = 0;
-            }
-        }
     }
 
     /// Runs in watchdog windows until every unit sleeps with nothing scheduled.

@@ -83,8 +83,12 @@ pub struct WindowPlan {
     /// root window) and the next `head - 1` admissions simulated whole (the top
     /// of the tree, where the rays are).
     pub head: u64,
-    /// Rays of the root window: the root pass simulated over about this many
-    /// rays of its queue (one bucket in k) and scaled up by its rays.
+    /// Rays of a root window: a root pass of at most this many rays simulated
+    /// whole, a longer one over about this many of its rays, one run in k of
+    /// its queue packed into its first buckets (`RayQueues::boundary_compact`).
+    /// The rays left out cost the cycles per ray of its rays finished from the
+    /// first tenth to the ninth (its start-up and drain are the whole pass's
+    /// too), and k times its lines and energy but for its segment's load.
     pub root_rays: u64,
     /// Admissions simulated before a window's measurement (to fill the working
     /// set, the TMs and the caches) and measured.
@@ -749,17 +753,16 @@ pub fn render(
                             return Ok(());
                         }
                         rooted_rays = Some(rays);
-                        // The root pass (every ray of the wavefront): over one
-                        // bucket in `every`, about `root_rays` rays.
-                        let rpb = q.rays_per_bucket() as u64;
+                        // The root pass (every ray of the wavefront): whole, or
+                        // over one ray in `every` of its queue, packed.
                         let n = q.len(s);
-                        let every = n.div_ceil(rpb).div_ceil(plan.root_rays.div_ceil(rpb));
-                        let (b, kept) = q.boundary_strided(&p.map, s as usize, every as usize);
+                        let every = n.div_ceil(plan.root_rays);
+                        let (b, kept) = q.boundary_compact(&p.mem, &p.map, s as usize, every);
                         let spec = windows::WindowSpec {
                             what: crate::machine::WindowKind::Root(b),
-                            warm: 0,
+                            warm: (kept / 10).max(1),
                             warm_cycles: 0,
-                            measure: 0,
+                            measure: kept * 8 / 10,
                             wave,
                             kind: SampleKind::Root,
                             first: n - kept,
@@ -1126,7 +1129,7 @@ impl WindowPlan {
         }
         if self.root_rays < 4 {
             return Err(format!(
-                "--window-root-rays {}: the root window needs at least 4 rays (a warm-up and a steady stretch); raise it",
+                "--window-root-rays {}: the root window needs at least 4 rays (a warm-up and a measured stretch); raise it",
                 self.root_rays
             ));
         }

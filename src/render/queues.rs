@@ -11,8 +11,8 @@
 //! the lines of its header and its rays.
 
 use crate::contract::{
-    BUCKET_HEADER_BYTES, BucketHeader, MemoryMap, QueueRec, RAY_BYTES, RayRec, SparseMem,
-    lines_touched,
+    BUCKET_HEADER_BYTES, BucketHeader, HIT_BYTES, MemoryMap, QueueRec, RAY_BYTES, RayRec,
+    SHADOW_BIT, SparseMem, lines_touched,
 };
 
 /// The ray stream between two segments of a wavefront, in the order the functional
@@ -25,9 +25,10 @@ pub struct Boundary {
     pub free_chunks: Vec<u64>,
     pub chunk_live: Vec<u8>,
     pub live_buckets: u64,
-    /// Bucket headers to rewrite (address, next bucket's address or 0) before
-    /// the chip reads them: a thinned queue's chain (`boundary_strided`).
-    pub relink: Vec<(u64, u64)>,
+    /// Bytes written into the window's snapshot of the image before the chip
+    /// starts: a compacted root queue and its hit records
+    /// (`boundary_compact`).
+    pub writes: Vec<(u64, Vec<u8>)>,
 }
 
 /// Traffic of the ray stream, in 64 B lines.
@@ -262,41 +263,96 @@ impl RayQueues {
         self.boundary_inner(map)
     }
 
-    /// [`RayQueues::boundary`] with segment `seg`'s queue thinned to one bucket
-    /// in `every` (a root window: the pass over a sample of its rays, spread over
-    /// the queue since its rays come in pixel order). The kept buckets are
-    /// chained by rewriting their headers (`Boundary::relink`, written into the
-    /// window's snapshot of the image); the others stay allocated in the pool, as rays
-    /// the pass already took would sit in its children's queues. Also the rays
-    /// kept.
-    pub fn boundary_strided(&self, map: &MemoryMap, seg: usize, every: usize) -> (Boundary, u64) {
+    /// [`RayQueues::boundary`] with segment `seg`'s queue replaced by one run
+    /// of [`COMPACT_RUN`] rays in every `every` runs, in its order, packed into
+    /// its first buckets (a root window: the pass over a sample of its rays,
+    /// on the addresses the whole pass reads first: the scheduler reads a
+    /// queue as a chain, a bucket's header naming the next, and the header
+    /// latency sets a root pass's pace). Runs keep neighbouring rays together,
+    /// and each run's hit records move with it, their spacing kept, next to
+    /// the previous run's (copied there), so the kept rays share hit-record
+    /// lines as they do in the whole queue. The other buckets stay allocated
+    /// in the pool, as rays the pass already took would sit in its children's
+    /// queues. Also the rays kept.
+    pub fn boundary_compact(
+        &self,
+        mem: &SparseMem,
+        map: &MemoryMap,
+        seg: usize,
+        every: u64,
+    ) -> (Boundary, u64) {
         let mut b = self.boundary_inner(map);
         let q = &self.queues[seg];
         if every <= 1 || q.len == 0 {
             return (b, q.len);
         }
-        let kept: Vec<usize> = (0..q.buckets.len()).step_by(every).collect();
-        let last = q.buckets.len() - 1;
-        let rpb = self.rays_per_bucket as u64;
-        let tail = q.len - last as u64 * rpb;
-        let rays: u64 = kept
-            .iter()
-            .map(|&i| if i == last { tail } else { rpb })
-            .sum();
-        for (j, &i) in kept.iter().enumerate() {
-            let next = kept
-                .get(j + 1)
-                .map_or(0, |&n| map.bucket_addr(q.buckets[n]));
-            b.relink.push((map.bucket_addr(q.buckets[i]), next));
+        let (rb, hb) = (RAY_BYTES as usize, BUCKET_HEADER_BYTES as usize);
+        let rpb = self.rays_per_bucket as usize;
+        let mut kept = Vec::new();
+        let mut bytes = vec![0u8; rpb * rb];
+        let mut i = 0u64;
+        for &bk in &q.buckets {
+            let a = map.bucket_addr(bk);
+            let n = BucketHeader::read(mem, a).count as usize;
+            mem.read(a + hb as u64, &mut bytes[..n * rb]);
+            for r in bytes[..n * rb].chunks_exact(rb) {
+                if (i / COMPACT_RUN).is_multiple_of(every) {
+                    kept.push(RayRec::decode(r));
+                }
+                i += 1;
+            }
+        }
+        // New hit indices: each run's offsets from its first pixel's pair
+        // (so a ray's shadow bit keeps its parity), the runs back to back.
+        let hits = (map.path - map.hits) / HIT_BYTES as u64;
+        let mut idx = Vec::with_capacity(kept.len());
+        let mut cursor = 0u64;
+        for run in kept.chunks(COMPACT_RUN as usize) {
+            let lo = run.iter().map(|r| r.hit_index() & !1).min().expect("a run");
+            let hi = run.iter().map(|r| r.hit_index()).max().expect("a run");
+            idx.extend(run.iter().map(|r| cursor + r.hit_index() - lo));
+            cursor += (hi - lo + 2) & !1;
+        }
+        if cursor > hits {
+            // (Runs out of pixel order spread too far: one pair each.)
+            idx = kept
+                .iter()
+                .enumerate()
+                .map(|(j, r)| 2 * j as u64 + r.is_shadow() as u64)
+                .collect();
+        }
+        for (r, &x) in kept.iter_mut().zip(&idx) {
+            let mut h = vec![0u8; HIT_BYTES as usize];
+            mem.read(map.hit_addr(r.hit_index()), &mut h);
+            r.ray_id = (r.ray_id & SHADOW_BIT) | (x / 2) as u32;
+            debug_assert_eq!(r.hit_index(), x);
+            b.writes.push((map.hit_addr(x), h));
+        }
+        let m = kept.len().div_ceil(rpb);
+        for (k, rays) in kept.chunks(rpb).enumerate() {
+            let a = map.bucket_addr(q.buckets[k]);
+            let mut w = vec![0u8; hb];
+            mem.read(a, &mut w);
+            let next = if k + 1 < m {
+                map.bucket_addr(q.buckets[k + 1])
+            } else {
+                0
+            };
+            w[0..8].copy_from_slice(&next.to_le_bytes());
+            w[8..12].copy_from_slice(&(rays.len() as u32).to_le_bytes());
+            for r in rays {
+                w.extend_from_slice(&r.encode());
+            }
+            b.writes.push((a, w));
         }
         let r = b
             .queues
             .iter_mut()
             .find(|(s, _)| *s as usize == seg)
             .expect("the queue holds rays");
-        r.1.buckets = kept.len() as u32;
-        r.1.rays = rays as u32;
-        (b, rays)
+        r.1.buckets = m as u32;
+        r.1.rays = kept.len() as u32;
+        (b, kept.len() as u64)
     }
 
     fn boundary_inner(&self, map: &MemoryMap) -> Boundary {
@@ -320,7 +376,7 @@ impl RayQueues {
             free_chunks: self.free_chunks.clone(),
             chunk_live: self.chunk_live.clone(),
             live_buckets: self.live_buckets,
-            relink: Vec::new(),
+            writes: Vec::new(),
         }
     }
 
@@ -334,6 +390,11 @@ impl RayQueues {
     }
 }
 
+/// Consecutive rays a compacted queue keeps together
+/// ([`RayQueues::boundary_compact`]): a bounce and a shadow ray for each of
+/// four pixels, the hit records of two 64 B lines.
+pub const COMPACT_RUN: u64 = 8;
+
 /// Lines the functional model writes for a queue of `n` rays (ray lines coalesced
 /// per line, one header per bucket), `rays_per_bucket` rays per bucket.
 pub fn queue_lines_written(n: u64, rays_per_bucket: u32) -> u64 {
@@ -341,4 +402,97 @@ pub fn queue_lines_written(n: u64, rays_per_bucket: u32) -> u64 {
     let line = |m: u64| lines_touched(BUCKET_HEADER_BYTES as u64, m * RAY_BYTES as u64);
     let (full, rest) = (n / rpb, n % rpb);
     full * (line(rpb) + 1) + if rest > 0 { line(rest) + 1 } else { 0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contract::MemoryMapCfg;
+
+    /// A compacted queue read as the scheduler reads it (the header chain from
+    /// the queue record's head, after the window's writes): one run of rays in
+    /// k of the original, in order, on new hit records (copies of the
+    /// originals) that keep their spacing within a run and follow each other.
+    #[test]
+    fn a_compacted_queue_holds_one_run_in_k_with_its_hit_records() {
+        let map = MemoryMap::new(&MemoryMapCfg::default(), &[8192, 8192], 1, 1, 1, 4096).unwrap();
+        let mut mem = SparseMem::new(map.end);
+        let mut q = RayQueues::new(&map, 2);
+        let rays: Vec<RayRec> = (0..1000u32)
+            .map(|i| RayRec {
+                origin: glam::Vec3::new(i as f32, 0.0, 0.0),
+                dir: glam::Vec3::Z,
+                // Pixel i or i / 2 (a bounce and a shadow ray each).
+                ray_id: if i < 500 {
+                    i
+                } else {
+                    (250 + i / 2) | ((i % 2) * SHADOW_BIT)
+                },
+                entry: i,
+            })
+            .collect();
+        for r in &rays {
+            let mut h = [0u8; HIT_BYTES as usize];
+            h[0..4].copy_from_slice(&(r.ray_id ^ 0xabcd).to_le_bytes());
+            mem.write(map.hit_addr(r.hit_index()), &h);
+            q.push(&mut mem, &map, 0, r).unwrap();
+        }
+        q.close(&mut mem, &map, 0);
+        let (b, kept) = q.boundary_compact(&mem, &map, 0, 7);
+        let want: Vec<&RayRec> = rays
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| (*i as u64 / COMPACT_RUN).is_multiple_of(7))
+            .map(|(_, r)| r)
+            .collect();
+        assert_eq!(kept, want.len() as u64);
+        let rec = b.queues.iter().find(|(s, _)| *s == 0).unwrap().1;
+        assert_eq!(
+            (rec.rays as u64, rec.buckets as u64),
+            (kept, kept.div_ceil(63))
+        );
+        let mut m = mem.clone();
+        for (a, bytes) in &b.writes {
+            m.write(*a, bytes);
+        }
+        let (mut got, mut a) = (Vec::new(), rec.head);
+        while a != 0 {
+            let h = BucketHeader::read(&m, a);
+            assert_eq!(h.segment, 0);
+            for k in 0..h.count as u64 {
+                let mut r = [0u8; RAY_BYTES as usize];
+                m.read(
+                    a + BUCKET_HEADER_BYTES as u64 + k * RAY_BYTES as u64,
+                    &mut r,
+                );
+                got.push(RayRec::decode(&r));
+            }
+            a = h.next;
+        }
+        assert_eq!(got.len() as u64, kept);
+        for (j, (r, o)) in got.iter().zip(&want).enumerate() {
+            assert_eq!(
+                (r.origin, r.entry, r.is_shadow()),
+                (o.origin, o.entry, o.is_shadow())
+            );
+            let (mut h, mut w) = ([0u8; HIT_BYTES as usize], [0u8; HIT_BYTES as usize]);
+            m.read(map.hit_addr(r.hit_index()), &mut h);
+            mem.read(map.hit_addr(o.hit_index()), &mut w);
+            assert_eq!(h, w, "ray {j}: its hit record came along");
+            if j % COMPACT_RUN as usize > 0 {
+                // Within a run, the original spacing.
+                let (p, q) = (&got[j - 1], &want[j - 1]);
+                assert_eq!(r.hit_index() - p.hit_index(), o.hit_index() - q.hit_index());
+            } else if j > 0 {
+                // Runs back to back: the next free pixel.
+                let p = &got[j - 1];
+                assert_eq!(r.pixel(), p.pixel() + 1, "ray {j}");
+            }
+        }
+        // Bounce and shadow rays of one pixel share it (and a line) still.
+        assert!(got.windows(2).any(|w| w[0].pixel() == w[1].pixel()));
+        // Every ray kept: the queue as it is, nothing written.
+        let (b, kept) = q.boundary_compact(&mem, &map, 0, 1);
+        assert!(kept == 1000 && b.writes.is_empty());
+    }
 }
