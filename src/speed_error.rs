@@ -658,13 +658,20 @@ const WCOUNTS: usize = 12;
 /// A window's counts; the writebacks it owes (`WindowRun::dirtied`) are added to
 /// their stream's lines and charged `wb_j` each.
 fn window_counts(r: &crate::machine::WindowRun, wb_j: f64) -> [f64; WCOUNTS] {
+    wave_counts(&r.counts, &r.dirtied, wb_j)
+}
+
+/// [`window_counts`] of counts `w` owing the writebacks `dirtied`.
+fn wave_counts(
+    w: &crate::machine::WaveCycles,
+    dirtied: &[i64; crate::mem::StreamTag::COUNT],
+    wb_j: f64,
+) -> [f64; WCOUNTS] {
     use crate::mem::StreamTag as T;
-    let w = &r.counts;
     let l = |t: T| {
-        (w.lines_read[t as usize] + w.lines_written[t as usize]) as f64
-            + r.dirtied[t as usize] as f64
+        (w.lines_read[t as usize] + w.lines_written[t as usize]) as f64 + dirtied[t as usize] as f64
     };
-    let owed: i64 = r.dirtied.iter().sum();
+    let owed: i64 = dirtied.iter().sum();
     [
         w.cycles as f64,
         l(T::Ray),
@@ -811,16 +818,16 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         for smp in rec
             .samples
             .iter()
-            .filter(|s| s.wave == wave && s.kind == render::SampleKind::Root && s.run.marks > 0)
+            .filter(|s| s.wave == wave && s.kind == render::SampleKind::Root)
         {
-            let plain = |w: &crate::machine::WaveCycles| {
-                let r = crate::machine::WindowRun {
-                    counts: *w,
-                    ..Default::default()
-                };
-                window_counts(&r, wb_j)
-            };
+            // The window ends with the root pass (or before the children, if
+            // it sent no ray on); the rest is measured after it.
+            head_end = 1;
             let r = &smp.run;
+            if r.marks == 0 {
+                continue;
+            }
+            let plain = |w| wave_counts(w, &[0; crate::mem::StreamTag::COUNT], wb_j);
             let mut root = window_counts(r, wb_j);
             add(&mut root, &plain(&r.warm), 1.0);
             add(&mut root, &plain(&r.after), 1.0);
@@ -845,15 +852,6 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
                 pool_part(0, wave, &root, &root_proxy(wave));
             }
             parts.push(part(wave, "root", 0, 1, &root));
-        }
-        if rec
-            .samples
-            .iter()
-            .any(|s| s.wave == wave && s.kind == render::SampleKind::Root)
-        {
-            // The windows end with the root pass (or before the children, if
-            // it sent no ray on); the rest is measured after it.
-            head_end = 1;
         }
         if head_end == 0 && !segs.is_empty() {
             // No root window here: the root pass is borrowed, the rest is

@@ -357,10 +357,15 @@ impl RayRec {
 }
 
 impl BucketHeader {
+    pub fn encode(&self) -> [u8; BUCKET_HEADER_BYTES as usize] {
+        let mut b = [0u8; BUCKET_HEADER_BYTES as usize];
+        b[0..8].copy_from_slice(&self.next.to_le_bytes());
+        put_u32(&mut b, 8, self.count);
+        put_u32(&mut b, 12, self.segment);
+        b
+    }
     pub fn write(&self, m: &mut SparseMem, a: u64) {
-        m.write_u64(a, self.next);
-        m.write_u32(a + 8, self.count);
-        m.write_u32(a + 12, self.segment);
+        m.write(a, &self.encode());
     }
     pub fn read(m: &SparseMem, a: u64) -> BucketHeader {
         BucketHeader {

@@ -86,9 +86,9 @@ pub struct WindowPlan {
     /// Rays of a root window: a root pass of at most this many rays simulated
     /// whole, a longer one over about this many of its rays, one run in k of
     /// its queue packed into its first buckets (`RayQueues::boundary_compact`).
-    /// The rays left out cost the cycles per ray of its rays finished from the
-    /// first tenth to the ninth (its start-up and drain are the whole pass's
-    /// too), and k times its lines and energy but for its segment's load.
+    /// The rays left out cost the cycles and DRAM energy per ray of its steady
+    /// stretch ([`ROOT_STEADY_TENTHS`]), and k times its lines and other counts
+    /// but for its segment's load.
     pub root_rays: u64,
     /// Admissions simulated before a window's measurement (to fill the working
     /// set, the TMs and the caches) and measured.
@@ -128,6 +128,11 @@ pub struct WindowPlan {
     /// same (trace, and root).
     pub wave_every: u64,
 }
+
+/// A root window's measured stretch, in tenths of its rays finished: from the
+/// first tenth to the ninth, past the pass's start-up (the TMs filling) and
+/// before its drain (its last rays traced), which the whole pass has once.
+pub const ROOT_STEADY_TENTHS: (u64, u64) = (1, 9);
 
 /// Time sampling borrows for a wavefront (its trace or its root pass) only if
 /// its rays are within this fraction of the last measured one's: the ratios it
@@ -760,9 +765,9 @@ pub fn render(
                         let (b, kept) = q.boundary_compact(&p.mem, &p.map, s as usize, every);
                         let spec = windows::WindowSpec {
                             what: crate::machine::WindowKind::Root(b),
-                            warm: (kept / 10).max(1),
+                            warm: (kept * ROOT_STEADY_TENTHS.0 / 10).max(1),
                             warm_cycles: 0,
-                            measure: kept * 8 / 10,
+                            measure: kept * (ROOT_STEADY_TENTHS.1 - ROOT_STEADY_TENTHS.0) / 10,
                             wave,
                             kind: SampleKind::Root,
                             first: n - kept,

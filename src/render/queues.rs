@@ -331,15 +331,16 @@ impl RayQueues {
         let m = kept.len().div_ceil(rpb);
         for (k, rays) in kept.chunks(rpb).enumerate() {
             let a = map.bucket_addr(q.buckets[k]);
-            let mut w = vec![0u8; hb];
-            mem.read(a, &mut w);
-            let next = if k + 1 < m {
-                map.bucket_addr(q.buckets[k + 1])
-            } else {
-                0
+            let header = BucketHeader {
+                next: if k + 1 < m {
+                    map.bucket_addr(q.buckets[k + 1])
+                } else {
+                    0
+                },
+                count: rays.len() as u32,
+                segment: seg as u32,
             };
-            w[0..8].copy_from_slice(&next.to_le_bytes());
-            w[8..12].copy_from_slice(&(rays.len() as u32).to_le_bytes());
+            let mut w = header.encode().to_vec();
             for r in rays {
                 w.extend_from_slice(&r.encode());
             }
