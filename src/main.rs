@@ -207,6 +207,21 @@ enum Cmd {
         /// queue, packed).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().root_rays)]
         window_root_rays: u64,
+        /// speed-error, windows: rays of a short wavefront's sample (one with
+        /// too few passes for a window): a longer one is traced from its root
+        /// pass to its end over one run of 8 rays in k of its root queue,
+        /// packed (0: simulated whole after its root window).
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_rays)]
+        window_wave_rays: u64,
+        /// speed-error, windows: sampled short wavefronts from the second to
+        /// this one also simulated whole; the ratio of whole to sample corrects
+        /// the other sampled ones (0: none).
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_whole)]
+        window_wave_whole: u64,
+        /// speed-error, windows: a short wavefront's sample runs on this share
+        /// of the L2 (its rays come back to their hit records k times sooner).
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_l2_share)]
+        window_wave_l2: u32,
         /// speed-error, windows: each wavefront's tail, from the first boundary
         /// with at most this many queues holding rays, simulated to its end (0:
         /// none, the tail scaled like the rest).
@@ -744,6 +759,9 @@ fn run(cli: Cli) -> Result<(), String> {
             window_waves,
             window_head,
             window_root_rays,
+            window_wave_rays,
+            window_wave_whole,
+            window_wave_l2,
             window_tail,
             window_warm,
             window_measure,
@@ -793,6 +811,9 @@ fn run(cli: Cli) -> Result<(), String> {
                             every: window_every,
                             head: window_head,
                             root_rays: window_root_rays,
+                            wave_rays: window_wave_rays,
+                            wave_whole: window_wave_whole,
+                            wave_l2_share: window_wave_l2,
                             tail_pending: window_tail,
                             tail_warm: window_tail_warm,
                             wave_every: window_waves,

@@ -581,11 +581,15 @@ impl Default for SpeedErrorOpts {
 /// first 16 segment passes; then 64 admissions measured after 96 of warm-up
 /// (one and a half turnovers of the scene buffer's 64 slots) every 1024; the
 /// tail from 16 pending queues; two shading windows of 2048 items after 4096
-/// and at least 16384 cycles, after the first 16384.
+/// and at least 16384 cycles, after the first 16384. A wavefront too short for
+/// windows is traced over a sample of about 64 K of its rays on half the L2.
 pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
         root_rays: 65536,
+        wave_rays: 65536,
+        wave_l2_share: 2,
+        wave_whole: 0,
         warm: 96,
         measure: 64,
         every: 1024,
@@ -686,6 +690,70 @@ fn wave_counts(
         w.shade_uses[2] as f64,
         w.shade_uses[3] as f64,
     ]
+}
+
+/// A short wavefront's estimate from its [`render::SampleKind::Wave`] window,
+/// which traced one run of rays in k of its root queue to the wavefront's end.
+/// The visits (rays finished in a segment) it left out cost the cycles and the
+/// DRAM energy (which goes with time and rows as well as lines) per visit of
+/// its steady stretch: its start-up and drain are the wavefront's once. Its
+/// other counts are scaled by the functional work: the wavefront's over that of
+/// the visits the window made (each pass's proxy by its share of rays done),
+/// but the scene lines by the passes (a pass loads its segment however few
+/// rays it has), and the writebacks it owes once (the L2 holds as many at the
+/// wavefront's end).
+fn wave_window(
+    smp: &render::WindowSample,
+    segs: &[render::SegWork],
+    proxy: &[[f64; WCOUNTS]],
+    index: &std::collections::HashMap<u32, usize>,
+    wb_j: f64,
+) -> [f64; WCOUNTS] {
+    let r = &smp.run;
+    let none = [0; crate::mem::StreamTag::COUNT];
+    let plain = |w| wave_counts(w, &none, wb_j);
+    let mut t = plain(&r.counts);
+    for x in [plain(&r.warm), plain(&r.after)] {
+        for i in 0..WCOUNTS {
+            t[i] += x[i];
+        }
+    }
+    let owed = wave_counts(&Default::default(), &r.dirtied, wb_j);
+    let steady = plain(&r.counts);
+    let visits: u64 = r.done.iter().map(|d| d.1).sum();
+    let all: u64 = segs.iter().map(|s| s.rays).sum();
+    let left = all.saturating_sub(visits) as f64;
+    let (mut full, mut did) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+    for p in proxy {
+        for i in 0..WCOUNTS {
+            full[i] += p[i];
+        }
+    }
+    for &(sg, d) in &r.done {
+        if let Some(&i) = index.get(&sg)
+            && segs[i].rays > 0
+        {
+            let share = d as f64 / segs[i].rays as f64;
+            for k in 0..WCOUNTS {
+                did[k] += proxy[i][k] * share;
+            }
+            did[2] += proxy[i][2] * (1.0 - share);
+        }
+    }
+    std::array::from_fn(|i| {
+        if i == 0 || i == 5 {
+            let rate = if r.marks > 0 {
+                steady[i] / r.marks as f64
+            } else {
+                0.0
+            };
+            t[i] + left * rate + owed[i]
+        } else {
+            let j = if did[i] > 0.0 { i } else { 0 };
+            let k = if did[j] > 0.0 { full[j] / did[j] } else { 1.0 };
+            t[i] * k + owed[i]
+        }
+    })
 }
 
 /// One part of a time-sampled frame as [`windowed_parts`] estimated it: per
@@ -799,6 +867,10 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         p
     };
     let mut per_wave = Vec::new();
+    // Short wavefronts traced over a sample, and the whole and sampled
+    // figures of those simulated both ways.
+    let mut sampled: Vec<(usize, [f64; WCOUNTS])> = Vec::new();
+    let (mut whole_sum, mut thin_sum) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
     let mut borrowers = Vec::new();
     // The wavefronts whose root pass borrows.
     let mut root_borrowers = Vec::new();
@@ -810,6 +882,26 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         let proxy = &proxies[wave];
         let index: std::collections::HashMap<u32, usize> =
             segs.iter().enumerate().map(|(i, s)| (s.seg, i)).collect();
+        // A short wavefront traced over a sample from its root pass to its end
+        // (`WindowPlan::wave_rays`): the whole wavefront is one part, once the
+        // wavefronts also simulated whole (`WindowPlan::wave_whole`) say how
+        // far off such samples are.
+        let thin = rec
+            .samples
+            .iter()
+            .find(|s| s.wave == wave && s.kind == render::SampleKind::Wave)
+            .map(|smp| wave_window(smp, segs, proxy, &index, wb_j));
+        let calibrates = thin.is_some()
+            && rec
+                .samples
+                .iter()
+                .any(|s| s.wave == wave && s.kind == render::SampleKind::Root);
+        if let Some(t) = thin
+            && !calibrates
+        {
+            sampled.push((wave, t));
+            continue;
+        }
         // The head: the root pass (its window on one run of rays in k of the
         // queue, see `WindowPlan::root_rays`), then the window from the next
         // segment on, if any (measured whole).
@@ -914,6 +1006,13 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             }
         }
         add(&mut total, &head, 1.0);
+        if let Some(t) = thin
+            && calibrates
+        {
+            // Simulated whole after its root window: all of it is the head.
+            add(&mut whole_sum, &head, 1.0);
+            add(&mut thin_sum, &t, 1.0);
+        }
         let rest = sum(&proxy[head_end.min(tail_start)..tail_start]);
         per_wave.push(Rest {
             wave,
@@ -924,6 +1023,19 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             ratios,
         });
         pool_part(2, wave, &x, &px);
+    }
+    // The sampled wavefronts, each count by the ratio whole / sample of those
+    // simulated both ways (none: as sampled).
+    for (wave, t) in &sampled {
+        let c: [f64; WCOUNTS] = std::array::from_fn(|i| {
+            if thin_sum[i] > 0.0 {
+                t[i] * whole_sum[i] / thin_sum[i]
+            } else {
+                t[i]
+            }
+        });
+        add(&mut total, &c, 1.0);
+        parts.push(part(*wave, "wave", 0, rec.segs[*wave].len() as u64, &c));
     }
     // Part `k` summed over the measured wavefronts that have it and pass `ok`:
     // the nearest before and after `wave` (`all`: every one).
@@ -1177,6 +1289,8 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     ];
     let f3 = combine(&p);
     let se = se_known.then(|| std::array::from_fn(|k| var[k].sqrt() / f3[k].max(1e-30)));
+    // By wavefront (a stable sort keeps each one's parts in order).
+    parts.sort_by_key(|p| p.wave);
     Ok(Windowed {
         parts: p,
         se,
@@ -1541,10 +1655,22 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             same_image(&f, None),
             se,
             &format!(
-                "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); {}: the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {} and {} cycles",
+                "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); {}{}: the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {} and {} cycles",
                 rec.samples.len(),
                 rec.chip_s,
                 o.threads.max(1),
+                match rec
+                    .samples
+                    .iter()
+                    .filter(|s| s.kind == render::SampleKind::Wave)
+                    .count()
+                {
+                    0 => String::new(),
+                    n => format!(
+                        "{n} short wavefronts traced over a sample of about {} rays on 1/{} of the L2, ",
+                        wp.wave_rays, wp.wave_l2_share
+                    ),
+                },
                 match rec.measured.iter().filter(|m| !**m).count() {
                     0 => "per wavefront".to_string(),
                     n => format!(

@@ -228,6 +228,14 @@ fn bad_speed_error_options_are_named() {
         })
         .contains("too few")
     );
+    // A wavefront sample's L2 share must leave whole sets.
+    for share in [0, 3, 1 << 20] {
+        let e = with(&|o| {
+            o.modes = Some(vec!["windows".into()]);
+            o.windows.wave_l2_share = share;
+        });
+        assert!(e.contains(&format!("--window-wave-l2 {share}")), "{e}");
+    }
 }
 
 /// Renders `s` on the chip with GDDR5 as `render --mode cycle --stats --out` would and
@@ -393,6 +401,9 @@ fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
     dualstream::render::WindowPlan {
         head,
         root_rays: u64::MAX,
+        wave_rays: 0,
+        wave_l2_share: 1,
+        wave_whole: 0,
         warm: 0,
         measure: every,
         every,
@@ -1078,5 +1089,89 @@ fn a_shading_window_warms_up_for_its_cycles_too() {
         assert!(y.run.warm.cycles >= 2000, "{}", y.run.warm.cycles);
         assert!(y.run.from > x.run.from, "{} {}", y.run.from, x.run.from);
         assert!(y.first > x.first);
+    }
+}
+
+/// A short wavefront (too few passes for a window) of more rays than
+/// `wave_rays` is traced over a packed sample of its root queue from its root
+/// pass to its end, measured over its visits from the first tenth to the
+/// ninth; the first `wave_whole` from the second on are simulated whole too
+/// (root window, then the head to the end), and the frame is as it was.
+#[test]
+fn a_short_wavefront_is_traced_over_a_sample_to_its_end() {
+    use dualstream::render::SampleKind;
+    let (s, c) = cornell_in_rows();
+    // No window fits before admission 1004 (these wavefronts have about 27
+    // passes).
+    let mut short = windows_plan(4, 1000);
+    (short.warm, short.measure) = (3, 6);
+    let plain = render_windows(&s, &c, short.clone());
+    let mut plan = short;
+    plan.wave_rays = 40;
+    plan.wave_whole = 1;
+    plan.root_rays = 40;
+    let f = render_windows(&s, &c, plan.clone());
+    assert_eq!(
+        f.radiance, plain.radiance,
+        "a sampled wavefront leaves no trace"
+    );
+    let r = f.windows.as_ref().unwrap();
+    assert!(r.whole.iter().all(|&w| w), "{:?}", r.whole);
+    let waves = of_kind(r, SampleKind::Wave);
+    let sampled: Vec<usize> = (0..r.segs.len())
+        .filter(|&w| r.segs[w].first().is_some_and(|s| s.rays > 40))
+        .collect();
+    assert!(sampled.len() >= 2, "{sampled:?}");
+    assert_eq!(
+        waves.iter().map(|x| x.wave).collect::<Vec<_>>(),
+        sampled,
+        "one sample per wavefront of more rays than wave_rays"
+    );
+    for smp in &waves {
+        let segs = &r.segs[smp.wave];
+        let rays = segs[0].rays;
+        let every = rays.div_ceil(40);
+        let run = plan.sample_run();
+        let kept = (0..rays)
+            .filter(|i| {
+                dualstream::render::queues::sampled_run(i / run, rays.div_ceil(run), every, true)
+            })
+            .count() as u64;
+        assert_eq!(smp.first, rays - kept, "wave {}", smp.wave);
+        // Run to the wavefront's end: its visits are about one in k of the
+        // wavefront's (every kept ray goes down the tree as in the frame).
+        let visits: u64 = smp.run.done.iter().map(|d| d.1).sum();
+        let all: u64 = segs.iter().map(|s| s.rays).sum();
+        let k = rays as f64 / kept as f64;
+        let ratio = visits as f64 * k / all as f64;
+        assert!(
+            (0.6..1.6).contains(&ratio),
+            "wave {}: {visits} visits x {k:.2} against {all}",
+            smp.wave
+        );
+        assert!(smp.run.done.len() > 1, "it went past the root segment");
+        assert!(smp.run.ended);
+        // Measured from the first tenth of its visits to the ninth (looked at
+        // in steps: a little past each).
+        let (a, b) = dualstream::render::ROOT_STEADY_TENTHS;
+        assert!(
+            smp.run.from >= visits * a / 10
+                && smp.run.from + smp.run.marks >= visits * b / 10
+                && smp.run.from + smp.run.marks <= visits,
+            "wave {}: {} + {} of {visits}",
+            smp.wave,
+            smp.run.from,
+            smp.run.marks
+        );
+        assert!(smp.run.warm.cycles > 0 && smp.run.counts.cycles > 0 && smp.run.after.cycles > 0);
+        // The whole wavefront as well only in the second one.
+        let whole = r
+            .samples
+            .iter()
+            .filter(|x| {
+                x.wave == smp.wave && matches!(x.kind, SampleKind::Root | SampleKind::Trace)
+            })
+            .count();
+        assert_eq!(whole > 0, smp.wave == 1, "wave {}", smp.wave);
     }
 }

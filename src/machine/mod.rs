@@ -345,6 +345,17 @@ pub enum WindowKind {
     /// end; the measurement is a stretch of it, at most to its last ray
     /// finished.
     Root(crate::render::queues::Boundary),
+    /// A short wavefront (too few passes for a window between them) over a
+    /// sample of its root queue, from its root pass to its end; marks are the
+    /// rays finished in any segment (ray visits). The measured stretch is chosen
+    /// once the wavefront is over: from the first look at which a fraction
+    /// `tenths.0 / 10` of its visits were done to the first at `tenths.1 / 10`,
+    /// looking every `step` visits.
+    Wave {
+        boundary: crate::render::queues::Boundary,
+        tenths: (u64, u64),
+        step: u64,
+    },
 }
 
 /// A sampling window's measurement.
@@ -370,7 +381,8 @@ pub struct WindowRun {
     /// window's start; the measurement starts at `warm.cycles`).
     pub passes: Vec<crate::units::stream_scheduler::PassEvent>,
     /// Rays finished (end markers) in the measured stretch, by segment: the
-    /// work the stretch did, however its passes straddle its ends.
+    /// work the stretch did, however its passes straddle its ends. (A
+    /// [`WindowKind::Wave`]: over the whole run, which its estimate scales.)
     pub done: Vec<(u32, u64)>,
     /// A root window's counts from the measured stretch's end to the pass's
     /// end (it runs to the end: `warm`, `counts` and `after` are the pass).
@@ -1054,7 +1066,9 @@ impl Chip {
         measure: u64,
     ) -> Result<Option<WindowRun>, String> {
         let sch = self.scheduler;
-        if let WindowKind::Trace(b) | WindowKind::Root(b) = &kind {
+        if let WindowKind::Trace(b) | WindowKind::Root(b) | WindowKind::Wave { boundary: b, .. } =
+            &kind
+        {
             let map = self.sim.unit_ref::<StreamScheduler>(sch).map.clone();
             for (s, rec) in &b.queues {
                 mem.write(map.queue_rec_addr(*s), &rec.encode());
@@ -1065,7 +1079,7 @@ impl Chip {
         }
         self.sim.unit_mut::<Memory>(self.memory).image = mem;
         match &kind {
-            WindowKind::Trace(b) | WindowKind::Root(b) => {
+            WindowKind::Trace(b) | WindowKind::Root(b) | WindowKind::Wave { boundary: b, .. } => {
                 self.sim.unit_mut::<StreamScheduler>(sch).resume(b);
                 self.sim.wake(sch);
             }
@@ -1098,6 +1112,7 @@ impl Chip {
             WindowKind::Shade { first, pixels, .. } => (2, (pixels - first.min(pixels)) as u64),
             // At a wavefront's start only the root queue holds rays.
             WindowKind::Root(b) => (3, b.queues.iter().map(|(_, q)| q.rays as u64).sum()),
+            WindowKind::Wave { tenths, step, .. } => return self.wave_window(*tenths, *step),
         };
         let root = mark == 3;
         let count = |c: &Chip| {
@@ -1208,6 +1223,77 @@ impl Chip {
                 idle_run = 0;
             }
         }
+    }
+
+    /// The rest of [`WindowKind::Wave`] (set up by `window_inner`): runs the
+    /// wavefront to its end, looking at its visits (rays finished in any
+    /// segment) every `step`, and measures the stretch between the looks at
+    /// `tenths` of the visits it did in all (the total is known only at the
+    /// end). Its L2 started empty, so all it leaves dirty is owed.
+    fn wave_window(&mut self, tenths: (u64, u64), step: u64) -> Result<Option<WindowRun>, String> {
+        let sch = self.scheduler;
+        let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
+        let done = |c: &Chip| c.sim.unit_ref::<StreamScheduler>(sch).pub_done.clone();
+        let start = self.snapshot();
+        let done0 = done(self);
+        let visits = |d: &[u64]| d.iter().sum::<u64>() - done0.iter().sum::<u64>();
+        let mut looks: Vec<(u64, WaveCycles)> = Vec::new();
+        let mut next = 0u64;
+        let mut idle_run = 0u64;
+        loop {
+            let end = self
+                .sim
+                .run_until(self.sim.now() + WINDOW_STEP * period)
+                .map_err(|e| e.to_string())?;
+            if let Some(e) = self.sim.unit_ref::<StreamScheduler>(sch).error() {
+                return Err(e.to_string());
+            }
+            let n = visits(&done(self));
+            if n >= next {
+                looks.push((n, self.snapshot()));
+                next = n + step.max(1);
+                idle_run = 0;
+            }
+            if end == crate::rtl::RunEnd::Idle {
+                break;
+            }
+            idle_run += WINDOW_STEP;
+            if idle_run > self.watchdog.max(WINDOW_STEP) * 64 {
+                return Err(self.stuck("a sampling window did not reach its marks"));
+            }
+        }
+        let d = done(self);
+        let total = visits(&d);
+        if total == 0 {
+            return Ok(None);
+        }
+        let now = self.snapshot();
+        let at = |t: u64| {
+            let want = total * t / 10;
+            looks
+                .iter()
+                .find(|(n, _)| *n >= want)
+                .cloned()
+                .unwrap_or((total, now))
+        };
+        let ((n0, a), (n1, b)) = (at(tenths.0), at(tenths.1));
+        Ok(Some(WindowRun {
+            counts: b.since(&a),
+            marks: n1 - n0,
+            from: n0,
+            ended: true,
+            warm: a.since(&start),
+            dirtied: self.l2_dirty().map(|x| x as i64),
+            passes: self.take_pass_log(),
+            done: d
+                .iter()
+                .zip(&done0)
+                .enumerate()
+                .filter(|(_, (a, b))| a > b)
+                .map(|(s, (a, b))| (s as u32, a - b))
+                .collect(),
+            after: now.since(&b),
+        }))
     }
 
     /// Dirty L2 lines by stream tag (none without an L2).

@@ -90,6 +90,34 @@ pub struct WindowPlan {
     /// stretch ([`ROOT_STEADY_TENTHS`]), and k times its lines and other counts
     /// but for its segment's load.
     pub root_rays: u64,
+    /// Rays of a short wavefront's sample (one with too few passes for a
+    /// window, see [`WindowPlan::first_window_start`]): such a wavefront of
+    /// more rays is simulated from its root pass to its end over one run of
+    /// rays in k of its root queue, packed as for a root window, and measured
+    /// over its visits (rays finished in a segment) from the first tenth to the
+    /// ninth ([`ROOT_STEADY_TENTHS`]); the visits it left out cost that
+    /// stretch's cycles and DRAM energy each, its other counts go by the
+    /// functional work. Always measured (never borrowed). 0: such a wavefront
+    /// is simulated whole after its root window.
+    pub wave_rays: u64,
+    /// A wavefront sample's L2 is this share of the chip's. The sample
+    /// passes its rays' hit records through the passes k times faster than
+    /// the wavefront does, so a whole L2 still holds them when a ray comes
+    /// back in a later pass and the sample's hit-record lines read low; one
+    /// k-th of it loses the reuse between neighbouring rays in a pass. On
+    /// Dabrovic Sponza (k 16-28), a wavefront simulated whole over its sample,
+    /// lines and DRAM energy: whole L2 1.08-1.16 and 0.96-1.03; half
+    /// 1.01-1.07 and 0.93-0.97; a quarter 0.96-1.03 and 0.89-0.98
+    /// (docs/speed-error.md).
+    pub wave_l2_share: u32,
+    /// Of the sampled short wavefronts, those from the second to this one
+    /// are also simulated whole (root window, then the rest whole): the ratio
+    /// of their whole figures to their samples' corrects every other sampled
+    /// wavefront, count by count (double sampling: what is left of a sample's
+    /// bias, see `wave_l2_share`, is alike over the wavefronts). A whole
+    /// wavefront costs as much as the cycle model's, so this is for checking
+    /// a sample on a new scene. 0: no correction.
+    pub wave_whole: u64,
     /// Admissions simulated before a window's measurement (to fill the working
     /// set, the TMs and the caches) and measured.
     pub warm: u64,
@@ -160,6 +188,13 @@ impl WindowPlan {
             .saturating_add(lo.div_ceil(self.every.max(1)).saturating_mul(self.every))
     }
 
+    /// Rays in a run of a wavefront sample: [`queues::SAMPLE_RUN`], fewer
+    /// for a sample of fewer than 16 such runs (at least
+    /// [`queues::COMPACT_RUN`]).
+    pub fn sample_run(&self) -> u64 {
+        (self.wave_rays / 16).clamp(queues::COMPACT_RUN, queues::SAMPLE_RUN)
+    }
+
     /// Whether wavefront `wave` takes a root window (see `wave_every`).
     pub fn measures_root(&self, wave: usize, last: usize) -> bool {
         self.wave_every <= 1 || wave <= 1 || wave >= last
@@ -207,6 +242,9 @@ pub enum SampleKind {
     /// A wavefront's root pass over a sample of its queue (`first`: the rays
     /// left out), to the next admission.
     Root,
+    /// A short wavefront over a sample of its root queue, from its root pass to
+    /// its end (`WindowPlan::wave_rays`; `first`: the rays left out).
+    Wave,
     /// Segment passes of a wavefront.
     Trace,
     /// A wavefront's last segment passes (from the first boundary after the
@@ -738,7 +776,50 @@ pub fn render(
                         let alike = |m: Option<u64>| {
                             m.is_some_and(|m| rays.abs_diff(m) as f64 <= BORROW_ALIKE * m as f64)
                         };
-                        measured = plan.measures_wave(wave, last) || !alike(traced_rays);
+                        // Its passes: the last wavefront's, else one per segment.
+                        let expect =
+                            w.rec.segs.last().map_or(p.seg.segments.len(), |s| s.len()) as u64;
+                        whole = expect <= plan.first_window_start();
+                        // A short wavefront of many rays is traced over a
+                        // sample from its root pass to its end (cheap, so
+                        // never borrowed).
+                        let sampled = whole && plan.wave_rays > 0 && rays > plan.wave_rays;
+                        measured = plan.measures_wave(wave, last) || !alike(traced_rays) || sampled;
+                        if sampled {
+                            traced_rays = Some(rays);
+                            rooted_rays = Some(rays);
+                            let every = rays.div_ceil(plan.wave_rays);
+                            let (b, kept) = q.boundary_sample(
+                                &p.mem,
+                                &p.map,
+                                s as usize,
+                                every,
+                                plan.sample_run(),
+                            );
+                            let spec = windows::WindowSpec {
+                                what: crate::machine::WindowKind::Wave {
+                                    boundary: b,
+                                    tenths: ROOT_STEADY_TENTHS,
+                                    // About 160 looks for ten visits a ray.
+                                    step: (kept / 16).max(1),
+                                },
+                                warm: 0,
+                                warm_cycles: 0,
+                                measure: 0,
+                                wave,
+                                kind: SampleKind::Wave,
+                                first: rays - kept,
+                                l2_share: plan.wave_l2_share,
+                            };
+                            w.run(p, spec)?;
+                            // The first `wave_whole` of them from the second
+                            // on are simulated whole as well (root window and
+                            // the rest as the head), to correct the others.
+                            if !(1..=plan.wave_whole).contains(&(wave as u64)) {
+                                tail_started = true;
+                                return Ok(());
+                            }
+                        }
                         // A root pass no longer than a root window is simulated
                         // whole: cheap, and latency-bound, so its cost per ray is
                         // not its neighbours' (Cornell box 64x64: borrowed roots
@@ -750,10 +831,6 @@ pub fn render(
                         if measured {
                             traced_rays = Some(rays);
                         }
-                        // Its passes: the last wavefront's, else one per segment.
-                        let expect =
-                            w.rec.segs.last().map_or(p.seg.segments.len(), |s| s.len()) as u64;
-                        whole = expect <= plan.first_window_start();
                         if !root {
                             return Ok(());
                         }
@@ -771,6 +848,7 @@ pub fn render(
                             wave,
                             kind: SampleKind::Root,
                             first: n - kept,
+                            l2_share: 1,
                         };
                         w.run(p, spec)?;
                         return Ok(());
@@ -814,6 +892,7 @@ pub fn render(
                         wave,
                         kind,
                         first: k + warm,
+                        l2_share: 1,
                     };
                     w.run(p, spec)?;
                     Ok(())

@@ -36,6 +36,9 @@ pub(super) struct WindowSpec {
     pub(super) wave: usize,
     pub(super) kind: SampleKind,
     pub(super) first: u64,
+    /// The chip's L2 is this share of the configured one (1: all of it; see
+    /// `WindowPlan::wave_l2_share`).
+    pub(super) l2_share: u32,
 }
 
 /// A window to run on its snapshot of the image.
@@ -52,8 +55,17 @@ impl WindowChip {
     /// Runs one window on a fresh chip; `None` when it measured nothing.
     fn run(&self, job: WindowJob) -> Result<Option<WindowSample>, String> {
         let t = Instant::now();
+        let shared;
+        let cfg = if job.spec.l2_share > 1 {
+            let mut c = self.cfg.clone();
+            c.chip.l2.bytes /= job.spec.l2_share;
+            shared = c;
+            &shared
+        } else {
+            &self.cfg
+        };
         let mut chip = crate::machine::Chip::new(
-            &self.cfg,
+            cfg,
             &self.map,
             self.segments,
             &self.consts,
@@ -167,6 +179,20 @@ impl Windows {
         sim: crate::rtl::SimOptions,
         pixels: u32,
     ) -> Result<Windows, String> {
+        let share = plan.wave_l2_share;
+        if plan.wave_rays > 0 && cfg.chip.l2.enabled {
+            let mut l2 = cfg.chip.l2.clone();
+            l2.bytes /= share.max(1);
+            if share == 0 || l2.bytes * share != cfg.chip.l2.bytes {
+                return Err(format!(
+                    "--window-wave-l2 {share}: a wavefront sample's L2 is chip.l2.bytes ({}) divided by it; give a divisor of it",
+                    cfg.chip.l2.bytes
+                ));
+            }
+            l2.validate(cfg.chip.links.delay).map_err(|e| {
+                format!("--window-wave-l2 {share} leaves the sample an impossible L2 ({e}); give a smaller share")
+            })?;
+        }
         let workers = sim.threads;
         let chip = Arc::new(WindowChip {
             cfg,
@@ -294,6 +320,7 @@ impl Windows {
             wave: 0,
             kind: SampleKind::Emit,
             first: warm,
+            l2_share: 1,
         };
         self.run(p, spec)
     }
@@ -343,6 +370,7 @@ impl Windows {
                 wave,
                 kind,
                 first: first as u64 + warm,
+                l2_share: 1,
             };
             self.run(p, spec)?;
         }
