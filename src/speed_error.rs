@@ -582,13 +582,14 @@ impl Default for SpeedErrorOpts {
 /// (one and a half turnovers of the scene buffer's 64 slots) every 1024; the
 /// tail from 16 pending queues; two shading windows of 2048 items after 4096
 /// and at least 16384 cycles, after the first 16384. A wavefront too short for
-/// windows is traced over a sample of about 64 K of its rays on half the L2.
+/// windows is traced over a sample of about 64 K of its rays on a quarter of
+/// the L2.
 pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
         root_rays: 65536,
         wave_rays: 65536,
-        wave_l2_share: 2,
+        wave_l2_share: 4,
         wave_whole: 0,
         warm: 96,
         measure: 64,

@@ -105,10 +105,11 @@ pub struct WindowPlan {
     /// the wavefront does, so a whole L2 still holds them when a ray comes
     /// back in a later pass and the sample's hit-record lines read low; one
     /// k-th of it loses the reuse between neighbouring rays in a pass. On
-    /// Dabrovic Sponza (k 16-28), a wavefront simulated whole over its sample,
-    /// lines and DRAM energy: whole L2 1.08-1.16 and 0.96-1.03; half
-    /// 1.01-1.07 and 0.93-0.97; a quarter 0.96-1.03 and 0.89-0.98
-    /// (docs/speed-error.md).
+    /// Dabrovic Sponza (k 16-28, runs of 1024 rays), a wavefront simulated
+    /// whole over its sample is 0.97-1.02 in cycles, 0.97-1.03 in lines and
+    /// 0.98-1.02 in DRAM energy with a quarter of the L2; with half, runs of
+    /// 512, lines read 1.01-1.08 (docs/speed-error.md). The choice is
+    /// measured, not derived.
     pub wave_l2_share: u32,
     /// Of the sampled short wavefronts, those from the second to this one
     /// are also simulated whole (root window, then the rest whole): the ratio

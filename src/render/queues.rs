@@ -294,8 +294,8 @@ impl RayQueues {
     /// rows, a sample's rows stay open (Dabrovic Sponza: 0.17-0.20 activates
     /// per line against 0.47-0.52 in whole wavefronts, its DRAM energy 8-18%
     /// low); left in place in runs of 8 rays, a row is opened for a few lines
-    /// (2-23% high); in runs of 256, -3% to +4%. Runs of `run` rays (see
-    /// [`SAMPLE_RUN`]).
+    /// (2-23% high); runs of 1024 keep the rows' fill (-2% to +2%). Runs of
+    /// `run` rays (see [`SAMPLE_RUN`]).
     pub fn boundary_sample(
         &self,
         mem: &SparseMem,
@@ -453,8 +453,11 @@ impl RayQueues {
 pub const COMPACT_RUN: u64 = 8;
 
 /// Rays in a run of a wavefront sample ([`RayQueues::boundary_sample`]), at
-/// most: about a DRAM row of hit records (256 pixels' pairs in 8 KB).
-pub const SAMPLE_RUN: u64 = 256;
+/// most. A DRAM row holds the hit records of 256 pixels, and a bounce
+/// wavefront's queue has about 1.7 rays a pixel, not in strict pixel order:
+/// on Dabrovic Sponza, runs of 256 rays read 1-7% too much DRAM energy per
+/// line, 512 2-5%, 1024 within 2% (docs/speed-error.md).
+pub const SAMPLE_RUN: u64 = 1024;
 
 /// Whether run `j` of `runs` is kept when one run in `every` is: the first of
 /// its group of `every`, or (`scatter`) the one a hash of the group picks
