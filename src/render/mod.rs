@@ -93,7 +93,9 @@ pub struct WindowPlan {
     /// Rays of a short wavefront's sample (one with too few passes for a
     /// window, see [`WindowPlan::first_window_start`]): such a wavefront of
     /// more rays is simulated from its root pass to its end over one run of
-    /// rays in k of its root queue, packed as for a root window, and measured
+    /// rays in k of its root queue (`RayQueues::boundary_sample`: runs of
+    /// [`WindowPlan::sample_run`] rays, hit records in place), on
+    /// `wave_l2_share` of the L2, and measured
     /// over its visits (rays finished in a segment) from the first tenth to the
     /// ninth ([`ROOT_STEADY_TENTHS`]); the visits it left out cost that
     /// stretch's cycles and DRAM energy each, its other counts go by the
