@@ -1290,8 +1290,6 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     ];
     let f3 = combine(&p);
     let se = se_known.then(|| std::array::from_fn(|k| var[k].sqrt() / f3[k].max(1e-30)));
-    // By wavefront (a stable sort keeps each one's parts in order).
-    parts.sort_by_key(|p| p.wave);
     Ok(Windowed {
         parts: p,
         se,
