@@ -351,10 +351,13 @@ pub enum WindowKind {
     /// once the wavefront is over: from the first look at which a fraction
     /// `tenths.0 / 10` of its visits were done to the first at `tenths.1 / 10`,
     /// looking every `step` visits.
+    /// Its chip is built with `l2_share` of the configured L2 (see
+    /// `WindowPlan::wave_l2_share`).
     Wave {
         boundary: crate::render::queues::Boundary,
         tenths: (u64, u64),
         step: u64,
+        l2_share: u32,
     },
 }
 
@@ -1144,15 +1147,6 @@ impl Chip {
         // A root window's measured stretch, once over (it runs on to the end).
         let mut stretch: Option<(WaveCycles, u64)> = None;
         let mut done0 = Vec::new();
-        let done_since = |c: &Chip, d0: &[u64]| -> Vec<(u32, u64)> {
-            let d = &c.sim.unit_ref::<StreamScheduler>(c.scheduler).pub_done;
-            d.iter()
-                .zip(d0)
-                .enumerate()
-                .filter(|(_, (a, b))| a > b)
-                .map(|(s, (a, b))| (s as u32, a - b))
-                .collect()
-        };
         let mut idle_run = 0u64;
         let t0 = self.sim.now();
         loop {
@@ -1185,18 +1179,12 @@ impl Chip {
                         warm: a.since(&start),
                         dirtied: owed(d0, &self.l2_dirty()),
                         passes: self.take_pass_log(),
-                        done: done_since(self, &done0),
+                        done: self.done_since(&done0),
                         after: WaveCycles::default(),
                     }));
                 }
             }
-            let end = self
-                .sim
-                .run_until(self.sim.now() + WINDOW_STEP * period)
-                .map_err(|e| e.to_string())?;
-            if let Some(e) = self.sim.unit_ref::<StreamScheduler>(sch).error() {
-                return Err(e.to_string());
-            }
+            let end = self.window_step()?;
             if end == crate::rtl::RunEnd::Idle || root_over(self) {
                 let Some((a, n0, d0)) = &from else {
                     return Ok(None);
@@ -1211,14 +1199,11 @@ impl Chip {
                     warm: a.since(&start),
                     dirtied: owed(d0, &self.l2_dirty()),
                     passes: self.take_pass_log(),
-                    done: done_since(self, &done0),
+                    done: self.done_since(&done0),
                     after: now.since(&b),
                 }));
             }
-            idle_run += WINDOW_STEP;
-            if idle_run > self.watchdog.max(WINDOW_STEP) * 64 {
-                return Err(self.stuck("a sampling window did not reach its marks"));
-            }
+            idle_run = self.window_watchdog(idle_run)?;
             if count(self) > n {
                 idle_run = 0;
             }
@@ -1232,23 +1217,17 @@ impl Chip {
     /// end). Its L2 started empty, so all it leaves dirty is owed.
     fn wave_window(&mut self, tenths: (u64, u64), step: u64) -> Result<Option<WindowRun>, String> {
         let sch = self.scheduler;
-        let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
-        let done = |c: &Chip| c.sim.unit_ref::<StreamScheduler>(sch).pub_done.clone();
+        let visits =
+            |c: &Chip| -> u64 { c.sim.unit_ref::<StreamScheduler>(sch).pub_done.iter().sum() };
         let start = self.snapshot();
-        let done0 = done(self);
-        let visits = |d: &[u64]| d.iter().sum::<u64>() - done0.iter().sum::<u64>();
+        let done0 = self.sim.unit_ref::<StreamScheduler>(sch).pub_done.clone();
+        let v0 = visits(self);
         let mut looks: Vec<(u64, WaveCycles)> = Vec::new();
         let mut next = 0u64;
         let mut idle_run = 0u64;
         loop {
-            let end = self
-                .sim
-                .run_until(self.sim.now() + WINDOW_STEP * period)
-                .map_err(|e| e.to_string())?;
-            if let Some(e) = self.sim.unit_ref::<StreamScheduler>(sch).error() {
-                return Err(e.to_string());
-            }
-            let n = visits(&done(self));
+            let end = self.window_step()?;
+            let n = visits(self) - v0;
             if n >= next {
                 looks.push((n, self.snapshot()));
                 next = n + step.max(1);
@@ -1257,13 +1236,9 @@ impl Chip {
             if end == crate::rtl::RunEnd::Idle {
                 break;
             }
-            idle_run += WINDOW_STEP;
-            if idle_run > self.watchdog.max(WINDOW_STEP) * 64 {
-                return Err(self.stuck("a sampling window did not reach its marks"));
-            }
+            idle_run = self.window_watchdog(idle_run)?;
         }
-        let d = done(self);
-        let total = visits(&d);
+        let total = visits(self) - v0;
         if total == 0 {
             return Ok(None);
         }
@@ -1285,15 +1260,47 @@ impl Chip {
             warm: a.since(&start),
             dirtied: self.l2_dirty().map(|x| x as i64),
             passes: self.take_pass_log(),
-            done: d
-                .iter()
-                .zip(&done0)
-                .enumerate()
-                .filter(|(_, (a, b))| a > b)
-                .map(|(s, (a, b))| (s as u32, a - b))
-                .collect(),
+            done: self.done_since(&done0),
             after: now.since(&b),
         }))
+    }
+
+    /// Runs a sampling window for [`WINDOW_STEP`] cycles: how the run ended,
+    /// or the scheduler's error.
+    fn window_step(&mut self) -> Result<crate::rtl::RunEnd, String> {
+        let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
+        let end = self
+            .sim
+            .run_until(self.sim.now() + WINDOW_STEP * period)
+            .map_err(|e| e.to_string())?;
+        match self.sim.unit_ref::<StreamScheduler>(self.scheduler).error() {
+            Some(e) => Err(e.to_string()),
+            None => Ok(end),
+        }
+    }
+
+    /// A window's cycles without progress after one more step, or an error
+    /// once they pass 64 watchdog periods.
+    fn window_watchdog(&self, idle_run: u64) -> Result<u64, String> {
+        let idle_run = idle_run + WINDOW_STEP;
+        if idle_run > self.watchdog.max(WINDOW_STEP) * 64 {
+            return Err(self.stuck("a sampling window did not reach its marks"));
+        }
+        Ok(idle_run)
+    }
+
+    /// Rays finished (end markers) since the counts `d0`, by segment.
+    fn done_since(&self, d0: &[u64]) -> Vec<(u32, u64)> {
+        let d = &self
+            .sim
+            .unit_ref::<StreamScheduler>(self.scheduler)
+            .pub_done;
+        d.iter()
+            .zip(d0)
+            .enumerate()
+            .filter(|(_, (a, b))| a > b)
+            .map(|(s, (a, b))| (s as u32, a - b))
+            .collect()
     }
 
     /// Dirty L2 lines by stream tag (none without an L2).

@@ -93,7 +93,7 @@ pub struct WindowPlan {
     /// Rays of a short wavefront's sample (one with too few passes for a
     /// window, see [`WindowPlan::first_window_start`]): such a wavefront of
     /// more rays is simulated from its root pass to its end over one run of
-    /// rays in k of its root queue (`RayQueues::boundary_sample`: runs of
+    /// rays in k of its root queue (`queues::Thinning::wave`: runs of
     /// [`WindowPlan::sample_run`] rays, hit records in place), on
     /// `wave_l2_share` of the L2, and measured
     /// over its visits (rays finished in a segment) from the first tenth to the
@@ -792,12 +792,11 @@ pub fn render(
                             traced_rays = Some(rays);
                             rooted_rays = Some(rays);
                             let every = rays.div_ceil(plan.wave_rays);
-                            let (b, kept) = q.boundary_sample(
+                            let (b, kept) = q.boundary_compact(
                                 &p.mem,
                                 &p.map,
                                 s as usize,
-                                every,
-                                plan.sample_run(),
+                                queues::Thinning::wave(every, plan.sample_run()),
                             );
                             let spec = windows::WindowSpec {
                                 what: crate::machine::WindowKind::Wave {
@@ -805,6 +804,7 @@ pub fn render(
                                     tenths: ROOT_STEADY_TENTHS,
                                     // About 160 looks for ten visits a ray.
                                     step: (kept / 16).max(1),
+                                    l2_share: plan.wave_l2_share,
                                 },
                                 warm: 0,
                                 warm_cycles: 0,
@@ -812,7 +812,6 @@ pub fn render(
                                 wave,
                                 kind: SampleKind::Wave,
                                 first: rays - kept,
-                                l2_share: plan.wave_l2_share,
                             };
                             w.run(p, spec)?;
                             // The first `wave_whole` of them from the second
@@ -842,7 +841,12 @@ pub fn render(
                         // over one ray in `every` of its queue, packed.
                         let n = q.len(s);
                         let every = n.div_ceil(plan.root_rays);
-                        let (b, kept) = q.boundary_compact(&p.mem, &p.map, s as usize, every);
+                        let (b, kept) = q.boundary_compact(
+                            &p.mem,
+                            &p.map,
+                            s as usize,
+                            queues::Thinning::root(every),
+                        );
                         let spec = windows::WindowSpec {
                             what: crate::machine::WindowKind::Root(b),
                             warm: (kept * ROOT_STEADY_TENTHS.0 / 10).max(1),
@@ -851,7 +855,6 @@ pub fn render(
                             wave,
                             kind: SampleKind::Root,
                             first: n - kept,
-                            l2_share: 1,
                         };
                         w.run(p, spec)?;
                         return Ok(());
@@ -895,7 +898,6 @@ pub fn render(
                         wave,
                         kind,
                         first: k + warm,
-                        l2_share: 1,
                     };
                     w.run(p, spec)?;
                     Ok(())

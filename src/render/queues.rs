@@ -264,61 +264,22 @@ impl RayQueues {
     }
 
     /// [`RayQueues::boundary`] with segment `seg`'s queue replaced by one run
-    /// of [`COMPACT_RUN`] rays in every `every` runs, in its order, packed into
-    /// its first buckets (a root window: the pass over a sample of its rays,
-    /// on the addresses the whole pass reads first: the scheduler reads a
-    /// queue as a chain, a bucket's header naming the next, and the header
-    /// latency sets a root pass's pace). Runs keep neighbouring rays together,
-    /// and each run's hit records move with it, their spacing kept, next to
-    /// the previous run's (copied there), so the kept rays share hit-record
-    /// lines as they do in the whole queue. The other buckets stay allocated
-    /// in the pool, as rays the pass already took would sit in its children's
-    /// queues. Also the rays kept.
+    /// of `t.run` rays in every `t.every` runs, in its order, packed into its
+    /// first buckets (the scheduler reads a queue as a chain, a bucket's header
+    /// naming the next, and the header latency sets a root pass's pace, so a
+    /// sample walks the addresses the whole pass reads first). Runs keep
+    /// neighbouring rays together. The other buckets stay allocated in the
+    /// pool, as rays the pass already took would sit in its children's queues.
+    /// Also the rays kept. See [`Thinning`] for which run of a group is kept
+    /// and where the hit records go.
     pub fn boundary_compact(
         &self,
         mem: &SparseMem,
         map: &MemoryMap,
         seg: usize,
-        every: u64,
+        t: Thinning,
     ) -> (Boundary, u64) {
-        self.compact(mem, map, seg, every, COMPACT_RUN, false)
-    }
-
-    /// [`RayQueues::boundary_compact`] for a wavefront sample traced to its
-    /// end: one run of [`SAMPLE_RUN`] rays in every `every` runs, which run
-    /// in each group of `every` picked by a hash of the group (a fixed stride
-    /// would keep the same columns of every few image rows), its rays packed
-    /// into the queue's first buckets but their hit records left where they
-    /// are. Through all of a wavefront's passes the hit records' spread over
-    /// DRAM rows and banks sets the row conflicts: packed into one k-th of the
-    /// rows, a sample's rows stay open (Dabrovic Sponza: 0.17-0.20 activates
-    /// per line against 0.47-0.52 in whole wavefronts, its DRAM energy 8-18%
-    /// low); left in place in runs of 8 rays, a row is opened for a few lines
-    /// (2-23% high); runs of 1024 keep the rows' fill (-2% to +2%). Runs of
-    /// `run` rays (see [`SAMPLE_RUN`]).
-    pub fn boundary_sample(
-        &self,
-        mem: &SparseMem,
-        map: &MemoryMap,
-        seg: usize,
-        every: u64,
-        run: u64,
-    ) -> (Boundary, u64) {
-        self.compact(mem, map, seg, every, run.max(1), true)
-    }
-
-    /// The queue of `seg` thinned to one run of `run` rays in every `every`:
-    /// the first of each group, or (`scatter`) one picked by a hash of the
-    /// group, its hit records left in place; else moved next to each other.
-    fn compact(
-        &self,
-        mem: &SparseMem,
-        map: &MemoryMap,
-        seg: usize,
-        every: u64,
-        run: u64,
-        scatter: bool,
-    ) -> (Boundary, u64) {
+        let (every, run, scatter) = (t.every, t.run.max(1), t.scatter);
         let mut b = self.boundary_inner(map);
         let q = &self.queues[seg];
         if every <= 1 || q.len == 0 {
@@ -447,12 +408,54 @@ impl RayQueues {
     }
 }
 
+/// How [`RayQueues::boundary_compact`] thins a queue: one run of `run` rays in
+/// every `every`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Thinning {
+    pub every: u64,
+    pub run: u64,
+    /// `false`: the first run of each group, each run's hit records moved
+    /// next to the previous run's (copied there, spacing kept), so the kept
+    /// rays share hit-record lines as in the whole queue. `true`: the run a
+    /// hash of the group picks ([`sampled_run`]), hit records left in place.
+    pub scatter: bool,
+}
+
+impl Thinning {
+    /// A root window: runs of [`COMPACT_RUN`], packed with their hit records
+    /// (a root pass reads them in order).
+    pub fn root(every: u64) -> Thinning {
+        Thinning {
+            every,
+            run: COMPACT_RUN,
+            scatter: false,
+        }
+    }
+
+    /// A wavefront sample traced to its end: runs of `run` rays (see
+    /// [`SAMPLE_RUN`]), hashed, hit records in place. Through all of a
+    /// wavefront's passes the hit records' spread over DRAM rows and banks
+    /// sets the row conflicts: packed into one k-th of the rows, a sample's
+    /// rows stay open (Dabrovic Sponza: 0.17-0.20 activates per line against
+    /// 0.47-0.52 in whole wavefronts, its DRAM energy 8-18% low); left in
+    /// place in runs of 8 rays, a row is opened for a few lines (2-23% high);
+    /// runs of 1024 keep the rows' fill (-2% to +2%). A fixed stride would
+    /// keep the same columns of every few image rows.
+    pub fn wave(every: u64, run: u64) -> Thinning {
+        Thinning {
+            every,
+            run,
+            scatter: true,
+        }
+    }
+}
+
 /// Consecutive rays a compacted queue keeps together
 /// ([`RayQueues::boundary_compact`]): a bounce and a shadow ray for each of
 /// four pixels, the hit records of two 64 B lines.
 pub const COMPACT_RUN: u64 = 8;
 
-/// Rays in a run of a wavefront sample ([`RayQueues::boundary_sample`]), at
+/// Rays in a run of a wavefront sample ([`Thinning::wave`]), at
 /// most. A DRAM row holds the hit records of 256 pixels, and a bounce
 /// wavefront's queue has about 1.7 rays a pixel, not in strict pixel order:
 /// on Dabrovic Sponza, runs of 256 rays read 1-7% too much DRAM energy per
@@ -520,7 +523,7 @@ mod tests {
             q.push(&mut mem, &map, 0, r).unwrap();
         }
         q.close(&mut mem, &map, 0);
-        let (b, kept) = q.boundary_compact(&mem, &map, 0, 7);
+        let (b, kept) = q.boundary_compact(&mem, &map, 0, Thinning::root(7));
         let want: Vec<&RayRec> = rays
             .iter()
             .enumerate()
@@ -574,7 +577,7 @@ mod tests {
         // Bounce and shadow rays of one pixel share it (and a line) still.
         assert!(got.windows(2).any(|w| w[0].pixel() == w[1].pixel()));
         // Every ray kept: the queue as it is, nothing written.
-        let (b, kept) = q.boundary_compact(&mem, &map, 0, 1);
+        let (b, kept) = q.boundary_compact(&mem, &map, 0, Thinning::root(1));
         assert!(kept == 1000 && b.writes.is_empty());
     }
 

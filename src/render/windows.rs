@@ -36,9 +36,6 @@ pub(super) struct WindowSpec {
     pub(super) wave: usize,
     pub(super) kind: SampleKind,
     pub(super) first: u64,
-    /// The chip's L2 is this share of the configured one (1: all of it; see
-    /// `WindowPlan::wave_l2_share`).
-    pub(super) l2_share: u32,
 }
 
 /// A window to run on its snapshot of the image.
@@ -56,9 +53,11 @@ impl WindowChip {
     fn run(&self, job: WindowJob) -> Result<Option<WindowSample>, String> {
         let t = Instant::now();
         let shared;
-        let cfg = if job.spec.l2_share > 1 {
+        let cfg = if let WindowKind::Wave { l2_share, .. } = job.spec.what
+            && l2_share > 1
+        {
             let mut c = self.cfg.clone();
-            c.chip.l2.bytes /= job.spec.l2_share;
+            c.chip.l2.bytes /= l2_share;
             shared = c;
             &shared
         } else {
@@ -320,7 +319,6 @@ impl Windows {
             wave: 0,
             kind: SampleKind::Emit,
             first: warm,
-            l2_share: 1,
         };
         self.run(p, spec)
     }
@@ -370,7 +368,6 @@ impl Windows {
                 wave,
                 kind,
                 first: first as u64 + warm,
-                l2_share: 1,
             };
             self.run(p, spec)?;
         }
