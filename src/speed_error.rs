@@ -580,8 +580,9 @@ impl Default for SpeedErrorOpts {
 /// their neighbours' ratios; in each, the root pass over about 64 K rays; the
 /// first 16 segment passes; then 64 admissions measured after 96 of warm-up
 /// (one and a half turnovers of the scene buffer's 64 slots) every 1024; the
-/// tail from 16 pending queues; two shading windows of 2048 items after 4096
-/// and at least 16384 cycles, after the first 16384. A wavefront too short for
+/// tail from 16 pending queues; four shading windows of 2048 items after 4096
+/// and at least 16384 cycles, after the first 16384, each at a hashed place in
+/// its quarter of the pass. A wavefront too short for
 /// windows is traced over a sample of about 64 K of its rays on a quarter of
 /// the L2.
 pub fn default_windows() -> render::WindowPlan {
@@ -594,7 +595,7 @@ pub fn default_windows() -> render::WindowPlan {
         warm: 96,
         measure: 64,
         every: 1024,
-        shade_windows: 2,
+        shade_windows: 4,
         shade_warm: 4096,
         shade_measure: 2048,
         shade_warm_cycles: 16384,

@@ -1078,13 +1078,14 @@ fn a_shading_window_warms_up_for_its_cycles_too() {
         of_kind(items.windows.as_ref().unwrap(), SampleKind::Shade),
         of_kind(cycles.windows.as_ref().unwrap(), SampleKind::Shade),
     );
-    assert_eq!(a.len(), b.len());
-    assert!(!a.is_empty());
-    for (x, y) in a.iter().zip(&b) {
-        // Where each window's pixels start: the first measured item less the
-        // items warmed up.
-        let start = x.first - x.run.from;
-        assert_eq!(y.first - y.run.from, start);
+    // Where each window's pixels start: the first measured item less the
+    // items warmed up. The same places either way (a window may start near
+    // its pass's end, so the cycles' warm-up can leave it nothing to measure).
+    let start = |w: &dualstream::render::WindowSample| (w.wave, w.first - w.run.from);
+    assert!(!b.is_empty());
+    assert!(b.len() <= a.len());
+    for y in &b {
+        let x = a.iter().find(|x| start(x) == start(y)).unwrap();
         assert!(x.run.warm.cycles < 2000, "{}", x.run.warm.cycles);
         assert!(y.run.warm.cycles >= 2000, "{}", y.run.warm.cycles);
         assert!(y.run.from > x.run.from, "{} {}", y.run.from, x.run.from);

@@ -11,7 +11,7 @@ use std::thread::JoinHandle;
 use std::time::Instant;
 
 use super::queues::Boundary;
-use super::shade::ShadeConsts;
+use super::shade::{ShadeConsts, mix64};
 use super::{Prepared, RayRec, SampleKind, WindowPlan, WindowRecord, WindowSample};
 use crate::contract::{MemoryMap, SparseMem};
 use crate::machine::WindowKind;
@@ -334,21 +334,24 @@ impl Windows {
         pool: &Boundary,
     ) -> Result<(), String> {
         // The pass's start as is (its first `shade_head` items: the caches and
-        // the memory's queues fill), then windows spread over the other pixels.
+        // the memory's queues fill), then windows over the other pixels.
         let head = self.plan.shade_head.min(pixels as u64) as u32;
-        let n = self.plan.shade_windows;
+        let span = self.plan.shade_warm.saturating_add(self.plan.shade_measure);
         let plan: Vec<(u32, u64, u64, SampleKind)> = (head > 0)
             .then_some((0, 0, head as u64, SampleKind::ShadeHead))
             .into_iter()
-            .chain((0..n).map(|j| {
-                let first = head + (j as u64 * (pixels - head) as u64 / n as u64) as u32;
-                (
-                    first,
-                    self.plan.shade_warm,
-                    self.plan.shade_measure,
-                    SampleKind::Shade,
-                )
-            }))
+            .chain(
+                shade_window_starts(head, pixels, self.plan.shade_windows, span, wave)
+                    .into_iter()
+                    .map(|first| {
+                        (
+                            first,
+                            self.plan.shade_warm,
+                            self.plan.shade_measure,
+                            SampleKind::Shade,
+                        )
+                    }),
+            )
             .collect();
         for (first, warm, measure, kind) in plan {
             let what = WindowKind::Shade {
@@ -372,5 +375,73 @@ impl Windows {
             self.run(p, spec)?;
         }
         Ok(())
+    }
+}
+
+/// Where the `n` shading windows of wavefront `wave`'s pass start: one at a
+/// hashed place in each of `n` equal strata of the pixels after the head,
+/// leaving `span` items (warm-up and measurement) in its stratum where there
+/// is room. Not at a fixed place in each: the pass's row activations swing 4x
+/// with a period of about 62 K items (the path-state, hit-record and ray-bucket
+/// streams drift through the DRAM banks against each other), and strata of
+/// 64 K or 516 K items put every window at the same phase of it: Sponza's
+/// shading read 17% low in DRAM energy and 5% in cycles.
+pub(super) fn shade_window_starts(
+    head: u32,
+    pixels: u32,
+    n: u32,
+    span: u64,
+    wave: usize,
+) -> Vec<u32> {
+    let rest = pixels.saturating_sub(head) as u64;
+    (0..n as u64)
+        .map(|j| {
+            let (a, b) = (j * rest / n as u64, (j + 1) * rest / n as u64);
+            let room = (b - a).saturating_sub(span) + 1;
+            let at = mix64(((wave as u64) << 32 | j) ^ 0x5348_4144_4557_494e) % room;
+            head + (a + at) as u32
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shade_window_starts;
+
+    #[test]
+    fn shading_windows_fall_in_their_strata_at_spread_phases() {
+        let (head, pixels, span) = (16384u32, 1u32 << 20, 6144u64);
+        let mut phases = Vec::new();
+        for wave in 0..6 {
+            let n = 16;
+            let s = shade_window_starts(head, pixels, n, span, wave);
+            assert_eq!(s.len(), n as usize);
+            let len = (pixels - head) / n;
+            for (j, &x) in s.iter().enumerate() {
+                let a = head + j as u32 * len;
+                assert!(x >= a && x as u64 + span <= (a + len) as u64, "{j}: {x}");
+            }
+            // Strata of 64 K items, about one period of the activations'
+            // swing: a start at a fixed place in each would put all 96 at one
+            // phase of it.
+            phases.extend(s.iter().map(|&x| (x - head) % len));
+        }
+        phases.sort_unstable();
+        let len = (pixels - head) / 16;
+        let quarters: Vec<usize> = (0..4)
+            .map(|q| phases.iter().filter(|&&p| p * 4 / len == q).count())
+            .collect();
+        assert!(quarters.iter().all(|&c| c >= 12), "{quarters:?}");
+        // Another wavefront, other places; the same one, the same places.
+        assert_ne!(
+            shade_window_starts(head, pixels, 2, span, 0),
+            shade_window_starts(head, pixels, 2, span, 1)
+        );
+        assert_eq!(
+            shade_window_starts(head, pixels, 2, span, 3),
+            shade_window_starts(head, pixels, 2, span, 3)
+        );
+        // A stratum shorter than the span: its start.
+        assert_eq!(shade_window_starts(10, 30, 2, 100, 0), vec![10, 20]);
     }
 }
