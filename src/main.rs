@@ -222,6 +222,11 @@ enum Cmd {
         /// of the L2 (its rays come back to their hit records k times sooner).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_l2_share)]
         window_wave_l2: u32,
+        /// speed-error, windows: a short wavefront is sampled only if its
+        /// sample's ray lines per pass reach this share of a segment's (else
+        /// its passes are bound by the scene stream; it is simulated whole).
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_ray_share)]
+        window_wave_ray_share: f64,
         /// speed-error, windows: each wavefront's tail, from the first boundary
         /// with at most this many queues holding rays, simulated to its end (0:
         /// none, the tail scaled like the rest).
@@ -762,6 +767,7 @@ fn run(cli: Cli) -> Result<(), String> {
             window_wave_rays,
             window_wave_whole,
             window_wave_l2,
+            window_wave_ray_share,
             window_tail,
             window_warm,
             window_measure,
@@ -814,6 +820,7 @@ fn run(cli: Cli) -> Result<(), String> {
                             wave_rays: window_wave_rays,
                             wave_whole: window_wave_whole,
                             wave_l2_share: window_wave_l2,
+                            wave_ray_share: window_wave_ray_share,
                             tail_pending: window_tail,
                             tail_warm: window_tail_warm,
                             wave_every: window_waves,

@@ -591,6 +591,7 @@ pub fn default_windows() -> render::WindowPlan {
         root_rays: 65536,
         wave_rays: 65536,
         wave_l2_share: 4,
+        wave_ray_share: 0.15,
         wave_whole: 0,
         warm: 96,
         measure: 64,

@@ -236,6 +236,17 @@ fn bad_speed_error_options_are_named() {
         });
         assert!(e.contains(&format!("--window-wave-l2 {share}")), "{e}");
     }
+    // A share of a segment's lines: finite, not negative.
+    for share in [-0.5, f64::NAN, f64::INFINITY] {
+        let e = with(&|o| {
+            o.modes = Some(vec!["windows".into()]);
+            o.windows.wave_ray_share = share;
+        });
+        assert!(
+            e.contains(&format!("--window-wave-ray-share {share}")),
+            "{e}"
+        );
+    }
 }
 
 /// Renders `s` on the chip with GDDR5 as `render --mode cycle --stats --out` would and
@@ -403,6 +414,7 @@ fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
         root_rays: u64::MAX,
         wave_rays: 0,
         wave_l2_share: 1,
+        wave_ray_share: 0.0,
         wave_whole: 0,
         warm: 0,
         measure: every,
@@ -1174,5 +1186,20 @@ fn a_short_wavefront_is_traced_over_a_sample_to_its_end() {
             })
             .count();
         assert_eq!(whole > 0, smp.wave == 1, "wave {}", smp.wave);
+    }
+    // A sample whose passes would stream more scene than rays is not taken:
+    // those wavefronts are simulated whole after their root pass.
+    plan.wave_ray_share = 1e6;
+    let g = render_windows(&s, &c, plan);
+    assert_eq!(g.radiance, plain.radiance);
+    let r = g.windows.as_ref().unwrap();
+    assert!(of_kind(r, SampleKind::Wave).is_empty());
+    for &w in &sampled {
+        assert!(
+            r.samples
+                .iter()
+                .any(|x| x.wave == w && x.kind == SampleKind::Root),
+            "wave {w} simulated whole from its root window"
+        );
     }
 }

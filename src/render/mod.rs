@@ -77,7 +77,7 @@ pub struct RenderCfg {
 /// after each wavefront it measures stretches of the shading pass that follows.
 /// Counts are in segments that hold rays (admissions), in the order the functional
 /// model and the scheduler both take them.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct WindowPlan {
     /// Admissions measured from each wavefront's start: the root pass (by its
     /// root window) and the next `head - 1` admissions simulated whole (the top
@@ -113,6 +113,18 @@ pub struct WindowPlan {
     /// 512, lines read 1.01-1.08 (docs/speed-error.md). The choice is
     /// measured, not derived.
     pub wave_l2_share: u32,
+    /// A short wavefront is traced over a sample only if the sample's ray
+    /// stream per pass (its rays times the visits a ray makes, guessed from
+    /// the last wavefront, else one, over the passes) comes to at least this
+    /// share of a segment's lines; else it is simulated whole. Below that the
+    /// sample's passes are bound by loading their segments, not by their rays,
+    /// and its cycles per visit say nothing of the whole wavefront's: the
+    /// Dragon at 1024x1024 with `--window-every 2048` (so every wavefront is
+    /// short), 33 rays a pass in a sample of 64 K over 1963 passes, comes to
+    /// 0.02-0.09 of a segment and its samples read +82% to +260% in cycles;
+    /// Dabrovic Sponza's, measured good, come to 0.28-0.9. 0.15 sits about
+    /// halfway (by ratio) between.
+    pub wave_ray_share: f64,
     /// Of the sampled short wavefronts, those from the second to this one
     /// are also simulated whole (root window, then the rest whole): the ratio
     /// of their whole figures to their samples' corrects every other sampled
@@ -189,6 +201,30 @@ impl WindowPlan {
         let lo = (k_min + self.warm).saturating_sub(self.head);
         self.head
             .saturating_add(lo.div_ceil(self.every.max(1)).saturating_mul(self.every))
+    }
+
+    /// Whether a short wavefront of `rays` (the last wavefront's passes
+    /// `last`, if any; `passes` expected) is worth a sample: its ray-stream
+    /// lines per pass at least `wave_ray_share` of a segment's (see there).
+    pub fn sample_streams_rays(
+        &self,
+        rays: u64,
+        last: Option<&[SegWork]>,
+        passes: u64,
+        segments: &[crate::accel::treelet::Segment],
+    ) -> bool {
+        let kept = rays / rays.div_ceil(self.wave_rays.max(1));
+        let visits = last
+            .filter(|s| s.first().is_some_and(|f| f.rays > 0))
+            .map_or(1.0, |s| {
+                s.iter().map(|x| x.rays).sum::<u64>() as f64 / s[0].rays as f64
+            });
+        let line = crate::contract::LINE_BYTES as f64;
+        let ray_lines = kept as f64 * visits * crate::contract::RAY_BYTES as f64 / line;
+        let seg_lines = segments.iter().map(|s| s.bytes as f64).sum::<f64>()
+            / segments.len().max(1) as f64
+            / line;
+        ray_lines / passes.max(1) as f64 >= self.wave_ray_share * seg_lines
     }
 
     /// Rays in a run of a wavefront sample: [`queues::SAMPLE_RUN`], fewer
@@ -786,7 +822,15 @@ pub fn render(
                         // A short wavefront of many rays is traced over a
                         // sample from its root pass to its end (cheap, so
                         // never borrowed).
-                        let sampled = whole && plan.wave_rays > 0 && rays > plan.wave_rays;
+                        let sampled = whole
+                            && plan.wave_rays > 0
+                            && rays > plan.wave_rays
+                            && plan.sample_streams_rays(
+                                rays,
+                                w.rec.segs.last().map(|s| s.as_slice()),
+                                expect,
+                                &p.seg.segments,
+                            );
                         measured = plan.measures_wave(wave, last) || !alike(traced_rays) || sampled;
                         if sampled {
                             traced_rays = Some(rays);
@@ -1226,6 +1270,12 @@ impl WindowPlan {
             return Err(format!(
                 "windows overlap: --window-measure {} admissions every --window-every {}; measure at most every",
                 self.measure, self.every
+            ));
+        }
+        if !(self.wave_ray_share.is_finite() && self.wave_ray_share >= 0.0) {
+            return Err(format!(
+                "--window-wave-ray-share {}: give a share of a segment's lines, 0 or more (0: sample every short wavefront of many rays)",
+                self.wave_ray_share
             ));
         }
         if self.shade_windows == 0 || self.shade_measure == 0 {

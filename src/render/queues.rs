@@ -470,10 +470,8 @@ pub fn sampled_run(j: u64, runs: u64, every: u64, scatter: bool) -> bool {
     let g = j / every;
     let pick = if scatter {
         // splitmix64's finaliser: a fixed, well-spread choice per group.
-        let mut z = g.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        (z ^ (z >> 31)) % every.min(runs.saturating_sub(g * every)).max(1)
+        super::shade::mix64(g.wrapping_add(0x9e37_79b9_7f4a_7c15))
+            % every.min(runs.saturating_sub(g * every)).max(1)
     } else {
         0
     };
