@@ -1656,7 +1656,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
             same_image(&f, None),
             se,
             &format!(
-                "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); {}{}: the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {} and {} cycles",
+                "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); {}{}{}: the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {} and {} cycles",
                 rec.samples.len(),
                 rec.chip_s,
                 o.threads.max(1),
@@ -1671,6 +1671,22 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                         "{n} short wavefronts traced over a sample of about {} rays on 1/{} of the L2, ",
                         wp.wave_rays, wp.wave_l2_share
                     ),
+                },
+                // Too short for windows and not sampled (few rays, or a
+                // sample that would stream more scene than rays).
+                match (0..rec.whole.len())
+                    .filter(|&w| {
+                        rec.whole[w]
+                            && rec.measured.get(w).copied().unwrap_or(true)
+                            && !rec
+                                .samples
+                                .iter()
+                                .any(|s| s.wave == w && s.kind == render::SampleKind::Wave)
+                    })
+                    .count()
+                {
+                    0 => String::new(),
+                    n => format!("{n} short wavefronts simulated whole after their root window, "),
                 },
                 match rec.measured.iter().filter(|m| !**m).count() {
                     0 => "per wavefront".to_string(),

@@ -913,8 +913,29 @@ fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
     };
     // The first measured stretch starts at admission 10 with windows every 6
     // (these wavefronts have about 27 passes), at 1004 with every 1000.
-    let (_, vf) = estimate(6);
+    let (windowed, vf) = estimate(6);
     let (short, vs) = estimate(1000);
+    // The bench's note says which wavefronts ran whole (the borrowed one did
+    // not run).
+    let measured = vs["record"]["measured"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|m| **m == true)
+        .count();
+    assert!(measured >= 2);
+    assert!(
+        short.note.contains(&format!(
+            "{measured} short wavefronts simulated whole after their root window"
+        )),
+        "{}",
+        short.note
+    );
+    assert!(
+        !windowed.note.contains("simulated whole"),
+        "{}",
+        windowed.note
+    );
     assert!(
         vf["record"]["whole"]
             .as_array()
