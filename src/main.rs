@@ -209,8 +209,9 @@ enum Cmd {
         window_root_rays: u64,
         /// speed-error, windows: rays of a short wavefront's sample (one with
         /// too few passes for a window): a longer one is traced from its root
-        /// pass to its end over one run of 8 rays in k of its root queue,
-        /// packed (0: simulated whole after its root window).
+        /// pass to its end over one run of up to 1024 rays in k of its root
+        /// queue, hashed, hit records in place (0: simulated whole after its
+        /// root window).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_rays)]
         window_wave_rays: u64,
         /// speed-error, windows: sampled short wavefronts from the second to

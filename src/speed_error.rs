@@ -695,6 +695,13 @@ fn wave_counts(
     ]
 }
 
+/// `t += k x`, count by count.
+fn add(t: &mut [f64; WCOUNTS], x: &[f64; WCOUNTS], k: f64) {
+    for i in 0..WCOUNTS {
+        t[i] += x[i] * k;
+    }
+}
+
 /// A short wavefront's estimate from its [`render::SampleKind::Wave`] window,
 /// which traced one run of rays in k of its root queue to the wavefront's end.
 /// The visits (rays finished in a segment) it left out cost the cycles and the
@@ -716,11 +723,8 @@ fn wave_window(
     let none = [0; crate::mem::StreamTag::COUNT];
     let plain = |w| wave_counts(w, &none, wb_j);
     let mut t = plain(&r.counts);
-    for x in [plain(&r.warm), plain(&r.after)] {
-        for i in 0..WCOUNTS {
-            t[i] += x[i];
-        }
-    }
+    add(&mut t, &plain(&r.warm), 1.0);
+    add(&mut t, &plain(&r.after), 1.0);
     let owed = wave_counts(&Default::default(), &r.dirtied, wb_j);
     let steady = plain(&r.counts);
     let visits: u64 = r.done.iter().map(|d| d.1).sum();
@@ -728,18 +732,14 @@ fn wave_window(
     let left = all.saturating_sub(visits) as f64;
     let (mut full, mut did) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
     for p in proxy {
-        for i in 0..WCOUNTS {
-            full[i] += p[i];
-        }
+        add(&mut full, p, 1.0);
     }
     for &(sg, d) in &r.done {
         if let Some(&i) = index.get(&sg)
             && segs[i].rays > 0
         {
             let share = d as f64 / segs[i].rays as f64;
-            for k in 0..WCOUNTS {
-                did[k] += proxy[i][k] * share;
-            }
+            add(&mut did, &proxy[i], share);
             did[2] += proxy[i][2] * (1.0 - share);
         }
     }
@@ -814,11 +814,6 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         .ok_or("the functional frame was rendered without windows")?;
     let wb_j = line_write_j(c)?;
     let mut total = [0.0; WCOUNTS];
-    let add = |t: &mut [f64; WCOUNTS], x: &[f64; WCOUNTS], k: f64| {
-        for i in 0..WCOUNTS {
-            t[i] += x[i] * k;
-        }
-    };
     // Per measured wavefront, per trace part (root, head, rest, tail), the
     // measured counts and their proxies, for the wavefronts (or root passes)
     // that borrow them, and pooled for a wavefront too short to hold a window.

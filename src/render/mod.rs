@@ -205,13 +205,14 @@ impl WindowPlan {
 
     /// Whether a short wavefront of `rays` (the last wavefront's passes
     /// `last`, if any; `passes` expected) is worth a sample: its ray-stream
-    /// lines per pass at least `wave_ray_share` of a segment's (see there).
+    /// lines per pass at least `wave_ray_share` of a segment's (of
+    /// `segment_bytes`, the scene's mean; see there).
     pub fn sample_streams_rays(
         &self,
         rays: u64,
         last: Option<&[SegWork]>,
         passes: u64,
-        segments: &[crate::accel::treelet::Segment],
+        segment_bytes: f64,
     ) -> bool {
         let kept = rays / rays.div_ceil(self.wave_rays.max(1));
         let visits = last
@@ -221,9 +222,7 @@ impl WindowPlan {
             });
         let line = crate::contract::LINE_BYTES as f64;
         let ray_lines = kept as f64 * visits * crate::contract::RAY_BYTES as f64 / line;
-        let seg_lines = segments.iter().map(|s| s.bytes as f64).sum::<f64>()
-            / segments.len().max(1) as f64
-            / line;
+        let seg_lines = segment_bytes / line;
         ray_lines / passes.max(1) as f64 >= self.wave_ray_share * seg_lines
     }
 
@@ -829,7 +828,7 @@ pub fn render(
                                 rays,
                                 w.rec.segs.last().map(|s| s.as_slice()),
                                 expect,
-                                &p.seg.segments,
+                                p.info.segment_bytes_mean,
                             );
                         measured = plan.measures_wave(wave, last) || !alike(traced_rays) || sampled;
                         if sampled {

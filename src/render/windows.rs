@@ -56,9 +56,7 @@ impl WindowChip {
         let cfg = if let WindowKind::Wave { l2_share, .. } = job.spec.what
             && l2_share > 1
         {
-            let mut c = self.cfg.clone();
-            c.chip.l2.bytes /= l2_share;
-            shared = c;
+            shared = sample_config(&self.cfg, l2_share);
             &shared
         } else {
             &self.cfg
@@ -180,8 +178,7 @@ impl Windows {
     ) -> Result<Windows, String> {
         let share = plan.wave_l2_share;
         if plan.wave_rays > 0 && cfg.chip.l2.enabled {
-            let mut l2 = cfg.chip.l2.clone();
-            l2.bytes /= share.max(1);
+            let l2 = sample_config(&cfg, share.max(1)).chip.l2;
             if share == 0 || l2.bytes * share != cfg.chip.l2.bytes {
                 return Err(format!(
                     "--window-wave-l2 {share}: a wavefront sample's L2 is chip.l2.bytes ({}) divided by it; give a divisor of it",
@@ -378,6 +375,14 @@ impl Windows {
     }
 }
 
+/// The chip a wavefront sample runs on: `cfg` with `1 / l2_share` of its L2
+/// (see `WindowPlan::wave_l2_share`).
+fn sample_config(cfg: &crate::config::Config, l2_share: u32) -> crate::config::Config {
+    let mut c = cfg.clone();
+    c.chip.l2.bytes /= l2_share;
+    c
+}
+
 /// Where the `n` shading windows of wavefront `wave`'s pass start: one at a
 /// hashed place in each of `n` equal strata of the pixels after the head,
 /// leaving `span` items (warm-up and measurement) in its stratum where there
@@ -417,34 +422,19 @@ pub(super) fn shade_window_starts(
 #[cfg(test)]
 mod tests {
     use super::shade_window_starts;
-    use crate::accel::treelet::Segment;
     use crate::render::SegWork;
 
     /// The sample's ray stream against the scene stream, with the paper
     /// scenes' figures: Sponza's first wavefront (1 M rays, 135 segments of
-    /// 55 KB, no visits known yet) is sampled, the Dragon's (1984 segments of
+    /// 55 KB on average, no visits known yet) is sampled, the Dragon's (1984 segments of
     /// 49 KB) is not, nor its later ones (3.9 visits a ray), and a low enough
     /// share takes both.
     #[test]
     fn a_sample_must_stream_rays_more_than_scene() {
-        let segs = |n: usize, bytes: u32| -> Vec<Segment> {
-            (0..n)
-                .map(|i| Segment {
-                    id: i as u32,
-                    parent: None,
-                    children: Vec::new(),
-                    roots: Vec::new(),
-                    nodes: Vec::new(),
-                    leaves: Vec::new(),
-                    tri_count: 0,
-                    bytes,
-                })
-                .collect()
-        };
         let plan = crate::speed_error::default_windows();
-        let (sponza, dragon) = (segs(135, 55_195), segs(1984, 49_251));
-        assert!(plan.sample_streams_rays(1 << 20, None, 135, &sponza));
-        assert!(!plan.sample_streams_rays(1 << 20, None, 1984, &dragon));
+        let (sponza, dragon) = (55_195.0, 49_251.0);
+        assert!(plan.sample_streams_rays(1 << 20, None, 135, sponza));
+        assert!(!plan.sample_streams_rays(1 << 20, None, 1984, dragon));
         // The last wavefront: 1 M rays at the root, 3.9 visits a ray.
         let last: Vec<SegWork> = std::iter::once(1 << 20)
             .chain(std::iter::repeat_n(1_552, 1962))
@@ -453,12 +443,12 @@ mod tests {
                 ..Default::default()
             })
             .collect();
-        assert!(!plan.sample_streams_rays(767_169, Some(&last), 1963, &dragon));
+        assert!(!plan.sample_streams_rays(767_169, Some(&last), 1963, dragon));
         let low = crate::render::WindowPlan {
             wave_ray_share: 0.01,
             ..plan
         };
-        assert!(low.sample_streams_rays(767_169, Some(&last), 1963, &dragon));
+        assert!(low.sample_streams_rays(767_169, Some(&last), 1963, dragon));
     }
 
     #[test]
