@@ -135,9 +135,17 @@ pub fn estimate(c: &Config, f: &Frame) -> Estimate {
 /// The `paper` preset's DRAM energy model, the bursts per line and the lines
 /// per DRAM row.
 fn paper_dram(c: &Config) -> Result<(crate::mem::energy::EnergyModel, f64, f64), String> {
+    preset_dram(c, "paper")
+}
+
+/// [`paper_dram`] for the DRAM energy preset `preset` (`paper`, `physical`).
+fn preset_dram(
+    c: &Config,
+    preset: &str,
+) -> Result<(crate::mem::energy::EnergyModel, f64, f64), String> {
     let g = &c.mem.geometry;
     let m = crate::mem::energy::EnergyModel::new(
-        &crate::mem::config::EnergyCfg::by_name("paper", g)?,
+        &crate::mem::config::EnergyCfg::by_name(preset, g)?,
         &c.mem.timing,
         g.burst_cycles(),
         c.clocks.dram_ps,
@@ -170,11 +178,15 @@ pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, S
     Ok(pj * 1e-12)
 }
 
-/// DRAM energy (J, `paper` preset) of writing one line: its bursts and a share of
-/// an activate (lines written back in address order share rows).
-fn line_write_j(c: &Config) -> Result<f64, String> {
-    let (m, bursts_per_line, lines_per_row) = paper_dram(c)?;
-    Ok((bursts_per_line * m.wr_burst_pj + m.act_pre_pj / lines_per_row) * 1e-12)
+/// DRAM energy (J) of writing one line, `paper` and `physical` preset: its
+/// bursts and a share of an activate (lines written back in address order share
+/// rows).
+fn line_write_j(c: &Config) -> Result<[f64; 2], String> {
+    let j = |preset| -> Result<f64, String> {
+        let (m, bursts_per_line, lines_per_row) = preset_dram(c, preset)?;
+        Ok((bursts_per_line * m.wr_burst_pj + m.act_pre_pj / lines_per_row) * 1e-12)
+    };
+    Ok([j("paper")?, j("physical")?])
 }
 
 fn total_energy(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
@@ -654,17 +666,23 @@ fn seg_proxies(c: &Config, w: &render::SegWork) -> [f64; WCOUNTS] {
         0.0,
         0.0,
         0.0,
+        cyc,
     ]
 }
 
 /// What time sampling scales, per window: cycles; lines of the ray, scene, hit and
 /// shading streams; DRAM energy (`paper`); scene-buffer reads, L2 array accesses
-/// and the four shading actions (for the on-chip energy).
-const WCOUNTS: usize = 12;
+/// and the four shading actions (for the on-chip energy); DRAM energy
+/// (`physical`, scaled as the `paper` one: [`DRAM_J`]).
+const WCOUNTS: usize = 13;
+
+/// The counts that are DRAM energy (`paper`, `physical` preset): they go with
+/// time as well as lines, so they share the cycles' proxies.
+const DRAM_J: [usize; 2] = [5, 12];
 
 /// A window's counts; the writebacks it owes (`WindowRun::dirtied`) are added to
 /// their stream's lines and charged `wb_j` each.
-fn window_counts(r: &crate::machine::WindowRun, wb_j: f64) -> [f64; WCOUNTS] {
+fn window_counts(r: &crate::machine::WindowRun, wb_j: [f64; 2]) -> [f64; WCOUNTS] {
     wave_counts(&r.counts, &r.dirtied, wb_j)
 }
 
@@ -672,7 +690,7 @@ fn window_counts(r: &crate::machine::WindowRun, wb_j: f64) -> [f64; WCOUNTS] {
 fn wave_counts(
     w: &crate::machine::WaveCycles,
     dirtied: &[i64; crate::mem::StreamTag::COUNT],
-    wb_j: f64,
+    wb_j: [f64; 2],
 ) -> [f64; WCOUNTS] {
     use crate::mem::StreamTag as T;
     let l = |t: T| {
@@ -685,13 +703,14 @@ fn wave_counts(
         l(T::Scene),
         l(T::Hit),
         l(T::Shading),
-        w.dram.energy_paper_j + owed as f64 * wb_j,
+        w.dram.energy_paper_j + owed as f64 * wb_j[0],
         w.scene_buffer_reads as f64,
         w.l2.array_accesses() as f64,
         w.shade_uses[0] as f64,
         w.shade_uses[1] as f64,
         w.shade_uses[2] as f64,
         w.shade_uses[3] as f64,
+        w.dram.energy_physical_j + owed as f64 * wb_j[1],
     ]
 }
 
@@ -717,7 +736,7 @@ fn wave_window(
     segs: &[render::SegWork],
     proxy: &[[f64; WCOUNTS]],
     index: &std::collections::HashMap<u32, usize>,
-    wb_j: f64,
+    wb_j: [f64; 2],
 ) -> [f64; WCOUNTS] {
     let r = &smp.run;
     let none = [0; crate::mem::StreamTag::COUNT];
@@ -744,7 +763,7 @@ fn wave_window(
         }
     }
     std::array::from_fn(|i| {
-        if i == 0 || i == 5 {
+        if i == 0 || DRAM_J.contains(&i) {
             let rate = if r.marks > 0 {
                 steady[i] / r.marks as f64
             } else {
@@ -789,13 +808,11 @@ struct Rest {
     ratios: Vec<([f64; WCOUNTS], [f64; WCOUNTS])>,
 }
 
-/// A time-sampled frame's estimate: its parts (as [`parts`]), the relative
-/// standard error of cycles, lines and DRAM energy (if known) and the estimate
-/// by part of the frame.
+/// A time-sampled frame's estimate (with its relative standard error of cycles,
+/// lines and energy, if known) and the estimate by part of the frame.
 struct Windowed {
-    parts: [f64; 7],
-    se: Option<[f64; 3]>,
     breakdown: Vec<WindowPart>,
+    estimate: WindowEstimate,
 }
 
 /// The time-sampled frame's parts (as [`parts`]) from the functional frame `f`
@@ -861,7 +878,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         let mut p = proxies[wave][0];
         let rays = rec.segs[wave][0].rays as f64;
         p[0] = rays;
-        p[5] = rays;
+        for j in DRAM_J {
+            p[j] = rays;
+        }
         p
     };
     let mut per_wave = Vec::new();
@@ -930,13 +949,14 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             let kept = segs.first().map_or(0, |s| s.rays) as f64 - left;
             let k = left / kept.max(1.0);
             let steady = plain(&r.counts);
-            let timed = [0, 5].map(|i| root[i] + left * steady[i] / r.marks as f64);
+            let timed =
+                [0, DRAM_J[0], DRAM_J[1]].map(|i| root[i] + left * steady[i] / r.marks as f64);
             let scene = root[2];
             for x in root.iter_mut() {
                 *x *= 1.0 + k;
             }
             root[2] -= k * scene;
-            (root[0], root[5]) = (timed[0], timed[1]);
+            (root[0], root[DRAM_J[0]], root[DRAM_J[1]]) = (timed[0], timed[1], timed[2]);
             add(&mut head, &root, 1.0);
             if !segs.is_empty() {
                 pool_part(0, wave, &root, &root_proxy(wave));
@@ -1288,9 +1308,117 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     let f3 = combine(&p);
     let se = se_known.then(|| std::array::from_fn(|k| var[k].sqrt() / f3[k].max(1e-30)));
     Ok(Windowed {
-        parts: p,
-        se,
         breakdown: parts,
+        estimate: WindowEstimate {
+            cycles: total[0],
+            ray_lines: total[1],
+            scene_lines: total[2],
+            hit_lines: total[3],
+            shading_lines: total[4],
+            dram_paper_j: total[DRAM_J[0]],
+            dram_physical_j: total[DRAM_J[1]],
+            onchip_j: e.onchip_j,
+            compute_j: e.compute_j,
+            rel_se: se,
+            windows: rec.samples.len(),
+            chip_s: rec.chip_s,
+            core_ps: c.clocks.core_ps,
+            rays: f.total.rays,
+        },
+    })
+}
+
+/// A frame's chip figures as time sampling estimates them (the `windows` mode):
+/// what the chip with GDDR5 would report for the frame, from its windows and the
+/// functional model's counts. Its error against the cycle model on the paper
+/// scenes is measured in `docs/speed-error.md`; `rel_se` is its own estimate.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct WindowEstimate {
+    pub cycles: f64,
+    /// DRAM lines of each stream: rays, scene, hit records, shading.
+    pub ray_lines: f64,
+    pub scene_lines: f64,
+    pub hit_lines: f64,
+    pub shading_lines: f64,
+    /// DRAM energy, `paper` and `physical` preset.
+    pub dram_paper_j: f64,
+    pub dram_physical_j: f64,
+    /// On-chip memory and compute energy with the estimated global units' activity.
+    pub onchip_j: f64,
+    pub compute_j: f64,
+    /// One relative standard error of the cycles, lines and energy from the
+    /// windows' spread (`None` with fewer than two windows per wavefront).
+    pub rel_se: Option<[f64; 3]>,
+    /// Windows simulated, and their summed wall time.
+    pub windows: usize,
+    pub chip_s: f64,
+    /// Core clock period (ps), and the rays the frame traced.
+    pub core_ps: u64,
+    pub rays: u64,
+}
+
+impl WindowEstimate {
+    /// DRAM lines of every stream.
+    pub fn lines(&self) -> f64 {
+        self.ray_lines + self.scene_lines + self.hit_lines + self.shading_lines
+    }
+    /// Render time (ms) at the core clock.
+    pub fn time_ms(&self) -> f64 {
+        self.cycles * self.core_ps as f64 * 1e-9
+    }
+    /// Rays traced per second (millions) at that time.
+    pub fn mrays_per_s(&self) -> f64 {
+        self.rays as f64 / (self.time_ms() * 1e-3).max(1e-30) / 1e6
+    }
+    /// Average DRAM bandwidth (GB/s) over that time.
+    pub fn bandwidth_gbs(&self) -> f64 {
+        self.lines() * crate::contract::LINE_BYTES as f64 / (self.time_ms() * 1e-3).max(1e-30) / 1e9
+    }
+}
+
+/// A frame rendered by the functional model with time sampling's windows on the
+/// chip with GDDR5: the frame (its image is the cycle model's), the estimate of
+/// the cycle model's figures, and the estimate by part.
+pub struct TimeSampled {
+    pub frame: Frame,
+    pub estimate: WindowEstimate,
+    pub parts: Vec<WindowPart>,
+}
+
+/// Renders `scene` with time sampling (`plan`) on `threads` simulator threads
+/// (above one: that many windows side by side), with `config`'s chip on GDDR5.
+pub fn time_sampled(
+    scene: &Scene,
+    config: &Config,
+    threads: usize,
+    plan: &render::WindowPlan,
+) -> Result<TimeSampled, String> {
+    time_sampled_with(scene, config, render_cfg(config, None, threads), plan)
+}
+
+/// [`time_sampled`] with the rest of the render's settings from `rc` (its
+/// checks, its ray dumps, its chip's simulator options); its chip is
+/// `config`'s on GDDR5 and its windows `plan`'s.
+pub fn time_sampled_with(
+    scene: &Scene,
+    config: &Config,
+    mut rc: RenderCfg,
+    plan: &render::WindowPlan,
+) -> Result<TimeSampled, String> {
+    plan.validate()?;
+    let mut gddr5 = config.clone();
+    gddr5.chip.memory.model = MemoryModel::Gddr5;
+    rc.windows = Some(plan.clone());
+    match rc.chip.as_mut() {
+        Some(ch) => ch.config = gddr5.clone(),
+        None => rc.chip = render_cfg(&gddr5, None, 1).chip,
+    }
+    let frame = render::render(scene, Mode::Functional, &rc, &mut |_| {})?;
+    let w = windowed_parts(&gddr5, &frame)?;
+    Ok(TimeSampled {
+        frame,
+        estimate: w.estimate,
+        parts: w.breakdown,
     })
 }
 
@@ -1609,18 +1737,12 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         );
     }
     if want("windows") {
-        let mut rc = render_cfg(config, None, t);
-        rc.windows = Some(o.windows.clone());
-        if let Some(ch) = rc.chip.as_mut() {
-            ch.config = gddr5.clone();
-        }
-        let f = render::render(scene, Mode::Functional, &rc, &mut |_| {})?;
+        let TimeSampled {
+            frame: f,
+            estimate: est,
+            parts,
+        } = time_sampled(scene, &gddr5, t, &o.windows)?;
         same_rays(&f)?;
-        let Windowed {
-            parts: p,
-            se,
-            breakdown: parts,
-        } = windowed_parts(&gddr5, &f)?;
         let rec = f.windows.as_ref().expect("rendered with windows");
         let checks = check_parts(&parts, &r);
         if let Some(path) = &o.window_log {
@@ -1647,9 +1769,13 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
         push(
             "windows",
             f.wall_s,
-            combine(&p),
+            [
+                est.cycles,
+                est.lines(),
+                est.dram_paper_j + est.onchip_j + est.compute_j,
+            ],
             same_image(&f, None),
-            se,
+            est.rel_se,
             &format!(
                 "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); {}{}{}: the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {} and {} cycles",
                 rec.samples.len(),
