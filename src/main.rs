@@ -87,7 +87,11 @@ enum Cmd {
         /// Resolution WIDTHxHEIGHT (default: the scene's).
         #[arg(long)]
         res: Option<String>,
-        /// functional (dual streaming, no clock) or reference.
+        /// functional (dual streaming, no clock), reference (the plain
+        /// traversal), cycle (the chip, clocked; GDDR5 with `[chip.memory] model
+        /// = "gddr5"`) or windows (time sampling: the functional frame, and the
+        /// chip with GDDR5 simulated in windows whose figures estimate the cycle
+        /// model's; within 3% of it on the paper scenes, docs/speed-error.md).
         #[arg(long, default_value = "functional")]
         mode: String,
         /// Hit points per path (default: the scene's, 5 as in the paper).
@@ -146,8 +150,11 @@ enum Cmd {
         /// Write paper-style figures (SVG) into this directory.
         #[arg(long)]
         plots: Option<PathBuf>,
-        /// functional (counts only, fast) or cycle (the chip with GDDR5: also
-        /// render time, rays/s, bandwidth and DRAM energy; slow at 1024x1024).
+        /// functional (counts only, fast), cycle (the chip with GDDR5: also
+        /// render time, rays/s, bandwidth and DRAM energy; about an hour for the
+        /// three scenes at 1024x1024) or windows (time sampling: the cycle
+        /// model's figures estimated from windows of the chip, within 3% of it
+        /// on these scenes (docs/speed-error.md), in minutes; same image).
         #[arg(long, default_value = "functional")]
         mode: String,
     },
@@ -511,13 +518,14 @@ fn run(cli: Cli) -> Result<(), String> {
             trace_to,
         } => {
             use dualstream::render::{self, Mode, output};
+            let sampled = mode == "windows";
             let mode = match mode.as_str() {
-                "functional" => dualstream::render::Mode::Functional,
+                "functional" | "windows" => dualstream::render::Mode::Functional,
                 "reference" => Mode::Reference,
                 "cycle" => dualstream::render::Mode::Cycle,
                 m => {
                     return Err(format!(
-                        "unknown --mode '{m}'; use functional, reference or cycle"
+                        "unknown --mode '{m}'; use functional, reference, cycle or windows"
                     ));
                 }
             };
@@ -545,7 +553,7 @@ fn run(cli: Cli) -> Result<(), String> {
                         .into(),
                 );
             }
-            if vcd.is_some() && mode != Mode::Cycle {
+            if vcd.is_some() && (mode != Mode::Cycle || sampled) {
                 return Err("--vcd traces the chip: add --mode cycle".into());
             }
             let (from, to) = match &trace_window {
@@ -589,7 +597,7 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             rc.verify = verify;
             rc.dump_rays = dump_rays;
-            if pass_log.is_some() && mode != Mode::Cycle {
+            if pass_log.is_some() && (mode != Mode::Cycle || sampled) {
                 return Err(
                     "--pass-log records the chip's segment passes; use it with --mode cycle".into(),
                 );
@@ -603,15 +611,24 @@ fn run(cli: Cli) -> Result<(), String> {
                 .expect("valid template")
                 .progress_chars("=> "),
             );
-            let mut frame = render::render(&sc, mode, &rc, &mut |p: &render::Progress| {
-                let frac = (p.done * 1000).checked_div(p.known).unwrap_or(0);
-                bar.set_position(p.wave as u64 * 1000 + frac);
-                bar.set_message(format!(
-                    "wavefront {}/{}: {} rays",
-                    p.wave, p.waves_max, p.rays
-                ));
-            })?;
-            bar.finish_and_clear();
+            let (mut frame, estimate) = if sampled {
+                bar.finish_and_clear();
+                eprintln!("time sampling (windows of the chip with GDDR5)...");
+                let plan = dualstream::speed_error::default_windows();
+                let ts = dualstream::speed_error::time_sampled_with(&sc, &config, rc, &plan)?;
+                (ts.frame, Some(ts.estimate))
+            } else {
+                let f = render::render(&sc, mode, &rc, &mut |p: &render::Progress| {
+                    let frac = (p.done * 1000).checked_div(p.known).unwrap_or(0);
+                    bar.set_position(p.wave as u64 * 1000 + frac);
+                    bar.set_message(format!(
+                        "wavefront {}/{}: {} rays",
+                        p.wave, p.waves_max, p.rays
+                    ));
+                })?;
+                bar.finish_and_clear();
+                (f, None)
+            };
             if mode != Mode::Reference {
                 frame.energy = Some(dualstream::energy::frame_energy(&config, &frame));
             }
@@ -620,6 +637,9 @@ fn run(cli: Cli) -> Result<(), String> {
                 output::write_pass_log(&frame, path)?;
             }
             print!("{}", output::summary(&frame));
+            if let Some(e) = &estimate {
+                print!("{}", output::window_summary(e));
+            }
             println!("image: {}", out.display());
             if let (Some(p), Some(v)) = (&vcd, frame.chip.as_ref().and_then(|c| c.vcd)) {
                 println!(
@@ -632,7 +652,10 @@ fn run(cli: Cli) -> Result<(), String> {
                 );
             }
             if let Some(p) = stats {
-                output::write_json(&frame, &p)?;
+                match &estimate {
+                    Some(e) => output::write_json_estimated(&frame, e, &p)?,
+                    None => output::write_json(&frame, &p)?,
+                }
                 println!("statistics: {}", p.display());
             }
             Ok(())
@@ -645,12 +668,13 @@ fn run(cli: Cli) -> Result<(), String> {
             plots,
             mode,
         } => {
+            let sampled = mode == "windows";
             let mode = match mode.as_str() {
-                "functional" => dualstream::render::Mode::Functional,
+                "functional" | "windows" => dualstream::render::Mode::Functional,
                 "cycle" => dualstream::render::Mode::Cycle,
                 m => {
                     return Err(format!(
-                        "unknown report mode '{m}'; use --mode functional or --mode cycle"
+                        "unknown report mode '{m}'; use --mode functional, cycle or windows"
                     ));
                 }
             };
@@ -668,13 +692,42 @@ fn run(cli: Cli) -> Result<(), String> {
                 sc.settings.width = w;
                 sc.settings.height = h;
                 sc.settings.validate()?;
-                eprintln!("rendering {} at {w}x{h} ({mode:?})...", row.scene);
+                let how = if sampled {
+                    "time sampling".to_string()
+                } else {
+                    format!("{mode:?}")
+                };
+                eprintln!("rendering {} at {w}x{h} ({how})...", row.scene);
                 let mut cfg = config.clone();
                 if mode == dualstream::render::Mode::Cycle {
                     // Time, bandwidth and DRAM energy need the GDDR5 model.
                     cfg.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
                 }
                 let t0 = std::time::Instant::now();
+                if sampled {
+                    let plan = dualstream::speed_error::default_windows();
+                    let ts = dualstream::speed_error::time_sampled(&sc, &cfg, threads, &plan)?;
+                    let e = &ts.estimate;
+                    eprintln!(
+                        "  {:.1} s ({} windows, {:.0} s in the chips){}",
+                        t0.elapsed().as_secs_f64(),
+                        e.windows,
+                        e.chip_s,
+                        match e.rel_se {
+                            Some([c, l, j]) => format!(
+                                "; own standard error {:.1}% cycles, {:.1}% lines, {:.1}% energy",
+                                100.0 * c,
+                                100.0 * l,
+                                100.0 * j
+                            ),
+                            None => String::new(),
+                        }
+                    );
+                    rows.extend(dualstream::report::paper::compare_sampled(
+                        row, &ts.frame, e,
+                    ));
+                    continue;
+                }
                 let mut frame =
                     dualstream::render::render(&sc, mode, &render_cfg(&cfg, threads), &mut |_| {})?;
                 eprintln!("  {:.1} s", t0.elapsed().as_secs_f64());

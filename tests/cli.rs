@@ -423,6 +423,89 @@ fn report_paper_names_missing_scenes() {
     fails_with(&["report", "nonsense"], &["unknown report"]);
 }
 
+/// `render --mode windows`: time sampling as a user runs it. The image is the
+/// cycle model's (the frame is the functional model's, every ray the same), the
+/// summary and the statistics carry the estimate of the cycle model's figures,
+/// and options that need a clocked frame are refused.
+#[test]
+fn render_in_windows_estimates_the_cycle_frame() {
+    let cfg = tmp("win.toml");
+    std::fs::write(
+        &cfg,
+        "[tm]\ntps = 4\n[chip]\ntms = 2\n[chip.memory]\nmodel = \"gddr5\"\n",
+    )
+    .unwrap();
+    let (w_png, c_png, json) = (tmp("win.png"), tmp("cyc.png"), tmp("win.json"));
+    let c = cfg.to_str().unwrap();
+    let args = |mode: &'static str, png: &std::path::Path| -> Vec<String> {
+        [
+            "--config",
+            c,
+            "render",
+            "--scene",
+            "tiny",
+            "--res",
+            "16x16",
+            "--bounces",
+            "1",
+            "--mode",
+            mode,
+            "--out",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .chain([png.to_str().unwrap().to_string()])
+        .collect()
+    };
+    let mut a = args("windows", &w_png);
+    a.extend(["--stats".to_string(), json.to_str().unwrap().to_string()]);
+    let o = run(&a.iter().map(|x| x.as_str()).collect::<Vec<_>>());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        out.contains("time sampling:") && out.contains("docs/speed-error.md"),
+        "{out}"
+    );
+    let o = run(&args("cycle", &c_png)
+        .iter()
+        .map(|x| x.as_str())
+        .collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        std::fs::read(&w_png).unwrap(),
+        std::fs::read(&c_png).unwrap(),
+        "the same image"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let e = &v["estimate"];
+    for k in [
+        "cycles",
+        "ray_lines",
+        "dram_paper_j",
+        "dram_physical_j",
+        "onchip_j",
+    ] {
+        assert!(e[k].as_f64().unwrap() > 0.0, "{k}: {e}");
+    }
+    assert!(
+        v["total"]["rays"].as_u64().unwrap() > 0,
+        "the frame's statistics too"
+    );
+    let mut a = args("windows", &w_png);
+    a.extend([
+        "--vcd".to_string(),
+        tmp("win.vcd").to_str().unwrap().to_string(),
+    ]);
+    fails_with(
+        &a.iter().map(|x| x.as_str()).collect::<Vec<_>>(),
+        &["--mode cycle"],
+    );
+    for p in [cfg, w_png, c_png, json] {
+        let _ = std::fs::remove_file(p);
+    }
+}
+
 /// In CI the external tools must be there (`.ci/run` installs them); elsewhere a
 /// missing one is reported and its check skipped.
 fn have(tool: &str) -> bool {

@@ -1225,3 +1225,83 @@ fn a_short_wavefront_is_traced_over_a_sample_to_its_end() {
         );
     }
 }
+
+/// `time_sampled` (what `report paper --mode windows` shows) estimates every
+/// figure of the cycle frame: with windows that cover the frame (see
+/// `windows_that_cover_the_frame_agree_with_the_cycle_model`) its cycles, each
+/// stream's DRAM lines, the DRAM energy in both presets and the on-chip and
+/// compute energy are the cycle model's within the hand-overs' error, and the
+/// report's rows carry the estimate, marked as one.
+#[test]
+fn a_time_sampled_frame_estimates_every_figure_of_the_cycle_frame() {
+    use dualstream::report::paper::{TABLE2, compare_sampled};
+    let (s, mut c) = tiny();
+    c.chip.l2.bytes = 2048;
+    c.chip.l2.banks = 4;
+    c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    let ts =
+        dualstream::speed_error::time_sampled(&s, &c, 1, &windows_plan(1 << 20, 1 << 20)).unwrap();
+    let rc = dualstream::render::RenderCfg {
+        accel: c.accel.clone(),
+        chip: Some(Box::new(dualstream::render::ChipRun {
+            config: c.clone(),
+            ..Default::default()
+        })),
+        ..Default::default()
+    };
+    let f =
+        dualstream::render::render(&s, dualstream::render::Mode::Cycle, &rc, &mut |_| {}).unwrap();
+    assert_eq!(ts.frame.radiance, f.radiance, "the same image");
+    let e = &ts.estimate;
+    let chip = f.chip.as_ref().unwrap();
+    let dram = chip.dram.unwrap();
+    let en = dualstream::energy::frame_energy(&c, &f);
+    let t = &f.total;
+    for (what, est, cyc, tol) in [
+        ("cycles", e.cycles, chip.total_cycles as f64, 0.03),
+        ("ray lines", e.ray_lines, t.ray_lines() as f64, 0.03),
+        ("scene lines", e.scene_lines, t.scene_lines as f64, 0.03),
+        ("hit lines", e.hit_lines, t.hit_lines() as f64, 0.05),
+        (
+            "shading lines",
+            e.shading_lines,
+            t.shading_lines as f64,
+            0.03,
+        ),
+        ("DRAM J paper", e.dram_paper_j, dram.energy_paper_j, 0.05),
+        (
+            "DRAM J physical",
+            e.dram_physical_j,
+            dram.energy_physical_j,
+            0.05,
+        ),
+        ("on-chip J", e.onchip_j, en.onchip_j, 0.03),
+        ("compute J", e.compute_j, en.compute_j, 0.01),
+    ] {
+        let err = est / cyc - 1.0;
+        eprintln!("{what}: {est} against {cyc} ({err:+.4})");
+        assert!(
+            cyc > 0.0 && err.abs() < tol,
+            "{what}: {est} against {cyc} ({err:+.4})"
+        );
+    }
+    assert_eq!(e.rays, t.rays);
+    let rows = compare_sampled(&TABLE2[1], &ts.frame, e);
+    assert_eq!(rows.len(), 14);
+    let get = |m: &str| rows.iter().find(|r| r.metric == m).unwrap();
+    let ms = get("render time (ms)").ours.unwrap();
+    assert!((ms - e.cycles * 1e-6).abs() < 1e-12, "1 GHz core: {ms}");
+    assert_eq!(
+        get("DRAM energy, physical preset (J)").ours,
+        Some(e.dram_physical_j)
+    );
+    assert_eq!(get("$ lines transferred (M)").ours, Some(e.lines() / 1e6));
+    for r in &rows {
+        assert!(r.ours.is_some(), "{}: every figure estimated", r.metric);
+    }
+    assert!(
+        get("average bandwidth (GB/s)")
+            .note
+            .contains("time sampling")
+    );
+}

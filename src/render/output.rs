@@ -74,6 +74,66 @@ pub fn write_json(frame: &Frame, path: &Path) -> Result<(), String> {
     })
 }
 
+/// [`write_json`] of a time-sampled frame: the functional frame's statistics and,
+/// as `estimate`, the windows' estimate of the cycle model's figures.
+pub fn write_json_estimated(
+    frame: &Frame,
+    estimate: &crate::speed_error::WindowEstimate,
+    path: &Path,
+) -> Result<(), String> {
+    #[derive(serde::Serialize)]
+    struct Estimated<'a> {
+        #[serde(flatten)]
+        frame: &'a Frame,
+        estimate: &'a crate::speed_error::WindowEstimate,
+    }
+    let text =
+        serde_json::to_string_pretty(&Estimated { frame, estimate }).expect("stats serialise");
+    std::fs::write(path, text).map_err(|e| {
+        format!(
+            "cannot write the statistics '{}': {e}; choose a writable --stats",
+            path.display()
+        )
+    })
+}
+
+/// The chip's figures as time sampling estimates them (`render --mode windows`).
+pub fn window_summary(e: &crate::speed_error::WindowEstimate) -> String {
+    let mut s = format!(
+        "  time sampling: {} windows of the chip with GDDR5 ({:.1} s in the chips); the cycle model's figures, estimated:\n",
+        e.windows, e.chip_s
+    );
+    s += &format!(
+        "  cycles {:.0} ({:.3} ms, {:.1} M rays/s)\n",
+        e.cycles,
+        e.time_ms(),
+        e.mrays_per_s()
+    );
+    s += &format!(
+        "  DRAM lines {:.3} M: rays {:.3} M, scene {:.3} M, hit records {:.3} M, shading {:.3} M ({:.1} GB/s)\n",
+        e.lines() / 1e6,
+        e.ray_lines / 1e6,
+        e.scene_lines / 1e6,
+        e.hit_lines / 1e6,
+        e.shading_lines / 1e6,
+        e.bandwidth_gbs()
+    );
+    s += &format!(
+        "  energy: DRAM {:.4} J (paper preset; physical {:.4} J), on-chip {:.4} J, compute {:.4} J\n",
+        e.dram_paper_j, e.dram_physical_j, e.onchip_j, e.compute_j
+    );
+    if let Some([c, l, j]) = e.rel_se {
+        s += &format!(
+            "  own standard error (windows' spread): cycles {:.1}%, lines {:.1}%, energy {:.1}%\n",
+            100.0 * c,
+            100.0 * l,
+            100.0 * j
+        );
+    }
+    s += "  measured error against the cycle model on the paper scenes: docs/speed-error.md\n";
+    s
+}
+
 fn m(x: u64) -> String {
     format!("{:.3}", x as f64 / 1e6)
 }

@@ -8,6 +8,7 @@
 use serde::Serialize;
 
 use crate::render::Frame;
+use crate::speed_error::WindowEstimate;
 
 /// One scene's Dual Streaming figures from Table 2.
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -97,9 +98,25 @@ pub struct Compared {
 
 /// Our figures for one frame next to the paper's row.
 pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
+    compare_with(row, f, None)
+}
+
+/// [`compare`] for a frame rendered with time sampling (`--mode windows`): the
+/// chip's figures (time, rays per second, DRAM energy, bandwidth, lines, on-chip
+/// energy) are the windows' estimate of the cycle model's, marked as such.
+pub fn compare_sampled(row: &PaperRow, f: &Frame, est: &WindowEstimate) -> Vec<Compared> {
+    compare_with(row, f, Some(est))
+}
+
+const CHIP_ONCHIP: &str = "TMs (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store), L2, scene buffer";
+
+fn compare_with(row: &PaperRow, f: &Frame, est: Option<&WindowEstimate>) -> Vec<Compared> {
+    if let Some(w) = est {
+        return sampled_rows(row, f, w);
+    }
     let t = &f.total;
     let m = |x: u64| Some(x as f64 / 1e6);
-    let cycle = "needs --mode cycle (the chip with GDDR5)";
+    let cycle = "needs --mode cycle or windows (the chip with GDDR5)";
     let chip = f.chip.as_ref();
     let dram = chip.and_then(|c| c.dram);
     let ms = chip.map(|c| c.total_cycles as f64 * c.core_ps as f64 * 1e-9);
@@ -107,7 +124,7 @@ pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
         .filter(|&t| t > 0.0)
         .map(|t| f.total.rays as f64 / (t * 1e-3) / 1e6);
     let partial = if chip.is_some() {
-        "TMs (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store), L2, scene buffer"
+        CHIP_ONCHIP
     } else {
         "TMs only (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store)"
     };
@@ -205,6 +222,96 @@ pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
         ),
         ("ray duplication", Some(f.duplication), row.duplication, ""),
     ];
+    to_compared(row, rows)
+}
+
+/// The rows of [`compare_sampled`].
+fn sampled_rows(row: &PaperRow, f: &Frame, w: &WindowEstimate) -> Vec<Compared> {
+    let est = "time sampling's estimate of the cycle model";
+    let m = |x: f64| Some(x / 1e6);
+    let rows: Vec<(&'static str, Option<f64>, f64, &'static str)> = vec![
+        (
+            "render time (ms)",
+            Some(w.time_ms()),
+            row.render_ms,
+            "estimated cycles x core clock",
+        ),
+        (
+            "rays traced per second (M)",
+            Some(w.mrays_per_s()),
+            row.mrays_per_s,
+            est,
+        ),
+        (
+            "rays traced (M)",
+            m(f.total.rays as f64),
+            row.render_ms * row.mrays_per_s / 1000.0,
+            "paper: time x rate",
+        ),
+        (
+            "DRAM energy (J)",
+            Some(w.dram_paper_j),
+            row.dram_j,
+            "preset paper (physical: next row); estimated",
+        ),
+        (
+            "DRAM energy, physical preset (J)",
+            Some(w.dram_physical_j),
+            row.dram_j,
+            "preset physical (datasheet currents); estimated",
+        ),
+        (
+            "on-chip memory energy (J)",
+            Some(w.onchip_j),
+            row.onchip_j,
+            CHIP_ONCHIP,
+        ),
+        (
+            "compute energy (J)",
+            Some(w.compute_j),
+            row.compute_j,
+            "box and triangle tests, divider, TP arithmetic",
+        ),
+        (
+            "average bandwidth (GB/s)",
+            Some(w.bandwidth_gbs()),
+            row.bandwidth_gbs,
+            est,
+        ),
+        ("$ lines transferred (M)", m(w.lines()), row.lines_m, est),
+        (
+            "ray stream $ lines (M)",
+            m(w.ray_lines),
+            row.ray_lines_m,
+            est,
+        ),
+        (
+            "scene stream $ lines (M)",
+            m(w.scene_lines),
+            row.scene_lines_m,
+            est,
+        ),
+        (
+            "shading $ lines (M)",
+            m(w.shading_lines),
+            row.shading_lines_m,
+            est,
+        ),
+        (
+            "hit record $ lines (M)",
+            m(w.hit_lines),
+            row.hit_lines_m,
+            est,
+        ),
+        ("ray duplication", Some(f.duplication), row.duplication, ""),
+    ];
+    to_compared(row, rows)
+}
+
+fn to_compared(
+    row: &PaperRow,
+    rows: Vec<(&'static str, Option<f64>, f64, &'static str)>,
+) -> Vec<Compared> {
     rows.into_iter()
         .map(|(metric, ours, paper, note)| Compared {
             scene: row.scene.to_string(),
