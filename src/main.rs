@@ -629,7 +629,9 @@ fn run(cli: Cli) -> Result<(), String> {
                 bar.finish_and_clear();
                 (f, None)
             };
-            if mode != Mode::Reference {
+            // A time-sampled frame's energy is the estimate's (below), not the
+            // functional model's TMs-only figure.
+            if mode != Mode::Reference && !sampled {
                 frame.energy = Some(dualstream::energy::frame_energy(&config, &frame));
             }
             output::write_png(&frame, &out)?;
