@@ -1083,8 +1083,10 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             x[i] * rest[j] / px[j]
         })
     };
-    // Cycles, lines and DRAM energy of a scaled rest.
-    let figs = |t: &[f64; WCOUNTS]| [t[0], t[1] + t[2] + t[3] + t[4], t[5]];
+    // Cycles, lines and DRAM energy of a scaled rest: the lines of the hit
+    // records and the shading pass only, as the frame's ray and scene streams
+    // are the functional model's counts (below).
+    let figs = |t: &[f64; WCOUNTS]| [t[0], t[3] + t[4], t[5]];
     let mut var = [0.0; 3];
     // The spread is the rest windows'; with none (every wavefront simulated
     // whole) there is nothing to spread.
@@ -1272,6 +1274,13 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     // Wavefront by wavefront, its trace parts in admission order, then its
     // shading pass; the ray generation last.
     parts.sort_by_key(|p| (p.part == "emit", p.wave, p.part == "shade", p.first));
+    // The ray and scene streams: the chip moves exactly the functional model's
+    // lines (the same buckets written and read, the same segments loaded, in
+    // any timing: `tests/chip.rs` checks every wavefront's counts), so they are
+    // taken from it rather than estimated. The hit records and the shading
+    // pass go through the L2, whose filtering the windows measure.
+    total[1] = f.total.ray_lines() as f64;
+    total[2] = f.total.scene_lines as f64;
     // On-chip energy: the functional frame's traversal with the estimated global
     // units' activity, as a cycle frame would have it.
     let mut g = f.clone();
