@@ -390,8 +390,8 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
             lanes_n: ray_lanes as u32,
             resp: ri,
             req: qo,
-            lane_req: lq_i,
-            lane_resp: lr_o,
+            lane_req: lq_i.into(),
+            lane_resp: lr_o.into(),
             order: VecDeque::new(),
         },
     );

@@ -545,7 +545,9 @@ impl Logic for MaskCheck {
                 self.mismatches += 1;
             }
         }
-        if self.ins.len() <= 64 && ctx.visible_mask(&self.ins) != words[0] {
+        if self.ins.len() <= 64
+            && (ctx.visible_mask(&self.ins) != words[0] || ctx.visible_array(&self.ins) != words[0])
+        {
             self.mismatches += 1;
         }
         for (k, p) in self.ins.iter().enumerate() {
@@ -560,10 +562,15 @@ impl Logic for MaskCheck {
 }
 
 /// The arbiters' bit masks (packed eight links per multiply) agree with `has_input`
-/// on port arrays of every remainder, wider than a word, with entries in flight.
+/// on port arrays of every remainder, wider than a word, with entries in flight,
+/// whether the array's links are consecutive (`PortArray::at` and the masks then
+/// compute the links) or not (reversed: they read the ports).
 #[test]
 fn visible_masks_match_has_input() {
-    for n in [1usize, 7, 8, 13, 16, 23, 64, 130] {
+    for (n, reversed) in [1usize, 7, 8, 13, 16, 23, 64, 130]
+        .into_iter()
+        .flat_map(|n| [(n, false), (n, true)])
+    {
         let mut sim = Sim::new(SimOptions::default());
         let c = sim.clock("core", 1000).unwrap();
         let mut ins = Vec::new();
@@ -579,6 +586,14 @@ fn visible_masks_match_has_input() {
             );
             ins.push(i);
         }
+        if reversed {
+            ins.reverse();
+        }
+        let ins: dualstream::rtl::PortArray<_> = ins.into();
+        assert_eq!(ins.consecutive_from().is_some(), !reversed || n == 1);
+        for k in 0..n {
+            assert_eq!(ins.at(k).id, ins[k].id);
+        }
         let id = sim.add(
             "check",
             c,
@@ -591,7 +606,7 @@ fn visible_masks_match_has_input() {
         );
         sim.run(3_000_000).unwrap();
         let u = dualstream::rtl::unit::downcast_ref::<MaskCheck>(sim.unit(id)).unwrap();
-        assert_eq!(u.mismatches, 0, "{n} ports");
+        assert_eq!(u.mismatches, 0, "{n} ports, reversed {reversed}");
         assert!(
             u.seen_bits > 100 * n as u64,
             "{n} ports: too few entries taken"

@@ -71,6 +71,84 @@ impl<T> Out<T> {
     }
 }
 
+/// Either end of a link, named by its id (`In` or `Out`).
+pub trait PortEnd: Copy {
+    fn link(&self) -> LinkId;
+    fn of_link(id: LinkId) -> Self;
+}
+impl<T> PortEnd for In<T> {
+    fn link(&self) -> LinkId {
+        self.id
+    }
+    fn of_link(id: LinkId) -> Self {
+        In::new(id)
+    }
+}
+impl<T> PortEnd for Out<T> {
+    fn link(&self) -> LinkId {
+        self.id
+    }
+    fn of_link(id: LinkId) -> Self {
+        Out::new(id)
+    }
+}
+
+/// A unit's array of ports of one payload type (`in_arrays` / `out_arrays` of
+/// `unit!`: one per TP, say). When their links are consecutive, as `Sim::link`
+/// creates a port array's links, port `k` is the first link plus `k`: `at` and
+/// the arbiters' masks (`Ctx::visible_mask`) then need not load the ports from
+/// their heap vector, a cache miss per array and evaluation that was a fifth of
+/// the TM crossbar's time at the paper's size (`perf annotate`).
+#[derive(Clone, Debug)]
+pub struct PortArray<P> {
+    ports: Vec<P>,
+    /// The first port's link, if every port `k`'s link is that plus `k`.
+    first: Option<u32>,
+}
+
+impl<P: PortEnd> From<Vec<P>> for PortArray<P> {
+    fn from(ports: Vec<P>) -> Self {
+        let first = ports.first().map(|p| p.link().0);
+        let consecutive = first.is_some_and(|f| {
+            ports
+                .iter()
+                .enumerate()
+                .all(|(k, p)| p.link().0 as usize == f as usize + k)
+        });
+        PortArray {
+            first: first.filter(|_| consecutive),
+            ports,
+        }
+    }
+}
+
+impl<P> std::ops::Deref for PortArray<P> {
+    type Target = [P];
+    fn deref(&self) -> &[P] {
+        &self.ports
+    }
+}
+
+impl<P: PortEnd> PortArray<P> {
+    /// Port `k`.
+    #[inline]
+    pub fn at(&self, k: usize) -> P {
+        match self.first {
+            Some(f) => {
+                assert!(k < self.ports.len(), "port {k} of {}", self.ports.len());
+                debug_assert_eq!(self.ports[k].link().0, f + k as u32);
+                P::of_link(LinkId(f + k as u32))
+            }
+            None => self.ports[k],
+        }
+    }
+    /// The first port's link when the ports' links are consecutive.
+    #[inline]
+    pub fn consecutive_from(&self) -> Option<usize> {
+        self.first.map(|f| f as usize)
+    }
+}
+
 /// Configuration of one link.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

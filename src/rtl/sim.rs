@@ -18,7 +18,9 @@ use std::fmt;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::bits::Payload;
-use super::link::{In, Link, LinkCfg, LinkDyn, LinkEvent, LinkId, LinkStats, Out, Violation};
+use super::link::{
+    In, Link, LinkCfg, LinkDyn, LinkEvent, LinkId, LinkStats, Out, PortArray, Violation,
+};
 use super::trace::Tracer;
 use super::unit::{Next, Status, Unit};
 use crate::util::rng::Rng;
@@ -391,26 +393,55 @@ impl<'a> Ctx<'a> {
             .enumerate()
             .fold(true, |ok, (k, p)| ok & (p.id.0 as usize == first + k));
         if consecutive {
-            // Consecutive links (a port array): only the non-empty ones' heads are
-            // loaded, which keeps an arbiter's scan to a word or two of the bitset.
-            let mut b = self.net.nonempty_bits(first, ports.len());
-            let mut m = 0u64;
-            while b != 0 {
-                let k = b.trailing_zeros() as usize;
-                b &= b - 1;
-                m |= ((self.net.head(first + k) <= self.now) as u64) << k;
-            }
+            let m = self.visible_from(first, ports.len());
             debug_assert_eq!(m, self.visible_mask_scan(ports));
             return m;
         }
         self.visible_mask_scan(ports)
     }
 
-    /// `visible_mask` over any number of ports: bit `k % 64` of word `k / 64` for
+    /// `visible_mask` of a unit's port array: when its links are consecutive
+    /// (`PortArray::consecutive_from`) the ports themselves are not loaded.
+    #[inline]
+    pub fn visible_array<T: Payload>(&self, ports: &PortArray<In<T>>) -> u64 {
+        assert!(ports.len() <= 64, "visible_array takes at most 64 ports");
+        match ports.consecutive_from() {
+            Some(first) => {
+                let m = self.visible_from(first, ports.len());
+                debug_assert_eq!(m, self.visible_mask_scan(ports));
+                m
+            }
+            None => self.visible_mask_scan(ports),
+        }
+    }
+
+    /// Visible heads of links `first..first + n` (n <= 64) as a bit mask: only the
+    /// non-empty ones' heads are loaded, which keeps an arbiter's scan to a word
+    /// or two of the bitset.
+    #[inline]
+    fn visible_from(&self, first: usize, n: usize) -> u64 {
+        let mut b = self.net.nonempty_bits(first, n);
+        let mut m = 0u64;
+        while b != 0 {
+            let k = b.trailing_zeros() as usize;
+            b &= b - 1;
+            m |= ((self.net.head(first + k) <= self.now) as u64) << k;
+        }
+        m
+    }
+
+    /// `visible_array` over any number of ports: bit `k % 64` of word `k / 64` for
     /// port `k` (`words` is resized to fit).
-    pub fn visible_words<T: Payload>(&self, ports: &[In<T>], words: &mut Vec<u64>) {
+    pub fn visible_words<T: Payload>(&self, ports: &PortArray<In<T>>, words: &mut Vec<u64>) {
         words.clear();
-        words.extend(ports.chunks(64).map(|c| self.visible_mask(c)));
+        match ports.consecutive_from() {
+            Some(first) => words.extend(
+                (0..ports.len())
+                    .step_by(64)
+                    .map(|k| self.visible_from(first + k, (ports.len() - k).min(64))),
+            ),
+            None => words.extend(ports.chunks(64).map(|c| self.visible_mask_scan(c))),
+        }
     }
 
     fn visible_mask_scan<T: Payload>(&self, ports: &[In<T>]) -> u64 {

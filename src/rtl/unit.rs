@@ -151,8 +151,8 @@ macro_rules! unit {
             $(pub $p: $pt,)*
             $(pub $i: $crate::rtl::In<$it>,)*
             $(pub $o: $crate::rtl::Out<$ot>,)*
-            $($(pub $ia: Vec<$crate::rtl::In<$iat>>,)*)?
-            $($(pub $oa: Vec<$crate::rtl::Out<$oat>>,)*)?
+            $($(pub $ia: $crate::rtl::PortArray<$crate::rtl::In<$iat>>,)*)?
+            $($(pub $oa: $crate::rtl::PortArray<$crate::rtl::Out<$oat>>,)*)?
             $(pub $s: $st,)*
             $(pub $e: $et,)*
         }

@@ -94,7 +94,7 @@ impl HitRecordUpdater {
             in_flight_n: cfg.in_flight,
             mem_resp,
             mem_req,
-            hit,
+            hit: hit.into(),
             st: Model::new(HruState::default()),
             hits_base,
             updates: 0,
@@ -190,11 +190,11 @@ impl Logic for HitRecordUpdater {
         let mut visible = std::mem::take(&mut self.visible);
         ctx.visible_words(&self.hit, &mut visible);
         for k in round_robin(&visible, c as usize % n) {
-            let u = ctx.peek(&self.hit[k]).cloned().expect("visible");
+            let u = ctx.peek(&self.hit.at(k)).cloned().expect("visible");
             let pos = self.st.r().queue.iter().position(|&i| i == u.index);
             match pos {
                 Some(p) => {
-                    ctx.pop(&self.hit[k]);
+                    ctx.pop(&self.hit.at(k));
                     let e = &mut self.st.m().queue_hit[p];
                     if u.hit.closer_than(e) {
                         *e = u.hit;
@@ -202,7 +202,7 @@ impl Logic for HitRecordUpdater {
                     self.merged += 1;
                 }
                 None if self.st.r().queue.len() < self.queue_n as usize => {
-                    ctx.pop(&self.hit[k]);
+                    ctx.pop(&self.hit.at(k));
                     let st = self.st.m();
                     st.queue.push_back(u.index);
                     st.queue_hit.push_back(u.hit);

@@ -154,8 +154,8 @@ impl L1 {
             mshr_count: cfg.mshrs,
             miss_resp,
             miss_req,
-            req,
-            resp,
+            req: req.into(),
+            resp: resp.into(),
             // Tag = line address + 1; 0 is an invalid slot.
             tags: Ram::new(lines, 1, 0),
             data: Ram::new(lines, 1, Line::default()),
@@ -217,7 +217,8 @@ impl Logic for L1 {
         if let Some(f) = ctx.peek(&self.miss_resp).cloned() {
             let k = mshr.iter().position(|m| m.valid && m.addr == f.addr);
             let k = k.expect("a line comes back only for a miss register");
-            let ok = (0..n).all(|p| mshr[k].waiters & (1 << p) == 0 || ctx.can_push(&self.resp[p]));
+            let ok =
+                (0..n).all(|p| mshr[k].waiters & (1 << p) == 0 || ctx.can_push(&self.resp.at(p)));
             if ok {
                 ctx.pop(&self.miss_resp);
                 let slot = self.slot_of(f.addr);
@@ -225,7 +226,7 @@ impl Logic for L1 {
                 self.data.write(slot, f.line.clone());
                 for p in 0..n {
                     if mshr[k].waiters & (1 << p) != 0 {
-                        ctx.push(&self.resp[p], f.clone());
+                        ctx.push(&self.resp.at(p), f.clone());
                     }
                 }
                 mshr[k] = Mshr::default();
@@ -249,7 +250,7 @@ impl Logic for L1 {
                     addr: e.addr,
                     line: self.pending_line.read(p as u32).clone(),
                 };
-                if ctx.offer(&self.resp[p], r) {
+                if ctx.offer(&self.resp.at(p), r) {
                     *slot = Some(Pending::default());
                     worked = true;
                 } else {
@@ -264,7 +265,7 @@ impl Logic for L1 {
         bank_busy.resize(self.banks as usize, false);
         let start = ctx.round_robin_start(n);
         let visible = if n <= 64 {
-            ctx.visible_mask(&self.req)
+            ctx.visible_array(&self.req)
         } else {
             u64::MAX
         };
@@ -272,7 +273,7 @@ impl Logic for L1 {
             if p < 64 && visible >> p & 1 == 0 {
                 continue;
             }
-            let Some(r) = ctx.peek(&self.req[p]).cloned() else {
+            let Some(r) = ctx.peek(&self.req.at(p)).cloned() else {
                 continue;
             };
             let b = self.bank_of(r.addr) as usize;
@@ -292,11 +293,11 @@ impl Logic for L1 {
             match hit_line {
                 Some(line) => {
                     bank_busy[b] = true;
-                    ctx.pop(&self.req[p]);
+                    ctx.pop(&self.req.at(p));
                     self.stats.hits += 1;
                     let due = c + (self.hit_latency - self.out_delay) as u64;
                     if due == c {
-                        ctx.push(&self.resp[p], L1Resp { addr: r.addr, line });
+                        ctx.push(&self.resp.at(p), L1Resp { addr: r.addr, line });
                     } else {
                         pend[p] = Some(Pending {
                             valid: true,
@@ -316,7 +317,7 @@ impl Logic for L1 {
                         continue;
                     };
                     bank_busy[b] = true;
-                    ctx.pop(&self.req[p]);
+                    ctx.pop(&self.req.at(p));
                     self.stats.misses += 1;
                     if same.is_some() {
                         self.stats.merged += 1;

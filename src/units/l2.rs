@@ -267,12 +267,12 @@ impl L2 {
             mem_lanes: cfg.mem_lines_per_cycle,
             bank_hash: cfg.bank_hash as u32,
             combine_reads: cfg.combine_reads as u32,
-            mem_resp,
+            mem_resp: mem_resp.into(),
             flush,
-            mem_req,
+            mem_req: mem_req.into(),
             flush_done,
-            req,
-            resp,
+            req: req.into(),
+            resp: resp.into(),
             st: Model::new(L2State {
                 tags: vec![L2Tag::default(); lines],
                 data: vec![Line::default(); lines],
@@ -539,7 +539,7 @@ impl Logic for L2 {
         // bank, or waits a cycle if another lane's fill took it) or a writeback's
         // ack.
         for j in 0..self.mem_resp.len() {
-            let Some(f) = ctx.peek(&self.mem_resp[j]) else {
+            let Some(f) = ctx.peek(&self.mem_resp.at(j)) else {
                 continue;
             };
             let (write, b) = (f.write, self.bank_of(f.addr));
@@ -547,7 +547,7 @@ impl Logic for L2 {
                 waiting = true;
                 continue;
             }
-            let f = ctx.pop(&self.mem_resp[j]).expect("peeked");
+            let f = ctx.pop(&self.mem_resp.at(j)).expect("peeked");
             self.st.m().mem_busy.remove(&f.addr);
             if !write {
                 bank[b] = BUSY;
@@ -564,14 +564,14 @@ impl Logic for L2 {
                 next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
                 continue;
             }
-            if !ctx.can_push(&self.resp[p]) {
+            if !ctx.can_push(&self.resp.at(p)) {
                 blocked = true;
                 continue;
             }
             let st = self.st.m();
             let (_, r) = st.resp_q[p].pop_front().expect("head");
             st.outstanding[p] -= 1;
-            ctx.push(&self.resp[p], r);
+            ctx.push(&self.resp.at(p), r);
             worked = true;
             if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
                 next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
@@ -656,7 +656,7 @@ impl Logic for L2 {
             let start = ctx.round_robin_start(n);
             for j in 0..n {
                 let p = (start + j) % n;
-                let Some(r) = ctx.peek(&self.req[p]).cloned() else {
+                let Some(r) = ctx.peek(&self.req.at(p)).cloned() else {
                     continue;
                 };
                 let b = self.bank_of(r.addr);
@@ -671,7 +671,7 @@ impl Logic for L2 {
                     continue;
                 }
                 if self.access(p, &r, c) {
-                    ctx.pop(&self.req[p]);
+                    ctx.pop(&self.req.at(p));
                     if combined {
                         self.stats.combined += 1;
                     }
@@ -690,14 +690,14 @@ impl Logic for L2 {
         // 5. One request to the memory per lane.
         for j in 0..self.mem_req.len() {
             let Some(i) = self.issuable(j) else { continue };
-            if ctx.can_push(&self.mem_req[j]) {
+            if ctx.can_push(&self.mem_req.at(j)) {
                 let st = self.st.m();
                 let r = st.out_q.remove(i).expect("issuable");
                 if r.write {
                     st.wb_queued -= 1;
                 }
                 st.mem_busy.insert(r.addr);
-                ctx.push(&self.mem_req[j], r);
+                ctx.push(&self.mem_req.at(j), r);
                 worked = true;
             } else {
                 blocked = true;

@@ -161,10 +161,10 @@ impl Memory {
             latency: cfg.latency,
             lines_per_cycle: (cfg.bytes_per_cycle / LINE_BYTES as u32).max(1),
             channels: 0,
-            req,
-            resp,
-            ch_resp: Vec::new(),
-            ch_req: Vec::new(),
+            req: req.into(),
+            resp: resp.into(),
+            ch_resp: Vec::new().into(),
+            ch_req: Vec::new().into(),
             pipe: Model::new(MemPipe {
                 ports: vec![VecDeque::new(); n],
                 ..MemPipe::default()
@@ -192,8 +192,8 @@ impl Memory {
         self.latency = 0;
         self.lines_per_cycle = 0;
         self.map = Some(map);
-        self.ch_req = ch_req;
-        self.ch_resp = ch_resp;
+        self.ch_req = ch_req.into();
+        self.ch_resp = ch_resp.into();
         self
     }
 
@@ -250,23 +250,23 @@ impl Memory {
         let mut port_used = vec![false; n];
         for j in 0..nch {
             let ch = (c as usize + j) % nch;
-            let Some(id) = ctx.peek(&self.ch_resp[ch]).map(|r| r.id) else {
+            let Some(id) = ctx.peek(&self.ch_resp.at(ch)).map(|r| r.id) else {
                 continue;
             };
             let p = self.pipe.r().table[id as usize]
                 .as_ref()
                 .expect("response to a live request")
                 .0 as usize;
-            if port_used[p] || !ctx.can_push(&self.resp[p]) {
+            if port_used[p] || !ctx.can_push(&self.resp.at(p)) {
                 blocked = true;
                 continue;
             }
-            ctx.pop(&self.ch_resp[ch]).expect("peeked");
+            ctx.pop(&self.ch_resp.at(ch)).expect("peeked");
             let pipe = self.pipe.m();
             let (_, r) = pipe.table[id as usize].take().expect("live");
             pipe.free.push(id);
             let resp = self.complete(&r);
-            ctx.push(&self.resp[p], resp);
+            ctx.push(&self.resp.at(p), resp);
             port_used[p] = true;
             worked = true;
         }
@@ -275,7 +275,7 @@ impl Memory {
         let mut left_waiting = false;
         for j in 0..n {
             let p = (c as usize + j) % n;
-            let Some(r) = ctx.peek(&self.req[p]) else {
+            let Some(r) = ctx.peek(&self.req.at(p)) else {
                 continue;
             };
             let ch = self
@@ -285,11 +285,11 @@ impl Memory {
                 .decode(r.addr)
                 .map(|l| l.channel as usize)
                 .unwrap_or(0);
-            if ch_used[ch] || !ctx.can_push(&self.ch_req[ch]) {
+            if ch_used[ch] || !ctx.can_push(&self.ch_req.at(ch)) {
                 left_waiting = true;
                 continue;
             }
-            let r = ctx.pop(&self.req[p]).expect("peeked");
+            let r = ctx.pop(&self.req.at(p)).expect("peeked");
             self.requests += 1;
             let (addr, write, tag) = (r.addr, r.write, r.tag);
             let id = self.pipe.m().alloc(p as u8, r);
@@ -335,13 +335,13 @@ impl Logic for Memory {
             if !due {
                 continue;
             }
-            if !ctx.can_push(&self.resp[p]) {
+            if !ctx.can_push(&self.resp.at(p)) {
                 blocked = true;
                 continue;
             }
             let (_, r) = self.pipe.m().ports[p].pop_front().expect("due");
             let resp = self.complete(&r);
-            ctx.push(&self.resp[p], resp);
+            ctx.push(&self.resp.at(p), resp);
             worked = true;
         }
         // Acceptance: round-robin, one per port, `lines_per_cycle` in all.
@@ -350,14 +350,14 @@ impl Logic for Memory {
         let due_at = c + self.latency as u64 - self.out_delay as u64;
         for j in 0..n {
             let p = (c as usize + j) % n;
-            if ctx.peek(&self.req[p]).is_none() {
+            if ctx.peek(&self.req.at(p)).is_none() {
                 continue;
             }
             if budget == 0 {
                 left_waiting = true;
                 continue;
             }
-            let r = ctx.pop(&self.req[p]).expect("peeked");
+            let r = ctx.pop(&self.req.at(p)).expect("peeked");
             self.requests += 1;
             self.pipe.m().ports[p].push_back((due_at, r));
             budget -= 1;

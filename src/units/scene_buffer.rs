@@ -144,9 +144,9 @@ impl SceneBuffer {
             latency: cfg.latency,
             tms: n as u32,
             slot_map,
-            fill,
-            req,
-            resp,
+            fill: fill.into(),
+            req: req.into(),
+            resp: resp.into(),
             st: Model::new(SbState {
                 slots,
                 out: vec![VecDeque::new(); n],
@@ -196,7 +196,7 @@ impl Logic for SceneBuffer {
             worked = true;
         }
         for j in 0..self.fill.len() {
-            let Some(f) = ctx.pop(&self.fill[j]) else {
+            let Some(f) = ctx.pop(&self.fill.at(j)) else {
                 continue;
             };
             let (generation, slot, line) = (
@@ -219,9 +219,9 @@ impl Logic for SceneBuffer {
             if let Some((d, _)) = self.st.r().out[k].front()
                 && *d <= c
             {
-                if ctx.can_push(&self.resp[k]) {
+                if ctx.can_push(&self.resp.at(k)) {
                     let (_, r) = self.st.m().out[k].pop_front().expect("due");
-                    ctx.push(&self.resp[k], r);
+                    ctx.push(&self.resp.at(k), r);
                     worked = true;
                 } else {
                     blocked = true;
@@ -235,7 +235,7 @@ impl Logic for SceneBuffer {
         let cap = self.latency as usize + 2;
         for j in 0..n {
             let k = (c as usize + j) % n;
-            let Some(addr) = ctx.peek(&self.req[k]).map(|r| r.addr) else {
+            let Some(addr) = ctx.peek(&self.req.at(k)).map(|r| r.addr) else {
                 continue;
             };
             let hit = self
@@ -259,7 +259,7 @@ impl Logic for SceneBuffer {
                 continue;
             }
             bank_busy[b] = true;
-            ctx.pop(&self.req[k]);
+            ctx.pop(&self.req.at(k));
             let line = self.st.r().slots[s].data[l as usize].clone();
             let st = self.st.m();
             if let Some(since) = st.wait_since[k].take() {

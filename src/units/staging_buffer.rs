@@ -76,7 +76,7 @@ impl StagingBuffer {
             half_rays: half,
             tps: ray.len() as u32,
             fill,
-            ray,
+            ray: ray.into(),
             rays: Ram::new(2 * half, 1, NO_RAY),
             drain_half: Reg::new(false),
             count0: Reg::new(0),
@@ -148,7 +148,7 @@ impl Logic for StagingBuffer {
             let start = ctx.round_robin_start(n);
             let free = (0..n)
                 .map(|j| (start + j) % n)
-                .find(|&p| ctx.can_push(&self.ray[p]));
+                .find(|&p| ctx.can_push(&self.ray.at(p)));
             match free {
                 Some(p) => {
                     let ray = *self.rays.read(d as u32 * self.half_rays + ri as u32);
@@ -157,7 +157,7 @@ impl Logic for StagingBuffer {
                     } else {
                         self.hdr0.get().clone()
                     };
-                    ctx.push(&self.ray[p], SbRay { ray, hdr });
+                    ctx.push(&self.ray.at(p), SbRay { ray, hdr });
                     self.read_idx.set(ri + 1);
                     self.rays_out += 1;
                     worked = true;

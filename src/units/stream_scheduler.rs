@@ -406,12 +406,12 @@ impl StreamScheduler {
             scene_lanes: scene_req.len() as u32,
             emit,
             start,
-            mem_resp,
+            mem_resp: mem_resp.into(),
             slot_map,
-            scene_req,
-            mem_req,
-            ray_write,
-            fill,
+            scene_req: scene_req.into(),
+            mem_req: mem_req.into(),
+            ray_write: ray_write.into(),
+            fill: fill.into(),
             st: Model::new(SchedState {
                 cap_dest: cfg.dest_entries,
                 cap_streams: cfg.streams,
@@ -929,7 +929,7 @@ impl Logic for StreamScheduler {
 
         // 1. Memory answers: one per lane.
         for j in 0..self.mem_resp.len() {
-            if let Some(r) = ctx.pop(&self.mem_resp[j]) {
+            if let Some(r) = ctx.pop(&self.mem_resp.at(j)) {
                 self.answer(r);
                 worked = true;
             }
@@ -987,7 +987,7 @@ impl Logic for StreamScheduler {
                 break;
             }
             let w = match src {
-                Some(k) => ctx.peek(&self.ray_write[k]).cloned(),
+                Some(k) => ctx.peek(&self.ray_write.at(k)).cloned(),
                 None => ctx.peek(&self.emit).cloned(),
             };
             let Some(w) = w else { continue };
@@ -999,7 +999,7 @@ impl Logic for StreamScheduler {
                 }
             }
             match src {
-                Some(k) => ctx.pop(&self.ray_write[k]),
+                Some(k) => ctx.pop(&self.ray_write.at(k)),
                 None => ctx.pop(&self.emit),
             };
             if w.done {
@@ -1150,7 +1150,7 @@ impl Logic for StreamScheduler {
         // The mapping goes out first (the scene buffer must know the slot).
         let mut issued = 0;
         for j in 0..self.scene_req.len() {
-            if self.st.r().streams.is_empty() || !ctx.can_push(&self.scene_req[j]) {
+            if self.st.r().streams.is_empty() || !ctx.can_push(&self.scene_req.at(j)) {
                 continue;
             }
             let k = (c as usize + j) % self.st.r().streams.len();
@@ -1179,7 +1179,7 @@ impl Logic for StreamScheduler {
                         st.slot_free[slot] = true;
                     }
                 }
-                ctx.push(&self.scene_req[j], req);
+                ctx.push(&self.scene_req.at(j), req);
                 issued += 1;
                 worked = true;
             }
@@ -1231,9 +1231,9 @@ impl Logic for StreamScheduler {
         // (`ray_lines_per_cycle`).
         let mut issued = 0;
         for j in 0..self.mem_req.len() {
-            if !self.st.r().out.is_empty() && ctx.can_push(&self.mem_req[j]) {
+            if !self.st.r().out.is_empty() && ctx.can_push(&self.mem_req.at(j)) {
                 let r = self.st.m().out.pop_front().expect("non-empty");
-                ctx.push(&self.mem_req[j], r);
+                ctx.push(&self.mem_req.at(j), r);
                 issued += 1;
                 worked = true;
             }
@@ -1294,7 +1294,7 @@ impl Logic for StreamScheduler {
                 .cur
                 .as_ref()
                 .is_some_and(|c| c.0 == SHADE_SEG);
-            if shade_item && ctx.can_push(&self.fill[k]) {
+            if shade_item && ctx.can_push(&self.fill.at(k)) {
                 let st = self.st.m();
                 let hdr = SbHeader {
                     seg: SHADE_SEG,
@@ -1308,9 +1308,9 @@ impl Logic for StreamScheduler {
                 if last {
                     st.tms[k].cur = None;
                 }
-                ctx.push(&self.fill[k], SbFill { ray, hdr, last });
+                ctx.push(&self.fill.at(k), SbFill { ray, hdr, last });
                 worked = true;
-            } else if self.st.r().tms[k].cur.is_some() && ctx.can_push(&self.fill[k]) {
+            } else if self.st.r().tms[k].cur.is_some() && ctx.can_push(&self.fill.at(k)) {
                 let st = self.st.m();
                 let seg = st.tms[k].cur.as_ref().expect("cur").0;
                 let w = st.ws.iter_mut().find(|w| w.seg == seg).expect("ws");
@@ -1327,7 +1327,7 @@ impl Logic for StreamScheduler {
                     st.tms[k].cur = None;
                     w.buckets_on_chip -= 1;
                 }
-                ctx.push(&self.fill[k], SbFill { ray, hdr, last });
+                ctx.push(&self.fill.at(k), SbFill { ray, hdr, last });
                 self.stats.rays_forwarded += 1;
                 worked = true;
             }

@@ -15,7 +15,7 @@ use super::divider::{DivReq, DivResp};
 use super::memory::{MemLineReq, MemLineResp};
 use super::tp::{HitUpdate, RayWrite};
 use super::tri_pipe::{TriReq, TriResp};
-use crate::rtl::{Ctx, In, Logic, Next, Out, Payload, Ram, Status};
+use crate::rtl::{Ctx, In, Logic, Next, Out, Payload, PortArray, Ram, Status};
 
 crate::unit! {
     /// TM crossbar: round-robin arbitration of the TPs onto the shared units and outputs.
@@ -73,7 +73,7 @@ pub const CLASSES: [&str; 6] = ["div", "box", "tri", "ray_write", "hit", "gmem"]
 /// losers. Pops the winner only if `grant`.
 fn pick<T: Payload>(
     ctx: &mut Ctx,
-    inputs: &[In<T>],
+    inputs: &PortArray<In<T>>,
     start: usize,
     grant: bool,
     conflicts: &mut u64,
@@ -82,7 +82,7 @@ fn pick<T: Payload>(
     if n <= 64 {
         // The same choice from a bit mask of the visible heads: the first at or after
         // `start`, else the first; every other visible head is a conflict.
-        let mask = ctx.visible_mask(inputs);
+        let mask = ctx.visible_array(inputs);
         if mask == 0 {
             return None;
         }
@@ -94,7 +94,7 @@ fn pick<T: Payload>(
         let hi = mask & (!0u64 << start);
         let k = if hi != 0 { hi } else { mask }.trailing_zeros() as usize;
         *conflicts += visible - 1;
-        return Some((k, ctx.pop(&inputs[k]).expect("visible")));
+        return Some((k, ctx.pop(&inputs.at(k)).expect("visible")));
     }
     let mut won = None;
     // `start..n` then `0..start`: the round-robin order without a division per input.
@@ -115,18 +115,18 @@ fn pick<T: Payload>(
 fn route<T: Payload>(
     ctx: &mut Ctx,
     inp: &In<T>,
-    outs: &[Out<T>],
+    outs: &PortArray<Out<T>>,
     tag: impl Fn(&T) -> u16,
 ) -> (bool, bool) {
     let Some(v) = ctx.peek(inp) else {
         return (false, false);
     };
-    let k = (tag(v) & 0xFF) as usize;
-    if !ctx.can_push(&outs[k]) {
+    let out = outs.at((tag(v) & 0xFF) as usize);
+    if !ctx.can_push(&out) {
         return (false, true);
     }
     let v = ctx.pop(inp).expect("peeked");
-    ctx.push(&outs[k], v);
+    ctx.push(&out, v);
     (true, false)
 }
 
@@ -165,7 +165,7 @@ impl Logic for TmXbar {
         }
         let mut changed = [false; 8];
         for p in 0..self.tri_resp.len() {
-            let (w, b) = route(ctx, &self.tri_resp[p], &self.tp_tri_resp, |r| r.tag);
+            let (w, b) = route(ctx, &self.tri_resp.at(p), &self.tp_tri_resp, |r| r.tag);
             if w {
                 outstanding[p] -= 1;
                 changed[p] = true;
@@ -191,11 +191,11 @@ impl Logic for TmXbar {
         forward!(4, self.tp_hit, self.hit);
         forward!(5, self.tp_gmem_req, self.gmem_req);
         let target = (0..self.tri_req.len())
-            .filter(|&p| ctx.can_push(&self.tri_req[p]))
+            .filter(|&p| ctx.can_push(&self.tri_req.at(p)))
             .min_by_key(|&p| (outstanding[p], p));
         if let Some((_, v)) = pick(ctx, &self.tp_tri_req, start, target.is_some(), &mut cf[2]) {
             let p = target.expect("granted only with a target");
-            ctx.push(&self.tri_req[p], v);
+            ctx.push(&self.tri_req.at(p), v);
             outstanding[p] += 1;
             changed[p] = true;
             self.stats.grants[2] += 1;
