@@ -228,7 +228,7 @@ pub fn summary(f: &Frame) -> String {
         if f.chip.as_ref().is_some_and(|c| c.dram.is_some()) {
             s += "  (DRAM energy: the gddr5 figures below; L2 and scene buffer counted in cycle mode only)\n";
         } else {
-            s += "  (DRAM energy: not modelled yet (chip.memory.model = \"gddr5\" in cycle mode); the L2 and the scene buffer are counted in cycle mode only)\n";
+            s += "  (DRAM energy needs the DRAM model: --mode cycle with [chip.memory] model = \"gddr5\", or --mode windows (estimated, minutes at 1024x1024); the L2 and the scene buffer are counted there only)\n";
         }
     }
     if f.verified_rays > 0 {
