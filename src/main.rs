@@ -553,7 +553,7 @@ fn run(cli: Cli) -> Result<(), String> {
                         .into(),
                 );
             }
-            if vcd.is_some() && (mode != Mode::Cycle || sampled) {
+            if vcd.is_some() && mode != Mode::Cycle {
                 return Err("--vcd traces the chip: add --mode cycle".into());
             }
             let (from, to) = match &trace_window {
@@ -597,7 +597,7 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             rc.verify = verify;
             rc.dump_rays = dump_rays;
-            if pass_log.is_some() && (mode != Mode::Cycle || sampled) {
+            if pass_log.is_some() && mode != Mode::Cycle {
                 return Err(
                     "--pass-log records the chip's segment passes; use it with --mode cycle".into(),
                 );
@@ -715,15 +715,7 @@ fn run(cli: Cli) -> Result<(), String> {
                         t0.elapsed().as_secs_f64(),
                         e.windows,
                         e.chip_s,
-                        match e.rel_se {
-                            Some([c, l, j]) => format!(
-                                "; own standard error {:.1}% cycles, {:.1}% lines, {:.1}% energy",
-                                100.0 * c,
-                                100.0 * l,
-                                100.0 * j
-                            ),
-                            None => String::new(),
-                        }
+                        e.se_text().map(|t| format!("; {t}")).unwrap_or_default()
                     );
                     rows.extend(dualstream::report::paper::compare_sampled(
                         row, &ts.frame, e,

@@ -1379,6 +1379,17 @@ impl WindowEstimate {
     pub fn mrays_per_s(&self) -> f64 {
         self.rays as f64 / (self.time_ms() * 1e-3).max(1e-30) / 1e6
     }
+    /// The windows' own standard error as text, where they have one.
+    pub fn se_text(&self) -> Option<String> {
+        self.rel_se.map(|[c, l, j]| {
+            format!(
+                "own standard error (windows' spread): cycles {:.1}%, lines {:.1}%, energy {:.1}%",
+                100.0 * c,
+                100.0 * l,
+                100.0 * j
+            )
+        })
+    }
     /// Average DRAM bandwidth (GB/s) over that time.
     pub fn bandwidth_gbs(&self) -> f64 {
         self.lines() * crate::contract::LINE_BYTES as f64 / (self.time_ms() * 1e-3).max(1e-30) / 1e9

@@ -65,7 +65,11 @@ pub fn write_pass_log(frame: &Frame, path: &Path) -> Result<(), String> {
 }
 
 pub fn write_json(frame: &Frame, path: &Path) -> Result<(), String> {
-    let text = serde_json::to_string_pretty(frame).expect("stats serialise");
+    write_stats(frame, path)
+}
+
+fn write_stats(stats: &impl serde::Serialize, path: &Path) -> Result<(), String> {
+    let text = serde_json::to_string_pretty(stats).expect("stats serialise");
     std::fs::write(path, text).map_err(|e| {
         format!(
             "cannot write the statistics '{}': {e}; choose a writable --stats",
@@ -87,14 +91,7 @@ pub fn write_json_estimated(
         frame: &'a Frame,
         estimate: &'a crate::speed_error::WindowEstimate,
     }
-    let text =
-        serde_json::to_string_pretty(&Estimated { frame, estimate }).expect("stats serialise");
-    std::fs::write(path, text).map_err(|e| {
-        format!(
-            "cannot write the statistics '{}': {e}; choose a writable --stats",
-            path.display()
-        )
-    })
+    write_stats(&Estimated { frame, estimate }, path)
 }
 
 /// The chip's figures as time sampling estimates them (`render --mode windows`).
@@ -122,13 +119,8 @@ pub fn window_summary(e: &crate::speed_error::WindowEstimate) -> String {
         "  energy: DRAM {:.4} J (paper preset; physical {:.4} J), on-chip {:.4} J, compute {:.4} J\n",
         e.dram_paper_j, e.dram_physical_j, e.onchip_j, e.compute_j
     );
-    if let Some([c, l, j]) = e.rel_se {
-        s += &format!(
-            "  own standard error (windows' spread): cycles {:.1}%, lines {:.1}%, energy {:.1}%\n",
-            100.0 * c,
-            100.0 * l,
-            100.0 * j
-        );
+    if let Some(se) = e.se_text() {
+        s += &format!("  {se}\n");
     }
     s += "  measured error against the cycle model on the paper scenes: docs/speed-error.md\n";
     s

@@ -96,6 +96,36 @@ pub struct Compared {
     pub note: &'static str,
 }
 
+/// A compared metric's name and its figure in a paper row.
+type Metric = (&'static str, fn(&PaperRow) -> f64);
+
+/// The compared metrics, in table order.
+const METRICS: [Metric; 14] = [
+    ("render time (ms)", |r| r.render_ms),
+    ("rays traced per second (M)", |r| r.mrays_per_s),
+    ("rays traced (M)", |r| r.render_ms * r.mrays_per_s / 1000.0),
+    ("DRAM energy (J)", |r| r.dram_j),
+    ("DRAM energy, physical preset (J)", |r| r.dram_j),
+    ("on-chip memory energy (J)", |r| r.onchip_j),
+    ("compute energy (J)", |r| r.compute_j),
+    ("average bandwidth (GB/s)", |r| r.bandwidth_gbs),
+    ("$ lines transferred (M)", |r| r.lines_m),
+    ("ray stream $ lines (M)", |r| r.ray_lines_m),
+    ("scene stream $ lines (M)", |r| r.scene_lines_m),
+    ("shading $ lines (M)", |r| r.shading_lines_m),
+    ("hit record $ lines (M)", |r| r.hit_lines_m),
+    ("ray duplication", |r| r.duplication),
+];
+
+/// Our figure for each of [`METRICS`] (none where this frame cannot give it)
+/// and what it covers or why it is missing.
+type Ours = [(Option<f64>, &'static str); 14];
+
+/// What the chip's on-chip memory energy covers.
+const CHIP_ONCHIP: &str = "TMs (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store), L2, scene buffer";
+const COMPUTE: &str = "box and triangle tests, divider, TP arithmetic";
+const PAPER_RAYS: &str = "paper: time x rate";
+
 /// Our figures for one frame next to the paper's row.
 pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
     let t = &f.total;
@@ -113,104 +143,31 @@ pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
         "TMs only (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store)"
     };
     let e = f.energy.as_ref();
-    let rows: Vec<(&'static str, Option<f64>, f64, &'static str)> = vec![
-        (
-            "render time (ms)",
-            ms,
-            row.render_ms,
-            if ms.is_some() {
-                "cycles x core clock"
-            } else {
-                cycle
-            },
-        ),
-        (
-            "rays traced per second (M)",
-            mrays,
-            row.mrays_per_s,
-            if mrays.is_some() { "" } else { cycle },
-        ),
-        (
-            "rays traced (M)",
-            m(t.rays),
-            row.render_ms * row.mrays_per_s / 1000.0,
-            "paper: time x rate",
-        ),
-        (
-            "DRAM energy (J)",
+    let or_cycle = |v: Option<f64>, note: &'static str| (v, if v.is_some() { note } else { cycle });
+    let ours: Ours = [
+        or_cycle(ms, "cycles x core clock"),
+        or_cycle(mrays, ""),
+        (m(t.rays), PAPER_RAYS),
+        or_cycle(
             dram.map(|d| d.energy_paper_j),
-            row.dram_j,
-            if dram.is_some() {
-                "preset paper (physical: next row)"
-            } else {
-                cycle
-            },
+            "preset paper (physical: next row)",
         ),
-        (
-            "DRAM energy, physical preset (J)",
+        or_cycle(
             dram.map(|d| d.energy_physical_j),
-            row.dram_j,
-            if dram.is_some() {
-                "preset physical (datasheet currents)"
-            } else {
-                cycle
-            },
+            "preset physical (datasheet currents)",
         ),
-        (
-            "on-chip memory energy (J)",
-            e.map(|e| e.onchip_j),
-            row.onchip_j,
-            partial,
-        ),
-        (
-            "compute energy (J)",
-            e.map(|e| e.compute_j),
-            row.compute_j,
-            "box and triangle tests, divider, TP arithmetic",
-        ),
-        (
-            "average bandwidth (GB/s)",
-            chip.and_then(|c| c.dram_bandwidth_gbs()),
-            row.bandwidth_gbs,
-            if dram.is_some() { "" } else { cycle },
-        ),
-        (
-            "$ lines transferred (M)",
-            m(t.total_lines()),
-            row.lines_m,
-            "",
-        ),
-        (
-            "ray stream $ lines (M)",
-            m(t.ray_lines()),
-            row.ray_lines_m,
-            "",
-        ),
-        (
-            "scene stream $ lines (M)",
-            m(t.scene_lines),
-            row.scene_lines_m,
-            "",
-        ),
-        (
-            "shading $ lines (M)",
-            m(t.shading_lines),
-            row.shading_lines_m,
-            "",
-        ),
-        (
-            "hit record $ lines (M)",
-            m(t.hit_lines()),
-            row.hit_lines_m,
-            "",
-        ),
-        ("ray duplication", Some(f.duplication), row.duplication, ""),
+        (e.map(|e| e.onchip_j), partial),
+        (e.map(|e| e.compute_j), COMPUTE),
+        or_cycle(chip.and_then(|c| c.dram_bandwidth_gbs()), ""),
+        (m(t.total_lines()), ""),
+        (m(t.ray_lines()), ""),
+        (m(t.scene_lines), ""),
+        (m(t.shading_lines), ""),
+        (m(t.hit_lines()), ""),
+        (Some(f.duplication), ""),
     ];
-    to_compared(row, rows)
+    to_compared(row, ours)
 }
-
-/// What the chip's on-chip memory energy covers.
-const CHIP_ONCHIP: &str = "TMs (tests, divider, TP instructions, L1, staging buffer, RF, I-fetch, local store), L2, scene buffer";
 
 /// [`compare`] for a frame rendered with time sampling (`--mode windows`): the
 /// chip's figures (time, rays per second, DRAM energy, bandwidth, the hit-record
@@ -221,97 +178,45 @@ pub fn compare_sampled(row: &PaperRow, f: &Frame, w: &WindowEstimate) -> Vec<Com
     let est = "time sampling's estimate of the cycle model";
     let exact = "the functional model's count (the chip's exactly)";
     let m = |x: f64| Some(x / 1e6);
-    let rows: Vec<(&'static str, Option<f64>, f64, &'static str)> = vec![
+    let ours: Ours = [
+        (Some(w.time_ms()), "estimated cycles x core clock"),
+        (Some(w.mrays_per_s()), est),
+        (m(f.total.rays as f64), PAPER_RAYS),
         (
-            "render time (ms)",
-            Some(w.time_ms()),
-            row.render_ms,
-            "estimated cycles x core clock",
-        ),
-        (
-            "rays traced per second (M)",
-            Some(w.mrays_per_s()),
-            row.mrays_per_s,
-            est,
-        ),
-        (
-            "rays traced (M)",
-            m(f.total.rays as f64),
-            row.render_ms * row.mrays_per_s / 1000.0,
-            "paper: time x rate",
-        ),
-        (
-            "DRAM energy (J)",
             Some(w.dram_paper_j),
-            row.dram_j,
             "preset paper (physical: next row); estimated",
         ),
         (
-            "DRAM energy, physical preset (J)",
             Some(w.dram_physical_j),
-            row.dram_j,
             "preset physical (datasheet currents); estimated",
         ),
-        (
-            "on-chip memory energy (J)",
-            Some(w.onchip_j),
-            row.onchip_j,
-            CHIP_ONCHIP,
-        ),
-        (
-            "compute energy (J)",
-            Some(w.compute_j),
-            row.compute_j,
-            "box and triangle tests, divider, TP arithmetic",
-        ),
-        (
-            "average bandwidth (GB/s)",
-            Some(w.bandwidth_gbs()),
-            row.bandwidth_gbs,
-            est,
-        ),
-        ("$ lines transferred (M)", m(w.lines()), row.lines_m, est),
-        (
-            "ray stream $ lines (M)",
-            m(w.ray_lines),
-            row.ray_lines_m,
-            exact,
-        ),
-        (
-            "scene stream $ lines (M)",
-            m(w.scene_lines),
-            row.scene_lines_m,
-            exact,
-        ),
-        (
-            "shading $ lines (M)",
-            m(w.shading_lines),
-            row.shading_lines_m,
-            est,
-        ),
-        (
-            "hit record $ lines (M)",
-            m(w.hit_lines),
-            row.hit_lines_m,
-            est,
-        ),
-        ("ray duplication", Some(f.duplication), row.duplication, ""),
+        (Some(w.onchip_j), CHIP_ONCHIP),
+        (Some(w.compute_j), COMPUTE),
+        (Some(w.bandwidth_gbs()), est),
+        (m(w.lines()), est),
+        (m(w.ray_lines), exact),
+        (m(w.scene_lines), exact),
+        (m(w.shading_lines), est),
+        (m(w.hit_lines), est),
+        (Some(f.duplication), ""),
     ];
-    to_compared(row, rows)
+    to_compared(row, ours)
 }
 
-fn to_compared(
-    row: &PaperRow,
-    rows: Vec<(&'static str, Option<f64>, f64, &'static str)>,
-) -> Vec<Compared> {
-    rows.into_iter()
-        .map(|(metric, ours, paper, note)| Compared {
-            scene: row.scene.to_string(),
-            metric,
-            ours,
-            paper,
-            ratio: ours.map(|o| o / paper),
-            note,
+fn to_compared(row: &PaperRow, ours: Ours) -> Vec<Compared> {
+    METRICS
+        .iter()
+        .zip(ours)
+        .map(|(&(metric, paper), (ours, note))| {
+            let paper = paper(row);
+            Compared {
+                scene: row.scene.to_string(),
+                metric,
+                ours,
+                paper,
+                ratio: ours.map(|o| o / paper),
+                note,
+            }
         })
         .collect()
 }

@@ -380,31 +380,11 @@ impl<'a> Ctx<'a> {
     }
 
     /// Bit `i` set when `ports[i]` has a visible head this cycle (`has_input` of up
-    /// to 64 ports at once, for arbiters).
-    #[inline]
-    pub fn visible_mask<T: Payload>(&self, ports: &[In<T>]) -> u64 {
-        assert!(ports.len() <= 64, "visible_mask takes at most 64 ports");
-        let Some(first) = ports.first().map(|p| p.id.0 as usize) else {
-            return 0;
-        };
-        // A fold, not `all`: without the early exit the comparison vectorises.
-        let consecutive = ports
-            .iter()
-            .enumerate()
-            .fold(true, |ok, (k, p)| ok & (p.id.0 as usize == first + k));
-        if consecutive {
-            let m = self.visible_from(first, ports.len());
-            debug_assert_eq!(m, self.visible_mask_scan(ports));
-            return m;
-        }
-        self.visible_mask_scan(ports)
-    }
-
-    /// `visible_mask` of a unit's port array: when its links are consecutive
+    /// to 64 ports at once, for arbiters). When the array's links are consecutive
     /// (`PortArray::consecutive_from`) the ports themselves are not loaded.
     #[inline]
-    pub fn visible_array<T: Payload>(&self, ports: &PortArray<In<T>>) -> u64 {
-        assert!(ports.len() <= 64, "visible_array takes at most 64 ports");
+    pub fn visible_mask<T: Payload>(&self, ports: &PortArray<In<T>>) -> u64 {
+        assert!(ports.len() <= 64, "visible_mask takes at most 64 ports");
         match ports.consecutive_from() {
             Some(first) => {
                 let m = self.visible_from(first, ports.len());
@@ -430,7 +410,7 @@ impl<'a> Ctx<'a> {
         m
     }
 
-    /// `visible_array` over any number of ports: bit `k % 64` of word `k / 64` for
+    /// `visible_mask` over any number of ports: bit `k % 64` of word `k / 64` for
     /// port `k` (`words` is resized to fit).
     pub fn visible_words<T: Payload>(&self, ports: &PortArray<In<T>>, words: &mut Vec<u64>) {
         words.clear();

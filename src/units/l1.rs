@@ -265,7 +265,7 @@ impl Logic for L1 {
         bank_busy.resize(self.banks as usize, false);
         let start = ctx.round_robin_start(n);
         let visible = if n <= 64 {
-            ctx.visible_array(&self.req)
+            ctx.visible_mask(&self.req)
         } else {
             u64::MAX
         };

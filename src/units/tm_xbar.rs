@@ -82,7 +82,7 @@ fn pick<T: Payload>(
     if n <= 64 {
         // The same choice from a bit mask of the visible heads: the first at or after
         // `start`, else the first; every other visible head is a conflict.
-        let mask = ctx.visible_array(inputs);
+        let mask = ctx.visible_mask(inputs);
         if mask == 0 {
             return None;
         }
