@@ -852,7 +852,7 @@ impl Chip {
                 let st = l2.st.r();
                 v.push(format!(
                     "chip.l2: {} MSHRs live, {} memory requests queued, {} at the memory",
-                    st.mshrs.iter().filter(|m| m.is_some()).count(),
+                    st.live_mshrs(),
                     st.out_q.len(),
                     st.mem_busy.len()
                 ));

@@ -28,6 +28,9 @@ use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
 use super::tp::HitUpdate;
 
+/// `head_index`: not read yet.
+const NO_HEAD: u32 = u32::MAX;
+
 #[derive(Clone, Debug, Default)]
 pub struct HruState {
     /// Pending updates in arrival order: the record indices, and beside them
@@ -35,10 +38,29 @@ pub struct HruState {
     /// merge scans the indices alone.
     pub queue: VecDeque<u32>,
     pub queue_hit: VecDeque<HitRec>,
-    /// Read-compare-writes in flight: index -> (update, write issued).
-    pub in_flight: std::collections::BTreeMap<u32, (HitRec, bool)>,
+    /// Read-compare-writes in flight (at most `in_flight_n`, 32 by default):
+    /// the record indices, and beside them (same positions) the update and
+    /// whether its write is issued. A short array, not a map: "is this index
+    /// in flight" is asked of every queued update each cycle, and a scan of 32
+    /// words beats a tree walk per question (order is never used).
+    pub in_flight: Vec<u32>,
+    pub in_flight_hit: Vec<(HitRec, bool)>,
     /// Writes decided, waiting for the memory port.
     pub writes: VecDeque<MemLineReq>,
+}
+
+impl HruState {
+    fn flight_pos(&self, idx: u32) -> Option<usize> {
+        self.in_flight.iter().position(|&i| i == idx)
+    }
+    fn in_flight_has(&self, idx: u32) -> bool {
+        self.in_flight.contains(&idx)
+    }
+    fn retire(&mut self, idx: u32) {
+        let k = self.flight_pos(idx).expect("in flight");
+        self.in_flight.swap_remove(k);
+        self.in_flight_hit.swap_remove(k);
+    }
 }
 
 impl Behavioural for HruState {
@@ -54,6 +76,7 @@ impl Behavioural for HruState {
         self.queue.clear();
         self.queue_hit.clear();
         self.in_flight.clear();
+        self.in_flight_hit.clear();
         self.writes.clear();
     }
 }
@@ -74,7 +97,13 @@ crate::unit! {
             writes: u64,
             hazard_waits: u64,
             // Scratch: the TMs with a visible update this cycle.
-            visible: Vec<u64>
+            visible: Vec<u64>,
+            // Simulation only: the record index of each TM's head update once
+            // read (`NO_HEAD` until then), forgotten when it is popped (only this
+            // unit pops those links, so a head stays until then). With the queue
+            // full every waiting TM's head is looked at each cycle for a merge;
+            // with the index at hand that no longer loads 128 links.
+            head_index: Vec<u32>
         }
     }
 }
@@ -88,8 +117,9 @@ impl HitRecordUpdater {
         mem_req: Out<MemLineReq>,
         mem_resp: In<MemLineResp>,
     ) -> Self {
+        let tms = hit.len();
         HitRecordUpdater {
-            tms: hit.len() as u32,
+            tms: tms as u32,
             queue_n: cfg.queue,
             in_flight_n: cfg.in_flight,
             mem_resp,
@@ -103,6 +133,7 @@ impl HitRecordUpdater {
             writes: 0,
             hazard_waits: 0,
             visible: Vec::new(),
+            head_index: vec![NO_HEAD; tms],
         }
     }
 
@@ -127,9 +158,10 @@ impl Logic for HitRecordUpdater {
             let idx = r.id;
             let st = self.st.m();
             if r.write {
-                st.in_flight.remove(&idx);
+                st.retire(idx);
             } else {
-                let (h, _) = st.in_flight[&idx];
+                let k = st.flight_pos(idx).expect("in flight");
+                let (h, _) = st.in_flight_hit[k];
                 let off = ((self.hits_base + idx as u64 * HIT_BYTES as u64) % LINE_BYTES) as usize;
                 let cur = HitRec {
                     t: r.data.f32_at(off),
@@ -151,9 +183,9 @@ impl Logic for HitRecordUpdater {
                         mask: 0xFFFF << off,
                         data,
                     });
-                    st.in_flight.get_mut(&idx).expect("in flight").1 = true;
+                    st.in_flight_hit[k].1 = true;
                 } else {
-                    st.in_flight.remove(&idx);
+                    st.retire(idx);
                 }
             }
             worked = true;
@@ -169,7 +201,7 @@ impl Logic for HitRecordUpdater {
             } else if self.st.r().in_flight.len() < self.in_flight_n as usize {
                 let pick = {
                     let s = self.st.r();
-                    s.queue.iter().position(|i| !s.in_flight.contains_key(i))
+                    s.queue.iter().position(|&i| !s.in_flight_has(i))
                 };
                 if let Some(k) = pick {
                     if k > 0 {
@@ -178,7 +210,8 @@ impl Logic for HitRecordUpdater {
                     let st = self.st.m();
                     let idx = st.queue.remove(k).expect("picked");
                     let h = st.queue_hit.remove(k).expect("beside");
-                    st.in_flight.insert(idx, (h, false));
+                    st.in_flight.push(idx);
+                    st.in_flight_hit.push((h, false));
                     let a = self.addr(idx);
                     ctx.push(&self.mem_req, MemLineReq::read(a, StreamTag::Hit, idx));
                     self.reads += 1;
@@ -190,11 +223,19 @@ impl Logic for HitRecordUpdater {
         let mut visible = std::mem::take(&mut self.visible);
         ctx.visible_words(&self.hit, &mut visible);
         for k in round_robin(&visible, c as usize % n) {
-            let u = ctx.peek(&self.hit.at(k)).cloned().expect("visible");
-            let pos = self.st.r().queue.iter().position(|&i| i == u.index);
+            let index = match self.head_index[k] {
+                NO_HEAD => {
+                    let i = ctx.peek(&self.hit.at(k)).expect("visible").index;
+                    self.head_index[k] = i;
+                    i
+                }
+                i => i,
+            };
+            let pos = self.st.r().queue.iter().position(|&i| i == index);
             match pos {
                 Some(p) => {
-                    ctx.pop(&self.hit.at(k));
+                    let u = ctx.pop(&self.hit.at(k)).expect("visible");
+                    self.head_index[k] = NO_HEAD;
                     let e = &mut self.st.m().queue_hit[p];
                     if u.hit.closer_than(e) {
                         *e = u.hit;
@@ -202,7 +243,8 @@ impl Logic for HitRecordUpdater {
                     self.merged += 1;
                 }
                 None if self.st.r().queue.len() < self.queue_n as usize => {
-                    ctx.pop(&self.hit.at(k));
+                    let u = ctx.pop(&self.hit.at(k)).expect("visible");
+                    self.head_index[k] = NO_HEAD;
                     let st = self.st.m();
                     st.queue.push_back(u.index);
                     st.queue_hit.push_back(u.hit);
@@ -232,7 +274,7 @@ impl Logic for HitRecordUpdater {
         let s = self.st.r();
         let can_issue = !s.writes.is_empty()
             || (s.in_flight.len() < self.in_flight_n as usize
-                && s.queue.iter().any(|i| !s.in_flight.contains_key(i)));
+                && s.queue.iter().any(|&i| !s.in_flight_has(i)));
         if worked || can_issue {
             Next::Cycle
         } else {
@@ -251,6 +293,8 @@ impl Logic for HitRecordUpdater {
     }
 
     fn reset_counters(&mut self) {
+        // Called on reset too, when the links are emptied.
+        self.head_index.iter_mut().for_each(|h| *h = NO_HEAD);
         self.updates = 0;
         self.merged = 0;
         self.reads = 0;

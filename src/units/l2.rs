@@ -98,6 +98,11 @@ pub struct L2State {
     pub tags: Vec<L2Tag>,
     pub data: Vec<Line>,
     pub mshrs: Vec<Option<L2Mshr>>,
+    /// Beside `mshrs` (same positions): the live one's line address + 1, 0 for
+    /// a free one. Every access and fill looks a line up among the MSHRs; a scan
+    /// of these 8-byte words (64 at the defaults) is a few cache lines, where
+    /// `mshrs`' own entries are four times wider.
+    pub mshr_key: Vec<u64>,
     /// Requests towards the memory, in order.
     pub out_q: VecDeque<MemLineReq>,
     /// Lines with a request at the memory.
@@ -116,12 +121,10 @@ pub struct L2State {
 
 impl L2State {
     fn mshr_of(&self, addr: u64) -> Option<usize> {
-        self.mshrs
-            .iter()
-            .position(|m| m.as_ref().is_some_and(|m| m.addr == addr))
+        self.mshr_key.iter().position(|&k| k == addr + 1)
     }
-    fn live_mshrs(&self) -> usize {
-        self.mshrs.iter().filter(|m| m.is_some()).count()
+    pub fn live_mshrs(&self) -> usize {
+        self.mshr_key.iter().filter(|&&k| k != 0).count()
     }
     /// Nothing held: no miss, no memory request, no answer, no flush.
     pub fn idle(&self) -> bool {
@@ -153,6 +156,7 @@ impl Behavioural for L2State {
         self.tags.iter_mut().for_each(|t| *t = L2Tag::default());
         self.data.iter_mut().for_each(|d| *d = Line::default());
         self.mshrs.iter_mut().for_each(|m| *m = None);
+        self.mshr_key.iter_mut().for_each(|k| *k = 0);
         self.out_q.clear();
         self.mem_busy.clear();
         self.wb_queued = 0;
@@ -277,6 +281,7 @@ impl L2 {
                 tags: vec![L2Tag::default(); lines],
                 data: vec![Line::default(); lines],
                 mshrs: vec![None; cfg.mshrs as usize],
+                mshr_key: vec![0; cfg.mshrs as usize],
                 resp_q: vec![VecDeque::new(); n],
                 outstanding: vec![0; n],
                 ..L2State::default()
@@ -428,7 +433,9 @@ impl L2 {
             .r()
             .mshr_of(f.addr)
             .expect("a line comes back only for a miss register");
-        let m = self.st.m().mshrs[k].take().expect("live");
+        let st = self.st.m();
+        let m = st.mshrs[k].take().expect("live");
+        st.mshr_key[k] = 0;
         let slot = self.victim(f.addr);
         self.evict(slot);
         let st = self.st.m();
@@ -485,11 +492,12 @@ impl L2 {
             self.apply(slot, port, c, r.clone(), due);
             self.stats.misses += 1;
         } else {
-            let Some(k) = self.st.r().mshrs.iter().position(|m| m.is_none()) else {
+            let Some(k) = self.st.r().mshr_key.iter().position(|&k| k == 0) else {
                 self.stats.mshr_stalls += 1;
                 return false;
             };
             let st = self.st.m();
+            st.mshr_key[k] = addr + 1;
             st.mshrs[k] = Some(L2Mshr {
                 addr,
                 targets: vec![(port, c, r.clone())],
