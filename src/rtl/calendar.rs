@@ -57,8 +57,16 @@ impl Calendar {
     /// that is not in the past.
     #[inline]
     pub fn push(&mut self, d: usize, u: u32, t: Time) {
+        let c = t / self.wheels[d].period;
+        self.push_cycle(d, u, c, t);
+    }
+
+    /// [`Calendar::push`] for the caller that has the cycle `c` of time `t`
+    /// already (`t = c * period`): a 64-bit division fewer per wake-up.
+    #[inline]
+    pub fn push_cycle(&mut self, d: usize, u: u32, c: u64, t: Time) {
         let w = &mut self.wheels[d];
-        let c = t / w.period;
+        debug_assert_eq!(c * w.period, t, "not an edge of the domain");
         debug_assert!(c >= w.base, "wake-up in the past");
         if c < w.base + SLOTS {
             let i = (c % SLOTS) as usize;

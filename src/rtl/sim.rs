@@ -803,10 +803,11 @@ impl Sim {
     fn schedule(sched: &mut [Sched], cal: &mut super::calendar::Calendar, u: u32, t: Time) {
         let s = &mut sched[u as usize];
         let p = s.period;
-        let t = t.div_ceil(p) * p;
+        let c = t.div_ceil(p);
+        let t = c * p;
         if t != s.last_wake {
             s.last_wake = t;
-            cal.push(s.clock as usize, u, t);
+            cal.push_cycle(s.clock as usize, u, c, t);
         }
     }
 
