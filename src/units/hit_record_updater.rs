@@ -39,12 +39,12 @@ pub struct HruState {
     pub queue: VecDeque<u32>,
     pub queue_hit: VecDeque<HitRec>,
     /// Read-compare-writes in flight (at most `in_flight_n`, 32 by default):
-    /// the record indices, and beside them (same positions) the update and
-    /// whether its write is issued. A short array, not a map: "is this index
-    /// in flight" is asked of every queued update each cycle, and a scan of 32
-    /// words beats a tree walk per question (order is never used).
+    /// the record indices, and beside them (same positions) the update. A short
+    /// array, not a map: "is this index in flight" is asked of every queued
+    /// update each cycle, and a scan of 32 words beats a tree walk per question
+    /// (order is never used).
     pub in_flight: Vec<u32>,
-    pub in_flight_hit: Vec<(HitRec, bool)>,
+    pub in_flight_hit: Vec<HitRec>,
     /// Writes decided, waiting for the memory port.
     pub writes: VecDeque<MemLineReq>,
 }
@@ -161,7 +161,7 @@ impl Logic for HitRecordUpdater {
                 st.retire(idx);
             } else {
                 let k = st.flight_pos(idx).expect("in flight");
-                let (h, _) = st.in_flight_hit[k];
+                let h = st.in_flight_hit[k];
                 let off = ((self.hits_base + idx as u64 * HIT_BYTES as u64) % LINE_BYTES) as usize;
                 let cur = HitRec {
                     t: r.data.f32_at(off),
@@ -183,7 +183,6 @@ impl Logic for HitRecordUpdater {
                         mask: 0xFFFF << off,
                         data,
                     });
-                    st.in_flight_hit[k].1 = true;
                 } else {
                     st.retire(idx);
                 }
@@ -211,7 +210,7 @@ impl Logic for HitRecordUpdater {
                     let idx = st.queue.remove(k).expect("picked");
                     let h = st.queue_hit.remove(k).expect("beside");
                     st.in_flight.push(idx);
-                    st.in_flight_hit.push((h, false));
+                    st.in_flight_hit.push(h);
                     let a = self.addr(idx);
                     ctx.push(&self.mem_req, MemLineReq::read(a, StreamTag::Hit, idx));
                     self.reads += 1;

@@ -76,10 +76,10 @@ pub struct L2Tag {
     pub mtag: StreamTag,
 }
 
-/// A miss register: the line, its targets (client, cycle accepted, request).
+/// A miss register's targets (client, cycle accepted, request); its line is
+/// `L2State::mshr_key`.
 #[derive(Clone, Debug)]
 pub struct L2Mshr {
-    pub addr: u64,
     pub targets: Vec<(u16, u64, MemLineReq)>,
 }
 
@@ -99,7 +99,7 @@ pub struct L2State {
     pub data: Vec<Line>,
     pub mshrs: Vec<Option<L2Mshr>>,
     /// Beside `mshrs` (same positions): the live one's line address + 1, 0 for
-    /// a free one. Every access and fill looks a line up among the MSHRs; a scan
+    /// a free one (the line is kept here only). Every access and fill looks a line up among the MSHRs; a scan
     /// of these 8-byte words (64 at the defaults) is a few cache lines, where
     /// `mshrs`' own entries are four times wider.
     pub mshr_key: Vec<u64>,
@@ -499,7 +499,6 @@ impl L2 {
             let st = self.st.m();
             st.mshr_key[k] = addr + 1;
             st.mshrs[k] = Some(L2Mshr {
-                addr,
                 targets: vec![(port, c, r.clone())],
             });
             st.out_q.push_back(MemLineReq::read(addr, r.tag, k as u32));
