@@ -966,16 +966,26 @@ impl Sim {
                 std::mem::swap(&mut l, &mut self.lane_due);
             }
         }
-        for &(u, is_due) in &due {
-            self.eval_unit(u, is_due)?;
-        }
-        if let Some(tr) = &mut self.tracer {
+        if self.tracer.is_some() {
+            for &(u, is_due) in &due {
+                self.eval_unit(u, is_due)?;
+            }
+            // The waveform samples every register before the edge.
             let slots = &self.slots;
-            tr.sample(t, &|i| &*slots[i].unit, &self.links);
-        }
-        // Clock edge.
-        for &(u, _) in &due {
-            self.slots[u as usize].unit.commit();
+            if let Some(tr) = &mut self.tracer {
+                tr.sample(t, &|i| &*slots[i].unit, &self.links);
+            }
+            // Clock edge.
+            for &(u, _) in &due {
+                self.slots[u as usize].unit.commit();
+            }
+        } else {
+            // No unit reads another's registers, so committing each right after its
+            // evaluation is the same as at the edge, and its state is still in cache.
+            for &(u, is_due) in &due {
+                self.eval_unit(u, is_due)?;
+                self.slots[u as usize].unit.commit();
+            }
         }
         self.due = due;
         self.evals += std::mem::take(&mut self.out.evals);
