@@ -944,8 +944,8 @@ impl Sim {
         let mut due = std::mem::take(&mut self.due);
         if let Some(w) = worker {
             // Partitions 1 and 2 on two threads, each unit committed by its thread
-            // (no unit reads another's registers, so committing right after its own
-            // evaluation is the same as at the edge); partition 0 after, below.
+            // right after its evaluation (see `eval_commit`); partition 0 after,
+            // below.
             let sched = &self.sched;
             let [l1, l2] = &mut self.lane_due;
             l1.clear();
@@ -967,8 +967,7 @@ impl Sim {
                 // Only one partition has work: no hand-over.
                 let mut l = std::mem::take(&mut self.lane_due);
                 for &(u, d) in l[0].iter().chain(&l[1]) {
-                    self.eval_unit(u, d)?;
-                    self.slots[u as usize].unit.commit();
+                    self.eval_commit(u, d)?;
                 }
                 std::mem::swap(&mut l, &mut self.lane_due);
             }
@@ -987,11 +986,8 @@ impl Sim {
                 self.slots[u as usize].unit.commit();
             }
         } else {
-            // No unit reads another's registers, so committing each right after its
-            // evaluation is the same as at the edge, and its state is still in cache.
             for &(u, is_due) in &due {
-                self.eval_unit(u, is_due)?;
-                self.slots[u as usize].unit.commit();
+                self.eval_commit(u, is_due)?;
             }
         }
         self.due = due;
@@ -1160,6 +1156,16 @@ impl Sim {
             let cp = c.map_or(0, |c| self.sched[c.0 as usize].part);
             self.local[i] = if pp == cp { pp } else { 0 };
         }
+    }
+
+    /// Evaluates a unit and commits it at once: no unit reads another's registers,
+    /// so that is the clock edge's result, reached while the unit's state is still
+    /// in the cache. Only a tracer, which samples every register before the edge,
+    /// needs the edge as a separate phase.
+    fn eval_commit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
+        self.eval_unit(u, is_due)?;
+        self.slots[u as usize].unit.commit();
+        Ok(())
     }
 
     fn eval_unit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
