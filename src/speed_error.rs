@@ -714,6 +714,25 @@ fn wave_counts(
     ]
 }
 
+/// Where a borrowed root pass of `rays` lies between the root windows of the
+/// nearest measured wavefronts before and after it (`before` and `after` rays):
+/// the fraction of the way from the one to the other, if it lies between them
+/// (no extrapolation) and its rays are alike neither's (within
+/// [`render::BORROW_ALIKE`]: a pass alike a window costs what it does per ray,
+/// so it takes their ratio, as in the Dragon Box's bounce wavefronts). Its
+/// cycles and DRAM energy are then interpolated on the line through the two:
+/// measured on the Dragon at 1024x1024 (reference pass log, wavefronts 1 and 5
+/// at 767,169 and 6,115 rays), the line puts the roots of wavefronts 2-4 at
+/// -4.6%, -11.8% and -11.3% (-0.2% of the frame's cycles), where the ratio of
+/// wavefront 1 would put them at -7% to -22%: a smaller root pass costs more
+/// per ray, as its start-up and drain weigh more.
+pub fn root_between(rays: f64, before: f64, after: f64) -> Option<f64> {
+    let (lo, hi) = (before.min(after), before.max(after));
+    let alike = |m: f64| (rays - m).abs() <= render::BORROW_ALIKE * m;
+    ((lo..=hi).contains(&rays) && !alike(before) && !alike(after))
+        .then(|| (rays - before) / (after - before))
+}
+
 /// `t += k x`, count by count.
 fn add(t: &mut [f64; WCOUNTS], x: &[f64; WCOUNTS], k: f64) {
     for i in 0..WCOUNTS {
@@ -1182,16 +1201,39 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         }
     }
     // Borrowed root passes: by the rays, as the nearest root windows before and
-    // after (a root pass's cost per ray is the same in every wavefront after
-    // the first, shadow rays or not: 1.30-1.39 cycles per ray at the paper's
-    // size), the first's only if no other has one.
+    // after (a root pass's cost per ray is about the same in every wavefront
+    // after the first whose rays are alike: 1.30-1.39 cycles per ray at the
+    // paper's size in the Dragon Box), the first's only if no other has one.
+    // Between two root windows whose rays differ (an open scene's wavefronts
+    // shrink), the cycles and DRAM energy lie on the line through them: a
+    // smaller root pass costs more per ray (its start-up and drain weigh
+    // more), see [`root_between`].
     for &wave in &root_borrowers {
         let (x, px) = nearest(0, wave, false, &|v| v > 0)
             .or_else(|| nearest(0, wave, false, &|_| true))
             .ok_or_else(|| {
                 format!("time sampling: wavefront {wave} borrows its root pass, but no wavefront took a root window")
             })?;
-        let t = scale(&root_proxy(wave), &x, &px);
+        let mut t = scale(&root_proxy(wave), &x, &px);
+        let root_of = |m: Option<&(usize, [Pair; 4])>| {
+            m.filter(|m| m.1[0].1[0] > 0.0)
+                .map(|m| (m.1[0].1[0], m.1[0].0))
+        };
+        let before = root_of(
+            measured
+                .iter()
+                .rev()
+                .find(|m| m.0 < wave && m.0 > 0 && m.1[0].1[0] > 0.0),
+        );
+        let after = root_of(measured.iter().find(|m| m.0 > wave && m.1[0].1[0] > 0.0));
+        if let (Some(b), Some(a)) = (before, after) {
+            let rays = rec.segs[wave][0].rays as f64;
+            if let Some(f) = root_between(rays, b.0, a.0) {
+                for i in [0, DRAM_J[0], DRAM_J[1]] {
+                    t[i] = b.1[i] + f * (a.1[i] - b.1[i]);
+                }
+            }
+        }
         add(&mut total, &t, 1.0);
         parts.push(WindowPart {
             borrowed: true,

@@ -1308,3 +1308,122 @@ fn a_time_sampled_frame_estimates_every_figure_of_the_cycle_frame() {
             .contains("time sampling")
     );
 }
+
+/// A borrowed root pass between two root windows whose rays differ lies on the
+/// line through them; alike neighbours set no slope, and nothing outside them
+/// is extrapolated.
+#[test]
+fn a_root_pass_between_unlike_root_windows_lies_on_their_line() {
+    use dualstream::speed_error::root_between;
+    // The Dragon's reference (1024x1024, default chip, GDDR5): root passes of
+    // wavefronts 1-5 in rays and cycles.
+    let roots = [
+        (767_169.0, 1_068_062.0),
+        (157_264.0, 234_967.0),
+        (68_700.0, 115_259.0),
+        (32_747.0, 58_564.0),
+        (6_115.0, 15_088.0),
+    ];
+    let (b, a) = (roots[0], roots[4]);
+    for &(rays, cycles) in &roots[1..4] {
+        let f = root_between(rays, b.0, a.0).expect("between unlike windows");
+        assert!((0.0..=1.0).contains(&f), "{f}");
+        let line = b.1 + f * (a.1 - b.1);
+        let ratio = rays * b.1 / b.0;
+        // The line is nearer than wavefront 1's ratio, and within 12%.
+        assert!(
+            (line / cycles - 1.0).abs() < (ratio / cycles - 1.0).abs(),
+            "{rays}: line {line}, ratio {ratio}, reference {cycles}"
+        );
+        assert!((line / cycles - 1.0).abs() < 0.12, "{rays}: {line}");
+    }
+    // From either side, the same point.
+    let f = root_between(157_264.0, b.0, a.0).unwrap();
+    let g = root_between(157_264.0, a.0, b.0).unwrap();
+    assert!((f + g - 1.0).abs() < 1e-12, "{f} {g}");
+    // A pass alike either window (within BORROW_ALIKE) takes their ratio, and
+    // one outside them is not extrapolated.
+    assert_eq!(root_between(b.0 * 0.95, b.0, a.0), None);
+    assert_eq!(root_between(a.0 * 1.05, b.0, a.0), None);
+    assert_eq!(root_between(1_000.0, 1_000.0, 1_050.0), None);
+    assert_eq!(root_between(800_000.0, b.0, a.0), None);
+    assert_eq!(root_between(5_000.0, b.0, a.0), None);
+}
+
+/// An open scene's wavefronts shrink from bounce to bounce: a middle wavefront
+/// whose rays differ from its measured neighbour's is traced in windows, but
+/// its root pass (longer than a root window) is borrowed, on the line through
+/// the root windows before and after it.
+#[test]
+fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
+    let (_, c) = cornell_in_rows();
+    // The spheres without their room (its 12 triangles come first): most
+    // bounce rays escape, so each wavefront has far fewer rays than the last.
+    let mut s = dualstream::scene::load("spheres").unwrap();
+    s.triangles.drain(..12);
+    s.tri_material.drain(..12);
+    s.settings.width = 16;
+    s.settings.height = 16;
+    s.settings.bounces = 4;
+    let (j, png) = reference_files(&s, &c, "line");
+    let dir = j.parent().unwrap().to_path_buf();
+    let mut plan = windows_plan(4, 6);
+    plan.warm = 2;
+    plan.measure = 6;
+    plan.tail_pending = 2;
+    plan.wave_every = 2;
+    plan.root_rays = 32;
+    let (_, v) = windows_against(&s, &c, plan, (&j, &png), &dir.join("w.json"));
+    let rays: Vec<f64> = v["record"]["segs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w[0]["rays"].as_f64().unwrap())
+        .collect();
+    assert_eq!(rays.len(), 5);
+    let kinds = |wave: u64| -> Vec<String> {
+        v["record"]["samples"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|x| x["wave"] == wave)
+            .map(|x| x["kind"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let root = |wave: u64| -> (f64, f64, bool) {
+        let p = v["parts"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["wave"] == wave && p["part"] == "root")
+            .unwrap();
+        (
+            p["cycles"].as_f64().unwrap(),
+            p["dram_j"].as_f64().unwrap(),
+            p["borrowed"].as_bool().unwrap(),
+        )
+    };
+    let (b, a) = ((rays[1], root(1)), (rays[4], root(4)));
+    assert!(!b.1.2 && !a.1.2, "waves 1 and 4 take root windows");
+    for wave in [2u64, 3] {
+        let r = rays[wave as usize];
+        // Unlike wave 1 (measured in windows for that) and longer than a root
+        // window (else simulated whole).
+        assert!(r < 0.9 * rays[1] && r > 32.0, "wave {wave}: {rays:?}");
+        let k = kinds(wave);
+        assert!(k.contains(&"Trace".to_string()), "wave {wave}: {k:?}");
+        assert!(!k.contains(&"Root".to_string()), "wave {wave}: {k:?}");
+        let (cyc, j, borrowed) = root(wave);
+        assert!(borrowed, "wave {wave}");
+        let f = (r - b.0) / (a.0 - b.0);
+        let (lc, lj) = (b.1.0 + f * (a.1.0 - b.1.0), b.1.1 + f * (a.1.1 - b.1.1));
+        assert!(
+            (cyc / lc - 1.0).abs() < 1e-9,
+            "wave {wave}: {cyc} off the line {lc}"
+        );
+        assert!(
+            (j / lj - 1.0).abs() < 1e-9,
+            "wave {wave}: {j} J off the line {lj}"
+        );
+    }
+}

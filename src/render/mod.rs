@@ -167,8 +167,10 @@ pub struct WindowPlan {
     /// by the rays of the nearest of those after the first: a root pass costs
     /// the same per ray in every wavefront after the first (once the root pass
     /// is longer than a root window). A wavefront whose rays differ from the
-    /// last measured one's by more than [`BORROW_ALIKE`] is measured all the
-    /// same (trace, and root).
+    /// last measured one's by more than [`BORROW_ALIKE`] is traced in windows
+    /// all the same, but its root pass is still borrowed: on the line through
+    /// the nearest root windows before and after it, in rays
+    /// (`speed_error::root_between`).
     pub wave_every: u64,
 }
 
@@ -759,9 +761,9 @@ pub fn render(
         win.emit_window(&p, rays)?;
     }
 
-    // Time sampling: the rays of the last wavefront traced in windows and of the
-    // last that took a root window (see `BORROW_ALIKE`).
-    let (mut traced_rays, mut rooted_rays): (Option<u64>, Option<u64>) = (None, None);
+    // Time sampling: the rays of the last wavefront traced in windows (see
+    // `BORROW_ALIKE`).
+    let mut traced_rays: Option<u64> = None;
     while !work.is_empty() {
         let mut prog = Progress {
             wave: waves.len(),
@@ -833,7 +835,6 @@ pub fn render(
                         measured = plan.measures_wave(wave, last) || !alike(traced_rays) || sampled;
                         if sampled {
                             traced_rays = Some(rays);
-                            rooted_rays = Some(rays);
                             let every = rays.div_ceil(plan.wave_rays);
                             let (b, kept) = q.boundary_compact(
                                 &p.mem,
@@ -865,21 +866,23 @@ pub fn render(
                                 return Ok(());
                             }
                         }
-                        // A root pass no longer than a root window is simulated
-                        // whole: cheap, and latency-bound, so its cost per ray is
-                        // not its neighbours' (Cornell box 64x64: borrowed roots
-                        // 18-34% high).
-                        let root = measured
-                            && (plan.measures_root(wave, last)
-                                || !alike(rooted_rays)
-                                || rays <= plan.root_rays);
+                        // Between the second wavefront and the last a root pass
+                        // is borrowed: by the ratio of its neighbours' root
+                        // windows if its rays are alike theirs, else on the line
+                        // through them (`speed_error::root_between`: a smaller
+                        // root pass costs more per ray). One no longer than a
+                        // root window is simulated whole: cheap, and so
+                        // latency-bound that neither holds (Cornell box 64x64:
+                        // borrowed roots 18-34% high; the spheres without their
+                        // room at 16x16: 55% low on the line).
+                        let root =
+                            measured && (plan.measures_root(wave, last) || rays <= plan.root_rays);
                         if measured {
                             traced_rays = Some(rays);
                         }
                         if !root {
                             return Ok(());
                         }
-                        rooted_rays = Some(rays);
                         // The root pass (every ray of the wavefront): whole, or
                         // over one ray in `every` of its queue, packed.
                         let n = q.len(s);
