@@ -178,6 +178,12 @@ impl<T: Payload> FixedPipe<T> {
 }
 
 impl<T: Payload> State for FixedPipe<T> {
+    /// Its registers mark nothing: the pipeline is committed at every edge.
+    fn number(&mut self, _bit: u64) {
+        self.frozen.number(0);
+        self.freeze_start.number(0);
+        self.last_accept.number(0);
+    }
     fn declare(&self, name: &str, out: &mut StateList) {
         out.items
             .push(StateDecl::reg(format!("{name}_stage_valid"), self.stages));

@@ -21,6 +21,7 @@ use super::bits::Payload;
 use super::link::{
     In, Link, LinkCfg, LinkDyn, LinkEvent, LinkId, LinkStats, Out, PortArray, Violation,
 };
+use super::state;
 use super::trace::Tracer;
 use super::unit::{Next, Status, Unit};
 use crate::util::rng::Rng;
@@ -126,6 +127,9 @@ struct Slot {
     /// Output links with a refused offer that must be repeated (the monitor checks
     /// only these after each evaluation, not every output link).
     stalled_outs: Vec<LinkId>,
+    /// The unit was changed from outside (`Sim::unit_mut`), so registers it did
+    /// not write in its evaluation may be pending: its next edge commits all.
+    commit_all: bool,
 }
 
 /// What the step loop needs of a unit, apart from the `Slot` that its evaluation
@@ -659,8 +663,9 @@ impl Sim {
     }
 
     /// Adds a unit instance under a hierarchical path such as `chip.tm3.box_pipe`.
-    pub fn add<U: Unit>(&mut self, path: &str, clock: ClockId, unit: U) -> UnitId {
+    pub fn add<U: Unit>(&mut self, path: &str, clock: ClockId, mut unit: U) -> UnitId {
         let period = self.clocks[clock.0 as usize].period_ps;
+        unit.number_state();
         self.slots.push(Slot {
             unit: Box::new(unit),
             path: path.to_string(),
@@ -672,6 +677,7 @@ impl Sim {
             evals: 0,
             out_links: Vec::new(),
             stalled_outs: Vec::new(),
+            commit_all: true,
         });
         self.sched.push(Sched {
             period,
@@ -1163,8 +1169,9 @@ impl Sim {
     /// in the cache. Only a tracer, which samples every register before the edge,
     /// needs the edge as a separate phase.
     fn eval_commit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
+        state::take_written();
         self.eval_unit(u, is_due)?;
-        self.slots[u as usize].unit.commit();
+        commit_written(&mut self.slots[u as usize]);
         Ok(())
     }
 
@@ -1201,8 +1208,9 @@ impl Sim {
 
     /// Typed access to a unit between steps (testbenches). Wake it after changing it.
     pub fn unit_mut<U: Unit>(&mut self, u: UnitId) -> &mut U {
-        super::unit::downcast_mut::<U>(&mut *self.slots[u.0 as usize].unit)
-            .expect("unit type matches")
+        let slot = &mut self.slots[u.0 as usize];
+        slot.commit_all = true;
+        super::unit::downcast_mut::<U>(&mut *slot.unit).expect("unit type matches")
     }
 
     pub fn unit_ref<U: Unit>(&self, u: UnitId) -> &U {
@@ -1283,6 +1291,25 @@ impl Sim {
 /// Evaluates one unit (the body of a step for it): builds its context, runs its
 /// logic, re-checks its held offers and records its status and next wake-up.
 #[allow(clippy::too_many_arguments)]
+/// The clock edge of a unit right after its evaluation on this thread (since
+/// [`state::take_written`]): only the registers it wrote, unless it was changed
+/// from outside since its last edge.
+#[inline]
+fn commit_written(slot: &mut Slot) {
+    let written = state::take_written();
+    if std::mem::take(&mut slot.commit_all) {
+        slot.unit.commit();
+    } else {
+        slot.unit.commit_written(written);
+    }
+    // A register written but not marked would stay pending past its edge.
+    debug_assert!(
+        !slot.unit.state_pending(),
+        "{}: a register changes after its edge (written mask {written:#x})",
+        slot.path
+    );
+}
+
 fn eval_slot(
     slot: &mut Slot,
     u: u32,
@@ -1508,8 +1535,9 @@ unsafe fn run_lane(
         assert!((u as usize) < l.n_slots);
         // SAFETY: in bounds; a unit of `part` (the function's contract).
         let slot = unsafe { &mut *l.slots.add(u as usize) };
+        state::take_written();
         eval_slot(slot, u, t, l.net, out, d, false)?;
-        slot.unit.commit();
+        commit_written(slot);
     }
     let mut net = l.net;
     let mut k = 0;

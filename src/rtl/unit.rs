@@ -53,6 +53,14 @@ pub trait Declared {
     fn ports(&self) -> Vec<PortDecl>;
     fn sample_state(&self, cycle: u64, out: &mut Samples);
     fn commit_state(&mut self);
+    /// Commits the registers whose bit is set in `written` (see
+    /// [`crate::rtl::state::take_written`]) and every other piece of state
+    /// (by default everything: a hand-written declaration numbers nothing).
+    fn commit_written(&mut self, _written: u64) {
+        self.commit_state()
+    }
+    /// Numbers the registers: field k (in declaration order) gets bit k.
+    fn number_state(&mut self) {}
     fn reset_state(&mut self);
     fn state_pending(&self) -> bool;
 }
@@ -78,6 +86,10 @@ pub trait Unit: Any + Send {
     fn eval(&mut self, ctx: &mut Ctx) -> Next;
     fn sample_state(&self, cycle: u64, out: &mut Samples);
     fn commit(&mut self);
+    /// The clock edge right after this unit's own evaluation: only the
+    /// registers it wrote (`written`) need it.
+    fn commit_written(&mut self, written: u64);
+    fn number_state(&mut self);
     fn reset(&mut self);
     fn state_pending(&self) -> bool;
     fn counters(&self) -> Vec<(&'static str, u64)>;
@@ -100,6 +112,13 @@ impl<U: Declared + Logic + Send + 'static> Unit for U {
     #[inline]
     fn commit(&mut self) {
         self.commit_state()
+    }
+    #[inline]
+    fn commit_written(&mut self, written: u64) {
+        Declared::commit_written(self, written)
+    }
+    fn number_state(&mut self) {
+        Declared::number_state(self)
     }
     fn reset(&mut self) {
         self.reset_state();
@@ -214,6 +233,32 @@ macro_rules! unit {
             #[inline]
             fn commit_state(&mut self) {
                 $($crate::rtl::State::commit(&mut self.$s);)*
+            }
+            #[inline]
+            #[allow(unused_variables, unused_mut, unused_assignments)]
+            fn commit_written(&mut self, written: u64) {
+                // Field k's bit is k (all ones past 63: always committed).
+                let mut k = 0u32;
+                $(
+                    if !<$st as $crate::rtl::State>::MARKS_WRITES
+                        || k >= 64
+                        || (written >> k) & 1 != 0
+                    {
+                        $crate::rtl::State::commit(&mut self.$s);
+                    }
+                    k += 1;
+                )*
+            }
+            #[allow(unused_mut, unused_assignments, unused_variables)]
+            fn number_state(&mut self) {
+                let mut k = 0u32;
+                $(
+                    $crate::rtl::State::number(
+                        &mut self.$s,
+                        if k < 64 { 1u64 << k } else { u64::MAX },
+                    );
+                    k += 1;
+                )*
             }
             fn reset_state(&mut self) {
                 $($crate::rtl::State::reset(&mut self.$s);)*
