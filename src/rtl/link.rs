@@ -217,6 +217,7 @@ pub struct LinkStats {
 
 /// What the consumer changes during a cycle: the FIFO itself is only read (a pop is
 /// retired at the edge), so the producer's half never touches it.
+#[repr(C)]
 pub(crate) struct ConsSide<T> {
     q: VecDeque<Entry<T>>,
     pops_now: u32,
@@ -232,13 +233,13 @@ pub(crate) struct ConsSide<T> {
 
 /// What the producer changes during a cycle: this cycle's push waits here for the
 /// edge (it is not visible before), so the consumer's half never sees it.
+// The flags and counters every push and edge reads first, the payloads (a line
+// is 64 bytes) after them.
+#[repr(C)]
 pub(crate) struct ProdSide<T> {
-    pending: Option<Entry<T>>,
     /// Whether the FIFO had room at the start of this cycle (set at the edge).
     space_at_start: bool,
     touched: bool,
-    /// Payload of a refused offer that must be offered again.
-    stalled: Option<T>,
     offered_now: bool,
     pushes: u64,
     refused_offers: u64,
@@ -246,23 +247,31 @@ pub(crate) struct ProdSide<T> {
     #[allow(clippy::box_collection)]
     log: Option<Box<Vec<LinkEvent>>>,
     violations: Vec<(Time, String)>,
+    pending: Option<Entry<T>>,
+    /// Payload of a refused offer that must be offered again.
+    stalled: Option<T>,
 }
 
 /// A link: its two halves are each changed only by the unit at that end, so the
 /// producer and the consumer may be evaluated on two threads at once (see
 /// `Sim`'s `Net`); the clock edge, on one thread, joins them.
+// What the edge reads first, then the two halves (the consumer's, which the
+// edge reads next, then the producer's); the name and the configuration last.
+#[repr(C)]
 pub struct Link<T: Payload> {
-    pub(crate) name: String,
     pub(crate) depth: u32,
-    pub(crate) cfg: LinkCfg,
+    max_occupancy: u32,
+    /// Merged transfer log of both halves (filled at the edge); boxed as
+    /// `ConsSide::log`.
+    #[allow(clippy::box_collection)]
+    log: Option<Box<Vec<LinkEvent>>>,
     pub(crate) delay_ps: Time,
     pub(crate) producer: Option<UnitId>,
     pub(crate) consumer: Option<UnitId>,
-    max_occupancy: u32,
-    /// Merged transfer log of both halves (filled at the edge).
-    log: Option<Vec<LinkEvent>>,
     cons: UnsafeCell<ConsSide<T>>,
     prod: UnsafeCell<ProdSide<T>>,
+    pub(crate) name: String,
+    pub(crate) cfg: LinkCfg,
 }
 
 // SAFETY: between edges the consumer half is reached only by the consumer's thread
@@ -659,11 +668,11 @@ impl<T: Payload> LinkDyn for Link<T> {
         c.q.len() as u32 + p.pending.is_some() as u32
     }
     fn set_log(&mut self, on: bool) {
-        self.log = on.then(Vec::new);
+        self.log = on.then(Box::default);
         self.cons.get_mut().log = on.then(Box::default);
         self.prod.get_mut().log = on.then(Box::default);
     }
     fn log(&self) -> &[LinkEvent] {
-        self.log.as_deref().unwrap_or(&[])
+        self.log.as_deref().map_or(&[], |l| l.as_slice())
     }
 }
