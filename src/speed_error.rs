@@ -1076,13 +1076,23 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     }
     // Part `k` summed over the measured wavefronts that have it and pass `ok`:
     // the nearest before and after `wave` (`all`: every one).
-    let nearest = |k: usize, wave: usize, all: bool, ok: &dyn Fn(usize) -> bool| {
+    // The nearest measured wavefronts before and after `wave` that have part `k`
+    // and pass `ok`.
+    let neighbours = |k: usize, wave: usize, ok: &dyn Fn(usize) -> bool| {
         let has = |m: &&(usize, [Pair; 4])| m.1[k].1[0] > 0.0 && ok(m.0);
+        (
+            measured.iter().rev().filter(|m| m.0 < wave).find(has),
+            measured.iter().filter(|m| m.0 > wave).find(has),
+        )
+    };
+    let nearest = |k: usize, wave: usize, all: bool, ok: &dyn Fn(usize) -> bool| {
         let picked: Vec<&(usize, [Pair; 4])> = if all {
-            measured.iter().filter(has).collect()
+            measured
+                .iter()
+                .filter(|m| m.1[k].1[0] > 0.0 && ok(m.0))
+                .collect()
         } else {
-            let before = measured.iter().rev().filter(|m| m.0 < wave).find(has);
-            let after = measured.iter().filter(|m| m.0 > wave).find(has);
+            let (before, after) = neighbours(k, wave, ok);
             before.into_iter().chain(after).collect()
         };
         let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
@@ -1215,22 +1225,13 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
                 format!("time sampling: wavefront {wave} borrows its root pass, but no wavefront took a root window")
             })?;
         let mut t = scale(&root_proxy(wave), &x, &px);
-        let root_of = |m: Option<&(usize, [Pair; 4])>| {
-            m.filter(|m| m.1[0].1[0] > 0.0)
-                .map(|m| (m.1[0].1[0], m.1[0].0))
-        };
-        let before = root_of(
-            measured
-                .iter()
-                .rev()
-                .find(|m| m.0 < wave && m.0 > 0 && m.1[0].1[0] > 0.0),
-        );
-        let after = root_of(measured.iter().find(|m| m.0 > wave && m.1[0].1[0] > 0.0));
-        if let (Some(b), Some(a)) = (before, after) {
+        // Each neighbour's root window: its rays (the proxy's cycles) and counts.
+        if let (Some(b), Some(a)) = neighbours(0, wave, &|v| v > 0) {
+            let ((bx, bp), (ax, ap)) = (&b.1[0], &a.1[0]);
             let rays = rec.segs[wave][0].rays as f64;
-            if let Some(f) = root_between(rays, b.0, a.0) {
+            if let Some(f) = root_between(rays, bp[0], ap[0]) {
                 for i in [0, DRAM_J[0], DRAM_J[1]] {
-                    t[i] = b.1[i] + f * (a.1[i] - b.1[i]);
+                    t[i] = bx[i] + f * (ax[i] - bx[i]);
                 }
             }
         }

@@ -430,6 +430,18 @@ fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
     }
 }
 
+/// The kinds of the windows wavefront `wave` took, in the order they ran, from
+/// a window log.
+fn window_kinds(v: &serde_json::Value, wave: u64) -> Vec<String> {
+    v["record"]["samples"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|x| x["wave"] == wave)
+        .map(|x| x["kind"].as_str().unwrap().to_string())
+        .collect()
+}
+
 /// The windows of one kind, in the order they ran.
 fn of_kind(
     r: &dualstream::render::WindowRecord,
@@ -775,15 +787,7 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
         vs["record"]["measured"],
         serde_json::json!([true, true, false, true, true])
     );
-    let kinds = |v: &serde_json::Value, wave: u64| -> Vec<String> {
-        v["record"]["samples"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|x| x["wave"] == wave)
-            .map(|x| x["kind"].as_str().unwrap().to_string())
-            .collect()
-    };
+    let kinds = window_kinds;
     let k2 = kinds(&vs, 2);
     for k in [SampleKind::Root, SampleKind::Trace, SampleKind::Tail] {
         let name = format!("{k:?}");
@@ -1381,15 +1385,7 @@ fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
         .map(|w| w[0]["rays"].as_f64().unwrap())
         .collect();
     assert_eq!(rays.len(), 5);
-    let kinds = |wave: u64| -> Vec<String> {
-        v["record"]["samples"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|x| x["wave"] == wave)
-            .map(|x| x["kind"].as_str().unwrap().to_string())
-            .collect()
-    };
+    let kinds = |wave: u64| window_kinds(&v, wave);
     let root = |wave: u64| -> (f64, f64, bool) {
         let p = v["parts"]
             .as_array()

@@ -1173,22 +1173,27 @@ impl Sim {
     /// in the cache. Only a tracer, which samples every register before the edge,
     /// needs the edge as a separate phase.
     fn eval_commit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
-        state::take_written();
-        self.eval_unit(u, is_due)?;
-        commit_written(&mut self.slots[u as usize]);
-        Ok(())
+        let (net, shadow) = self.net_for(is_due);
+        let slot = &mut self.slots[u as usize];
+        eval_commit_slot(slot, u, self.now, net, &mut self.out, is_due, shadow)
     }
 
     fn eval_unit(&mut self, u: u32, is_due: bool) -> Result<(), SimError> {
+        let (net, shadow) = self.net_for(is_due);
+        let slot = &mut self.slots[u as usize];
+        eval_slot(slot, u, self.now, net, &mut self.out, is_due, shadow)
+    }
+
+    /// The links as an evaluation on the caller's thread sees them, and whether
+    /// a unit evaluated while not due is checked as a shadow.
+    fn net_for(&mut self, is_due: bool) -> (Net, bool) {
         let net = Net::of(
             &mut self.links,
             &mut self.heads,
             &mut self.space,
             &mut self.nonempty,
         );
-        let shadow = !is_due && self.opts.shadow;
-        let slot = &mut self.slots[u as usize];
-        eval_slot(slot, u, self.now, net, &mut self.out, is_due, shadow)
+        (net, !is_due && self.opts.shadow)
     }
 
     pub fn unit_count(&self) -> usize {
@@ -1292,14 +1297,21 @@ impl Sim {
     }
 }
 
-/// Evaluates one unit (the body of a step for it): builds its context, runs its
-/// logic, re-checks its held offers and records its status and next wake-up.
-#[allow(clippy::too_many_arguments)]
-/// The clock edge of a unit right after its evaluation on this thread (since
-/// [`state::take_written`]): only the registers it wrote, unless it was changed
-/// from outside since its last edge.
+/// Evaluates a unit and takes its clock edge at once, on this thread (see
+/// [`Sim::eval_commit`]): the edge commits only the registers the evaluation
+/// wrote, unless the unit was changed from outside since its last edge.
 #[inline]
-fn commit_written(slot: &mut Slot) {
+fn eval_commit_slot(
+    slot: &mut Slot,
+    u: u32,
+    t: Time,
+    net: Net,
+    out: &mut LaneOut,
+    is_due: bool,
+    shadow: bool,
+) -> Result<(), SimError> {
+    state::take_written();
+    eval_slot(slot, u, t, net, out, is_due, shadow)?;
     let written = state::take_written();
     if std::mem::take(&mut slot.commit_all) {
         slot.unit.commit();
@@ -1312,8 +1324,12 @@ fn commit_written(slot: &mut Slot) {
         "{}: a register changes after its edge (written mask {written:#x})",
         slot.path
     );
+    Ok(())
 }
 
+/// Evaluates one unit (the body of a step for it): builds its context, runs its
+/// logic, re-checks its held offers and records its status and next wake-up.
+#[allow(clippy::too_many_arguments)]
 fn eval_slot(
     slot: &mut Slot,
     u: u32,
@@ -1539,9 +1555,7 @@ unsafe fn run_lane(
         assert!((u as usize) < l.n_slots);
         // SAFETY: in bounds; a unit of `part` (the function's contract).
         let slot = unsafe { &mut *l.slots.add(u as usize) };
-        state::take_written();
-        eval_slot(slot, u, t, l.net, out, d, false)?;
-        commit_written(slot);
+        eval_commit_slot(slot, u, t, l.net, out, d, false)?;
     }
     let mut net = l.net;
     let mut k = 0;
