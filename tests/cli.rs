@@ -3,6 +3,9 @@
 
 use std::process::{Command, Output};
 
+mod common;
+use common::Scratch;
+
 fn run(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dualstream"))
         .args(args)
@@ -23,13 +26,10 @@ fn fails_with(args: &[&str], needles: &[&str]) {
     }
 }
 
-fn tmp(name: &str) -> std::path::PathBuf {
-    std::env::temp_dir().join(format!("dualstream-cli-{}-{name}", std::process::id()))
-}
-
 #[test]
 fn tb_runs_and_writes_a_vcd() {
-    let vcd = tmp("box.vcd");
+    let t = Scratch::new("cli-tb");
+    let vcd = t.join("box.vcd");
     let o = run(&[
         "tb",
         "box_pipe",
@@ -53,7 +53,8 @@ fn tb_runs_and_writes_a_vcd() {
 
 #[test]
 fn same_seed_same_waveform() {
-    let (a, b, c) = (tmp("a.vcd"), tmp("b.vcd"), tmp("c.vcd"));
+    let t = Scratch::new("cli-seed");
+    let (a, b, c) = (t.join("a.vcd"), t.join("b.vcd"), t.join("c.vcd"));
     for (p, seed) in [(&a, "4"), (&b, "4"), (&c, "5")] {
         assert!(
             run(&[
@@ -85,7 +86,8 @@ fn unknown_unit() {
 
 #[test]
 fn impossible_config() {
-    let cfg = tmp("bad.toml");
+    let t = Scratch::new("cli-config");
+    let cfg = t.join("bad.toml");
     std::fs::write(&cfg, "[box_pipe]\nlatency = 0\ninterval = 1\n").unwrap();
     fails_with(
         &["--config", cfg.to_str().unwrap(), "tb", "box_pipe"],
@@ -118,7 +120,8 @@ fn unwritable_outputs() {
 
 #[test]
 fn trace_window_and_filter() {
-    let vcd = tmp("w.vcd");
+    let t = Scratch::new("cli-trace");
+    let vcd = t.join("w.vcd");
     let v = vcd.to_str().unwrap();
     fails_with(
         &[
@@ -181,7 +184,8 @@ fn prints_the_default_config() {
 
 #[test]
 fn render_writes_image_and_statistics() {
-    let (png, json) = (tmp("r.png"), tmp("r.json"));
+    let t = Scratch::new("cli-render");
+    let (png, json) = (t.join("r.png"), t.join("r.json"));
     let o = run(&[
         "render",
         "--scene",
@@ -214,6 +218,7 @@ fn render_writes_image_and_statistics() {
 
 #[test]
 fn render_and_scene_bad_input() {
+    let t = Scratch::new("cli-bad");
     fails_with(
         &["render", "--scene", "tiny", "--res", "0x10"],
         &["width = 0"],
@@ -245,7 +250,7 @@ fn render_and_scene_bad_input() {
         &["--out"],
     );
     fails_with(&["scene", "info", "nosuchscene"], &["nosuchscene"]);
-    let cfg = tmp("seg.toml");
+    let cfg = t.join("seg.toml");
     std::fs::write(&cfg, "[accel]\nsegment_bytes = 1000\n").unwrap();
     fails_with(
         &["--config", cfg.to_str().unwrap(), "scene", "info", "tiny"],
@@ -271,8 +276,8 @@ fn scene_info_prints_the_structure() {
 
 #[test]
 fn dump_rays_writes_each_wavefront() {
-    let dir = tmp("dump");
-    let _ = std::fs::remove_dir_all(&dir);
+    let t = Scratch::new("cli-dump");
+    let dir = t.join("dump");
     let o = run(&[
         "render",
         "--scene",
@@ -280,7 +285,7 @@ fn dump_rays_writes_each_wavefront() {
         "--res",
         "8x8",
         "--out",
-        tmp("d.png").to_str().unwrap(),
+        t.join("d.png").to_str().unwrap(),
         "--dump-rays",
         dir.to_str().unwrap(),
     ]);
@@ -303,7 +308,8 @@ fn dump_rays_writes_each_wavefront() {
 
 #[test]
 fn dram_generates_replays_and_rejects_bad_input() {
-    let trace = tmp("mixed.trc");
+    let t = Scratch::new("cli-dram");
+    let trace = t.join("mixed.trc");
     let o = run(&[
         "dram",
         "--generate",
@@ -334,7 +340,7 @@ fn dram_generates_replays_and_rejects_bad_input() {
         assert!(out.contains("requests 3000") && out.contains("timing checker: 0 violations"));
         assert!(out.contains("nJ per"), "{out}");
     }
-    let bad = tmp("bad.trc");
+    let bad = t.join("bad.trc");
     std::fs::write(&bad, "0x40 READ 1\n0x80 READ x\n").unwrap();
     fails_with(
         &["dram", "--trace", bad.to_str().unwrap()],
@@ -358,7 +364,7 @@ fn dram_generates_replays_and_rejects_bad_input() {
         &["unknown energy preset"],
     );
     fails_with(&["dram"], &["nothing to do"]);
-    let cfg = tmp("badmem.toml");
+    let cfg = t.join("badmem.toml");
     std::fs::write(&cfg, "[mem.timing]\ntRC = 10\n").unwrap();
     fails_with(
         &[
@@ -385,7 +391,8 @@ fn dram_generates_replays_and_rejects_bad_input() {
 
 #[test]
 fn tb_tm_runs_a_treelet_and_writes_a_vcd() {
-    let vcd = tmp("tm.vcd");
+    let t = Scratch::new("cli-tm");
+    let vcd = t.join("tm.vcd");
     let o = run(&[
         "tb",
         "tm",
@@ -407,7 +414,6 @@ fn tb_tm_runs_a_treelet_and_writes_a_vcd() {
     assert!(out.contains("PASS") && out.contains("TM cycles"), "{out}");
     let text = std::fs::read_to_string(&vcd).unwrap();
     assert!(text.contains("$scope module tp15 $end"));
-    let _ = std::fs::remove_file(&vcd);
     fails_with(
         &["tb", "tm", "--scene", "builtin:tiny", "--treelet", "3"],
         &["treelet 3 does not exist", "1 segments"],
@@ -429,13 +435,14 @@ fn report_paper_names_missing_scenes() {
 /// and options that need a clocked frame are refused.
 #[test]
 fn render_in_windows_estimates_the_cycle_frame() {
-    let cfg = tmp("win.toml");
+    let t = Scratch::new("cli-win");
+    let cfg = t.join("win.toml");
     std::fs::write(
         &cfg,
         "[tm]\ntps = 4\n[chip]\ntms = 2\n[chip.memory]\nmodel = \"gddr5\"\n",
     )
     .unwrap();
-    let (w_png, c_png, json) = (tmp("win.png"), tmp("cyc.png"), tmp("win.json"));
+    let (w_png, c_png, json) = (t.join("win.png"), t.join("cyc.png"), t.join("win.json"));
     let c = cfg.to_str().unwrap();
     let args = |mode: &'static str, png: &std::path::Path| -> Vec<String> {
         [
@@ -495,15 +502,12 @@ fn render_in_windows_estimates_the_cycle_frame() {
     let mut a = args("windows", &w_png);
     a.extend([
         "--vcd".to_string(),
-        tmp("win.vcd").to_str().unwrap().to_string(),
+        t.join("win.vcd").to_str().unwrap().to_string(),
     ]);
     fails_with(
         &a.iter().map(|x| x.as_str()).collect::<Vec<_>>(),
         &["--mode cycle"],
     );
-    for p in [cfg, w_png, c_png, json] {
-        let _ = std::fs::remove_file(p);
-    }
 }
 
 /// In CI the external tools must be there (`.ci/run` installs them); elsewhere a
@@ -547,7 +551,12 @@ fn vcd_scopes_and_times(path: &std::path::Path) -> (std::collections::BTreeSet<S
 
 #[test]
 fn render_cycle_writes_a_waveform_of_the_chosen_units_and_window() {
-    let (cfg, vcd, png) = (tmp("chipv.toml"), tmp("chipv.vcd"), tmp("chipv.png"));
+    let t = Scratch::new("cli-chipv");
+    let (cfg, vcd, png) = (
+        t.join("chipv.toml"),
+        t.join("chipv.vcd"),
+        t.join("chipv.png"),
+    );
     std::fs::write(
         &cfg,
         "[tm]\ntps = 4\n[chip]\ntms = 2\n[chip.memory]\nmodel = \"gddr5\"\n",
@@ -643,7 +652,7 @@ fn render_cycle_writes_a_waveform_of_the_chosen_units_and_window() {
         (times.first(), times.last())
     );
     if have("vcd2fst") {
-        let fst = tmp("chipv.fst");
+        let fst = t.join("chipv.fst");
         let o = Command::new("vcd2fst")
             .arg(&vcd)
             .arg(&fst)
@@ -705,9 +714,14 @@ fn render_cycle_writes_a_waveform_of_the_chosen_units_and_window() {
 
 #[test]
 fn bench_speed_error_prints_every_mode_with_json_and_plot() {
-    let cfg = tmp("se.toml");
+    let t = Scratch::new("cli-se");
+    let cfg = t.join("se.toml");
     std::fs::write(&cfg, "[chip]\ntms = 2\n[tm]\ntps = 4\n").unwrap();
-    let (json, svg, wlog) = (tmp("se.json"), tmp("se.svg"), tmp("se-windows.json"));
+    let (json, svg, wlog) = (
+        t.join("se.json"),
+        t.join("se.svg"),
+        t.join("se-windows.json"),
+    );
     let o = run(&[
         "--config",
         cfg.to_str().unwrap(),
@@ -802,14 +816,12 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
         &["bench", "nonsense"],
         &["unknown benchmark", "speed-error"],
     );
-    for p in [cfg, json, svg, wlog] {
-        let _ = std::fs::remove_file(p);
-    }
 }
 
 #[test]
 fn the_pass_log_is_written_in_cycle_mode_and_refused_elsewhere() {
-    let (csv, png) = (tmp("passes.csv"), tmp("passes.png"));
+    let t = Scratch::new("cli-passes");
+    let (csv, png) = (t.join("passes.csv"), t.join("passes.png"));
     let args = [
         "render",
         "--scene",

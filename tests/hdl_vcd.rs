@@ -12,15 +12,15 @@ use dualstream::rtl::TraceSpec;
 use dualstream::testbench::{self, TbOptions};
 use dualstream::units::{catalog, write_hdl};
 
+mod common;
+use common::Scratch;
+
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dualstream-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tmpdir(name: &str) -> Scratch {
+    Scratch::new(&format!("test-{name}"))
 }
 
 /// In CI the external tools are installed by `.ci/run` and must be there; on a

@@ -4,6 +4,9 @@
 use dualstream::config::Config;
 use dualstream::speed_error::{SpeedErrorOpts, estimate, plot, run, table, tile_sample};
 
+mod common;
+use common::Scratch;
+
 fn tiny() -> (dualstream::scene::Scene, Config) {
     let mut s = dualstream::scene::load("tiny").unwrap();
     s.settings.width = 16;
@@ -250,12 +253,13 @@ fn bad_speed_error_options_are_named() {
 }
 
 /// Renders `s` on the chip with GDDR5 as `render --mode cycle --stats --out` would and
-/// writes its statistics and PNG; returns their paths.
+/// writes its statistics and PNG; returns their directory (removed when it is
+/// dropped) and their paths.
 fn reference_files(
     s: &dualstream::scene::Scene,
     c: &Config,
     tag: &str,
-) -> (std::path::PathBuf, std::path::PathBuf) {
+) -> (Scratch, std::path::PathBuf, std::path::PathBuf) {
     use dualstream::render::{self, ChipRun, Mode, RenderCfg};
     let mut g = c.clone();
     g.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
@@ -275,21 +279,20 @@ fn reference_files(
     };
     let mut f = render::render(s, Mode::Cycle, &rc, &mut |_| {}).unwrap();
     f.energy = Some(dualstream::energy::frame_energy(&g, &f));
-    let dir = std::env::temp_dir().join(format!("ds-se-ref-{}-{tag}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new(&format!("se-ref-{tag}"));
     let (j, p) = (dir.join("ref.json"), dir.join("ref.png"));
     render::output::write_json(&f, &j).unwrap();
     render::output::write_png(&f, &p).unwrap();
     // Beside them, as `render --pass-log passes.csv` writes it.
     render::output::write_pass_log(&f, &dir.join("passes.csv")).unwrap();
-    (j, p)
+    (dir, j, p)
 }
 
 #[test]
 fn a_reference_read_back_gives_the_same_errors() {
     use dualstream::speed_error::Reference;
     let (s, c) = tiny();
-    let (j, p) = reference_files(&s, &c, "same");
+    let (_dir, j, p) = reference_files(&s, &c, "same");
     let modes = Some(vec![
         "functional+estimate".to_string(),
         "sampled".to_string(),
@@ -347,7 +350,7 @@ fn a_reference_read_back_gives_the_same_errors() {
 fn a_reference_of_another_frame_is_refused() {
     use dualstream::speed_error::Reference;
     let (s, c) = tiny();
-    let (j, p) = reference_files(&s, &c, "other");
+    let (_dir, j, p) = reference_files(&s, &c, "other");
     // Another resolution is named from the file alone.
     let mut wide = s.clone();
     wide.settings.width = 32;
@@ -758,7 +761,7 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
     use dualstream::speed_error::Reference;
     let (mut s, c) = cornell_in_rows();
     s.settings.bounces = 4;
-    let (j, png) = reference_files(&s, &c, "borrowed");
+    let (_dir, j, png) = reference_files(&s, &c, "borrowed");
     let dir = j.parent().unwrap().to_path_buf();
     let estimate_with = |wave_every: u64, root_rays: u64| {
         let mut plan = windows_plan(4, 6);
@@ -904,7 +907,7 @@ fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
     // `windows_that_cover_the_frame_agree_with_the_cycle_model`).
     c.chip.l2.bytes = 2048;
     c.chip.l2.banks = 4;
-    let (j, png) = reference_files(&s, &c, "whole");
+    let (_dir, j, png) = reference_files(&s, &c, "whole");
     let dir = j.parent().unwrap().to_path_buf();
     let estimate = |every: u64| {
         let mut plan = windows_plan(4, every);
@@ -1033,8 +1036,7 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
     c.chip.l2.bytes = 2048;
     c.chip.l2.banks = 4;
     // A tetrahedron under the sky: rays that leave it are done.
-    let dir = std::env::temp_dir().join(format!("ds-se-tetra-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("se-tetra");
     let obj = dir.join("tetra.obj");
     std::fs::write(
         &obj,
@@ -1045,7 +1047,7 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
     s.settings.width = 48;
     s.settings.height = 48;
     s.settings.bounces = 3;
-    let (j, png) = reference_files(&s, &c, "shade-lines");
+    let (_dir, j, png) = reference_files(&s, &c, "shade-lines");
     let dir = j.parent().unwrap().to_path_buf();
     let mut plan = windows_plan(1 << 20, 1 << 20);
     (
@@ -1369,7 +1371,7 @@ fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
     s.settings.width = 16;
     s.settings.height = 16;
     s.settings.bounces = 4;
-    let (j, png) = reference_files(&s, &c, "line");
+    let (_dir, j, png) = reference_files(&s, &c, "line");
     let dir = j.parent().unwrap().to_path_buf();
     let mut plan = windows_plan(4, 6);
     plan.warm = 2;

@@ -1,0 +1,39 @@
+//! What several test binaries share.
+
+use std::path::{Path, PathBuf};
+
+/// A directory of one test's own under the system's temporary directory,
+/// removed with everything in it when the test passes. A failing test leaves it
+/// in place, so its files can be looked at.
+pub struct Scratch(PathBuf);
+
+impl Scratch {
+    /// A fresh, empty directory named after `name` and this process.
+    pub fn new(name: &str) -> Scratch {
+        let d = std::env::temp_dir().join(format!("dualstream-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        Scratch(d)
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
