@@ -612,3 +612,107 @@ fn visible_masks_match_has_input() {
         assert_eq!(u.widest as usize, n, "{n} ports: the last port never seen");
     }
 }
+
+dualstream::unit! {
+    /// Sends one request at cycle 2 and waits for its answer: asleep from the
+    /// next cycle on (`ahead`), or looking once more in the next cycle to say it
+    /// waits, as a unit without `set_status_from_next` would.
+    pub struct Asker : "asker" {
+        params { }
+        inputs { resp: u64 }
+        outputs { req: u64 }
+        state { }
+        extra { ahead: bool, sent: bool }
+    }
+}
+impl Logic for Asker {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        if !self.sent {
+            if ctx.cycle() < 2 {
+                ctx.set_status(Status::WaitInput);
+                return Next::AtCycle(2);
+            }
+            ctx.push(&self.req, ctx.cycle());
+            self.sent = true;
+            ctx.set_status(Status::Busy);
+            if self.ahead {
+                ctx.set_status_from_next(Status::ResourceBusy);
+                return Next::Idle;
+            }
+            return Next::Cycle;
+        }
+        if ctx.pop(&self.resp).is_some() {
+            ctx.set_status(Status::WaitInput);
+        } else if ctx.cycle() > 0 {
+            ctx.set_status(Status::ResourceBusy);
+        }
+        Next::Idle
+    }
+}
+
+dualstream::unit! {
+    /// Answers every request as it arrives.
+    pub struct Echo : "echo" {
+        params { }
+        inputs { inp: u64 }
+        outputs { out: u64 }
+        state { }
+        extra { }
+    }
+}
+impl Logic for Echo {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        if ctx.has_input(&self.inp) && ctx.can_push(&self.out) {
+            let v = ctx.pop(&self.inp).unwrap();
+            ctx.push(&self.out, v);
+        }
+        Next::Idle
+    }
+}
+
+#[test]
+fn a_status_from_the_next_cycle_counts_as_an_evaluation_then_would() {
+    // Two askers, one sleeping through its wait with the status declared ahead,
+    // one evaluated in the next cycle to declare it: their status cycles must be
+    // the same whenever they are read (also in the cycle of the request, before
+    // the status ahead begins), and the sleeper must pass the shadow check.
+    for opts in [
+        SimOptions::default(),
+        SimOptions {
+            sleep: false,
+            shadow: true,
+            ..SimOptions::default()
+        },
+    ] {
+        let mut sim = Sim::new(opts);
+        let c = sim.clock("core", 1000).unwrap();
+        let mut askers = Vec::new();
+        for ahead in [true, false] {
+            let (qo, qi) = sim.link::<u64>(&format!("req{ahead}"), LinkCfg { depth: 2, delay: 3 });
+            let (ro, ri) = sim.link::<u64>(&format!("resp{ahead}"), LinkCfg { depth: 2, delay: 2 });
+            let a = sim.add(
+                &format!("asker{ahead}"),
+                c,
+                Asker {
+                    resp: ri,
+                    req: qo,
+                    ahead,
+                    sent: false,
+                },
+            );
+            sim.add(&format!("echo{ahead}"), c, Echo { inp: qi, out: ro });
+            askers.push(a);
+        }
+        for cycle in 0..12u64 {
+            sim.run(cycle * 1000).unwrap();
+            let (a, b) = (sim.unit_stats(askers[0]), sim.unit_stats(askers[1]));
+            assert_eq!(a.status_cycles, b.status_cycles, "cycle {cycle}");
+            assert_eq!(a.status_cycles.iter().sum::<u64>(), cycle, "{a:?}");
+        }
+        // Sent at 2, seen by the echo at 5, answered, seen at 7: busy in cycle 2,
+        // waiting for the answer in cycles 3-6.
+        let st = sim.unit_stats(askers[0]).status_cycles;
+        assert_eq!(st[Status::Busy as usize], 1, "{st:?}");
+        assert_eq!(st[Status::ResourceBusy as usize], 4, "{st:?}");
+    }
+}

@@ -129,6 +129,10 @@ struct Slot {
     /// The unit was changed from outside (`Sim::unit_mut`), so registers it did
     /// not write in its evaluation may be pending: its next edge commits all.
     commit_all: bool,
+    /// The status credited up to `since` when `since` is ahead of the last
+    /// evaluation (a status from the next cycle on): stats read before then take
+    /// the credit back.
+    ahead: Option<Status>,
     clock: ClockId,
     since: Time,
     status_ps: [Time; 4],
@@ -319,6 +323,8 @@ pub struct Ctx<'a> {
     /// Output links of this unit with a refused offer outstanding.
     stalls: &'a mut Vec<LinkId>,
     new_status: Option<Status>,
+    /// The status from the next cycle on (`Ctx::set_status_from_next`).
+    next_status: Option<Status>,
     link_ops: u32,
 }
 
@@ -531,6 +537,15 @@ impl<'a> Ctx<'a> {
     pub fn set_status(&mut self, s: Status) {
         self.new_status = Some(s);
     }
+
+    /// Declares the status from the next cycle on, after this cycle's (the one
+    /// `set_status` gives, or the current one): a unit that starts to wait in the
+    /// next cycle for a response that cannot come sooner can sleep until it comes
+    /// instead of being evaluated once more only to say so.
+    #[inline]
+    pub fn set_status_from_next(&mut self, s: Status) {
+        self.next_status = Some(s);
+    }
 }
 
 /// The set bits of `words` (see `Ctx::visible_words`) in round-robin order: from
@@ -682,6 +697,7 @@ impl Sim {
             out_links: Vec::new(),
             stalled_outs: Vec::new(),
             commit_all: true,
+            ahead: None,
         });
         self.sched.push(Sched {
             period,
@@ -794,6 +810,7 @@ impl Sim {
         for (i, s) in self.slots.iter_mut().enumerate() {
             s.unit.reset();
             s.status = Status::WaitInput;
+            s.ahead = None;
             s.since = 0;
             s.status_ps = [0; 4];
             s.evals = 0;
@@ -1234,7 +1251,11 @@ impl Sim {
     pub fn unit_stats(&self, u: UnitId) -> UnitStats {
         let s = &self.slots[u.0 as usize];
         let mut ps = s.status_ps;
-        ps[s.status as usize] += self.now - s.since;
+        match s.ahead {
+            // A status from the next cycle on, not begun yet.
+            Some(a) if self.now < s.since => ps[a as usize] -= s.since - self.now,
+            _ => ps[s.status as usize] += self.now - s.since,
+        }
         UnitStats {
             path: s.path.clone(),
             module: s.unit.decl().module,
@@ -1357,10 +1378,11 @@ fn eval_slot(
         wakes: &mut out.wakes,
         stalls: &mut slot.stalled_outs,
         new_status: None,
+        next_status: None,
         link_ops: 0,
     };
     let next = slot.unit.eval(&mut ctx);
-    let (new_status, link_ops) = (ctx.new_status, ctx.link_ops);
+    let (new_status, next_status, link_ops) = (ctx.new_status, ctx.next_status, ctx.link_ops);
     if !slot.stalled_outs.is_empty() {
         let touched = &mut out.touched;
         slot.stalled_outs.retain(|&l| {
@@ -1377,11 +1399,11 @@ fn eval_slot(
             Some("a link (it pushed, popped or offered)".to_string())
         } else if slot.unit.state_pending() {
             Some("its registers".to_string())
-        } else if new_status.is_some_and(|s| s != slot.status) {
+        } else if let Some(s) = new_status.or(next_status).filter(|&s| s != slot.status) {
             Some(format!(
                 "its status ({} -> {})",
                 slot.status.name(),
-                new_status.unwrap().name()
+                s.name()
             ))
         } else if before.as_ref() != Some(&slot.unit.counters()) {
             Some("its counters".to_string())
@@ -1403,6 +1425,16 @@ fn eval_slot(
         slot.status_ps[slot.status as usize] += t - slot.since;
         slot.status = s;
         slot.since = t;
+    }
+    if let Some(s) = next_status
+        && s != slot.status
+    {
+        // Credited ahead: no evaluation comes before the next cycle.
+        let from = t + slot.period;
+        slot.status_ps[slot.status as usize] += from - slot.since;
+        slot.ahead = Some(slot.status);
+        slot.status = s;
+        slot.since = from;
     }
     if is_due {
         slot.evals += 1;

@@ -610,6 +610,20 @@ impl Tp {
     }
 }
 
+/// A state that waits for the response to a request the TP sent as it entered
+/// it (a response is at least a link's delay each way away).
+fn awaits_response(s: TpState) -> bool {
+    matches!(
+        s,
+        TpState::DivWait
+            | TpState::NodeWait
+            | TpState::BoxWait
+            | TpState::TriMemWait
+            | TpState::TriTestWait
+            | TpState::ShWait
+    )
+}
+
 impl Logic for Tp {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
@@ -628,6 +642,13 @@ impl Logic for Tp {
                     }
                     self.used(s);
                     ctx.set_status(Status::Busy);
+                    if n == Next::Cycle && awaits_response(*self.state.next()) {
+                        // The request just sent cannot be answered by the next
+                        // cycle: wait from then on, asleep until the response's
+                        // push wakes the TP.
+                        ctx.set_status_from_next(Status::ResourceBusy);
+                        return Next::Idle;
+                    }
                     n
                 }
                 None => {
