@@ -1346,6 +1346,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         line_bytes: crate::contract::LINE_BYTES,
         dram: None,
         vcd: None,
+        evals_by_module: Vec::new(),
     });
     let e = crate::energy::frame_energy(c, &g);
     let p = [

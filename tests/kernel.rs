@@ -714,5 +714,12 @@ fn a_status_from_the_next_cycle_counts_as_an_evaluation_then_would() {
         let st = sim.unit_stats(askers[0]).status_cycles;
         assert_eq!(st[Status::Busy as usize], 1, "{st:?}");
         assert_eq!(st[Status::ResourceBusy as usize], 4, "{st:?}");
+        // The evaluations by kind add up, most first, with two units a kind.
+        let by = sim.evals_by_module();
+        assert_eq!(by.iter().map(|e| e.evals).sum::<u64>(), sim.evals, "{by:?}");
+        assert!(by.windows(2).all(|w| w[0].evals >= w[1].evals), "{by:?}");
+        let mut kinds: Vec<_> = by.iter().map(|e| (e.module, e.units)).collect();
+        kinds.sort();
+        assert_eq!(kinds, [("asker", 2), ("echo", 2)]);
     }
 }

@@ -379,6 +379,9 @@ pub struct ChipFrame {
     pub dram: Option<crate::machine::DramWave>,
     /// The waveform written (`ChipRun::trace`).
     pub vcd: Option<VcdInfo>,
+    /// The simulator's evaluations by unit kind over the frame, most first
+    /// (where its time went; they depend on the kernel, not the chip's results).
+    pub evals_by_module: Vec<crate::rtl::ModuleEvals>,
 }
 
 impl ChipFrame {
@@ -1118,6 +1121,7 @@ pub fn render(
             ),
             waves: chip_waves,
             vcd,
+            evals_by_module: c.sim.evals_by_module(),
         }),
     })
 }

@@ -337,6 +337,21 @@ pub fn summary(f: &Frame) -> String {
             "  chip simulation {:.2} s, {:.0} simulated cycles/s\n",
             c.sim_wall_s, c.cycles_per_s
         );
+        let evals: u64 = c.evals_by_module.iter().map(|e| e.evals).sum();
+        if evals > 0 {
+            let top: Vec<String> = c
+                .evals_by_module
+                .iter()
+                .take(6)
+                .map(|e| format!("{} {:.0}%", e.module, 100.0 * e.evals as f64 / evals as f64))
+                .collect();
+            s += &format!(
+                "  unit evaluations {:.1} M, {:.1} per cycle: {}\n",
+                evals as f64 / 1e6,
+                evals as f64 / c.total_cycles.max(1) as f64,
+                top.join(", ")
+            );
+        }
     }
     s
 }

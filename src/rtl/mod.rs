@@ -18,7 +18,8 @@ pub use decl::{PortDecl, PortDir, SignalDecl, StateDecl, UnitDecl};
 pub use link::{In, LinkCfg, LinkEvent, LinkId, Out, PortArray, PortEnd};
 pub use pipe::FixedPipe;
 pub use sim::{
-    ClockId, Ctx, RunEnd, Sim, SimError, SimOptions, Time, UnitId, UnitStats, round_robin,
+    ClockId, Ctx, ModuleEvals, RunEnd, Sim, SimError, SimOptions, Time, UnitId, UnitStats,
+    round_robin,
 };
 pub use state::{Ram, Reg, State};
 pub use trace::{SharedBuf, TraceSpec, TraceStats, Tracer};
