@@ -378,6 +378,27 @@ impl ChannelCtrl {
         }
     }
 
+    /// After cycle `c`'s command and request: if `step` is due in the next
+    /// cycle, finds now whether a command can go then and, if none can, when
+    /// one may, so that the controller is not evaluated only to learn that.
+    /// Exact: nothing but the controller's own evaluations changes its state,
+    /// and a request arriving meanwhile wakes it (`accept` brings the next event
+    /// back). Left to `step` when a refresh falls due or the response buffer is
+    /// full (its hand-over may unblock a command).
+    pub fn look_ahead(&mut self, c: u64) {
+        let n = c + 1;
+        if self.next_event != n
+            || self.refresh_pending
+            || n >= self.refresh_due
+            || self.resp.len() >= self.resp_cap
+        {
+            return;
+        }
+        if let Err(wake) = self.pick(n) {
+            self.next_event = wake.min(self.refresh_due.max(n + 1));
+        }
+    }
+
     /// The queue being served: writes while draining or when no read waits.
     #[inline]
     fn serving_writes(&self) -> bool {

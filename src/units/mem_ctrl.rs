@@ -98,13 +98,21 @@ impl Logic for MemCtrl {
         self.ctrl.advance_to(c);
         self.ctrl.step(c);
         let mut blocked = false;
+        let mut more = false;
         if let Some(w) = waiting {
             if self.ctrl.can_accept(w) {
                 let r = ctx.pop(&self.req).expect("peeked");
                 self.ctrl.accept(c, r);
+                more = ctx.holds_more(&self.req);
             } else {
                 blocked = true;
             }
+        }
+        // A request left in the link is taken in the next cycle (its wake-up
+        // may have passed); otherwise the next cycle's evaluation only to learn
+        // that no command can go is spared.
+        if !blocked && !more {
+            self.ctrl.look_ahead(c);
         }
         ctx.set_status(if stalled {
             Status::OutputBlocked
