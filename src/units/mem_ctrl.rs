@@ -108,10 +108,12 @@ impl Logic for MemCtrl {
                 blocked = true;
             }
         }
-        // A request left in the link is taken in the next cycle (its wake-up
-        // may have passed); otherwise the next cycle's evaluation only to learn
-        // that no command can go is spared.
-        if !blocked && !more {
+        // A request left behind the one taken is taken in the next cycle (its
+        // wake-up may have passed); otherwise the next cycle's evaluation only to
+        // learn that no command can go is spared. A refused request needs none:
+        // the queue has room again only after a command, and `look_ahead` wakes
+        // the controller for the next one.
+        if !more {
             self.ctrl.look_ahead(c);
         }
         ctx.set_status(if stalled {
