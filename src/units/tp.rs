@@ -335,7 +335,9 @@ impl Tp {
                 self.act_at.set(at);
                 Next::AtCycle(at)
             }
-            // A waiting state looks at its link from the next cycle on.
+            // A waiting state looks at its link from the next cycle on; one that
+            // awaits the response to the request just sent sleeps instead
+            // (`awaits_response`, in `eval`).
             None => Next::Cycle,
         }
     }
