@@ -184,7 +184,8 @@ fn run_tiny_chip_with(cfg: Config, opts: SimOptions, trace: &str) -> Outcome {
 /// Also returns the steps evaluated on two threads. `trace: None`: no waveform
 /// (two threads are used only without one).
 fn run_tiny_chip_traced(cfg: Config, opts: SimOptions, trace: Option<&str>) -> (Outcome, u64) {
-    run_tiny_chip_balanced(cfg, opts, trace, false)
+    let (o, parallel, _) = run_tiny_chip_balanced(cfg, opts, trace, false);
+    (o, parallel)
 }
 
 /// `moving`: two threads move a TM between them every 8 parallel steps (asserted
@@ -194,7 +195,7 @@ fn run_tiny_chip_balanced(
     opts: SimOptions,
     trace: Option<&str>,
     moving: bool,
-) -> (Outcome, u64) {
+) -> (Outcome, u64, u64) {
     let s = scene("cornell", 8, 8, 1);
     let rc = rcfg(8, None);
     let mut p = dualstream::render::prepare(&s, &rc).unwrap();
@@ -246,7 +247,13 @@ fn run_tiny_chip_balanced(
             "no TM moved between the threads"
         );
     }
-    (out, chip.sim.parallel_steps)
+    let tp_evals = chip
+        .sim
+        .evals_by_module()
+        .iter()
+        .find(|m| m.module == "tp")
+        .map_or(0, |m| m.evals);
+    (out, chip.sim.parallel_steps, tp_evals)
 }
 
 /// Two evaluation threads (half of the TMs each) give the same cycles, statistics
@@ -262,7 +269,7 @@ fn two_threads_change_nothing() {
         };
         let (base, p1) = run_tiny_chip_traced(cfg.clone(), one, None);
         // The same with a TM moving between the threads every 8 steps.
-        let (m, _) = run_tiny_chip_balanced(cfg.clone(), two.clone(), None, true);
+        let (m, _, _) = run_tiny_chip_balanced(cfg.clone(), two.clone(), None, true);
         assert!(
             m == base,
             "{what}: moving TMs between the threads changed the outcome"
@@ -361,6 +368,41 @@ fn gddr5_sleeping_shadow_and_shuffles_change_nothing() {
             r == base,
             "gddr5 {what}: cycles, statistics, VCD or hits differ"
         );
+    }
+}
+
+/// A TP that no tracer watches runs through its internal states (the pop after a
+/// node's push, a triangle's result) in one evaluation and sleeps until the next
+/// state that offers on a link. That must give the same cycles, statistics of
+/// every unit and hits as the traced chip, whose TPs go state by state: with
+/// sleeping, with sleeping off, under the shadow check and shuffled. And it must
+/// save evaluations, or the test would not test it.
+#[test]
+fn untraced_tps_run_through_internal_states_exactly() {
+    for (what, cfg) in [("fixed", chip_cfg(1, 4)), ("gddr5", gddr5_cfg(1, 4))] {
+        let trace = Some("chip.tm0");
+        let (mut base, _, traced_evals) =
+            run_tiny_chip_balanced(cfg.clone(), SimOptions::default(), trace, false);
+        assert!(base.cycles > 0);
+        base.vcd_hash = 0;
+        let mut runs = vec![("sleeping", SimOptions::default())];
+        runs.extend(variants());
+        for (how, o) in runs {
+            let sleeping = how == "sleeping";
+            let (mut r, _, evals) = run_tiny_chip_balanced(cfg.clone(), o, None, false);
+            r.vcd_hash = 0;
+            assert!(
+                r == base,
+                "{what}, {how}: untraced TPs changed cycles, statistics or hits"
+            );
+            if sleeping {
+                assert!(
+                    evals * 10 < traced_evals * 9,
+                    "{what}: untraced TPs took {evals} evaluations, traced {traced_evals}: \
+                     they did not run through their internal states"
+                );
+            }
+        }
     }
 }
 

@@ -133,6 +133,8 @@ struct Slot {
     /// evaluation (a status from the next cycle on): stats read before then take
     /// the credit back.
     ahead: Option<Status>,
+    /// A tracer samples this unit's registers (`Ctx::watched`).
+    watched: bool,
     clock: ClockId,
     since: Time,
     status_ps: [Time; 4],
@@ -334,6 +336,7 @@ pub struct Ctx<'a> {
     /// The status from the next cycle on (`Ctx::set_status_from_next`).
     next_status: Option<Status>,
     link_ops: u32,
+    watched: bool,
 }
 
 impl<'a> Ctx<'a> {
@@ -367,6 +370,14 @@ impl<'a> Ctx<'a> {
     }
     pub fn unit(&self) -> UnitId {
         self.unit
+    }
+    /// Whether a tracer samples this unit's registers. A unit may run through
+    /// internal states that touch no link within one evaluation (and sleep until
+    /// the first that does) only when nobody watches its registers: that changes
+    /// nothing outside it, but the waveform would skip the states in between.
+    #[inline]
+    pub fn watched(&self) -> bool {
+        self.watched
     }
 
     #[inline]
@@ -706,6 +717,7 @@ impl Sim {
             stalled_outs: Vec::new(),
             commit_all: true,
             ahead: None,
+            watched: false,
         });
         self.sched.push(Sched {
             period,
@@ -1328,6 +1340,9 @@ impl Sim {
             .map(|s| (s.path.as_str(), &*s.unit, &self.clocks[s.clock.0 as usize]))
             .collect();
         tracer.bind(&units).map_err(SimError::Elaboration)?;
+        for i in tracer.unit_indices() {
+            self.slots[i].watched = true;
+        }
         self.tracer = Some(tracer);
         Ok(())
     }
@@ -1335,6 +1350,9 @@ impl Sim {
     /// Detaches the tracer, flushing its output.
     pub fn finish_trace(&mut self) -> Option<std::io::Result<super::trace::TraceStats>> {
         let now = self.now;
+        for s in &mut self.slots {
+            s.watched = false;
+        }
         self.tracer.take().map(|t| t.finish(now))
     }
 
@@ -1409,6 +1427,7 @@ fn eval_slot(
         new_status: None,
         next_status: None,
         link_ops: 0,
+        watched: slot.watched,
     };
     let next = slot.unit.eval(&mut ctx);
     let (new_status, next_status, link_ops) = (ctx.new_status, ctx.next_status, ctx.link_ops);

@@ -80,6 +80,11 @@ impl<T: Payload> Reg<T> {
     pub fn next(&self) -> &T {
         self.next.as_ref().unwrap_or(&self.cur)
     }
+    /// Whether `set` was called since the last edge.
+    #[inline]
+    pub fn written(&self) -> bool {
+        self.next.is_some()
+    }
 }
 
 impl<T: Payload + Copy> Reg<T> {

@@ -169,6 +169,11 @@ impl Tracer {
     }
 
     /// Selects the units to trace and writes the header.
+    /// The simulator's indices of the units bound (`bind`).
+    pub(crate) fn unit_indices(&self) -> impl Iterator<Item = usize> + '_ {
+        self.units.iter().map(|u| u.index)
+    }
+
     pub(crate) fn bind(&mut self, units: &[(&str, &dyn Unit, &Clock)]) -> Result<(), String> {
         let mut chosen = Vec::new();
         for (i, (path, u, clk)) in units.iter().enumerate() {

@@ -29,7 +29,7 @@ use super::tri_pipe::{TriReq, TriResp};
 use crate::config::Config;
 use crate::contract::{HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, TRI_BYTES};
 use crate::render::traverse::cull;
-use crate::rtl::{Ctx, In, Logic, Next, Out, Ram, Reg, Status};
+use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Ram, Reg, Status};
 
 crate::payload_struct! {
     /// A duplicate: the ray, with its entry into the child segment `seg`; or, with
@@ -626,8 +626,55 @@ fn awaits_response(s: TpState) -> bool {
     )
 }
 
+/// A computing state whose action touches no link: what it does is seen outside
+/// the TP only through the states after it.
+fn internal(s: TpState) -> bool {
+    matches!(
+        s,
+        TpState::Init | TpState::Pop | TpState::NodePush | TpState::TriResult | TpState::Shade
+    )
+}
+
 impl Logic for Tp {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let mut n = self.step(ctx);
+        if ctx.watched() {
+            return n;
+        }
+        // Run through the internal states just entered (a pop after a node's
+        // push, say) now rather than in evaluations of their own, and sleep until
+        // the first state that offers on a link acts. Nothing else reads or
+        // writes the TP's registers, so taking its edges early changes nothing
+        // outside it: the links see the same operations at the same cycles, and
+        // the status stays busy throughout. A traced TP goes state by state, so
+        // the waveform shows every one. Only after an action of this evaluation
+        // (`state` written): a TP that is evaluated early must change nothing.
+        while let Next::AtCycle(at) = n {
+            let s = *self.state.next();
+            if !self.state.written() || !internal(s) {
+                break;
+            }
+            Declared::commit_state(self);
+            n = self
+                .act(ctx, s, at)
+                .expect("an internal state never offers on a link");
+            self.used(s);
+        }
+        n
+    }
+
+    fn counters(&self) -> Vec<(&'static str, u64)> {
+        self.counters_of()
+    }
+
+    fn reset_counters(&mut self) {
+        self.reset_stats();
+    }
+}
+
+impl Tp {
+    /// One cycle of the TP, state by state.
+    fn step(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let s = self.state.val();
         let costed =
@@ -785,7 +832,7 @@ impl Logic for Tp {
         }
     }
 
-    fn counters(&self) -> Vec<(&'static str, u64)> {
+    fn counters_of(&self) -> Vec<(&'static str, u64)> {
         let s = &self.stats;
         let mut v = vec![
             ("rays", s.rays),
@@ -819,7 +866,7 @@ impl Logic for Tp {
         v
     }
 
-    fn reset_counters(&mut self) {
+    fn reset_stats(&mut self) {
         self.stats = TpStats::default();
         self.blocked_since = None;
         if let Some(l) = &mut self.log {
