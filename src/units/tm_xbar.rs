@@ -70,13 +70,15 @@ pub struct XbarStats {
 pub const CLASSES: [&str; 6] = ["div", "box", "tri", "ray_write", "hit", "gmem"];
 
 /// Round-robin pick among `inputs` with a visible head, from `start`; counts the
-/// losers. Pops the winner only if `grant`.
+/// losers. Pops the winner only if `grant`; `more` is set if its link holds
+/// another entry.
 fn pick<T: Payload>(
     ctx: &mut Ctx,
     inputs: &PortArray<In<T>>,
     start: usize,
     grant: bool,
     conflicts: &mut u64,
+    more: &mut bool,
 ) -> Option<(usize, T)> {
     let n = inputs.len();
     if n <= 64 {
@@ -94,7 +96,9 @@ fn pick<T: Payload>(
         let hi = mask & (!0u64 << start);
         let k = if hi != 0 { hi } else { mask }.trailing_zeros() as usize;
         *conflicts += visible - 1;
-        return Some((k, ctx.pop(&inputs.at(k)).expect("visible")));
+        let v = ctx.pop(&inputs.at(k)).expect("visible");
+        *more |= ctx.holds_more(&inputs.at(k));
+        return Some((k, v));
     }
     let mut won = None;
     // `start..n` then `0..start`: the round-robin order without a division per input.
@@ -105,6 +109,7 @@ fn pick<T: Payload>(
         }
         if grant && won.is_none() {
             won = Some((k, ctx.pop(&inputs[k]).expect("peeked")));
+            *more |= ctx.holds_more(&inputs[k]);
         } else {
             *conflicts += 1;
         }
@@ -112,11 +117,14 @@ fn pick<T: Payload>(
     won
 }
 
+/// Moves the head of `inp` to the output its tag names: (moved, blocked); `more`
+/// is set if `inp` holds another entry.
 fn route<T: Payload>(
     ctx: &mut Ctx,
     inp: &In<T>,
     outs: &PortArray<Out<T>>,
     tag: impl Fn(&T) -> u16,
+    more: &mut bool,
 ) -> (bool, bool) {
     let Some(v) = ctx.peek(inp) else {
         return (false, false);
@@ -126,6 +134,7 @@ fn route<T: Payload>(
         return (false, true);
     }
     let v = ctx.pop(inp).expect("peeked");
+    *more |= ctx.holds_more(inp);
     ctx.push(&out, v);
     (true, false)
 }
@@ -145,13 +154,21 @@ impl Logic for TmXbar {
         let start = ctx.round_robin_start(self.tps as usize);
         let mut worked = false;
         let mut waiting = false;
+        // An input popped this cycle holds another entry.
+        let mut more = false;
         // This cycle's conflicts, per class (added to the stats at the end).
         let mut cf = [0u64; 6];
         // Responses back to their TPs.
         for (w, b) in [
-            route(ctx, &self.div_resp, &self.tp_div_resp, |r| r.tag),
-            route(ctx, &self.box_resp, &self.tp_box_resp, |r| r.tag),
-            route(ctx, &self.gmem_resp, &self.tp_gmem_resp, |r| r.id as u16),
+            route(ctx, &self.div_resp, &self.tp_div_resp, |r| r.tag, &mut more),
+            route(ctx, &self.box_resp, &self.tp_box_resp, |r| r.tag, &mut more),
+            route(
+                ctx,
+                &self.gmem_resp,
+                &self.tp_gmem_resp,
+                |r| r.id as u16,
+                &mut more,
+            ),
         ] {
             worked |= w;
             waiting |= b;
@@ -165,7 +182,8 @@ impl Logic for TmXbar {
         }
         let mut changed = [false; 8];
         for p in 0..self.tri_resp.len() {
-            let (w, b) = route(ctx, &self.tri_resp.at(p), &self.tp_tri_resp, |r| r.tag);
+            let tri = self.tri_resp.at(p);
+            let (w, b) = route(ctx, &tri, &self.tp_tri_resp, |r| r.tag, &mut more);
             if w {
                 outstanding[p] -= 1;
                 changed[p] = true;
@@ -177,7 +195,7 @@ impl Logic for TmXbar {
         macro_rules! forward {
             ($class:expr, $inputs:expr, $out:expr) => {{
                 let free = ctx.can_push(&$out);
-                if let Some((_, v)) = pick(ctx, &$inputs, start, free, &mut cf[$class]) {
+                if let Some((_, v)) = pick(ctx, &$inputs, start, free, &mut cf[$class], &mut more) {
                     ctx.push(&$out, v);
                     self.stats.grants[$class] += 1;
                     worked = true;
@@ -193,7 +211,8 @@ impl Logic for TmXbar {
         let target = (0..self.tri_req.len())
             .filter(|&p| ctx.can_push(&self.tri_req.at(p)))
             .min_by_key(|&p| (outstanding[p], p));
-        if let Some((_, v)) = pick(ctx, &self.tp_tri_req, start, target.is_some(), &mut cf[2]) {
+        let free = target.is_some();
+        if let Some((_, v)) = pick(ctx, &self.tp_tri_req, start, free, &mut cf[2], &mut more) {
             let p = target.expect("granted only with a target");
             ctx.push(&self.tri_req.at(p), v);
             outstanding[p] += 1;
@@ -230,6 +249,13 @@ impl Logic for TmXbar {
         flush_wait(s, c);
         for (k, n) in cf.iter().enumerate() {
             s.conflicts[k] += n;
+        }
+        if worked && !waiting && !more {
+            // Every visible head went this cycle and none is left behind one: until
+            // a push wakes it the crossbar would only find nothing, so it sleeps,
+            // waiting for input from the next cycle on.
+            ctx.set_status_from_next(Status::WaitInput);
+            return Next::Idle;
         }
         if worked { Next::Cycle } else { Next::Idle }
     }
