@@ -200,6 +200,8 @@ impl Logic for L1 {
         // us, so we sleep meanwhile (re-offering changes nothing).
         let mut waiting = false;
         let mut blocked = false;
+        // An input popped this cycle holds another entry (only a push wakes us).
+        let mut more = false;
         let L1Scratch {
             mut mshr,
             mut mshr_dirty,
@@ -221,6 +223,7 @@ impl Logic for L1 {
                 (0..n).all(|p| mshr[k].waiters & (1 << p) == 0 || ctx.can_push(&self.resp.at(p)));
             if ok {
                 ctx.pop(&self.miss_resp);
+                more |= ctx.holds_more(&self.miss_resp);
                 let slot = self.slot_of(f.addr);
                 self.tags.write(slot, f.addr + 1);
                 self.data.write(slot, f.line.clone());
@@ -294,6 +297,7 @@ impl Logic for L1 {
                 Some(line) => {
                     bank_busy[b] = true;
                     ctx.pop(&self.req.at(p));
+                    more |= ctx.holds_more(&self.req.at(p));
                     self.stats.hits += 1;
                     let due = c + (self.hit_latency - self.out_delay) as u64;
                     if due == c {
@@ -318,6 +322,7 @@ impl Logic for L1 {
                     };
                     bank_busy[b] = true;
                     ctx.pop(&self.req.at(p));
+                    more |= ctx.holds_more(&self.req.at(p));
                     self.stats.misses += 1;
                     if same.is_some() {
                         self.stats.merged += 1;
@@ -359,6 +364,7 @@ impl Logic for L1 {
                 blocked = true;
             }
         }
+        let unsent = mshr.iter().any(|m| m.valid && !m.sent);
         for (k, m) in mshr.drain(..).enumerate() {
             if mshr_dirty[k] {
                 self.mshr.write(k as u32, m);
@@ -382,7 +388,14 @@ impl Logic for L1 {
         } else {
             Status::WaitInput
         });
-        if worked || waiting {
+        if worked && !waiting && !blocked && !more && !unsent {
+            // Everything visible was served and nothing is left to send: the next
+            // cycle would find nothing to do but wait for the hits in the data
+            // array, a push or a line. Sleep till the first hit is due, waiting for
+            // input from the next cycle on.
+            ctx.set_status_from_next(Status::WaitInput);
+            next_due.map_or(Next::Idle, Next::AtCycle)
+        } else if worked || waiting {
             Next::Cycle
         } else if let Some(d) = next_due {
             Next::AtCycle(d)
