@@ -111,6 +111,9 @@ pub struct L2State {
     pub wb_queued: u32,
     /// Per client: answers in order, with the cycle they may leave.
     pub resp_q: Vec<VecDeque<(u64, MemLineResp)>>,
+    /// Bit k (of word k / 64) set while `resp_q[k]` holds an answer: the
+    /// answer stage looks at those clients only, not at every client's queue.
+    pub answering: Vec<u64>,
     /// Per client: requests accepted and not yet answered.
     pub outstanding: Vec<u32>,
     /// Dirty slots (the flush's priority encoder).
@@ -161,6 +164,7 @@ impl Behavioural for L2State {
         self.mem_busy.clear();
         self.wb_queued = 0;
         self.resp_q.iter_mut().for_each(|q| q.clear());
+        self.answering.iter_mut().for_each(|w| *w = 0);
         self.outstanding.iter_mut().for_each(|o| *o = 0);
         self.dirty.clear();
         self.flushing = None;
@@ -212,7 +216,13 @@ crate::unit! {
         in_arrays { req: MemLineReq, mem_resp: MemLineResp }
         out_arrays { resp: MemLineResp, mem_req: MemLineReq }
         state { st: Model<L2State> }
-        extra { out_delay: u32, stats: L2Stats, log: Option<Vec<L2Applied>>, bank_use: Vec<u64> }
+        extra {
+            out_delay: u32,
+            stats: L2Stats,
+            log: Option<Vec<L2Applied>>,
+            bank_use: Vec<u64>,
+            visible: Vec<u64>
+        }
     }
 }
 
@@ -220,6 +230,28 @@ crate::unit! {
 /// line address: those are multiples of the line size).
 const FREE: u64 = u64::MAX;
 const BUSY: u64 = u64::MAX - 1;
+
+/// `x / d`, a shift when `d` is a power of two (the cache geometry is, at the
+/// defaults): the L2 maps every address it sees, and 64-bit divisions showed in
+/// the profile.
+#[inline]
+fn div(x: u64, d: u64) -> u64 {
+    if d.is_power_of_two() {
+        x >> d.trailing_zeros()
+    } else {
+        x / d
+    }
+}
+
+/// `x % d`, a mask when `d` is a power of two.
+#[inline]
+fn rem(x: u64, d: u64) -> u64 {
+    if d.is_power_of_two() {
+        x & (d - 1)
+    } else {
+        x % d
+    }
+}
 
 /// Applies the masked bytes of a write to a line.
 fn merge(line: &mut Line, r: &MemLineReq) {
@@ -283,6 +315,7 @@ impl L2 {
                 mshrs: vec![None; cfg.mshrs as usize],
                 mshr_key: vec![0; cfg.mshrs as usize],
                 resp_q: vec![VecDeque::new(); n],
+                answering: vec![0; n.div_ceil(64)],
                 outstanding: vec![0; n],
                 ..L2State::default()
             }),
@@ -290,6 +323,7 @@ impl L2 {
             stats: L2Stats::default(),
             log: None,
             bank_use: Vec::new(),
+            visible: Vec::new(),
         }
     }
 
@@ -317,11 +351,11 @@ impl L2 {
         (self.bytes / self.line_bytes / self.ways) as u64
     }
     fn line_index(&self, addr: u64) -> u64 {
-        addr / self.line_bytes as u64
+        div(addr, self.line_bytes as u64)
     }
     /// The memory lane of a line (a function of its address only).
     fn lane_of(&self, addr: u64) -> usize {
-        (self.line_index(addr) % self.mem_lanes as u64) as usize
+        rem(self.line_index(addr), self.mem_lanes as u64) as usize
     }
     /// The bank of a line: its index modulo the banks, or (`chip.l2.bank_hash`)
     /// the XOR of all its bank-index-wide bit fields, so strided accesses (TM k
@@ -330,7 +364,7 @@ impl L2 {
         let line = self.line_index(addr);
         let b = self.banks as u64;
         if self.bank_hash == 0 || b == 1 {
-            return (line % b) as usize;
+            return rem(line, b) as usize;
         }
         let bits = 64 - (b - 1).leading_zeros();
         let (mut h, mut x) = (0u64, line);
@@ -338,16 +372,16 @@ impl L2 {
             h ^= x & ((1u64 << bits) - 1);
             x >>= bits;
         }
-        (h % b) as usize
+        rem(h, b) as usize
     }
     /// The set of a line: its bank's sets are `bank`, `bank + banks`, ... (so a
     /// slot's bank is its set mod banks), the one picked by the line index above
     /// the bank. Without the hash this is the line index modulo the sets.
     fn set_of(&self, addr: u64) -> usize {
         let b = self.banks as u64;
-        let per_bank = self.sets() / b;
+        let per_bank = div(self.sets(), b);
         let line = self.line_index(addr);
-        (((line / b) % per_bank) * b + self.bank_of(addr) as u64) as usize
+        (rem(div(line, b), per_bank) * b + self.bank_of(addr) as u64) as usize
     }
     fn slot_bank(&self, slot: u32) -> usize {
         (slot as usize / self.ways as usize) % self.banks as usize
@@ -406,6 +440,7 @@ impl L2 {
         } else {
             data = st.data[slot].clone();
         }
+        st.answering[port as usize / 64] |= 1 << (port % 64);
         st.resp_q[port as usize].push_back((
             due,
             MemLineResp {
@@ -564,24 +599,30 @@ impl Logic for L2 {
         }
         // 2. Answers whose time has come, one per client per cycle.
         let mut next_due: Option<u64> = None;
-        for p in 0..n {
-            let head = self.st.r().resp_q[p].front().map(|(d, _)| *d);
-            let Some(d) = head else { continue };
-            if d > c {
-                next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
-                continue;
-            }
-            if !ctx.can_push(&self.resp.at(p)) {
-                blocked = true;
-                continue;
-            }
-            let st = self.st.m();
-            let (_, r) = st.resp_q[p].pop_front().expect("head");
-            st.outstanding[p] -= 1;
-            ctx.push(&self.resp.at(p), r);
-            worked = true;
-            if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
-                next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
+        for w in 0..self.st.r().answering.len() {
+            let mut bits = self.st.r().answering[w];
+            while bits != 0 {
+                let p = w * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let head = self.st.r().resp_q[p].front().map(|(d, _)| *d);
+                let d = head.expect("a client marked answering has an answer queued");
+                if d > c {
+                    next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
+                    continue;
+                }
+                if !ctx.can_push(&self.resp.at(p)) {
+                    blocked = true;
+                    continue;
+                }
+                let st = self.st.m();
+                let (_, r) = st.resp_q[p].pop_front().expect("head");
+                st.outstanding[p] -= 1;
+                ctx.push(&self.resp.at(p), r);
+                worked = true;
+                match st.resp_q[p].front() {
+                    Some(&(d, _)) => next_due = Some(next_due.map_or(d, |x: u64| x.min(d))),
+                    None => st.answering[w] &= !(1 << (p % 64)),
+                }
             }
         }
         // 3. A flush request.
@@ -661,8 +702,11 @@ impl Logic for L2 {
         // (none while flushing).
         if self.st.r().flushing.is_none() {
             let start = ctx.round_robin_start(n);
-            for j in 0..n {
-                let p = (start + j) % n;
+            // The clients with a visible request, in round-robin order: a scan of
+            // their links' flags, not a peek at each of the clients.
+            let mut visible = std::mem::take(&mut self.visible);
+            ctx.visible_words(&self.req, &mut visible);
+            for p in crate::rtl::round_robin(&visible, start) {
                 let Some(r) = ctx.peek(&self.req.at(p)).cloned() else {
                     continue;
                 };
@@ -691,6 +735,7 @@ impl Logic for L2 {
                     waiting = true;
                 }
             }
+            self.visible = visible;
         } else if self.req.iter().any(|q| ctx.peek(q).is_some()) {
             waiting = true;
         }
