@@ -150,6 +150,25 @@ pub struct TpCosts {
 /// Number of costed TP states (`TpCosts::all`).
 pub const COSTS: usize = 15;
 
+/// The computing states' names, in [`TpCosts::all`] order (the TP's counters).
+pub const COST_NAMES: [&str; COSTS] = [
+    "fetch",
+    "init",
+    "pop",
+    "exit",
+    "node_fetch",
+    "box_issue",
+    "node_push",
+    "tri_fetch",
+    "tri_issue",
+    "tri_result",
+    "finish",
+    "shade_load",
+    "shade",
+    "shade_emit",
+    "shade_store",
+];
+
 impl Default for TpCosts {
     fn default() -> Self {
         // [int, int_mul, fp_add, fp_mul, fp_cmp, branch, load, store]
@@ -177,23 +196,30 @@ impl Default for TpCosts {
 
 impl TpCosts {
     pub fn all(&self) -> [(&'static str, &StateCost); COSTS] {
-        [
-            ("fetch", &self.fetch),
-            ("init", &self.init),
-            ("pop", &self.pop),
-            ("exit", &self.exit),
-            ("node_fetch", &self.node_fetch),
-            ("box_issue", &self.box_issue),
-            ("node_push", &self.node_push),
-            ("tri_fetch", &self.tri_fetch),
-            ("tri_issue", &self.tri_issue),
-            ("tri_result", &self.tri_result),
-            ("finish", &self.finish),
-            ("shade_load", &self.shade_load),
-            ("shade", &self.shade),
-            ("shade_emit", &self.shade_emit),
-            ("shade_store", &self.shade_store),
-        ]
+        let c = [
+            &self.fetch,
+            &self.init,
+            &self.pop,
+            &self.exit,
+            &self.node_fetch,
+            &self.box_issue,
+            &self.node_push,
+            &self.tri_fetch,
+            &self.tri_issue,
+            &self.tri_result,
+            &self.finish,
+            &self.shade_load,
+            &self.shade,
+            &self.shade_emit,
+            &self.shade_store,
+        ];
+        std::array::from_fn(|k| (COST_NAMES[k], c[k]))
+    }
+
+    /// The index of the state named `name` in [`TpCosts::all`] (and in
+    /// `TpStats::uses`).
+    pub fn index_of(name: &str) -> Option<usize> {
+        COST_NAMES.iter().position(|&n| n == name)
     }
 }
 

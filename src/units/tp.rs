@@ -229,6 +229,44 @@ pub struct TpStats {
     pub gmem_wait: u64,
 }
 
+impl TpStats {
+    /// Adds another TP's additive counters (all but `max_stack`, `first_ray` and
+    /// `last_finish`) to these.
+    pub fn add(&mut self, o: &TpStats) {
+        for (a, b) in self.uses.iter_mut().zip(o.uses) {
+            *a += b;
+        }
+        for (a, b) in self.wait.iter_mut().zip(o.wait) {
+            *a += b;
+        }
+        for (a, b) in self.stall.iter_mut().zip(o.stall) {
+            *a += b;
+        }
+        self.rays += o.rays;
+        self.box_tests += o.box_tests;
+        self.tri_tests += o.tri_tests;
+        self.exits += o.exits;
+        self.hits += o.hits;
+        self.tri_hits += o.tri_hits;
+        self.l1_loads += o.l1_loads;
+        self.blocked += o.blocked;
+        self.shade_items += o.shade_items;
+        self.shade_hits += o.shade_hits;
+        self.shade_occluded += o.shade_occluded;
+        self.shade_rays += o.shade_rays;
+        self.shade_shadow_rays += o.shade_shadow_rays;
+        self.gmem_reads += o.gmem_reads;
+        self.gmem_writes += o.gmem_writes;
+        self.gmem_wait += o.gmem_wait;
+    }
+
+    /// Actions of the computing state named `name` (see `tm::COST_NAMES`).
+    pub fn uses_of(&self, name: &str) -> u64 {
+        let k = super::tm::TpCosts::index_of(name).expect("a computing state's name");
+        self.uses[k]
+    }
+}
+
 fn vec3_at(l: &Line, off: usize) -> Vec3 {
     Vec3::new(l.f32_at(off), l.f32_at(off + 4), l.f32_at(off + 8))
 }
