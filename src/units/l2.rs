@@ -45,7 +45,8 @@
 //!   then answers on `flush_done`. The chip flushes after every run so the host
 //!   reads DRAM; it invalidates when the host may write DRAM between runs.
 
-use std::collections::{BTreeSet, VecDeque};
+use std::collections::{BTreeSet, HashMap, VecDeque};
+use std::hash::{BuildHasherDefault, Hasher};
 
 use crate::machine::config::L2Cfg;
 use crate::mem::StreamTag;
@@ -103,6 +104,13 @@ pub struct L2State {
     /// of these 8-byte words (64 at the defaults) is a few cache lines, where
     /// `mshrs`' own entries are four times wider.
     pub mshr_key: Vec<u64>,
+    /// The live MSHRs by line address, and a bit per free one (bit k of word
+    /// k / 64): while the MSHRs are full every waiting client retries every
+    /// cycle, and two scans of `mshr_key` per client (is the line missing
+    /// already, which MSHR is free) were half of a shading window's time at the
+    /// paper's size. Kept beside `mshr_key`, which stays the hardware's view.
+    pub mshr_index: HashMap<u64, u32, BuildHasherDefault<LineHasher>>,
+    pub mshr_free: Vec<u64>,
     /// Requests towards the memory, in order.
     pub out_q: VecDeque<MemLineReq>,
     /// Lines with a request at the memory.
@@ -124,10 +132,25 @@ pub struct L2State {
 
 impl L2State {
     fn mshr_of(&self, addr: u64) -> Option<usize> {
-        self.mshr_key.iter().position(|&k| k == addr + 1)
+        self.mshr_index.get(&addr).map(|&k| k as usize)
     }
     pub fn live_mshrs(&self) -> usize {
-        self.mshr_key.iter().filter(|&&k| k != 0).count()
+        self.mshr_index.len()
+    }
+    /// The lowest free MSHR.
+    fn free_mshr(&self) -> Option<usize> {
+        let w = self.mshr_free.iter().position(|&w| w != 0)?;
+        Some(w * 64 + self.mshr_free[w].trailing_zeros() as usize)
+    }
+    fn take_mshr(&mut self, k: usize, addr: u64) {
+        self.mshr_key[k] = addr + 1;
+        self.mshr_index.insert(addr, k as u32);
+        self.mshr_free[k / 64] &= !(1 << (k % 64));
+    }
+    fn release_mshr(&mut self, k: usize) {
+        self.mshr_index.remove(&(self.mshr_key[k] - 1));
+        self.mshr_key[k] = 0;
+        self.mshr_free[k / 64] |= 1 << (k % 64);
     }
     /// Nothing held: no miss, no memory request, no answer, no flush.
     pub fn idle(&self) -> bool {
@@ -160,6 +183,8 @@ impl Behavioural for L2State {
         self.data.iter_mut().for_each(|d| *d = Line::default());
         self.mshrs.iter_mut().for_each(|m| *m = None);
         self.mshr_key.iter_mut().for_each(|k| *k = 0);
+        self.mshr_index.clear();
+        self.mshr_free = free_bits(self.mshr_key.len());
         self.out_q.clear();
         self.mem_busy.clear();
         self.wb_queued = 0;
@@ -230,6 +255,36 @@ crate::unit! {
 /// line address: those are multiples of the line size).
 const FREE: u64 = u64::MAX;
 const BUSY: u64 = u64::MAX - 1;
+
+/// `n` MSHRs, all free (see `L2State::mshr_free`).
+fn free_bits(n: usize) -> Vec<u64> {
+    (0..n.div_ceil(64))
+        .map(|w| match n - w * 64 {
+            r if r >= 64 => u64::MAX,
+            r => (1u64 << r) - 1,
+        })
+        .collect()
+}
+
+/// Hashes a line address for `L2State::mshr_index`: the line index times an
+/// odd constant (SipHash, the default, is built to resist attacks this table
+/// never sees, at several times the cost).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LineHasher(u64);
+
+impl Hasher for LineHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ b as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (x >> 6).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+}
 
 /// `x / d`, a shift when `d` is a power of two (the cache geometry is, at the
 /// defaults): the L2 maps every address it sees, and 64-bit divisions showed in
@@ -314,6 +369,7 @@ impl L2 {
                 data: vec![Line::default(); lines],
                 mshrs: vec![None; cfg.mshrs as usize],
                 mshr_key: vec![0; cfg.mshrs as usize],
+                mshr_free: free_bits(cfg.mshrs as usize),
                 resp_q: vec![VecDeque::new(); n],
                 answering: vec![0; n.div_ceil(64)],
                 outstanding: vec![0; n],
@@ -470,7 +526,7 @@ impl L2 {
             .expect("a line comes back only for a miss register");
         let st = self.st.m();
         let m = st.mshrs[k].take().expect("live");
-        st.mshr_key[k] = 0;
+        st.release_mshr(k);
         let slot = self.victim(f.addr);
         self.evict(slot);
         let st = self.st.m();
@@ -527,12 +583,12 @@ impl L2 {
             self.apply(slot, port, c, r.clone(), due);
             self.stats.misses += 1;
         } else {
-            let Some(k) = self.st.r().mshr_key.iter().position(|&k| k == 0) else {
+            let Some(k) = self.st.r().free_mshr() else {
                 self.stats.mshr_stalls += 1;
                 return false;
             };
             let st = self.st.m();
-            st.mshr_key[k] = addr + 1;
+            st.take_mshr(k, addr);
             st.mshrs[k] = Some(L2Mshr {
                 targets: vec![(port, c, r.clone())],
             });
