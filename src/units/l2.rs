@@ -763,11 +763,13 @@ impl Logic for L2 {
             let mut visible = std::mem::take(&mut self.visible);
             ctx.visible_words(&self.req, &mut visible);
             for p in crate::rtl::round_robin(&visible, start) {
-                let Some(r) = ctx.peek(&self.req.at(p)).cloned() else {
+                // Not cloned (a request carries a line): most of them only wait.
+                let Some(r) = ctx.peek(&self.req.at(p)) else {
                     continue;
                 };
-                let b = self.bank_of(r.addr);
-                let combined = !r.write && self.combine_reads != 0 && bank[b] == r.addr;
+                let (addr, write) = (r.addr, r.write);
+                let b = self.bank_of(addr);
+                let combined = !write && self.combine_reads != 0 && bank[b] == addr;
                 if bank[b] != FREE && !combined {
                     self.stats.bank_conflicts += 1;
                     waiting = true;
@@ -777,12 +779,12 @@ impl Logic for L2 {
                     waiting = true;
                     continue;
                 }
-                if self.access(p, &r, c) {
+                if self.access(p, r, c) {
                     ctx.pop(&self.req.at(p));
                     if combined {
                         self.stats.combined += 1;
                     }
-                    bank[b] = if r.write { BUSY } else { r.addr };
+                    bank[b] = if write { BUSY } else { addr };
                     worked = true;
                     if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
                         next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
