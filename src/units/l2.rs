@@ -246,7 +246,8 @@ crate::unit! {
             stats: L2Stats,
             log: Option<Vec<L2Applied>>,
             bank_use: Vec<u64>,
-            visible: Vec<u64>
+            visible: Vec<u64>,
+            heads: Vec<Option<ReqHead>>
         }
     }
 }
@@ -255,6 +256,31 @@ crate::unit! {
 /// line address: those are multiples of the line size).
 const FREE: u64 = u64::MAX;
 const BUSY: u64 = u64::MAX - 1;
+
+/// How `L2::admit` would take a request.
+#[derive(Clone, Copy, Debug)]
+enum Admit {
+    /// Joins the miss of MSHR k.
+    Merge(usize),
+    /// Hits in this slot.
+    Hit(usize),
+    /// A whole-line write allocated in this slot.
+    Allocate(usize),
+    /// A new miss in MSHR k.
+    Miss(usize),
+}
+
+/// What a client's request at the head of its link asks, as far as `L2::admit`
+/// needs. Simulation bookkeeping, not hardware: the head stays the same until
+/// the L2 pops it (a link's payload does not change), so it is read from the
+/// link once; while the MSHRs are full 128 waiting clients were otherwise 128
+/// links visited every cycle.
+#[derive(Clone, Copy, Debug)]
+pub struct ReqHead {
+    addr: u64,
+    write: bool,
+    whole: bool,
+}
 
 /// `n` MSHRs, all free (see `L2State::mshr_free`).
 fn free_bits(n: usize) -> Vec<u64> {
@@ -380,6 +406,7 @@ impl L2 {
             log: None,
             bank_use: Vec::new(),
             visible: Vec::new(),
+            heads: vec![None; n],
         }
     }
 
@@ -545,59 +572,73 @@ impl L2 {
     }
 
     /// One client request in cycle `c`: true if accepted.
-    fn access(&mut self, p: usize, r: &MemLineReq, c: u64) -> bool {
+    /// How a request for `addr` would be taken this cycle (`whole`: it writes
+    /// the whole line), or `None` if it must wait for an MSHR, a target or a
+    /// writeback entry. Decided on the line alone, so a waiting request is
+    /// judged without reading it from its link again.
+    fn admit(&self, addr: u64, whole: bool) -> Option<Admit> {
+        let st = self.st.r();
+        if let Some(k) = st.mshr_of(addr) {
+            let m = st.mshrs[k].as_ref().expect("live");
+            return (m.targets.len() < self.targets as usize).then_some(Admit::Merge(k));
+        }
+        if let Some(slot) = self.find(addr) {
+            return Some(Admit::Hit(slot));
+        }
+        if whole {
+            // Write-allocate: the whole line is written, nothing to read.
+            let slot = self.victim(addr);
+            let t = st.tags[slot];
+            if t.tag != 0 && t.dirty && st.wb_queued >= self.writebacks {
+                return None;
+            }
+            return Some(Admit::Allocate(slot));
+        }
+        st.free_mshr().map(Admit::Miss)
+    }
+
+    /// Takes client `p`'s request `r` in cycle `c` the way `admit` decided.
+    fn take(&mut self, p: usize, r: &MemLineReq, c: u64, how: Admit) {
         let due = c + (self.hit_latency - self.out_delay) as u64;
         let addr = r.addr;
         let port = p as u16;
-        if let Some(k) = self.st.r().mshr_of(addr) {
-            let m = self.st.r().mshrs[k].as_ref().expect("live");
-            if m.targets.len() >= self.targets as usize {
-                self.stats.mshr_stalls += 1;
-                return false;
+        match how {
+            Admit::Merge(k) => {
+                self.st.m().mshrs[k]
+                    .as_mut()
+                    .expect("live")
+                    .targets
+                    .push((port, c, r.clone()));
+                self.stats.misses += 1;
+                self.stats.merges += 1;
             }
-            self.st.m().mshrs[k]
-                .as_mut()
-                .expect("live")
-                .targets
-                .push((port, c, r.clone()));
-            self.stats.misses += 1;
-            self.stats.merges += 1;
-        } else if let Some(slot) = self.find(addr) {
-            self.apply(slot, port, c, r.clone(), due);
-            self.stats.hits += 1;
-        } else if r.write && r.mask == u64::MAX {
-            // Write-allocate: the whole line is written, nothing to read.
-            let slot = self.victim(addr);
-            let t = self.st.r().tags[slot];
-            if t.tag != 0 && t.dirty && self.st.r().wb_queued >= self.writebacks {
-                self.stats.mshr_stalls += 1;
-                return false;
+            Admit::Hit(slot) => {
+                self.apply(slot, port, c, r.clone(), due);
+                self.stats.hits += 1;
             }
-            self.evict(slot);
-            self.st.m().tags[slot] = L2Tag {
-                tag: addr + 1,
-                dirty: false,
-                stamp: 0,
-                mtag: r.tag,
-            };
-            self.apply(slot, port, c, r.clone(), due);
-            self.stats.misses += 1;
-        } else {
-            let Some(k) = self.st.r().free_mshr() else {
-                self.stats.mshr_stalls += 1;
-                return false;
-            };
-            let st = self.st.m();
-            st.take_mshr(k, addr);
-            st.mshrs[k] = Some(L2Mshr {
-                targets: vec![(port, c, r.clone())],
-            });
-            st.out_q.push_back(MemLineReq::read(addr, r.tag, k as u32));
-            self.stats.misses += 1;
+            Admit::Allocate(slot) => {
+                self.evict(slot);
+                self.st.m().tags[slot] = L2Tag {
+                    tag: addr + 1,
+                    dirty: false,
+                    stamp: 0,
+                    mtag: r.tag,
+                };
+                self.apply(slot, port, c, r.clone(), due);
+                self.stats.misses += 1;
+            }
+            Admit::Miss(k) => {
+                let st = self.st.m();
+                st.take_mshr(k, addr);
+                st.mshrs[k] = Some(L2Mshr {
+                    targets: vec![(port, c, r.clone())],
+                });
+                st.out_q.push_back(MemLineReq::read(addr, r.tag, k as u32));
+                self.stats.misses += 1;
+            }
         }
         self.st.m().outstanding[p] += 1;
         self.stats.accesses += 1;
-        true
     }
 
     /// The first request in `out_q` for lane `lane` whose line has nothing at
@@ -763,11 +804,22 @@ impl Logic for L2 {
             let mut visible = std::mem::take(&mut self.visible);
             ctx.visible_words(&self.req, &mut visible);
             for p in crate::rtl::round_robin(&visible, start) {
-                // Not cloned (a request carries a line): most of them only wait.
-                let Some(r) = ctx.peek(&self.req.at(p)) else {
-                    continue;
+                // What the head asks, read from the link once (see `ReqHead`): a
+                // request that waits is judged on this alone, every cycle.
+                let h = match self.heads[p] {
+                    Some(h) => h,
+                    None => {
+                        let r = ctx.peek(&self.req.at(p)).expect("visible");
+                        let h = ReqHead {
+                            addr: r.addr,
+                            write: r.write,
+                            whole: r.write && r.mask == u64::MAX,
+                        };
+                        self.heads[p] = Some(h);
+                        h
+                    }
                 };
-                let (addr, write) = (r.addr, r.write);
+                let (addr, write) = (h.addr, h.write);
                 let b = self.bank_of(addr);
                 let combined = !write && self.combine_reads != 0 && bank[b] == addr;
                 if bank[b] != FREE && !combined {
@@ -779,8 +831,16 @@ impl Logic for L2 {
                     waiting = true;
                     continue;
                 }
-                if self.access(p, r, c) {
+                let Some(how) = self.admit(addr, h.whole) else {
+                    self.stats.mshr_stalls += 1;
+                    waiting = true;
+                    continue;
+                };
+                {
+                    let r = ctx.peek(&self.req.at(p)).expect("visible");
+                    self.take(p, r, c, how);
                     ctx.pop(&self.req.at(p));
+                    self.heads[p] = None;
                     if combined {
                         self.stats.combined += 1;
                     }
@@ -789,8 +849,6 @@ impl Logic for L2 {
                     if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
                         next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
                     }
-                } else {
-                    waiting = true;
                 }
             }
             self.visible = visible;
@@ -850,6 +908,8 @@ impl Logic for L2 {
     }
 
     fn reset_counters(&mut self) {
+        // With the design's reset: the links are empty again.
+        self.heads.iter_mut().for_each(|h| *h = None);
         self.stats = L2Stats::default();
         if let Some(l) = &mut self.log {
             l.clear();
