@@ -88,7 +88,9 @@ pub trait Payload: Clone + std::fmt::Debug + PartialEq + Send + 'static {
         None
     }
     /// Bit-exact equality (NaN payloads equal themselves, +0 and -0 differ), which is
-    /// what "the value did not change" means for hardware.
+    /// what "the value did not change" means for hardware. The packings compared;
+    /// the kernel's own payloads override it with the same answer without packing
+    /// (a link monitor asks it every time a refused offer is repeated).
     fn same_bits(&self, other: &Self) -> bool {
         // Link monitors call this every cycle a refused offer is repeated: pack into
         // two per-thread scratch vectors instead of allocating (`pack` never calls
@@ -120,6 +122,9 @@ macro_rules! uint_payload {
             fn pack(&self, out: &mut Bits) {
                 out.push(*self as u64, Self::BITS);
             }
+            fn same_bits(&self, other: &Self) -> bool {
+                self == other
+            }
         }
     )*};
 }
@@ -130,12 +135,18 @@ impl Payload for bool {
     fn pack(&self, out: &mut Bits) {
         out.push(*self as u64, 1);
     }
+    fn same_bits(&self, other: &Self) -> bool {
+        self == other
+    }
 }
 
 impl Payload for f32 {
     const BITS: u32 = 32;
     fn pack(&self, out: &mut Bits) {
         out.push(self.to_bits() as u64, 32);
+    }
+    fn same_bits(&self, other: &Self) -> bool {
+        self.to_bits() == other.to_bits()
     }
 }
 
@@ -145,6 +156,9 @@ impl Payload for Vec3 {
         self.x.pack(out);
         self.y.pack(out);
         self.z.pack(out);
+    }
+    fn same_bits(&self, o: &Self) -> bool {
+        self.x.same_bits(&o.x) && self.y.same_bits(&o.y) && self.z.same_bits(&o.z)
     }
 }
 
@@ -168,6 +182,13 @@ impl<T: Payload> Payload for Option<T> {
             }
         }
     }
+    fn same_bits(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Some(a), Some(b)) => a.same_bits(b),
+            (None, None) => true,
+            _ => false,
+        }
+    }
 }
 
 /// Declares a struct payload whose width is the sum of its fields' widths and whose
@@ -182,6 +203,12 @@ macro_rules! payload_struct {
             const BITS: u32 = 0 $(+ <$t as $crate::rtl::bits::Payload>::BITS)*;
             fn pack(&self, out: &mut $crate::rtl::bits::Bits) {
                 $($crate::rtl::bits::Payload::pack(&self.$f, out);)*
+            }
+            // Field by field: each packs to its fixed width, so the packings are
+            // equal exactly when every field's are.
+            #[allow(unused_variables)]
+            fn same_bits(&self, other: &Self) -> bool {
+                true $(&& $crate::rtl::bits::Payload::same_bits(&self.$f, &other.$f))*
             }
         }
     };
@@ -200,6 +227,9 @@ macro_rules! fsm_states {
             const BITS: u32 = $crate::rtl::bits::clog2_u32([stringify!($first) $(, stringify!($rest))*].len() as u32);
             fn pack(&self, out: &mut $crate::rtl::bits::Bits) {
                 out.push(*self as u64, Self::BITS);
+            }
+            fn same_bits(&self, other: &Self) -> bool {
+                self == other
             }
             fn enum_names() -> Option<&'static [&'static str]> {
                 Some(&[stringify!($first) $(, stringify!($rest))*])
@@ -267,6 +297,84 @@ mod tests {
         assert_eq!(b.get(60, 8), 0xFF);
         assert_eq!(b.get(68, 64), u64::MAX);
         assert_eq!(b.get(0, 60), 1);
+    }
+
+    /// Every `same_bits` override answers what comparing the packings would.
+    #[test]
+    fn same_bits_is_equality_of_the_packings() {
+        fn check<T: Payload>(pairs: &[(T, T)]) {
+            for (a, b) in pairs {
+                let packed_equal = packed(a).words == packed(b).words;
+                assert_eq!(a.same_bits(b), packed_equal, "{a:?} vs {b:?}");
+                assert!(a.same_bits(a), "{a:?} vs itself");
+            }
+        }
+        let nan = f32::from_bits(0x7fc0_0001);
+        check(&[(0.0f32, -0.0), (nan, nan), (nan, f32::NAN), (1.5, 1.5)]);
+        check(&[(Some(0.0f32), None), (None, None), (Some(-0.0), Some(0.0))]);
+        check(&[(Some(0u32), None), (Some(7u32), Some(7))]);
+        check(&[
+            (Vec3::new(0.0, 1.0, 2.0), Vec3::new(-0.0, 1.0, 2.0)),
+            (Vec3::new(nan, 1.0, 2.0), Vec3::new(nan, 1.0, 2.0)),
+        ]);
+        crate::payload_struct! {
+            struct P { a: u8, b: Option<f32>, c: bool }
+        }
+        check(&[
+            (
+                P {
+                    a: 1,
+                    b: Some(0.0),
+                    c: true,
+                },
+                P {
+                    a: 1,
+                    b: Some(-0.0),
+                    c: true,
+                },
+            ),
+            (
+                P {
+                    a: 1,
+                    b: None,
+                    c: false,
+                },
+                P {
+                    a: 1,
+                    b: None,
+                    c: false,
+                },
+            ),
+            (
+                P {
+                    a: 1,
+                    b: None,
+                    c: false,
+                },
+                P {
+                    a: 2,
+                    b: None,
+                    c: false,
+                },
+            ),
+        ]);
+        let hit = |t: f32| crate::contract::HitRec {
+            t,
+            tri_id: 3,
+            u: 0.25,
+            v: 0.5,
+        };
+        check(&[
+            (hit(0.0), hit(-0.0)),
+            (hit(nan), hit(nan)),
+            (hit(1.0), hit(1.0)),
+        ]);
+        let mut l = crate::units::l1::Line::default();
+        l.0[63] = 1;
+        check(&[
+            (l.clone(), crate::units::l1::Line::default()),
+            (l.clone(), l),
+        ]);
     }
 
     #[test]

@@ -33,6 +33,9 @@ impl Payload for Line {
             out.push(u64::from_le_bytes(w.try_into().expect("8 bytes")), 64);
         }
     }
+    fn same_bits(&self, other: &Self) -> bool {
+        self.0 == other.0
+    }
 }
 
 impl Line {

@@ -40,6 +40,12 @@ impl Payload for RayRec {
         self.ray_id.pack(out);
         self.entry.pack(out);
     }
+    fn same_bits(&self, o: &Self) -> bool {
+        self.origin.same_bits(&o.origin)
+            && self.dir.same_bits(&o.dir)
+            && self.ray_id == o.ray_id
+            && self.entry == o.entry
+    }
 }
 
 impl Payload for HitRec {
@@ -49,6 +55,12 @@ impl Payload for HitRec {
         self.tri_id.pack(out);
         self.u.pack(out);
         self.v.pack(out);
+    }
+    fn same_bits(&self, o: &Self) -> bool {
+        self.t.same_bits(&o.t)
+            && self.tri_id == o.tri_id
+            && self.u.same_bits(&o.u)
+            && self.v.same_bits(&o.v)
     }
 }
 
