@@ -317,46 +317,11 @@ mod tests {
             (Vec3::new(0.0, 1.0, 2.0), Vec3::new(-0.0, 1.0, 2.0)),
             (Vec3::new(nan, 1.0, 2.0), Vec3::new(nan, 1.0, 2.0)),
         ]);
-        crate::payload_struct! {
-            struct P { a: u8, b: Option<f32>, c: bool }
-        }
+        let pair = |a: u8, b: f32| Pair { a, b, c: true };
         check(&[
-            (
-                P {
-                    a: 1,
-                    b: Some(0.0),
-                    c: true,
-                },
-                P {
-                    a: 1,
-                    b: Some(-0.0),
-                    c: true,
-                },
-            ),
-            (
-                P {
-                    a: 1,
-                    b: None,
-                    c: false,
-                },
-                P {
-                    a: 1,
-                    b: None,
-                    c: false,
-                },
-            ),
-            (
-                P {
-                    a: 1,
-                    b: None,
-                    c: false,
-                },
-                P {
-                    a: 2,
-                    b: None,
-                    c: false,
-                },
-            ),
+            (pair(1, 0.0), pair(1, -0.0)),
+            (pair(1, nan), pair(1, nan)),
+            (pair(1, 0.0), pair(2, 0.0)),
         ]);
         let hit = |t: f32| crate::contract::HitRec {
             t,

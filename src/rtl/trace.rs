@@ -168,12 +168,12 @@ impl Tracer {
         Tracer::new(Box::new(f), spec)
     }
 
-    /// Selects the units to trace and writes the header.
     /// The simulator's indices of the units bound (`bind`).
     pub(crate) fn unit_indices(&self) -> impl Iterator<Item = usize> + '_ {
         self.units.iter().map(|u| u.index)
     }
 
+    /// Selects the units to trace and writes the header.
     pub(crate) fn bind(&mut self, units: &[(&str, &dyn Unit, &Clock)]) -> Result<(), String> {
         let mut chosen = Vec::new();
         for (i, (path, u, clk)) in units.iter().enumerate() {

@@ -78,7 +78,7 @@ pub struct L2Tag {
 }
 
 /// A miss register's targets (client, cycle accepted, request); its line is
-/// `L2State::mshr_key`.
+/// its key in `L2State::mshr_index`.
 #[derive(Clone, Debug)]
 pub struct L2Mshr {
     pub targets: Vec<(u16, u64, MemLineReq)>,
@@ -99,16 +99,11 @@ pub struct L2State {
     pub tags: Vec<L2Tag>,
     pub data: Vec<Line>,
     pub mshrs: Vec<Option<L2Mshr>>,
-    /// Beside `mshrs` (same positions): the live one's line address + 1, 0 for
-    /// a free one (the line is kept here only). Every access and fill looks a line up among the MSHRs; a scan
-    /// of these 8-byte words (64 at the defaults) is a few cache lines, where
-    /// `mshrs`' own entries are four times wider.
-    pub mshr_key: Vec<u64>,
-    /// The live MSHRs by line address, and a bit per free one (bit k of word
-    /// k / 64): while the MSHRs are full every waiting client retries every
-    /// cycle, and two scans of `mshr_key` per client (is the line missing
-    /// already, which MSHR is free) were half of a shading window's time at the
-    /// paper's size. Kept beside `mshr_key`, which stays the hardware's view.
+    /// The live MSHRs by line address (the MSHRs' address CAM), and a bit per
+    /// free one (bit k of word k / 64): while the MSHRs are full every waiting
+    /// client retries every cycle, and two scans of the MSHRs per client (is the
+    /// line missing already, which one is free) were half of a shading window's
+    /// time at the paper's size.
     pub mshr_index: HashMap<u64, u32, BuildHasherDefault<LineHasher>>,
     pub mshr_free: Vec<u64>,
     /// Requests towards the memory, in order.
@@ -143,13 +138,11 @@ impl L2State {
         Some(w * 64 + self.mshr_free[w].trailing_zeros() as usize)
     }
     fn take_mshr(&mut self, k: usize, addr: u64) {
-        self.mshr_key[k] = addr + 1;
         self.mshr_index.insert(addr, k as u32);
         self.mshr_free[k / 64] &= !(1 << (k % 64));
     }
-    fn release_mshr(&mut self, k: usize) {
-        self.mshr_index.remove(&(self.mshr_key[k] - 1));
-        self.mshr_key[k] = 0;
+    fn release_mshr(&mut self, k: usize, addr: u64) {
+        self.mshr_index.remove(&addr);
         self.mshr_free[k / 64] |= 1 << (k % 64);
     }
     /// Nothing held: no miss, no memory request, no answer, no flush.
@@ -182,9 +175,8 @@ impl Behavioural for L2State {
         self.tags.iter_mut().for_each(|t| *t = L2Tag::default());
         self.data.iter_mut().for_each(|d| *d = Line::default());
         self.mshrs.iter_mut().for_each(|m| *m = None);
-        self.mshr_key.iter_mut().for_each(|k| *k = 0);
         self.mshr_index.clear();
-        self.mshr_free = free_bits(self.mshr_key.len());
+        self.mshr_free = free_bits(self.mshrs.len());
         self.out_q.clear();
         self.mem_busy.clear();
         self.wb_queued = 0;
@@ -246,8 +238,7 @@ crate::unit! {
             stats: L2Stats,
             log: Option<Vec<L2Applied>>,
             bank_use: Vec<u64>,
-            visible: Vec<u64>,
-            heads: Vec<Option<ReqHead>>
+            visible: Vec<u64>
         }
     }
 }
@@ -268,18 +259,6 @@ enum Admit {
     Allocate(usize),
     /// A new miss in MSHR k.
     Miss(usize),
-}
-
-/// What a client's request at the head of its link asks, as far as `L2::admit`
-/// needs. Simulation bookkeeping, not hardware: the head stays the same until
-/// the L2 pops it (a link's payload does not change), so it is read from the
-/// link once; while the MSHRs are full 128 waiting clients were otherwise 128
-/// links visited every cycle.
-#[derive(Clone, Copy, Debug)]
-pub struct ReqHead {
-    addr: u64,
-    write: bool,
-    whole: bool,
 }
 
 /// `n` MSHRs, all free (see `L2State::mshr_free`).
@@ -394,7 +373,6 @@ impl L2 {
                 tags: vec![L2Tag::default(); lines],
                 data: vec![Line::default(); lines],
                 mshrs: vec![None; cfg.mshrs as usize],
-                mshr_key: vec![0; cfg.mshrs as usize],
                 mshr_free: free_bits(cfg.mshrs as usize),
                 resp_q: vec![VecDeque::new(); n],
                 answering: vec![0; n.div_ceil(64)],
@@ -406,7 +384,6 @@ impl L2 {
             log: None,
             bank_use: Vec::new(),
             visible: Vec::new(),
-            heads: vec![None; n],
         }
     }
 
@@ -553,7 +530,7 @@ impl L2 {
             .expect("a line comes back only for a miss register");
         let st = self.st.m();
         let m = st.mshrs[k].take().expect("live");
-        st.release_mshr(k);
+        st.release_mshr(k, f.addr);
         let slot = self.victim(f.addr);
         self.evict(slot);
         let st = self.st.m();
@@ -571,11 +548,9 @@ impl L2 {
         }
     }
 
-    /// One client request in cycle `c`: true if accepted.
     /// How a request for `addr` would be taken this cycle (`whole`: it writes
     /// the whole line), or `None` if it must wait for an MSHR, a target or a
-    /// writeback entry. Decided on the line alone, so a waiting request is
-    /// judged without reading it from its link again.
+    /// writeback entry. A waiting request is judged without copying it.
     fn admit(&self, addr: u64, whole: bool) -> Option<Admit> {
         let st = self.st.r();
         if let Some(k) = st.mshr_of(addr) {
@@ -804,22 +779,9 @@ impl Logic for L2 {
             let mut visible = std::mem::take(&mut self.visible);
             ctx.visible_words(&self.req, &mut visible);
             for p in crate::rtl::round_robin(&visible, start) {
-                // What the head asks, read from the link once (see `ReqHead`): a
-                // request that waits is judged on this alone, every cycle.
-                let h = match self.heads[p] {
-                    Some(h) => h,
-                    None => {
-                        let r = ctx.peek(&self.req.at(p)).expect("visible");
-                        let h = ReqHead {
-                            addr: r.addr,
-                            write: r.write,
-                            whole: r.write && r.mask == u64::MAX,
-                        };
-                        self.heads[p] = Some(h);
-                        h
-                    }
-                };
-                let (addr, write) = (h.addr, h.write);
+                // Not cloned (a request carries a line): most of them only wait.
+                let r = ctx.peek(&self.req.at(p)).expect("visible");
+                let (addr, write, whole) = (r.addr, r.write, r.write && r.mask == u64::MAX);
                 let b = self.bank_of(addr);
                 let combined = !write && self.combine_reads != 0 && bank[b] == addr;
                 if bank[b] != FREE && !combined {
@@ -831,24 +793,20 @@ impl Logic for L2 {
                     waiting = true;
                     continue;
                 }
-                let Some(how) = self.admit(addr, h.whole) else {
+                let Some(how) = self.admit(addr, whole) else {
                     self.stats.mshr_stalls += 1;
                     waiting = true;
                     continue;
                 };
-                {
-                    let r = ctx.peek(&self.req.at(p)).expect("visible");
-                    self.take(p, r, c, how);
-                    ctx.pop(&self.req.at(p));
-                    self.heads[p] = None;
-                    if combined {
-                        self.stats.combined += 1;
-                    }
-                    bank[b] = if write { BUSY } else { addr };
-                    worked = true;
-                    if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
-                        next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
-                    }
+                self.take(p, r, c, how);
+                ctx.pop(&self.req.at(p));
+                if combined {
+                    self.stats.combined += 1;
+                }
+                bank[b] = if write { BUSY } else { addr };
+                worked = true;
+                if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
+                    next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
                 }
             }
             self.visible = visible;
@@ -908,8 +866,6 @@ impl Logic for L2 {
     }
 
     fn reset_counters(&mut self) {
-        // With the design's reset: the links are empty again.
-        self.heads.iter_mut().for_each(|h| *h = None);
         self.stats = L2Stats::default();
         if let Some(l) = &mut self.log {
             l.clear();

@@ -702,11 +702,45 @@ impl Logic for Tp {
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {
-        self.counters_of()
+        let s = &self.stats;
+        let mut v = vec![
+            ("rays", s.rays),
+            ("box_tests", s.box_tests),
+            ("tri_tests", s.tri_tests),
+            ("exits", s.exits),
+            ("hits", s.hits),
+            ("tri_hits", s.tri_hits),
+            ("l1_loads", s.l1_loads),
+            ("wait_div", s.wait[0]),
+            ("wait_box", s.wait[1]),
+            ("wait_tri", s.wait[2]),
+            ("wait_l1", s.wait[3]),
+            ("stall_div", s.stall[0]),
+            ("stall_box", s.stall[1]),
+            ("stall_tri", s.stall[2]),
+            ("blocked", s.blocked),
+            ("max_stack", s.max_stack),
+            ("shade_items", s.shade_items),
+            ("shade_hits", s.shade_hits),
+            ("shade_occluded", s.shade_occluded),
+            ("shade_rays", s.shade_rays),
+            ("shade_shadow_rays", s.shade_shadow_rays),
+            ("gmem_reads", s.gmem_reads),
+            ("gmem_writes", s.gmem_writes),
+            ("gmem_wait", s.gmem_wait),
+        ];
+        for (k, (name, _)) in self.costs.all().iter().enumerate() {
+            v.push((name, s.uses[k]));
+        }
+        v
     }
 
     fn reset_counters(&mut self) {
-        self.reset_stats();
+        self.stats = TpStats::default();
+        self.blocked_since = None;
+        if let Some(l) = &mut self.log {
+            l.clear();
+        }
     }
 }
 
@@ -867,48 +901,6 @@ impl Tp {
                 ctx.set_status(Status::ResourceBusy);
                 Next::Idle
             }
-        }
-    }
-
-    fn counters_of(&self) -> Vec<(&'static str, u64)> {
-        let s = &self.stats;
-        let mut v = vec![
-            ("rays", s.rays),
-            ("box_tests", s.box_tests),
-            ("tri_tests", s.tri_tests),
-            ("exits", s.exits),
-            ("hits", s.hits),
-            ("tri_hits", s.tri_hits),
-            ("l1_loads", s.l1_loads),
-            ("wait_div", s.wait[0]),
-            ("wait_box", s.wait[1]),
-            ("wait_tri", s.wait[2]),
-            ("wait_l1", s.wait[3]),
-            ("stall_div", s.stall[0]),
-            ("stall_box", s.stall[1]),
-            ("stall_tri", s.stall[2]),
-            ("blocked", s.blocked),
-            ("max_stack", s.max_stack),
-            ("shade_items", s.shade_items),
-            ("shade_hits", s.shade_hits),
-            ("shade_occluded", s.shade_occluded),
-            ("shade_rays", s.shade_rays),
-            ("shade_shadow_rays", s.shade_shadow_rays),
-            ("gmem_reads", s.gmem_reads),
-            ("gmem_writes", s.gmem_writes),
-            ("gmem_wait", s.gmem_wait),
-        ];
-        for (k, (name, _)) in self.costs.all().iter().enumerate() {
-            v.push((name, s.uses[k]));
-        }
-        v
-    }
-
-    fn reset_stats(&mut self) {
-        self.stats = TpStats::default();
-        self.blocked_since = None;
-        if let Some(l) = &mut self.log {
-            l.clear();
         }
     }
 }
