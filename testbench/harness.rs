@@ -110,6 +110,8 @@ pub struct Sink<T: Payload> {
     /// Probability of being ready in a cycle (1.0: always).
     pub ready_p: f64,
     pub seed: u64,
+    /// Not ready before this cycle (a consumer that starts late).
+    pub from: u64,
     pub got: Vec<(u64, T)>,
 }
 
@@ -119,10 +121,19 @@ impl<T: Payload> Sink<T> {
             inp,
             ready_p,
             seed,
+            from: 0,
             got: Vec::new(),
         }
     }
+    /// The same sink, not ready before `cycle`.
+    pub fn ready_from(mut self, cycle: u64) -> Self {
+        self.from = cycle;
+        self
+    }
     pub fn ready(&self, cycle: u64) -> bool {
+        if cycle < self.from {
+            return false;
+        }
         if self.ready_p >= 1.0 {
             return true;
         }
@@ -145,7 +156,7 @@ impl<T: Payload> Logic for Sink<T> {
         }
         if !self.ready(c) {
             ctx.set_status(Status::ResourceBusy);
-            let mut n = c + 1;
+            let mut n = (c + 1).max(self.from);
             while !self.ready(n) {
                 n += 1;
             }

@@ -12,6 +12,7 @@ pub mod pipe_tb;
 pub mod box_pipe_tb;
 pub mod divider_tb;
 pub mod hit_record_updater_tb;
+pub mod l1_tb;
 pub mod l2_tb;
 pub mod mem_ctrl_tb;
 pub mod scene_buffer_tb;

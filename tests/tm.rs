@@ -551,3 +551,53 @@ fn functional_counts_imply_the_tps_state_uses() {
         );
     }
 }
+
+/// The L1 answers one fill per cycle, in arrival order. A line that arrives
+/// behind a fill that must wait (its TP's response link is full) has had its
+/// wake-up by the time the first fill goes; the L1 must still answer it the next
+/// cycle (testbench/l1_tb.rs), sleeping or not, in any evaluation order.
+#[test]
+fn l1_answers_a_line_that_waited_behind_a_blocked_fill() {
+    use dualstream::testbench::l1_tb::{
+        FillBehindCfg, LINE_A, LINE_C, LINE_D, fill_behind_blocked_fill, line_of,
+    };
+    let b = FillBehindCfg::default();
+    let base = fill_behind_blocked_fill(SimOptions::default(), b).unwrap();
+    // Port 0 takes A when its sink starts; the freed link wakes the L1 the next
+    // cycle, which answers C (visible one cycle later); D goes the cycle after
+    // (one fill per cycle) and is visible one cycle after that.
+    let r = b.ready_from;
+    assert_eq!(
+        base.port0,
+        vec![(r, LINE_A, line_of(LINE_A)), (r + 2, LINE_C, line_of(LINE_C))],
+        "port 0"
+    );
+    assert_eq!(
+        base.port1,
+        vec![(r + 3, LINE_D, line_of(LINE_D))],
+        "port 1: the line behind the blocked fill"
+    );
+    let mut asked = base.miss_reqs.clone();
+    asked.sort_unstable();
+    assert_eq!(asked, vec![LINE_A, LINE_C, LINE_D], "one miss per line");
+    assert_eq!((base.fills, base.accesses), (3, 3));
+    // C and D were both waiting on the miss port before port 0 was ready.
+    assert!(b.c_back + 2 < r);
+    for m in [
+        SimOptions {
+            sleep: false,
+            shadow: true,
+            shuffle_seed: None,
+            threads: 1,
+        },
+        SimOptions {
+            sleep: true,
+            shadow: false,
+            shuffle_seed: Some(3),
+            threads: 1,
+        },
+    ] {
+        let o = fill_behind_blocked_fill(m.clone(), b).unwrap();
+        assert_eq!(o, base, "{m:?}");
+    }
+}

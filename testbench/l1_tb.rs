@@ -1,0 +1,170 @@
+//! A directed L1 testbench: a line that comes back right behind a fill that
+//! cannot be answered yet.
+//!
+//! The L1 answers a fill on `miss_resp` only when every waiting TP's response
+//! link has room. A fill for a TP that is not taking its responses waits at the
+//! head of `miss_resp`; a second line arriving behind it wakes the L1 when it
+//! becomes visible, but the L1 cannot reach it then (one fill per cycle, in
+//! order) and sleeps again. When the TP finally takes its response, the pop wakes
+//! the L1, which answers the first fill — and must look again the next cycle,
+//! although nothing wakes it: the second line's wake-up has passed
+//! (`Ctx::holds_more`). Without that look the second line waits for whatever
+//! wakes the L1 next: here port 0 taking its answer, a cycle late; with nothing
+//! else going on, for ever.
+//!
+//! The script (per-port request drivers, a scripted line source on `miss_resp`,
+//! one sink per response port, a sink on `miss_req`):
+//! - port 0 misses on line A; the line comes back and its answer fills port 0's
+//!   response link (one entry deep), whose sink is not ready until `ready_from`;
+//! - port 0 then misses on line C and port 1 on line D (other banks);
+//! - C and D come back on consecutive cycles, long before port 0 is ready.
+
+use crate::rtl::{ClockId, LinkCfg, Sim, SimOptions, UnitId};
+use crate::units::l1::{L1, L1Req, L1Resp, Line};
+use crate::units::tm::L1Cfg;
+
+use super::harness::{Driver, Sink};
+
+/// Lines A, C and D: consecutive lines, so three different banks.
+pub const LINE_A: u64 = 0x1000;
+pub const LINE_C: u64 = 0x1040;
+pub const LINE_D: u64 = 0x1080;
+
+/// When things happen (cycles).
+#[derive(Clone, Copy, Debug)]
+pub struct FillBehindCfg {
+    /// Line A arrives on `miss_resp`.
+    pub a_back: u64,
+    /// Port 0 asks for C and port 1 for D.
+    pub cd_asked: u64,
+    /// C arrives on `miss_resp`, D the cycle after.
+    pub c_back: u64,
+    /// Port 0's sink takes responses from this cycle on.
+    pub ready_from: u64,
+}
+
+impl Default for FillBehindCfg {
+    fn default() -> Self {
+        FillBehindCfg {
+            a_back: 8,
+            cd_asked: 12,
+            c_back: 30,
+            ready_from: 50,
+        }
+    }
+}
+
+/// What the ports received, with the cycle each response was taken.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FillBehindRun {
+    pub port0: Vec<(u64, u64, Line)>,
+    pub port1: Vec<(u64, u64, Line)>,
+    /// Line requests on `miss_req`, in order.
+    pub miss_reqs: Vec<u64>,
+    /// The L1's fills and accesses counters.
+    pub fills: u64,
+    pub accesses: u64,
+    /// The cycle the run went idle.
+    pub end: u64,
+}
+
+/// A line whose bytes name its address, so a response names what it carries.
+pub fn line_of(addr: u64) -> Line {
+    let mut l = [0u8; 64];
+    for (k, b) in l.iter_mut().enumerate() {
+        *b = (addr >> (8 * (k % 4))) as u8 ^ k as u8;
+    }
+    Line(l)
+}
+
+/// Runs the script on a two-port L1 under `sim` (sleeping, shadow, shuffled).
+pub fn fill_behind_blocked_fill(
+    sim_opts: SimOptions,
+    b: FillBehindCfg,
+) -> Result<FillBehindRun, String> {
+    let mut sim = Sim::new(sim_opts);
+    let clk: ClockId = sim.clock("core", 1000).map_err(|e| e.to_string())?;
+    let link = LinkCfg { depth: 2, delay: 1 };
+    // One entry deep: a single unread answer fills port 0's response link.
+    let resp_link = LinkCfg { depth: 1, delay: 1 };
+    let (mut req_o, mut req_i, mut resp_o, mut resp_i) = (vec![], vec![], vec![], vec![]);
+    for p in 0..2 {
+        let (o, i) = sim.link::<L1Req>(&format!("tb.req{p}"), link);
+        req_o.push(o);
+        req_i.push(i);
+        let (o, i) = sim.link::<L1Resp>(&format!("tb.resp{p}"), resp_link);
+        resp_o.push(o);
+        resp_i.push(i);
+    }
+    let (mq_o, mq_i) = sim.link::<L1Req>("tb.miss_req", link);
+    let (mr_o, mr_i) = sim.link::<L1Resp>("tb.miss_resp", link);
+    let cfg = L1Cfg::default();
+    let l1 = sim.add(
+        "tb.l1",
+        clk,
+        L1::new(&cfg, link.delay, req_i, resp_o, mq_o, mr_i),
+    );
+    let drivers: Vec<UnitId> = req_o
+        .into_iter()
+        .enumerate()
+        .map(|(p, o)| sim.add(&format!("tb.port{p}"), clk, Driver::new(o)))
+        .collect();
+    let sinks: Vec<UnitId> = resp_i
+        .into_iter()
+        .enumerate()
+        .map(|(p, i)| {
+            let from = if p == 0 { b.ready_from } else { 0 };
+            sim.add(
+                &format!("tb.sink{p}"),
+                clk,
+                Sink::new(i, 1.0, 0).ready_from(from),
+            )
+        })
+        .collect();
+    let lines = sim.add("tb.lines", clk, Driver::new(mr_o));
+    let miss_sink = sim.add("tb.miss_sink", clk, Sink::new(mq_i, 1.0, 0));
+    sim.elaborate().map_err(|e| e.to_string())?;
+    let req = |a: u64| L1Req { addr: a };
+    let resp = |a: u64| L1Resp {
+        addr: a,
+        line: line_of(a),
+    };
+    sim.unit_mut::<Driver<L1Req>>(drivers[0]).send(1, req(LINE_A));
+    sim.unit_mut::<Driver<L1Req>>(drivers[0]).send(b.cd_asked, req(LINE_C));
+    sim.unit_mut::<Driver<L1Req>>(drivers[1]).send(b.cd_asked, req(LINE_D));
+    let l = sim.unit_mut::<Driver<L1Resp>>(lines);
+    l.send(b.a_back, resp(LINE_A));
+    l.send(b.c_back, resp(LINE_C));
+    l.send(b.c_back + 1, resp(LINE_D));
+    for &u in drivers.iter().chain([&lines]) {
+        sim.wake(u);
+    }
+    let end = sim.run_to_idle(1_000_000).map_err(|e| e.to_string())?;
+    let got = |s: UnitId| -> Vec<(u64, u64, Line)> {
+        sim.unit_ref::<Sink<L1Resp>>(s)
+            .got
+            .iter()
+            .map(|(c, r)| (*c, r.addr, r.line.clone()))
+            .collect()
+    };
+    let st = sim.unit_stats(l1);
+    let counter = |n: &str| {
+        st.counters
+            .iter()
+            .find(|(k, _)| *k == n)
+            .map_or(0, |&(_, v)| v)
+    };
+    Ok(FillBehindRun {
+        port0: got(sinks[0]),
+        port1: got(sinks[1]),
+        miss_reqs: sim
+            .unit_ref::<Sink<L1Req>>(miss_sink)
+            .got
+            .iter()
+            .map(|(_, r)| r.addr)
+            .collect(),
+        fills: counter("fills"),
+        accesses: counter("accesses"),
+        end: end / 1000,
+    })
+}
