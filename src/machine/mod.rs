@@ -492,38 +492,39 @@ impl Chip {
         let (emit_o, emit_i) = sim.link::<RayWrite>("chip.emit", l);
         let (start_o, start_i) = sim.link::<WaveStart>("chip.start", l);
         let (map_o, map_i) = sim.link::<SlotMap>("chip.slot_map", l);
-        let mut fill_o = Vec::new();
-        let mut rw_i = Vec::new();
-        let mut sbq_i = Vec::new();
-        let mut sbr_o = Vec::new();
-        let mut hit_i = Vec::new();
-        let mut tm_ports = Vec::new();
-        let (mut gmem_i, mut gmem_o) = (Vec::new(), Vec::new());
-        for k in 0..n {
-            let (fo, fi) = sim.link::<SbFill>(&format!("chip.tm{k}_fill"), l);
-            let (mo, mi) = sim.link::<L1Req>(&format!("chip.tm{k}_miss_req"), l);
-            let (ro, ri) = sim.link::<L1Resp>(&format!("chip.tm{k}_miss_resp"), l);
-            let (wo, wi) = sim.link::<RayWrite>(&format!("chip.tm{k}_ray_write"), l);
-            let (ho, hi) = sim.link::<HitUpdate>(&format!("chip.tm{k}_hit"), l);
-            fill_o.push(fo);
-            rw_i.push(wi);
-            sbq_i.push(mi);
-            sbr_o.push(ro);
-            hit_i.push(hi);
-            let (go, gi) = sim.link::<MemLineReq>(&format!("chip.tm{k}_gmem_req"), l);
-            let (gro, gri) = sim.link::<MemLineResp>(&format!("chip.tm{k}_gmem_resp"), l);
-            gmem_i.push(gi);
-            gmem_o.push(gro);
-            tm_ports.push(TmPorts {
-                fill: fi,
-                miss_req: mo,
-                miss_resp: ri,
-                ray_write: wo,
-                hit: ho,
-                gmem_req: go,
-                gmem_resp: gri,
-            });
+        // One kind of TM link at a time: each array port (the scheduler's
+        // `ray_write`, the hit record updater's `hit`, the L2's clients) then has
+        // consecutive links, so an arbiter finds its visible inputs in a word of
+        // the non-empty bitset instead of loading every link's head.
+        macro_rules! per_tm {
+            ($t:ty, $name:literal) => {
+                (0..n)
+                    .map(|k| sim.link::<$t>(&format!("chip.tm{k}_{}", $name), l))
+                    .unzip::<_, _, Vec<_>, Vec<_>>()
+            };
         }
+        let (fill_o, fill_i) = per_tm!(SbFill, "fill");
+        let (miss_o, sbq_i) = per_tm!(L1Req, "miss_req");
+        let (sbr_o, miss_i) = per_tm!(L1Resp, "miss_resp");
+        let (rw_o, rw_i) = per_tm!(RayWrite, "ray_write");
+        let (hit_o, hit_i) = per_tm!(HitUpdate, "hit");
+        // The hit record updater is the L2's client 0, the TMs 1..: its links go
+        // right before the TMs'.
+        let hru_l2_req = with_l2.then(|| sim.link::<MemLineReq>("chip.l2_req0_hits", l));
+        let (gq_o, mut gmem_i) = per_tm!(MemLineReq, "gmem_req");
+        let hru_l2_resp = with_l2.then(|| sim.link::<MemLineResp>("chip.l2_resp0_hits", l));
+        let (mut gmem_o, gr_i) = per_tm!(MemLineResp, "gmem_resp");
+        let tm_ports: Vec<TmPorts> = (0..n)
+            .map(|k| TmPorts {
+                fill: fill_i[k],
+                miss_req: miss_o[k],
+                miss_resp: miss_i[k],
+                ray_write: rw_o[k],
+                hit: hit_o[k],
+                gmem_req: gq_o[k],
+                gmem_resp: gr_i[k],
+            })
+            .collect();
         // The L2 between its clients and memory port 2.
         let mut l2_unit = None;
         let mut host_unit = Host::new(emit_o, start_o);
@@ -541,8 +542,8 @@ impl Chip {
                 l2_lane_resp_o.push(a);
                 l2_mresp.push(b);
             }
-            let (ho, hi) = sim.link::<MemLineReq>("chip.l2_req0_hits", l);
-            let (hro, hri) = sim.link::<MemLineResp>("chip.l2_resp0_hits", l);
+            let (ho, hi) = hru_l2_req.expect("made with the L2");
+            let (hro, hri) = hru_l2_resp.expect("made with the L2");
             let (fo, fi) = sim.link::<L2Flush>("chip.l2_flush", l);
             let (fdo, fdi) = sim.link::<L2Flush>("chip.l2_flush_done", l);
             host_unit = host_unit.with_flush(fo, fdi);
