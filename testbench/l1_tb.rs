@@ -129,9 +129,12 @@ pub fn fill_behind_blocked_fill(
         addr: a,
         line: line_of(a),
     };
-    sim.unit_mut::<Driver<L1Req>>(drivers[0]).send(1, req(LINE_A));
-    sim.unit_mut::<Driver<L1Req>>(drivers[0]).send(b.cd_asked, req(LINE_C));
-    sim.unit_mut::<Driver<L1Req>>(drivers[1]).send(b.cd_asked, req(LINE_D));
+    sim.unit_mut::<Driver<L1Req>>(drivers[0])
+        .send(1, req(LINE_A));
+    sim.unit_mut::<Driver<L1Req>>(drivers[0])
+        .send(b.cd_asked, req(LINE_C));
+    sim.unit_mut::<Driver<L1Req>>(drivers[1])
+        .send(b.cd_asked, req(LINE_D));
     let l = sim.unit_mut::<Driver<L1Resp>>(lines);
     l.send(b.a_back, resp(LINE_A));
     l.send(b.c_back, resp(LINE_C));

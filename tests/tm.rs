@@ -569,7 +569,10 @@ fn l1_answers_a_line_that_waited_behind_a_blocked_fill() {
     let r = b.ready_from;
     assert_eq!(
         base.port0,
-        vec![(r, LINE_A, line_of(LINE_A)), (r + 2, LINE_C, line_of(LINE_C))],
+        vec![
+            (r, LINE_A, line_of(LINE_A)),
+            (r + 2, LINE_C, line_of(LINE_C))
+        ],
         "port 0"
     );
     assert_eq!(
