@@ -264,18 +264,21 @@ impl Net {
         // SAFETY: in bounds (checked above); the caller passes the links of one port
         // array of the unit being evaluated, so this thread is their only writer.
         let bytes = unsafe { std::slice::from_raw_parts(self.nonempty.add(first), n) };
+        let words = n / 8;
         let mut b = 0u64;
-        let mut chunks = bytes.chunks_exact(8);
-        for (w, c) in chunks.by_ref().enumerate() {
+        for w in 0..words {
             // Eight 0/1 bytes to eight bits in one multiply: byte i lands on bit
             // 56 + i and every other product on a distinct lower or dropped bit (an
             // arbiter's scan of 16 ports was a loop of 16 loads, shifts and ors).
-            let x = u64::from_le_bytes(c.try_into().expect("eight bytes"));
+            // SAFETY: bytes `8w..8w + 8` of `bytes` (in bounds: `w < n / 8`), read
+            // unaligned; a plain load instead of `chunks_exact` and `try_into`, which
+            // were a tenth of the crossbar's instructions (callgrind).
+            let x =
+                u64::from_le(unsafe { bytes.as_ptr().add(8 * w).cast::<u64>().read_unaligned() });
             b |= (x.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (8 * w);
         }
-        let done = n - chunks.remainder().len();
-        for (k, &v) in chunks.remainder().iter().enumerate() {
-            b |= ((v != 0) as u64) << (done + k);
+        for (k, &v) in bytes.iter().enumerate().skip(8 * words) {
+            b |= ((v != 0) as u64) << k;
         }
         b
     }
