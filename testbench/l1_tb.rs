@@ -87,15 +87,8 @@ pub fn fill_behind_blocked_fill(
     let link = LinkCfg { depth: 2, delay: 1 };
     // One entry deep: a single unread answer fills port 0's response link.
     let resp_link = LinkCfg { depth: 1, delay: 1 };
-    let (mut req_o, mut req_i, mut resp_o, mut resp_i) = (vec![], vec![], vec![], vec![]);
-    for p in 0..2 {
-        let (o, i) = sim.link::<L1Req>(&format!("tb.req{p}"), link);
-        req_o.push(o);
-        req_i.push(i);
-        let (o, i) = sim.link::<L1Resp>(&format!("tb.resp{p}"), resp_link);
-        resp_o.push(o);
-        resp_i.push(i);
-    }
+    let (req_o, req_i) = sim.links::<L1Req>(2, |p| format!("tb.req{p}"), link);
+    let (resp_o, resp_i) = sim.links::<L1Resp>(2, |p| format!("tb.resp{p}"), resp_link);
     let (mq_o, mq_i) = sim.link::<L1Req>("tb.miss_req", link);
     let (mr_o, mr_i) = sim.link::<L1Resp>("tb.miss_resp", link);
     let cfg = L1Cfg::default();

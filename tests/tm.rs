@@ -414,30 +414,23 @@ fn outcome(opts: SimOptions) -> (u64, Vec<dualstream::rtl::UnitStats>, u64, usiz
     (r.end_ps, r.stats, dualstream::util::fnv1a(&vcd), vcd.len())
 }
 
+/// Sleep off under the shadow check, a shuffled order, and both: a result must
+/// not depend on any of them.
+fn other_orders() -> [SimOptions; 3] {
+    let o = |sleep, shuffle_seed| SimOptions {
+        sleep,
+        shadow: !sleep,
+        shuffle_seed,
+        threads: 1,
+    };
+    [o(false, None), o(true, Some(7)), o(false, Some(8))]
+}
+
 #[test]
 fn sleeping_and_evaluation_order_change_nothing() {
     let base = outcome(SimOptions::default());
     assert!(base.3 > 10_000);
-    for m in [
-        SimOptions {
-            sleep: false,
-            shadow: true,
-            shuffle_seed: None,
-            threads: 1,
-        },
-        SimOptions {
-            sleep: true,
-            shadow: false,
-            shuffle_seed: Some(7),
-            threads: 1,
-        },
-        SimOptions {
-            sleep: false,
-            shadow: true,
-            shuffle_seed: Some(8),
-            threads: 1,
-        },
-    ] {
+    for m in other_orders() {
         let o = outcome(m.clone());
         assert_eq!(o.0, base.0, "{m:?}: end time");
         assert_eq!(o.1, base.1, "{m:?}: statistics");
@@ -586,20 +579,7 @@ fn l1_answers_a_line_that_waited_behind_a_blocked_fill() {
     assert_eq!((base.fills, base.accesses), (3, 3));
     // C and D were both waiting on the miss port before port 0 was ready.
     assert!(b.c_back + 2 < r);
-    for m in [
-        SimOptions {
-            sleep: false,
-            shadow: true,
-            shuffle_seed: None,
-            threads: 1,
-        },
-        SimOptions {
-            sleep: true,
-            shadow: false,
-            shuffle_seed: Some(3),
-            threads: 1,
-        },
-    ] {
+    for m in other_orders() {
         let o = fill_behind_blocked_fill(m.clone(), b).unwrap();
         assert_eq!(o, base, "{m:?}");
     }

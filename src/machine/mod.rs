@@ -498,9 +498,7 @@ impl Chip {
         // the non-empty bitset instead of loading every link's head.
         macro_rules! per_tm {
             ($t:ty, $name:literal) => {
-                (0..n)
-                    .map(|k| sim.link::<$t>(&format!("chip.tm{k}_{}", $name), l))
-                    .unzip::<_, _, Vec<_>, Vec<_>>()
+                sim.links::<$t>(n, |k| format!("chip.tm{k}_{}", $name), l)
             };
         }
         let (fill_o, fill_i) = per_tm!(SbFill, "fill");

@@ -750,6 +750,18 @@ impl Sim {
         (Out::new(id), In::new(id))
     }
 
+    /// `n` links named `name(k)`, made one after the other: the producer and the
+    /// consumer side of an array port, whose consecutive links let an arbiter
+    /// read the non-empty flags of all its inputs at once (`Ctx::visible_mask`).
+    pub fn links<T: Payload>(
+        &mut self,
+        n: usize,
+        name: impl Fn(usize) -> String,
+        cfg: LinkCfg,
+    ) -> (Vec<Out<T>>, Vec<In<T>>) {
+        (0..n).map(|k| self.link::<T>(&name(k), cfg)).unzip()
+    }
+
     /// Adds a unit instance under a hierarchical path such as `chip.tm3.box_pipe`.
     pub fn add<U: Unit>(&mut self, path: &str, clock: ClockId, mut unit: U) -> UnitId {
         let period = self.clocks[clock.0 as usize].period_ps;

@@ -137,13 +137,19 @@ impl L2State {
         let w = self.mshr_free.iter().position(|&w| w != 0)?;
         Some(w * 64 + self.mshr_free[w].trailing_zeros() as usize)
     }
-    fn take_mshr(&mut self, k: usize, addr: u64) {
+    /// MSHR `k` takes the miss of `addr` (its register, index entry and free
+    /// bit change together).
+    fn take_mshr(&mut self, k: usize, addr: u64, m: L2Mshr) {
+        debug_assert!(self.mshrs[k].is_none(), "MSHR {k} is free");
+        self.mshrs[k] = Some(m);
         self.mshr_index.insert(addr, k as u32);
         self.mshr_free[k / 64] &= !(1 << (k % 64));
     }
-    fn release_mshr(&mut self, k: usize, addr: u64) {
+    /// Frees MSHR `k`, the miss of `addr`, and returns it.
+    fn release_mshr(&mut self, k: usize, addr: u64) -> L2Mshr {
         self.mshr_index.remove(&addr);
         self.mshr_free[k / 64] |= 1 << (k % 64);
+        self.mshrs[k].take().expect("live")
     }
     /// Nothing held: no miss, no memory request, no answer, no flush.
     pub fn idle(&self) -> bool {
@@ -529,8 +535,7 @@ impl L2 {
             .mshr_of(f.addr)
             .expect("a line comes back only for a miss register");
         let st = self.st.m();
-        let m = st.mshrs[k].take().expect("live");
-        st.release_mshr(k, f.addr);
+        let m = st.release_mshr(k, f.addr);
         let slot = self.victim(f.addr);
         self.evict(slot);
         let st = self.st.m();
@@ -604,10 +609,13 @@ impl L2 {
             }
             Admit::Miss(k) => {
                 let st = self.st.m();
-                st.take_mshr(k, addr);
-                st.mshrs[k] = Some(L2Mshr {
-                    targets: vec![(port, c, r.clone())],
-                });
+                st.take_mshr(
+                    k,
+                    addr,
+                    L2Mshr {
+                        targets: vec![(port, c, r.clone())],
+                    },
+                );
                 st.out_q.push_back(MemLineReq::read(addr, r.tag, k as u32));
                 self.stats.misses += 1;
             }

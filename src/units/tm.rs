@@ -433,24 +433,12 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
     let n = cfg.tm.tps as usize;
     let p = |s: &str| format!("{path}.{s}");
     macro_rules! links {
-        ($t:ty, $name:expr, $count:expr) => {{
-            let mut o = Vec::new();
-            let mut i = Vec::new();
-            for k in 0..$count {
-                let (a, b) = sim.link::<$t>(&format!("{path}.{}{k}", $name), l);
-                o.push(a);
-                i.push(b);
-            }
-            (o, i)
-        }};
+        ($t:ty, $name:expr, $count:expr) => {
+            sim.links::<$t>($count, |k| format!("{path}.{}{k}", $name), l)
+        };
     }
     // One-entry ray links: a TP holds at most its next ray, so rays go to free TPs.
-    let (mut sb_o, mut sb_i) = (Vec::new(), Vec::new());
-    for k in 0..n {
-        let (a, b) = sim.link(&p(&format!("ray{k}")), LinkCfg { depth: 1, ..l });
-        sb_o.push(a);
-        sb_i.push(b);
-    }
+    let (sb_o, sb_i) = sim.links(n, |k| p(&format!("ray{k}")), LinkCfg { depth: 1, ..l });
     let (div_q_o, div_q_i) = links!(super::divider::DivReq, "tp_div_req", n);
     let (div_r_o, div_r_i) = links!(super::divider::DivResp, "tp_div_resp", n);
     let (box_q_o, box_q_i) = links!(super::box_pipe::BoxReq, "tp_box_req", n);

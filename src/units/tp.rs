@@ -22,8 +22,7 @@ use super::divider::{DivReq, DivResp};
 use super::l1::{L1Req, L1Resp, Line};
 use super::memory::{MemLineReq, MemLineResp};
 use super::staging_buffer::{SbHeader, SbRay};
-use super::tm::COSTS;
-use super::tm::{TpCosts, round_trip};
+use super::tm::{COST_NAMES, COSTS, TpCosts, round_trip};
 pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::config::Config;
@@ -729,9 +728,7 @@ impl Logic for Tp {
             ("gmem_writes", s.gmem_writes),
             ("gmem_wait", s.gmem_wait),
         ];
-        for (k, (name, _)) in self.costs.all().iter().enumerate() {
-            v.push((name, s.uses[k]));
-        }
+        v.extend(COST_NAMES.into_iter().zip(s.uses));
         v
     }
 
