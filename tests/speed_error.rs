@@ -1425,3 +1425,49 @@ fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
         );
     }
 }
+
+/// A middle wavefront's root pass is simulated whole only if it is at most a
+/// quarter of a root window (`WindowPlan::root_whole`): such a pass is
+/// latency-bound and cheap. Up to a whole root window it is borrowed on the
+/// line like a longer one (the Dragon's fifth wavefront, 32,747 rays, cost as
+/// many evaluations as a root window for 0.4% of the frame).
+#[test]
+fn a_middle_root_pass_is_whole_only_below_a_quarter_root_window() {
+    let (_, c) = cornell_in_rows();
+    let mut s = dualstream::scene::load("spheres").unwrap();
+    s.triangles.drain(..12);
+    s.tri_material.drain(..12);
+    s.settings.width = 16;
+    s.settings.height = 16;
+    s.settings.bounces = 4;
+    let (_dir, j, png) = reference_files(&s, &c, "quarter");
+    let dir = j.parent().unwrap().to_path_buf();
+    let run = |root_rays: u64| {
+        let mut plan = windows_plan(4, 6);
+        plan.warm = 2;
+        plan.measure = 6;
+        plan.tail_pending = 2;
+        plan.wave_every = 2;
+        plan.root_rays = root_rays;
+        let log = dir.join(format!("q{root_rays}.json"));
+        windows_against(&s, &c, plan, (&j, &png), &log).1
+    };
+    let v = run(32);
+    let rays = v["record"]["segs"][2][0]["rays"].as_u64().unwrap();
+    assert!(rays > 8, "wave 2 holds {rays} rays");
+    let root_of = |v: &serde_json::Value| {
+        let borrowed = v["parts"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["wave"] == 2 && p["part"] == "root")
+            .unwrap()["borrowed"]
+            .as_bool()
+            .unwrap();
+        (window_kinds(v, 2).contains(&"Root".to_string()), borrowed)
+    };
+    // At most a whole root window but above a quarter: borrowed.
+    assert_eq!(root_of(&run(rays)), (false, true));
+    // At most a quarter of a root window: simulated whole.
+    assert_eq!(root_of(&run(rays * 4)), (true, false));
+}

@@ -239,6 +239,16 @@ impl WindowPlan {
     pub fn measures_root(&self, wave: usize, last: usize) -> bool {
         self.wave_every <= 1 || wave <= 1 || wave >= last
     }
+
+    /// A root pass of at most this many rays between the second wavefront and
+    /// the last is simulated whole, not borrowed: a quarter of a root window.
+    /// Such a pass is so latency-bound that borrowing misses it (Cornell box
+    /// 64x64: 18-34% high), and it is cheap. One up to a whole root window
+    /// is not cheap: the Dragon's fifth wavefront (32,747 rays) cost 10 M
+    /// unit evaluations, as much as a root window, for 0.4% of the frame.
+    pub fn root_whole(&self) -> u64 {
+        self.root_rays / 4
+    }
 }
 
 /// Functional work of one segment pass (for the ratio estimator of time sampling).
@@ -873,13 +883,13 @@ pub fn render(
                         // is borrowed: by the ratio of its neighbours' root
                         // windows if its rays are alike theirs, else on the line
                         // through them (`speed_error::root_between`: a smaller
-                        // root pass costs more per ray). One no longer than a
-                        // root window is simulated whole: cheap, and so
-                        // latency-bound that neither holds (Cornell box 64x64:
-                        // borrowed roots 18-34% high; the spheres without their
-                        // room at 16x16: 55% low on the line).
-                        let root =
-                            measured && (plan.measures_root(wave, last) || rays <= plan.root_rays);
+                        // root pass costs more per ray). A small one
+                        // (`WindowPlan::root_whole`) is simulated whole: cheap,
+                        // and so latency-bound that neither holds (Cornell box
+                        // 64x64: borrowed roots 18-34% high; the spheres
+                        // without their room at 16x16: 55% low on the line).
+                        let root = measured
+                            && (plan.measures_root(wave, last) || rays <= plan.root_whole());
                         if measured {
                             traced_rays = Some(rays);
                         }
