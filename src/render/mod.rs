@@ -244,8 +244,8 @@ impl WindowPlan {
     /// the last is simulated whole, not borrowed: a quarter of a root window.
     /// Such a pass is so latency-bound that borrowing misses it (Cornell box
     /// 64x64: 18-34% high), and it is cheap. One up to a whole root window
-    /// is not cheap: the Dragon's fifth wavefront (32,747 rays) cost 10 M
-    /// unit evaluations, as much as a root window, for 0.4% of the frame.
+    /// is not cheap: the Dragon's fifth wavefront (32,747 rays) cost 12.9 M
+    /// unit evaluations, as many as a root window, for 0.4% of the frame.
     pub fn root_whole(&self) -> u64 {
         self.root_rays / 4
     }
