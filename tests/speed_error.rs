@@ -445,6 +445,42 @@ fn window_kinds(v: &serde_json::Value, wave: u64) -> Vec<String> {
         .collect()
 }
 
+/// A small plan for the borrowing tests: windows of 6 admissions after 2 of
+/// warm-up every 4, the tail from 2 pending queues, wavefronts traced every
+/// `wave_every`, root windows of `root_rays`.
+fn borrowing_plan(wave_every: u64, root_rays: u64) -> dualstream::render::WindowPlan {
+    let mut plan = windows_plan(4, 6);
+    plan.warm = 2;
+    plan.measure = 6;
+    plan.tail_pending = 2;
+    plan.wave_every = wave_every;
+    plan.root_rays = root_rays;
+    plan
+}
+
+/// The spheres without their room (its 12 triangles come first) at 16x16, 4
+/// bounces: most bounce rays escape, so each wavefront has far fewer rays
+/// than the last.
+fn open_spheres() -> dualstream::scene::Scene {
+    let mut s = dualstream::scene::load("spheres").unwrap();
+    s.triangles.drain(..12);
+    s.tri_material.drain(..12);
+    s.settings.width = 16;
+    s.settings.height = 16;
+    s.settings.bounces = 4;
+    s
+}
+
+/// Part `part` of wavefront `wave` in a window log.
+fn part_of<'a>(v: &'a serde_json::Value, wave: u64, part: &str) -> &'a serde_json::Value {
+    v["parts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["wave"] == wave && p["part"] == part)
+        .unwrap()
+}
+
 /// The windows of one kind, in the order they ran.
 fn of_kind(
     r: &dualstream::render::WindowRecord,
@@ -764,14 +800,9 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
     let (_dir, j, png) = reference_files(&s, &c, "borrowed");
     let dir = j.parent().unwrap().to_path_buf();
     let estimate_with = |wave_every: u64, root_rays: u64| {
-        let mut plan = windows_plan(4, 6);
-        plan.warm = 2;
-        plan.measure = 6;
-        plan.tail_pending = 2;
-        plan.wave_every = wave_every;
         // Root windows on a sample of each root pass (a pass no longer than a
-        // root window is simulated whole, never borrowed).
-        plan.root_rays = root_rays;
+        // quarter of a root window is simulated whole, never borrowed).
+        let plan = borrowing_plan(wave_every, root_rays);
         let log = dir.join(format!("w{wave_every}-{root_rays}.json"));
         windows_against(&s, &c, plan, (&j, &png), &log)
     };
@@ -1363,22 +1394,10 @@ fn a_root_pass_between_unlike_root_windows_lies_on_their_line() {
 #[test]
 fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
     let (_, c) = cornell_in_rows();
-    // The spheres without their room (its 12 triangles come first): most
-    // bounce rays escape, so each wavefront has far fewer rays than the last.
-    let mut s = dualstream::scene::load("spheres").unwrap();
-    s.triangles.drain(..12);
-    s.tri_material.drain(..12);
-    s.settings.width = 16;
-    s.settings.height = 16;
-    s.settings.bounces = 4;
+    let s = open_spheres();
     let (_dir, j, png) = reference_files(&s, &c, "line");
     let dir = j.parent().unwrap().to_path_buf();
-    let mut plan = windows_plan(4, 6);
-    plan.warm = 2;
-    plan.measure = 6;
-    plan.tail_pending = 2;
-    plan.wave_every = 2;
-    plan.root_rays = 32;
+    let plan = borrowing_plan(2, 32);
     let (_, v) = windows_against(&s, &c, plan, (&j, &png), &dir.join("w.json"));
     let rays: Vec<f64> = v["record"]["segs"]
         .as_array()
@@ -1389,12 +1408,7 @@ fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
     assert_eq!(rays.len(), 5);
     let kinds = |wave: u64| window_kinds(&v, wave);
     let root = |wave: u64| -> (f64, f64, bool) {
-        let p = v["parts"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["wave"] == wave && p["part"] == "root")
-            .unwrap();
+        let p = part_of(&v, wave, "root");
         (
             p["cycles"].as_f64().unwrap(),
             p["dram_j"].as_f64().unwrap(),
@@ -1406,7 +1420,7 @@ fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
     for wave in [2u64, 3] {
         let r = rays[wave as usize];
         // Unlike wave 1 (measured in windows for that) and longer than a root
-        // window (else simulated whole).
+        // window (one of at most a quarter of it is simulated whole).
         assert!(r < 0.9 * rays[1] && r > 32.0, "wave {wave}: {rays:?}");
         let k = kinds(wave);
         assert!(k.contains(&"Trace".to_string()), "wave {wave}: {k:?}");
@@ -1434,37 +1448,21 @@ fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
 #[test]
 fn a_middle_root_pass_is_whole_only_below_a_quarter_root_window() {
     let (_, c) = cornell_in_rows();
-    let mut s = dualstream::scene::load("spheres").unwrap();
-    s.triangles.drain(..12);
-    s.tri_material.drain(..12);
-    s.settings.width = 16;
-    s.settings.height = 16;
-    s.settings.bounces = 4;
+    let s = open_spheres();
     let (_dir, j, png) = reference_files(&s, &c, "quarter");
     let dir = j.parent().unwrap().to_path_buf();
     let run = |root_rays: u64| {
-        let mut plan = windows_plan(4, 6);
-        plan.warm = 2;
-        plan.measure = 6;
-        plan.tail_pending = 2;
-        plan.wave_every = 2;
-        plan.root_rays = root_rays;
         let log = dir.join(format!("q{root_rays}.json"));
-        windows_against(&s, &c, plan, (&j, &png), &log).1
+        windows_against(&s, &c, borrowing_plan(2, root_rays), (&j, &png), &log).1
     };
     let v = run(32);
     let rays = v["record"]["segs"][2][0]["rays"].as_u64().unwrap();
     assert!(rays > 8, "wave 2 holds {rays} rays");
     let root_of = |v: &serde_json::Value| {
-        let borrowed = v["parts"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["wave"] == 2 && p["part"] == "root")
-            .unwrap()["borrowed"]
-            .as_bool()
-            .unwrap();
-        (window_kinds(v, 2).contains(&"Root".to_string()), borrowed)
+        (
+            window_kinds(v, 2).contains(&"Root".to_string()),
+            part_of(v, 2, "root")["borrowed"].as_bool().unwrap(),
+        )
     };
     // At most a whole root window but above a quarter: borrowed.
     assert_eq!(root_of(&run(rays)), (false, true));

@@ -146,8 +146,8 @@ struct Slot {
 /// changes: compact, and written only by the thread that runs the step loop.
 #[derive(Clone, Copy)]
 struct Sched {
-    period: Time,
-    /// Rounds a wake-up up to this unit's clock edge without a divide.
+    /// The unit's clock period, and how a wake-up rounds up to its edge
+    /// without a divide.
     edge: EdgeOf,
     /// Last wake-up time put in the calendar (skips immediate duplicates).
     last_wake: Time,
@@ -782,7 +782,6 @@ impl Sim {
             watched: false,
         });
         self.sched.push(Sched {
-            period,
             edge: EdgeOf::new(period),
             last_wake: Time::MAX,
             last_eval: Time::MAX,
@@ -926,7 +925,7 @@ impl Sim {
     #[inline]
     fn schedule_cycle(sched: &mut [Sched], cal: &mut super::calendar::Calendar, u: u32, c: u64) {
         let s = &mut sched[u as usize];
-        let t = c * s.period;
+        let t = c * s.edge.period;
         if t != s.last_wake {
             s.last_wake = t;
             cal.push_cycle(s.clock as usize, u, c, t);
@@ -1048,7 +1047,7 @@ impl Sim {
         // Sleep off: every unit whose clock has an edge now, due or not.
         if !self.opts.sleep {
             for (i, s) in self.sched.iter().enumerate() {
-                if t.is_multiple_of(s.period) && s.last_eval != t {
+                if t.is_multiple_of(s.edge.period) && s.last_eval != t {
                     self.due.push((i as u32, false));
                 }
             }
