@@ -214,6 +214,10 @@ enum Cmd {
         /// queue, packed).
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().root_rays)]
         window_root_rays: u64,
+        /// speed-error, windows: the same for the later wavefronts' root
+        /// windows (the primary rays' root pass needs a longer sample).
+        #[arg(long, default_value_t = dualstream::speed_error::default_windows().bounce_root_rays)]
+        window_bounce_root_rays: u64,
         /// speed-error, windows: rays of a short wavefront's sample (one with
         /// too few passes for a window): a longer one is traced from its root
         /// pass to its end over one run of up to 1024 rays in k of its root
@@ -812,6 +816,7 @@ fn run(cli: Cli) -> Result<(), String> {
             window_waves,
             window_head,
             window_root_rays,
+            window_bounce_root_rays,
             window_wave_rays,
             window_wave_whole,
             window_wave_l2,
@@ -865,6 +870,7 @@ fn run(cli: Cli) -> Result<(), String> {
                             every: window_every,
                             head: window_head,
                             root_rays: window_root_rays,
+                            bounce_root_rays: window_bounce_root_rays,
                             wave_rays: window_wave_rays,
                             wave_whole: window_wave_whole,
                             wave_l2_share: window_wave_l2,

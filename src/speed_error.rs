@@ -601,6 +601,7 @@ pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
         root_rays: 65536,
+        bounce_root_rays: 32768,
         wave_rays: 65536,
         wave_l2_share: 4,
         wave_ray_share: 0.15,

@@ -415,6 +415,7 @@ fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
     dualstream::render::WindowPlan {
         head,
         root_rays: u64::MAX,
+        bounce_root_rays: u64::MAX,
         wave_rays: 0,
         wave_l2_share: 1,
         wave_ray_share: 0.0,
@@ -455,6 +456,7 @@ fn borrowing_plan(wave_every: u64, root_rays: u64) -> dualstream::render::Window
     plan.tail_pending = 2;
     plan.wave_every = wave_every;
     plan.root_rays = root_rays;
+    plan.bounce_root_rays = root_rays;
     plan
 }
 
@@ -698,7 +700,9 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
     // end and is measured from its first tenth of rays finished to its ninth,
     // and the frame goes on as it was.
     let mut thin = windows_plan(1, 1 << 20);
-    thin.root_rays = 40;
+    // The first wavefront's root window keeps about 40 rays, the later ones'
+    // about 24.
+    (thin.root_rays, thin.bounce_root_rays) = (40, 24);
     let f = render_windows(&s, &c, thin);
     assert_eq!(
         f.radiance, plain.radiance,
@@ -709,7 +713,7 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
     assert_eq!(roots.len(), r.segs.len(), "one root window per wavefront");
     for smp in roots {
         let rays = r.segs[smp.wave][0].rays;
-        let every = rays.div_ceil(40);
+        let every = rays.div_ceil(if smp.wave == 0 { 40 } else { 24 });
         let run = dualstream::render::queues::COMPACT_RUN;
         let kept = (0..rays)
             .filter(|i| (i / run).is_multiple_of(every))
@@ -1181,7 +1185,7 @@ fn a_short_wavefront_is_traced_over_a_sample_to_its_end() {
     let mut plan = short;
     plan.wave_rays = 40;
     plan.wave_whole = 1;
-    plan.root_rays = 40;
+    (plan.root_rays, plan.bounce_root_rays) = (40, 40);
     let f = render_windows(&s, &c, plan.clone());
     assert_eq!(
         f.radiance, plain.radiance,

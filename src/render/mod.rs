@@ -83,13 +83,22 @@ pub struct WindowPlan {
     /// root window) and the next `head - 1` admissions simulated whole (the top
     /// of the tree, where the rays are).
     pub head: u64,
-    /// Rays of a root window: a root pass of at most this many rays simulated
-    /// whole, a longer one over about this many of its rays, one run in k of
-    /// its queue packed into its first buckets (`RayQueues::boundary_compact`).
-    /// The rays left out cost the cycles and DRAM energy per ray of its steady
-    /// stretch ([`ROOT_STEADY_TENTHS`]), and k times its lines and other counts
-    /// but for its segment's load.
+    /// Rays of the first wavefront's root window: a root pass of at most this
+    /// many rays simulated whole, a longer one over about this many of its
+    /// rays, one run in k of its queue packed into its first buckets
+    /// (`RayQueues::boundary_compact`). The rays left out cost the cycles and
+    /// DRAM energy per ray of its steady stretch ([`ROOT_STEADY_TENTHS`]), and
+    /// k times its lines and other counts but for its segment's load.
     pub root_rays: u64,
+    /// The same for the later wavefronts' root windows. Half of `root_rays`
+    /// by default: the primary rays' root pass needs a longer sample, as its
+    /// rate falls by about a third after its first 65 K cycles (the Dragon
+    /// Box at 1024x1024; a fresh chip's time, not the rays': a sample of
+    /// 32 K rays ends within them and reads -13.5% against -5.5% with 64 K),
+    /// while the later root passes read the same with half the rays (Dragon
+    /// -1.4% and -0.3%; Dragon Box +7.0% and +6.6%, +0.9% and +1.6%) at half
+    /// the cost (docs/speed-error.md).
+    pub bounce_root_rays: u64,
     /// Rays of a short wavefront's sample (one with too few passes for a
     /// window, see [`WindowPlan::first_window_start`]): such a wavefront of
     /// more rays is simulated from its root pass to its end over one run of
@@ -247,7 +256,17 @@ impl WindowPlan {
     /// is not cheap: the Dragon's fifth wavefront (32,747 rays) cost 12.9 M
     /// unit evaluations, as many as a root window, for 0.4% of the frame.
     pub fn root_whole(&self) -> u64 {
-        self.root_rays / 4
+        self.bounce_root_rays / 4
+    }
+
+    /// Rays of wavefront `wave`'s root window (`root_rays` for the first,
+    /// `bounce_root_rays` after).
+    pub fn root_window_rays(&self, wave: usize) -> u64 {
+        if wave == 0 {
+            self.root_rays
+        } else {
+            self.bounce_root_rays
+        }
     }
 }
 
@@ -899,7 +918,7 @@ pub fn render(
                         // The root pass (every ray of the wavefront): whole, or
                         // over one ray in `every` of its queue, packed.
                         let n = q.len(s);
-                        let every = n.div_ceil(plan.root_rays);
+                        let every = n.div_ceil(plan.root_window_rays(wave));
                         let (b, kept) = q.boundary_compact(
                             &p.mem,
                             &p.map,
@@ -1276,11 +1295,15 @@ impl WindowPlan {
                 "--window-waves 0 has no period: use 1 to trace every wavefront in windows, N to trace the first, the last and every N-th from the second".into(),
             );
         }
-        if self.root_rays < 4 {
-            return Err(format!(
-                "--window-root-rays {}: the root window needs at least 4 rays (a warm-up and a measured stretch); raise it",
-                self.root_rays
-            ));
+        for (flag, rays) in [
+            ("--window-root-rays", self.root_rays),
+            ("--window-bounce-root-rays", self.bounce_root_rays),
+        ] {
+            if rays < 4 {
+                return Err(format!(
+                    "{flag} {rays}: the root window needs at least 4 rays (a warm-up and a measured stretch); raise it"
+                ));
+            }
         }
         if self.measure > self.every {
             return Err(format!(
