@@ -13,6 +13,7 @@
 
 use crate::rtl::bits::{Bits, Payload};
 use crate::rtl::{Ctx, In, Logic, Next, Out, Ram, Status};
+use crate::util::{div, rem};
 
 use super::tm::L1Cfg;
 
@@ -179,17 +180,17 @@ impl L1 {
     }
 
     fn lines(&self) -> u64 {
-        (self.bytes / self.line_bytes) as u64
+        div(self.bytes as u64, self.line_bytes as u64)
     }
     fn bank_of(&self, addr: u64) -> u32 {
-        ((addr / self.line_bytes as u64) % self.banks as u64) as u32
+        rem(div(addr, self.line_bytes as u64), self.banks as u64) as u32
     }
     /// Slot of a line: bank-major, so a bank is one contiguous SRAM.
     fn slot_of(&self, addr: u64) -> u32 {
-        let i = addr / self.line_bytes as u64;
+        let i = div(addr, self.line_bytes as u64);
         let banks = self.banks as u64;
-        let per_bank = self.lines() / banks;
-        ((i % banks) * per_bank + (i / banks) % per_bank) as u32
+        let per_bank = div(self.lines(), banks);
+        (rem(i, banks) * per_bank + rem(div(i, banks), per_bank)) as u32
     }
 }
 

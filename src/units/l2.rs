@@ -53,6 +53,7 @@ use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
 use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
+use crate::util::{div, rem};
 
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
@@ -294,28 +295,6 @@ impl Hasher for LineHasher {
     }
     fn write_u64(&mut self, x: u64) {
         self.0 = (x >> 6).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    }
-}
-
-/// `x / d`, a shift when `d` is a power of two (the cache geometry is, at the
-/// defaults): the L2 maps every address it sees, and 64-bit divisions showed in
-/// the profile.
-#[inline]
-fn div(x: u64, d: u64) -> u64 {
-    if d.is_power_of_two() {
-        x >> d.trailing_zeros()
-    } else {
-        x / d
-    }
-}
-
-/// `x % d`, a mask when `d` is a power of two.
-#[inline]
-fn rem(x: u64, d: u64) -> u64 {
-    if d.is_power_of_two() {
-        x & (d - 1)
-    } else {
-        x % d
     }
 }
 
