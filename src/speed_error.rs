@@ -614,7 +614,7 @@ pub fn default_windows() -> render::WindowPlan {
         shade_measure: 2048,
         shade_warm_cycles: 16384,
         shade_head: 16384,
-        tail_pending: 16,
+        tail_pending: 8,
         tail_warm: 0,
         wave_every: 2,
     }
