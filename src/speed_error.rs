@@ -589,21 +589,21 @@ impl Default for SpeedErrorOpts {
 
 /// The default time-sampling plan (chosen at the paper's size, docs/speed-error.md):
 /// wavefronts 0, 1, 3 and the last traced in windows, the others borrowing
-/// their neighbours' ratios; in each, the root pass over about 64 K rays; the
-/// first 16 segment passes; then 64 admissions measured after 96 of warm-up
-/// (one and a half turnovers of the scene buffer's 64 slots) every 1024; the
-/// tail from 16 pending queues; four shading windows of 2048 items after 4096
-/// and at least 16384 cycles, after the first 16384, each at a hashed place in
-/// its quarter of the pass. A wavefront too short for
-/// windows is traced over a sample of about 64 K of its rays on a quarter of
-/// the L2.
+/// their neighbours' ratios; in each, the root pass over about 64 K rays (32 K
+/// after the first wavefront); the first 16 segment passes; then 64
+/// admissions measured after 96 of warm-up (one and a half turnovers of the
+/// scene buffer's 64 slots) every 1024; the tail from 8 pending queues; four
+/// shading windows of 2048 items after 4096 and at least 16384 cycles, after
+/// the first 16384, each at a hashed place in its quarter of the pass. A
+/// wavefront too short for windows is traced over a sample of about 64 K of
+/// its rays on an eighth of the L2.
 pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
         root_rays: 65536,
         bounce_root_rays: 32768,
         wave_rays: 65536,
-        wave_l2_share: 4,
+        wave_l2_share: 8,
         wave_ray_share: 0.15,
         wave_whole: 0,
         warm: 96,

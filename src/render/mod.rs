@@ -119,8 +119,10 @@ pub struct WindowPlan {
     /// Dabrovic Sponza (k 16-28, runs of 1024 rays), a wavefront simulated
     /// whole over its sample is 0.97-1.02 in cycles, 0.97-1.03 in lines and
     /// 0.98-1.02 in DRAM energy with a quarter of the L2; with half, runs of
-    /// 512, lines read 1.01-1.08 (docs/speed-error.md). The choice is
-    /// measured, not derived.
+    /// 512, lines read 1.01-1.08. Against the cycle reference's runs, a
+    /// quarter put the bounce wavefronts' hit-record lines 5-6% low (the
+    /// frame's -4.0%), an eighth within 1% (docs/speed-error.md). The choice
+    /// is measured, not derived.
     pub wave_l2_share: u32,
     /// A short wavefront is traced over a sample only if the sample's ray
     /// stream per pass (its rays times the visits a ray makes, guessed from
