@@ -91,10 +91,11 @@ pub struct WindowPlan {
     /// k times its lines and other counts but for its segment's load.
     pub root_rays: u64,
     /// The same for the later wavefronts' root windows. Half of `root_rays`
-    /// by default: the primary rays' root pass needs a longer sample, as its
-    /// rate falls by about a third after its first 65 K cycles (the Dragon
-    /// Box at 1024x1024; a fresh chip's time, not the rays': a sample of
-    /// 32 K rays ends within them and reads -13.5% against -5.5% with 64 K),
+    /// by default: the primary rays' root pass needs a longer sample, as it
+    /// takes 77-81 cycles a bucket for its first 65 K cycles and 123-138
+    /// after (the Dragon Box at 1024x1024; a fresh chip's time, not the
+    /// rays': a sample of 32 K rays ends within them and reads -13.5%
+    /// against -5.5% with 64 K),
     /// while the later root passes read the same with half the rays (Dragon
     /// -1.4% and -0.3%; Dragon Box +7.0% and +6.6%, +0.9% and +1.6%) at half
     /// the cost (docs/speed-error.md).
