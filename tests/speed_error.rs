@@ -801,8 +801,7 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
     use dualstream::speed_error::Reference;
     let (mut s, c) = cornell_in_rows();
     s.settings.bounces = 4;
-    let (_dir, j, png) = reference_files(&s, &c, "borrowed");
-    let dir = j.parent().unwrap().to_path_buf();
+    let (dir, j, png) = reference_files(&s, &c, "borrowed");
     let estimate_with = |wave_every: u64, root_rays: u64| {
         // Root windows on a sample of each root pass (a pass no longer than a
         // quarter of a root window is simulated whole, never borrowed).
@@ -942,8 +941,7 @@ fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
     // `windows_that_cover_the_frame_agree_with_the_cycle_model`).
     c.chip.l2.bytes = 2048;
     c.chip.l2.banks = 4;
-    let (_dir, j, png) = reference_files(&s, &c, "whole");
-    let dir = j.parent().unwrap().to_path_buf();
+    let (dir, j, png) = reference_files(&s, &c, "whole");
     let estimate = |every: u64| {
         let mut plan = windows_plan(4, every);
         plan.warm = 3;
@@ -1082,8 +1080,7 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
     s.settings.width = 48;
     s.settings.height = 48;
     s.settings.bounces = 3;
-    let (_dir, j, png) = reference_files(&s, &c, "shade-lines");
-    let dir = j.parent().unwrap().to_path_buf();
+    let (dir, j, png) = reference_files(&s, &c, "shade-lines");
     let mut plan = windows_plan(1 << 20, 1 << 20);
     (
         plan.shade_head,
@@ -1399,8 +1396,7 @@ fn a_root_pass_between_unlike_root_windows_lies_on_their_line() {
 fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
     let (_, c) = cornell_in_rows();
     let s = open_spheres();
-    let (_dir, j, png) = reference_files(&s, &c, "line");
-    let dir = j.parent().unwrap().to_path_buf();
+    let (dir, j, png) = reference_files(&s, &c, "line");
     let plan = borrowing_plan(2, 32);
     let (_, v) = windows_against(&s, &c, plan, (&j, &png), &dir.join("w.json"));
     let rays: Vec<f64> = v["record"]["segs"]
@@ -1453,8 +1449,7 @@ fn a_shrinking_wavefront_borrows_its_root_on_the_line() {
 fn a_middle_root_pass_is_whole_only_below_a_quarter_root_window() {
     let (_, c) = cornell_in_rows();
     let s = open_spheres();
-    let (_dir, j, png) = reference_files(&s, &c, "quarter");
-    let dir = j.parent().unwrap().to_path_buf();
+    let (dir, j, png) = reference_files(&s, &c, "quarter");
     let run = |root_rays: u64| {
         let log = dir.join(format!("q{root_rays}.json"));
         windows_against(&s, &c, borrowing_plan(2, root_rays), (&j, &png), &log).1

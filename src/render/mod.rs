@@ -95,10 +95,9 @@ pub struct WindowPlan {
     /// takes 77-81 cycles a bucket for its first 65 K cycles and 123-138
     /// after (the Dragon Box at 1024x1024; a fresh chip's time, not the
     /// rays': a sample of 32 K rays ends within them and reads -13.5%
-    /// against -5.5% with 64 K),
-    /// while the later root passes read the same with half the rays (Dragon
-    /// -1.4% and -0.3%; Dragon Box +7.0% and +6.6%, +0.9% and +1.6%) at half
-    /// the cost (docs/speed-error.md).
+    /// against -5.5% with 64 K), while the later root passes read the same
+    /// with half the rays (Dragon -1.4% and -0.3%; Dragon Box +7.0% and
+    /// +6.6%, +0.9% and +1.6%) at half the cost (docs/speed-error.md).
     pub bounce_root_rays: u64,
     /// Rays of a short wavefront's sample (one with too few passes for a
     /// window, see [`WindowPlan::first_window_start`]): such a wavefront of
@@ -253,7 +252,8 @@ impl WindowPlan {
     }
 
     /// A root pass of at most this many rays between the second wavefront and
-    /// the last is simulated whole, not borrowed: a quarter of a root window.
+    /// the last is simulated whole, not borrowed: a quarter of such a
+    /// wavefront's root window (`bounce_root_rays`).
     /// Such a pass is so latency-bound that borrowing misses it (Cornell box
     /// 64x64: 18-34% high), and it is cheap. One up to a whole root window
     /// is not cheap: the Dragon's fifth wavefront (32,747 rays) cost 12.9 M
