@@ -12,6 +12,7 @@ use crate::contract::{
     HitRec, NODE_BYTES, NodeRec, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, SparseMem, TRI_BYTES,
     TriRec,
 };
+use crate::geom::aabb::ray_box_screened;
 use crate::geom::{Aabb, Triangle, inverse_dir, ray_box, ray_triangle};
 
 /// Boxes and segment exits are culled only beyond this distance from the best hit
@@ -58,6 +59,9 @@ pub struct SegmentView {
     pub id: u32,
     pub nodes: Vec<NodeRec>,
     pub tris: Vec<TriRec>,
+    /// Every node's boxes are finite (half of `ray_box`'s input screen, done once
+    /// here rather than per test; see `ray_box_screened`).
+    pub boxes_finite: bool,
 }
 
 impl SegmentView {
@@ -67,16 +71,21 @@ impl SegmentView {
         let mut bytes = vec![0u8; nb + tris as usize * TRI_BYTES as usize];
         mem.read(base + SEGMENT_HEADER_BYTES as u64, &mut bytes);
         let (nbytes, tbytes) = bytes.split_at(nb);
+        let nodes: Vec<NodeRec> = nbytes
+            .chunks_exact(NODE_BYTES as usize)
+            .map(NodeRec::decode)
+            .collect();
+        let boxes_finite = nodes
+            .iter()
+            .all(|n| (0..2).all(|k| n.bmin[k].is_finite() && n.bmax[k].is_finite()));
         SegmentView {
             id,
-            nodes: nbytes
-                .chunks_exact(NODE_BYTES as usize)
-                .map(NodeRec::decode)
-                .collect(),
+            nodes,
             tris: tbytes
                 .chunks_exact(TRI_BYTES as usize)
                 .map(TriRec::decode)
                 .collect(),
+            boxes_finite,
         }
     }
 }
@@ -92,10 +101,28 @@ pub fn traverse_segment(
     ray: &RayRec,
     stack: &mut Vec<(u32, u32, f32)>,
     counts: &mut TraversalCounts,
+    exit: impl FnMut(u32, u32),
+) -> HitRec {
+    // The box test's input screen, once for the whole traversal when it passes
+    // (a loop of its own: a branch per test kept most of the cost).
+    let inv = inverse_dir(ray.dir);
+    if seg.boxes_finite && ray.origin.is_finite() && !inv.is_nan() {
+        traverse_in::<true>(seg, ray, inv, stack, counts, exit)
+    } else {
+        traverse_in::<false>(seg, ray, inv, stack, counts, exit)
+    }
+}
+
+#[inline(always)]
+fn traverse_in<const SCREENED: bool>(
+    seg: &SegmentView,
+    ray: &RayRec,
+    inv: Vec3,
+    stack: &mut Vec<(u32, u32, f32)>,
+    counts: &mut TraversalCounts,
     mut exit: impl FnMut(u32, u32),
 ) -> HitRec {
     let (origin, dir, shadow, entry) = (ray.origin, ray.dir, ray.is_shadow(), ray.entry);
-    let inv = inverse_dir(dir);
     let t_ray = ray.t_max();
     let mut best = HitRec::NONE;
     stack.clear();
@@ -154,10 +181,17 @@ pub fn traverse_segment(
                     min: n.bmin[k],
                     max: n.bmax[k],
                 };
-                let hit = [
-                    ray_box(origin, inv, 0.0, lim, &side(0)),
-                    ray_box(origin, inv, 0.0, lim, &side(1)),
-                ];
+                let hit = if SCREENED {
+                    [
+                        ray_box_screened(origin, inv, 0.0, lim, n.bmin[0], n.bmax[0]),
+                        ray_box_screened(origin, inv, 0.0, lim, n.bmin[1], n.bmax[1]),
+                    ]
+                } else {
+                    [
+                        ray_box(origin, inv, 0.0, lim, &side(0)),
+                        ray_box(origin, inv, 0.0, lim, &side(1)),
+                    ]
+                };
                 // Push the far child first so the near one is visited first.
                 let order = match (hit[0], hit[1]) {
                     (Some(a), Some(b)) if b < a => [0, 1],
