@@ -186,24 +186,14 @@ pub fn ray_box_screened(
     bmin: Vec3,
     bmax: Vec3,
 ) -> Option<f32> {
-    use super::ops::Scalar;
-    let (o, inv) = (o.to_array(), inv.to_array());
-    let (bmin, bmax) = (bmin.to_array(), bmax.to_array());
-    let mut near = t_min;
-    let mut far = t_max;
-    for k in 0..3 {
-        let (pn, pf) = if inv[k].is_sign_negative() {
-            (bmax[k], bmin[k])
-        } else {
-            (bmin[k], bmax[k])
-        };
-        let tn = (pn - o[k]) * inv[k];
-        let tf = (pf - o[k]) * inv[k];
-        near = f32::max_acc(near, tn);
-        far = f32::min_acc(far, tf);
-    }
-    let far = far * ROBUST_SCALE;
-    if near <= far { Some(near) } else { None }
+    slabs(
+        o.to_array(),
+        inv.to_array(),
+        t_min,
+        t_max,
+        bmin.to_array(),
+        bmax.to_array(),
+    )
 }
 
 /// [`ray_box`] over any [`Scalar`]. Exact operation sequence (`RAY_BOX_OPS`):
@@ -236,6 +226,20 @@ pub fn ray_box_generic<S: Scalar>(
     if !t_min.is_finite() || t_max.is_nan() {
         return None;
     }
+    slabs(o, inv, t_min, t_max, bmin, bmax)
+}
+
+/// The box test after its input screen: the slabs, the robust scale, the compare
+/// (shared by [`ray_box_generic`] and [`ray_box_screened`]).
+#[inline(always)]
+fn slabs<S: Scalar>(
+    o: [S; 3],
+    inv: [S; 3],
+    t_min: S,
+    t_max: S,
+    bmin: [S; 3],
+    bmax: [S; 3],
+) -> Option<S> {
     let mut near = t_min;
     let mut far = t_max;
     for k in 0..3 {
