@@ -262,17 +262,6 @@ fn put_vec3(b: &mut [u8], o: usize, v: Vec3) {
     put_f32(b, o + 4, v.y);
     put_f32(b, o + 8, v.z);
 }
-fn get_vec3(m: &SparseMem, a: u64) -> Vec3 {
-    let mut b = [0u8; 12];
-    m.read(a, &mut b);
-    vec3_at(&b, 0)
-}
-fn write_vec3(m: &mut SparseMem, a: u64, v: Vec3) {
-    let mut b = [0u8; 12];
-    put_vec3(&mut b, 0, v);
-    m.write(a, &b);
-}
-
 impl NodeRec {
     pub fn encode(&self) -> [u8; NODE_BYTES as usize] {
         let mut b = [0u8; NODE_BYTES as usize];
@@ -393,19 +382,15 @@ impl HitRec {
             v: f32_at(b, 12),
         }
     }
+    /// One access of the record's bytes, not one per field (the functional
+    /// model reads and writes a hit record per ray and segment).
     pub fn write(&self, m: &mut SparseMem, a: u64) {
-        m.write_f32(a, self.t);
-        m.write_u32(a + 4, self.tri_id);
-        m.write_f32(a + 8, self.u);
-        m.write_f32(a + 12, self.v);
+        m.write(a, &self.encode());
     }
     pub fn read(m: &SparseMem, a: u64) -> HitRec {
-        HitRec {
-            t: m.read_f32(a),
-            tri_id: m.read_u32(a + 4),
-            u: m.read_f32(a + 8),
-            v: m.read_f32(a + 12),
-        }
+        let mut b = [0u8; HIT_BYTES as usize];
+        m.read(a, &mut b);
+        HitRec::decode(&b)
     }
 }
 
@@ -432,26 +417,15 @@ impl PathRec {
             flags: (w >> 16) as u16,
         }
     }
+    /// One access of the record's bytes, as `HitRec`'s (the last word is
+    /// written zero, as `encode` leaves it).
     pub fn write(&self, m: &mut SparseMem, a: u64) {
-        write_vec3(m, a, self.throughput);
-        write_vec3(m, a + 12, self.pending);
-        write_vec3(m, a + 24, self.radiance);
-        write_vec3(m, a + 36, self.dir);
-        m.write_u64(a + 48, self.rng);
-        m.write_u32(a + 56, self.depth as u32 | (self.flags as u32) << 16);
-        m.write_u32(a + 60, 0);
+        m.write(a, &self.encode());
     }
     pub fn read(m: &SparseMem, a: u64) -> PathRec {
-        let w = m.read_u32(a + 56);
-        PathRec {
-            throughput: get_vec3(m, a),
-            pending: get_vec3(m, a + 12),
-            radiance: get_vec3(m, a + 24),
-            dir: get_vec3(m, a + 36),
-            rng: m.read_u64(a + 48),
-            depth: w as u16,
-            flags: (w >> 16) as u16,
-        }
+        let mut b = [0u8; PATH_BYTES as usize];
+        m.read(a, &mut b);
+        PathRec::decode(&b)
     }
 }
 
@@ -540,8 +514,36 @@ mod tests {
             rng: 0xDEAD_BEEF_0123_4567,
             flags: 3,
         };
+        m.write(8192 + 60, &[0xFF; 4]);
         p.write(&mut m, 8192);
         assert_eq!(PathRec::read(&m, 8192), p);
+        // The fields at the contract's offsets, not just a round trip.
+        assert_eq!(m.read_f32(8192 + 24), 0.5, "radiance.x at byte 24");
+        assert_eq!(m.read_f32(8192 + 40), 1.0, "dir.y at byte 40");
+        assert_eq!(
+            m.read_u64(8192 + 48),
+            0xDEAD_BEEF_0123_4567,
+            "rng at byte 48"
+        );
+        assert_eq!(
+            m.read_u32(8192 + 56),
+            3 | 3 << 16,
+            "depth | flags << 16 at byte 56"
+        );
+        assert_eq!(m.read_u32(8192 + 60), 0, "the last word written zero");
+        let h = HitRec {
+            t: 2.5,
+            tri_id: 77,
+            u: 0.25,
+            v: 0.5,
+        };
+        // A record across a 64 KB page boundary (the slow path) reads back too.
+        for a in [12288, (1 << 16) - 8] {
+            h.write(&mut m, a);
+            assert_eq!(HitRec::read(&m, a), h);
+            assert_eq!(m.read_u32(a + 4), 77, "tri_id at byte 4");
+            assert_eq!(m.read_f32(a + 12), 0.5, "v at byte 12");
+        }
     }
 
     #[test]

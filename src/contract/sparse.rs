@@ -49,7 +49,25 @@ impl SparseMem {
         );
     }
 
+    /// Reads `out.len()` bytes at `a`. An access within one page (nearly every
+    /// one: records are aligned to their size) takes the inlined fast path; the
+    /// functional model makes hundreds of millions of them a frame.
+    #[inline]
     pub fn read(&self, a: u64, out: &mut [u8]) {
+        let off = (a as usize) & (PAGE - 1);
+        if off + out.len() <= PAGE && a + out.len() as u64 <= self.capacity {
+            match &self.pages[(a >> PAGE_BITS) as usize] {
+                Some(pg) => out.copy_from_slice(&pg[off..off + out.len()]),
+                None => out.fill(0),
+            }
+            return;
+        }
+        self.read_pages(a, out);
+    }
+
+    /// `read` across pages (and the capacity check's panic).
+    #[cold]
+    fn read_pages(&self, a: u64, out: &mut [u8]) {
         self.check(a, out.len());
         let mut done = 0;
         while done < out.len() {
@@ -64,19 +82,38 @@ impl SparseMem {
         }
     }
 
+    /// Writes `data` at `a`; the same fast path as `read`.
+    #[inline]
     pub fn write(&mut self, a: u64, data: &[u8]) {
+        let off = (a as usize) & (PAGE - 1);
+        if off + data.len() <= PAGE && a + data.len() as u64 <= self.capacity {
+            let pg = self.page_mut((a >> PAGE_BITS) as usize);
+            pg[off..off + data.len()].copy_from_slice(data);
+            return;
+        }
+        self.write_pages(a, data);
+    }
+
+    /// Page `p`, allocated if never written, copied if a snapshot shares it.
+    #[inline]
+    fn page_mut(&mut self, p: usize) -> &mut [u8] {
+        let pg = self.pages[p].get_or_insert_with(|| {
+            self.allocated += 1;
+            Arc::from(vec![0u8; PAGE])
+        });
+        Arc::make_mut(pg)
+    }
+
+    /// `write` across pages (and the capacity check's panic).
+    #[cold]
+    fn write_pages(&mut self, a: u64, data: &[u8]) {
         self.check(a, data.len());
         let mut done = 0;
         while done < data.len() {
             let addr = a + done as u64;
             let (p, off) = ((addr >> PAGE_BITS) as usize, (addr as usize) & (PAGE - 1));
             let n = (PAGE - off).min(data.len() - done);
-            let pg = self.pages[p].get_or_insert_with(|| {
-                self.allocated += 1;
-                Arc::from(vec![0u8; PAGE])
-            });
-            // Copies the page if a snapshot shares it.
-            let pg = Arc::make_mut(pg);
+            let pg = self.page_mut(p);
             pg[off..off + n].copy_from_slice(&data[done..done + n]);
             done += n;
         }
