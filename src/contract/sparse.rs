@@ -54,9 +54,11 @@ impl SparseMem {
     /// functional model makes hundreds of millions of them a frame.
     #[inline]
     pub fn read(&self, a: u64, out: &mut [u8]) {
-        let off = (a as usize) & (PAGE - 1);
-        if off + out.len() <= PAGE && a + out.len() as u64 <= self.capacity {
-            match &self.pages[(a >> PAGE_BITS) as usize] {
+        let (p, off) = ((a >> PAGE_BITS) as usize, (a as usize) & (PAGE - 1));
+        // `p` in range too: an empty access at the capacity's end is no page's.
+        if off + out.len() <= PAGE && a + out.len() as u64 <= self.capacity && p < self.pages.len()
+        {
+            match &self.pages[p] {
                 Some(pg) => out.copy_from_slice(&pg[off..off + out.len()]),
                 None => out.fill(0),
             }
@@ -85,9 +87,12 @@ impl SparseMem {
     /// Writes `data` at `a`; the same fast path as `read`.
     #[inline]
     pub fn write(&mut self, a: u64, data: &[u8]) {
-        let off = (a as usize) & (PAGE - 1);
-        if off + data.len() <= PAGE && a + data.len() as u64 <= self.capacity {
-            let pg = self.page_mut((a >> PAGE_BITS) as usize);
+        let (p, off) = ((a >> PAGE_BITS) as usize, (a as usize) & (PAGE - 1));
+        if off + data.len() <= PAGE
+            && a + data.len() as u64 <= self.capacity
+            && p < self.pages.len()
+        {
+            let pg = self.page_mut(p);
             pg[off..off + data.len()].copy_from_slice(data);
             return;
         }
@@ -190,6 +195,17 @@ mod tests {
         drop(snap);
         m.write_u64(100, 10);
         assert_eq!(m.read_u64(100), 10);
+    }
+
+    #[test]
+    fn empty_access_at_the_end_is_fine() {
+        // The capacity a whole number of pages: an empty access at its end is
+        // within it, and on no page.
+        let mut m = SparseMem::new(1 << 17);
+        m.write(1 << 17, &[]);
+        m.read(1 << 17, &mut []);
+        m.write((1 << 17) - 4, &[1, 2, 3, 4]);
+        assert_eq!(m.read_u32((1 << 17) - 4), 0x0403_0201);
     }
 
     #[test]
