@@ -11,6 +11,12 @@ use std::sync::Arc;
 const PAGE_BITS: u32 = 16;
 const PAGE: usize = 1 << PAGE_BITS;
 
+/// The page of address `a` and its offset in it.
+#[inline(always)]
+fn locate(a: u64) -> (usize, usize) {
+    ((a >> PAGE_BITS) as usize, (a as usize) & (PAGE - 1))
+}
+
 #[derive(Clone)]
 pub struct SparseMem {
     capacity: u64,
@@ -49,15 +55,23 @@ impl SparseMem {
         );
     }
 
+    /// The page and offset of an access of `len` bytes at `a` that lies within
+    /// one page and the capacity (the fast path of `read` and `write`); `None`
+    /// sends it the slow way. The page index is checked too: an empty access at
+    /// the capacity's end is on no page.
+    #[inline(always)]
+    fn within_page(&self, a: u64, len: usize) -> Option<(usize, usize)> {
+        let (p, off) = locate(a);
+        (off + len <= PAGE && a + len as u64 <= self.capacity && p < self.pages.len())
+            .then_some((p, off))
+    }
+
     /// Reads `out.len()` bytes at `a`. An access within one page (nearly every
     /// one: records are aligned to their size) takes the inlined fast path; the
     /// functional model makes hundreds of millions of them a frame.
     #[inline]
     pub fn read(&self, a: u64, out: &mut [u8]) {
-        let (p, off) = ((a >> PAGE_BITS) as usize, (a as usize) & (PAGE - 1));
-        // `p` in range too: an empty access at the capacity's end is no page's.
-        if off + out.len() <= PAGE && a + out.len() as u64 <= self.capacity && p < self.pages.len()
-        {
+        if let Some((p, off)) = self.within_page(a, out.len()) {
             match &self.pages[p] {
                 Some(pg) => out.copy_from_slice(&pg[off..off + out.len()]),
                 None => out.fill(0),
@@ -74,7 +88,7 @@ impl SparseMem {
         let mut done = 0;
         while done < out.len() {
             let addr = a + done as u64;
-            let (p, off) = ((addr >> PAGE_BITS) as usize, (addr as usize) & (PAGE - 1));
+            let (p, off) = locate(addr);
             let n = (PAGE - off).min(out.len() - done);
             match &self.pages[p] {
                 Some(pg) => out[done..done + n].copy_from_slice(&pg[off..off + n]),
@@ -87,11 +101,7 @@ impl SparseMem {
     /// Writes `data` at `a`; the same fast path as `read`.
     #[inline]
     pub fn write(&mut self, a: u64, data: &[u8]) {
-        let (p, off) = ((a >> PAGE_BITS) as usize, (a as usize) & (PAGE - 1));
-        if off + data.len() <= PAGE
-            && a + data.len() as u64 <= self.capacity
-            && p < self.pages.len()
-        {
+        if let Some((p, off)) = self.within_page(a, data.len()) {
             let pg = self.page_mut(p);
             pg[off..off + data.len()].copy_from_slice(data);
             return;
@@ -116,7 +126,7 @@ impl SparseMem {
         let mut done = 0;
         while done < data.len() {
             let addr = a + done as u64;
-            let (p, off) = ((addr >> PAGE_BITS) as usize, (addr as usize) & (PAGE - 1));
+            let (p, off) = locate(addr);
             let n = (PAGE - off).min(data.len() - done);
             let pg = self.page_mut(p);
             pg[off..off + n].copy_from_slice(&data[done..done + n]);
