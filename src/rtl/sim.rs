@@ -151,11 +151,7 @@ struct Sched {
     edge: EdgeOf,
     /// Last wake-up time put in the calendar (skips immediate duplicates).
     last_wake: Time,
-    /// Time of the last evaluation (skips duplicate calendar entries).
-    last_eval: Time,
     clock: u16,
-    /// Evaluation partition (see [`Sim::set_part`]).
-    part: u8,
 }
 
 /// `t.div_ceil(period)` by a multiply with the period's reciprocal: a 64-bit
@@ -639,6 +635,11 @@ pub struct Sim {
     clocks: Vec<Clock>,
     slots: Vec<Slot>,
     sched: Vec<Sched>,
+    /// Every unit's evaluation partition (see [`Sim::set_part`]).
+    parts: Vec<u8>,
+    /// Every unit's last evaluation time (skips duplicate calendar entries):
+    /// apart from `Sched`, which the worker writes, as only this thread reads it.
+    last_eval: Vec<Time>,
     links: Vec<Box<dyn LinkDyn>>,
     /// Head visibility time of every link (see `Ctx::heads`).
     heads: Vec<Time>,
@@ -655,6 +656,10 @@ pub struct Sim {
     /// Whether the step at `now` has been processed.
     stepped: bool,
     cal: super::calendar::Calendar,
+    /// The worker's own calendar: with two threads each lane schedules its own
+    /// units' next evaluations while it runs (the worker here, the caller's lane
+    /// in `cal`), so that bookkeeping is not serial; a step takes from both.
+    lane_cal: super::calendar::Calendar,
     opts: SimOptions,
     rng: Option<Rng>,
     elaborated: bool,
@@ -689,6 +694,8 @@ impl Sim {
             clocks: Vec::new(),
             slots: Vec::new(),
             sched: Vec::new(),
+            parts: Vec::new(),
+            last_eval: Vec::new(),
             links: Vec::new(),
             heads: Vec::new(),
             space: Vec::new(),
@@ -698,6 +705,7 @@ impl Sim {
             now: 0,
             stepped: false,
             cal: super::calendar::Calendar::new(),
+            lane_cal: super::calendar::Calendar::new(),
             taken: Vec::new(),
             opts,
             rng,
@@ -726,6 +734,7 @@ impl Sim {
             )));
         }
         self.cal.add_domain(period_ps);
+        self.lane_cal.add_domain(period_ps);
         self.clocks.push(Clock {
             name: name.into(),
             period_ps,
@@ -784,10 +793,10 @@ impl Sim {
         self.sched.push(Sched {
             edge: EdgeOf::new(period),
             last_wake: Time::MAX,
-            last_eval: Time::MAX,
             clock: clock.0,
-            part: 0,
         });
+        self.parts.push(0);
+        self.last_eval.push(Time::MAX);
         self.elaborated = false;
         UnitId(self.slots.len() as u32 - 1)
     }
@@ -803,7 +812,7 @@ impl Sim {
                 self.slots[u.0 as usize].path
             )));
         }
-        self.sched[u.0 as usize].part = part;
+        self.parts[u.0 as usize] = part;
         self.elaborated = false;
         Ok(())
     }
@@ -876,6 +885,7 @@ impl Sim {
         self.now = 0;
         self.stepped = false;
         self.cal.clear();
+        self.lane_cal.clear();
         self.evals = 0;
         self.steps = 0;
         self.parallel_steps = 0;
@@ -899,7 +909,7 @@ impl Sim {
             s.stalled_outs.clear();
             let sc = &mut self.sched[i];
             sc.last_wake = 0;
-            sc.last_eval = Time::MAX;
+            self.last_eval[i] = Time::MAX;
             self.cal.push(sc.clock as usize, i as u32, 0);
         }
     }
@@ -924,12 +934,7 @@ impl Sim {
     /// [`Sim::schedule`] at cycle `c` of the unit's clock.
     #[inline]
     fn schedule_cycle(sched: &mut [Sched], cal: &mut super::calendar::Calendar, u: u32, c: u64) {
-        let s = &mut sched[u as usize];
-        let t = c * s.edge.period;
-        if t != s.last_wake {
-            s.last_wake = t;
-            cal.push_cycle(s.clock as usize, u, c, t);
-        }
+        schedule_unit(&mut sched[u as usize], cal, u, c);
     }
 
     /// Wakes a unit at its next clock edge (for testbenches that poke a unit's queue
@@ -941,7 +946,10 @@ impl Sim {
 
     /// Time of the next step, if any unit is scheduled.
     fn next_time(&mut self) -> Option<Time> {
-        let mut t = self.cal.next_time()?;
+        let mut t = match (self.cal.next_time(), self.lane_cal.next_time()) {
+            (Some(a), Some(b)) => a.min(b),
+            (a, b) => a.or(b)?,
+        };
         let after = if self.stepped { self.now + 1 } else { self.now };
         let edge_after = |p: Time| after.div_ceil(p) * p;
         if !self.opts.sleep {
@@ -1036,10 +1044,11 @@ impl Sim {
         // Units that are due (scheduled for t).
         self.due.clear();
         self.cal.take(t, &mut self.taken);
+        self.lane_cal.take(t, &mut self.taken);
         for &u in &self.taken {
-            let s = &mut self.sched[u as usize];
-            if s.last_eval != t {
-                s.last_eval = t;
+            let e = &mut self.last_eval[u as usize];
+            if *e != t {
+                *e = t;
                 self.due.push((u, true));
             }
         }
@@ -1047,7 +1056,7 @@ impl Sim {
         // Sleep off: every unit whose clock has an edge now, due or not.
         if !self.opts.sleep {
             for (i, s) in self.sched.iter().enumerate() {
-                if t.is_multiple_of(s.edge.period) && s.last_eval != t {
+                if t.is_multiple_of(s.edge.period) && self.last_eval[i] != t {
                     self.due.push((i as u32, false));
                 }
             }
@@ -1060,11 +1069,11 @@ impl Sim {
             // Partitions 1 and 2 on two threads, each unit committed by its thread
             // right after its evaluation (see `eval_commit`); partition 0 after,
             // below.
-            let sched = &self.sched;
+            let parts = &self.parts;
             let [l1, l2] = &mut self.lane_due;
             l1.clear();
             l2.clear();
-            due.retain(|&(u, d)| match sched[u as usize].part {
+            due.retain(|&(u, d)| match parts[u as usize] {
                 1 => {
                     l1.push((u, d));
                     false
@@ -1130,21 +1139,10 @@ impl Sim {
             return Err(SimError::Protocol(violations));
         }
         for i in 0..self.out.nexts.len() {
-            // `cycle`: the unit's cycle at `t` (it ran on its own edge).
             let (u, n, cycle) = self.out.nexts[i];
-            let c = match n {
-                Next::Cycle => cycle + 1,
-                Next::AtCycle(c) => {
-                    assert!(
-                        c > cycle,
-                        "unit '{}' asked to wake at cycle {c}, which is not in the future",
-                        self.slots[u as usize].path
-                    );
-                    c
-                }
-                Next::Idle => continue,
-            };
-            Self::schedule_cycle(&mut self.sched, &mut self.cal, u, c);
+            if let Some(c) = next_cycle(n, cycle, &self.slots[u as usize].path) {
+                Self::schedule_cycle(&mut self.sched, &mut self.cal, u, c);
+            }
         }
         self.out.nexts.clear();
         for (u, w) in self.out.wakes.drain(..) {
@@ -1167,6 +1165,9 @@ impl Sim {
             n_slots: self.slots.len(),
             net,
             local: self.local.as_ptr(),
+            sched: self.sched.as_mut_ptr(),
+            parts: self.parts.as_ptr(),
+            cals: [&mut self.lane_cal, &mut self.cal],
         };
         {
             // SAFETY: the worker is waiting for `go` and does not touch the job.
@@ -1228,7 +1229,7 @@ impl Sim {
         let b = &mut self.balance;
         let [w, m] = std::mem::take(&mut b.lane_ns);
         b.steps = 0;
-        let part_of = |g: &Vec<u32>| g.first().map(|&u| self.sched[u as usize].part);
+        let part_of = |g: &Vec<u32>| g.first().map(|&u| self.parts[u as usize]);
         let n1 = b.groups.iter().filter(|g| part_of(g) == Some(1)).count();
         let n2 = b.groups.iter().filter(|g| part_of(g) == Some(2)).count();
         let (from, to, n) = if b.always_move {
@@ -1256,7 +1257,7 @@ impl Sim {
         };
         let Some(k) = pick else { return };
         for &u in &b.groups[k] {
-            self.sched[u as usize].part = to;
+            self.parts[u as usize] = to;
         }
         self.balance.moves += 1;
         self.relocal();
@@ -1266,8 +1267,8 @@ impl Sim {
     fn relocal(&mut self) {
         for (i, l) in self.links.iter().enumerate() {
             let (p, c) = l.ends();
-            let pp = p.map_or(0, |p| self.sched[p.0 as usize].part);
-            let cp = c.map_or(0, |c| self.sched[c.0 as usize].part);
+            let pp = p.map_or(0, |p| self.parts[p.0 as usize]);
+            let cp = c.map_or(0, |c| self.parts[c.0 as usize]);
             self.local[i] = if pp == cp { pp } else { 0 };
         }
     }
@@ -1610,6 +1611,9 @@ impl Worker {
                         len: 0,
                     },
                     local: std::ptr::null(),
+                    sched: std::ptr::null_mut(),
+                    parts: std::ptr::null(),
+                    cals: [std::ptr::null_mut(); 2],
                 },
                 due: Vec::new(),
                 out: LaneOut::default(),
@@ -1684,13 +1688,50 @@ struct Lanes {
     n_slots: usize,
     net: Net,
     local: *const u8,
+    /// Every unit's scheduling record: a lane reaches those of its own units only.
+    sched: *mut Sched,
+    /// Every unit's partition (read only while the lanes run).
+    parts: *const u8,
+    /// The calendar each lane schedules its own units in (partition 1: the
+    /// worker's `lane_cal`, 2: `cal`).
+    cals: [*mut super::calendar::Calendar; 2],
+}
+
+/// Puts unit `u` (its record `s`) in `cal` at cycle `c` of its clock, unless
+/// its last wake-up was that very time.
+#[inline]
+fn schedule_unit(s: &mut Sched, cal: &mut super::calendar::Calendar, u: u32, c: u64) {
+    let t = c * s.edge.period;
+    if t != s.last_wake {
+        s.last_wake = t;
+        cal.push_cycle(s.clock as usize, u, c, t);
+    }
+}
+
+/// The cycle a unit evaluated in `cycle` (on its own edge) asks to run next, if any.
+#[inline]
+fn next_cycle(n: Next, cycle: u64, path: &str) -> Option<u64> {
+    match n {
+        Next::Cycle => Some(cycle + 1),
+        Next::AtCycle(c) => {
+            assert!(
+                c > cycle,
+                "unit '{path}' asked to wake at cycle {c}, which is not in the future"
+            );
+            Some(c)
+        }
+        Next::Idle => None,
+    }
 }
 
 /// Evaluates and commits `due`, units of partition `part`, then takes the clock
 /// edge of the links whose both ends are in `part` (the others are left in
-/// `out.touched` for the edge after both threads).
-/// SAFETY: no other thread reaches a unit of `part` or a link local to it, and
-/// every unit in `due` is in `part`.
+/// `out.touched` for the edge after both threads), and schedules the next
+/// evaluations of its own units in its calendar (`Lanes::cals`): those its units
+/// asked for, and the wake-ups that its pushes and pops sent to them (a wake-up
+/// of another partition's unit is left in `out.wakes` for after both threads).
+/// SAFETY: no other thread reaches a unit of `part`, its scheduling record, its
+/// calendar or a link local to it, and every unit in `due` is in `part`.
 unsafe fn run_lane(
     l: Lanes,
     part: u8,
@@ -1730,6 +1771,36 @@ unsafe fn run_lane(
                 .push((p.expect("elaborated link has a producer"), t + 1));
         }
     }
+    // SAFETY: this lane's calendar is its own (the function's contract).
+    let cal = unsafe { &mut *l.cals[part as usize - 1] };
+    for &(u, n, cycle) in &out.nexts {
+        assert!((u as usize) < l.n_slots);
+        // SAFETY: in bounds; `u` was evaluated here, so it is in `part`.
+        let (s, path) = unsafe {
+            (
+                &mut *l.sched.add(u as usize),
+                &(*l.slots.add(u as usize)).path,
+            )
+        };
+        if let Some(c) = next_cycle(n, cycle, path) {
+            schedule_unit(s, cal, u, c);
+        }
+    }
+    out.nexts.clear();
+    out.wakes.retain(|&(u, w)| {
+        let u = u.0;
+        assert!((u as usize) < l.n_slots);
+        // SAFETY: in bounds; partitions change only between steps.
+        let p = unsafe { *l.parts.add(u as usize) };
+        if p != part {
+            return true;
+        }
+        // SAFETY: a unit of `part`, whose record only this lane reaches.
+        let s = unsafe { &mut *l.sched.add(u as usize) };
+        let c = s.edge.cycle_at_or_after(w);
+        schedule_unit(s, cal, u, c);
+        false
+    });
     Ok(())
 }
 
