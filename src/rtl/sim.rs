@@ -923,33 +923,19 @@ impl Sim {
         self.now / self.clocks[clock.0 as usize].period_ps
     }
 
-    /// Every wake-up is kept (a unit may be woken by a link before the time it asked
-    /// for, and must still run at that time); duplicates of one time are skipped.
-    #[inline]
-    fn schedule(sched: &mut [Sched], cal: &mut super::calendar::Calendar, u: u32, t: Time) {
-        let c = sched[u as usize].edge.cycle_at_or_after(t);
-        Self::schedule_cycle(sched, cal, u, c);
-    }
-
-    /// [`Sim::schedule`] at cycle `c` of the unit's clock.
-    #[inline]
-    fn schedule_cycle(sched: &mut [Sched], cal: &mut super::calendar::Calendar, u: u32, c: u64) {
-        schedule_unit(&mut sched[u as usize], cal, u, c);
-    }
-
     /// Wakes a unit at its next clock edge (for testbenches that poke a unit's queue
     /// between runs).
     pub fn wake(&mut self, u: UnitId) {
         let t = if self.stepped { self.now + 1 } else { self.now };
-        Self::schedule(&mut self.sched, &mut self.cal, u.0, t);
+        self.sched[u.0 as usize].at_time(&mut self.cal, u.0, t);
     }
 
     /// Time of the next step, if any unit is scheduled.
     fn next_time(&mut self) -> Option<Time> {
-        let mut t = match (self.cal.next_time(), self.lane_cal.next_time()) {
-            (Some(a), Some(b)) => a.min(b),
-            (a, b) => a.or(b)?,
-        };
+        let mut t = [self.cal.next_time(), self.lane_cal.next_time()]
+            .into_iter()
+            .flatten()
+            .min()?;
         let after = if self.stepped { self.now + 1 } else { self.now };
         let edge_after = |p: Time| after.div_ceil(p) * p;
         if !self.opts.sleep {
@@ -1138,15 +1124,13 @@ impl Sim {
         if !violations.is_empty() {
             return Err(SimError::Protocol(violations));
         }
-        for i in 0..self.out.nexts.len() {
-            let (u, n, cycle) = self.out.nexts[i];
-            if let Some(c) = next_cycle(n, cycle, &self.slots[u as usize].path) {
-                Self::schedule_cycle(&mut self.sched, &mut self.cal, u, c);
-            }
+        for &(u, n, cycle) in &self.out.nexts {
+            let path = &self.slots[u as usize].path;
+            self.sched[u as usize].next(&mut self.cal, u, n, cycle, path);
         }
         self.out.nexts.clear();
         for (u, w) in self.out.wakes.drain(..) {
-            Self::schedule(&mut self.sched, &mut self.cal, u.0, w);
+            self.sched[u.0 as usize].at_time(&mut self.cal, u.0, w);
         }
         Ok(())
     }
@@ -1697,30 +1681,50 @@ struct Lanes {
     cals: [*mut super::calendar::Calendar; 2],
 }
 
-/// Puts unit `u` (its record `s`) in `cal` at cycle `c` of its clock, unless
-/// its last wake-up was that very time.
-#[inline]
-fn schedule_unit(s: &mut Sched, cal: &mut super::calendar::Calendar, u: u32, c: u64) {
-    let t = c * s.edge.period;
-    if t != s.last_wake {
-        s.last_wake = t;
-        cal.push_cycle(s.clock as usize, u, c, t);
-    }
-}
-
-/// The cycle a unit evaluated in `cycle` (on its own edge) asks to run next, if any.
-#[inline]
-fn next_cycle(n: Next, cycle: u64, path: &str) -> Option<u64> {
-    match n {
-        Next::Cycle => Some(cycle + 1),
-        Next::AtCycle(c) => {
-            assert!(
-                c > cycle,
-                "unit '{path}' asked to wake at cycle {c}, which is not in the future"
-            );
-            Some(c)
+/// Scheduling unit `u`, this record's unit, in a calendar. Every wake-up is kept
+/// (a unit may be woken by a link before the time it asked for, and must still
+/// run at that time); duplicates of one time are skipped.
+impl Sched {
+    /// At cycle `c` of the unit's clock.
+    #[inline]
+    fn at_cycle(&mut self, cal: &mut super::calendar::Calendar, u: u32, c: u64) {
+        let t = c * self.edge.period;
+        if t != self.last_wake {
+            self.last_wake = t;
+            cal.push_cycle(self.clock as usize, u, c, t);
         }
-        Next::Idle => None,
+    }
+
+    /// At the unit's first clock edge at or after `t`.
+    #[inline]
+    fn at_time(&mut self, cal: &mut super::calendar::Calendar, u: u32, t: Time) {
+        let c = self.edge.cycle_at_or_after(t);
+        self.at_cycle(cal, u, c);
+    }
+
+    /// Where the unit (`path`), evaluated in `cycle` of its clock, asked to run
+    /// next (`n`).
+    #[inline]
+    fn next(
+        &mut self,
+        cal: &mut super::calendar::Calendar,
+        u: u32,
+        n: Next,
+        cycle: u64,
+        path: &str,
+    ) {
+        let c = match n {
+            Next::Cycle => cycle + 1,
+            Next::AtCycle(c) => {
+                assert!(
+                    c > cycle,
+                    "unit '{path}' asked to wake at cycle {c}, which is not in the future"
+                );
+                c
+            }
+            Next::Idle => return,
+        };
+        self.at_cycle(cal, u, c);
     }
 }
 
@@ -1782,9 +1786,7 @@ unsafe fn run_lane(
                 &(*l.slots.add(u as usize)).path,
             )
         };
-        if let Some(c) = next_cycle(n, cycle, path) {
-            schedule_unit(s, cal, u, c);
-        }
+        s.next(cal, u, n, cycle, path);
     }
     out.nexts.clear();
     out.wakes.retain(|&(u, w)| {
@@ -1796,9 +1798,7 @@ unsafe fn run_lane(
             return true;
         }
         // SAFETY: a unit of `part`, whose record only this lane reaches.
-        let s = unsafe { &mut *l.sched.add(u as usize) };
-        let c = s.edge.cycle_at_or_after(w);
-        schedule_unit(s, cal, u, c);
+        unsafe { &mut *l.sched.add(u as usize) }.at_time(cal, u, w);
         false
     });
     Ok(())
