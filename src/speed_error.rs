@@ -596,7 +596,9 @@ impl Default for SpeedErrorOpts {
 /// shading windows of 2048 items after 4096 and at least 16384 cycles, after
 /// the first 16384, each at a hashed place in its quarter of the pass. A
 /// wavefront too short for windows is traced over a sample of about 64 K of
-/// its rays on an eighth of the L2.
+/// its rays on an eighth of the L2; from the fourth on, one alike the last
+/// measured (and after another sampled one) borrows the samples of the third
+/// wavefront on instead.
 pub fn default_windows() -> render::WindowPlan {
     render::WindowPlan {
         head: 16,
@@ -906,7 +908,8 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     let mut per_wave = Vec::new();
     // Short wavefronts traced over a sample, and the whole and sampled
     // figures of those simulated both ways.
-    let mut sampled: Vec<(usize, [f64; WCOUNTS])> = Vec::new();
+    // Each with its whole proxy (every pass's), for those that borrow them.
+    let mut sampled: Vec<(usize, [f64; WCOUNTS], [f64; WCOUNTS])> = Vec::new();
     let (mut whole_sum, mut thin_sum) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
     let mut borrowers = Vec::new();
     // The wavefronts whose root pass borrows.
@@ -936,7 +939,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         if let Some(t) = thin
             && !calibrates
         {
-            sampled.push((wave, t));
+            sampled.push((wave, t, sum(proxy)));
             continue;
         }
         // The head: the root pass (its window on one run of rays in k of the
@@ -1062,9 +1065,17 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         });
         pool_part(2, wave, &x, &px);
     }
+    // Each count of the rest scaled from windows `x` with proxies `px`: each by
+    // its own proxy, the cycles' where the windows saw none of it.
+    let scale = |rest: &[f64; WCOUNTS], x: &[f64; WCOUNTS], px: &[f64; WCOUNTS]| {
+        std::array::from_fn::<f64, WCOUNTS, _>(|i| {
+            let j = if px[i] > 0.0 { i } else { 0 };
+            x[i] * rest[j] / px[j]
+        })
+    };
     // The sampled wavefronts, each count by the ratio whole / sample of those
     // simulated both ways (none: as sampled).
-    for (wave, t) in &sampled {
+    for (wave, t, _) in sampled.iter_mut() {
         let c: [f64; WCOUNTS] = std::array::from_fn(|i| {
             if thin_sum[i] > 0.0 {
                 t[i] * whole_sum[i] / thin_sum[i]
@@ -1074,7 +1085,41 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         });
         add(&mut total, &c, 1.0);
         parts.push(part(*wave, "wave", 0, rec.segs[*wave].len() as u64, &c));
+        *t = c;
     }
+    // A short wavefront that borrows, after a sampled one (`render`'s hook):
+    // its whole proxy times the ratio of the nearest sampled wavefronts before
+    // and after it from `SAMPLE_BORROW_FROM` on (with bounce and shadow rays:
+    // not the last, if there are others), one part, its root pass in it as in
+    // theirs.
+    borrowers.retain(|&wave| {
+        let from = render::SAMPLE_BORROW_FROM;
+        let middle = |v: usize| v >= from && v < rec.final_wave;
+        let whole = rec.whole.get(wave).copied().unwrap_or(false);
+        if !whole || !sampled.iter().any(|s| s.0 < wave) {
+            return true;
+        }
+        let pick = |ok: &dyn Fn(usize) -> bool| {
+            let before = sampled.iter().rev().find(|s| s.0 < wave && ok(s.0));
+            let after = sampled.iter().find(|s| s.0 > wave && ok(s.0));
+            let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+            for s in before.into_iter().chain(after) {
+                add(&mut x, &s.1, 1.0);
+                add(&mut px, &s.2, 1.0);
+            }
+            (px[0] > 0.0).then_some((x, px))
+        };
+        let Some((x, px)) = pick(&middle).or_else(|| pick(&|v| v >= from)) else {
+            return true;
+        };
+        let t = scale(&sum(&proxies[wave]), &x, &px);
+        add(&mut total, &t, 1.0);
+        parts.push(WindowPart {
+            borrowed: true,
+            ..part(wave, "wave", 0, rec.segs[wave].len() as u64, &t)
+        });
+        false
+    });
     // Part `k` summed over the measured wavefronts that have it and pass `ok`:
     // the nearest before and after `wave` (`all`: every one).
     // The nearest measured wavefronts before and after `wave` that have part `k`
@@ -1105,14 +1150,6 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     };
     // Pooled over the frame, for a wavefront too short to hold a window.
     let (pool_x, pool_p) = nearest(2, 0, true, &|_| true).unwrap_or_default();
-    // Each count of the rest scaled from windows `x` with proxies `px`: each by
-    // its own proxy, the cycles' where the windows saw none of it.
-    let scale = |rest: &[f64; WCOUNTS], x: &[f64; WCOUNTS], px: &[f64; WCOUNTS]| {
-        std::array::from_fn::<f64, WCOUNTS, _>(|i| {
-            let j = if px[i] > 0.0 { i } else { 0 };
-            x[i] * rest[j] / px[j]
-        })
-    };
     // Cycles, lines and DRAM energy of a scaled rest: the lines of the hit
     // records and the shading pass only, as the frame's ray and scene streams
     // are the functional model's counts (below).

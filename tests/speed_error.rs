@@ -1264,6 +1264,134 @@ fn a_short_wavefront_is_traced_over_a_sample_to_its_end() {
     }
 }
 
+/// With `wave_every` above 1, a sampled short wavefront after the third whose
+/// rays are alike the last measured one's, right after another sampled one,
+/// borrows: it takes no trace window of any kind (its shading pass keeps its
+/// windows), and its estimate is one part, its whole functional proxy times the
+/// ratio of the nearest sampled wavefronts from the third on; the frame stays
+/// close to the one that measured every sample.
+#[test]
+fn a_sampled_wavefront_alike_its_sampled_neighbours_borrows_them() {
+    use dualstream::render::{BORROW_ALIKE, SAMPLE_BORROW_FROM, SampleKind};
+    let (mut s, c) = cornell_in_rows();
+    s.settings.bounces = 6;
+    let (dir, j, png) = reference_files(&s, &c, "sample-borrow");
+    let estimate = |wave_every: u64| {
+        let mut plan = windows_plan(4, 1000);
+        (plan.warm, plan.measure) = (3, 6);
+        plan.wave_rays = 40;
+        (plan.root_rays, plan.bounce_root_rays) = (40, 40);
+        plan.wave_every = wave_every;
+        let log = dir.join(format!("sample-borrow-{wave_every}.json"));
+        windows_against(&s, &c, plan, (&j, &png), &log)
+    };
+    let (all, va) = estimate(1);
+    let (some, vs) = estimate(2);
+    assert_eq!(some.image_identical, Some(true));
+    let rec = &vs["record"];
+    let last = rec["final_wave"].as_u64().unwrap() as usize;
+    let roots: Vec<u64> = rec["segs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w[0]["rays"].as_u64().unwrap())
+        .collect();
+    let sampled = |v: &serde_json::Value, w: usize| {
+        v["record"]["samples"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|x| x["wave"] == w as u64 && x["kind"] == "Wave")
+    };
+    // Every wavefront but the last (its shadow rays) holds more rays than a
+    // sample: measured one by one, each is sampled.
+    assert_eq!(va["record"]["measured"].as_array().unwrap().len(), last + 1);
+    for w in 0..last {
+        assert!(sampled(&va, w), "wave {w}: {roots:?}");
+    }
+    // The rule: the first three and the last measured, the others borrow
+    // while alike the last measured one.
+    let mut expect = Vec::new();
+    let mut traced = None::<u64>;
+    for (w, &rays) in roots.iter().enumerate() {
+        let alike = traced.is_some_and(|m| rays.abs_diff(m) as f64 <= BORROW_ALIKE * m as f64);
+        let measured = w <= SAMPLE_BORROW_FROM || w >= last || !alike;
+        if measured {
+            traced = Some(rays);
+        }
+        expect.push(measured);
+    }
+    assert_eq!(rec["measured"], serde_json::json!(expect), "{roots:?}");
+    let borrowed: Vec<usize> = (0..=last).filter(|&w| !expect[w]).collect();
+    assert!(!borrowed.is_empty(), "no wavefront alike: {roots:?}");
+    let parts = |v: &serde_json::Value, wave: usize| -> Vec<(String, f64, bool)> {
+        v["parts"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|p| p["wave"] == wave as u64 && p["part"] != "shade" && p["part"] != "emit")
+            .map(|p| {
+                (
+                    p["part"].as_str().unwrap().to_string(),
+                    p["cycles"].as_f64().unwrap(),
+                    p["borrowed"].as_bool().unwrap(),
+                )
+            })
+            .collect()
+    };
+    for &w in &borrowed {
+        let kinds = window_kinds(&vs, w as u64);
+        assert!(
+            kinds
+                .iter()
+                .all(|k| k == &format!("{:?}", SampleKind::Shade)
+                    || k == &format!("{:?}", SampleKind::ShadeHead)),
+            "wave {w} took {kinds:?}"
+        );
+        assert!(
+            !kinds.is_empty(),
+            "wave {w}'s shading pass keeps its windows"
+        );
+        let b = parts(&vs, w);
+        assert_eq!(b.len(), 1, "one part: {b:?}");
+        assert!(b[0].0 == "wave" && b[0].2, "{b:?}");
+        // Its donors: the nearest measured ones before and after it from the
+        // third on but the last. Their rays are alike its own, so their
+        // proxies are too: its estimate is near theirs (the first
+        // wavefronts' are not: the primary rays' 0.6x, the first bounce's
+        // 1.2x here).
+        let before = (SAMPLE_BORROW_FROM..w).rev().find(|&v| expect[v]);
+        let after = (w + 1..last).find(|&v| expect[v]);
+        let donors: Vec<usize> = before.into_iter().chain(after).collect();
+        assert!(!donors.is_empty());
+        let d: f64 = donors.iter().map(|&v| parts(&vs, v)[0].1).sum::<f64>() / donors.len() as f64;
+        assert!(
+            (b[0].1 / d - 1.0).abs() < 0.1,
+            "wave {w}: borrowed {b:?}, donors {donors:?} {d}"
+        );
+    }
+    // The donors are sampled and measured; the rest as when all are measured.
+    for (w, _) in expect.iter().enumerate().filter(|e| *e.1) {
+        assert_eq!(
+            window_kinds(&vs, w as u64),
+            window_kinds(&va, w as u64),
+            "wave {w}"
+        );
+    }
+    for (what, a, b) in [
+        ("cycles", all.err_cycles, some.err_cycles),
+        ("lines", all.err_lines, some.err_lines),
+        ("energy", all.err_energy, some.err_energy),
+    ] {
+        // (A sample of 40 rays is far from its regime: both are far off the
+        // cycle model here, so they are compared with each other.)
+        assert!(
+            ((1.0 + b) / (1.0 + a) - 1.0).abs() < 0.05,
+            "{what}: measured {a:+.4}, borrowed {b:+.4}"
+        );
+    }
+}
+
 /// `time_sampled` (what `report paper --mode windows` shows) estimates every
 /// figure of the cycle frame: with windows that cover the frame (see
 /// `windows_that_cover_the_frame_agree_with_the_cycle_model`) its cycles, the

@@ -108,7 +108,10 @@ pub struct WindowPlan {
     /// over its visits (rays finished in a segment) from the first tenth to the
     /// ninth ([`ROOT_STEADY_TENTHS`]); the visits it left out cost that
     /// stretch's cycles and DRAM energy each, its other counts go by the
-    /// functional work. Always measured (never borrowed). 0: such a wavefront
+    /// functional work. With `wave_every` above 1, one between the fourth
+    /// wavefront and the last borrows from the sampled ones from the third on
+    /// (`SAMPLE_BORROW_FROM`) if its rays are alike the last measured one's
+    /// and the wavefront before it was sampled too. 0: such a wavefront
     /// is simulated whole after its root window.
     pub wave_rays: u64,
     /// A wavefront sample's L2 is this share of the chip's. The sample
@@ -190,6 +193,10 @@ pub struct WindowPlan {
 /// before its drain (its last rays traced), which the whole pass has once.
 pub const ROOT_STEADY_TENTHS: (u64, u64) = (1, 9);
 
+/// The first wavefront whose sample (`WindowPlan::wave_rays`) a later one may
+/// borrow: the primary rays' and the first bounce's cost more per visit (see
+/// `render`'s hook).
+pub const SAMPLE_BORROW_FROM: usize = 2;
 /// Time sampling borrows for a wavefront (its trace or its root pass) only if
 /// its rays are within this fraction of the last measured one's: the ratios it
 /// borrows were measured at that load, and a wavefront with fewer rays is more
@@ -799,6 +806,8 @@ pub fn render(
     // Time sampling: the rays of the last wavefront traced in windows (see
     // `BORROW_ALIKE`).
     let mut traced_rays: Option<u64> = None;
+    // Whether the last wavefront was one traced over a sample (see there).
+    let mut last_sampled = false;
     while !work.is_empty() {
         let mut prog = Progress {
             wave: waves.len(),
@@ -856,8 +865,8 @@ pub fn render(
                             w.rec.segs.last().map_or(p.seg.segments.len(), |s| s.len()) as u64;
                         whole = expect <= plan.first_window_start();
                         // A short wavefront of many rays is traced over a
-                        // sample from its root pass to its end (cheap, so
-                        // never borrowed).
+                        // sample from its root pass to its end, unless it
+                        // borrows (below).
                         let sampled = whole
                             && plan.wave_rays > 0
                             && rays > plan.wave_rays
@@ -867,8 +876,24 @@ pub fn render(
                                 expect,
                                 p.info.segment_bytes_mean,
                             );
-                        measured = plan.measures_wave(wave, last) || !alike(traced_rays) || sampled;
-                        if sampled {
+                        // A sampled one between the third and the last borrows
+                        // from the sampled ones from the third on
+                        // (`speed_error::windowed_parts`), so only right after
+                        // one: the first bounce's rays (from the primary hits)
+                        // cost more per visit than the later ones' (Dabrovic
+                        // Sponza at 1024x1024: 1.01 cycles a visit, then
+                        // 0.92-0.96).
+                        measured = if sampled {
+                            plan.wave_every <= 1
+                                || wave < SAMPLE_BORROW_FROM + 1
+                                || wave >= last
+                                || !last_sampled
+                                || !alike(traced_rays)
+                        } else {
+                            plan.measures_wave(wave, last) || !alike(traced_rays)
+                        };
+                        last_sampled = sampled;
+                        if sampled && measured {
                             traced_rays = Some(rays);
                             let every = rays.div_ceil(plan.wave_rays);
                             let (b, kept) = q.boundary_compact(
