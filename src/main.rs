@@ -252,7 +252,9 @@ enum Cmd {
         /// last and every N-th from the second on (1: all); the others take their
         /// trace's cycles, lines and energy from their functional work times the
         /// ratios of the nearest measured ones (their shading passes keep their
-        /// windows).
+        /// windows). Above 1, a wavefront too short for windows and traced over a
+        /// sample borrows from the fourth on, from the sampled ones from the third
+        /// on, while its rays are alike the last measured one's.
         #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_every)]
         window_waves: u64,
         /// speed-error, windows: segment passes the chip runs before a window's
