@@ -853,14 +853,15 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         .ok_or("the functional frame was rendered without windows")?;
     let wb_j = line_write_j(c)?;
     let mut total = [0.0; WCOUNTS];
-    // Per measured wavefront, per trace part (root, head, rest, tail), the
-    // measured counts and their proxies, for the wavefronts (or root passes)
-    // that borrow them, and pooled for a wavefront too short to hold a window.
+    // Per measured wavefront, per trace part (root, head, rest, tail, and the
+    // whole of one traced over a sample), the measured counts and their
+    // proxies, for the wavefronts (or root passes) that borrow them, and pooled
+    // for a wavefront too short to hold a window.
     type Pair = ([f64; WCOUNTS], [f64; WCOUNTS]);
-    let mut measured: Vec<(usize, [Pair; 4])> = Vec::new();
+    let mut measured: Vec<(usize, [Pair; 5])> = Vec::new();
     let mut pool_part = |k: usize, wave: usize, x: &[f64; WCOUNTS], px: &[f64; WCOUNTS]| {
         if measured.last().is_none_or(|m| m.0 != wave) {
-            measured.push((wave, [([0.0; WCOUNTS], [0.0; WCOUNTS]); 4]));
+            measured.push((wave, [([0.0; WCOUNTS], [0.0; WCOUNTS]); 5]));
         }
         let m = &mut measured.last_mut().expect("pushed").1[k];
         add(&mut m.0, x, 1.0);
@@ -908,8 +909,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     let mut per_wave = Vec::new();
     // Short wavefronts traced over a sample, and the whole and sampled
     // figures of those simulated both ways.
-    // Each with its whole proxy (every pass's), for those that borrow them.
-    let mut sampled: Vec<(usize, [f64; WCOUNTS], [f64; WCOUNTS])> = Vec::new();
+    let mut sampled: Vec<(usize, [f64; WCOUNTS])> = Vec::new();
     let (mut whole_sum, mut thin_sum) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
     let mut borrowers = Vec::new();
     // The wavefronts whose root pass borrows.
@@ -939,7 +939,9 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         if let Some(t) = thin
             && !calibrates
         {
-            sampled.push((wave, t, sum(proxy)));
+            // Lent whole to those that borrow (`SAMPLE_BORROW_FROM`).
+            pool_part(4, wave, &t, &sum(proxy));
+            sampled.push((wave, t));
             continue;
         }
         // The head: the root pass (its window on one run of rays in k of the
@@ -1065,74 +1067,35 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         });
         pool_part(2, wave, &x, &px);
     }
-    // Each count of the rest scaled from windows `x` with proxies `px`: each by
-    // its own proxy, the cycles' where the windows saw none of it.
-    let scale = |rest: &[f64; WCOUNTS], x: &[f64; WCOUNTS], px: &[f64; WCOUNTS]| {
-        std::array::from_fn::<f64, WCOUNTS, _>(|i| {
-            let j = if px[i] > 0.0 { i } else { 0 };
-            x[i] * rest[j] / px[j]
-        })
-    };
-    // The sampled wavefronts, each count by the ratio whole / sample of those
+    // A sampled wavefront's counts by the ratio whole / sample of those
     // simulated both ways (none: as sampled).
-    for (wave, t, _) in sampled.iter_mut() {
-        let c: [f64; WCOUNTS] = std::array::from_fn(|i| {
+    let correct = |t: &[f64; WCOUNTS]| -> [f64; WCOUNTS] {
+        std::array::from_fn(|i| {
             if thin_sum[i] > 0.0 {
                 t[i] * whole_sum[i] / thin_sum[i]
             } else {
                 t[i]
             }
-        });
+        })
+    };
+    for (wave, t) in &sampled {
+        let c = correct(t);
         add(&mut total, &c, 1.0);
         parts.push(part(*wave, "wave", 0, rec.segs[*wave].len() as u64, &c));
-        *t = c;
     }
-    // A short wavefront that borrows, after a sampled one (`render`'s hook):
-    // its whole proxy times the ratio of the nearest sampled wavefronts before
-    // and after it from `SAMPLE_BORROW_FROM` on (with bounce and shadow rays:
-    // not the last, if there are others), one part, its root pass in it as in
-    // theirs.
-    borrowers.retain(|&wave| {
-        let from = render::SAMPLE_BORROW_FROM;
-        let middle = |v: usize| v >= from && v < rec.final_wave;
-        let whole = rec.whole.get(wave).copied().unwrap_or(false);
-        if !whole || !sampled.iter().any(|s| s.0 < wave) {
-            return true;
-        }
-        let pick = |ok: &dyn Fn(usize) -> bool| {
-            let before = sampled.iter().rev().find(|s| s.0 < wave && ok(s.0));
-            let after = sampled.iter().find(|s| s.0 > wave && ok(s.0));
-            let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
-            for s in before.into_iter().chain(after) {
-                add(&mut x, &s.1, 1.0);
-                add(&mut px, &s.2, 1.0);
-            }
-            (px[0] > 0.0).then_some((x, px))
-        };
-        let Some((x, px)) = pick(&middle).or_else(|| pick(&|v| v >= from)) else {
-            return true;
-        };
-        let t = scale(&sum(&proxies[wave]), &x, &px);
-        add(&mut total, &t, 1.0);
-        parts.push(WindowPart {
-            borrowed: true,
-            ..part(wave, "wave", 0, rec.segs[wave].len() as u64, &t)
-        });
-        false
-    });
     // Part `k` summed over the measured wavefronts that have it and pass `ok`:
     // the nearest before and after `wave` (`all`: every one).
     // The nearest measured wavefronts before and after `wave` that have part `k`
     // and pass `ok`.
     let neighbours = |k: usize, wave: usize, ok: &dyn Fn(usize) -> bool| {
-        let has = |m: &&(usize, [Pair; 4])| m.1[k].1[0] > 0.0 && ok(m.0);
+        let has = |m: &&(usize, [Pair; 5])| m.1[k].1[0] > 0.0 && ok(m.0);
         (
             measured.iter().rev().filter(|m| m.0 < wave).find(has),
             measured.iter().filter(|m| m.0 > wave).find(has),
         )
     };
     let nearest = |k: usize, wave: usize, all: bool, ok: &dyn Fn(usize) -> bool| {
-        let picked: Vec<&(usize, [Pair; 4])> = if all {
+        let picked: Vec<&(usize, [Pair; 5])> = if all {
             measured
                 .iter()
                 .filter(|m| m.1[k].1[0] > 0.0 && ok(m.0))
@@ -1150,6 +1113,14 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
     };
     // Pooled over the frame, for a wavefront too short to hold a window.
     let (pool_x, pool_p) = nearest(2, 0, true, &|_| true).unwrap_or_default();
+    // Each count of the rest scaled from windows `x` with proxies `px`: each by
+    // its own proxy, the cycles' where the windows saw none of it.
+    let scale = |rest: &[f64; WCOUNTS], x: &[f64; WCOUNTS], px: &[f64; WCOUNTS]| {
+        std::array::from_fn::<f64, WCOUNTS, _>(|i| {
+            let j = if px[i] > 0.0 { i } else { 0 };
+            x[i] * rest[j] / px[j]
+        })
+    };
     // Cycles, lines and DRAM energy of a scaled rest: the lines of the hit
     // records and the shading pass only, as the frame's ray and scene streams
     // are the functional model's counts (below).
@@ -1206,6 +1177,23 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         // A wavefront too short for a window is one part after its root, as in
         // its measured neighbours.
         let whole = rec.whole.get(wave).copied().unwrap_or(false);
+        // One that borrows after a sampled one (`render`'s hook): its whole
+        // proxy times the ratio of the nearest sampled wavefronts before and
+        // after it from `SAMPLE_BORROW_FROM` on (not the last, if there are
+        // others), one part, its root pass in it as in theirs.
+        let from = render::SAMPLE_BORROW_FROM;
+        if whole && neighbours(4, wave, &|v| v >= from).0.is_some() {
+            let (x, px) = nearest(4, wave, false, &|v| v >= from && v < rec.final_wave)
+                .or_else(|| nearest(4, wave, false, &|v| v >= from))
+                .expect("a sampled wavefront before it");
+            let t = correct(&scale(&sum(proxy), &x, &px));
+            add(&mut total, &t, 1.0);
+            parts.push(WindowPart {
+                borrowed: true,
+                ..part(wave, "wave", 0, n as u64, &t)
+            });
+            continue;
+        }
         let head_end = if whole {
             n
         } else {

@@ -446,6 +446,36 @@ fn window_kinds(v: &serde_json::Value, wave: u64) -> Vec<String> {
         .collect()
 }
 
+/// A window log's trace parts of wavefront `wave` (all but shading and
+/// emission): name, cycles, borrowed.
+fn trace_parts(v: &serde_json::Value, wave: u64) -> Vec<(String, f64, bool)> {
+    v["parts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["wave"] == wave && p["part"] != "shade" && p["part"] != "emit")
+        .map(|p| {
+            (
+                p["part"].as_str().unwrap().to_string(),
+                p["cycles"].as_f64().unwrap(),
+                p["borrowed"].as_bool().unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// Two rows' errors in cycles, lines and energy, side by side.
+fn figure_errors(
+    a: &dualstream::speed_error::ModeResult,
+    b: &dualstream::speed_error::ModeResult,
+) -> [(&'static str, f64, f64); 3] {
+    [
+        ("cycles", a.err_cycles, b.err_cycles),
+        ("lines", a.err_lines, b.err_lines),
+        ("energy", a.err_energy, b.err_energy),
+    ]
+}
+
 /// A small plan for the borrowing tests: windows of 6 admissions after 2 of
 /// warm-up every 4, the tail from 2 pending queues, wavefronts traced every
 /// `wave_every`, root windows of `root_rays`.
@@ -850,21 +880,7 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
     assert!(kinds(&whole, 3).contains(&"Root".to_string()));
     // Wave 2's parts are borrowed, the others' not; each borrowed part near
     // what wave 2's windows measured, and together the same passes.
-    let parts = |v: &serde_json::Value, wave: u64| -> Vec<(String, f64, bool)> {
-        v["parts"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|p| p["wave"] == wave && p["part"] != "shade" && p["part"] != "emit")
-            .map(|p| {
-                (
-                    p["part"].as_str().unwrap().to_string(),
-                    p["cycles"].as_f64().unwrap(),
-                    p["borrowed"].as_bool().unwrap(),
-                )
-            })
-            .collect()
-    };
+    let parts = trace_parts;
     let (b, m) = (parts(&vs, 2), parts(&va, 2));
     assert!(
         b.iter().any(|p| p.0 == "root") && b.iter().all(|p| p.2),
@@ -880,11 +896,7 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
         (cb / cm - 1.0).abs() < 0.15,
         "wave 2: borrowed {cb} {b:?}, measured {cm} {m:?}"
     );
-    for (what, a, b) in [
-        ("cycles", all.err_cycles, some.err_cycles),
-        ("lines", all.err_lines, some.err_lines),
-        ("energy", all.err_energy, some.err_energy),
-    ] {
+    for (what, a, b) in figure_errors(&all, &some) {
         assert!(
             (a - b).abs() < 0.05,
             "{what}: measured {a:+.4}, borrowed {b:+.4}"
@@ -1324,21 +1336,7 @@ fn a_sampled_wavefront_alike_its_sampled_neighbours_borrows_them() {
     assert_eq!(rec["measured"], serde_json::json!(expect), "{roots:?}");
     let borrowed: Vec<usize> = (0..=last).filter(|&w| !expect[w]).collect();
     assert!(!borrowed.is_empty(), "no wavefront alike: {roots:?}");
-    let parts = |v: &serde_json::Value, wave: usize| -> Vec<(String, f64, bool)> {
-        v["parts"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|p| p["wave"] == wave as u64 && p["part"] != "shade" && p["part"] != "emit")
-            .map(|p| {
-                (
-                    p["part"].as_str().unwrap().to_string(),
-                    p["cycles"].as_f64().unwrap(),
-                    p["borrowed"].as_bool().unwrap(),
-                )
-            })
-            .collect()
-    };
+    let parts = |v: &serde_json::Value, wave: usize| trace_parts(v, wave as u64);
     for &w in &borrowed {
         let kinds = window_kinds(&vs, w as u64);
         assert!(
@@ -1378,11 +1376,7 @@ fn a_sampled_wavefront_alike_its_sampled_neighbours_borrows_them() {
             "wave {w}"
         );
     }
-    for (what, a, b) in [
-        ("cycles", all.err_cycles, some.err_cycles),
-        ("lines", all.err_lines, some.err_lines),
-        ("energy", all.err_energy, some.err_energy),
-    ] {
+    for (what, a, b) in figure_errors(&all, &some) {
         // (A sample of 40 rays is far from its regime: both are far off the
         // cycle model here, so they are compared with each other.)
         assert!(

@@ -885,7 +885,7 @@ pub fn render(
                         // 0.92-0.96).
                         measured = if sampled {
                             plan.wave_every <= 1
-                                || wave < SAMPLE_BORROW_FROM + 1
+                                || wave <= SAMPLE_BORROW_FROM
                                 || wave >= last
                                 || !last_sampled
                                 || !alike(traced_rays)
