@@ -662,12 +662,6 @@ module tm (
     wire tri_resp1_valid;
     wire tri_resp1_ready;
     wire [144:0] tri_resp1_data;
-    wire box_req_valid;
-    wire box_req_ready;
-    wire [463:0] box_req_data;
-    wire box_resp_valid;
-    wire box_resp_ready;
-    wire [48:0] box_resp_data;
     wire div_req_valid;
     wire div_req_ready;
     wire [111:0] div_req_data;
@@ -1523,24 +1517,18 @@ module tm (
         .resp_15_ready(tp_mem_resp15_ready),
         .resp_15_data(tp_mem_resp15_data)
     );
-    tm_xbar #(.TPS(16), .TRI_PIPES(2)) u_xbar (
+    tm_xbar #(.TPS(16), .TRI_PIPES(2), .BOX_LATENCY(8), .BOX_II(1)) u_xbar (
         .clk(clk),
         .rst(rst),
         .div_resp_valid(div_resp_valid),
         .div_resp_ready(div_resp_ready),
         .div_resp_data(div_resp_data),
-        .box_resp_valid(box_resp_valid),
-        .box_resp_ready(box_resp_ready),
-        .box_resp_data(box_resp_data),
         .gmem_resp_valid(gmem_resp_valid),
         .gmem_resp_ready(gmem_resp_ready),
         .gmem_resp_data(gmem_resp_data),
         .div_req_valid(div_req_valid),
         .div_req_ready(div_req_ready),
         .div_req_data(div_req_data),
-        .box_req_valid(box_req_valid),
-        .box_req_ready(box_req_ready),
-        .box_req_data(box_req_data),
         .ray_write_valid(ray_write_valid),
         .ray_write_ready(ray_write_ready),
         .ray_write_data(ray_write_data),
@@ -2042,16 +2030,6 @@ module tm (
         .tri_req_1_valid(tri_req1_valid),
         .tri_req_1_ready(tri_req1_ready),
         .tri_req_1_data(tri_req1_data)
-    );
-    box_pipe #(.LATENCY(8), .II(1)) u_box_pipe (
-        .clk(clk),
-        .rst(rst),
-        .req_valid(box_req_valid),
-        .req_ready(box_req_ready),
-        .req_data(box_req_data),
-        .resp_valid(box_resp_valid),
-        .resp_ready(box_resp_ready),
-        .resp_data(box_resp_data)
     );
     tri_pipe #(.LATENCY(31), .II(18)) u_tri_pipe0 (
         .clk(clk),

@@ -2,28 +2,24 @@
 // Regenerate with `dualstream hdl --out hdl/`.
 // TM crossbar: round-robin arbitration of the TPs onto the shared units and outputs.
 // Ports are valid/ready links; data is the payload packed LSB-first.
-// State: 32 bits.
+// State: 4834 bits.
 module tm_xbar #(
     parameter integer TPS = 16,
-    parameter integer TRI_PIPES = 2
+    parameter integer TRI_PIPES = 2,
+    parameter integer BOX_LATENCY = 8,
+    parameter integer BOX_II = 1
 ) (
     input  wire clk,
     input  wire rst,
     input  wire div_resp_valid,
     output wire div_resp_ready,
     input  wire [111:0] div_resp_data,
-    input  wire box_resp_valid,
-    output wire box_resp_ready,
-    input  wire [48:0] box_resp_data,
     input  wire gmem_resp_valid,
     output wire gmem_resp_ready,
     input  wire [611:0] gmem_resp_data,
     output wire div_req_valid,
     input  wire div_req_ready,
     output wire [111:0] div_req_data,
-    output wire box_req_valid,
-    input  wire box_req_ready,
-    output wire [463:0] box_req_data,
     output wire ray_write_valid,
     input  wire ray_write_ready,
     output wire [288:0] ray_write_data,
@@ -528,21 +524,42 @@ module tm_xbar #(
 );
 
     reg [15:0] tri_outstanding [0:1];
+    reg [1:0] box_req_q_count;
+    reg box_req_q_valid;
+    reg [463:0] box_req_q_data;
+    reg [463:0] box_req_q_mem [0:1];
+    reg [6:0] box_pipe_stage_valid;
+    reg box_pipe_frozen;
+    reg box_pipe_ii_count;
+    reg [463:0] box_pipe_stage_data [0:6];
+    reg [1:0] box_resp_q_count;
+    reg box_resp_q_valid;
+    reg [48:0] box_resp_q_data;
+    reg [48:0] box_resp_q_mem [0:1];
 
     // Skeleton behaviour: state resets and holds; outputs are tied low.
     always_ff @(posedge clk) begin
         if (rst) begin
             for (int i = 0; i < 2; i++) tri_outstanding[i] <= '0;
+            box_req_q_count <= '0;
+            box_req_q_valid <= '0;
+            box_req_q_data <= '0;
+            for (int i = 0; i < 2; i++) box_req_q_mem[i] <= '0;
+            box_pipe_stage_valid <= '0;
+            box_pipe_frozen <= '0;
+            box_pipe_ii_count <= '0;
+            for (int i = 0; i < 7; i++) box_pipe_stage_data[i] <= '0;
+            box_resp_q_count <= '0;
+            box_resp_q_valid <= '0;
+            box_resp_q_data <= '0;
+            for (int i = 0; i < 2; i++) box_resp_q_mem[i] <= '0;
         end
     end
 
     assign div_resp_ready = 1'b0;
-    assign box_resp_ready = 1'b0;
     assign gmem_resp_ready = 1'b0;
     assign div_req_valid = 1'b0;
     assign div_req_data = '0;
-    assign box_req_valid = 1'b0;
-    assign box_req_data = '0;
     assign ray_write_valid = 1'b0;
     assign ray_write_data = '0;
     assign hit_valid = 1'b0;
@@ -779,5 +796,5 @@ module tm_xbar #(
     assign tri_req_0_data = '0;
     assign tri_req_1_valid = 1'b0;
     assign tri_req_1_data = '0;
-    wire _unused_ok = &{1'b0, div_resp_valid, div_resp_data, box_resp_valid, box_resp_data, gmem_resp_valid, gmem_resp_data, div_req_ready, box_req_ready, ray_write_ready, hit_ready, gmem_req_ready, tp_div_req_0_valid, tp_div_req_0_data, tp_div_req_1_valid, tp_div_req_1_data, tp_div_req_2_valid, tp_div_req_2_data, tp_div_req_3_valid, tp_div_req_3_data, tp_div_req_4_valid, tp_div_req_4_data, tp_div_req_5_valid, tp_div_req_5_data, tp_div_req_6_valid, tp_div_req_6_data, tp_div_req_7_valid, tp_div_req_7_data, tp_div_req_8_valid, tp_div_req_8_data, tp_div_req_9_valid, tp_div_req_9_data, tp_div_req_10_valid, tp_div_req_10_data, tp_div_req_11_valid, tp_div_req_11_data, tp_div_req_12_valid, tp_div_req_12_data, tp_div_req_13_valid, tp_div_req_13_data, tp_div_req_14_valid, tp_div_req_14_data, tp_div_req_15_valid, tp_div_req_15_data, tp_box_req_0_valid, tp_box_req_0_data, tp_box_req_1_valid, tp_box_req_1_data, tp_box_req_2_valid, tp_box_req_2_data, tp_box_req_3_valid, tp_box_req_3_data, tp_box_req_4_valid, tp_box_req_4_data, tp_box_req_5_valid, tp_box_req_5_data, tp_box_req_6_valid, tp_box_req_6_data, tp_box_req_7_valid, tp_box_req_7_data, tp_box_req_8_valid, tp_box_req_8_data, tp_box_req_9_valid, tp_box_req_9_data, tp_box_req_10_valid, tp_box_req_10_data, tp_box_req_11_valid, tp_box_req_11_data, tp_box_req_12_valid, tp_box_req_12_data, tp_box_req_13_valid, tp_box_req_13_data, tp_box_req_14_valid, tp_box_req_14_data, tp_box_req_15_valid, tp_box_req_15_data, tp_tri_req_0_valid, tp_tri_req_0_data, tp_tri_req_1_valid, tp_tri_req_1_data, tp_tri_req_2_valid, tp_tri_req_2_data, tp_tri_req_3_valid, tp_tri_req_3_data, tp_tri_req_4_valid, tp_tri_req_4_data, tp_tri_req_5_valid, tp_tri_req_5_data, tp_tri_req_6_valid, tp_tri_req_6_data, tp_tri_req_7_valid, tp_tri_req_7_data, tp_tri_req_8_valid, tp_tri_req_8_data, tp_tri_req_9_valid, tp_tri_req_9_data, tp_tri_req_10_valid, tp_tri_req_10_data, tp_tri_req_11_valid, tp_tri_req_11_data, tp_tri_req_12_valid, tp_tri_req_12_data, tp_tri_req_13_valid, tp_tri_req_13_data, tp_tri_req_14_valid, tp_tri_req_14_data, tp_tri_req_15_valid, tp_tri_req_15_data, tp_ray_write_0_valid, tp_ray_write_0_data, tp_ray_write_1_valid, tp_ray_write_1_data, tp_ray_write_2_valid, tp_ray_write_2_data, tp_ray_write_3_valid, tp_ray_write_3_data, tp_ray_write_4_valid, tp_ray_write_4_data, tp_ray_write_5_valid, tp_ray_write_5_data, tp_ray_write_6_valid, tp_ray_write_6_data, tp_ray_write_7_valid, tp_ray_write_7_data, tp_ray_write_8_valid, tp_ray_write_8_data, tp_ray_write_9_valid, tp_ray_write_9_data, tp_ray_write_10_valid, tp_ray_write_10_data, tp_ray_write_11_valid, tp_ray_write_11_data, tp_ray_write_12_valid, tp_ray_write_12_data, tp_ray_write_13_valid, tp_ray_write_13_data, tp_ray_write_14_valid, tp_ray_write_14_data, tp_ray_write_15_valid, tp_ray_write_15_data, tp_hit_0_valid, tp_hit_0_data, tp_hit_1_valid, tp_hit_1_data, tp_hit_2_valid, tp_hit_2_data, tp_hit_3_valid, tp_hit_3_data, tp_hit_4_valid, tp_hit_4_data, tp_hit_5_valid, tp_hit_5_data, tp_hit_6_valid, tp_hit_6_data, tp_hit_7_valid, tp_hit_7_data, tp_hit_8_valid, tp_hit_8_data, tp_hit_9_valid, tp_hit_9_data, tp_hit_10_valid, tp_hit_10_data, tp_hit_11_valid, tp_hit_11_data, tp_hit_12_valid, tp_hit_12_data, tp_hit_13_valid, tp_hit_13_data, tp_hit_14_valid, tp_hit_14_data, tp_hit_15_valid, tp_hit_15_data, tp_gmem_req_0_valid, tp_gmem_req_0_data, tp_gmem_req_1_valid, tp_gmem_req_1_data, tp_gmem_req_2_valid, tp_gmem_req_2_data, tp_gmem_req_3_valid, tp_gmem_req_3_data, tp_gmem_req_4_valid, tp_gmem_req_4_data, tp_gmem_req_5_valid, tp_gmem_req_5_data, tp_gmem_req_6_valid, tp_gmem_req_6_data, tp_gmem_req_7_valid, tp_gmem_req_7_data, tp_gmem_req_8_valid, tp_gmem_req_8_data, tp_gmem_req_9_valid, tp_gmem_req_9_data, tp_gmem_req_10_valid, tp_gmem_req_10_data, tp_gmem_req_11_valid, tp_gmem_req_11_data, tp_gmem_req_12_valid, tp_gmem_req_12_data, tp_gmem_req_13_valid, tp_gmem_req_13_data, tp_gmem_req_14_valid, tp_gmem_req_14_data, tp_gmem_req_15_valid, tp_gmem_req_15_data, tri_resp_0_valid, tri_resp_0_data, tri_resp_1_valid, tri_resp_1_data, tp_div_resp_0_ready, tp_div_resp_1_ready, tp_div_resp_2_ready, tp_div_resp_3_ready, tp_div_resp_4_ready, tp_div_resp_5_ready, tp_div_resp_6_ready, tp_div_resp_7_ready, tp_div_resp_8_ready, tp_div_resp_9_ready, tp_div_resp_10_ready, tp_div_resp_11_ready, tp_div_resp_12_ready, tp_div_resp_13_ready, tp_div_resp_14_ready, tp_div_resp_15_ready, tp_box_resp_0_ready, tp_box_resp_1_ready, tp_box_resp_2_ready, tp_box_resp_3_ready, tp_box_resp_4_ready, tp_box_resp_5_ready, tp_box_resp_6_ready, tp_box_resp_7_ready, tp_box_resp_8_ready, tp_box_resp_9_ready, tp_box_resp_10_ready, tp_box_resp_11_ready, tp_box_resp_12_ready, tp_box_resp_13_ready, tp_box_resp_14_ready, tp_box_resp_15_ready, tp_tri_resp_0_ready, tp_tri_resp_1_ready, tp_tri_resp_2_ready, tp_tri_resp_3_ready, tp_tri_resp_4_ready, tp_tri_resp_5_ready, tp_tri_resp_6_ready, tp_tri_resp_7_ready, tp_tri_resp_8_ready, tp_tri_resp_9_ready, tp_tri_resp_10_ready, tp_tri_resp_11_ready, tp_tri_resp_12_ready, tp_tri_resp_13_ready, tp_tri_resp_14_ready, tp_tri_resp_15_ready, tp_gmem_resp_0_ready, tp_gmem_resp_1_ready, tp_gmem_resp_2_ready, tp_gmem_resp_3_ready, tp_gmem_resp_4_ready, tp_gmem_resp_5_ready, tp_gmem_resp_6_ready, tp_gmem_resp_7_ready, tp_gmem_resp_8_ready, tp_gmem_resp_9_ready, tp_gmem_resp_10_ready, tp_gmem_resp_11_ready, tp_gmem_resp_12_ready, tp_gmem_resp_13_ready, tp_gmem_resp_14_ready, tp_gmem_resp_15_ready, tri_req_0_ready, tri_req_1_ready, ^tri_outstanding[0], TPS[0], TRI_PIPES[0], 1'b0};
+    wire _unused_ok = &{1'b0, div_resp_valid, div_resp_data, gmem_resp_valid, gmem_resp_data, div_req_ready, ray_write_ready, hit_ready, gmem_req_ready, tp_div_req_0_valid, tp_div_req_0_data, tp_div_req_1_valid, tp_div_req_1_data, tp_div_req_2_valid, tp_div_req_2_data, tp_div_req_3_valid, tp_div_req_3_data, tp_div_req_4_valid, tp_div_req_4_data, tp_div_req_5_valid, tp_div_req_5_data, tp_div_req_6_valid, tp_div_req_6_data, tp_div_req_7_valid, tp_div_req_7_data, tp_div_req_8_valid, tp_div_req_8_data, tp_div_req_9_valid, tp_div_req_9_data, tp_div_req_10_valid, tp_div_req_10_data, tp_div_req_11_valid, tp_div_req_11_data, tp_div_req_12_valid, tp_div_req_12_data, tp_div_req_13_valid, tp_div_req_13_data, tp_div_req_14_valid, tp_div_req_14_data, tp_div_req_15_valid, tp_div_req_15_data, tp_box_req_0_valid, tp_box_req_0_data, tp_box_req_1_valid, tp_box_req_1_data, tp_box_req_2_valid, tp_box_req_2_data, tp_box_req_3_valid, tp_box_req_3_data, tp_box_req_4_valid, tp_box_req_4_data, tp_box_req_5_valid, tp_box_req_5_data, tp_box_req_6_valid, tp_box_req_6_data, tp_box_req_7_valid, tp_box_req_7_data, tp_box_req_8_valid, tp_box_req_8_data, tp_box_req_9_valid, tp_box_req_9_data, tp_box_req_10_valid, tp_box_req_10_data, tp_box_req_11_valid, tp_box_req_11_data, tp_box_req_12_valid, tp_box_req_12_data, tp_box_req_13_valid, tp_box_req_13_data, tp_box_req_14_valid, tp_box_req_14_data, tp_box_req_15_valid, tp_box_req_15_data, tp_tri_req_0_valid, tp_tri_req_0_data, tp_tri_req_1_valid, tp_tri_req_1_data, tp_tri_req_2_valid, tp_tri_req_2_data, tp_tri_req_3_valid, tp_tri_req_3_data, tp_tri_req_4_valid, tp_tri_req_4_data, tp_tri_req_5_valid, tp_tri_req_5_data, tp_tri_req_6_valid, tp_tri_req_6_data, tp_tri_req_7_valid, tp_tri_req_7_data, tp_tri_req_8_valid, tp_tri_req_8_data, tp_tri_req_9_valid, tp_tri_req_9_data, tp_tri_req_10_valid, tp_tri_req_10_data, tp_tri_req_11_valid, tp_tri_req_11_data, tp_tri_req_12_valid, tp_tri_req_12_data, tp_tri_req_13_valid, tp_tri_req_13_data, tp_tri_req_14_valid, tp_tri_req_14_data, tp_tri_req_15_valid, tp_tri_req_15_data, tp_ray_write_0_valid, tp_ray_write_0_data, tp_ray_write_1_valid, tp_ray_write_1_data, tp_ray_write_2_valid, tp_ray_write_2_data, tp_ray_write_3_valid, tp_ray_write_3_data, tp_ray_write_4_valid, tp_ray_write_4_data, tp_ray_write_5_valid, tp_ray_write_5_data, tp_ray_write_6_valid, tp_ray_write_6_data, tp_ray_write_7_valid, tp_ray_write_7_data, tp_ray_write_8_valid, tp_ray_write_8_data, tp_ray_write_9_valid, tp_ray_write_9_data, tp_ray_write_10_valid, tp_ray_write_10_data, tp_ray_write_11_valid, tp_ray_write_11_data, tp_ray_write_12_valid, tp_ray_write_12_data, tp_ray_write_13_valid, tp_ray_write_13_data, tp_ray_write_14_valid, tp_ray_write_14_data, tp_ray_write_15_valid, tp_ray_write_15_data, tp_hit_0_valid, tp_hit_0_data, tp_hit_1_valid, tp_hit_1_data, tp_hit_2_valid, tp_hit_2_data, tp_hit_3_valid, tp_hit_3_data, tp_hit_4_valid, tp_hit_4_data, tp_hit_5_valid, tp_hit_5_data, tp_hit_6_valid, tp_hit_6_data, tp_hit_7_valid, tp_hit_7_data, tp_hit_8_valid, tp_hit_8_data, tp_hit_9_valid, tp_hit_9_data, tp_hit_10_valid, tp_hit_10_data, tp_hit_11_valid, tp_hit_11_data, tp_hit_12_valid, tp_hit_12_data, tp_hit_13_valid, tp_hit_13_data, tp_hit_14_valid, tp_hit_14_data, tp_hit_15_valid, tp_hit_15_data, tp_gmem_req_0_valid, tp_gmem_req_0_data, tp_gmem_req_1_valid, tp_gmem_req_1_data, tp_gmem_req_2_valid, tp_gmem_req_2_data, tp_gmem_req_3_valid, tp_gmem_req_3_data, tp_gmem_req_4_valid, tp_gmem_req_4_data, tp_gmem_req_5_valid, tp_gmem_req_5_data, tp_gmem_req_6_valid, tp_gmem_req_6_data, tp_gmem_req_7_valid, tp_gmem_req_7_data, tp_gmem_req_8_valid, tp_gmem_req_8_data, tp_gmem_req_9_valid, tp_gmem_req_9_data, tp_gmem_req_10_valid, tp_gmem_req_10_data, tp_gmem_req_11_valid, tp_gmem_req_11_data, tp_gmem_req_12_valid, tp_gmem_req_12_data, tp_gmem_req_13_valid, tp_gmem_req_13_data, tp_gmem_req_14_valid, tp_gmem_req_14_data, tp_gmem_req_15_valid, tp_gmem_req_15_data, tri_resp_0_valid, tri_resp_0_data, tri_resp_1_valid, tri_resp_1_data, tp_div_resp_0_ready, tp_div_resp_1_ready, tp_div_resp_2_ready, tp_div_resp_3_ready, tp_div_resp_4_ready, tp_div_resp_5_ready, tp_div_resp_6_ready, tp_div_resp_7_ready, tp_div_resp_8_ready, tp_div_resp_9_ready, tp_div_resp_10_ready, tp_div_resp_11_ready, tp_div_resp_12_ready, tp_div_resp_13_ready, tp_div_resp_14_ready, tp_div_resp_15_ready, tp_box_resp_0_ready, tp_box_resp_1_ready, tp_box_resp_2_ready, tp_box_resp_3_ready, tp_box_resp_4_ready, tp_box_resp_5_ready, tp_box_resp_6_ready, tp_box_resp_7_ready, tp_box_resp_8_ready, tp_box_resp_9_ready, tp_box_resp_10_ready, tp_box_resp_11_ready, tp_box_resp_12_ready, tp_box_resp_13_ready, tp_box_resp_14_ready, tp_box_resp_15_ready, tp_tri_resp_0_ready, tp_tri_resp_1_ready, tp_tri_resp_2_ready, tp_tri_resp_3_ready, tp_tri_resp_4_ready, tp_tri_resp_5_ready, tp_tri_resp_6_ready, tp_tri_resp_7_ready, tp_tri_resp_8_ready, tp_tri_resp_9_ready, tp_tri_resp_10_ready, tp_tri_resp_11_ready, tp_tri_resp_12_ready, tp_tri_resp_13_ready, tp_tri_resp_14_ready, tp_tri_resp_15_ready, tp_gmem_resp_0_ready, tp_gmem_resp_1_ready, tp_gmem_resp_2_ready, tp_gmem_resp_3_ready, tp_gmem_resp_4_ready, tp_gmem_resp_5_ready, tp_gmem_resp_6_ready, tp_gmem_resp_7_ready, tp_gmem_resp_8_ready, tp_gmem_resp_9_ready, tp_gmem_resp_10_ready, tp_gmem_resp_11_ready, tp_gmem_resp_12_ready, tp_gmem_resp_13_ready, tp_gmem_resp_14_ready, tp_gmem_resp_15_ready, tri_req_0_ready, tri_req_1_ready, ^tri_outstanding[0], box_req_q_count, box_req_q_valid, box_req_q_data, ^box_req_q_mem[0], box_pipe_stage_valid, box_pipe_frozen, box_pipe_ii_count, ^box_pipe_stage_data[0], box_resp_q_count, box_resp_q_valid, box_resp_q_data, ^box_resp_q_mem[0], TPS[0], TRI_PIPES[0], BOX_LATENCY[0], BOX_II[0], 1'b0};
 endmodule

@@ -503,7 +503,7 @@ pub fn scoreboard(
             first
         ));
     }
-    let box_tests = run.counter(&[run.units.box_pipe], "tests");
+    let box_tests = run.counter(&[run.units.xbar], "box_tests");
     let tri_tests = run.counter(&run.units.tri_pipes, "tests");
     if box_tests != counts.box_tests {
         errors.push(format!(
@@ -706,8 +706,8 @@ pub fn breakdown(r: &TmRun, cfg: &Config) -> Vec<(String, u64)> {
     let rb = crate::rtl::Status::ResourceBusy as usize;
     let busy = crate::rtl::Status::Busy as usize;
     v.push((
-        "box pipe busy cycles".into(),
-        r.unit(u.box_pipe).status_cycles[busy],
+        "box pipe occupied cycles".into(),
+        r.counter(&[u.xbar], "box_occupied_cycles"),
     ));
     let tri_busy: u64 = u
         .tri_pipes

@@ -27,7 +27,7 @@ const NAMED: &[(&str, &str, &str)] = &[
 ];
 
 /// A unit name: a friendly name, `tm<k>`, `mem_ctrl<c>`, or an instance pattern
-/// (it has a `.` or a `*`: `chip.tm3.l1`, `chip.tm*.box_pipe`).
+/// (it has a `.` or a `*`: `chip.tm3.l1`, `chip.tm*.xbar`).
 fn pattern_of(name: &str) -> Option<String> {
     if let Some((_, p, _)) = NAMED.iter().find(|(n, _, _)| *n == name) {
         return Some(p.to_string());
@@ -73,7 +73,7 @@ pub fn valid_names(paths: &[&str]) -> String {
     if ch > 0 {
         v.push(format!("mem_ctrl0..mem_ctrl{} (one channel)", ch - 1));
     }
-    v.push("or an instance pattern such as chip.tm0.l1 or chip.tm*.box_pipe".into());
+    v.push("or an instance pattern such as chip.tm0.l1 or chip.tm*.xbar".into());
     v.join(", ")
 }
 

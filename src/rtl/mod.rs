@@ -16,7 +16,7 @@ pub mod verilog;
 pub use bits::{Bits, Payload};
 pub use decl::{PortDecl, PortDir, SignalDecl, StateDecl, UnitDecl};
 pub use link::{In, LinkCfg, LinkEvent, LinkId, Out, PortArray, PortEnd};
-pub use pipe::FixedPipe;
+pub use pipe::{FixedPipe, LocalEnds, LocalLink, PipeEnds};
 pub use sim::{
     ClockId, Ctx, ModuleEvals, RunEnd, Sim, SimError, SimOptions, Time, UnitId, UnitStats,
     round_robin,

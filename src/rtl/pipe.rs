@@ -16,7 +16,7 @@ use std::collections::VecDeque;
 
 use super::bits::Payload;
 use super::decl::{Samples, StateDecl, StateList};
-use super::link::{In, Out};
+use super::link::{In, LinkCfg, Out};
 use super::sim::Ctx;
 use super::state::{Reg, State};
 use super::unit::{Next, Status};
@@ -37,6 +37,10 @@ pub struct FixedPipe<T: Payload> {
     last_accept: Reg<Option<u64>>,
     accepted: u64,
     emitted: u64,
+    /// Cycles in which it held at least one request, frozen ones included
+    /// (statistics, closed when it empties), and since when it holds some.
+    occupied: u64,
+    occupied_from: Option<u64>,
 }
 
 impl<T: Payload> FixedPipe<T> {
@@ -59,6 +63,8 @@ impl<T: Payload> FixedPipe<T> {
             last_accept: Reg::new(None),
             accepted: 0,
             emitted: 0,
+            occupied: 0,
+            occupied_from: None,
         }
     }
 
@@ -74,6 +80,10 @@ impl<T: Payload> FixedPipe<T> {
     pub fn emitted(&self) -> u64 {
         self.emitted
     }
+    /// Cycles in which the pipeline held a request, up to its last emptying.
+    pub fn occupied_cycles(&self) -> u64 {
+        self.occupied
+    }
 
     fn ii_bits(&self) -> u32 {
         super::bits::clog2_u32(self.interval + 1)
@@ -86,8 +96,9 @@ impl<T: Payload> FixedPipe<T> {
         }
     }
 
-    /// One cycle of the pipeline: emit the finished head through `f` if the output
-    /// has room (else freeze), then accept a new request if the interval allows.
+    /// One cycle of the pipeline on a unit's links: emit the finished head through
+    /// `f` if the output has room (else freeze), then accept a new request if the
+    /// interval allows. Sets the unit's status.
     pub fn step<R: Payload>(
         &mut self,
         ctx: &mut Ctx,
@@ -96,6 +107,30 @@ impl<T: Payload> FixedPipe<T> {
         f: impl Fn(&T) -> R,
     ) -> Next {
         let c = ctx.cycle();
+        let (status, next) = self.step_on(
+            c,
+            &mut LinkEnds {
+                ctx: &mut *ctx,
+                input,
+                output,
+            },
+            f,
+        );
+        ctx.set_status(status);
+        next
+    }
+
+    /// One cycle of the pipeline in cycle `c` between any two ends (a unit's links,
+    /// or [`LocalLink`]s inside the unit that holds the pipeline): the status it
+    /// would declare, and when it must be evaluated again without a new input (a
+    /// frozen pipeline waits for its output to drain; a push onto its input wakes
+    /// it only where that input is a link).
+    pub fn step_on<R>(
+        &mut self,
+        c: u64,
+        ends: &mut impl PipeEnds<T, R>,
+        f: impl Fn(&T) -> R,
+    ) -> (Status, Next) {
         let local = self.local(c);
         let mut frozen = false;
         let mut count = self.ring.len() as u32;
@@ -103,7 +138,7 @@ impl<T: Payload> FixedPipe<T> {
             && a + self.stages as u64 <= local
         {
             let result = f(req);
-            if ctx.offer(output, result) {
+            if ends.offer(result) {
                 self.pending_exit = true;
                 self.emitted += 1;
                 count -= 1;
@@ -119,8 +154,7 @@ impl<T: Payload> FixedPipe<T> {
             }
         }
         if frozen {
-            ctx.set_status(Status::OutputBlocked);
-            return Next::Idle; // woken when the output link drains
+            return (Status::OutputBlocked, Next::Idle); // woken when the output drains
         }
         let interval_ok = self
             .last_accept
@@ -129,14 +163,14 @@ impl<T: Payload> FixedPipe<T> {
         let mut accepted_now = false;
         let mut waiting = false;
         if interval_ok && count < self.capacity {
-            if let Some(req) = ctx.pop(input) {
+            if let Some(req) = ends.pop() {
                 self.pending_accept = Some((local, req));
                 self.last_accept.set(Some(local));
                 self.accepted += 1;
                 count += 1;
                 accepted_now = true;
             }
-        } else if ctx.peek(input).is_some() {
+        } else if ends.has_head() {
             waiting = true;
         }
         // Earliest local cycle at which something can happen without a new input.
@@ -151,7 +185,7 @@ impl<T: Payload> FixedPipe<T> {
         }
         // A request behind the one just taken: retry when the interval allows. With
         // none queued, the next push wakes us.
-        if waiting || (accepted_now && ctx.holds_more(input)) {
+        if waiting || (accepted_now && ends.holds_more()) {
             let l = if accepted_now {
                 local
             } else {
@@ -162,18 +196,222 @@ impl<T: Payload> FixedPipe<T> {
             let at = l + self.interval as u64;
             wake = Some(wake.map_or(at, |w| w.min(at)));
         }
-        ctx.set_status(if count > 0 {
+        match (count > 0, self.occupied_from) {
+            (true, None) => self.occupied_from = Some(c),
+            (false, Some(s)) => {
+                self.occupied += c - s;
+                self.occupied_from = None;
+            }
+            _ => {}
+        }
+        let status = if count > 0 {
             Status::Busy
         } else if waiting {
             Status::ResourceBusy
         } else {
             Status::WaitInput
-        });
-        match wake {
+        };
+        let next = match wake {
             // Not frozen now, so local time advances with the clock from here on.
             Some(w) => Next::AtCycle(c + w.saturating_sub(local).max(1)),
             None => Next::Idle,
+        };
+        (status, next)
+    }
+}
+
+/// The two ends of a [`FixedPipe`]: where it takes requests and puts results.
+pub trait PipeEnds<T, R> {
+    /// Takes the visible head of the input, if any.
+    fn pop(&mut self) -> Option<T>;
+    /// Whether the input has a visible head.
+    fn has_head(&mut self) -> bool;
+    /// Whether the input holds another entry behind this cycle's pop.
+    fn holds_more(&self) -> bool;
+    /// Offers a result; false if the output has no room (the pipeline freezes and
+    /// offers the same result again when next stepped).
+    fn offer(&mut self, r: R) -> bool;
+}
+
+struct LinkEnds<'a, 'n, T, R> {
+    ctx: &'a mut Ctx<'n>,
+    input: &'a In<T>,
+    output: &'a Out<R>,
+}
+
+impl<T: Payload, R: Payload> PipeEnds<T, R> for LinkEnds<'_, '_, T, R> {
+    #[inline]
+    fn pop(&mut self) -> Option<T> {
+        self.ctx.pop(self.input)
+    }
+    #[inline]
+    fn has_head(&mut self) -> bool {
+        self.ctx.peek(self.input).is_some()
+    }
+    #[inline]
+    fn holds_more(&self) -> bool {
+        self.ctx.holds_more(self.input)
+    }
+    #[inline]
+    fn offer(&mut self, r: R) -> bool {
+        self.ctx.offer(self.output, r)
+    }
+}
+
+/// A pipeline between two [`LocalLink`]s in cycle `now`.
+pub struct LocalEnds<'a, T, R> {
+    pub now: u64,
+    pub input: &'a mut LocalLink<T>,
+    pub output: &'a mut LocalLink<R>,
+}
+
+impl<T: Clone, R> PipeEnds<T, R> for LocalEnds<'_, T, R> {
+    #[inline]
+    fn pop(&mut self) -> Option<T> {
+        self.input.pop(self.now)
+    }
+    #[inline]
+    fn has_head(&mut self) -> bool {
+        self.input.peek(self.now).is_some()
+    }
+    #[inline]
+    fn holds_more(&self) -> bool {
+        self.input.holds_more()
+    }
+    #[inline]
+    fn offer(&mut self, r: R) -> bool {
+        if !self.output.can_push() {
+            return false;
         }
+        self.output.push(self.now, r);
+        true
+    }
+}
+
+/// A link's rules kept inside one unit, between two of its own stages (the
+/// crossbar and the ray-box pipeline it holds): a FIFO of `depth` entries, a push
+/// in cycle `t` visible from `t + delay`, room freed by a pop in cycle `t` seen
+/// from `t + 1`, at most one push and one pop per cycle. The same timing as a
+/// kernel link of that configuration, as plain data: no edge, no wake-up, no
+/// monitor (the unit's own code is the only user).
+pub struct LocalLink<T> {
+    depth: u32,
+    delay: u64,
+    /// Committed entries: (cycle from which visible, payload), oldest first.
+    q: VecDeque<(u64, T)>,
+    /// This cycle's push (joins at the edge).
+    pending: Option<(u64, T)>,
+    /// Whether this cycle popped the head (it leaves at the edge).
+    popped: bool,
+}
+
+impl<T> LocalLink<T> {
+    pub fn new(cfg: LinkCfg) -> Self {
+        LocalLink {
+            depth: cfg.depth,
+            delay: cfg.delay as u64,
+            q: VecDeque::with_capacity(cfg.depth as usize),
+            pending: None,
+            popped: false,
+        }
+    }
+    /// Room at the start of this cycle, and no push yet this cycle.
+    #[inline]
+    pub fn can_push(&self) -> bool {
+        self.pending.is_none() && (self.q.len() as u32) < self.depth
+    }
+    /// Pushes in cycle `now` (the caller checked `can_push`).
+    #[inline]
+    pub fn push(&mut self, now: u64, v: T) {
+        debug_assert!(self.can_push(), "push without room");
+        self.pending = Some((now + self.delay, v));
+    }
+    /// The head if it is visible in cycle `now` and not popped this cycle.
+    #[inline]
+    pub fn peek(&self, now: u64) -> Option<&T> {
+        if self.popped {
+            return None;
+        }
+        self.q.front().filter(|e| e.0 <= now).map(|e| &e.1)
+    }
+    /// Pops the head if it is visible in cycle `now`.
+    #[inline]
+    pub fn pop(&mut self, now: u64) -> Option<T>
+    where
+        T: Clone,
+    {
+        let v = self.peek(now).cloned()?;
+        self.popped = true;
+        Some(v)
+    }
+    /// Whether an entry is left behind this cycle's pop (visible or not).
+    #[inline]
+    pub fn holds_more(&self) -> bool {
+        self.q.len() > self.popped as usize
+    }
+    /// Whether this cycle's pop freed room in a full FIFO (its producer may push
+    /// again from the next cycle on).
+    #[inline]
+    pub fn freed_full(&self) -> bool {
+        self.popped && self.q.len() as u32 >= self.depth
+    }
+    /// The cycle from which the first entry after this cycle's pop (this cycle's
+    /// push if the FIFO has none) is visible.
+    #[inline]
+    pub fn next_visible(&self) -> Option<u64> {
+        self.q
+            .get(self.popped as usize)
+            .or(self.pending.as_ref())
+            .map(|e| e.0)
+    }
+    /// Entries held, this cycle's push included.
+    pub fn occupancy(&self) -> u32 {
+        self.q.len() as u32 + self.pending.is_some() as u32
+    }
+}
+
+impl<T: Payload> State for LocalLink<T> {
+    fn declare(&self, name: &str, out: &mut StateList) {
+        out.items.push(StateDecl::reg(
+            format!("{name}_count"),
+            super::bits::clog2_u32(self.depth + 1),
+        ));
+        out.items.push(StateDecl::reg(format!("{name}_valid"), 1));
+        out.items
+            .push(StateDecl::reg(format!("{name}_data"), T::BITS));
+        // The FIFO's storage (not traced: the head above is what its reader sees).
+        out.items
+            .push(StateDecl::array(format!("{name}_mem"), T::BITS, self.depth));
+    }
+    /// The FIFO as the consumer sees it in cycle `cycle`: entries, whether the
+    /// head is visible, and its payload (held while not visible).
+    fn sample(&self, cycle: u64, out: &mut Samples) {
+        out.slot()
+            .push(self.q.len() as u64, super::bits::clog2_u32(self.depth + 1));
+        let head = self.q.front().filter(|e| e.0 <= cycle);
+        out.slot().push(head.is_some() as u64, 1);
+        let d = out.slot();
+        match head {
+            Some(e) => e.1.pack(d),
+            None => d.clear(),
+        }
+    }
+    fn commit(&mut self) {
+        if self.popped {
+            self.q.pop_front();
+            self.popped = false;
+        }
+        if let Some(e) = self.pending.take() {
+            self.q.push_back(e);
+        }
+    }
+    fn reset(&mut self) {
+        self.q.clear();
+        self.pending = None;
+        self.popped = false;
+    }
+    fn pending_change(&self) -> bool {
+        self.popped || self.pending.is_some()
     }
 }
 
@@ -245,6 +483,8 @@ impl<T: Payload> State for FixedPipe<T> {
         self.last_accept.reset();
         self.accepted = 0;
         self.emitted = 0;
+        self.occupied = 0;
+        self.occupied_from = None;
     }
     fn pending_change(&self) -> bool {
         self.pending_exit

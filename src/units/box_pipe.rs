@@ -4,6 +4,10 @@
 //! direction (Williams et al. 2005); the TP issues the two children of a BVH2 node
 //! back to back. The test itself is `geom::ray_box`, the same function the software
 //! reference calls, so the unit and the reference cannot disagree.
+//!
+//! The TM holds the same pipeline (`FixedPipe` and `box_test`) inside its crossbar,
+//! between two FIFOs with its links' timing (`tm_xbar`); this stand-alone unit on
+//! two links is the one its testbench drives (`tb box_pipe`).
 
 use glam::Vec3;
 

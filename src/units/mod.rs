@@ -91,13 +91,14 @@ fn tm_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
         In::new(i),
     );
     let sb = staging_buffer::StagingBuffer::new(&cfg.tm, In::new(i), outs(n));
+    let (box_req_q, box_pipe, box_resp_q) = tm_xbar::box_path(cfg);
     let xbar = tm_xbar::TmXbar {
         tps: n as u32,
         tri_pipes: np as u32,
+        box_latency: cfg.box_pipe.latency,
+        box_interval: cfg.box_pipe.interval,
         div_resp: In::new(i),
-        box_resp: In::new(i),
         div_req: Out::new(o),
-        box_req: Out::new(o),
         ray_write: Out::new(o),
         hit: Out::new(o),
         gmem_resp: In::new(i),
@@ -115,6 +116,9 @@ fn tm_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
         tp_gmem_resp: outs(n).into(),
         tri_req: outs(np).into(),
         tri_outstanding: crate::rtl::Ram::new(np as u32, np as u32, 0),
+        box_req_q,
+        box_pipe,
+        box_resp_q,
         stats: Default::default(),
     };
     vec![tp.decl(), l1.decl(), sb.decl(), xbar.decl()]

@@ -21,7 +21,6 @@ use crate::contract::{HitRec, RayRec};
 use crate::rtl::bits::{Bits, Payload};
 use crate::rtl::{ClockId, In, LinkCfg, Out, Sim, UnitId};
 
-use super::box_pipe::BoxPipe;
 use super::divider::Divider;
 use super::l1::{L1, L1Req, L1Resp};
 use super::memory::{MemLineReq, MemLineResp};
@@ -391,8 +390,8 @@ pub struct TmUnits {
     pub tps: Vec<UnitId>,
     pub staging_buffer: UnitId,
     pub l1: UnitId,
+    /// The crossbar, which holds the ray-box pipeline.
     pub xbar: UnitId,
-    pub box_pipe: UnitId,
     pub tri_pipes: Vec<UnitId>,
     pub divider: UnitId,
 }
@@ -403,7 +402,7 @@ impl TmUnits {
         self.tps
             .iter()
             .copied()
-            .chain([self.staging_buffer, self.l1, self.xbar, self.box_pipe])
+            .chain([self.staging_buffer, self.l1, self.xbar])
             .chain(self.tri_pipes.iter().copied())
             .chain([self.divider])
     }
@@ -454,8 +453,6 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
     let np = cfg.tm.tri_pipes as usize;
     let (pq_o, pq_i) = links!(super::tri_pipe::TriReq, "tri_req", np);
     let (pr_o, pr_i) = links!(super::tri_pipe::TriResp, "tri_resp", np);
-    let (bq_o, bq_i) = sim.link(&p("box_req"), l);
-    let (br_o, br_i) = sim.link(&p("box_resp"), l);
     let (dq_o, dq_i) = sim.link(&p("div_req"), l);
     let (dr_o, dr_i) = sim.link(&p("div_resp"), l);
 
@@ -500,16 +497,17 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
             ports.miss_resp,
         ),
     );
+    let (box_req_q, box_pipe, box_resp_q) = super::tm_xbar::box_path(cfg);
     let xbar = sim.add(
         &p("xbar"),
         clock,
         TmXbar {
             tps: n as u32,
             tri_pipes: np as u32,
+            box_latency: cfg.box_pipe.latency,
+            box_interval: cfg.box_pipe.interval,
             div_resp: dr_i,
-            box_resp: br_i,
             div_req: dq_o,
-            box_req: bq_o,
             ray_write: ports.ray_write,
             hit: ports.hit,
             gmem_req: ports.gmem_req,
@@ -527,13 +525,11 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
             tp_gmem_resp: gr_o.into(),
             tri_req: pq_o.into(),
             tri_outstanding: crate::rtl::Ram::new(np as u32, np as u32, 0u16),
+            box_req_q,
+            box_pipe,
+            box_resp_q,
             stats: Default::default(),
         },
-    );
-    let box_pipe = sim.add(
-        &p("box_pipe"),
-        clock,
-        BoxPipe::new(&cfg.box_pipe, l.delay, bq_i, br_o),
     );
     let mut tri_pipes = Vec::new();
     for (k, (qi, ro)) in pq_i.into_iter().zip(pr_o).enumerate() {
@@ -553,7 +549,6 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
         staging_buffer,
         l1,
         xbar,
-        box_pipe,
         tri_pipes,
         divider,
     }

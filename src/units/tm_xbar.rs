@@ -1,6 +1,10 @@
 //! The TM crossbar: connects the TPs to the TM-shared divider, ray-box pipeline and
 //! ray-triangle pipelines, and merges their duplicates and hit updates into the TM's
-//! two outside ports.
+//! two outside ports. It holds the ray-box pipeline (paper §5.1) between two FIFOs
+//! with the timing of the TM's links (`box_req_q`, `box_resp_q`): one box test
+//! takes the same cycles as through a separate unit on two links, but moves as
+//! plain data inside one evaluation, where two kernel link hops per test were an
+//! eighth of the chip's simulation time (docs/kernel.md).
 //!
 //! Arbitration: per shared resource, one request per cycle, round-robin from the TP
 //! `cycle mod tps` on, a function of absolute time, so it does not depend on when
@@ -10,21 +14,28 @@
 //! the `id`, which a TP sets to its index). The crossbar is
 //! one register stage each way: it adds the link delay to every round trip.
 
-use super::box_pipe::{BoxReq, BoxResp};
+use super::box_pipe::{BoxReq, BoxResp, box_test};
 use super::divider::{DivReq, DivResp};
 use super::memory::{MemLineReq, MemLineResp};
 use super::tp::{HitUpdate, RayWrite};
 use super::tri_pipe::{TriReq, TriResp};
-use crate::rtl::{Ctx, In, Logic, Next, Out, Payload, PortArray, Ram, Status};
+use crate::config::Config;
+use crate::rtl::{
+    Ctx, FixedPipe, In, LocalEnds, LocalLink, Logic, Next, Out, Payload, PortArray, Ram, Status,
+};
 
 crate::unit! {
     /// TM crossbar: round-robin arbitration of the TPs onto the shared units and outputs.
     pub struct TmXbar : "tm_xbar" {
-        params { tps: u32 => "TPS", tri_pipes: u32 => "TRI_PIPES" }
-        inputs { div_resp: DivResp, box_resp: BoxResp, gmem_resp: MemLineResp }
+        params {
+            tps: u32 => "TPS",
+            tri_pipes: u32 => "TRI_PIPES",
+            box_latency: u32 => "BOX_LATENCY",
+            box_interval: u32 => "BOX_II"
+        }
+        inputs { div_resp: DivResp, gmem_resp: MemLineResp }
         outputs {
             div_req: DivReq,
-            box_req: BoxReq,
             ray_write: RayWrite,
             hit: HitUpdate,
             gmem_req: MemLineReq
@@ -45,9 +56,27 @@ crate::unit! {
             tp_gmem_resp: MemLineResp,
             tri_req: TriReq
         }
-        state { tri_outstanding: Ram<u16> }
+        state {
+            tri_outstanding: Ram<u16>,
+            box_req_q: LocalLink<BoxReq>,
+            box_pipe: FixedPipe<BoxReq>,
+            box_resp_q: LocalLink<BoxResp>
+        }
         extra { stats: XbarStats }
     }
+}
+
+/// The ray-box pipeline the crossbar holds, built from `cfg`: its request FIFO,
+/// the pipeline and its result FIFO (both FIFOs with the TM's link timing). The
+/// pipeline's latency counts its result FIFO's delay, as a separate unit's counts
+/// its output link's, so a test takes `box_pipe.latency` from grant to routing.
+pub fn box_path(cfg: &Config) -> (LocalLink<BoxReq>, FixedPipe<BoxReq>, LocalLink<BoxResp>) {
+    let l = cfg.links.tm;
+    (
+        LocalLink::new(l),
+        FixedPipe::new(cfg.box_pipe.latency - l.delay, cfg.box_pipe.interval),
+        LocalLink::new(l),
+    )
 }
 
 /// Grants and losses per class: divider, box, triangle, ray write, hit, global
@@ -139,6 +168,25 @@ fn route<T: Payload>(
     (true, false)
 }
 
+/// `route` for the ray-box pipeline's result FIFO in cycle `c`: (moved, blocked).
+fn route_local(
+    ctx: &mut Ctx,
+    c: u64,
+    inp: &mut LocalLink<BoxResp>,
+    outs: &PortArray<Out<BoxResp>>,
+) -> (bool, bool) {
+    let Some(v) = inp.peek(c) else {
+        return (false, false);
+    };
+    let out = outs.at((v.tag & 0xFF) as usize);
+    if !ctx.can_push(&out) {
+        return (false, true);
+    }
+    let v = inp.pop(c).expect("peeked");
+    ctx.push(&out, v);
+    (true, false)
+}
+
 /// Adds the conflicts of a wait in progress for its cycles before `c`.
 fn flush_wait(s: &mut XbarStats, c: u64) {
     if let Some((since, w)) = s.wait.take() {
@@ -159,9 +207,14 @@ impl Logic for TmXbar {
         // This cycle's conflicts, per class (added to the stats at the end).
         let mut cf = [0u64; 6];
         // Responses back to their TPs.
+        let box_routed;
         for (w, b) in [
             route(ctx, &self.div_resp, &self.tp_div_resp, |r| r.tag, &mut more),
-            route(ctx, &self.box_resp, &self.tp_box_resp, |r| r.tag, &mut more),
+            {
+                let r = route_local(ctx, c, &mut self.box_resp_q, &self.tp_box_resp);
+                box_routed = r.0;
+                r
+            },
             route(
                 ctx,
                 &self.gmem_resp,
@@ -204,7 +257,34 @@ impl Logic for TmXbar {
             }};
         }
         forward!(0, self.tp_div_req, self.div_req);
-        forward!(1, self.tp_box_req, self.box_req);
+        // The ray-box pipeline: one step on its two FIFOs (their registered room and
+        // visibility make the order of these three steps irrelevant), then this
+        // cycle's box grant into its request FIFO.
+        // (An empty pipeline with empty FIFOs has nothing to step: most
+        // evaluations.)
+        let box_busy = self.box_req_q.holds_more() || self.box_pipe.occupancy() > 0;
+        let pipe_next = if box_busy {
+            self.box_pipe
+                .step_on(
+                    c,
+                    &mut LocalEnds {
+                        now: c,
+                        input: &mut self.box_req_q,
+                        output: &mut self.box_resp_q,
+                    },
+                    box_test,
+                )
+                .1
+        } else {
+            Next::Idle
+        };
+        let free = self.box_req_q.can_push();
+        if let Some((_, v)) = pick(ctx, &self.tp_box_req, start, free, &mut cf[1], &mut more) {
+            self.box_req_q.push(c, v);
+            self.stats.grants[1] += 1;
+            worked = true;
+        }
+        waiting |= cf[1] > 0;
         forward!(3, self.tp_ray_write, self.ray_write);
         forward!(4, self.tp_hit, self.hit);
         forward!(5, self.tp_gmem_req, self.gmem_req);
@@ -226,6 +306,34 @@ impl Logic for TmXbar {
                 self.tri_outstanding.write(p as u32, outstanding[p]);
             }
         }
+        // When the pipeline and its FIFOs need the crossbar again without any link
+        // waking it: the pipeline's own next step, the next request or result
+        // becoming visible (one behind a result routed now, too; a visible result
+        // that stays is blocked by its TP's full link, whose pop wakes us), and
+        // room freed in a full FIFO (seen from the next cycle).
+        let mut wake = match pipe_next {
+            Next::Cycle => Some(c + 1),
+            Next::AtCycle(t) => Some(t),
+            Next::Idle => None,
+        };
+        let mut at = |t: u64| wake = Some(wake.map_or(t, |w: u64| w.min(t)));
+        if let Some(t) = self.box_req_q.next_visible()
+            && t > c
+        {
+            at(t);
+        }
+        if let Some(t) = self.box_resp_q.next_visible()
+            && (box_routed || t > c)
+        {
+            at(t.max(c + 1));
+        }
+        if self.box_req_q.freed_full() || self.box_resp_q.freed_full() {
+            at(c + 1);
+        }
+        let idle = match wake {
+            Some(t) => Next::AtCycle(t.max(c + 1)),
+            None => Next::Idle,
+        };
         ctx.set_status(if worked {
             Status::Busy
         } else if waiting {
@@ -244,7 +352,7 @@ impl Logic for TmXbar {
                     s.wait = Some((c, cf));
                 }
             }
-            return Next::Idle;
+            return idle;
         }
         flush_wait(s, c);
         for (k, n) in cf.iter().enumerate() {
@@ -255,9 +363,9 @@ impl Logic for TmXbar {
             // a push wakes it the crossbar would only find nothing, so it sleeps,
             // waiting for input from the next cycle on.
             ctx.set_status_from_next(Status::WaitInput);
-            return Next::Idle;
+            return idle;
         }
-        if worked { Next::Cycle } else { Next::Idle }
+        if worked { Next::Cycle } else { idle }
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {
@@ -280,6 +388,9 @@ impl Logic for TmXbar {
         ];
         let mut v: Vec<(&'static str, u64)> = names_g.iter().copied().zip(s.grants).collect();
         v.extend(names_c.iter().copied().zip(s.conflicts));
+        v.push(("box_tests", self.box_pipe.accepted()));
+        v.push(("box_results", self.box_pipe.emitted()));
+        v.push(("box_occupied_cycles", self.box_pipe.occupied_cycles()));
         v
     }
 
