@@ -364,9 +364,10 @@ impl<T> LocalLink<T> {
             .or(self.pending.as_ref())
             .map(|e| e.0)
     }
-    /// Entries held, this cycle's push included.
-    pub fn occupancy(&self) -> u32 {
-        self.q.len() as u32 + self.pending.is_some() as u32
+    /// Whether the FIFO held nothing at the start of this cycle.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.q.is_empty()
     }
 }
 

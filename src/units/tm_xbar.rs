@@ -262,7 +262,7 @@ impl Logic for TmXbar {
         // cycle's box grant into its request FIFO.
         // (An empty pipeline with empty FIFOs has nothing to step: most
         // evaluations.)
-        let box_busy = self.box_req_q.holds_more() || self.box_pipe.occupancy() > 0;
+        let box_busy = !self.box_req_q.is_empty() || self.box_pipe.occupancy() > 0;
         let pipe_next = if box_busy {
             self.box_pipe
                 .step_on(
