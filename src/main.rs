@@ -468,6 +468,7 @@ fn run(cli: Cli) -> Result<(), String> {
                         sim: opts.sim.clone(),
                         trace: opts.trace.clone(),
                         log: false,
+                        probe_every: 0,
                     },
                     vcd: vcd.clone(),
                     config: opts.config.clone(),

@@ -708,8 +708,9 @@ impl Chip {
     /// dozen times, 8% of a small frame's instructions).
     fn tp_totals(&self) -> TpStats {
         let mut t = TpStats::default();
+        let cycle = self.sim.cycle(self.clock);
         for &u in self.tms.iter().flat_map(|t| t.tps.iter()) {
-            t.add(&self.sim.unit_ref::<Tp>(u).stats);
+            t.add(&self.sim.unit_ref::<Tp>(u).stats_at(cycle));
         }
         t
     }

@@ -28,7 +28,7 @@ use super::tri_pipe::{TriReq, TriResp};
 use crate::config::Config;
 use crate::contract::{HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, TRI_BYTES};
 use crate::render::traverse::cull;
-use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Ram, Reg, Status};
+use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Payload, Ram, Reg, Status};
 
 crate::payload_struct! {
     /// A duplicate: the ray, with its entry into the child segment `seg`; or, with
@@ -163,7 +163,8 @@ crate::unit! {
             log: Option<Vec<u64>>,
             shading: Option<ShadeRegs>,
             blocked_since: Option<u64>,
-            cost_cycles: [u32; COSTS]
+            cost_cycles: [u32; COSTS],
+            ahead: AheadActs
         }
     }
 }
@@ -270,6 +271,26 @@ fn vec3_at(l: &Line, off: usize) -> Vec3 {
     Vec3::new(l.f32_at(off), l.f32_at(off + 4), l.f32_at(off + 8))
 }
 
+/// Offers `v` on `port` in cycle `c`: now, or (a later cycle, when the TP runs
+/// ahead) scheduled for then, which `Tp::may_act_ahead` has made certain to be
+/// taken.
+fn send<T: Payload>(ctx: &mut Ctx, port: &Out<T>, v: T, c: u64) -> bool {
+    if c > ctx.cycle() {
+        ctx.push_ahead(port, c, v);
+        true
+    } else {
+        ctx.offer(port, v)
+    }
+}
+
+/// The link-offering actions a TP took ahead of their cycles (`Tp::eval`), so
+/// that its counters read at a cycle before one leave it out (`Tp::stats_at`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct AheadActs {
+    n: usize,
+    acts: [(u64, TpState); 6],
+}
+
 impl Tp {
     pub fn new(cfg: &Config, index: u16, l: TpLinks) -> Self {
         let entries = cfg.tm.stack_entries();
@@ -346,6 +367,7 @@ impl Tp {
             log: None,
             shading: None,
             blocked_since: None,
+            ahead: AheadActs::default(),
         }
     }
 
@@ -401,9 +423,9 @@ impl Tp {
             + k as u64 * TRI_BYTES as u64
     }
 
-    fn load(&mut self, ctx: &mut Ctx, addr: u64) -> bool {
+    fn load(&mut self, ctx: &mut Ctx, addr: u64, c: u64) -> bool {
         let line = addr & !63;
-        if ctx.offer(&self.mem_req, L1Req { addr: line }) {
+        if send(ctx, &self.mem_req, L1Req { addr: line }, c) {
             self.stats.l1_loads += 1;
             if let Some(l) = &mut self.log {
                 l.push(line);
@@ -478,14 +500,14 @@ impl Tp {
                     ray: RayRec { entry: e.r, ..ray },
                     done: false,
                 };
-                if !ctx.offer(&self.ray_write, w) {
+                if !send(ctx, &self.ray_write, w, c) {
                     return None;
                 }
                 self.stats.exits += 1;
                 self.go(TpState::Pop, c)
             }
             TpState::NodeFetch => {
-                if !self.load(ctx, self.node_addr.val()) {
+                if !self.load(ctx, self.node_addr.val(), c) {
                     return None;
                 }
                 self.req_at.set(c);
@@ -504,7 +526,7 @@ impl Tp {
                     bmax: vec3_at(l, 24 * side + 12),
                     tag: tag | (side as Tag) << 8,
                 };
-                if !ctx.offer(&self.box_req, req) {
+                if !send(ctx, &self.box_req, req, c) {
                     return None;
                 }
                 self.stats.box_tests += 1;
@@ -551,7 +573,7 @@ impl Tp {
             }
             TpState::TriFetch => {
                 let a = self.tri_addr(self.tri_k.val());
-                if !self.load(ctx, a) {
+                if !self.load(ctx, a, c) {
                     return None;
                 }
                 self.req_at.set(c);
@@ -582,7 +604,7 @@ impl Tp {
                     tri_id: l.u32_at(36),
                     tag,
                 };
-                if !ctx.offer(&self.tri_req, req) {
+                if !send(ctx, &self.tri_req, req, c) {
                     return None;
                 }
                 self.stats.tri_tests += 1;
@@ -686,16 +708,50 @@ impl Logic for Tp {
         // the status stays busy throughout. A traced TP goes state by state, so
         // the waveform shows every one. Only after an action of this evaluation
         // (`state` written): a TP that is evaluated early must change nothing.
+        //
+        // A state that offers on a link runs ahead too when the link is certain
+        // to take the offer in its cycle (`may_act_ahead`): the push is scheduled
+        // for that cycle (`Ctx::push_ahead`), so the consumer sees it exactly
+        // then, and the TP sleeps on to the response it waits for, busy until the
+        // cycle after the push. Its counters are read at a cycle
+        // (`stats_at`) without the actions still ahead of it.
+        let c = ctx.cycle();
+        // The cycle of the last action taken ahead in this evaluation: an
+        // internal state after it would have run through in that cycle's
+        // evaluation, so its counts are noted as of then too.
+        let mut ahead_of = None;
         while let Next::AtCycle(at) = n {
             let s = *self.state.next();
-            if !self.state.written() || !internal(s) {
+            if !self.state.written() {
+                break;
+            }
+            let ahead = !internal(s);
+            if ahead && !self.may_act_ahead(ctx, s, c) {
+                break;
+            }
+            if !ahead && ahead_of.is_some() && self.ahead.n == self.ahead.acts.len() {
                 break;
             }
             Declared::commit_state(self);
             n = self
                 .act(ctx, s, at)
-                .expect("an internal state never offers on a link");
+                .expect("an internal state never offers on a link, an ahead one has room");
             self.used(s);
+            if let Some(a) = if ahead { Some(at) } else { ahead_of } {
+                self.ahead.acts[self.ahead.n] = (a, s);
+                self.ahead.n += 1;
+            }
+            if ahead {
+                ahead_of = Some(at);
+                if n == Next::Cycle {
+                    if awaits_response(*self.state.next()) {
+                        ctx.set_status_at(Status::ResourceBusy, at + 1);
+                        n = Next::Idle;
+                    } else {
+                        n = Next::AtCycle(at + 1);
+                    }
+                }
+            }
         }
         n
     }
@@ -856,7 +912,7 @@ impl Tp {
                         self.line0.set(r.line);
                         if last != r.addr {
                             // The triangle straddles two lines: load the second now.
-                            let ok = self.load(ctx, last);
+                            let ok = self.load(ctx, last, c);
                             assert!(ok, "a TP's load link is empty while it waits");
                             self.req_at.set(c);
                             return Next::Cycle;
@@ -903,6 +959,53 @@ impl Tp {
 }
 
 impl Tp {
+    /// Whether state `s`, due in a later cycle, may act now (`eval`): it offers
+    /// on one link, which has room for it counting no pop, and there is room to
+    /// note it. Acts of earlier evaluations (cycles before `c`) are forgotten.
+    fn may_act_ahead(&mut self, ctx: &mut Ctx, s: TpState, c: u64) -> bool {
+        let a = &mut self.ahead;
+        if a.n > 0 && a.acts[a.n - 1].0 < c {
+            a.n = 0;
+        }
+        if a.n == a.acts.len() {
+            return false;
+        }
+        // The internal states that can follow these (only `Pop`) change no
+        // counter but `uses`, which `stats_at` takes back.
+        let room = match s {
+            TpState::BoxIssue | TpState::BoxIssue1 => ctx.ahead_room(&self.box_req),
+            TpState::NodeFetch | TpState::TriFetch => ctx.ahead_room(&self.mem_req),
+            TpState::TriIssue => ctx.ahead_room(&self.tri_req),
+            TpState::Exit => ctx.ahead_room(&self.ray_write),
+            _ => 0,
+        };
+        room > 0
+    }
+
+    /// The counters as of cycle `cycle` (evaluated): those of actions taken
+    /// ahead of a later cycle left out.
+    pub fn stats_at(&self, cycle: u64) -> TpStats {
+        let mut t = self.stats;
+        for &(at, s) in &self.ahead.acts[..self.ahead.n] {
+            if at <= cycle {
+                continue;
+            }
+            if let Some(k) = cost_index(s) {
+                t.uses[k] -= 1;
+            }
+            match s {
+                TpState::BoxIssue | TpState::BoxIssue1 => t.box_tests -= 1,
+                TpState::NodeFetch | TpState::TriFetch => t.l1_loads -= 1,
+                TpState::TriIssue => t.tri_tests -= 1,
+                TpState::Exit => t.exits -= 1,
+                // Counted in `uses` only (see `may_act_ahead`).
+                TpState::Pop => {}
+                _ => unreachable!("not a state that acts ahead"),
+            }
+        }
+        t
+    }
+
     /// Whether the TP stopped on a stack overflow.
     pub fn overflowed(&self) -> bool {
         self.state.val() == TpState::Overflow
