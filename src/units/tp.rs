@@ -274,7 +274,7 @@ fn vec3_at(l: &Line, off: usize) -> Vec3 {
 /// Offers `v` on `port` in cycle `c`: now, or (a later cycle, when the TP runs
 /// ahead) scheduled for then, which `Tp::may_act_ahead` has made certain to be
 /// taken.
-fn send<T: Payload>(ctx: &mut Ctx, port: &Out<T>, v: T, c: u64) -> bool {
+pub(super) fn send<T: Payload>(ctx: &mut Ctx, port: &Out<T>, v: T, c: u64) -> bool {
     if c > ctx.cycle() {
         ctx.push_ahead(port, c, v);
         true
@@ -288,7 +288,16 @@ fn send<T: Payload>(ctx: &mut Ctx, port: &Out<T>, v: T, c: u64) -> bool {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct AheadActs {
     n: usize,
-    acts: [(u64, TpState); 6],
+    /// The cycle of each action, its state, and whether it sent a hit (`Finish`)
+    /// or a shadow ray (`ShEmit`).
+    acts: [(u64, TpState, bool); 6],
+}
+
+impl AheadActs {
+    /// The cycle of the last action taken ahead, if any was.
+    fn last(&self) -> Option<u64> {
+        self.n.checked_sub(1).map(|k| self.acts[k].0)
+    }
 }
 
 impl Tp {
@@ -442,7 +451,7 @@ impl Tp {
         let ray = self.cur.get().ray;
         Some(match s {
             TpState::Fetch => {
-                if !ctx.offer(&self.div_req, DivReq { dir: ray.dir, tag }) {
+                if !send(ctx, &self.div_req, DivReq { dir: ray.dir, tag }, c) {
                     return None;
                 }
                 self.req_at.set(c);
@@ -637,7 +646,7 @@ impl Tp {
                         ray,
                         done: true,
                     };
-                    if !ctx.offer(&self.ray_write, m) {
+                    if !send(ctx, &self.ray_write, m, c) {
                         return None;
                     }
                     self.done_sent.set(true);
@@ -648,7 +657,7 @@ impl Tp {
                         index: ray.hit_index() as u32,
                         hit: best,
                     };
-                    if !ctx.offer(&self.hit, u) {
+                    if !send(ctx, &self.hit, u, c) {
                         return None;
                     }
                     self.stats.hits += 1;
@@ -696,6 +705,19 @@ fn internal(s: TpState) -> bool {
 
 impl Logic for Tp {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        // Until the last action taken ahead has had its cycle the TP is, as far
+        // as anyone can see, still in the states before: an evaluation meanwhile
+        // (an input's push woke it, or nothing sleeps) must not act on the state
+        // it is in already (an idle TP would take the next ray early).
+        if let Some(last) = self.ahead.last()
+            && ctx.cycle() <= last
+        {
+            return if awaits_response(self.state.val()) {
+                Next::Idle
+            } else {
+                Next::AtCycle(last + 1)
+            };
+        }
         let mut n = self.step(ctx);
         if ctx.watched() {
             return n;
@@ -729,16 +751,23 @@ impl Logic for Tp {
             if ahead && !self.may_act_ahead(ctx, s, c) {
                 break;
             }
-            if !ahead && ahead_of.is_some() && self.ahead.n == self.ahead.acts.len() {
+            // After an action ahead only `Pop` runs through (no counter but
+            // `uses`, which `stats_at` takes back), and only while it can be noted.
+            if !ahead
+                && ahead_of.is_some()
+                && (s != TpState::Pop || self.ahead.n == self.ahead.acts.len())
+            {
                 break;
             }
+            let marked = (self.stats.hits, self.stats.shade_shadow_rays);
             Declared::commit_state(self);
             n = self
                 .act(ctx, s, at)
                 .expect("an internal state never offers on a link, an ahead one has room");
             self.used(s);
             if let Some(a) = if ahead { Some(at) } else { ahead_of } {
-                self.ahead.acts[self.ahead.n] = (a, s);
+                let flag = marked != (self.stats.hits, self.stats.shade_shadow_rays);
+                self.ahead.acts[self.ahead.n] = (a, s, flag);
                 self.ahead.n += 1;
             }
             if ahead {
@@ -970,23 +999,32 @@ impl Tp {
         if a.n == a.acts.len() {
             return false;
         }
-        // The internal states that can follow these (only `Pop`) change no
-        // counter but `uses`, which `stats_at` takes back.
-        let room = match s {
-            TpState::BoxIssue | TpState::BoxIssue1 => ctx.ahead_room(&self.box_req),
-            TpState::NodeFetch | TpState::TriFetch => ctx.ahead_room(&self.mem_req),
-            TpState::TriIssue => ctx.ahead_room(&self.tri_req),
-            TpState::Exit => ctx.ahead_room(&self.ray_write),
-            _ => 0,
-        };
-        room > 0
+        let room = |ctx: &mut Ctx, p: &Out<_>| ctx.ahead_room(p) > 0;
+        match s {
+            TpState::Fetch => ctx.ahead_room(&self.div_req) > 0,
+            TpState::BoxIssue | TpState::BoxIssue1 => ctx.ahead_room(&self.box_req) > 0,
+            TpState::NodeFetch | TpState::TriFetch => ctx.ahead_room(&self.mem_req) > 0,
+            TpState::TriIssue => ctx.ahead_room(&self.tri_req) > 0,
+            TpState::Exit | TpState::ShEmit | TpState::ShDone => room(ctx, &self.ray_write),
+            // The end marker, then the hit if there is one (not a retry of a
+            // refused hit, which a pop of the hit link wakes).
+            TpState::Finish => {
+                !self.done_sent.val()
+                    && room(ctx, &self.ray_write)
+                    && (!self.best.val().is_hit() || ctx.ahead_room(&self.hit) > 0)
+            }
+            TpState::ShPath | TpState::ShLoad | TpState::ShStore | TpState::ShStore1 => {
+                ctx.ahead_room(&self.gmem_req) > 0
+            }
+            _ => false,
+        }
     }
 
     /// The counters as of cycle `cycle` (evaluated): those of actions taken
     /// ahead of a later cycle left out.
     pub fn stats_at(&self, cycle: u64) -> TpStats {
         let mut t = self.stats;
-        for &(at, s) in &self.ahead.acts[..self.ahead.n] {
+        for &(at, s, flag) in &self.ahead.acts[..self.ahead.n] {
             if at <= cycle {
                 continue;
             }
@@ -998,8 +1036,15 @@ impl Tp {
                 TpState::NodeFetch | TpState::TriFetch => t.l1_loads -= 1,
                 TpState::TriIssue => t.tri_tests -= 1,
                 TpState::Exit => t.exits -= 1,
-                // Counted in `uses` only (see `may_act_ahead`).
-                TpState::Pop => {}
+                TpState::Finish => t.hits -= flag as u64,
+                TpState::ShPath | TpState::ShLoad => t.gmem_reads -= 1,
+                TpState::ShStore | TpState::ShStore1 => t.gmem_writes -= 1,
+                TpState::ShEmit => {
+                    t.shade_rays -= 1;
+                    t.shade_shadow_rays -= flag as u64;
+                }
+                // Counted in `uses` only (see `eval`).
+                TpState::Pop | TpState::Fetch | TpState::ShDone => {}
                 _ => unreachable!("not a state that acts ahead"),
             }
         }
