@@ -468,7 +468,6 @@ fn run(cli: Cli) -> Result<(), String> {
                         sim: opts.sim.clone(),
                         trace: opts.trace.clone(),
                         log: false,
-                        probe_every: 0,
                     },
                     vcd: vcd.clone(),
                     config: opts.config.clone(),

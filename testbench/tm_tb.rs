@@ -20,15 +20,15 @@ use crate::render::traverse::{SegmentView, TraversalCounts, traverse_segment};
 use crate::render::{Prepared, RenderCfg, prepare};
 use crate::rtl::decl::{Samples, StateList};
 use crate::rtl::{
-    Ctx, Declared, In, Logic, Next, Out, PortDecl, PortDir, RunEnd, Sim, SimOptions, Status,
-    TraceSpec, Tracer, UnitDecl, UnitStats,
+    Ctx, Declared, In, Logic, Next, Out, PortDecl, PortDir, Sim, SimOptions, Status, TraceSpec,
+    Tracer, UnitDecl, UnitStats,
 };
 use crate::scene::Scene;
 use crate::units::l1::{L1, L1Req, L1Resp, Line};
 use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::units::staging_buffer::{SbFill, SbHeader};
 use crate::units::tm::{self, TmPorts, TmUnits};
-use crate::units::tp::{HitUpdate, RayWrite, Tp, TpStats};
+use crate::units::tp::{HitUpdate, RayWrite, Tp};
 
 use super::harness::{Driver, Sink};
 
@@ -243,9 +243,6 @@ pub struct RunOptions {
     pub trace: TraceSpec,
     /// Record each TP's and the L1's address sequence.
     pub log: bool,
-    /// Read the TPs' counters every this many cycles (0: never) into
-    /// `TmRun::tp_probes`, as a window of the chip reads them mid-run.
-    pub probe_every: u64,
 }
 
 impl Default for RunOptions {
@@ -255,7 +252,6 @@ impl Default for RunOptions {
             sim: SimOptions::default(),
             trace: TraceSpec::all(),
             log: false,
-            probe_every: 0,
         }
     }
 }
@@ -276,8 +272,6 @@ pub struct TmRun {
     pub evals: u64,
     pub wall_s: f64,
     pub strays: u64,
-    /// The TPs' counters added up, read every `RunOptions::probe_every` cycles.
-    pub tp_probes: Vec<TpStats>,
 }
 
 impl TmRun {
@@ -394,20 +388,6 @@ pub fn run_job(
         }
     }
     sim.wake(feeder);
-    let mut tp_probes = Vec::new();
-    if opts.probe_every > 0 {
-        let step = opts.probe_every * cfg.clocks.core_ps;
-        let mut limit = step;
-        while sim.run_until(limit).map_err(|e| e.to_string())? == RunEnd::Limit {
-            let c = sim.cycle(clk);
-            let mut t = TpStats::default();
-            for &u in &units.tps {
-                t.add(&sim.unit_ref::<Tp>(u).stats_at(c));
-            }
-            tp_probes.push(t);
-            limit += step;
-        }
-    }
     sim.run_to_idle(u64::MAX / 2).map_err(|e| e.to_string())?;
     if let Some(r) = sim.finish_trace() {
         r.map_err(|e| format!("cannot write the VCD: {e}"))?;
@@ -461,7 +441,6 @@ pub fn run_job(
         evals: sim.evals,
         wall_s,
         strays,
-        tp_probes,
     })
 }
 

@@ -372,13 +372,12 @@ fn gddr5_sleeping_shadow_and_shuffles_change_nothing() {
 }
 
 /// A TP that no tracer watches runs through its internal states (the pop after a
-/// node's push, a triangle's result) in one evaluation, and through the states
-/// that offer on a link certain to take the offer (their pushes scheduled ahead),
-/// and sleeps until the response it waits for. That must give the same cycles,
-/// statistics of every unit and hits as the traced chip, whose TPs go state by
-/// state: with sleeping, with sleeping off, under the shadow check and shuffled;
-/// also with one-entry, two-cycle TM links, where the second box request never
-/// has room ahead. And it must save evaluations, or the test would not test it.
+/// node's push, a triangle's result) in one evaluation and sleeps until the next
+/// state that offers on a link. That must give the same cycles, statistics of
+/// every unit and hits as the traced chip, whose TPs go state by state: with
+/// sleeping, with sleeping off, under the shadow check and shuffled; also with
+/// one-entry, two-cycle TM links, where offers are refused. And it must save
+/// evaluations, or the test would not test it.
 #[test]
 fn untraced_tps_run_through_internal_states_exactly() {
     let mut tight = chip_cfg(1, 4);

@@ -421,58 +421,6 @@ fn outcome_with(
     (r.end_ps, r.stats, dualstream::util::fnv1a(&vcd), vcd.len())
 }
 
-/// An untraced TP takes the actions that offer on a link ahead of their cycles
-/// (their pushes scheduled for then); read at any cycle, its counters of those
-/// actions (tests, loads, exits, and the uses of those states) must be what the
-/// traced TPs, which act cycle by cycle, have counted by then. With the default
-/// links and with one-entry, two-cycle ones (room for one push ahead at most).
-#[test]
-fn counters_read_mid_run_leave_out_actions_taken_ahead() {
-    let s = setup("cornell", 12, 1);
-    let seg = 1;
-    let job = TmJob {
-        mem: &s.p.mem,
-        seg,
-        entry: entry(&s.p, seg),
-        rays: s.rays[seg as usize].clone(),
-    };
-    let mut tight = Config::default();
-    tight.links.tm = LinkCfg { depth: 1, delay: 2 };
-    tight.tm.l1.hit_latency = 3;
-    for cfg in [Config::default(), tight] {
-        let o = RunOptions {
-            probe_every: 1,
-            ..RunOptions::default()
-        };
-        let buf = dualstream::rtl::SharedBuf::default();
-        let traced = run_job(&cfg, &job, &o, Some(Box::new(buf))).unwrap();
-        let ahead = run_job(&cfg, &job, &o, None).unwrap();
-        assert!(
-            ahead.evals * 10 < traced.evals * 9,
-            "few actions taken ahead: {} evaluations against {} traced",
-            ahead.evals,
-            traced.evals
-        );
-        assert_eq!(traced.tp_probes.len(), ahead.tp_probes.len());
-        assert!(traced.tp_probes.len() > 500);
-        let offering = ["exit", "node_fetch", "box_issue", "tri_fetch", "tri_issue"]
-            .map(|n| dualstream::units::tm::TpCosts::index_of(n).unwrap());
-        let key = |t: &dualstream::units::tp::TpStats| {
-            (
-                t.box_tests,
-                t.tri_tests,
-                t.l1_loads,
-                t.exits,
-                offering.map(|k| t.uses[k]),
-            )
-        };
-        for (c, (a, b)) in traced.tp_probes.iter().zip(&ahead.tp_probes).enumerate() {
-            assert_eq!(key(a), key(b), "cycle {}", c + 1);
-        }
-        assert_eq!(traced.stats, ahead.stats);
-    }
-}
-
 /// Sleep off under the shadow check, a shuffled order, and both: a result must
 /// not depend on any of them.
 fn other_orders() -> [SimOptions; 3] {

@@ -708,9 +708,8 @@ impl Chip {
     /// dozen times, 8% of a small frame's instructions).
     fn tp_totals(&self) -> TpStats {
         let mut t = TpStats::default();
-        let cycle = self.sim.cycle(self.clock);
         for &u in self.tms.iter().flat_map(|t| t.tps.iter()) {
-            t.add(&self.sim.unit_ref::<Tp>(u).stats_at(cycle));
+            t.add(&self.sim.unit_ref::<Tp>(u).stats);
         }
         t
     }

@@ -250,17 +250,6 @@ pub(crate) struct ProdSide<T> {
     pending: Option<Entry<T>>,
     /// Payload of a refused offer that must be offered again.
     stalled: Option<T>,
-    /// Pushes scheduled ahead this cycle for later cycles of the producer
-    /// (`push_ahead`), in time order; they join the FIFO at this cycle's edge,
-    /// behind `pending`, and stay invisible until their own cycle's delay.
-    early: Vec<Entry<T>>,
-    /// The latest time a push was scheduled ahead for: a push at or before it
-    /// would overtake that entry.
-    ahead_until: Time,
-    /// Entries in the FIFO at the start of this cycle (set at the edge), pushes
-    /// scheduled ahead included: the producer's own count of what it may still
-    /// schedule, without reading the consumer's half.
-    in_q: u32,
 }
 
 /// A link: its two halves are each changed only by the unit at that end, so the
@@ -316,9 +305,6 @@ impl<T: Payload> Link<T> {
                 space_at_start: true,
                 touched: false,
                 stalled: None,
-                early: Vec::new(),
-                ahead_until: 0,
-                in_q: 0,
                 offered_now: false,
                 pushes: 0,
                 refused_offers: 0,
@@ -379,19 +365,16 @@ impl<T> ConsSide<T> {
         }
     }
 
-    /// Whether the entry behind this cycle's pop (if any) is visible at `now`.
-    /// One not visible yet need not be looked for: its push woke the consumer
-    /// for the cycle it becomes visible, and that wake-up is still to come.
+    /// Entries in the FIFO that this cycle's pop (if any) leaves behind, visible or
+    /// not (this cycle's push joins at the edge and is not counted).
     #[inline]
-    pub(crate) fn visible_after_pop(&self, now: Time) -> bool {
-        self.q
-            .get(self.pops_now as usize)
-            .is_some_and(|e| e.visible <= now)
+    pub(crate) fn left_after_pop(&self) -> usize {
+        self.q.len() - self.pops_now as usize
     }
 
     /// Pops the head if it is visible (the entry leaves the FIFO at the edge).
     #[inline]
-    pub(crate) fn pop(&mut self, now: Time, depth: u32, delay_ps: Time) -> Option<T>
+    pub(crate) fn pop(&mut self, now: Time, depth: u32) -> Option<T>
     where
         T: Clone,
     {
@@ -406,11 +389,7 @@ impl<T> ConsSide<T> {
         let e = self.q.front().filter(|e| e.visible <= now)?;
         let data = e.data.clone();
         self.pops_now = 1;
-        // Full counts only entries pushed by now: one scheduled ahead for a
-        // later cycle (visible after `now + delay`) is not there yet.
-        self.full_at_start = self.q.len() as u32 >= depth
-            && depth > 0
-            && self.q[depth as usize - 1].visible <= now + delay_ps;
+        self.full_at_start = self.q.len() as u32 >= depth;
         self.pops += 1;
         if let Some(log) = &mut self.log {
             log.push(LinkEvent::Pop { at: now });
@@ -435,10 +414,6 @@ impl<T: Payload> ProdSide<T> {
     /// Pushes; returns the time the payload becomes visible.
     #[inline]
     pub(crate) fn push(&mut self, now: Time, delay_ps: Time, data: T) -> Option<Time> {
-        if now <= self.ahead_until && self.ahead_until > 0 {
-            self.violation(now, "push before a push scheduled ahead for a later cycle");
-            return None;
-        }
         if !self.can_push() {
             let why = if self.pending.is_some() {
                 "second push in one cycle"
@@ -469,47 +444,6 @@ impl<T: Payload> ProdSide<T> {
 
     pub(crate) fn is_stalled(&self) -> bool {
         self.stalled.is_some()
-    }
-
-    /// How many pushes the producer may schedule ahead now (`push_ahead`): the
-    /// room left once everything pushed or scheduled sits in the FIFO, counting
-    /// no pop. Such a push is then certain to be taken in its own cycle, whatever
-    /// the consumer does meanwhile: pops only add room. None while an offer is
-    /// refused or the link logs its transfers (a log is in time order).
-    #[inline]
-    pub(crate) fn room_ahead(&self, depth: u32) -> u32 {
-        if self.stalled.is_some() || self.log.is_some() {
-            return 0;
-        }
-        let used = self.in_q + self.pending.is_some() as u32 + self.early.len() as u32;
-        depth.saturating_sub(used)
-    }
-
-    /// Schedules the push the producer will make at time `at` (a later cycle of
-    /// its own) now; returns the time the payload becomes visible. The caller
-    /// has checked `room_ahead`.
-    #[inline]
-    pub(crate) fn push_ahead(
-        &mut self,
-        now: Time,
-        at: Time,
-        delay_ps: Time,
-        depth: u32,
-        data: T,
-    ) -> Option<Time> {
-        if at <= now || at <= self.ahead_until || self.room_ahead(depth) == 0 {
-            self.violation(
-                now,
-                "push scheduled ahead out of order, for a past cycle or without room",
-            );
-            return None;
-        }
-        let visible = at + delay_ps;
-        self.early.push(Entry { visible, data });
-        self.ahead_until = at;
-        self.pushes += 1;
-        self.touched = true;
-        Some(visible)
     }
 
     pub(crate) fn touched(&self) -> bool {
@@ -568,10 +502,10 @@ pub(crate) trait LinkDyn: Any + Send + Sync {
     fn name(&self) -> &str;
     /// Whether either half was touched since the last edge.
     fn touched(&self) -> bool;
-    /// Clock edge at the end of the cycle that began at `now`: moves this cycle's violations to `violations`, retires this
+    /// Clock edge: moves this cycle's violations to `violations`, retires this
     /// cycle's pop, enqueues this cycle's push, and tells the simulator what it
     /// mirrors (one virtual call per touched link and edge).
-    fn edge(&mut self, now: Time, violations: &mut Vec<Violation>) -> EdgeResult;
+    fn edge(&mut self, violations: &mut Vec<Violation>) -> EdgeResult;
     fn sample_consumer(&self, now: Time, out: [&mut Bits; 3]);
     fn sample_producer(&self, out: [&mut Bits; 3]);
     fn ends(&self) -> (Option<UnitId>, Option<UnitId>);
@@ -603,7 +537,7 @@ impl<T: Payload> LinkDyn for Link<T> {
     fn touched(&self) -> bool {
         self.cons_ref().touched || self.prod_ref().touched
     }
-    fn edge(&mut self, now: Time, violations: &mut Vec<Violation>) -> EdgeResult {
+    fn edge(&mut self, violations: &mut Vec<Violation>) -> EdgeResult {
         let name = &self.name;
         let c = self.cons.get_mut();
         let p = self.prod.get_mut();
@@ -624,16 +558,7 @@ impl<T: Payload> LinkDyn for Link<T> {
         // room in a full FIFO wakes the producer.
         if let Some(e) = p.pending.take() {
             c.q.push_back(e);
-        }
-        c.q.extend(p.early.drain(..));
-        if c.q.len() as u32 > self.max_occupancy {
-            // The entries pushed by now (those scheduled ahead for later cycles
-            // are not there yet; the edge of their first pop counts them). Between
-            // edges the FIFO only grows, so this is the most it held since the
-            // last one.
-            let by_now = now + self.delay_ps;
-            let n = c.q.partition_point(|e| e.visible <= by_now) as u32;
-            self.max_occupancy = self.max_occupancy.max(n);
+            self.max_occupancy = self.max_occupancy.max(c.q.len() as u32);
         }
         let wake_producer = c.pops_now > 0 && c.full_at_start;
         if c.pops_now > 0 {
@@ -645,7 +570,6 @@ impl<T: Payload> LinkDyn for Link<T> {
         c.touched = false;
         p.touched = false;
         p.space_at_start = (c.q.len() as u32) < self.depth;
-        p.in_q = c.q.len() as u32;
         EdgeResult {
             wake_producer,
             head: c.head_time(),
@@ -699,9 +623,6 @@ impl<T: Payload> LinkDyn for Link<T> {
         c.violations.clear();
         let p = self.prod.get_mut();
         p.pending = None;
-        p.early.clear();
-        p.ahead_until = 0;
-        p.in_q = 0;
         p.space_at_start = self.depth > 0;
         p.touched = false;
         p.stalled = None;
@@ -744,7 +665,7 @@ impl<T: Payload> LinkDyn for Link<T> {
     }
     fn occupancy(&self) -> u32 {
         let (c, p) = (self.cons_ref(), self.prod_ref());
-        c.q.len() as u32 + p.pending.is_some() as u32 + p.early.len() as u32
+        c.q.len() as u32 + p.pending.is_some() as u32
     }
     fn set_log(&mut self, on: bool) {
         self.log = on.then(Box::default);

@@ -379,9 +379,8 @@ pub struct Ctx<'a> {
     /// Output links of this unit with a refused offer outstanding.
     stalls: &'a mut Vec<LinkId>,
     new_status: Option<Status>,
-    /// A later status and the time it begins (`Ctx::set_status_from_next`,
-    /// `Ctx::set_status_at`).
-    next_status: Option<(Status, Time)>,
+    /// The status from the next cycle on (`Ctx::set_status_from_next`).
+    next_status: Option<Status>,
     link_ops: u32,
     watched: bool,
 }
@@ -446,16 +445,14 @@ impl<'a> Ctx<'a> {
         unsafe { l.cons() }.peek(now)
     }
 
-    /// Whether an input link still holds a visible entry behind this cycle's pop.
-    /// A consumer that pops must look again next cycle while this holds: only a
-    /// push wakes it, and that entry's wake-up (for the cycle it became visible)
-    /// has passed. An entry not yet visible wakes it when it becomes so (a push
-    /// scheduled ahead, `Ctx::push_ahead`, too).
+    /// Whether an input link still holds an entry behind this cycle's pop (visible or
+    /// not). A consumer that pops must look again while this holds: only a push wakes
+    /// it, and the entry behind may have been pushed (and its wake-up passed) earlier.
     #[inline]
     pub fn holds_more<T: Payload>(&self, port: &In<T>) -> bool {
         let l = self.net.typed::<T>(port.id);
         // SAFETY: `port` is an input of the unit being evaluated: its consumer.
-        unsafe { l.cons() }.visible_after_pop(self.now)
+        unsafe { l.cons() }.left_after_pop() > 0
     }
 
     /// Whether a payload is visible at the head of an input link this cycle: a
@@ -533,7 +530,7 @@ impl<'a> Ctx<'a> {
         // SAFETY: `port` is an input of the unit being evaluated: its consumer.
         let c = unsafe { l.cons() };
         let was = c.touched();
-        let v = c.pop(now, l.depth, l.delay_ps);
+        let v = c.pop(now, l.depth);
         let t = c.touched();
         let head = c.head_time();
         self.net.set_head(port.id.0 as usize, head);
@@ -612,51 +609,7 @@ impl<'a> Ctx<'a> {
     /// instead of being evaluated once more only to say so.
     #[inline]
     pub fn set_status_from_next(&mut self, s: Status) {
-        self.next_status = Some((s, self.now + self.period));
-    }
-
-    /// Declares the status from cycle `cycle` (later than this one) on: a unit
-    /// that scheduled its pushes ahead (`push_ahead`) and waits after them.
-    #[inline]
-    pub fn set_status_at(&mut self, s: Status, cycle: u64) {
-        debug_assert!(
-            cycle > self.cycle(),
-            "a status ahead begins in a later cycle"
-        );
-        self.next_status = Some((s, cycle * self.period));
-    }
-
-    /// How many pushes this unit may schedule ahead on an output link now
-    /// (`push_ahead`): 0 unless every one is certain to be taken in its cycle.
-    #[inline]
-    pub fn ahead_room<T: Payload>(&mut self, port: &Out<T>) -> u32 {
-        let l = self.net.typed::<T>(port.id);
-        // SAFETY: `port` is an output of the unit being evaluated: its producer.
-        unsafe { l.prod() }.room_ahead(l.depth)
-    }
-
-    /// Makes now the push this unit will make in its later cycle `cycle`, when
-    /// nothing it does until then can change the payload and `ahead_room` says
-    /// the link will take it: the consumer sees it exactly as if pushed then
-    /// (visible `delay` after that cycle, woken then), and the producer need not
-    /// be evaluated in that cycle. Only for a unit nobody traces (`watched`):
-    /// its waveform would show the push early.
-    #[inline]
-    pub fn push_ahead<T: Payload>(&mut self, port: &Out<T>, cycle: u64, v: T) {
-        let now = self.now;
-        let at = cycle * self.period;
-        let l = self.net.typed::<T>(port.id);
-        // SAFETY: `port` is an output of the unit being evaluated: its producer.
-        let p = unsafe { l.prod() };
-        let was = p.touched();
-        let consumer = l.consumer;
-        let vis = p.push_ahead(now, at, l.delay_ps, l.depth, v);
-        self.net.set_space(port.id.0 as usize, p.can_push());
-        self.link_ops += 1;
-        self.mark(port.id, was);
-        if let (Some(vis), Some(c)) = (vis, consumer) {
-            self.wakes.push((c, vis));
-        }
+        self.next_status = Some(s);
     }
 }
 
@@ -1157,7 +1110,7 @@ impl Sim {
             self.edged[l.0 as usize] = t;
             let link = &mut self.links[l.0 as usize];
             debug_assert!(link.touched());
-            let e = link.edge(t, &mut violations);
+            let e = link.edge(&mut violations);
             self.heads[l.0 as usize] = e.head;
             self.nonempty[l.0 as usize] = (e.head != Time::MAX) as u8;
             self.space[l.0 as usize] = e.space;
@@ -1546,10 +1499,7 @@ fn eval_slot(
             Some("a link (it pushed, popped or offered)".to_string())
         } else if slot.unit.state_pending() {
             Some("its registers".to_string())
-        } else if let Some(s) = new_status
-            .or(next_status.map(|n| n.0))
-            .filter(|&s| s != slot.status)
-        {
+        } else if let Some(s) = new_status.or(next_status).filter(|&s| s != slot.status) {
             Some(format!(
                 "its status ({} -> {})",
                 slot.status.name(),
@@ -1572,30 +1522,15 @@ fn eval_slot(
     if let Some(s) = new_status
         && s != slot.status
     {
-        if t < slot.since {
-            // A status declared ahead is replaced before it began: take back
-            // the credit given to the one before it.
-            let a = slot.ahead.expect("a status ahead of now was credited");
-            slot.status_ps[a as usize] -= slot.since - t;
-            slot.status = a;
-            slot.since = t;
-        }
-        if s != slot.status {
-            slot.status_ps[slot.status as usize] += t - slot.since;
-            slot.status = s;
-            slot.since = t;
-        }
+        slot.status_ps[slot.status as usize] += t - slot.since;
+        slot.status = s;
+        slot.since = t;
     }
-    if let Some((s, from)) = next_status
+    if let Some(s) = next_status
         && s != slot.status
     {
-        // Credited ahead: no evaluation changes the status before `from` (one
-        // that does takes the credit back, above).
-        debug_assert!(
-            from >= slot.since,
-            "{}: a status ahead before the last",
-            slot.path
-        );
+        // Credited ahead: no evaluation comes before the next cycle.
+        let from = t + slot.period;
         slot.status_ps[slot.status as usize] += from - slot.since;
         slot.ahead = Some(slot.status);
         slot.status = s;
@@ -1831,7 +1766,7 @@ unsafe fn run_lane(
         if !link.touched() {
             continue;
         }
-        let e = link.edge(t, &mut out.violations);
+        let e = link.edge(&mut out.violations);
         net.set_head(i, e.head);
         net.set_space(i, e.space);
         if e.wake_producer {

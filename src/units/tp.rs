@@ -28,7 +28,7 @@ use super::tri_pipe::{TriReq, TriResp};
 use crate::config::Config;
 use crate::contract::{HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, TRI_BYTES};
 use crate::render::traverse::cull;
-use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Payload, Ram, Reg, Status};
+use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Ram, Reg, Status};
 
 crate::payload_struct! {
     /// A duplicate: the ray, with its entry into the child segment `seg`; or, with
@@ -163,8 +163,7 @@ crate::unit! {
             log: Option<Vec<u64>>,
             shading: Option<ShadeRegs>,
             blocked_since: Option<u64>,
-            cost_cycles: [u32; COSTS],
-            ahead: AheadActs
+            cost_cycles: [u32; COSTS]
         }
     }
 }
@@ -271,35 +270,6 @@ fn vec3_at(l: &Line, off: usize) -> Vec3 {
     Vec3::new(l.f32_at(off), l.f32_at(off + 4), l.f32_at(off + 8))
 }
 
-/// Offers `v` on `port` in cycle `c`: now, or (a later cycle, when the TP runs
-/// ahead) scheduled for then, which `Tp::may_act_ahead` has made certain to be
-/// taken.
-pub(super) fn send<T: Payload>(ctx: &mut Ctx, port: &Out<T>, v: T, c: u64) -> bool {
-    if c > ctx.cycle() {
-        ctx.push_ahead(port, c, v);
-        true
-    } else {
-        ctx.offer(port, v)
-    }
-}
-
-/// The link-offering actions a TP took ahead of their cycles (`Tp::eval`), so
-/// that its counters read at a cycle before one leave it out (`Tp::stats_at`).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct AheadActs {
-    n: usize,
-    /// The cycle of each action, its state, and whether it sent a hit (`Finish`)
-    /// or a shadow ray (`ShEmit`).
-    acts: [(u64, TpState, bool); 6],
-}
-
-impl AheadActs {
-    /// The cycle of the last action taken ahead, if any was.
-    fn last(&self) -> Option<u64> {
-        self.n.checked_sub(1).map(|k| self.acts[k].0)
-    }
-}
-
 impl Tp {
     pub fn new(cfg: &Config, index: u16, l: TpLinks) -> Self {
         let entries = cfg.tm.stack_entries();
@@ -376,7 +346,6 @@ impl Tp {
             log: None,
             shading: None,
             blocked_since: None,
-            ahead: AheadActs::default(),
         }
     }
 
@@ -432,9 +401,9 @@ impl Tp {
             + k as u64 * TRI_BYTES as u64
     }
 
-    fn load(&mut self, ctx: &mut Ctx, addr: u64, c: u64) -> bool {
+    fn load(&mut self, ctx: &mut Ctx, addr: u64) -> bool {
         let line = addr & !63;
-        if send(ctx, &self.mem_req, L1Req { addr: line }, c) {
+        if ctx.offer(&self.mem_req, L1Req { addr: line }) {
             self.stats.l1_loads += 1;
             if let Some(l) = &mut self.log {
                 l.push(line);
@@ -451,7 +420,7 @@ impl Tp {
         let ray = self.cur.get().ray;
         Some(match s {
             TpState::Fetch => {
-                if !send(ctx, &self.div_req, DivReq { dir: ray.dir, tag }, c) {
+                if !ctx.offer(&self.div_req, DivReq { dir: ray.dir, tag }) {
                     return None;
                 }
                 self.req_at.set(c);
@@ -509,14 +478,14 @@ impl Tp {
                     ray: RayRec { entry: e.r, ..ray },
                     done: false,
                 };
-                if !send(ctx, &self.ray_write, w, c) {
+                if !ctx.offer(&self.ray_write, w) {
                     return None;
                 }
                 self.stats.exits += 1;
                 self.go(TpState::Pop, c)
             }
             TpState::NodeFetch => {
-                if !self.load(ctx, self.node_addr.val(), c) {
+                if !self.load(ctx, self.node_addr.val()) {
                     return None;
                 }
                 self.req_at.set(c);
@@ -535,7 +504,7 @@ impl Tp {
                     bmax: vec3_at(l, 24 * side + 12),
                     tag: tag | (side as Tag) << 8,
                 };
-                if !send(ctx, &self.box_req, req, c) {
+                if !ctx.offer(&self.box_req, req) {
                     return None;
                 }
                 self.stats.box_tests += 1;
@@ -582,7 +551,7 @@ impl Tp {
             }
             TpState::TriFetch => {
                 let a = self.tri_addr(self.tri_k.val());
-                if !self.load(ctx, a, c) {
+                if !self.load(ctx, a) {
                     return None;
                 }
                 self.req_at.set(c);
@@ -613,7 +582,7 @@ impl Tp {
                     tri_id: l.u32_at(36),
                     tag,
                 };
-                if !send(ctx, &self.tri_req, req, c) {
+                if !ctx.offer(&self.tri_req, req) {
                     return None;
                 }
                 self.stats.tri_tests += 1;
@@ -646,7 +615,7 @@ impl Tp {
                         ray,
                         done: true,
                     };
-                    if !send(ctx, &self.ray_write, m, c) {
+                    if !ctx.offer(&self.ray_write, m) {
                         return None;
                     }
                     self.done_sent.set(true);
@@ -657,7 +626,7 @@ impl Tp {
                         index: ray.hit_index() as u32,
                         hit: best,
                     };
-                    if !send(ctx, &self.hit, u, c) {
+                    if !ctx.offer(&self.hit, u) {
                         return None;
                     }
                     self.stats.hits += 1;
@@ -705,19 +674,6 @@ fn internal(s: TpState) -> bool {
 
 impl Logic for Tp {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
-        // Until the last action taken ahead has had its cycle the TP is, as far
-        // as anyone can see, still in the states before: an evaluation meanwhile
-        // (an input's push woke it, or nothing sleeps) must not act on the state
-        // it is in already (an idle TP would take the next ray early).
-        if let Some(last) = self.ahead.last()
-            && ctx.cycle() <= last
-        {
-            return if awaits_response(self.state.val()) {
-                Next::Idle
-            } else {
-                Next::AtCycle(last + 1)
-            };
-        }
         let mut n = self.step(ctx);
         if ctx.watched() {
             return n;
@@ -730,57 +686,21 @@ impl Logic for Tp {
         // the status stays busy throughout. A traced TP goes state by state, so
         // the waveform shows every one. Only after an action of this evaluation
         // (`state` written): a TP that is evaluated early must change nothing.
-        //
-        // A state that offers on a link runs ahead too when the link is certain
-        // to take the offer in its cycle (`may_act_ahead`): the push is scheduled
-        // for that cycle (`Ctx::push_ahead`), so the consumer sees it exactly
-        // then, and the TP sleeps on to the response it waits for, busy until the
-        // cycle after the push. Its counters are read at a cycle
-        // (`stats_at`) without the actions still ahead of it.
-        let c = ctx.cycle();
-        // The cycle of the last action taken ahead in this evaluation: an
-        // internal state after it would have run through in that cycle's
-        // evaluation, so its counts are noted as of then too.
-        let mut ahead_of = None;
         while let Next::AtCycle(at) = n {
             let s = *self.state.next();
-            if !self.state.written() {
+            if !self.state.written() || !internal(s) {
                 break;
             }
-            let ahead = !internal(s);
-            if ahead && !self.may_act_ahead(ctx, s, c) {
-                break;
-            }
-            // After an action ahead only `Pop` runs through (no counter but
-            // `uses`, which `stats_at` takes back), and only while it can be noted.
-            if !ahead
-                && ahead_of.is_some()
-                && (s != TpState::Pop || self.ahead.n == self.ahead.acts.len())
-            {
-                break;
-            }
-            let marked = (self.stats.hits, self.stats.shade_shadow_rays);
-            Declared::commit_state(self);
+            // This state's edge, taken early: only the registers written since
+            // the last (the kernel commits those written after at its edge), as
+            // the kernel's own edge does; a whole commit copies every line
+            // register.
+            let written = crate::rtl::state::take_written();
+            Declared::commit_written(self, written);
             n = self
                 .act(ctx, s, at)
-                .expect("an internal state never offers on a link, an ahead one has room");
+                .expect("an internal state never offers on a link");
             self.used(s);
-            if let Some(a) = if ahead { Some(at) } else { ahead_of } {
-                let flag = marked != (self.stats.hits, self.stats.shade_shadow_rays);
-                self.ahead.acts[self.ahead.n] = (a, s, flag);
-                self.ahead.n += 1;
-            }
-            if ahead {
-                ahead_of = Some(at);
-                if n == Next::Cycle {
-                    if awaits_response(*self.state.next()) {
-                        ctx.set_status_at(Status::ResourceBusy, at + 1);
-                        n = Next::Idle;
-                    } else {
-                        n = Next::AtCycle(at + 1);
-                    }
-                }
-            }
         }
         n
     }
@@ -941,7 +861,7 @@ impl Tp {
                         self.line0.set(r.line);
                         if last != r.addr {
                             // The triangle straddles two lines: load the second now.
-                            let ok = self.load(ctx, last, c);
+                            let ok = self.load(ctx, last);
                             assert!(ok, "a TP's load link is empty while it waits");
                             self.req_at.set(c);
                             return Next::Cycle;
@@ -988,69 +908,6 @@ impl Tp {
 }
 
 impl Tp {
-    /// Whether state `s`, due in a later cycle, may act now (`eval`): it offers
-    /// on one link, which has room for it counting no pop, and there is room to
-    /// note it. Acts of earlier evaluations (cycles before `c`) are forgotten.
-    fn may_act_ahead(&mut self, ctx: &mut Ctx, s: TpState, c: u64) -> bool {
-        let a = &mut self.ahead;
-        if a.n > 0 && a.acts[a.n - 1].0 < c {
-            a.n = 0;
-        }
-        if a.n == a.acts.len() {
-            return false;
-        }
-        let room = |ctx: &mut Ctx, p: &Out<_>| ctx.ahead_room(p) > 0;
-        match s {
-            TpState::Fetch => ctx.ahead_room(&self.div_req) > 0,
-            TpState::BoxIssue | TpState::BoxIssue1 => ctx.ahead_room(&self.box_req) > 0,
-            TpState::NodeFetch | TpState::TriFetch => ctx.ahead_room(&self.mem_req) > 0,
-            TpState::TriIssue => ctx.ahead_room(&self.tri_req) > 0,
-            TpState::Exit | TpState::ShEmit | TpState::ShDone => room(ctx, &self.ray_write),
-            // The end marker, then the hit if there is one (not a retry of a
-            // refused hit, which a pop of the hit link wakes).
-            TpState::Finish => {
-                !self.done_sent.val()
-                    && room(ctx, &self.ray_write)
-                    && (!self.best.val().is_hit() || ctx.ahead_room(&self.hit) > 0)
-            }
-            TpState::ShPath | TpState::ShLoad | TpState::ShStore | TpState::ShStore1 => {
-                ctx.ahead_room(&self.gmem_req) > 0
-            }
-            _ => false,
-        }
-    }
-
-    /// The counters as of cycle `cycle` (evaluated): those of actions taken
-    /// ahead of a later cycle left out.
-    pub fn stats_at(&self, cycle: u64) -> TpStats {
-        let mut t = self.stats;
-        for &(at, s, flag) in &self.ahead.acts[..self.ahead.n] {
-            if at <= cycle {
-                continue;
-            }
-            if let Some(k) = cost_index(s) {
-                t.uses[k] -= 1;
-            }
-            match s {
-                TpState::BoxIssue | TpState::BoxIssue1 => t.box_tests -= 1,
-                TpState::NodeFetch | TpState::TriFetch => t.l1_loads -= 1,
-                TpState::TriIssue => t.tri_tests -= 1,
-                TpState::Exit => t.exits -= 1,
-                TpState::Finish => t.hits -= flag as u64,
-                TpState::ShPath | TpState::ShLoad => t.gmem_reads -= 1,
-                TpState::ShStore | TpState::ShStore1 => t.gmem_writes -= 1,
-                TpState::ShEmit => {
-                    t.shade_rays -= 1;
-                    t.shade_shadow_rays -= flag as u64;
-                }
-                // Counted in `uses` only (see `eval`).
-                TpState::Pop | TpState::Fetch | TpState::ShDone => {}
-                _ => unreachable!("not a state that acts ahead"),
-            }
-        }
-        t
-    }
-
     /// Whether the TP stopped on a stack overflow.
     pub fn overflowed(&self) -> bool {
         self.state.val() == TpState::Overflow

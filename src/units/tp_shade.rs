@@ -111,9 +111,9 @@ impl Tp {
         self.triangle_in(self.sh_tri0.get(), self.sh_tri1.get())
     }
 
-    fn gmem(&mut self, ctx: &mut Ctx, r: MemLineReq, c: u64) -> bool {
+    fn gmem(&mut self, ctx: &mut Ctx, r: MemLineReq) -> bool {
         let write = r.write;
-        if super::tp::send(ctx, &self.gmem_req, r, c) {
+        if ctx.offer(&self.gmem_req, r) {
             if write {
                 self.stats.gmem_writes += 1;
             } else {
@@ -127,7 +127,7 @@ impl Tp {
 
     fn read(&mut self, ctx: &mut Ctx, addr: u64, step: u32, c: u64) -> Option<Next> {
         let r = MemLineReq::read(addr, StreamTag::Shading, self.index as u32);
-        if !self.gmem(ctx, r, c) {
+        if !self.gmem(ctx, r) {
             return None;
         }
         self.sh_step.set(step);
@@ -202,7 +202,7 @@ impl Tp {
                     ray,
                     done: false,
                 };
-                if !super::tp::send(ctx, &self.ray_write, w, c) {
+                if !ctx.offer(&self.ray_write, w) {
                     return None;
                 }
                 self.stats.shade_rays += 1;
@@ -230,7 +230,7 @@ impl Tp {
                     mask: u64::MAX,
                     data: self.line0.get().clone(),
                 };
-                if !self.gmem(ctx, r, c) {
+                if !self.gmem(ctx, r) {
                     return None;
                 }
                 self.sh_acks.set(1);
@@ -267,7 +267,7 @@ impl Tp {
                     mask,
                     data,
                 };
-                if !self.gmem(ctx, r, c) {
+                if !self.gmem(ctx, r) {
                     return None;
                 }
                 self.sh_acks.set(2);
@@ -280,7 +280,7 @@ impl Tp {
                     ray: self.cur.get().ray,
                     done: true,
                 };
-                if !super::tp::send(ctx, &self.ray_write, m, c) {
+                if !ctx.offer(&self.ray_write, m) {
                     return None;
                 }
                 self.state.set(TpState::Idle);
