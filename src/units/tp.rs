@@ -691,12 +691,7 @@ impl Logic for Tp {
             if !self.state.written() || !internal(s) {
                 break;
             }
-            // This state's edge, taken early: only the registers written since
-            // the last (the kernel commits those written after at its edge), as
-            // the kernel's own edge does; a whole commit copies every line
-            // register.
-            let written = crate::rtl::state::take_written();
-            Declared::commit_written(self, written);
+            Declared::commit_state(self);
             n = self
                 .act(ctx, s, at)
                 .expect("an internal state never offers on a link");
