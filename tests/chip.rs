@@ -188,7 +188,7 @@ fn run_tiny_chip_traced(cfg: Config, opts: SimOptions, trace: Option<&str>) -> (
     (o, parallel)
 }
 
-/// `moving`: every TM with work changes threads at every parallel step (asserted
+/// `moving`: two threads move a TM between them every 8 parallel steps (asserted
 /// to happen).
 fn run_tiny_chip_balanced(
     mut cfg: Config,
@@ -206,7 +206,9 @@ fn run_tiny_chip_balanced(
     cfg.accel = rc.accel.clone();
     let consts = dualstream::render::shade_consts(&s, &p);
     let mut chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), &consts, opts).unwrap();
-    chip.sim.set_groups_flip(moving);
+    if moving {
+        chip.sim.set_balance(8, true);
+    }
     let buf = Buf::default();
     if let Some(trace) = trace {
         chip.sim
@@ -241,7 +243,7 @@ fn run_tiny_chip_balanced(
     };
     if moving {
         assert!(
-            chip.sim.group_moves() > 0,
+            chip.sim.balance_moves() > 0,
             "no TM moved between the threads"
         );
     }
@@ -266,7 +268,7 @@ fn two_threads_change_nothing() {
             ..SimOptions::default()
         };
         let (base, p1) = run_tiny_chip_traced(cfg.clone(), one, None);
-        // The same with every TM changing threads at every step.
+        // The same with a TM moving between the threads every 8 steps.
         let (m, _, _) = run_tiny_chip_balanced(cfg.clone(), two.clone(), None, true);
         assert!(
             m == base,

@@ -649,9 +649,9 @@ pub struct Sim {
     nonempty: Vec<u8>,
     /// Time of every link's last edge (a link touched at both ends is listed twice).
     edged: Vec<Time>,
-    /// Per link: the groups of its producer and its consumer (see `Groups`): a
-    /// lane takes the edge of a link it touched when both are in that lane.
-    link_groups: Vec<[u32; 2]>,
+    /// Per link: the partition of both its ends (1 or 2; its thread then takes its
+    /// edge too), or 0 (ends in different partitions, or in partition 0).
+    local: Vec<u8>,
     now: Time,
     /// Whether the step at `now` has been processed.
     stepped: bool,
@@ -672,9 +672,7 @@ pub struct Sim {
     lane_due: [Vec<(u32, bool)>; 2],
     /// Steps handed to the worker in the current run (two threads only).
     lane_seq: u64,
-    /// Groups of units that run on one thread together within a step (a TM
-    /// each, see [`Sim::set_groups`]), and each step's split of them.
-    groups: Groups,
+    balance: Balance,
     /// Unit evaluations so far (due ones, not shadow ones).
     pub evals: u64,
     /// Steps (distinct times) processed so far.
@@ -703,7 +701,7 @@ impl Sim {
             space: Vec::new(),
             nonempty: Vec::new(),
             edged: Vec::new(),
-            link_groups: Vec::new(),
+            local: Vec::new(),
             now: 0,
             stepped: false,
             cal: super::calendar::Calendar::new(),
@@ -717,7 +715,7 @@ impl Sim {
             out: LaneOut::default(),
             lane_due: [Vec::new(), Vec::new()],
             lane_seq: 0,
-            groups: Groups::default(),
+            balance: Balance::default(),
             evals: 0,
             steps: 0,
             parallel_steps: 0,
@@ -874,6 +872,7 @@ impl Sim {
             l.set_ends(Some(*p), *c);
             l.set_delay_ps(l.cfg().delay as Time * self.slots[p.0 as usize].period);
         }
+        self.local = vec![0; self.links.len()];
         self.relocal();
         self.elaborated = true;
         self.reset();
@@ -1056,11 +1055,22 @@ impl Sim {
             // Partitions 1 and 2 on two threads, each unit committed by its thread
             // right after its evaluation (see `eval_commit`); partition 0 after,
             // below.
-            for l in &mut self.lane_due {
-                l.clear();
-            }
-            self.groups.split(&mut due, &mut self.lane_due);
-            if self.lane_due.iter().all(|l| !l.is_empty()) {
+            let parts = &self.parts;
+            let [l1, l2] = &mut self.lane_due;
+            l1.clear();
+            l2.clear();
+            due.retain(|&(u, d)| match parts[u as usize] {
+                1 => {
+                    l1.push((u, d));
+                    false
+                }
+                2 => {
+                    l2.push((u, d));
+                    false
+                }
+                _ => true,
+            });
+            if !l1.is_empty() && !l2.is_empty() {
                 self.run_lanes(w, t)?;
             } else {
                 // Only one partition has work: no hand-over.
@@ -1125,8 +1135,8 @@ impl Sim {
         Ok(())
     }
 
-    /// Evaluates and commits the due units of lane 1 on the worker and those of
-    /// lane 2 on this thread, at the same time.
+    /// Evaluates and commits the due units of partition 1 on the worker and those
+    /// of partition 2 on this thread, at the same time.
     fn run_lanes(&mut self, w: &Worker, t: Time) -> Result<(), SimError> {
         let net = Net::of(
             &mut self.links,
@@ -1138,10 +1148,9 @@ impl Sim {
             slots: self.slots.as_mut_ptr(),
             n_slots: self.slots.len(),
             net,
-            link_groups: self.link_groups.as_ptr(),
+            local: self.local.as_ptr(),
             sched: self.sched.as_mut_ptr(),
-            group_of: self.groups.of.as_ptr(),
-            group_lane: self.groups.lane.as_ptr(),
+            parts: self.parts.as_ptr(),
             cals: [&mut self.lane_cal, &mut self.cal],
         };
         {
@@ -1157,67 +1166,95 @@ impl Sim {
         // From here until `done`, this thread reaches slots and links only through
         // `lanes`, and only those of partition 2.
         // SAFETY: partition 2 is this thread's; the worker takes partition 1.
+        let t0 = std::time::Instant::now();
         let result = unsafe { run_lane(lanes, 2, &self.lane_due[1], t, &mut self.out) };
+        let main_ns = t0.elapsed().as_nanos() as u64;
         wait_for(&w.done, self.lane_seq);
         // SAFETY: the worker is done with this step and waits for the next `go`.
         let job = unsafe { &mut *w.job.get() };
         std::mem::swap(&mut job.due, &mut self.lane_due[0]);
         self.out.append(&mut job.out);
+        self.balance.lane_ns[0] += job.lane_ns;
+        self.balance.lane_ns[1] += main_ns;
+        self.balance.steps += 1;
+        if self.balance.steps >= self.balance.window {
+            self.rebalance();
+        }
         result.and(std::mem::replace(&mut job.result, Ok(())))
     }
 
-    /// Declares groups of units that always run on one thread together (a TM
-    /// each: its internal links are then edged by that thread). With two threads
-    /// each step splits the groups that have due units between the two, so that
-    /// both get about as many evaluations (see `Groups::split`); a unit in no
-    /// group keeps its partition (`set_part`). Results do not depend on the split:
-    /// each end of a link changes only its own half, and a link between groups
-    /// is edged after both threads.
+    /// Declares groups of units that move between partitions 1 and 2 together
+    /// (a TM each): with two threads, every `BALANCE_STEPS` parallel steps the
+    /// group of the slower thread's partition with the highest index (1) or
+    /// lowest (2) moves to the other, when the threads' times differ by more than
+    /// a group's share. Wall-clock driven, and so not reproducible in speed, but
+    /// results do not depend on the partition (see `set_part`).
     pub fn set_groups(&mut self, groups: Vec<Vec<UnitId>>) {
-        self.groups.members = groups
+        self.balance.groups = groups
             .into_iter()
             .map(|g| g.into_iter().map(|u| u.0).collect())
             .collect();
-        if self.elaborated {
-            self.relocal();
-        }
     }
 
-    /// Tests: every group with due units changes lanes at every step, the
-    /// hardest case for the rule that the split cannot change a result.
-    pub fn set_groups_flip(&mut self, flip: bool) {
-        self.groups.flip = flip;
+    /// Load balancing every `window` parallel steps (default `BALANCE_STEPS`);
+    /// `always_move` moves a group at every decision, from the partition with more
+    /// groups, whatever the times (tests: a deterministic exercise of the moves).
+    pub fn set_balance(&mut self, window: u64, always_move: bool) {
+        self.balance.window = window.max(1);
+        self.balance.always_move = always_move;
     }
 
-    /// Times a group ran on the other thread than in its previous parallel
-    /// step (see `set_groups`).
-    pub fn group_moves(&self) -> u64 {
-        self.groups.moves
+    /// Groups moved between the partitions so far (see `set_groups`).
+    pub fn balance_moves(&self) -> u64 {
+        self.balance.moves
     }
 
-    /// Recomputes every unit's group and which links a lane may edge itself.
-    fn relocal(&mut self) {
-        let g = &mut self.groups;
-        let n = g.members.len() as u32;
-        // Units in no group form one pinned group per partition: n + partition.
-        g.of = self.parts.iter().map(|&p| n + p as u32).collect();
-        for (k, m) in g.members.iter().enumerate() {
-            for &u in m {
-                g.of[u as usize] = k as u32;
+    fn rebalance(&mut self) {
+        let b = &mut self.balance;
+        let [w, m] = std::mem::take(&mut b.lane_ns);
+        b.steps = 0;
+        let part_of = |g: &Vec<u32>| g.first().map(|&u| self.parts[u as usize]);
+        let n1 = b.groups.iter().filter(|g| part_of(g) == Some(1)).count();
+        let n2 = b.groups.iter().filter(|g| part_of(g) == Some(2)).count();
+        let (from, to, n) = if b.always_move {
+            if n1 >= n2 { (1, 2, n1) } else { (2, 1, n2) }
+        } else {
+            // Move when the gap exceeds the cost of one group of the slower side.
+            let (from, to, n, slow, fast) = if w > m {
+                (1, 2, n1, w, m)
+            } else {
+                (2, 1, n2, m, w)
+            };
+            if (slow - fast) as f64 <= slow as f64 / n.max(1) as f64 {
+                return;
             }
+            (from, to, n)
+        };
+        if n < 2 {
+            return;
         }
-        g.lane = (0..n).map(|k| 1 + (k % 2) as u8).chain([0, 1, 2]).collect();
-        g.count = vec![0; g.lane.len()];
-        // A link without an end (before elaboration) is in partition 0's group.
-        let group = |u: Option<UnitId>| u.map_or(n, |u| g.of[u.0 as usize]);
-        self.link_groups = self
-            .links
-            .iter()
-            .map(|l| {
-                let (p, c) = l.ends();
-                [group(p), group(c)]
-            })
-            .collect();
+        // The group at the boundary between the partitions (TMs stay contiguous).
+        let pick = if from == 1 {
+            b.groups.iter().rposition(|g| part_of(g) == Some(1))
+        } else {
+            b.groups.iter().position(|g| part_of(g) == Some(2))
+        };
+        let Some(k) = pick else { return };
+        for &u in &b.groups[k] {
+            self.parts[u as usize] = to;
+        }
+        self.balance.moves += 1;
+        self.relocal();
+    }
+
+    /// Recomputes which partition takes each link's edge.
+    fn relocal(&mut self) {
+        for (i, l) in self.links.iter().enumerate() {
+            let (p, c) = l.ends();
+            let pp = p.map_or(0, |p| self.parts[p.0 as usize]);
+            let cp = c.map_or(0, |c| self.parts[c.0 as usize]);
+            self.local[i] = if pp == cp { pp } else { 0 };
+        }
     }
 
     /// Evaluates a unit and commits it at once: no unit reads another's registers,
@@ -1529,6 +1566,8 @@ struct Job {
     due: Vec<(u32, bool)>,
     out: LaneOut,
     result: Result<(), SimError>,
+    /// Wall time of the worker's part of the step (load balancing only).
+    lane_ns: u64,
 }
 
 // SAFETY: `job` is accessed by the main thread only while the worker waits for `go`
@@ -1555,15 +1594,15 @@ impl Worker {
                         nonempty: std::ptr::null_mut(),
                         len: 0,
                     },
-                    link_groups: std::ptr::null(),
+                    local: std::ptr::null(),
                     sched: std::ptr::null_mut(),
-                    group_of: std::ptr::null(),
-                    group_lane: std::ptr::null(),
+                    parts: std::ptr::null(),
                     cals: [std::ptr::null_mut(); 2],
                 },
                 due: Vec::new(),
                 out: LaneOut::default(),
                 result: Ok(()),
+                lane_ns: 0,
             }),
         }
     }
@@ -1618,8 +1657,10 @@ fn worker_loop(w: &Worker) {
         last = go;
         // SAFETY: the main thread handed the job over with `go` and waits for `done`.
         let job = unsafe { &mut *w.job.get() };
-        // SAFETY: lane 1 is the worker's; the main thread takes lane 2.
+        // SAFETY: partition 1 is the worker's; the main thread takes partition 2.
+        let t0 = std::time::Instant::now();
         job.result = unsafe { run_lane(job.lanes, 1, &job.due, job.now, &mut job.out) };
+        job.lane_ns = t0.elapsed().as_nanos() as u64;
         w.done.store(last, Ordering::Release);
     }
 }
@@ -1630,13 +1671,11 @@ struct Lanes {
     slots: *mut Slot,
     n_slots: usize,
     net: Net,
-    link_groups: *const [u32; 2],
+    local: *const u8,
     /// Every unit's scheduling record: a lane reaches those of its own units only.
     sched: *mut Sched,
-    /// Every unit's group and every group's lane in this step (`Groups`; read
-    /// only while the lanes run).
-    group_of: *const u32,
-    group_lane: *const u8,
+    /// Every unit's partition (read only while the lanes run).
+    parts: *const u8,
     /// The calendar each lane schedules its own units in (partition 1: the
     /// worker's `lane_cal`, 2: `cal`).
     cals: [*mut super::calendar::Calendar; 2],
@@ -1689,17 +1728,14 @@ impl Sched {
     }
 }
 
-/// Evaluates and commits `due`, the units of lane `part` in this step (see
-/// `Groups::split`), then takes the clock edge of the links whose both ends are
-/// in its groups (the others are left in `out.touched` for the edge after both
-/// threads), and schedules the next evaluations of its units in its
-/// calendar (`Lanes::cals`): those its units asked for, and the wake-ups that
-/// its pushes and pops sent to units whose group is in this lane (stale for a
-/// group with nothing due, but the same for both threads, so that one of them
-/// alone may take it); the others are left in `out.wakes` for after both threads.
-/// SAFETY: no other thread reaches a unit of a group in lane `part`, its
-/// scheduling record, its calendar or a link within such a group, and every
-/// unit in `due` is in lane `part`.
+/// Evaluates and commits `due`, units of partition `part`, then takes the clock
+/// edge of the links whose both ends are in `part` (the others are left in
+/// `out.touched` for the edge after both threads), and schedules the next
+/// evaluations of its own units in its calendar (`Lanes::cals`): those its units
+/// asked for, and the wake-ups that its pushes and pops sent to them (a wake-up
+/// of another partition's unit is left in `out.wakes` for after both threads).
+/// SAFETY: no other thread reaches a unit of `part`, its scheduling record, its
+/// calendar or a link local to it, and every unit in `due` is in `part`.
 unsafe fn run_lane(
     l: Lanes,
     part: u8,
@@ -1718,19 +1754,13 @@ unsafe fn run_lane(
     while k < out.touched.len() {
         let i = out.touched[k].0 as usize;
         assert!(i < net.len);
-        // SAFETY: in bounds: a pair of groups per link, a lane per group.
-        let in_lane = unsafe {
-            let [gp, gc] = *l.link_groups.add(i);
-            *l.group_lane.add(gp as usize) == part && *l.group_lane.add(gc as usize) == part
-        };
-        // Both ends in this lane's groups (evaluated before this, if at all):
-        // no other thread reads the link in this step.
-        if !in_lane {
+        // SAFETY: in bounds; `local` has an entry per link.
+        if unsafe { *l.local.add(i) } != part {
             k += 1;
             continue;
         }
         out.touched.swap_remove(k);
-        // SAFETY: both ends of the link are in this lane's groups (above).
+        // SAFETY: both ends of the link are in `part`, evaluated by this thread.
         let link = unsafe { net.link_mut(i) };
         // Listed by both of its ends: edge it once.
         if !link.touched() {
@@ -1762,9 +1792,8 @@ unsafe fn run_lane(
     out.wakes.retain(|&(u, w)| {
         let u = u.0;
         assert!((u as usize) < l.n_slots);
-        // SAFETY: in bounds (a group per unit, a lane per group); the split
-        // changes only between steps.
-        let p = unsafe { *l.group_lane.add(*l.group_of.add(u as usize) as usize) };
+        // SAFETY: in bounds; partitions change only between steps.
+        let p = unsafe { *l.parts.add(u as usize) };
         if p != part {
             return true;
         }
@@ -1775,88 +1804,37 @@ unsafe fn run_lane(
     Ok(())
 }
 
-/// Due units by which a lane must exceed the other after a group moved before
-/// the group moves (see `Groups::split`).
-const MOVE_SLACK: u32 = 4;
+/// Parallel steps between two load-balancing decisions (`Sim::set_groups`).
+const BALANCE_STEPS: u64 = 4096;
 
-/// Groups of units that one thread runs whole within a step (`Sim::set_groups`).
-#[derive(Default)]
-struct Groups {
-    /// The declared groups' units.
-    members: Vec<Vec<u32>>,
-    /// Every unit's group: a declared one, or (units in none) the number of
-    /// declared groups plus the unit's partition.
-    of: Vec<u32>,
-    /// Every group's lane (1 or 2) in the current step, read only while the lanes
-    /// run; the last three, the partitions' pinned groups, are 0, 1 and 2.
-    lane: Vec<u8>,
-    /// Due units per group in the step being split.
-    count: Vec<u32>,
-    /// Groups with due units in the step being split.
-    active: Vec<u32>,
-    /// See `Sim::group_moves`.
+/// Load balancing of the two threads (`Sim::set_groups`).
+struct Balance {
+    groups: Vec<Vec<u32>>,
+    window: u64,
+    always_move: bool,
+    /// Wall time of the worker's and this thread's partitions since the last decision.
+    lane_ns: [u64; 2],
+    steps: u64,
+    /// Groups moved so far.
     moves: u64,
-    /// See `Sim::set_groups_flip`.
-    flip: bool,
 }
 
-impl Groups {
-    /// Moves the due units of partitions 1 and 2 from `due` into the two lanes
-    /// (partition 0's stay): a unit in no group goes to its partition's lane, a
-    /// group with due units goes whole to the lane it ran in last, unless the
-    /// lanes' due units differ by more than twice its own plus `MOVE_SLACK`:
-    /// then it moves to the other. A step's evaluations come in bursts (a TM's
-    /// TPs answered in the same cycle), so a fixed split of the TMs left one
-    /// thread waiting for the other in most steps (on the Dragon Box the busier
-    /// lane of a step held 1.49 times its share of the evaluations); moving
-    /// every group to the lighter lane at every step balanced them but cost more
-    /// than it saved (a TM's registers then change cores' caches at every step).
-    fn split(&mut self, due: &mut Vec<(u32, bool)>, lanes: &mut [Vec<(u32, bool)>; 2]) {
-        let n = self.members.len() as u32;
-        let mut load = [0u32; 2];
-        for &(u, _) in due.iter() {
-            let g = self.of[u as usize];
-            if g < n {
-                let c = &mut self.count[g as usize];
-                if *c == 0 {
-                    self.active.push(g);
-                }
-                *c += 1;
-            } else if g > n {
-                load[(g - n - 1) as usize] += 1;
-            }
+impl Default for Balance {
+    fn default() -> Self {
+        Balance {
+            groups: Vec::new(),
+            window: BALANCE_STEPS,
+            always_move: false,
+            lane_ns: [0; 2],
+            steps: 0,
+            moves: 0,
         }
-        // Each group stays in its lane (its state stays in that core's cache)
-        // unless moving it narrows the gap between the lanes.
-        for &g in &self.active {
-            load[self.lane[g as usize] as usize - 1] += self.count[g as usize];
-        }
-        for &g in &self.active {
-            let c = std::mem::take(&mut self.count[g as usize]);
-            let from = self.lane[g as usize] as usize - 1;
-            let to = 1 - from;
-            if self.flip || load[from] >= load[to] + 2 * c + MOVE_SLACK {
-                load[from] -= c;
-                load[to] += c;
-                self.lane[g as usize] = to as u8 + 1;
-                self.moves += 1;
-            }
-        }
-        self.active.clear();
-        let (of, lane) = (&self.of, &self.lane);
-        due.retain(|&(u, d)| match lane[of[u as usize] as usize] {
-            0 => true,
-            k => {
-                lanes[k as usize - 1].push((u, d));
-                false
-            }
-        });
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{EdgeOf, Groups, MOVE_SLACK, round_robin};
+    use super::{EdgeOf, round_robin};
 
     #[test]
     fn edge_of_is_div_ceil() {
@@ -1914,65 +1892,5 @@ mod tests {
         assert_eq!(all(70), [70, 127, 3, 64]);
         assert_eq!(all(128), [3, 64, 70, 127]);
         assert!(round_robin(&[0, 0], 5).next().is_none());
-    }
-
-    /// Two groups of 8 units (0-7, 8-15) and units 16, 17, 18 in partitions 0,
-    /// 1 and 2.
-    fn groups() -> Groups {
-        let mut g = Groups {
-            members: vec![(0..8).collect(), (8..16).collect()],
-            ..Groups::default()
-        };
-        g.of = (0..16).map(|u| u / 8).chain([2, 3, 4]).collect();
-        g.lane = vec![1, 2, 0, 1, 2];
-        g.count = vec![0; 5];
-        g
-    }
-
-    fn split(g: &mut Groups, due: &[u32]) -> (Vec<u32>, [Vec<u32>; 2]) {
-        let mut d: Vec<(u32, bool)> = due.iter().map(|&u| (u, true)).collect();
-        let mut lanes = [Vec::new(), Vec::new()];
-        g.split(&mut d, &mut lanes);
-        let ids = |v: &Vec<(u32, bool)>| v.iter().map(|p| p.0).collect::<Vec<_>>();
-        (ids(&d), [ids(&lanes[0]), ids(&lanes[1])])
-    }
-
-    #[test]
-    fn a_step_keeps_groups_whole_and_moves_one_only_for_a_wide_gap() {
-        let mut g = groups();
-        // Balanced enough: each group stays in its lane, the pinned units in
-        // theirs, partition 0's unit in the serial list.
-        let (rest, [l1, l2]) = split(&mut g, &[16, 0, 1, 8, 17, 18]);
-        assert_eq!(rest, [16]);
-        assert_eq!(l1, [0, 1, 17]);
-        assert_eq!(l2, [8, 18]);
-        assert_eq!(g.moves, 0);
-        assert!(g.count.iter().all(|&c| c == 0) && g.active.is_empty());
-        // 8 due in lane 1, one in lane 2: group 0 moving would overshoot, and
-        // group 1 is already in the lighter lane.
-        let (_, [l1, l2]) = split(&mut g, &[0, 1, 2, 3, 4, 5, 6, 7, 8]);
-        assert_eq!((l1.len(), l2.len()), (8, 1));
-        assert_eq!(g.moves, 0);
-        // A gap of more than twice a group plus the slack moves it, whole.
-        let big: Vec<u32> = (0..8).chain([17]).collect();
-        // Both groups in lane 1: 11 due there, none in lane 2; group 1 (2 due)
-        // moves, group 0 (8) would overshoot.
-        const { assert!(11 >= 2 * 2 + MOVE_SLACK && 11 < 2 * 8 + MOVE_SLACK) };
-        g.lane[1] = 1;
-        let (_, [l1, l2]) = split(&mut g, &[big.as_slice(), &[8, 9]].concat());
-        assert_eq!(l2, [8, 9], "group 1 moved to the idle lane, whole");
-        assert_eq!(l1.len(), 9);
-        assert_eq!((g.moves, g.lane[1]), (1, 2));
-    }
-
-    #[test]
-    fn flipping_moves_every_group_with_work_each_step() {
-        let mut g = groups();
-        g.flip = true;
-        let (_, [l1, l2]) = split(&mut g, &[0, 8, 18]);
-        assert_eq!((l1, l2), (vec![8], vec![0, 18]));
-        let (_, [l1, l2]) = split(&mut g, &[0, 8]);
-        assert_eq!((l1, l2), (vec![0], vec![8]));
-        assert_eq!(g.moves, 4);
     }
 }
