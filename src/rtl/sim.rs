@@ -613,53 +613,6 @@ impl<'a> Ctx<'a> {
     }
 }
 
-/// What a block's logic does through its ports in one evaluation: the kernel's
-/// [`Ctx`] for a unit of its own, or the context of a unit that steps several
-/// blocks (a TM's thread processors, say) whose ports between them are that
-/// unit's own FIFOs rather than kernel links. The rules are the links' in both
-/// (`Ctx::pop`, `Ctx::offer`), so a block behaves the same in either.
-pub trait PortCtx {
-    /// The current cycle of the block's clock.
-    fn cycle(&self) -> u64;
-    /// Whether a tracer samples the block's registers (see `Ctx::watched`).
-    fn watched(&self) -> bool;
-    /// Takes the head of an input if it is visible (see `Ctx::pop`).
-    fn pop<T: Payload>(&mut self, port: &In<T>) -> Option<T>;
-    /// Offers a payload on an output; whether it was taken (see `Ctx::offer`).
-    fn offer<T: Payload>(&mut self, port: &Out<T>, v: T) -> bool;
-    /// The block's status from this cycle on (see `Ctx::set_status`).
-    fn set_status(&mut self, s: Status);
-    /// The block's status from the next cycle on (see `Ctx::set_status_from_next`).
-    fn set_status_from_next(&mut self, s: Status);
-}
-
-impl PortCtx for Ctx<'_> {
-    #[inline]
-    fn cycle(&self) -> u64 {
-        Ctx::cycle(self)
-    }
-    #[inline]
-    fn watched(&self) -> bool {
-        Ctx::watched(self)
-    }
-    #[inline]
-    fn pop<T: Payload>(&mut self, port: &In<T>) -> Option<T> {
-        Ctx::pop(self, port)
-    }
-    #[inline]
-    fn offer<T: Payload>(&mut self, port: &Out<T>, v: T) -> bool {
-        Ctx::offer(self, port, v)
-    }
-    #[inline]
-    fn set_status(&mut self, s: Status) {
-        Ctx::set_status(self, s)
-    }
-    #[inline]
-    fn set_status_from_next(&mut self, s: Status) {
-        Ctx::set_status_from_next(self, s)
-    }
-}
-
 /// The set bits of `words` (see `Ctx::visible_words`) in round-robin order: from
 /// `start` up, then from 0 up to `start`.
 pub fn round_robin(words: &[u64], start: usize) -> impl Iterator<Item = usize> + '_ {

@@ -28,7 +28,7 @@ use super::tri_pipe::{TriReq, TriResp};
 use crate::config::Config;
 use crate::contract::{HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, TRI_BYTES};
 use crate::render::traverse::cull;
-use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, PortCtx, Ram, Reg, Status};
+use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Ram, Reg, Status};
 
 crate::payload_struct! {
     /// A duplicate: the ray, with its entry into the child segment `seg`; or, with
@@ -401,7 +401,7 @@ impl Tp {
             + k as u64 * TRI_BYTES as u64
     }
 
-    fn load(&mut self, ctx: &mut impl PortCtx, addr: u64) -> bool {
+    fn load(&mut self, ctx: &mut Ctx, addr: u64) -> bool {
         let line = addr & !63;
         if ctx.offer(&self.mem_req, L1Req { addr: line }) {
             self.stats.l1_loads += 1;
@@ -415,7 +415,7 @@ impl Tp {
     }
 
     /// A computing state's action in cycle `c`; `None` if an output was full.
-    fn act(&mut self, ctx: &mut impl PortCtx, s: TpState, c: u64) -> Option<Next> {
+    fn act(&mut self, ctx: &mut Ctx, s: TpState, c: u64) -> Option<Next> {
         let tag = self.index as Tag;
         let ray = self.cur.get().ray;
         Some(match s {
@@ -674,7 +674,30 @@ fn internal(s: TpState) -> bool {
 
 impl Logic for Tp {
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
-        self.eval_on(ctx)
+        let mut n = self.step(ctx);
+        if ctx.watched() {
+            return n;
+        }
+        // Run through the internal states just entered (a pop after a node's
+        // push, say) now rather than in evaluations of their own, and sleep until
+        // the first state that offers on a link acts. Nothing else reads or
+        // writes the TP's registers, so taking its edges early changes nothing
+        // outside it: the links see the same operations at the same cycles, and
+        // the status stays busy throughout. A traced TP goes state by state, so
+        // the waveform shows every one. Only after an action of this evaluation
+        // (`state` written): a TP that is evaluated early must change nothing.
+        while let Next::AtCycle(at) = n {
+            let s = *self.state.next();
+            if !self.state.written() || !internal(s) {
+                break;
+            }
+            Declared::commit_state(self);
+            n = self
+                .act(ctx, s, at)
+                .expect("an internal state never offers on a link");
+            self.used(s);
+        }
+        n
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {
@@ -719,38 +742,8 @@ impl Logic for Tp {
 }
 
 impl Tp {
-    /// One evaluation through any port context (`Logic::eval` is this on the
-    /// kernel's): the TP's action in this cycle, then the internal states it
-    /// runs through.
-    pub fn eval_on(&mut self, ctx: &mut impl PortCtx) -> Next {
-        let mut n = self.step(ctx);
-        if ctx.watched() {
-            return n;
-        }
-        // Run through the internal states just entered (a pop after a node's
-        // push, say) now rather than in evaluations of their own, and sleep until
-        // the first state that offers on a link acts. Nothing else reads or
-        // writes the TP's registers, so taking its edges early changes nothing
-        // outside it: the links see the same operations at the same cycles, and
-        // the status stays busy throughout. A traced TP goes state by state, so
-        // the waveform shows every one. Only after an action of this evaluation
-        // (`state` written): a TP that is evaluated early must change nothing.
-        while let Next::AtCycle(at) = n {
-            let s = *self.state.next();
-            if !self.state.written() || !internal(s) {
-                break;
-            }
-            Declared::commit_state(self);
-            n = self
-                .act(ctx, s, at)
-                .expect("an internal state never offers on a link");
-            self.used(s);
-        }
-        n
-    }
-
     /// One cycle of the TP, state by state.
-    fn step(&mut self, ctx: &mut impl PortCtx) -> Next {
+    fn step(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let s = self.state.val();
         let costed =
@@ -788,10 +781,10 @@ impl Tp {
                 }
             };
         }
-        fn wait(ctx: &mut impl PortCtx, st: Status) -> Next {
+        let wait = |ctx: &mut Ctx, st: Status| {
             ctx.set_status(st);
             Next::Idle // a push onto the awaited link wakes the TP
-        }
+        };
         match s {
             TpState::Idle => match ctx.pop(&self.ray) {
                 Some(r) if r.hdr.seg == SHADE_SEG => {

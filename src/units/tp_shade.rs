@@ -31,7 +31,7 @@ use crate::contract::{
 };
 use crate::mem::StreamTag;
 use crate::render::shade::{ShadeConsts, shade_reads, shade_step};
-use crate::rtl::{Next, PortCtx};
+use crate::rtl::{Ctx, Next};
 
 /// The header segment of a shading work item and of its end marker.
 pub const SHADE_SEG: u32 = u32::MAX - 1;
@@ -111,7 +111,7 @@ impl Tp {
         self.triangle_in(self.sh_tri0.get(), self.sh_tri1.get())
     }
 
-    fn gmem(&mut self, ctx: &mut impl PortCtx, r: MemLineReq) -> bool {
+    fn gmem(&mut self, ctx: &mut Ctx, r: MemLineReq) -> bool {
         let write = r.write;
         if ctx.offer(&self.gmem_req, r) {
             if write {
@@ -125,7 +125,7 @@ impl Tp {
         }
     }
 
-    fn read(&mut self, ctx: &mut impl PortCtx, addr: u64, step: u32, c: u64) -> Option<Next> {
+    fn read(&mut self, ctx: &mut Ctx, addr: u64, step: u32, c: u64) -> Option<Next> {
         let r = MemLineReq::read(addr, StreamTag::Shading, self.index as u32);
         if !self.gmem(ctx, r) {
             return None;
@@ -150,7 +150,7 @@ impl Tp {
     }
 
     /// A computing state of the shading kernel in cycle `c`; `None` if refused.
-    pub(super) fn shade_act(&mut self, ctx: &mut impl PortCtx, s: TpState, c: u64) -> Option<Next> {
+    pub(super) fn shade_act(&mut self, ctx: &mut Ctx, s: TpState, c: u64) -> Option<Next> {
         let pix = self.pixel();
         Some(match s {
             TpState::ShPath => {
@@ -291,12 +291,7 @@ impl Tp {
     }
 
     /// A global-memory response in `ShWait`, in cycle `c`.
-    pub(super) fn shade_response(
-        &mut self,
-        ctx: &mut impl PortCtx,
-        r: MemLineResp,
-        c: u64,
-    ) -> Next {
+    pub(super) fn shade_response(&mut self, ctx: &mut Ctx, r: MemLineResp, c: u64) -> Next {
         let pix = self.pixel();
         match self.sh_step.val() {
             STEP_ACK => {
