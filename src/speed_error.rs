@@ -1401,6 +1401,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
             rel_se: se,
             windows: rec.samples.len(),
             chip_s: rec.chip_s,
+            chip_s_by_kind: rec.chip_s_by_kind(),
             core_ps: c.clocks.core_ps,
             rays: f.total.rays,
         },
@@ -1428,9 +1429,10 @@ pub struct WindowEstimate {
     /// One relative standard error of the cycles, lines and energy from the
     /// windows' spread (`None` with fewer than two windows per wavefront).
     pub rel_se: Option<[f64; 3]>,
-    /// Windows simulated, and their summed wall time.
+    /// Windows simulated, and their summed wall time, in all and by kind.
     pub windows: usize,
     pub chip_s: f64,
+    pub chip_s_by_kind: Vec<render::KindTime>,
     /// Core clock period (ps), and the rays the frame traced.
     pub core_ps: u64,
     pub rays: u64,

@@ -586,9 +586,48 @@ fn windows_side_by_side_record_what_one_thread_does() {
         v.as_object_mut().unwrap().remove("chip_s");
         for smp in v["samples"].as_array_mut().unwrap() {
             smp.as_object_mut().unwrap().remove("wall_s");
+            smp.as_object_mut().unwrap().remove("start_s");
         }
         v
     };
+    // The schedule: one thread runs the windows one after another, two at
+    // most two at a time; the time by kind adds up to the windows' time.
+    for (f, threads) in [(&one, 1), (&two, 2)] {
+        let rec = f.windows.as_ref().unwrap();
+        let spans: Vec<(f64, f64)> = rec
+            .samples
+            .iter()
+            .map(|x| (x.start_s, x.start_s + x.wall_s))
+            .collect();
+        for (i, &(a, b)) in spans.iter().enumerate() {
+            assert!(a >= 0.0 && b >= a, "window {i}: {a} .. {b}");
+            let running = spans.iter().filter(|&&(c, d)| c <= a && a < d).count();
+            assert!(
+                running <= threads,
+                "{running} windows at {a} s on {threads} threads"
+            );
+        }
+        if threads == 1 {
+            for w in spans.windows(2) {
+                assert!(w[1].0 >= w[0].1, "one thread: {:?} overlaps", w);
+            }
+        }
+        let by = rec.chip_s_by_kind();
+        assert_eq!(
+            by.iter().map(|k| k.windows).sum::<usize>(),
+            rec.samples.len()
+        );
+        let sum: f64 = by.iter().map(|k| k.chip_s).sum();
+        assert!((sum - rec.chip_s).abs() <= 1e-9 * rec.chip_s.max(1.0));
+        assert!(
+            by.windows(2).all(|w| w[0].kind < w[1].kind),
+            "one entry a kind"
+        );
+        for k in &by {
+            let n = rec.samples.iter().filter(|x| x.kind == k.kind).count();
+            assert_eq!(n, k.windows, "{:?}", k.kind);
+        }
+    }
     let (a, b) = (record(&one), record(&two));
     let (sa, sb) = (
         a["samples"].as_array().unwrap(),

@@ -311,10 +311,14 @@ pub struct WindowSample {
     pub run: crate::machine::WindowRun,
     /// Simulator wall time of the window (building the chip included).
     pub wall_s: f64,
+    /// When its chip started, in seconds after the frame's time sampling
+    /// began: with more than one thread the windows run side by side, and
+    /// these with `wall_s` are their schedule (which window held the frame up).
+    pub start_s: f64,
 }
 
 /// What a window measured.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 pub enum SampleKind {
     /// The host emitting the primary rays (before the first wavefront).
     Emit,
@@ -334,6 +338,15 @@ pub enum SampleKind {
     Shade,
     /// A shading pass's first `WindowPlan::shade_head` items, from its start.
     ShadeHead,
+}
+
+/// The windows of one kind and their summed wall time (see
+/// [`WindowRecord::chip_s_by_kind`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct KindTime {
+    pub kind: SampleKind,
+    pub windows: usize,
+    pub chip_s: f64,
 }
 
 /// What time sampling recorded (see [`WindowPlan`]).
@@ -364,6 +377,54 @@ pub struct WindowRecord {
     /// The frame's last possible wavefront (the shadow rays of the paths' last
     /// hit points: the bounce count).
     pub final_wave: usize,
+}
+
+impl SampleKind {
+    /// Its name in summaries.
+    pub fn label(self) -> &'static str {
+        match self {
+            SampleKind::Emit => "emission",
+            SampleKind::Root => "root",
+            SampleKind::Wave => "wavefront samples",
+            SampleKind::Trace => "trace",
+            SampleKind::Tail => "tail",
+            SampleKind::Shade => "shading",
+            SampleKind::ShadeHead => "shading heads",
+        }
+    }
+}
+
+/// The windows' wall time by kind as text: "12 trace 53.7 s, 3 root 11.2 s, ...".
+pub fn kind_times_text(by: &[KindTime]) -> String {
+    by.iter()
+        .map(|k| format!("{} {} {:.1} s", k.windows, k.kind.label(), k.chip_s))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+impl WindowRecord {
+    /// The windows' wall time by kind, in [`SampleKind`] order (kinds with no
+    /// window left out): where time sampling's cost goes, so that a plan is
+    /// tuned where it pays.
+    pub fn chip_s_by_kind(&self) -> Vec<KindTime> {
+        let mut by: Vec<KindTime> = Vec::new();
+        let mut samples: Vec<&WindowSample> = self.samples.iter().collect();
+        samples.sort_by_key(|s| s.kind);
+        for s in samples {
+            match by.last_mut() {
+                Some(k) if k.kind == s.kind => {
+                    k.windows += 1;
+                    k.chip_s += s.wall_s;
+                }
+                _ => by.push(KindTime {
+                    kind: s.kind,
+                    windows: 1,
+                    chip_s: s.wall_s,
+                }),
+            }
+        }
+        by
+    }
 }
 
 /// How to build and run the chip in cycle mode.

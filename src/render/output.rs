@@ -97,8 +97,10 @@ pub fn write_json_estimated(
 /// The chip's figures as time sampling estimates them (`render --mode windows`).
 pub fn window_summary(e: &crate::speed_error::WindowEstimate) -> String {
     let mut s = format!(
-        "  time sampling: {} windows of the chip with GDDR5 ({:.1} s in the chips); the cycle model's figures, estimated:\n",
-        e.windows, e.chip_s
+        "  time sampling: {} windows of the chip with GDDR5 ({:.1} s in the chips: {}); the cycle model's figures, estimated:\n",
+        e.windows,
+        e.chip_s,
+        crate::render::kind_times_text(&e.chip_s_by_kind)
     );
     s += &format!(
         "  cycles {:.0} ({:.3} ms, {:.1} M rays/s)\n",

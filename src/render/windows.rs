@@ -23,6 +23,8 @@ struct WindowChip {
     consts: ShadeConsts,
     segments: usize,
     sim: crate::rtl::SimOptions,
+    /// When time sampling began (`WindowSample::start_s` counts from it).
+    began: Instant,
 }
 
 /// One window: what the chip runs (`Chip::trace_window`) and the sample it
@@ -84,6 +86,7 @@ impl WindowChip {
             },
             run,
             wall_s: t.elapsed().as_secs_f64(),
+            start_s: t.duration_since(self.began).as_secs_f64(),
         }))
     }
 }
@@ -196,6 +199,7 @@ impl Windows {
             consts,
             segments,
             sim: crate::rtl::SimOptions { threads: 1, ..sim },
+            began: Instant::now(),
         });
         let pool = if workers > 1 {
             Some(Pool::new(&chip, workers)?)
