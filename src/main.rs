@@ -717,10 +717,11 @@ fn run(cli: Cli) -> Result<(), String> {
                     let ts = dualstream::speed_error::time_sampled(&sc, &cfg, threads, &plan)?;
                     let e = &ts.estimate;
                     eprintln!(
-                        "  {:.1} s ({} windows, {:.0} s in the chips){}",
+                        "  {:.1} s ({} windows, {:.0} s in the chips: {}){}",
                         t0.elapsed().as_secs_f64(),
                         e.windows,
                         e.chip_s,
+                        dualstream::render::kind_times_text(&e.chip_s_by_kind),
                         e.se_text().map(|t| format!("; {t}")).unwrap_or_default()
                     );
                     rows.extend(dualstream::report::paper::compare_sampled(
