@@ -4,6 +4,7 @@
 // Ports: the host's links (it is not hardware); one clock per clock domain.
 module chip (
     input  wire clk,
+    input  wire clk_dram,
     input  wire rst,
     input  wire emit_valid,
     output wire emit_ready,
@@ -18,8 +19,15 @@ module chip (
     input  wire flush_done_ready,
     output wire flush_done_data
 );
+    localparam integer MEM_CTRLS = 16;
     localparam integer TMS = 128;
     localparam integer TPS = 16; // TPs per TM (tm.v is generated for this many)
+    wire [MEM_CTRLS-1:0] mem_ctrl_req_valid;
+    wire [MEM_CTRLS-1:0] mem_ctrl_req_ready;
+    wire [MEM_CTRLS*100-1:0] mem_ctrl_req_data;
+    wire [MEM_CTRLS-1:0] mem_ctrl_resp_valid;
+    wire [MEM_CTRLS-1:0] mem_ctrl_resp_ready;
+    wire [MEM_CTRLS*36-1:0] mem_ctrl_resp_data;
     wire [TMS-1:0] tm_fill_valid;
     wire [TMS-1:0] tm_fill_ready;
     wire [TMS*385-1:0] tm_fill_data;
@@ -1324,7 +1332,7 @@ module chip (
         .flush_done_ready(flush_done_ready),
         .flush_done_data(flush_done_data)
     );
-    memory #(.PORTS(12), .LATENCY(100), .LINES_PER_CYCLE(8), .CHANNELS(0)) u_memory (
+    memory #(.PORTS(12), .LATENCY(0), .LINES_PER_CYCLE(0), .CHANNELS(16)) u_memory (
         .clk(clk),
         .rst(rst),
         .req_0_valid(mem_req0_sched_valid),
@@ -1398,7 +1406,103 @@ module chip (
         .req_11_data(mem_req_l2_lane3_data),
         .resp_11_valid(mem_resp_l2_lane3_valid),
         .resp_11_ready(mem_resp_l2_lane3_ready),
-        .resp_11_data(mem_resp_l2_lane3_data)
+        .resp_11_data(mem_resp_l2_lane3_data),
+        .ch_req_0_valid(mem_ctrl_req_valid[0]),
+        .ch_req_0_ready(mem_ctrl_req_ready[0]),
+        .ch_req_0_data(mem_ctrl_req_data[99:0]),
+        .ch_resp_0_valid(mem_ctrl_resp_valid[0]),
+        .ch_resp_0_ready(mem_ctrl_resp_ready[0]),
+        .ch_resp_0_data(mem_ctrl_resp_data[35:0]),
+        .ch_req_1_valid(mem_ctrl_req_valid[1]),
+        .ch_req_1_ready(mem_ctrl_req_ready[1]),
+        .ch_req_1_data(mem_ctrl_req_data[199:100]),
+        .ch_resp_1_valid(mem_ctrl_resp_valid[1]),
+        .ch_resp_1_ready(mem_ctrl_resp_ready[1]),
+        .ch_resp_1_data(mem_ctrl_resp_data[71:36]),
+        .ch_req_2_valid(mem_ctrl_req_valid[2]),
+        .ch_req_2_ready(mem_ctrl_req_ready[2]),
+        .ch_req_2_data(mem_ctrl_req_data[299:200]),
+        .ch_resp_2_valid(mem_ctrl_resp_valid[2]),
+        .ch_resp_2_ready(mem_ctrl_resp_ready[2]),
+        .ch_resp_2_data(mem_ctrl_resp_data[107:72]),
+        .ch_req_3_valid(mem_ctrl_req_valid[3]),
+        .ch_req_3_ready(mem_ctrl_req_ready[3]),
+        .ch_req_3_data(mem_ctrl_req_data[399:300]),
+        .ch_resp_3_valid(mem_ctrl_resp_valid[3]),
+        .ch_resp_3_ready(mem_ctrl_resp_ready[3]),
+        .ch_resp_3_data(mem_ctrl_resp_data[143:108]),
+        .ch_req_4_valid(mem_ctrl_req_valid[4]),
+        .ch_req_4_ready(mem_ctrl_req_ready[4]),
+        .ch_req_4_data(mem_ctrl_req_data[499:400]),
+        .ch_resp_4_valid(mem_ctrl_resp_valid[4]),
+        .ch_resp_4_ready(mem_ctrl_resp_ready[4]),
+        .ch_resp_4_data(mem_ctrl_resp_data[179:144]),
+        .ch_req_5_valid(mem_ctrl_req_valid[5]),
+        .ch_req_5_ready(mem_ctrl_req_ready[5]),
+        .ch_req_5_data(mem_ctrl_req_data[599:500]),
+        .ch_resp_5_valid(mem_ctrl_resp_valid[5]),
+        .ch_resp_5_ready(mem_ctrl_resp_ready[5]),
+        .ch_resp_5_data(mem_ctrl_resp_data[215:180]),
+        .ch_req_6_valid(mem_ctrl_req_valid[6]),
+        .ch_req_6_ready(mem_ctrl_req_ready[6]),
+        .ch_req_6_data(mem_ctrl_req_data[699:600]),
+        .ch_resp_6_valid(mem_ctrl_resp_valid[6]),
+        .ch_resp_6_ready(mem_ctrl_resp_ready[6]),
+        .ch_resp_6_data(mem_ctrl_resp_data[251:216]),
+        .ch_req_7_valid(mem_ctrl_req_valid[7]),
+        .ch_req_7_ready(mem_ctrl_req_ready[7]),
+        .ch_req_7_data(mem_ctrl_req_data[799:700]),
+        .ch_resp_7_valid(mem_ctrl_resp_valid[7]),
+        .ch_resp_7_ready(mem_ctrl_resp_ready[7]),
+        .ch_resp_7_data(mem_ctrl_resp_data[287:252]),
+        .ch_req_8_valid(mem_ctrl_req_valid[8]),
+        .ch_req_8_ready(mem_ctrl_req_ready[8]),
+        .ch_req_8_data(mem_ctrl_req_data[899:800]),
+        .ch_resp_8_valid(mem_ctrl_resp_valid[8]),
+        .ch_resp_8_ready(mem_ctrl_resp_ready[8]),
+        .ch_resp_8_data(mem_ctrl_resp_data[323:288]),
+        .ch_req_9_valid(mem_ctrl_req_valid[9]),
+        .ch_req_9_ready(mem_ctrl_req_ready[9]),
+        .ch_req_9_data(mem_ctrl_req_data[999:900]),
+        .ch_resp_9_valid(mem_ctrl_resp_valid[9]),
+        .ch_resp_9_ready(mem_ctrl_resp_ready[9]),
+        .ch_resp_9_data(mem_ctrl_resp_data[359:324]),
+        .ch_req_10_valid(mem_ctrl_req_valid[10]),
+        .ch_req_10_ready(mem_ctrl_req_ready[10]),
+        .ch_req_10_data(mem_ctrl_req_data[1099:1000]),
+        .ch_resp_10_valid(mem_ctrl_resp_valid[10]),
+        .ch_resp_10_ready(mem_ctrl_resp_ready[10]),
+        .ch_resp_10_data(mem_ctrl_resp_data[395:360]),
+        .ch_req_11_valid(mem_ctrl_req_valid[11]),
+        .ch_req_11_ready(mem_ctrl_req_ready[11]),
+        .ch_req_11_data(mem_ctrl_req_data[1199:1100]),
+        .ch_resp_11_valid(mem_ctrl_resp_valid[11]),
+        .ch_resp_11_ready(mem_ctrl_resp_ready[11]),
+        .ch_resp_11_data(mem_ctrl_resp_data[431:396]),
+        .ch_req_12_valid(mem_ctrl_req_valid[12]),
+        .ch_req_12_ready(mem_ctrl_req_ready[12]),
+        .ch_req_12_data(mem_ctrl_req_data[1299:1200]),
+        .ch_resp_12_valid(mem_ctrl_resp_valid[12]),
+        .ch_resp_12_ready(mem_ctrl_resp_ready[12]),
+        .ch_resp_12_data(mem_ctrl_resp_data[467:432]),
+        .ch_req_13_valid(mem_ctrl_req_valid[13]),
+        .ch_req_13_ready(mem_ctrl_req_ready[13]),
+        .ch_req_13_data(mem_ctrl_req_data[1399:1300]),
+        .ch_resp_13_valid(mem_ctrl_resp_valid[13]),
+        .ch_resp_13_ready(mem_ctrl_resp_ready[13]),
+        .ch_resp_13_data(mem_ctrl_resp_data[503:468]),
+        .ch_req_14_valid(mem_ctrl_req_valid[14]),
+        .ch_req_14_ready(mem_ctrl_req_ready[14]),
+        .ch_req_14_data(mem_ctrl_req_data[1499:1400]),
+        .ch_resp_14_valid(mem_ctrl_resp_valid[14]),
+        .ch_resp_14_ready(mem_ctrl_resp_ready[14]),
+        .ch_resp_14_data(mem_ctrl_resp_data[539:504]),
+        .ch_req_15_valid(mem_ctrl_req_valid[15]),
+        .ch_req_15_ready(mem_ctrl_req_ready[15]),
+        .ch_req_15_data(mem_ctrl_req_data[1599:1500]),
+        .ch_resp_15_valid(mem_ctrl_resp_valid[15]),
+        .ch_resp_15_ready(mem_ctrl_resp_ready[15]),
+        .ch_resp_15_data(mem_ctrl_resp_data[575:540])
     );
     scene_buffer #(.SLOTS(64), .SLOT_LINES(1024), .BANKS(32), .LATENCY(4), .TMS(128)) u_scene_buffer (
         .clk(clk),
@@ -3004,6 +3108,18 @@ module chip (
         .ray_write_127_ready(tm_ray_write_ready[127]),
         .ray_write_127_data(tm_ray_write_data[36991:36703])
     );
+    for (genvar k = 0; k < MEM_CTRLS; k++) begin : g_mem_ctrl
+        mem_ctrl #(.CHANNEL(k), .BANKS(16), .READ_QUEUE(64), .WRITE_QUEUE(96)) u_mem_ctrl (
+            .clk(clk_dram),
+            .rst(rst),
+            .req_valid(mem_ctrl_req_valid[k]),
+            .req_ready(mem_ctrl_req_ready[k]),
+            .req_data(mem_ctrl_req_data[k*100 +: 100]),
+            .resp_valid(mem_ctrl_resp_valid[k]),
+            .resp_ready(mem_ctrl_resp_ready[k]),
+            .resp_data(mem_ctrl_resp_data[k*36 +: 36])
+        );
+    end
     for (genvar k = 0; k < TMS; k++) begin : g_tm
         tm u_tm (
             .clk(clk),

@@ -5,9 +5,9 @@
 // State: 16 bits.
 module memory #(
     parameter integer PORTS = 12,
-    parameter integer LATENCY = 100,
-    parameter integer LINES_PER_CYCLE = 8,
-    parameter integer CHANNELS = 0
+    parameter integer LATENCY = 0,
+    parameter integer LINES_PER_CYCLE = 0,
+    parameter integer CHANNELS = 16
 ) (
     input  wire clk,
     input  wire rst,
@@ -47,6 +47,54 @@ module memory #(
     input  wire req_11_valid,
     output wire req_11_ready,
     input  wire [675:0] req_11_data,
+    input  wire ch_resp_0_valid,
+    output wire ch_resp_0_ready,
+    input  wire [35:0] ch_resp_0_data,
+    input  wire ch_resp_1_valid,
+    output wire ch_resp_1_ready,
+    input  wire [35:0] ch_resp_1_data,
+    input  wire ch_resp_2_valid,
+    output wire ch_resp_2_ready,
+    input  wire [35:0] ch_resp_2_data,
+    input  wire ch_resp_3_valid,
+    output wire ch_resp_3_ready,
+    input  wire [35:0] ch_resp_3_data,
+    input  wire ch_resp_4_valid,
+    output wire ch_resp_4_ready,
+    input  wire [35:0] ch_resp_4_data,
+    input  wire ch_resp_5_valid,
+    output wire ch_resp_5_ready,
+    input  wire [35:0] ch_resp_5_data,
+    input  wire ch_resp_6_valid,
+    output wire ch_resp_6_ready,
+    input  wire [35:0] ch_resp_6_data,
+    input  wire ch_resp_7_valid,
+    output wire ch_resp_7_ready,
+    input  wire [35:0] ch_resp_7_data,
+    input  wire ch_resp_8_valid,
+    output wire ch_resp_8_ready,
+    input  wire [35:0] ch_resp_8_data,
+    input  wire ch_resp_9_valid,
+    output wire ch_resp_9_ready,
+    input  wire [35:0] ch_resp_9_data,
+    input  wire ch_resp_10_valid,
+    output wire ch_resp_10_ready,
+    input  wire [35:0] ch_resp_10_data,
+    input  wire ch_resp_11_valid,
+    output wire ch_resp_11_ready,
+    input  wire [35:0] ch_resp_11_data,
+    input  wire ch_resp_12_valid,
+    output wire ch_resp_12_ready,
+    input  wire [35:0] ch_resp_12_data,
+    input  wire ch_resp_13_valid,
+    output wire ch_resp_13_ready,
+    input  wire [35:0] ch_resp_13_data,
+    input  wire ch_resp_14_valid,
+    output wire ch_resp_14_ready,
+    input  wire [35:0] ch_resp_14_data,
+    input  wire ch_resp_15_valid,
+    output wire ch_resp_15_ready,
+    input  wire [35:0] ch_resp_15_data,
     output wire resp_0_valid,
     input  wire resp_0_ready,
     output wire [611:0] resp_0_data,
@@ -82,7 +130,55 @@ module memory #(
     output wire [611:0] resp_10_data,
     output wire resp_11_valid,
     input  wire resp_11_ready,
-    output wire [611:0] resp_11_data
+    output wire [611:0] resp_11_data,
+    output wire ch_req_0_valid,
+    input  wire ch_req_0_ready,
+    output wire [99:0] ch_req_0_data,
+    output wire ch_req_1_valid,
+    input  wire ch_req_1_ready,
+    output wire [99:0] ch_req_1_data,
+    output wire ch_req_2_valid,
+    input  wire ch_req_2_ready,
+    output wire [99:0] ch_req_2_data,
+    output wire ch_req_3_valid,
+    input  wire ch_req_3_ready,
+    output wire [99:0] ch_req_3_data,
+    output wire ch_req_4_valid,
+    input  wire ch_req_4_ready,
+    output wire [99:0] ch_req_4_data,
+    output wire ch_req_5_valid,
+    input  wire ch_req_5_ready,
+    output wire [99:0] ch_req_5_data,
+    output wire ch_req_6_valid,
+    input  wire ch_req_6_ready,
+    output wire [99:0] ch_req_6_data,
+    output wire ch_req_7_valid,
+    input  wire ch_req_7_ready,
+    output wire [99:0] ch_req_7_data,
+    output wire ch_req_8_valid,
+    input  wire ch_req_8_ready,
+    output wire [99:0] ch_req_8_data,
+    output wire ch_req_9_valid,
+    input  wire ch_req_9_ready,
+    output wire [99:0] ch_req_9_data,
+    output wire ch_req_10_valid,
+    input  wire ch_req_10_ready,
+    output wire [99:0] ch_req_10_data,
+    output wire ch_req_11_valid,
+    input  wire ch_req_11_ready,
+    output wire [99:0] ch_req_11_data,
+    output wire ch_req_12_valid,
+    input  wire ch_req_12_ready,
+    output wire [99:0] ch_req_12_data,
+    output wire ch_req_13_valid,
+    input  wire ch_req_13_ready,
+    output wire [99:0] ch_req_13_data,
+    output wire ch_req_14_valid,
+    input  wire ch_req_14_ready,
+    output wire [99:0] ch_req_14_data,
+    output wire ch_req_15_valid,
+    input  wire ch_req_15_ready,
+    output wire [99:0] ch_req_15_data
 );
 
     reg [15:0] in_flight;
@@ -106,6 +202,22 @@ module memory #(
     assign req_9_ready = 1'b0;
     assign req_10_ready = 1'b0;
     assign req_11_ready = 1'b0;
+    assign ch_resp_0_ready = 1'b0;
+    assign ch_resp_1_ready = 1'b0;
+    assign ch_resp_2_ready = 1'b0;
+    assign ch_resp_3_ready = 1'b0;
+    assign ch_resp_4_ready = 1'b0;
+    assign ch_resp_5_ready = 1'b0;
+    assign ch_resp_6_ready = 1'b0;
+    assign ch_resp_7_ready = 1'b0;
+    assign ch_resp_8_ready = 1'b0;
+    assign ch_resp_9_ready = 1'b0;
+    assign ch_resp_10_ready = 1'b0;
+    assign ch_resp_11_ready = 1'b0;
+    assign ch_resp_12_ready = 1'b0;
+    assign ch_resp_13_ready = 1'b0;
+    assign ch_resp_14_ready = 1'b0;
+    assign ch_resp_15_ready = 1'b0;
     assign resp_0_valid = 1'b0;
     assign resp_0_data = '0;
     assign resp_1_valid = 1'b0;
@@ -130,5 +242,37 @@ module memory #(
     assign resp_10_data = '0;
     assign resp_11_valid = 1'b0;
     assign resp_11_data = '0;
-    wire _unused_ok = &{1'b0, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, req_9_valid, req_9_data, req_10_valid, req_10_data, req_11_valid, req_11_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, resp_9_ready, resp_10_ready, resp_11_ready, in_flight, PORTS[0], LATENCY[0], LINES_PER_CYCLE[0], CHANNELS[0], 1'b0};
+    assign ch_req_0_valid = 1'b0;
+    assign ch_req_0_data = '0;
+    assign ch_req_1_valid = 1'b0;
+    assign ch_req_1_data = '0;
+    assign ch_req_2_valid = 1'b0;
+    assign ch_req_2_data = '0;
+    assign ch_req_3_valid = 1'b0;
+    assign ch_req_3_data = '0;
+    assign ch_req_4_valid = 1'b0;
+    assign ch_req_4_data = '0;
+    assign ch_req_5_valid = 1'b0;
+    assign ch_req_5_data = '0;
+    assign ch_req_6_valid = 1'b0;
+    assign ch_req_6_data = '0;
+    assign ch_req_7_valid = 1'b0;
+    assign ch_req_7_data = '0;
+    assign ch_req_8_valid = 1'b0;
+    assign ch_req_8_data = '0;
+    assign ch_req_9_valid = 1'b0;
+    assign ch_req_9_data = '0;
+    assign ch_req_10_valid = 1'b0;
+    assign ch_req_10_data = '0;
+    assign ch_req_11_valid = 1'b0;
+    assign ch_req_11_data = '0;
+    assign ch_req_12_valid = 1'b0;
+    assign ch_req_12_data = '0;
+    assign ch_req_13_valid = 1'b0;
+    assign ch_req_13_data = '0;
+    assign ch_req_14_valid = 1'b0;
+    assign ch_req_14_data = '0;
+    assign ch_req_15_valid = 1'b0;
+    assign ch_req_15_data = '0;
+    wire _unused_ok = &{1'b0, req_0_valid, req_0_data, req_1_valid, req_1_data, req_2_valid, req_2_data, req_3_valid, req_3_data, req_4_valid, req_4_data, req_5_valid, req_5_data, req_6_valid, req_6_data, req_7_valid, req_7_data, req_8_valid, req_8_data, req_9_valid, req_9_data, req_10_valid, req_10_data, req_11_valid, req_11_data, ch_resp_0_valid, ch_resp_0_data, ch_resp_1_valid, ch_resp_1_data, ch_resp_2_valid, ch_resp_2_data, ch_resp_3_valid, ch_resp_3_data, ch_resp_4_valid, ch_resp_4_data, ch_resp_5_valid, ch_resp_5_data, ch_resp_6_valid, ch_resp_6_data, ch_resp_7_valid, ch_resp_7_data, ch_resp_8_valid, ch_resp_8_data, ch_resp_9_valid, ch_resp_9_data, ch_resp_10_valid, ch_resp_10_data, ch_resp_11_valid, ch_resp_11_data, ch_resp_12_valid, ch_resp_12_data, ch_resp_13_valid, ch_resp_13_data, ch_resp_14_valid, ch_resp_14_data, ch_resp_15_valid, ch_resp_15_data, resp_0_ready, resp_1_ready, resp_2_ready, resp_3_ready, resp_4_ready, resp_5_ready, resp_6_ready, resp_7_ready, resp_8_ready, resp_9_ready, resp_10_ready, resp_11_ready, ch_req_0_ready, ch_req_1_ready, ch_req_2_ready, ch_req_3_ready, ch_req_4_ready, ch_req_5_ready, ch_req_6_ready, ch_req_7_ready, ch_req_8_ready, ch_req_9_ready, ch_req_10_ready, ch_req_11_ready, ch_req_12_ready, ch_req_13_ready, ch_req_14_ready, ch_req_15_ready, in_flight, PORTS[0], LATENCY[0], LINES_PER_CYCLE[0], CHANNELS[0], 1'b0};
 endmodule

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use dualstream::config::Config;
-use dualstream::rtl::{SimOptions, TraceSpec};
+use dualstream::rtl::{SimOptions, Threads, TraceSpec};
 use dualstream::testbench::{self, TbOptions};
 
 #[derive(Parser)]
@@ -19,11 +19,17 @@ struct Cli {
     /// Configuration file (TOML); missing keys take the paper's values.
     #[arg(long, global = true)]
     config: Option<PathBuf>,
-    /// Simulator threads in cycle mode: 1, or 2 (each evaluates half of the TMs;
-    /// time sampling runs two windows side by side instead; the results are
-    /// bit-identical to 1). Default: 2 on a machine with 2 cores or more.
-    #[arg(long, global = true)]
-    threads: Option<usize>,
+    /// Simulator threads: `auto` (the default) or 1 up to the machine's cores.
+    /// Cycle mode spreads the TMs over N lanes (auto measures the run and uses
+    /// one lane while more do not pay); time sampling runs N windows side by
+    /// side (auto: one per core). Results are bit-identical for every choice.
+    #[arg(long, global = true, default_value = "auto", value_name = "auto|N")]
+    threads: String,
+    /// The chip's memory in cycle mode: gddr5 (the paper's 16-channel GDDR5,
+    /// the default) or fixed (a fixed latency and bandwidth: faster to think
+    /// about, not the paper's figures). Overrides `[chip.memory] model`.
+    #[arg(long, global = true, value_parser = ["gddr5", "fixed"])]
+    memory: Option<String>,
     #[command(subcommand)]
     cmd: Cmd,
 }
@@ -371,18 +377,24 @@ fn parse_res(s: &str) -> Result<(u32, u32), String> {
     ))
 }
 
-/// `--threads`, checked, or its default.
-fn sim_threads(threads: Option<usize>) -> Result<usize, String> {
-    match threads {
-        None => Ok(std::thread::available_parallelism().map_or(1, |n| n.get().min(2))),
-        Some(n @ (1 | 2)) => Ok(n),
-        Some(n) => Err(format!(
-            "--threads {n}: the simulator runs on 1 or 2 threads; give --threads 1 or --threads 2"
+/// `--threads`, checked.
+fn sim_threads(threads: &str) -> Result<Threads, String> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if threads == "auto" {
+        return Ok(Threads::auto());
+    }
+    match threads.parse::<usize>() {
+        Ok(n) if (1..=cores).contains(&n) => Ok(Threads::fixed(n)),
+        Ok(n) => Err(format!(
+            "--threads {n}: this machine has {cores} core(s); give --threads auto or a number from 1 to {cores}"
+        )),
+        Err(_) => Err(format!(
+            "--threads {threads}: not a number; give --threads auto or a number from 1 to {cores}"
         )),
     }
 }
 
-fn render_cfg(config: &Config, threads: usize) -> dualstream::render::RenderCfg {
+fn render_cfg(config: &Config, threads: Threads) -> dualstream::render::RenderCfg {
     dualstream::render::RenderCfg {
         accel: config.accel.clone(),
         memory: config.memory.clone(),
@@ -390,10 +402,7 @@ fn render_cfg(config: &Config, threads: usize) -> dualstream::render::RenderCfg 
         dump_rays: None,
         chip: Some(Box::new(dualstream::render::ChipRun {
             config: config.clone(),
-            sim: SimOptions {
-                threads,
-                ..Default::default()
-            },
+            sim: threads.sim(),
             trace: None,
         })),
         pixels: None,
@@ -410,8 +419,11 @@ fn load_config(path: &Option<PathBuf>) -> Result<Config, String> {
 }
 
 fn run(cli: Cli) -> Result<(), String> {
-    let config = load_config(&cli.config)?;
-    let threads = sim_threads(cli.threads)?;
+    let mut config = load_config(&cli.config)?;
+    if let Some(m) = &cli.memory {
+        config.chip.memory.model = dualstream::machine::config::MemoryModel::parse(m)?;
+    }
+    let threads = sim_threads(&cli.threads)?;
     match cli.cmd {
         Cmd::Tb {
             unit,
@@ -453,6 +465,7 @@ fn run(cli: Cli) -> Result<(), String> {
                     shadow,
                     shuffle_seed: None,
                     threads: 1,
+                    auto_lanes: false,
                 },
                 config,
             };

@@ -29,6 +29,7 @@
 use crate::config::Config;
 use crate::machine::config::MemoryModel;
 use crate::render::{self, Frame, Mode, RenderCfg};
+use crate::rtl::Threads;
 use crate::scene::Scene;
 use serde::Serialize;
 use std::fmt::Write;
@@ -198,13 +199,13 @@ fn render_pixels(
     mode: Mode,
     c: &Config,
     pixels: Option<Vec<u32>>,
-    threads: usize,
+    threads: Threads,
 ) -> Result<Frame, String> {
     let rc = render_cfg(c, pixels, threads);
     render::render(scene, mode, &rc, &mut |_| {})
 }
 
-fn render_cfg(c: &Config, pixels: Option<Vec<u32>>, threads: usize) -> RenderCfg {
+fn render_cfg(c: &Config, pixels: Option<Vec<u32>>, threads: Threads) -> RenderCfg {
     RenderCfg {
         accel: c.accel.clone(),
         memory: c.memory.clone(),
@@ -212,10 +213,7 @@ fn render_cfg(c: &Config, pixels: Option<Vec<u32>>, threads: usize) -> RenderCfg
         dump_rays: None,
         chip: Some(Box::new(render::ChipRun {
             config: c.clone(),
-            sim: crate::rtl::SimOptions {
-                threads,
-                ..Default::default()
-            },
+            sim: threads.sim(),
             trace: None,
         })),
         pixels,
@@ -439,7 +437,7 @@ impl Reference {
         }
         if !wrong.is_empty() {
             return Err(format!(
-                "the reference '{name}' does not match this comparison ({}); render it with `render --mode cycle` and [chip.memory] model = \"gddr5\" on the same scene, --res and config",
+                "the reference '{name}' does not match this comparison ({}); render it with `render --mode cycle` (GDDR5, the default memory) on the same scene, --res and config",
                 wrong.join(", ")
             ));
         }
@@ -561,7 +559,7 @@ pub struct SpeedErrorOpts {
     /// The modes to run besides the reference (`None`: all of [`MODES`]).
     pub modes: Option<Vec<String>>,
     /// Simulator threads of the cycle runs (every mode, the reference too).
-    pub threads: usize,
+    pub threads: Threads,
     /// A finished reference run to compare with instead of rendering one.
     pub reference: Option<Reference>,
     /// `windows`: the time-sampling plan.
@@ -579,7 +577,7 @@ impl Default for SpeedErrorOpts {
             tile: 16,
             subsets: 2,
             modes: None,
-            threads: 1,
+            threads: Threads::fixed(1),
             reference: None,
             windows: default_windows(),
             window_log: None,
@@ -1373,6 +1371,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         dram: None,
         vcd: None,
         evals_by_module: Vec::new(),
+        sim_steps_by_lanes: Vec::new(),
     });
     let e = crate::energy::frame_energy(c, &g);
     let p = [
@@ -1482,10 +1481,15 @@ pub struct TimeSampled {
 pub fn time_sampled(
     scene: &Scene,
     config: &Config,
-    threads: usize,
+    threads: impl Into<Threads>,
     plan: &render::WindowPlan,
 ) -> Result<TimeSampled, String> {
-    time_sampled_with(scene, config, render_cfg(config, None, threads), plan)
+    time_sampled_with(
+        scene,
+        config,
+        render_cfg(config, None, threads.into()),
+        plan,
+    )
 }
 
 /// [`time_sampled`] with the rest of the render's settings from `rc` (its
@@ -1503,7 +1507,7 @@ pub fn time_sampled_with(
     rc.windows = Some(plan.clone());
     match rc.chip.as_mut() {
         Some(ch) => ch.config = gddr5.clone(),
-        None => rc.chip = render_cfg(&gddr5, None, 1).chip,
+        None => rc.chip = render_cfg(&gddr5, None, Threads::fixed(1)).chip,
     }
     let frame = render::render(scene, Mode::Functional, &rc, &mut |_| {})?;
     let w = windowed_parts(&gddr5, &frame)?;
@@ -1872,7 +1876,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
                 "time sampling: {} windows ({:.0} s in the chips, summed over {} at a time); {}{}{}: the first {} segment passes, then {} measured after {} of warm-up every {}; {} shading windows of {} items after {} and {} cycles",
                 rec.samples.len(),
                 rec.chip_s,
-                o.threads.max(1),
+                o.threads.n,
                 match rec
                     .samples
                     .iter()

@@ -9,8 +9,10 @@ use dualstream::machine::config::Shading;
 use dualstream::render::{ChipRun, Frame, Mode, RenderCfg, WaveStats, render};
 use dualstream::rtl::SimOptions;
 
+/// The chip on the fixed-latency memory (`gddr5_cfg`: the default GDDR5).
 fn chip_cfg(tms: u32, tps: u32) -> Config {
     let mut c = Config::default();
+    c.chip.memory.model = dualstream::machine::config::MemoryModel::Fixed;
     c.chip.tms = tms;
     c.tm.tps = tps;
     c
@@ -205,9 +207,15 @@ fn run_tiny_chip_balanced(
     }
     cfg.accel = rc.accel.clone();
     let consts = dualstream::render::shade_consts(&s, &p);
+    let auto = opts.auto_lanes;
     let mut chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), &consts, opts).unwrap();
     if moving {
         chip.sim.set_balance(8, true);
+    }
+    if auto {
+        // Switch among 1, 2, ... lanes every few steps (the measured choice
+        // would rarely switch in so short a run).
+        chip.sim.force_lane_switches(40);
     }
     let buf = Buf::default();
     if let Some(trace) = trace {
@@ -247,6 +255,14 @@ fn run_tiny_chip_balanced(
             "no TM moved between the threads"
         );
     }
+    if auto {
+        assert!(chip.sim.lane_switches() > 2, "the lane count never changed");
+        let by = chip.sim.steps_by_lanes();
+        assert!(
+            by.iter().filter(|&&n| n > 0).count() >= 3,
+            "not every lane count ran: {by:?}"
+        );
+    }
     let tp_evals = chip
         .sim
         .evals_by_module()
@@ -283,6 +299,36 @@ fn two_threads_change_nothing() {
             "{what}: two threads changed cycles, statistics or hits"
         );
     }
+}
+
+/// Any lane count (3 and 4 oversubscribe this machine's cores: fine for
+/// correctness) and the automatic choice, here switching among 1, 2, 4 and 5
+/// lanes every 40 steps with load balancing on, give the same cycles, statistics
+/// and hits as one thread.
+#[test]
+fn any_lane_count_and_auto_change_nothing() {
+    let cfg = gddr5_cfg(5, 4);
+    let (base, _) = run_tiny_chip_traced(cfg.clone(), SimOptions::default(), None);
+    for n in [3, 4] {
+        let (r, p) = run_tiny_chip_traced(
+            cfg.clone(),
+            SimOptions {
+                threads: n,
+                ..SimOptions::default()
+            },
+            None,
+        );
+        assert!(p > 0, "{n} lanes never evaluated in parallel");
+        assert!(r == base, "{n} lanes changed cycles, statistics or hits");
+    }
+    let auto = SimOptions {
+        threads: 5,
+        auto_lanes: true,
+        ..SimOptions::default()
+    };
+    let (r, p, _) = run_tiny_chip_balanced(cfg, auto, None, true);
+    assert!(p > 0, "auto never evaluated in parallel");
+    assert!(r == base, "auto lanes changed cycles, statistics or hits");
 }
 
 /// A whole frame (5 bounces, shading on the TPs, L2, GDDR5) on two threads is

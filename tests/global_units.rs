@@ -30,24 +30,28 @@ fn modes() -> Vec<SimOptions> {
             shadow: false,
             shuffle_seed: None,
             threads: 1,
+            auto_lanes: false,
         },
         SimOptions {
             sleep: false,
             shadow: true,
             shuffle_seed: None,
             threads: 1,
+            auto_lanes: false,
         },
         SimOptions {
             sleep: true,
             shadow: false,
             shuffle_seed: Some(1),
             threads: 1,
+            auto_lanes: false,
         },
         SimOptions {
             sleep: false,
             shadow: true,
             shuffle_seed: Some(2),
             threads: 1,
+            auto_lanes: false,
         },
     ]
 }

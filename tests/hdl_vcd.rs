@@ -333,11 +333,12 @@ fn chip_top_wires_every_unit_and_lints() {
     }
 
     for (name, toml) in [
-        ("fixed", "[chip]\ntms = 2\n"),
         (
-            "gddr5",
-            "[chip]\ntms = 2\n[chip.memory]\nmodel = \"gddr5\"\n",
+            "fixed",
+            "[chip]\ntms = 2\n[chip.memory]\nmodel = \"fixed\"\n",
         ),
+        // GDDR5 is the default memory.
+        ("gddr5", "[chip]\ntms = 2\n"),
     ] {
         let cfg = Config::from_toml(toml).unwrap();
         let dir = tmpdir(&format!("chip2-{name}"));

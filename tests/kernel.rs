@@ -177,30 +177,35 @@ fn order_and_sleeping_change_nothing() {
             shadow: false,
             shuffle_seed: None,
             threads: 1,
+            auto_lanes: false,
         },
         SimOptions {
             sleep: false,
             shadow: true,
             shuffle_seed: None,
             threads: 1,
+            auto_lanes: false,
         },
         SimOptions {
             sleep: true,
             shadow: false,
             shuffle_seed: Some(1),
             threads: 1,
+            auto_lanes: false,
         },
         SimOptions {
             sleep: true,
             shadow: false,
             shuffle_seed: Some(2),
             threads: 1,
+            auto_lanes: false,
         },
         SimOptions {
             sleep: false,
             shadow: true,
             shuffle_seed: Some(3),
             threads: 1,
+            auto_lanes: false,
         },
     ];
     for m in modes {
@@ -330,6 +335,7 @@ fn shadow_evaluation_catches_a_sleep_bug() {
             shadow,
             shuffle_seed: None,
             threads: 1,
+            auto_lanes: false,
         });
         let c = sim.clock("core", 1000).unwrap();
         sim.add("s", c, Sleeper { count: Reg::new(0) });
@@ -391,7 +397,7 @@ fn netlist_errors_are_named() {
         sim.set_part(p, 3)
             .unwrap_err()
             .to_string()
-            .contains("partitions are 0, 1 and 2")
+            .contains("the partitions are 0 to 2")
     );
 
     let mut sim = Sim::default();

@@ -301,18 +301,21 @@ mod unit {
                 shadow: false,
                 shuffle_seed: None,
                 threads: 1,
+                auto_lanes: false,
             },
             SimOptions {
                 sleep: false,
                 shadow: true,
                 shuffle_seed: None,
                 threads: 1,
+                auto_lanes: false,
             },
             SimOptions {
                 sleep: true,
                 shadow: false,
                 shuffle_seed: Some(3),
                 threads: 1,
+                auto_lanes: false,
             },
         ] {
             assert!(run(opts.clone()) == base, "{opts:?} changed the outcome");

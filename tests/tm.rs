@@ -429,6 +429,7 @@ fn other_orders() -> [SimOptions; 3] {
         shadow: !sleep,
         shuffle_seed,
         threads: 1,
+        auto_lanes: false,
     };
     [o(false, None), o(true, Some(7)), o(false, Some(8))]
 }

@@ -316,12 +316,6 @@ impl WaveCycles {
     }
 }
 
-/// Sixteenths of the TMs the simulator's worker thread evaluates with two threads
-/// (the main thread also runs the step loop and most global units). A speed
-/// setting only: any split gives bit-identical results. Measured on the Dragon
-/// Box, 128 TMs: the worker waited about half of the time at 8/16.
-const WORKER_TM_SIXTEENTHS: usize = 8;
-
 /// Cycles between two looks at a sampling window's marks: the resolution of its
 /// start and end (a window spans tens of thousands of cycles).
 const WINDOW_STEP: u64 = 32;
@@ -653,27 +647,15 @@ impl Chip {
                 ports,
             ));
         }
-        // Two evaluation threads: the worker takes the hit record updater, the
-        // scene buffer and most TMs, this thread the other TMs, the other global
-        // units (the DRAM controllers' own clock edges then need no hand-over) and
-        // the step's bookkeeping.
-        if sim.options().threads >= 2 && n >= 2 {
-            let worker_tms = n * WORKER_TM_SIXTEENTHS / 16;
-            for (k, t) in tms.iter().enumerate() {
-                let part = if k < worker_tms { 1 } else { 2 };
-                for u in t.all() {
-                    sim.set_part(u, part).map_err(|e| e.to_string())?;
-                }
-            }
-            sim.set_groups(tms.iter().map(|t| t.all().collect()).collect());
-            for u in 0..sim.unit_count() {
-                let u = UnitId(u as u32);
-                let worker = u == hit_updater || u == scene_buffer;
-                if worker || !sim.unit_path(u).starts_with("chip.tm") {
-                    sim.set_part(u, if worker { 1 } else { 2 })
-                        .map_err(|e| e.to_string())?;
-                }
-            }
+        // Several evaluation lanes: the TMs spread over them, the first lane (a
+        // worker's) also takes the hit record updater and the scene buffer, the
+        // last (this thread's) the other global units (the DRAM controllers' own
+        // clock edges then need no hand-over) and the step's bookkeeping.
+        if n >= 2 {
+            sim.set_lane_plan(
+                tms.iter().map(|t| t.all().collect()).collect(),
+                vec![hit_updater, scene_buffer],
+            );
         }
         sim.elaborate().map_err(|e| e.to_string())?;
         let shading = ShadeRegs::new(*shade, map);

@@ -482,6 +482,9 @@ pub struct ChipFrame {
     /// The simulator's evaluations by unit kind over the frame, most first
     /// (where its time went; they depend on the kernel, not the chip's results).
     pub evals_by_module: Vec<crate::rtl::ModuleEvals>,
+    /// Simulator steps taken with 1, 2, ... evaluation lanes (`--threads`; how
+    /// the run spent its time, not a result).
+    pub sim_steps_by_lanes: Vec<u64>,
 }
 
 impl ChipFrame {
@@ -1222,10 +1225,7 @@ pub fn render(
             total_cycles: c.total_cycles,
             sim_wall_s: c.wall_s,
             cycles_per_s: c.total_cycles as f64 / c.wall_s.max(1e-9),
-            memory_model: match chip_cfg.chip.memory.model {
-                crate::machine::config::MemoryModel::Fixed => "fixed".into(),
-                crate::machine::config::MemoryModel::Gddr5 => "gddr5".into(),
-            },
+            memory_model: chip_cfg.chip.memory.model.name().into(),
             core_ps: chip_cfg.clocks.core_ps,
             line_bytes: crate::contract::LINE_BYTES,
             dram: (chip_cfg.chip.memory.model == crate::machine::config::MemoryModel::Gddr5).then(
@@ -1240,6 +1240,7 @@ pub fn render(
             waves: chip_waves,
             vcd,
             evals_by_module: c.sim.evals_by_module(),
+            sim_steps_by_lanes: c.sim.steps_by_lanes().to_vec(),
         }),
     })
 }

@@ -222,7 +222,7 @@ pub fn summary(f: &Frame) -> String {
         if f.chip.as_ref().is_some_and(|c| c.dram.is_some()) {
             s += "  (DRAM energy: the gddr5 figures below; L2 and scene buffer counted in cycle mode only)\n";
         } else {
-            s += "  (DRAM energy needs the DRAM model: --mode cycle with [chip.memory] model = \"gddr5\", or --mode windows (estimated, minutes at 1024x1024); the L2 and the scene buffer are counted there only)\n";
+            s += "  (DRAM energy needs the DRAM model: --mode cycle (GDDR5 unless --memory fixed), or --mode windows (estimated, minutes at 1024x1024); the L2 and the scene buffer are counted there only)\n";
         }
     }
     if f.verified_rays > 0 {
@@ -336,8 +336,10 @@ pub fn summary(f: &Frame) -> String {
             );
         }
         s += &format!(
-            "  chip simulation {:.2} s, {:.0} simulated cycles/s\n",
-            c.sim_wall_s, c.cycles_per_s
+            "  chip simulation {:.2} s, {:.0} simulated cycles/s{}\n",
+            c.sim_wall_s,
+            c.cycles_per_s,
+            lanes_note(&c.sim_steps_by_lanes)
         );
         let evals: u64 = c.evals_by_module.iter().map(|e| e.evals).sum();
         if evals > 0 {
@@ -356,4 +358,19 @@ pub fn summary(f: &Frame) -> String {
         }
     }
     s
+}
+
+/// How a multi-lane run spent its steps (`--threads`), e.g. ", lanes: 1 62%, 2 38%".
+fn lanes_note(steps: &[u64]) -> String {
+    let total: u64 = steps.iter().sum();
+    if total == 0 || steps.len() < 2 {
+        return String::new();
+    }
+    let parts: Vec<String> = steps
+        .iter()
+        .enumerate()
+        .filter(|&(_, &n)| n > 0)
+        .map(|(k, &n)| format!("{} {:.0}%", k + 1, 100.0 * n as f64 / total as f64))
+        .collect();
+    format!(", steps by evaluation lanes: {}", parts.join(", "))
 }

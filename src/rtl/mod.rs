@@ -18,7 +18,7 @@ pub use decl::{PortDecl, PortDir, SignalDecl, StateDecl, UnitDecl};
 pub use link::{In, LinkCfg, LinkEvent, LinkId, Out, PortArray, PortEnd};
 pub use pipe::{FixedPipe, LocalEnds, LocalLink, PipeEnds};
 pub use sim::{
-    ClockId, Ctx, ModuleEvals, RunEnd, Sim, SimError, SimOptions, Time, UnitId, UnitStats,
+    ClockId, Ctx, ModuleEvals, RunEnd, Sim, SimError, SimOptions, Threads, Time, UnitId, UnitStats,
     round_robin,
 };
 pub use state::{Ram, Reg, State};

@@ -12,10 +12,13 @@
 //! at every edge of its clock; with `shadow: true` the extra evaluations must change
 //! nothing (no register, link, status or counter), which checks the sleep contract.
 
+mod lanes;
+
 use std::any::Any;
-use std::cell::UnsafeCell;
 use std::fmt;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use lanes::{AutoLanes, Balance, Crew, LanePlan, Lanes, Phase, run_lane};
 
 use super::bits::Payload;
 use super::link::{
@@ -50,12 +53,66 @@ pub struct SimOptions {
     pub shadow: bool,
     /// Evaluate the units of each step in a seeded random order (tests).
     pub shuffle_seed: Option<u64>,
-    /// Evaluation threads: 1, or 2 to evaluate the units of partition 1 (see
-    /// [`Sim::set_part`]) on a worker thread while the caller's thread evaluates
-    /// those of partition 2, then partition 0 alone. The result is bit-identical to
-    /// one thread (evaluation order never changes a result). Only with `sleep` on
-    /// and `shadow` off; otherwise one thread is used.
+    /// Evaluation lanes (threads): 1, or N to evaluate the units of partitions
+    /// 1..N-1 (see [`Sim::set_part`], [`Sim::set_lane_plan`]) on worker threads
+    /// while the caller's thread evaluates those of partition N, then partition 0
+    /// alone. The result is bit-identical to one thread (evaluation order never
+    /// changes a result). Only with `sleep` on and `shadow` off; otherwise one
+    /// thread is used. With `auto_lanes`, the most lanes the run may use.
     pub threads: usize,
+    /// Choose the lane count while running (1 up to `threads`), by measuring
+    /// the run's own speed (see `lanes.rs`); needs a lane plan
+    /// ([`Sim::set_lane_plan`]). Results never depend on it.
+    pub auto_lanes: bool,
+}
+
+/// How many evaluation threads a run uses (the command line's `--threads`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Threads {
+    /// Lanes (with `auto`, the most the run may use).
+    pub n: usize,
+    /// Choose between 1 and `n` lanes while running (`SimOptions::auto_lanes`).
+    pub auto: bool,
+}
+
+impl Threads {
+    pub fn fixed(n: usize) -> Threads {
+        Threads {
+            n: n.max(1),
+            auto: false,
+        }
+    }
+    /// Up to the machine's cores, chosen while running.
+    pub fn auto() -> Threads {
+        Threads {
+            n: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            auto: true,
+        }
+    }
+    /// The simulator options of a run on these threads.
+    pub fn sim(self) -> SimOptions {
+        SimOptions {
+            threads: self.n,
+            auto_lanes: self.auto,
+            ..SimOptions::default()
+        }
+    }
+}
+
+impl From<usize> for Threads {
+    fn from(n: usize) -> Threads {
+        Threads::fixed(n)
+    }
+}
+
+impl fmt::Display for Threads {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.auto {
+            write!(f, "auto (1 to {})", self.n)
+        } else {
+            write!(f, "{}", self.n)
+        }
+    }
 }
 
 impl Default for SimOptions {
@@ -65,6 +122,7 @@ impl Default for SimOptions {
             shadow: false,
             shuffle_seed: None,
             threads: 1,
+            auto_lanes: false,
         }
     }
 }
@@ -234,6 +292,15 @@ struct Net {
 }
 
 impl Net {
+    fn null() -> Net {
+        Net {
+            links: std::ptr::null_mut::<Box<dyn LinkDyn>>(),
+            heads: std::ptr::null_mut(),
+            space: std::ptr::null_mut(),
+            nonempty: std::ptr::null_mut(),
+            len: 0,
+        }
+    }
     fn of(
         links: &mut [Box<dyn LinkDyn>],
         heads: &mut [Time],
@@ -656,10 +723,11 @@ pub struct Sim {
     /// Whether the step at `now` has been processed.
     stepped: bool,
     cal: super::calendar::Calendar,
-    /// The worker's own calendar: with two threads each lane schedules its own
-    /// units' next evaluations while it runs (the worker here, the caller's lane
-    /// in `cal`), so that bookkeeping is not serial; a step takes from both.
-    lane_cal: super::calendar::Calendar,
+    /// The worker lanes' own calendars (lane k at k - 1): with several lanes
+    /// each schedules its own units' next evaluations while it runs (the last
+    /// lane, the caller's thread, in `cal`), so that bookkeeping is not serial;
+    /// a step takes from all of them.
+    lane_cals: Vec<super::calendar::Calendar>,
     opts: SimOptions,
     rng: Option<Rng>,
     elaborated: bool,
@@ -668,11 +736,20 @@ pub struct Sim {
     tracer: Option<Tracer>,
     /// This thread's evaluation results of the current step.
     out: LaneOut,
-    /// Due units of partitions 1 and 2 (two threads only).
-    lane_due: [Vec<(u32, bool)>; 2],
-    /// Steps handed to the worker in the current run (two threads only).
+    /// Due units of each lane (lane k at k - 1).
+    lane_due: Vec<Vec<(u32, bool)>>,
+    /// Steps handed to the workers in the current run.
     lane_seq: u64,
+    /// Lanes in use now (1: one thread).
+    lanes: usize,
+    /// The worker lanes handed the current step (kept for its allocation).
+    lane_started: Vec<usize>,
+    /// How units spread over the lanes, if the builder said.
+    plan: Option<LanePlan>,
     balance: Balance,
+    auto: AutoLanes,
+    /// Steps taken with each lane count (index: lanes - 1).
+    steps_by_lanes: Vec<u64>,
     /// Unit evaluations so far (due ones, not shadow ones).
     pub evals: u64,
     /// Steps (distinct times) processed so far.
@@ -690,6 +767,10 @@ impl Default for Sim {
 impl Sim {
     pub fn new(opts: SimOptions) -> Self {
         let rng = opts.shuffle_seed.map(Rng::new);
+        let opts = SimOptions {
+            threads: opts.threads.max(1),
+            ..opts
+        };
         Sim {
             clocks: Vec::new(),
             slots: Vec::new(),
@@ -705,17 +786,28 @@ impl Sim {
             now: 0,
             stepped: false,
             cal: super::calendar::Calendar::new(),
-            lane_cal: super::calendar::Calendar::new(),
+            lane_cals: (1..opts.threads.max(1))
+                .map(|_| super::calendar::Calendar::new())
+                .collect(),
             taken: Vec::new(),
-            opts,
+            opts: opts.clone(),
             rng,
             elaborated: false,
             due: Vec::new(),
             tracer: None,
             out: LaneOut::default(),
-            lane_due: [Vec::new(), Vec::new()],
+            lane_due: vec![Vec::new(); opts.threads.max(2)],
             lane_seq: 0,
+            lanes: if opts.auto_lanes {
+                1
+            } else {
+                opts.threads.max(1)
+            },
+            lane_started: Vec::new(),
+            plan: None,
             balance: Balance::default(),
+            auto: AutoLanes::new(opts.auto_lanes, opts.threads.max(1)),
+            steps_by_lanes: vec![0; opts.threads.max(1)],
             evals: 0,
             steps: 0,
             parallel_steps: 0,
@@ -734,7 +826,9 @@ impl Sim {
             )));
         }
         self.cal.add_domain(period_ps);
-        self.lane_cal.add_domain(period_ps);
+        for c in &mut self.lane_cals {
+            c.add_domain(period_ps);
+        }
         self.clocks.push(Clock {
             name: name.into(),
             period_ps,
@@ -802,14 +896,16 @@ impl Sim {
     }
 
     /// Puts a unit in evaluation partition 0 (the default: evaluated by the
-    /// caller's thread after the others), 1 or 2 (evaluated concurrently with the
-    /// other of the two when `threads` is 2). Links may join any partitions: each
-    /// end changes only its own half of a link.
+    /// caller's thread after the others) or 1..=N for N = `threads` (evaluated
+    /// concurrently with the other lanes; N on the caller's thread). Links may
+    /// join any partitions: each end changes only its own half of a link. A lane
+    /// plan ([`Sim::set_lane_plan`]) replaces these.
     pub fn set_part(&mut self, u: UnitId, part: u8) -> Result<(), SimError> {
-        if part > 2 {
+        let max = self.opts.threads.max(2);
+        if part as usize > max {
             return Err(SimError::Elaboration(format!(
-                "unit '{}' put in partition {part}; partitions are 0, 1 and 2",
-                self.slots[u.0 as usize].path
+                "unit '{}' put in partition {part}; with {} thread(s) the partitions are 0 to {max}",
+                self.slots[u.0 as usize].path, self.opts.threads
             )));
         }
         self.parts[u.0 as usize] = part;
@@ -817,9 +913,72 @@ impl Sim {
         Ok(())
     }
 
-    /// Whether a step may evaluate partitions 1 and 2 on two threads.
+    /// Spreads the units over the lanes by groups (a TM each, moved between
+    /// lanes together by load balancing, in order and evenly spread) and a
+    /// list of units for the first lane (a worker's); every other unit goes to
+    /// the last lane, the caller's thread. Re-applied whenever the lane count
+    /// changes (`SimOptions::auto_lanes`).
+    pub fn set_lane_plan(&mut self, groups: Vec<Vec<UnitId>>, first: Vec<UnitId>) {
+        self.plan = Some(LanePlan {
+            groups: groups
+                .into_iter()
+                .map(|g| g.into_iter().map(|u| u.0).collect())
+                .collect(),
+            first: first.into_iter().map(|u| u.0).collect(),
+        });
+        self.apply_plan();
+    }
+
+    /// Partitions from the lane plan for the current lane count.
+    fn apply_plan(&mut self) {
+        let Some(plan) = &self.plan else { return };
+        let l = if self.parallel() { self.lanes } else { 1 };
+        if l < 2 {
+            self.parts.iter_mut().for_each(|p| *p = 0);
+        } else {
+            self.parts.iter_mut().for_each(|p| *p = l as u8);
+            let n = plan.groups.len().max(1);
+            for (k, g) in plan.groups.iter().enumerate() {
+                let part = 1 + (k * l / n) as u8;
+                for &u in g {
+                    self.parts[u as usize] = part;
+                }
+            }
+            for &u in &plan.first {
+                self.parts[u as usize] = 1;
+            }
+        }
+        self.balance.lane_ns = vec![0; l.max(1)];
+        self.balance.steps = 0;
+        if !self.local.is_empty() {
+            self.relocal();
+        }
+    }
+
+    /// Whether a step may evaluate partitions on several threads.
     fn parallel(&self) -> bool {
         self.opts.threads >= 2 && self.opts.sleep && !self.opts.shadow
+    }
+
+    /// Lanes in use now (1 when the run is on one thread).
+    pub fn lanes(&self) -> usize {
+        if self.parallel() { self.lanes } else { 1 }
+    }
+
+    /// Steps taken so far with each lane count (index: lanes - 1).
+    pub fn steps_by_lanes(&self) -> &[u64] {
+        &self.steps_by_lanes
+    }
+
+    /// Times the automatic lane choice changed the count.
+    pub fn lane_switches(&self) -> u64 {
+        self.auto.switches
+    }
+
+    /// Tests: with `auto_lanes`, switch among the candidate lane counts every
+    /// `steps` steps instead of measuring (results must not change).
+    pub fn force_lane_switches(&mut self, steps: u64) {
+        self.auto.forced_every = Some(steps.max(1));
     }
 
     /// Binds every link to its producer and consumer and checks the netlist.
@@ -885,7 +1044,9 @@ impl Sim {
         self.now = 0;
         self.stepped = false;
         self.cal.clear();
-        self.lane_cal.clear();
+        for c in &mut self.lane_cals {
+            c.clear();
+        }
         self.evals = 0;
         self.steps = 0;
         self.parallel_steps = 0;
@@ -932,10 +1093,13 @@ impl Sim {
 
     /// Time of the next step, if any unit is scheduled.
     fn next_time(&mut self) -> Option<Time> {
-        let mut t = [self.cal.next_time(), self.lane_cal.next_time()]
-            .into_iter()
-            .flatten()
-            .min()?;
+        let mut t = self.lane_cals.iter().map(|c| c.next_time()).fold(
+            self.cal.next_time(),
+            |a, b| match (a, b) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            },
+        )?;
         let after = if self.stepped { self.now + 1 } else { self.now };
         let edge_after = |p: Time| after.div_ceil(p) * p;
         if !self.opts.sleep {
@@ -963,12 +1127,18 @@ impl Sim {
         if !self.parallel() || self.tracer.is_some() {
             return self.run_loop(limit, stop_when_idle, None);
         }
-        let worker = Worker::new();
+        let crew = Crew::new(self.opts.threads - 1);
         self.lane_seq = 0;
         std::thread::scope(|s| {
-            s.spawn(|| worker_loop(&worker));
-            let r = self.run_loop(limit, stop_when_idle, Some(&worker));
-            worker.go.store(QUIT, Ordering::Release);
+            let crew = &crew;
+            let handles: Vec<_> = (0..crew.workers.len())
+                .map(|k| s.spawn(move || crew.worker_loop(k)).thread().clone())
+                .collect();
+            crew.threads
+                .set(handles)
+                .expect("a run's workers are spawned once");
+            let r = self.run_loop(limit, stop_when_idle, Some(crew));
+            crew.quit();
             r
         })
     }
@@ -977,7 +1147,23 @@ impl Sim {
         &mut self,
         limit: Time,
         stop_when_idle: bool,
-        worker: Option<&Worker>,
+        crew: Option<&Crew>,
+    ) -> Result<RunEnd, SimError> {
+        if self.auto.on && crew.is_some() {
+            self.auto.since = Some(Instant::now());
+        }
+        let r = self.run_steps(limit, stop_when_idle, crew);
+        if let Some(t0) = self.auto.since.take() {
+            self.auto.phase_ns += t0.elapsed().as_nanos() as u64;
+        }
+        r
+    }
+
+    fn run_steps(
+        &mut self,
+        limit: Time,
+        stop_when_idle: bool,
+        crew: Option<&Crew>,
     ) -> Result<RunEnd, SimError> {
         loop {
             match self.next_time() {
@@ -995,8 +1181,89 @@ impl Sim {
                     }
                     return Ok(RunEnd::Limit);
                 }
-                Some(t) => self.step_at(t, worker)?,
+                Some(t) => {
+                    self.step_at(t, crew)?;
+                    if crew.is_some() {
+                        self.steps_by_lanes[self.lanes - 1] += 1;
+                        if self.auto.on {
+                            self.auto_tick();
+                        }
+                    }
+                }
             }
+        }
+    }
+
+    /// One step of the automatic lane choice: at the end of a phase, measure
+    /// it and go on to the next (see `AutoLanes`).
+    fn auto_tick(&mut self) {
+        let a = &mut self.auto;
+        let steps = self.steps - a.phase_steps;
+        if let Some(every) = a.forced_every {
+            if steps >= every {
+                a.phase_steps = self.steps;
+                let next = (a.chosen + 1) % a.candidates.len();
+                a.chosen = next;
+                a.switches += 1;
+                self.set_lanes(self.auto.candidates[next]);
+            }
+            return;
+        }
+        let Some(t0) = a.since else { return };
+        // Phases are measured in wall time (a probe of a much slower lane count
+        // must end after its time, not after a number of its slow steps); a
+        // look at the clock every 16 steps is free beside the steps.
+        if steps < lanes::PROBE_STEPS || !steps.is_multiple_of(16) {
+            return;
+        }
+        let now = Instant::now();
+        let ns = a.phase_ns + (now - t0).as_nanos() as u64;
+        let min_ns = match a.phase {
+            Phase::Run => lanes::PROBE.as_nanos() as u64 * a.epoch as u64,
+            _ => lanes::PROBE.as_nanos() as u64,
+        };
+        if ns < min_ns {
+            return;
+        }
+        let evals = (self.evals - a.phase_evals).max(1);
+        let per_eval = ns as f64 / evals as f64;
+        let next_lanes = match a.phase {
+            Phase::Run => {
+                a.phase = Phase::Base;
+                None
+            }
+            Phase::Base => {
+                a.base_ns = per_eval;
+                let k = a.neighbour();
+                a.phase = Phase::Probe(k);
+                Some(a.candidates[k])
+            }
+            Phase::Probe(k) => {
+                a.phase = Phase::Run;
+                if per_eval < a.base_ns * lanes::PROBE_MARGIN {
+                    a.chosen = k;
+                    a.epoch = lanes::EPOCH_MIN;
+                    a.switches += 1;
+                } else {
+                    a.epoch = (a.epoch * 2).min(lanes::EPOCH_MAX);
+                }
+                Some(a.candidates[a.chosen])
+            }
+        };
+        a.phase_steps = self.steps;
+        a.phase_evals = self.evals;
+        a.phase_ns = 0;
+        a.since = Some(now);
+        if let Some(l) = next_lanes {
+            self.set_lanes(l);
+        }
+    }
+
+    /// Changes the lane count between steps (with a lane plan).
+    fn set_lanes(&mut self, l: usize) {
+        if l != self.lanes && self.plan.is_some() {
+            self.lanes = l;
+            self.apply_plan();
         }
     }
 
@@ -1023,14 +1290,16 @@ impl Sim {
         }
     }
 
-    fn step_at(&mut self, t: Time, worker: Option<&Worker>) -> Result<(), SimError> {
+    fn step_at(&mut self, t: Time, crew: Option<&Crew>) -> Result<(), SimError> {
         self.now = t;
         self.stepped = true;
         self.steps += 1;
         // Units that are due (scheduled for t).
         self.due.clear();
         self.cal.take(t, &mut self.taken);
-        self.lane_cal.take(t, &mut self.taken);
+        for c in &mut self.lane_cals {
+            c.take(t, &mut self.taken);
+        }
         for &u in &self.taken {
             let e = &mut self.last_eval[u as usize];
             if *e != t {
@@ -1051,31 +1320,29 @@ impl Sim {
             rng.shuffle(&mut self.due);
         }
         let mut due = std::mem::take(&mut self.due);
-        if let Some(w) = worker {
-            // Partitions 1 and 2 on two threads, each unit committed by its thread
-            // right after its evaluation (see `eval_commit`); partition 0 after,
-            // below.
+        if let Some(crew) = crew
+            && self.lanes >= 2
+        {
+            // Partitions 1..=lanes on their threads, each unit committed by its
+            // thread right after its evaluation (see `eval_commit`); partition 0
+            // after, below.
             let parts = &self.parts;
-            let [l1, l2] = &mut self.lane_due;
-            l1.clear();
-            l2.clear();
+            let lane_due = &mut self.lane_due[..self.lanes];
+            lane_due.iter_mut().for_each(Vec::clear);
             due.retain(|&(u, d)| match parts[u as usize] {
-                1 => {
-                    l1.push((u, d));
+                0 => true,
+                p => {
+                    lane_due[p as usize - 1].push((u, d));
                     false
                 }
-                2 => {
-                    l2.push((u, d));
-                    false
-                }
-                _ => true,
             });
-            if !l1.is_empty() && !l2.is_empty() {
-                self.run_lanes(w, t)?;
+            let busy = lane_due.iter().filter(|l| !l.is_empty()).count();
+            if busy >= 2 {
+                self.run_lanes(crew, t)?;
             } else {
                 // Only one partition has work: no hand-over.
                 let mut l = std::mem::take(&mut self.lane_due);
-                for &(u, d) in l[0].iter().chain(&l[1]) {
+                for &(u, d) in l[..self.lanes].iter().flatten() {
                     self.eval_commit(u, d)?;
                 }
                 std::mem::swap(&mut l, &mut self.lane_due);
@@ -1135,9 +1402,10 @@ impl Sim {
         Ok(())
     }
 
-    /// Evaluates and commits the due units of partition 1 on the worker and those
-    /// of partition 2 on this thread, at the same time.
-    fn run_lanes(&mut self, w: &Worker, t: Time) -> Result<(), SimError> {
+    /// Evaluates and commits the due units of the worker lanes on their
+    /// workers and those of the last lane on this thread, at the same time.
+    fn run_lanes(&mut self, crew: &Crew, t: Time) -> Result<(), SimError> {
+        let l = self.lanes;
         let net = Net::of(
             &mut self.links,
             &mut self.heads,
@@ -1151,49 +1419,54 @@ impl Sim {
             local: self.local.as_ptr(),
             sched: self.sched.as_mut_ptr(),
             parts: self.parts.as_ptr(),
-            cals: [&mut self.lane_cal, &mut self.cal],
+            main_cal: &mut self.cal,
+            lane_cals: self.lane_cals.as_mut_ptr(),
+            lanes: l as u8,
         };
-        {
-            // SAFETY: the worker is waiting for `go` and does not touch the job.
-            let job = unsafe { &mut *w.job.get() };
-            job.now = t;
-            job.lanes = lanes;
-            std::mem::swap(&mut job.due, &mut self.lane_due[0]);
-        }
         self.lane_seq += 1;
         self.parallel_steps += 1;
-        w.go.store(self.lane_seq, Ordering::Release);
-        // From here until `done`, this thread reaches slots and links only through
-        // `lanes`, and only those of partition 2.
-        // SAFETY: partition 2 is this thread's; the worker takes partition 1.
-        let t0 = std::time::Instant::now();
-        let result = unsafe { run_lane(lanes, 2, &self.lane_due[1], t, &mut self.out) };
+        let seq = self.lane_seq;
+        // Worker k evaluates lane k + 1.
+        let mut started = std::mem::take(&mut self.lane_started);
+        started.clear();
+        for k in 0..l - 1 {
+            if self.lane_due[k].is_empty() {
+                continue;
+            }
+            {
+                // SAFETY: the worker is waiting for `go` and does not touch the job.
+                let job = unsafe { &mut *crew.workers[k].job.get() };
+                job.now = t;
+                job.part = (k + 1) as u8;
+                job.lanes = lanes;
+                std::mem::swap(&mut job.due, &mut self.lane_due[k]);
+            }
+            crew.start(k, seq);
+            started.push(k);
+        }
+        // From here until every `done`, this thread reaches slots and links only
+        // through `lanes`, and only those of the last lane.
+        let t0 = Instant::now();
+        // SAFETY: the last lane is this thread's; each worker takes its own.
+        let mut result =
+            unsafe { run_lane(lanes, l as u8, &self.lane_due[l - 1], t, &mut self.out) };
         let main_ns = t0.elapsed().as_nanos() as u64;
-        wait_for(&w.done, self.lane_seq);
-        // SAFETY: the worker is done with this step and waits for the next `go`.
-        let job = unsafe { &mut *w.job.get() };
-        std::mem::swap(&mut job.due, &mut self.lane_due[0]);
-        self.out.append(&mut job.out);
-        self.balance.lane_ns[0] += job.lane_ns;
-        self.balance.lane_ns[1] += main_ns;
+        for &k in &started {
+            crew.wait(k, seq);
+            // SAFETY: the worker is done with this step and waits for the next `go`.
+            let job = unsafe { &mut *crew.workers[k].job.get() };
+            std::mem::swap(&mut job.due, &mut self.lane_due[k]);
+            self.out.append(&mut job.out);
+            self.balance.lane_ns[k] += job.lane_ns;
+            result = result.and(std::mem::replace(&mut job.result, Ok(())));
+        }
+        self.lane_started = started;
+        self.balance.lane_ns[l - 1] += main_ns;
         self.balance.steps += 1;
         if self.balance.steps >= self.balance.window {
             self.rebalance();
         }
-        result.and(std::mem::replace(&mut job.result, Ok(())))
-    }
-
-    /// Declares groups of units that move between partitions 1 and 2 together
-    /// (a TM each): with two threads, every `BALANCE_STEPS` parallel steps the
-    /// group of the slower thread's partition with the highest index (1) or
-    /// lowest (2) moves to the other, when the threads' times differ by more than
-    /// a group's share. Wall-clock driven, and so not reproducible in speed, but
-    /// results do not depend on the partition (see `set_part`).
-    pub fn set_groups(&mut self, groups: Vec<Vec<UnitId>>) {
-        self.balance.groups = groups
-            .into_iter()
-            .map(|g| g.into_iter().map(|u| u.0).collect())
-            .collect();
+        result
     }
 
     /// Load balancing every `window` parallel steps (default `BALANCE_STEPS`);
@@ -1204,43 +1477,59 @@ impl Sim {
         self.balance.always_move = always_move;
     }
 
-    /// Groups moved between the partitions so far (see `set_groups`).
+    /// Groups moved between the partitions so far (see `set_lane_plan`).
     pub fn balance_moves(&self) -> u64 {
         self.balance.moves
     }
 
+    /// Moves one group between two neighbouring lanes: every `BALANCE_STEPS`
+    /// parallel steps, the boundary group of the slower lane of the pair whose
+    /// times differ most goes to the other, when the gap exceeds a group's
+    /// share. Wall-clock driven, and so not reproducible in speed, but results
+    /// do not depend on the partition (see `set_part`).
     fn rebalance(&mut self) {
-        let b = &mut self.balance;
-        let [w, m] = std::mem::take(&mut b.lane_ns);
-        b.steps = 0;
-        let part_of = |g: &Vec<u32>| g.first().map(|&u| self.parts[u as usize]);
-        let n1 = b.groups.iter().filter(|g| part_of(g) == Some(1)).count();
-        let n2 = b.groups.iter().filter(|g| part_of(g) == Some(2)).count();
-        let (from, to, n) = if b.always_move {
-            if n1 >= n2 { (1, 2, n1) } else { (2, 1, n2) }
-        } else {
-            // Move when the gap exceeds the cost of one group of the slower side.
-            let (from, to, n, slow, fast) = if w > m {
-                (1, 2, n1, w, m)
-            } else {
-                (2, 1, n2, m, w)
-            };
-            if (slow - fast) as f64 <= slow as f64 / n.max(1) as f64 {
-                return;
-            }
-            (from, to, n)
-        };
-        if n < 2 {
+        let l = self.lanes;
+        let ns = std::mem::replace(&mut self.balance.lane_ns, vec![0; l]);
+        self.balance.steps = 0;
+        let Some(plan) = &self.plan else { return };
+        if l < 2 || ns.len() != l {
             return;
         }
-        // The group at the boundary between the partitions (TMs stay contiguous).
-        let pick = if from == 1 {
-            b.groups.iter().rposition(|g| part_of(g) == Some(1))
+        let parts = &self.parts;
+        let part_of = |g: &Vec<u32>| g.first().map(|&u| parts[u as usize]);
+        let count = |p: u8| plan.groups.iter().filter(|g| part_of(g) == Some(p)).count();
+        // Lane k (1-based) against lane k + 1.
+        let (from, to) = if self.balance.always_move {
+            let k = 1 + (self.balance.moves as usize) % (l - 1);
+            let (a, b) = (k as u8, k as u8 + 1);
+            if count(a) >= count(b) { (a, b) } else { (b, a) }
         } else {
-            b.groups.iter().position(|g| part_of(g) == Some(2))
+            let Some(k) = (1..l).max_by_key(|&k| ns[k - 1].abs_diff(ns[k])) else {
+                return;
+            };
+            let (a, b) = (k as u8, k as u8 + 1);
+            let (from, to, slow, fast) = if ns[k - 1] > ns[k] {
+                (a, b, ns[k - 1], ns[k])
+            } else {
+                (b, a, ns[k], ns[k - 1])
+            };
+            // Move when the gap exceeds the cost of one group of the slower side.
+            if (slow - fast) as f64 <= slow as f64 / count(from).max(1) as f64 {
+                return;
+            }
+            (from, to)
+        };
+        if count(from) < 2 {
+            return;
+        }
+        // The group at the boundary between the two lanes (TMs stay contiguous).
+        let pick = if from < to {
+            plan.groups.iter().rposition(|g| part_of(g) == Some(from))
+        } else {
+            plan.groups.iter().position(|g| part_of(g) == Some(from))
         };
         let Some(k) = pick else { return };
-        for &u in &b.groups[k] {
+        for &u in &plan.groups[k].clone() {
             self.parts[u as usize] = to;
         }
         self.balance.moves += 1;
@@ -1544,143 +1833,6 @@ fn eval_slot(
     Ok(())
 }
 
-/// `Worker::go` value that ends the worker.
-const QUIT: u64 = u64::MAX;
-/// `Worker::done` value of a worker that panicked.
-const PANICKED: u64 = u64::MAX;
-
-/// The hand-over between the caller's thread and the worker of a two-thread run:
-/// a spin barrier, as a step is a few microseconds (too short to sleep on).
-struct Worker {
-    /// The step the worker is to run next (`QUIT`: stop).
-    go: AtomicU64,
-    /// The last step the worker finished (`PANICKED`: it panicked).
-    done: AtomicU64,
-    job: UnsafeCell<Job>,
-}
-
-/// One step's work for the worker and what it produced.
-struct Job {
-    now: Time,
-    lanes: Lanes,
-    due: Vec<(u32, bool)>,
-    out: LaneOut,
-    result: Result<(), SimError>,
-    /// Wall time of the worker's part of the step (load balancing only).
-    lane_ns: u64,
-}
-
-// SAFETY: `job` is accessed by the main thread only while the worker waits for `go`
-// and by the worker only between `go` and `done` (release/acquire on the two
-// atomics hand it over); the slots and links it points to are reached by the worker
-// only for units of partition 1 and their links (see `Net`), and units and
-// payloads are `Send`.
-unsafe impl Sync for Worker {}
-
-impl Worker {
-    fn new() -> Worker {
-        Worker {
-            go: AtomicU64::new(0),
-            done: AtomicU64::new(0),
-            job: UnsafeCell::new(Job {
-                now: 0,
-                lanes: Lanes {
-                    slots: std::ptr::null_mut(),
-                    n_slots: 0,
-                    net: Net {
-                        links: std::ptr::null_mut::<Box<dyn LinkDyn>>(),
-                        heads: std::ptr::null_mut(),
-                        space: std::ptr::null_mut(),
-                        nonempty: std::ptr::null_mut(),
-                        len: 0,
-                    },
-                    local: std::ptr::null(),
-                    sched: std::ptr::null_mut(),
-                    parts: std::ptr::null(),
-                    cals: [std::ptr::null_mut(); 2],
-                },
-                due: Vec::new(),
-                out: LaneOut::default(),
-                result: Ok(()),
-                lane_ns: 0,
-            }),
-        }
-    }
-}
-
-/// Spins until `done` holds, yielding the core after a while (so that an
-/// oversubscribed machine, such as parallel tests, still makes progress).
-fn spin_until(mut done: impl FnMut() -> bool) {
-    let mut spins = 0u32;
-    while !done() {
-        if spins < 1 << 12 {
-            spins += 1;
-            std::hint::spin_loop();
-        } else {
-            std::thread::yield_now();
-        }
-    }
-}
-
-/// Waits until `a` holds `v` (panics if the worker panicked).
-fn wait_for(a: &AtomicU64, v: u64) {
-    spin_until(|| {
-        let x = a.load(Ordering::Acquire);
-        if x == PANICKED {
-            panic!("the simulator's worker thread panicked (see its message above)");
-        }
-        x == v
-    });
-}
-
-fn worker_loop(w: &Worker) {
-    /// Tells the main thread if this thread unwinds, so that it does not wait forever.
-    struct Alarm<'a>(&'a AtomicU64);
-    impl Drop for Alarm<'_> {
-        fn drop(&mut self) {
-            if std::thread::panicking() {
-                self.0.store(PANICKED, Ordering::Release);
-            }
-        }
-    }
-    let _alarm = Alarm(&w.done);
-    let mut last = 0;
-    loop {
-        let mut go = last;
-        spin_until(|| {
-            go = w.go.load(Ordering::Acquire);
-            go != last
-        });
-        if go == QUIT {
-            return;
-        }
-        last = go;
-        // SAFETY: the main thread handed the job over with `go` and waits for `done`.
-        let job = unsafe { &mut *w.job.get() };
-        // SAFETY: partition 1 is the worker's; the main thread takes partition 2.
-        let t0 = std::time::Instant::now();
-        job.result = unsafe { run_lane(job.lanes, 1, &job.due, job.now, &mut job.out) };
-        job.lane_ns = t0.elapsed().as_nanos() as u64;
-        w.done.store(last, Ordering::Release);
-    }
-}
-
-/// The simulator's arrays as the two evaluation threads reach them.
-#[derive(Clone, Copy)]
-struct Lanes {
-    slots: *mut Slot,
-    n_slots: usize,
-    net: Net,
-    local: *const u8,
-    /// Every unit's scheduling record: a lane reaches those of its own units only.
-    sched: *mut Sched,
-    /// Every unit's partition (read only while the lanes run).
-    parts: *const u8,
-    /// The calendar each lane schedules its own units in (partition 1: the
-    /// worker's `lane_cal`, 2: `cal`).
-    cals: [*mut super::calendar::Calendar; 2],
-}
-
 /// Scheduling unit `u`, this record's unit, in a calendar. Every wake-up is kept
 /// (a unit may be woken by a link before the time it asked for, and must still
 /// run at that time); duplicates of one time are skipped.
@@ -1725,110 +1877,6 @@ impl Sched {
             Next::Idle => return,
         };
         self.at_cycle(cal, u, c);
-    }
-}
-
-/// Evaluates and commits `due`, units of partition `part`, then takes the clock
-/// edge of the links whose both ends are in `part` (the others are left in
-/// `out.touched` for the edge after both threads), and schedules the next
-/// evaluations of its own units in its calendar (`Lanes::cals`): those its units
-/// asked for, and the wake-ups that its pushes and pops sent to them (a wake-up
-/// of another partition's unit is left in `out.wakes` for after both threads).
-/// SAFETY: no other thread reaches a unit of `part`, its scheduling record, its
-/// calendar or a link local to it, and every unit in `due` is in `part`.
-unsafe fn run_lane(
-    l: Lanes,
-    part: u8,
-    due: &[(u32, bool)],
-    t: Time,
-    out: &mut LaneOut,
-) -> Result<(), SimError> {
-    for &(u, d) in due {
-        assert!((u as usize) < l.n_slots);
-        // SAFETY: in bounds; a unit of `part` (the function's contract).
-        let slot = unsafe { &mut *l.slots.add(u as usize) };
-        eval_commit_slot(slot, u, t, l.net, out, d, false)?;
-    }
-    let mut net = l.net;
-    let mut k = 0;
-    while k < out.touched.len() {
-        let i = out.touched[k].0 as usize;
-        assert!(i < net.len);
-        // SAFETY: in bounds; `local` has an entry per link.
-        if unsafe { *l.local.add(i) } != part {
-            k += 1;
-            continue;
-        }
-        out.touched.swap_remove(k);
-        // SAFETY: both ends of the link are in `part`, evaluated by this thread.
-        let link = unsafe { net.link_mut(i) };
-        // Listed by both of its ends: edge it once.
-        if !link.touched() {
-            continue;
-        }
-        let e = link.edge(&mut out.violations);
-        net.set_head(i, e.head);
-        net.set_space(i, e.space);
-        if e.wake_producer {
-            let (p, _) = link.ends();
-            out.wakes
-                .push((p.expect("elaborated link has a producer"), t + 1));
-        }
-    }
-    // SAFETY: this lane's calendar is its own (the function's contract).
-    let cal = unsafe { &mut *l.cals[part as usize - 1] };
-    for &(u, n, cycle) in &out.nexts {
-        assert!((u as usize) < l.n_slots);
-        // SAFETY: in bounds; `u` was evaluated here, so it is in `part`.
-        let (s, path) = unsafe {
-            (
-                &mut *l.sched.add(u as usize),
-                &(*l.slots.add(u as usize)).path,
-            )
-        };
-        s.next(cal, u, n, cycle, path);
-    }
-    out.nexts.clear();
-    out.wakes.retain(|&(u, w)| {
-        let u = u.0;
-        assert!((u as usize) < l.n_slots);
-        // SAFETY: in bounds; partitions change only between steps.
-        let p = unsafe { *l.parts.add(u as usize) };
-        if p != part {
-            return true;
-        }
-        // SAFETY: a unit of `part`, whose record only this lane reaches.
-        unsafe { &mut *l.sched.add(u as usize) }.at_time(cal, u, w);
-        false
-    });
-    Ok(())
-}
-
-/// Parallel steps between two load-balancing decisions (`Sim::set_groups`).
-const BALANCE_STEPS: u64 = 4096;
-
-/// Load balancing of the two threads (`Sim::set_groups`).
-struct Balance {
-    groups: Vec<Vec<u32>>,
-    window: u64,
-    always_move: bool,
-    /// Wall time of the worker's and this thread's partitions since the last decision.
-    lane_ns: [u64; 2],
-    steps: u64,
-    /// Groups moved so far.
-    moves: u64,
-}
-
-impl Default for Balance {
-    fn default() -> Self {
-        Balance {
-            groups: Vec::new(),
-            window: BALANCE_STEPS,
-            always_move: false,
-            lane_ns: [0; 2],
-            steps: 0,
-            moves: 0,
-        }
     }
 }
 
