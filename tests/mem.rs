@@ -602,19 +602,26 @@ mod dramsim3 {
         small.ctrl.write_low = 2;
         small.ctrl.cmd_queue = 2;
         for cfg in [&m, &small] {
-            for (kind, wf, interval) in [
-                ("random", 0.3, 0),
-                ("mixed", 0.0, 0),
-                ("stream", 0.5, 0),
-                ("random", 0.3, 900),
+            // The last: bursts of 40 requests 4500 cycles apart (> tREFI).
+            for (kind, wf, n, interval) in [
+                ("random", 0.3, 2000, 0),
+                ("mixed", 0.0, 2000, 0),
+                ("stream", 0.5, 2000, 0),
+                ("random", 0.3, 400, 0),
             ] {
-                let reqs = generate(kind, 2000, 5, &MemCfg::paper(), interval, wf).unwrap();
+                let mut reqs = generate(kind, n, 5, &MemCfg::paper(), interval, wf).unwrap();
+                if n == 400 {
+                    for (i, r) in reqs.iter_mut().enumerate() {
+                        r.cycle = (i as u64 / 40) * 4500;
+                    }
+                }
                 let a = checked(cfg, tck, &reqs, false);
                 let b = checked(cfg, tck, &reqs, true);
                 assert!(a.report == b.report, "{kind}: reports differ");
                 assert!(a.commands == b.commands, "{kind}: commands differ");
                 assert_eq!(a.completions, b.completions, "{kind}");
-                assert_eq!(a.report.total.requests(), 2000);
+                assert_eq!(a.report.total.requests(), n);
+                assert!(a.report.total.refs > 0);
             }
         }
     }
