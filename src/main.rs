@@ -324,7 +324,8 @@ enum Cmd {
         #[arg(long)]
         trace: Option<PathBuf>,
         /// Memory preset: paper (16 x 32-bit GDDR5, the default) or dramsim3-gddr5
-        /// (DRAMsim3's GDDR5_8Gb_x32.ini). Without it, the config's [mem] is used.
+        /// (DRAMsim3 running its GDDR5_8Gb_x32.ini: its device and its controller
+        /// rules). Without it, the config's [mem] is used.
         #[arg(long)]
         preset: Option<String>,
         /// Energy preset: paper, physical or dramsim3 (default: the preset's own).
@@ -1042,6 +1043,7 @@ fn dram(mut config: Config, a: DramArgs) -> Result<(), String> {
     let opts = replay::ReplayOptions {
         check: a.check,
         preset,
+        ..Default::default()
     };
     let t0 = std::time::Instant::now();
     let r = replay::replay(m, config.clocks.dram_ps, &reqs, &opts)?;

@@ -38,6 +38,7 @@ impl MemTb {
         // Only the memory system and its clock are used (a device preset may be
         // swapped in without a matching DRAM image, `memory`).
         cfg.mem.validate()?;
+        MemCtrl::supports(&cfg.mem)?;
         let m = cfg.mem.clone();
         let tck = cfg.clocks.dram_ps;
         let mut sim = Sim::new(opts);

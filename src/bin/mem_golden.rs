@@ -1,10 +1,10 @@
 //! Equivalence evidence for changes to the memory controller's speed: prints the
 //! replay report and FNV hashes of every command and completion for fixed traces
 //! (random, stream, mixed, writes, throttled) on the paper and DRAMsim3 presets,
-//! tiny queues with a 2-entry response buffer, 16 banks in one group, and the
-//! flat mapping. Run it before and after a change and diff the outputs:
+//! tiny queues with a 2-entry response buffer, FR-FCFS on 16 banks in one group,
+//! and the flat mapping. Run it before and after a change and diff the outputs:
 //! `cargo run --release --bin mem_golden [requests] > before.txt`.
-use dualstream::mem::config::MemCfg;
+use dualstream::mem::config::{CtrlPolicy, MemCfg};
 use dualstream::mem::replay::{ReplayOptions, replay};
 use dualstream::mem::trace::generate;
 
@@ -29,11 +29,16 @@ fn main() {
         s.ctrl.write_queue = 12;
         s.ctrl.write_high = 8;
         s.ctrl.write_low = 3;
+        if s.ctrl.policy == CtrlPolicy::Dramsim3 {
+            // DRAMsim3 drains a full write buffer; 2-deep bank queues.
+            s.ctrl.write_high = s.ctrl.write_queue;
+            s.ctrl.cmd_queue = 2;
+        }
         cfgs.push((format!("{p}-small"), s, t));
     }
+    // FR-FCFS on DRAMsim3's device: 16 banks in one group.
     let (mut f, t) = MemCfg::preset("dramsim3-gddr5").unwrap();
-    f.geometry.bank_groups = 1;
-    f.geometry.banks_per_group = 16;
+    f.ctrl.policy = CtrlPolicy::Frfcfs;
     cfgs.push(("dramsim3-flat".into(), f, t));
     let mut m1 = MemCfg::paper();
     m1.mapping = "row:bank:channel:column".into();
@@ -56,6 +61,7 @@ fn main() {
                 &ReplayOptions {
                     check: true,
                     preset: name.clone(),
+                    ..ReplayOptions::default()
                 },
             )
             .unwrap();

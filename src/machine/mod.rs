@@ -601,6 +601,7 @@ impl Chip {
         let mut dram = None;
         if ch.memory.model == config::MemoryModel::Gddr5 {
             let m = &cfg.mem;
+            MemCtrl::supports(m)?;
             let dclk = sim
                 .clock("dram", cfg.clocks.dram_ps)
                 .map_err(|e| e.to_string())?;

@@ -29,6 +29,7 @@ pub fn run(scale: f64) -> Result<Vec<BenchRow>, String> {
             let opts = ReplayOptions {
                 check: false,
                 preset: preset.into(),
+                ..ReplayOptions::default()
             };
             let t0 = Instant::now();
             let r = replay(&m, tck, &reqs, &opts)?;

@@ -333,22 +333,46 @@ impl TimingCfg {
     }
 }
 
+/// How a channel controller queues and schedules.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CtrlPolicy {
+    /// Read and write queues scheduled FR-FCFS with write drain between
+    /// watermarks (`mem::ctrl`; the chip's `mem_ctrl` unit).
+    Frfcfs,
+    /// DRAMsim3's controller (`mem::dramsim3`): transaction queues feeding
+    /// per-bank command queues served round robin, writes acknowledged when the
+    /// write buffer takes them. Trace replay only (`dualstream dram`).
+    Dramsim3,
+}
+
 /// Controller queues and policies.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CtrlCfg {
+    /// `frfcfs` (the default) or `dramsim3`.
+    pub policy: CtrlPolicy,
     /// Read queue entries per channel: 64, GPGPU-Sim's FR-FCFS scheduler queue
-    /// (HWREF §5.2).
+    /// (HWREF §5.2). `dramsim3`: the read transaction queue (its
+    /// `trans_queue_size`, 32).
     pub read_queue: u32,
     /// Write queue entries per channel: 96, USIMM's GDDR5 configs (HWREF §5.2).
+    /// `dramsim3`: the write buffer (`trans_queue_size`, 32).
     pub write_queue: u32,
     /// Start draining writes at this many queued writes: 40 (USIMM, HWREF §5.2).
+    /// `dramsim3`: a full write buffer (= write_queue).
     pub write_high: u32,
-    /// Stop draining at this many: 20 (USIMM, HWREF §5.2).
+    /// Stop draining at this many: 20 (USIMM, HWREF §5.2). `dramsim3`: also drain
+    /// when more than this many writes wait and every command queue is empty
+    /// (DRAMsim3's constant 8); a drain moves the writes present at its start.
     pub write_low: u32,
+    /// `dramsim3` only: commands per bank queue (its `cmd_queue_size`, 8, with
+    /// `queue_structure = PER_BANK`).
+    pub cmd_queue: u32,
     /// Completed requests waiting for the response port, including reads whose
     /// data is on the bus. A request's last column command issues only when a slot
     /// is free. 32 covers CL + burst at full rate (13 lines) twice; no source.
+    /// `dramsim3` has no such limit (its return queue is unbounded).
     pub resp_buffer: u32,
     /// Request link into a channel controller.
     pub req_link: LinkCfg,
@@ -359,10 +383,12 @@ pub struct CtrlCfg {
 impl Default for CtrlCfg {
     fn default() -> Self {
         CtrlCfg {
+            policy: CtrlPolicy::Frfcfs,
             read_queue: 64,
             write_queue: 96,
             write_high: 40,
             write_low: 20,
+            cmd_queue: 8,
             resp_buffer: 32,
             req_link: LinkCfg::default(),
             resp_link: LinkCfg::default(),
@@ -383,6 +409,20 @@ impl CtrlCfg {
                 "mem.ctrl: queues above 4096 entries are not a buildable FR-FCFS CAM; lower them"
                     .into(),
             );
+        }
+        if self.policy == CtrlPolicy::Dramsim3 {
+            if self.cmd_queue == 0 || self.cmd_queue > 4096 {
+                return Err(format!(
+                    "mem.ctrl.cmd_queue = {}: a bank's command queue needs 1 to 4096 entries (DRAMsim3: 8)",
+                    self.cmd_queue
+                ));
+            }
+            if self.write_high != self.write_queue {
+                return Err(format!(
+                    "mem.ctrl: policy dramsim3 drains writes when the write buffer is full, so write_high = {} must equal write_queue = {}",
+                    self.write_high, self.write_queue
+                ));
+            }
         }
         if self.write_low >= self.write_high || self.write_high > self.write_queue {
             return Err(format!(
@@ -550,19 +590,23 @@ impl MemCfg {
         MemCfg::default()
     }
 
-    /// Mirrors DRAMsim3's `configs/GDDR5_8Gb_x32.ini` (HWREF §2.1 B): one 128-bit
-    /// channel (4 x32 devices), 4 bank groups x 4 banks, 16384 rows, 128 columns
-    /// of BL8 (128 B per column command, 16 KB row), mapping `rochrababgco`.
-    /// Use with `clocks.dram_ps = 667`. DRAMsim3 reads tRTP from key `tRTP`
-    /// (default 5, the ini's tRTP_L/S are ignored) and sets tRC = tRAS + tRP.
-    /// The ini's `bankgroup_enable = false` folds the 16 banks into one group
-    /// (tCCD_L, tRRD_L and tWTR_L then apply between all banks); to reproduce
-    /// that, set bank_groups = 1 and banks_per_group = 16.
+    /// Mirrors DRAMsim3's `configs/GDDR5_8Gb_x32.ini` run by DRAMsim3 (HWREF §2.1
+    /// B): one 128-bit channel (4 x32 devices), 16384 rows, 128 columns of BL8
+    /// (128 B per column command, 16 KB row), mapping `rochrababgco`, and
+    /// DRAMsim3's controller (`policy = "dramsim3"`, its default queues:
+    /// `trans_queue_size = 32`, `cmd_queue_size = 8`, `PER_BANK`). Use with
+    /// `clocks.dram_ps = 667`.
+    ///
+    /// As DRAMsim3 reads the ini: `bankgroup_enable = false` folds the 4 x 4
+    /// banks into one group of 16, and with one group DRAMsim3 applies tCCD_S,
+    /// tRRD_S and tWTR_S between all banks, so tCCD_L = tCCD_S = 2 here (the ini's
+    /// tCCD_L = 3 is never used); tRTP comes from key `tRTP` (default 5, the
+    /// ini's tRTP_L/S are ignored) and tRC = tRAS + tRP.
     pub fn dramsim3_gddr5() -> Self {
         let geometry = GeometryCfg {
             channels: 1,
-            bank_groups: 4,
-            banks_per_group: 4,
+            bank_groups: 1,
+            banks_per_group: 16,
             rows: 16384,
             columns: 128,
             bus_bits: 128,
@@ -582,7 +626,7 @@ impl MemCfg {
                 ras: 56,
                 rc: 80,
                 ccd_s: 2,
-                ccd_l: 3,
+                ccd_l: 2,
                 rrd_s: 10,
                 rrd_l: 10,
                 faw: 40,
@@ -597,10 +641,13 @@ impl MemCfg {
                 rfc: 74,
             },
             mapping: "row:channel:bank:bankgroup:column".into(),
-            // DRAMsim3 GDDR5: transaction queue 32 (HWREF §5.2); its write buffer
-            // default is 16 but it drains writes differently, so USIMM's marks stay.
             ctrl: CtrlCfg {
+                policy: CtrlPolicy::Dramsim3,
                 read_queue: 32,
+                write_queue: 32,
+                write_high: 32,
+                write_low: 8,
+                cmd_queue: 8,
                 ..CtrlCfg::default()
             },
             energy,
@@ -629,6 +676,15 @@ impl MemCfg {
             return Err(format!(
                 "mem.ctrl.resp_link.delay = {} exceeds CWL = {}; the response register would be loaded before the data ends, so use a delay <= CWL",
                 self.ctrl.resp_link.delay, self.timing.cwl
+            ));
+        }
+        if self.ctrl.policy == CtrlPolicy::Dramsim3 && self.geometry.bursts_per_line() != 1 {
+            return Err(format!(
+                "mem.ctrl.policy = \"dramsim3\": DRAMsim3 moves one burst per request, but a {} B line is {} bursts of {} B; set mem.geometry.line_bytes = {} or use policy \"frfcfs\"",
+                self.geometry.line_bytes,
+                self.geometry.bursts_per_line(),
+                self.geometry.burst_bytes(),
+                self.geometry.burst_bytes()
             ));
         }
         if self.geometry.banks() > 64 {

@@ -6,6 +6,9 @@
 //! - `timing`: the scheduler's earliest-legal-time state per channel;
 //! - `ctrl`: one channel's controller (FR-FCFS, open page, write drain with
 //!   watermarks, refresh), stepped by events; the `mem_ctrl` unit wraps it;
+//! - `dramsim3`: one channel's controller under DRAMsim3's rules (transaction
+//!   queues, per-bank command queues, writes acknowledged when buffered), for
+//!   the `dramsim3-gddr5` preset's trace replay;
 //! - `checker`: an independent timing checker over the recorded command log;
 //! - `energy`, `stats`: Micron-equation energy and the statistics report;
 //! - `trace`, `replay`: DRAMsim3 trace format, generators, and the in-order replay.
@@ -14,6 +17,7 @@ pub mod bench;
 pub mod checker;
 pub mod config;
 pub mod ctrl;
+pub mod dramsim3;
 pub mod energy;
 pub mod map;
 pub mod replay;

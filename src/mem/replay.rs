@@ -3,11 +3,13 @@
 //! cycle; one that its channel cannot accept blocks those behind it. The loop
 //! jumps from event to event (a channel's next legal command, a response, the
 //! next request), calling the same `ChannelCtrl` code as the `mem_ctrl` unit in
-//! the same order (deliver responses, schedule, accept).
+//! the same order (deliver responses, schedule, accept). With `mem.ctrl.policy =
+//! "dramsim3"` the channels are `Dramsim3Ctrl`s instead.
 
 use super::checker;
-use super::config::MemCfg;
+use super::config::{CtrlPolicy, MemCfg};
 use super::ctrl::ChannelCtrl;
+use super::dramsim3::Dramsim3Ctrl;
 use super::map::AddrMap;
 use super::stats::MemReport;
 use super::trace::TraceReq;
@@ -20,7 +22,73 @@ pub struct ReplayOptions {
     pub check: bool,
     /// Name of the memory preset, for the report.
     pub preset: String,
+    /// `dramsim3` policy: evaluate every cycle instead of sleeping until the
+    /// next event (a check; the outcome must be the same).
+    pub every_cycle: bool,
 }
+
+/// What the replay asks of a channel controller.
+trait Channel: Clone {
+    fn create(cfg: &MemCfg, tck_ps: u64, channel: u32, opts: &ReplayOptions) -> Self;
+    fn pop_response(&mut self, now: u64, ready_by: u64) -> Option<super::MemResp>;
+    fn is_idle(&self) -> bool;
+    fn advance_to(&mut self, c: u64);
+    fn step(&mut self, c: u64);
+    fn can_accept(&self, write: bool) -> bool;
+    fn accept(&mut self, c: u64, req: MemReq);
+    fn next_event(&self) -> u64;
+    fn next_response(&self) -> Option<u64>;
+    fn stats_at(&self, end: u64) -> super::stats::ChannelStats;
+    fn commands_until(&self, end: u64) -> Vec<super::Command>;
+}
+
+macro_rules! channel_impl {
+    ($t:ty, $this:ident, $opts:ident, $setup:block) => {
+        impl Channel for $t {
+            fn create(cfg: &MemCfg, tck_ps: u64, channel: u32, $opts: &ReplayOptions) -> Self {
+                let mut $this = <$t>::new(cfg, tck_ps, channel);
+                $this.record_commands($opts.check);
+                $setup
+                $this
+            }
+            fn pop_response(&mut self, now: u64, ready_by: u64) -> Option<super::MemResp> {
+                <$t>::pop_response(self, now, ready_by)
+            }
+            fn is_idle(&self) -> bool {
+                <$t>::is_idle(self)
+            }
+            fn advance_to(&mut self, c: u64) {
+                <$t>::advance_to(self, c)
+            }
+            fn step(&mut self, c: u64) {
+                <$t>::step(self, c)
+            }
+            fn can_accept(&self, write: bool) -> bool {
+                <$t>::can_accept(self, write)
+            }
+            fn accept(&mut self, c: u64, req: MemReq) {
+                <$t>::accept(self, c, req)
+            }
+            fn next_event(&self) -> u64 {
+                <$t>::next_event(self)
+            }
+            fn next_response(&self) -> Option<u64> {
+                <$t>::next_response(self)
+            }
+            fn stats_at(&self, end: u64) -> super::stats::ChannelStats {
+                <$t>::stats_at(self, end)
+            }
+            fn commands_until(&self, end: u64) -> Vec<super::Command> {
+                <$t>::commands_until(self, end)
+            }
+        }
+    };
+}
+
+channel_impl!(ChannelCtrl, me, _opts, {});
+channel_impl!(Dramsim3Ctrl, me, opts, {
+    me.set_every_cycle(opts.every_cycle);
+});
 
 /// The result of a replay: the report and, if recorded, each channel's commands.
 pub struct Replayed {
@@ -38,12 +106,21 @@ pub fn replay(
     opts: &ReplayOptions,
 ) -> Result<Replayed, String> {
     cfg.validate()?;
+    match cfg.ctrl.policy {
+        CtrlPolicy::Frfcfs => run::<ChannelCtrl>(cfg, tck_ps, reqs, opts),
+        CtrlPolicy::Dramsim3 => run::<Dramsim3Ctrl>(cfg, tck_ps, reqs, opts),
+    }
+}
+
+fn run<C: Channel>(
+    cfg: &MemCfg,
+    tck_ps: u64,
+    reqs: &[TraceReq],
+    opts: &ReplayOptions,
+) -> Result<Replayed, String> {
     let map = AddrMap::new(&cfg.geometry, &cfg.mapping)?;
     let n = cfg.geometry.channels;
-    let mut chans: Vec<ChannelCtrl> = (0..n).map(|c| ChannelCtrl::new(cfg, tck_ps, c)).collect();
-    for ch in &mut chans {
-        ch.record_commands(opts.check);
-    }
+    let mut chans: Vec<C> = (0..n).map(|c| C::create(cfg, tck_ps, c, opts)).collect();
     // Channel of each request, decoded once (and checked: no panic on bad input).
     let mut chan_of = Vec::with_capacity(reqs.len());
     for (i, r) in reqs.iter().enumerate() {

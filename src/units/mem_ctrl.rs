@@ -14,6 +14,7 @@
 
 pub use crate::mem::{MemReq, MemResp, StreamTag};
 
+use crate::mem::config::CtrlPolicy;
 use crate::mem::{ChannelCtrl, MemCfg};
 use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
 
@@ -34,6 +35,18 @@ crate::unit! {
 }
 
 impl MemCtrl {
+    /// The unit schedules FR-FCFS (`mem::ctrl`); DRAMsim3's controller rules
+    /// (`mem::dramsim3`) run in the trace replay only.
+    pub fn supports(cfg: &MemCfg) -> Result<(), String> {
+        match cfg.ctrl.policy {
+            CtrlPolicy::Frfcfs => Ok(()),
+            CtrlPolicy::Dramsim3 => Err(
+                "mem.ctrl.policy = \"dramsim3\" (DRAMsim3's controller) runs only in trace replay (`dualstream dram`); the mem_ctrl unit schedules FR-FCFS: set mem.ctrl.policy = \"frfcfs\""
+                    .into(),
+            ),
+        }
+    }
+
     /// Controller of channel `channel` of `cfg` (validated), DRAM clock `tck_ps`;
     /// `resp` must have the delay `cfg.ctrl.resp_link.delay`.
     pub fn new(
