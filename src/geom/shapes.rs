@@ -84,6 +84,86 @@ pub fn uv_sphere(center: Vec3, radius: f32, stacks: u32, slices: u32) -> Vec<Tri
     tris
 }
 
+/// A closed icosphere: the icosahedron with every face split into four
+/// `subdivisions` times (clamped to at most 6), new vertices on the unit sphere
+/// (edge midpoints normalised in f64; `sqrt` is exact-rounded IEEE, so the mesh is
+/// the same everywhere). Produces `20 * 4^subdivisions` triangles of nearly equal
+/// size and shape, unlike the UV sphere's thin polar ones.
+pub fn icosphere(center: Vec3, radius: f32, subdivisions: u32) -> Vec<Triangle> {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let unit = |p: [f64; 3]| {
+        let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        [p[0] / l, p[1] / l, p[2] / l]
+    };
+    let mut dirs: Vec<[f64; 3]> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .into_iter()
+    .map(unit)
+    .collect();
+    // Counter-clockwise seen from outside.
+    let mut faces: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions.min(6) {
+        // One new vertex per edge, shared by the two faces on it.
+        let mut mids = std::collections::HashMap::new();
+        let mut mid = |a: usize, b: usize, dirs: &mut Vec<[f64; 3]>| {
+            *mids.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let (p, q) = (dirs[a], dirs[b]);
+                dirs.push(unit([p[0] + q[0], p[1] + q[1], p[2] + q[2]]));
+                dirs.len() - 1
+            })
+        };
+        faces = faces
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let (ab, bc, ca) = (
+                    mid(a, b, &mut dirs),
+                    mid(b, c, &mut dirs),
+                    mid(c, a, &mut dirs),
+                );
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    let verts: Vec<Vec3> = dirs.iter().map(|&d| place(center, radius, d)).collect();
+    faces
+        .iter()
+        .map(|&[a, b, c]| Triangle::new(verts[a], verts[b], verts[c]))
+        .collect()
+}
+
 /// Two triangles `(a, b, c)` and `(a, c, d)` split along the a-c diagonal; the
 /// diagonal's endpoints are the same values in both.
 pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> [Triangle; 2] {
@@ -190,6 +270,30 @@ mod tests {
             64,
         ));
         assert_eq!(uv_sphere(c, 1.0, 0, 0).len(), 2 * 3);
+    }
+
+    #[test]
+    fn icosphere_is_closed_and_outward() {
+        let c = Vec3::new(1.0, -2.0, 3.0);
+        for k in 0..4 {
+            let s = icosphere(c, 2.0, k);
+            assert_eq!(s.len(), 20 << (2 * k));
+            assert_closed(&s);
+            assert_outward(&s, c);
+            for t in &s {
+                for v in [t.v0, t.v1, t.v2] {
+                    assert!(((v - c).length() - 2.0).abs() < 1e-5);
+                }
+            }
+        }
+        // Nearly uniform: the largest triangle is at most ~1.5x the smallest.
+        let s = icosphere(Vec3::ZERO, 1.0, 3);
+        let areas: Vec<f32> = s.iter().map(|t| t.normal().length()).collect();
+        let (lo, hi) = areas
+            .iter()
+            .fold((f32::MAX, 0.0f32), |(l, h), &a| (l.min(a), h.max(a)));
+        assert!(hi / lo < 1.6, "{lo} {hi}");
+        assert_closed(&icosphere(Vec3::new(148376.0, 1234.0, -223423.0), 1.0, 3));
     }
 
     #[test]

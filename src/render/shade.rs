@@ -29,25 +29,76 @@ pub fn next_f32(state: &mut u64) -> f32 {
     (mix64(*state) >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
 }
 
-/// Moves a surface point off the surface along `n` so that a ray leaving it does not
-/// hit the surface again (Wächter & Binder, Ray Tracing Gems ch. 6): an integer ulp
-/// offset far from the origin, a small float offset near it.
-pub fn offset_ray(p: Vec3, n: Vec3) -> Vec3 {
-    const ORIGIN: f32 = 1.0 / 32.0;
-    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
-    const INT_SCALE: f32 = 256.0;
+/// Unit roundoff ε of f32 (2^-24): a correctly rounded operation's relative error.
+const UNIT: f32 = f32::EPSILON * 0.5;
+
+/// Scale of the hit point's rounding-error bound (2ε; see [`hit_point`]).
+const HIT_POINT_ERR: f32 = 2.0 * UNIT;
+
+/// Scale of the triangle test's own error term in the offset (2^-18 = 64ε; see [`spawn`]).
+const TRI_TEST_ERR: f32 = 64.0 * UNIT;
+
+/// Cap on the sliver factor `L^2 / |N|` of the triangle-test term: it keeps the
+/// offset of a near-degenerate triangle below ~0.4% of its size instead of
+/// throwing the ray across the scene (an apex angle below ~0.1 degree).
+const SLIVER_CAP: f32 = 1024.0;
+
+/// Moves `p` off its surface by at least `h` along the unit normal `n`: each
+/// coordinate moves by `n_i * h` and is then rounded one float further away from
+/// `p` (pbrt-v4's `OffsetRayOrigin`), so the rounding of the sum never gives back
+/// part of the offset. A coordinate with `n_i = 0` stays.
+pub fn offset_ray(p: Vec3, n: Vec3, h: f32) -> Vec3 {
     let comp = |p: f32, n: f32| {
-        let of = (INT_SCALE * n) as i32;
-        let pi = f32::from_bits(
-            (p.to_bits() as i32).wrapping_add(if p < 0.0 { -of } else { of }) as u32,
-        );
-        if p.abs() < ORIGIN {
-            p + FLOAT_SCALE * n
+        if n > 0.0 {
+            (p + n * h).next_up()
+        } else if n < 0.0 {
+            (p + n * h).next_down()
         } else {
-            pi
+            p
         }
     };
     Vec3::new(comp(p.x, n.x), comp(p.y, n.y), comp(p.z, n.z))
+}
+
+/// The hit point at barycentrics `(u, w)` (of `v[1]`, `v[2]`) and a bound on its
+/// rounding error per coordinate. Per coordinate `p = v0 + (u*e1 + w*e2)`
+/// (`e1 = v1 - v0`, `e2 = v2 - v0`; the small terms are summed first, so `v0`
+/// costs one rounding) is within `ε|p| + 3ε(|u*e1| + |w*e2|)` of the exact point
+/// for the same barycentrics, to first order (ε = 2^-24). That point lies on the
+/// triangle's plane whatever error the barycentrics carry. The bound returned is
+/// `2ε (|p| + 2(|u*e1| + |w*e2|))`, from the computed terms.
+pub fn hit_point(v: &[Vec3; 3], u: f32, w: f32) -> (Vec3, Vec3) {
+    let (m, k) = ((v[1] - v[0]) * u, (v[2] - v[0]) * w);
+    let p = v[0] + (m + k);
+    (p, (p.abs() + (m.abs() + k.abs()) * 2.0) * HIT_POINT_ERR)
+}
+
+/// Where the rays leaving a bounce hit start: the geometric normal facing against
+/// the incoming direction `dir`, and the hit point ([`hit_point`]) moved off the
+/// triangle's plane along it by the sum of
+/// - `h_p`, the hit point's error bound along the normal, `|n| . err`;
+/// - a bound on the triangle test's own error for a ray starting that close to
+///   the plane (`geom::triangle`, t_min = 0): its computed `t` has the exact sign
+///   when the origin is farther than `(13 + 48 L^2/|N|) ε L` from the plane, to
+///   first order (`L`: the largest distance of a vertex from the ray origin, in
+///   the max norm; `|N| = |e1 x e2|`). Used: `64ε L (1 + min(L^2/|N|, 1024))` with
+///   `L = max|e1_i| + max|e2_i| + h_p`.
+///
+/// docs/data-contract.md ("Ray spawn offset") has the derivation. Shading
+/// (functional and the TPs' kernel) calls this once per bounce hit; the shadow and
+/// the bounce ray both leave from the returned origin.
+pub fn spawn(v: &[Vec3; 3], u: f32, w: f32, dir: Vec3) -> (Vec3, Vec3) {
+    let e1 = v[1] - v[0];
+    let e2 = v[2] - v[0];
+    let cross = e1.cross(e2);
+    let inv_len = cross.length_recip();
+    let n = cross * inv_len;
+    let n = if n.dot(dir) > 0.0 { -n } else { n };
+    let (p, err) = hit_point(v, u, w);
+    let h_p = n.abs().dot(err);
+    let l = e1.abs().max_element() + e2.abs().max_element() + h_p;
+    let sliver = (l * l * inv_len).min(SLIVER_CAP);
+    (n, offset_ray(p, n, h_p + TRI_TEST_ERR * l * (1.0 + sliver)))
 }
 
 /// Orthonormal basis around a unit normal (Duff et al. 2017, branchless).
@@ -69,12 +120,6 @@ pub fn cosine_sample(n: Vec3, u1: f32, u2: f32) -> Vec3 {
     let (x, y, z) = (r * c as f32, r * s as f32, (1.0 - u1).max(0.0).sqrt());
     let (t, b) = basis(n);
     (t * x + b * y + n * z).normalize()
-}
-
-/// Geometric normal of a triangle, facing against the incoming direction.
-pub fn facing_normal(v: &[Vec3; 3], dir: Vec3) -> Vec3 {
-    let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
-    if n.dot(dir) > 0.0 { -n } else { n }
 }
 
 /// The scene constants a shading step needs: the shading pass's control
@@ -148,11 +193,7 @@ pub fn shade_step(
         } else {
             out.hit = true;
             let (tri, albedo) = surface.expect("a bounce hit is shaded with its triangle");
-            let n = facing_normal(&tri.v, path.dir);
-            // The hit point from the barycentrics, on the triangle's plane (Wächter &
-            // Binder's offset assumes a point computed this way).
-            let hitp = tri.v[0] + (tri.v[1] - tri.v[0]) * h.u + (tri.v[2] - tri.v[0]) * h.v;
-            let o = offset_ray(hitp, n);
+            let (n, o) = spawn(&tri.v, h.u, h.v, path.dir);
             let to_light = c.light_pos - o;
             let d2 = to_light.length_squared();
             let cos = n.dot(to_light) / d2.sqrt();
@@ -231,25 +272,124 @@ mod tests {
     }
 
     #[test]
-    fn offset_leaves_the_surface_far_from_the_origin() {
-        let tri = crate::geom::Triangle::new(
-            Vec3::new(148376.0, 1234.0, -223423.0),
-            Vec3::new(148377.0, 1234.0, -223423.0),
-            Vec3::new(148376.0, 1235.0, -223423.0),
-        );
-        let n = Vec3::Z;
-        let p = tri.point_at(0.25, 0.25);
-        let o = offset_ray(p, n);
-        // A ray leaving the offset point along the hemisphere must not re-hit.
-        for d in [
-            Vec3::Z,
-            Vec3::new(1.0, 0.0, 0.01).normalize(),
-            Vec3::new(-0.7, 0.7, 0.05).normalize(),
-        ] {
-            assert!(
-                crate::geom::ray_triangle(o, d, 0.0, f32::INFINITY, &tri).is_none(),
-                "{d:?}"
-            );
+    fn offset_moves_each_coordinate_at_least_its_share_away() {
+        let n = Vec3::new(0.6, -0.8, 0.0);
+        // Far from the origin a tiny offset rounds back to p; one float further
+        // still moves it, and along n only.
+        let p = Vec3::new(148376.0, 1234.0, -223423.0);
+        let o = offset_ray(p, n, 1e-9);
+        assert_eq!(o.x, p.x.next_up());
+        assert_eq!(o.y, p.y.next_down());
+        assert_eq!(o.z, p.z);
+        // A larger one: at least n_i * h in each coordinate.
+        let q = Vec3::new(0.3, -2.0, 7.0);
+        let o = offset_ray(q, n, 0.125);
+        assert!(o.x - q.x >= 0.6 * 0.125 && q.y - o.y >= 0.8 * 0.125);
+        assert_eq!(o.z, q.z);
+        // Signed zeros and exact zeros of p move too (next float from zero).
+        let o = offset_ray(Vec3::new(-0.0, 0.0, 0.0), Vec3::Y, 0.0);
+        assert_eq!(o.to_array().map(f32::to_bits), [0x8000_0000, 1, 0]);
+    }
+
+    /// Rays in the whole hemisphere around the spawn normal, grazing ones included.
+    fn hemisphere(n: Vec3) -> impl Iterator<Item = Vec3> {
+        let mut s = 9;
+        (0..400).map(move |i| {
+            // Every fourth at the largest u1 a path can draw: the most grazing.
+            let u1 = if i % 4 == 0 {
+                1.0 - UNIT * 2.0
+            } else {
+                next_f32(&mut s)
+            };
+            cosine_sample(n, u1, next_f32(&mut s))
+        })
+    }
+
+    /// The height of `o` above the triangle's plane on the side of `n`, in f64 (exact
+    /// to far below the offsets checked).
+    fn height(t: &crate::geom::Triangle, n: Vec3, o: Vec3) -> f64 {
+        let (a, b, c) = (t.v0.as_dvec3(), t.v1.as_dvec3(), t.v2.as_dvec3());
+        let m = (b - a).cross(c - a).normalize();
+        let m = if m.dot(n.as_dvec3()) < 0.0 { -m } else { m };
+        m.dot(o.as_dvec3() - a)
+    }
+
+    #[test]
+    fn spawned_rays_leave_the_triangle_near_and_far_from_the_origin() {
+        use crate::geom::{Triangle, ray_triangle};
+        let far = Vec3::new(148376.0, 1234.0, -223423.0);
+        let tris = [
+            // Tilted, far: the hit point's rounding dominates the offset.
+            Triangle::new(
+                far,
+                far + Vec3::new(1.0, 0.25, 0.0),
+                far + Vec3::new(0.0, 1.0, 1.0),
+            ),
+            // In the plane y = 0: the hit point is exact, the triangle test's own
+            // error alone needs the offset.
+            Triangle::new(
+                Vec3::new(-1.0, 0.0, -1.0),
+                Vec3::new(1.0, 0.0, -1.0),
+                Vec3::new(1.0, 0.0, 3.0),
+            ),
+            // A sliver (apex ~0.6 degrees) through the origin.
+            Triangle::new(
+                Vec3::new(-0.5, -0.25, 0.1),
+                Vec3::new(1.5, 0.75, -0.1),
+                Vec3::new(1.5, 0.77, -0.08),
+            ),
+        ];
+        for (k, t) in tris.iter().enumerate() {
+            let v = [t.v0, t.v1, t.v2];
+            for (u, w) in [
+                (0.25, 0.25),
+                (0.0, 0.0),
+                (1.0, 0.0),
+                (0.5, 0.5),
+                (0.01, 0.98),
+            ] {
+                for dir in [Vec3::new(0.1, -1.0, 0.2), Vec3::new(-0.1, 1.0, -0.3)] {
+                    let (n, o) = spawn(&v, u, w, dir);
+                    assert!(n.dot(dir) < 0.0);
+                    assert!(height(t, n, o) > 0.0, "triangle {k}: {o:?} below");
+                    for d in hemisphere(n) {
+                        assert!(
+                            ray_triangle(o, d, 0.0, f32::INFINITY, t).is_none(),
+                            "triangle {k} ({u}, {w}): re-hit along {d:?}"
+                        );
+                    }
+                }
+            }
         }
+    }
+
+    /// The triangle-test term is needed: with the hit point's error bound alone
+    /// (pbrt-v4's offset, whose triangle test rejects t below its own error bound,
+    /// which ours does not), rays leaving a triangle in the plane y = 0 re-hit it.
+    #[test]
+    fn the_hit_point_bound_alone_re_hits_an_exact_plane() {
+        use crate::geom::{Triangle, ray_triangle};
+        let t = Triangle::new(
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, 3.0),
+        );
+        let (n, o) = spawn(&[t.v0, t.v1, t.v2], 0.3, 0.4, -Vec3::Y);
+        assert_eq!(n, Vec3::Y);
+        let (p, err) = hit_point(&[t.v0, t.v1, t.v2], 0.3, 0.4);
+        let pbrt = offset_ray(p, n, n.abs().dot(err));
+        assert_eq!(
+            pbrt.y,
+            0.0f32.next_up(),
+            "exact in y: only the rounding moves it"
+        );
+        let rehits = |o: Vec3| {
+            hemisphere(n)
+                .filter(|&d| ray_triangle(o, d, 0.0, f32::INFINITY, &t).is_some())
+                .count()
+        };
+        assert!(rehits(pbrt) > 0);
+        assert_eq!(rehits(o), 0);
+        assert!(o.y > 1e-6 && o.y < 1e-3, "{o:?}");
     }
 }

@@ -198,7 +198,7 @@ impl Default for TpCosts {
             // Shading (docs/tm.md, "Shading"): estimates from the operation counts
             // of `shade_step`, not calibrated against simtrax like the rest.
             shade_load: StateCost::new(3, [2, 1, 0, 0, 0, 0, 0, 0]),
-            shade: StateCost::new(96, [18, 2, 24, 30, 8, 8, 0, 0]),
+            shade: StateCost::new(124, [15, 2, 36, 40, 13, 8, 0, 0]),
             shade_emit: StateCost::new(8, [0, 0, 0, 0, 0, 0, 0, 8]),
             shade_store: StateCost::new(16, [0, 0, 0, 0, 0, 0, 0, 16]),
         }
