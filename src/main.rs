@@ -63,6 +63,10 @@ enum Cmd {
         /// Last core cycle to trace.
         #[arg(long)]
         trace_to: Option<u64>,
+        /// The most the waveform may take (bytes, or with K, M, G; 0: no
+        /// limit): a larger one is refused or stopped, and its file removed.
+        #[arg(long, default_value = "1G")]
+        trace_max_bytes: String,
         /// Evaluate every unit every cycle (no sleeping): slower, same results.
         #[arg(long)]
         no_sleep: bool,
@@ -139,6 +143,11 @@ enum Cmd {
         /// cycle: last core cycle to trace, included.
         #[arg(long)]
         trace_to: Option<u64>,
+        /// The most a waveform may take (bytes, or with K, M, G; 0: no limit):
+        /// a larger one is refused before it starts or stopped when it gets
+        /// there, and its file removed.
+        #[arg(long, default_value = "1G")]
+        trace_max_bytes: String,
     },
     /// Our figures next to the paper's (Table 2) for Dragon, Dragon Box and Sponza.
     Report {
@@ -176,9 +185,10 @@ enum Cmd {
     },
     /// Measure the simulator: kernel (pipelines of 128 TMs at several activities),
     /// dram (the memory model's replay speed), speed-error (every faster mode's wall
-    /// time and error against the full cycle model on a scene).
+    /// time and error against the full cycle model on a scene), threads (one lane,
+    /// one per core and auto, idle and beside a busy process, on --scene).
     Bench {
-        /// What to measure: kernel, dram or speed-error.
+        /// What to measure: kernel, dram, speed-error or threads.
         what: String,
         /// Scale the simulated cycles (1.0 = the full benchmark; kernel and dram).
         #[arg(long, default_value_t = 1.0)]
@@ -194,7 +204,8 @@ enum Cmd {
         small_tms: u32,
         /// speed-error: the modes to run besides the reference, comma-separated
         /// (cycle-fixed, functional+estimate, small-chip, small-chips-fit,
-        /// quarter-pixels, sampled, windows). Default: all.
+        /// quarter-pixels, sampled, windows). Default: all. threads: the cases
+        /// (cycle64, cycle256, windows1024; default: all).
         #[arg(long)]
         modes: Option<String>,
         /// speed-error, sampled: keep one tile in this many per sample.
@@ -378,6 +389,28 @@ fn parse_res(s: &str) -> Result<(u32, u32), String> {
     ))
 }
 
+/// A size in bytes with an optional K, M or G (powers of 1024).
+fn parse_size(s: &str, flag: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let (num, mul) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => (
+            &t[..i],
+            match c.to_ascii_uppercase() {
+                'K' => 1u64 << 10,
+                'M' => 1 << 20,
+                'G' => 1 << 30,
+                _ => 0,
+            },
+        ),
+        _ => (t, 1),
+    };
+    match num.trim().parse::<u64>() {
+        Ok(n) if mul > 0 => n.checked_mul(mul).ok_or(()),
+        _ => Err(()),
+    }
+    .map_err(|()| format!("{flag} {s}: give a size in bytes, e.g. 500M or 2G (0: no limit)"))
+}
+
 /// `--threads`, checked.
 fn sim_threads(threads: &str) -> Result<Threads, String> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -436,6 +469,7 @@ fn run(cli: Cli) -> Result<(), String> {
             trace,
             trace_from,
             trace_to,
+            trace_max_bytes,
             no_sleep,
             shadow,
             scene,
@@ -449,6 +483,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 filter: trace,
                 from: trace_from.saturating_mul(p),
                 to: trace_to.map_or(u64::MAX, |c| c.saturating_mul(p)),
+                max_bytes: parse_size(&trace_max_bytes, "--trace-max-bytes")?,
             };
             spec.validate().map_err(|e| {
                 e.replace(" (", " (ps ")
@@ -536,6 +571,7 @@ fn run(cli: Cli) -> Result<(), String> {
             trace_window,
             trace_from,
             trace_to,
+            trace_max_bytes,
         } => {
             use dualstream::render::{self, Mode, output};
             let sampled = mode == "windows";
@@ -613,7 +649,13 @@ fn run(cli: Cli) -> Result<(), String> {
                     units: trace_units,
                     from,
                     to,
+                    max_bytes: parse_size(&trace_max_bytes, "--trace-max-bytes")?,
                 });
+            }
+            if mode == Mode::Cycle
+                && let Some(note) = render::long_frame_note(&sc.settings, config.chip.tms)
+            {
+                eprintln!("note: {note}");
             }
             rc.verify = verify;
             rc.dump_rays = dump_rays;
@@ -858,6 +900,29 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             match what.as_str() {
                 "kernel" => print!("{}", dualstream::bench::kernel_report(scale)),
+                // The competing process of `bench threads` (spins until killed).
+                "busy" => dualstream::bench::threads::busy(),
+                "threads" => {
+                    use dualstream::bench::threads as bt;
+                    let cases = bt::cases(modes.as_deref())?;
+                    let runs = bt::run(&scene, &config, &cases, &mut |what| {
+                        eprintln!("bench threads: {what}")
+                    })?;
+                    println!(
+                        "bench threads: {scene} on {} x {} TPs, memory {}, {} core(s); wall time of each frame",
+                        config.chip.tms,
+                        config.tm.tps,
+                        config.chip.memory.model.name(),
+                        std::thread::available_parallelism().map_or(1, |n| n.get())
+                    );
+                    print!("{}", bt::table(&runs));
+                    if let Some(p) = json {
+                        let text =
+                            serde_json::to_string_pretty(&runs).map_err(|e| e.to_string())?;
+                        std::fs::write(&p, text)
+                            .map_err(|e| format!("cannot write '{}': {e}", p.display()))?;
+                    }
+                }
                 "dram" => print!("{}", dualstream::mem::bench::report(scale)?),
                 "speed-error" => {
                     use dualstream::speed_error as se;
@@ -931,7 +996,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 }
                 _ => {
                     return Err(format!(
-                        "unknown benchmark '{what}'; available: kernel, dram, speed-error"
+                        "unknown benchmark '{what}'; available: kernel, dram, speed-error, threads"
                     ));
                 }
             }

@@ -653,7 +653,12 @@ pub fn run(opts: &TmTbOptions) -> Result<TmReport, String> {
         })?)),
         None => None,
     };
-    let r = run_job(cfg, &job, &opts.run, vcd)?;
+    let r = run_job(cfg, &job, &opts.run, vcd).inspect_err(|_| {
+        // No partial waveform (e.g. one the size guard stopped).
+        if let Some(p) = &opts.vcd {
+            let _ = std::fs::remove_file(p);
+        }
+    })?;
     let (errors, counts) = scoreboard(&r, &view, &job.rays);
     Ok(TmReport {
         scene: scene.name.clone(),

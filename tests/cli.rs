@@ -852,3 +852,123 @@ fn the_pass_log_is_written_in_cycle_mode_and_refused_elsewhere() {
     assert!(rows.iter().all(|r| r.len() == 5 && r[3] < r[4]));
     assert!(rows.iter().any(|r| r[0] == 1), "the bounce's passes too");
 }
+
+/// The waveform's size guard: a trace far over the limit is refused before the
+/// run with its estimate, one that grows past it is stopped (by its projection
+/// or its bytes), and no file is left either way.
+#[test]
+fn oversized_waveforms_are_refused_or_stopped_and_leave_no_file() {
+    let t = Scratch::new("cli-trace-guard");
+    // The whole chip over a whole 64x64 frame: refused up front.
+    let f = t.join("frame.vcd");
+    let start = std::time::Instant::now();
+    fails_with(
+        &[
+            "render",
+            "--mode",
+            "cycle",
+            "--res",
+            "64x64",
+            "--vcd",
+            f.to_str().unwrap(),
+            "--out",
+            t.join("f.png").to_str().unwrap(),
+        ],
+        &[
+            "estimated before it started",
+            "--trace-window",
+            "--trace-max-bytes",
+        ],
+    );
+    assert!(!f.exists(), "a refused trace left its file");
+    assert!(
+        start.elapsed().as_secs() < 120,
+        "refusing took {:?}",
+        start.elapsed()
+    );
+    // A busy testbench's window (to cycle 20000), estimated under the limit,
+    // whose first cycles project past it.
+    let p = t.join("projected.vcd");
+    fails_with(
+        &[
+            "tb",
+            "box_pipe",
+            "--cycles",
+            "20000",
+            "--trace-to",
+            "20000",
+            "--vcd",
+            p.to_str().unwrap(),
+            "--trace-max-bytes",
+            "1M",
+        ],
+        &["projected from its first", "--trace-max-bytes"],
+    );
+    assert!(!p.exists(), "a stopped trace left its file");
+    // A unit testbench with no window end: stopped at the limit.
+    let b = t.join("box.vcd");
+    fails_with(
+        &[
+            "tb",
+            "box_pipe",
+            "--cycles",
+            "20000",
+            "--vcd",
+            b.to_str().unwrap(),
+            "--trace-max-bytes",
+            "100K",
+        ],
+        &["reached", "--trace-from/--trace-to"],
+    );
+    assert!(!b.exists(), "a stopped trace left its file");
+    // Under the limit, the same testbench writes its waveform.
+    let o = run(&[
+        "tb",
+        "box_pipe",
+        "--cycles",
+        "2000",
+        "--vcd",
+        b.to_str().unwrap(),
+        "--trace-max-bytes",
+        "10M",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::metadata(&b).unwrap().len() > 10_000);
+    fails_with(
+        &[
+            "tb",
+            "box_pipe",
+            "--vcd",
+            b.to_str().unwrap(),
+            "--trace-max-bytes",
+            "12X",
+        ],
+        &["--trace-max-bytes 12X", "500M"],
+    );
+}
+
+#[test]
+fn threads_and_memory_choices_are_checked() {
+    fails_with(
+        &["--threads", "0", "config", "--print-default"],
+        &["--threads 0", "auto"],
+    );
+    fails_with(
+        &["--threads", "9999", "config", "--print-default"],
+        &["core(s)", "auto"],
+    );
+    fails_with(
+        &["--threads", "two", "config", "--print-default"],
+        &["not a number"],
+    );
+    fails_with(
+        &["--memory", "sram", "config", "--print-default"],
+        &["gddr5", "fixed"],
+    );
+    // `config` without --print-default prints the configuration in force.
+    let o = run(&["--threads", "1", "--memory", "fixed", "config"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("model = \"fixed\""));
+    let o = run(&["config"]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("model = \"gddr5\""));
+}

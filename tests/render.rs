@@ -281,3 +281,21 @@ fn cycle_rows_add_the_time_and_dram_energy_figures() {
     // One scene: ours and paper bars plus the two legend boxes.
     assert_eq!(figs[0].1.matches("<rect x=").count(), 2 + 2);
 }
+
+/// A long cycle-mode frame is announced with its time and the faster mode; a
+/// short one is not, and the cycle estimate follows pixels, hit points and TMs.
+#[test]
+fn long_cycle_frames_are_announced() {
+    use dualstream::render::{estimated_frame_cycles, long_frame_note};
+    let mut s = scene::load("cornell").unwrap().settings;
+    (s.width, s.height) = (256, 256);
+    assert_eq!(long_frame_note(&s, 128), None);
+    (s.width, s.height) = (2048, 2048);
+    let n = long_frame_note(&s, 128).expect("a 2048x2048 frame takes hours");
+    assert!(n.contains("--mode windows") && n.contains(" h"), "{n}");
+    // Cornell 64x64, 5 hit points, 128 TMs ran 157,769 cycles (GDDR5).
+    let c = estimated_frame_cycles(64 * 64, 5, 128);
+    assert!((100_000..250_000).contains(&c), "{c}");
+    assert_eq!(estimated_frame_cycles(64 * 64, 5, 64), 2 * c);
+    assert_eq!(estimated_frame_cycles(64 * 64, 1, 128) * 5, c);
+}

@@ -49,6 +49,7 @@ pub fn valid_names(paths: &[&str]) -> String {
         filter: p.into(),
         from: 0,
         to: 0,
+        ..TraceSpec::all()
     };
     let mut v: Vec<String> = NAMED
         .iter()
@@ -94,6 +95,7 @@ pub fn resolve(units: &str, paths: &[&str]) -> Result<String, String> {
             filter: p.clone(),
             from: 0,
             to: 0,
+            ..TraceSpec::all()
         };
         if !paths.iter().any(|q| spec.matches(q)) {
             let hint = if name.starts_with("mem_ctrl") {
@@ -144,10 +146,18 @@ pub fn parse_window(s: &str) -> Result<(u64, Option<u64>), String> {
     Ok((from, to))
 }
 
-/// The kernel's spec for cycles `from..=to` of a `core_ps` clock.
-pub fn spec(filter: String, from: u64, to: Option<u64>, core_ps: Time) -> TraceSpec {
+/// The kernel's spec for cycles `from..=to` of a `core_ps` clock, at most
+/// `max_bytes` (0: no limit).
+pub fn spec(
+    filter: String,
+    from: u64,
+    to: Option<u64>,
+    core_ps: Time,
+    max_bytes: u64,
+) -> TraceSpec {
     TraceSpec {
         filter,
+        max_bytes,
         from: from.saturating_mul(core_ps),
         // The last cycle's edge and everything before the next one (DRAM edges).
         to: to.map_or(Time::MAX, |c| {

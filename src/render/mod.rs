@@ -446,6 +446,55 @@ pub struct ChipTrace {
     /// First and last core cycle traced (`None`: to the end).
     pub from: u64,
     pub to: Option<u64>,
+    /// The size guard (`--trace-max-bytes`; 0: no limit).
+    pub max_bytes: u64,
+}
+
+/// Core cycles per pixel and hit point of a cycle-mode frame on the paper's
+/// 128 TMs: 7.7-8.1 measured on the Dragon Box, Dabrovic Sponza and Cornell
+/// with 5 hit points (the Dragon, mostly sky: 2.9). Scales with 128 / TMs.
+const CYCLES_PER_PIXEL_HIT: f64 = 8.0;
+
+/// Wall seconds per pixel and hit point of a cycle-mode frame on a 2-core
+/// machine of 2026: 0.17 (Cornell 64x64) to 0.45 ms (the Dragon Box at
+/// 1024x1024, 39 minutes), about the same for any number of TMs (cycles
+/// scale with 128 / TMs and the work of a cycle with TMs).
+pub const WALL_S_PER_PIXEL_HIT: (f64, f64) = (0.17e-3, 0.45e-3);
+
+/// Before a cycle-mode frame of more than five minutes: how long it takes,
+/// and the faster mode.
+pub fn long_frame_note(s: &crate::scene::RenderSettings, tms: u32) -> Option<String> {
+    let pixels = s.width as f64 * s.height as f64;
+    let hits = s.bounces as f64;
+    let (lo, hi) = WALL_S_PER_PIXEL_HIT;
+    let (lo, hi) = (pixels * hits * lo, pixels * hits * hi);
+    if hi < 300.0 {
+        return None;
+    }
+    let span = |s: f64| {
+        if s >= 5400.0 {
+            format!("{:.1} h", s / 3600.0)
+        } else {
+            format!("{:.0} min", s / 60.0)
+        }
+    };
+    let cycles = estimated_frame_cycles(pixels as u64, s.bounces, tms);
+    Some(format!(
+        "this cycle-mode frame ({}x{}, {} hit points, about {:.0} M cycles) takes about {} to {} on a 2-core machine; --mode windows estimates its cycles, traffic and energy within about 3% in minutes (docs/speed-error.md)",
+        s.width,
+        s.height,
+        s.bounces,
+        cycles as f64 / 1e6,
+        span(lo),
+        span(hi)
+    ))
+}
+
+/// A cycle-mode frame's core cycles, estimated before it runs (for the trace
+/// guard and the long-run note).
+pub fn estimated_frame_cycles(pixels: u64, hit_points: u32, tms: u32) -> u64 {
+    (pixels as f64 * hit_points.max(1) as f64 * CYCLES_PER_PIXEL_HIT * 128.0 / tms.max(1) as f64)
+        as u64
 }
 
 /// What a waveform holds.
@@ -757,8 +806,19 @@ pub fn render(
                 .collect();
             let paths: Vec<&str> = paths.iter().map(String::as_str).collect();
             let filter = crate::machine::trace::resolve(&t.units, &paths)?;
-            let spec = crate::machine::trace::spec(filter, t.from, t.to, chip_cfg.clocks.core_ps);
-            let tracer = crate::rtl::Tracer::to_file(&t.path, spec)?;
+            let spec = crate::machine::trace::spec(
+                filter,
+                t.from,
+                t.to,
+                chip_cfg.clocks.core_ps,
+                t.max_bytes,
+            );
+            let mut tracer = crate::rtl::Tracer::to_file(&t.path, spec)?;
+            // Twice the frame's estimated cycles: the guard projects the bytes
+            // written to the window's end.
+            let cycles =
+                estimated_frame_cycles(pixels as u64, scene.settings.bounces, chip_cfg.chip.tms);
+            tracer.expect_end(2 * cycles * chip_cfg.clocks.core_ps);
             c.sim.attach_tracer(tracer).map_err(|e| e.to_string())?;
         }
         if cfg.verify || cfg.dump_rays.is_some() {

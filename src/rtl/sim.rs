@@ -148,6 +148,8 @@ pub enum SimError {
     },
     /// The netlist is not well formed.
     Elaboration(String),
+    /// The waveform's size guard refused or stopped the trace (its file removed).
+    Trace(String),
 }
 
 impl fmt::Display for SimError {
@@ -167,6 +169,7 @@ impl fmt::Display for SimError {
                 )
             }
             SimError::Elaboration(s) => write!(f, "netlist error: {s}"),
+            SimError::Trace(s) => write!(f, "{s}"),
         }
     }
 }
@@ -1356,6 +1359,9 @@ impl Sim {
             let slots = &self.slots;
             if let Some(tr) = &mut self.tracer {
                 tr.sample(t, &|i| &*slots[i].unit, &self.links);
+                if let Some(why) = tr.stopped() {
+                    return Err(SimError::Trace(why.to_string()));
+                }
             }
             // Clock edge.
             for &(u, _) in &due {
@@ -1680,7 +1686,14 @@ impl Sim {
             .iter()
             .map(|s| (s.path.as_str(), &*s.unit, &self.clocks[s.clock.0 as usize]))
             .collect();
-        tracer.bind(&units).map_err(SimError::Elaboration)?;
+        if let Err(e) = tracer.bind(&units) {
+            tracer.discard();
+            return Err(SimError::Elaboration(e));
+        }
+        if let Err(e) = tracer.check_estimate() {
+            tracer.discard();
+            return Err(SimError::Trace(e));
+        }
         for i in tracer.unit_indices() {
             self.slots[i].watched = true;
         }

@@ -15,7 +15,7 @@
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::bits::Bits;
 use super::decl::{PortDir, Samples, SignalDecl};
@@ -71,6 +71,9 @@ pub struct TraceSpec {
     /// First and last time (ps) to trace, inclusive.
     pub from: Time,
     pub to: Time,
+    /// The size guard: the most bytes the trace may take (0: no limit;
+    /// `DEFAULT_MAX_BYTES` unless told).
+    pub max_bytes: u64,
 }
 
 impl TraceSpec {
@@ -79,6 +82,7 @@ impl TraceSpec {
             filter: String::new(),
             from: 0,
             to: Time::MAX,
+            max_bytes: DEFAULT_MAX_BYTES,
         }
     }
     pub fn validate(&self) -> Result<(), String> {
@@ -136,11 +140,52 @@ pub struct Tracer {
     changes: u64,
     line: Vec<u8>,
     error: Option<io::Error>,
+    /// The size guard: the most bytes the trace may take, the time the run is
+    /// expected to end (for a window without an end), the file to remove when
+    /// the guard stops the trace, and why it stopped it.
+    max_bytes: u64,
+    expect_end: Option<Time>,
+    path: Option<PathBuf>,
+    stopped: Option<String>,
+    /// Bytes a sample of every traced signal would take, per ps of the window
+    /// (the sum over the traced units of their signals' widths plus the VCD
+    /// identifier and line end, over their clock periods).
+    full_bytes_per_ps: f64,
+    header_bytes: u64,
+}
+
+/// The default size guard (`--trace-max-bytes`): 1 GiB.
+pub const DEFAULT_MAX_BYTES: u64 = 1 << 30;
+
+/// Share of the traced signals the up-front estimate assumes change in a
+/// sample: 2.5 times the 0.08% of a full-chip window mid-frame. A busy unit
+/// testbench reaches 40%, so the guard also projects the bytes written after
+/// `PROJECT_AFTER` of the window, and stops at the limit in any case.
+const ACTIVITY: f64 = 0.002;
+
+/// Share of a bounded window after which the written bytes are projected to
+/// the window's end (and the trace stopped if that is over the limit).
+const PROJECT_AFTER: f64 = 0.05;
+
+fn gb(b: f64) -> String {
+    const G: f64 = (1u64 << 30) as f64;
+    if b >= G {
+        format!("{:.1} GiB", b / G)
+    } else if b >= (1u64 << 20) as f64 {
+        format!("{:.0} MiB", b / (1u64 << 20) as f64)
+    } else {
+        format!("{:.0} KiB", b / 1024.0)
+    }
 }
 
 impl Tracer {
     pub fn new(out: Box<dyn Write>, spec: TraceSpec) -> Result<Self, String> {
         spec.validate()?;
+        let max_bytes = if spec.max_bytes == 0 {
+            u64::MAX
+        } else {
+            spec.max_bytes
+        };
         Ok(Tracer {
             out: CountingWriter {
                 inner: BufWriter::with_capacity(1 << 16, out),
@@ -154,7 +199,105 @@ impl Tracer {
             changes: 0,
             line: Vec::with_capacity(256),
             error: None,
+            max_bytes,
+            expect_end: None,
+            path: None,
+            stopped: None,
+            full_bytes_per_ps: 0.0,
+            header_bytes: 0,
         })
+    }
+
+    /// When the run is expected to end, for the estimate of a window without
+    /// an end (e.g. a whole frame).
+    pub fn expect_end(&mut self, t: Time) {
+        self.expect_end = Some(t);
+    }
+
+    /// The window's end as far as it is known.
+    fn window_end(&self) -> Option<Time> {
+        match (self.spec.to, self.expect_end) {
+            (Time::MAX, e) => e,
+            (to, Some(e)) => Some(to.min(e)),
+            (to, None) => Some(to),
+        }
+    }
+
+    /// The trace's size estimated before it starts, and the window in ps it
+    /// assumes (`None`: the window has no known end).
+    pub fn estimate(&self) -> Option<(u64, Time)> {
+        let end = self.window_end()?;
+        let w = end.saturating_sub(self.spec.from);
+        let bytes = self.header_bytes as f64 + self.full_bytes_per_ps * ACTIVITY * w as f64;
+        Some((bytes as u64, w))
+    }
+
+    /// What to say when the guard refuses: the size, what it covers, how to
+    /// narrow it.
+    fn advice(&self, what: &str) -> String {
+        let signals: usize = self.units.iter().map(|u| u.sigs.len()).sum();
+        let limit = if self.max_bytes == u64::MAX {
+            "none".to_string()
+        } else {
+            gb(self.max_bytes as f64)
+        };
+        format!(
+            "the waveform {what}, over the limit of {limit} ({} units, {signals} signals); trace fewer units or a shorter window (render: --trace-units, --trace-window; tb: --trace, --trace-from/--trace-to) or raise --trace-max-bytes",
+            self.units.len()
+        )
+    }
+
+    /// Refuses a trace whose estimate is over the limit.
+    pub(crate) fn check_estimate(&self) -> Result<(), String> {
+        match self.estimate() {
+            Some((bytes, w)) if bytes > self.max_bytes => {
+                let cycles = self.periods.iter().min().map_or(0, |p| w / p);
+                Err(self.advice(&format!(
+                    "would take about {} over {cycles} cycles (estimated before it started)",
+                    gb(bytes as f64)
+                )))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Why the guard stopped the trace while it was written (the file is
+    /// removed then).
+    pub(crate) fn stopped(&self) -> Option<&str> {
+        self.stopped.as_deref()
+    }
+
+    /// Removes the file being written (a trace the guard refused).
+    pub(crate) fn discard(&mut self) {
+        if let Some(p) = self.path.take() {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+
+    /// The guard, after a sample at `t`: stop when the bytes written pass the
+    /// limit, or when their projection to the window's end does.
+    fn guard(&mut self, t: Time) {
+        let written = self.out.bytes;
+        let why = if written > self.max_bytes {
+            Some(format!("reached {} at {t} ps", gb(written as f64)))
+        } else if let Some(end) = self.window_end() {
+            let (from, span) = (self.spec.from, end.saturating_sub(self.spec.from));
+            let frac = t.saturating_sub(from) as f64 / span.max(1) as f64;
+            let projected = written as f64 / frac.max(1e-9);
+            (frac >= PROJECT_AFTER && frac < 1.0 && projected > self.max_bytes as f64).then(|| {
+                format!(
+                    "would take about {} (projected from its first {:.0}%)",
+                    gb(projected),
+                    100.0 * frac
+                )
+            })
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            self.stopped = Some(self.advice(&why));
+            self.discard();
+        }
     }
 
     /// A tracer writing to a file; the error names the path and what to do.
@@ -165,7 +308,9 @@ impl Tracer {
                 path.display()
             )
         })?;
-        Tracer::new(Box::new(f), spec)
+        let mut t = Tracer::new(Box::new(f), spec)?;
+        t.path = Some(path.to_path_buf());
+        Ok(t)
     }
 
     /// The simulator's indices of the units bound (`bind`).
@@ -255,6 +400,11 @@ impl Tracer {
                 });
             }
             let ports = decl.ports.iter().map(|p| (p.link, p.dir)).collect();
+            self.full_bytes_per_ps += sigs
+                .iter()
+                .map(|s| (s.width + s.id.len() as u32 + 3) as f64)
+                .sum::<f64>()
+                / clk.period_ps as f64;
             if !self.periods.contains(&clk.period_ps) {
                 self.periods.push(clk.period_ps);
             }
@@ -269,6 +419,7 @@ impl Tracer {
             header.push_str("$upscope $end\n");
         }
         header.push_str("$enddefinitions $end\n");
+        self.header_bytes = header.len() as u64;
         self.out
             .write_all(header.as_bytes())
             .map_err(|e| format!("cannot write the VCD header: {e}"))?;
@@ -288,7 +439,8 @@ impl Tracer {
         unit_at: &dyn Fn(usize) -> &'u dyn Unit,
         links: &[Box<dyn LinkDyn>],
     ) {
-        if t < self.spec.from || t > self.spec.to || self.error.is_some() {
+        if t < self.spec.from || t > self.spec.to || self.error.is_some() || self.stopped.is_some()
+        {
             return;
         }
         for ui in 0..self.units.len() {
@@ -352,11 +504,16 @@ impl Tracer {
                 }
             }
         }
+        self.guard(t);
     }
 
     /// Flushes and reports what was written.
     pub(crate) fn finish(mut self, now: Time) -> io::Result<TraceStats> {
+        if let Some(why) = self.stopped.take() {
+            return Err(io::Error::other(why));
+        }
         if let Some(e) = self.error.take() {
+            self.discard();
             return Err(e);
         }
         // Close the trace at the last simulated time so viewers show the final values.

@@ -1,5 +1,8 @@
 //! Kernel benchmarks (`dualstream bench kernel`): how fast the simulator runs the
 //! shared pipelines of many TMs. Measurements, not tests: the numbers go in reports.
+//! `threads`: the lane counts of `--threads` against each other.
+
+pub mod threads;
 
 use std::time::Instant;
 
@@ -137,10 +140,12 @@ pub fn measure(label: &str, tms: u32, activity: f64, cycles: u64, trace: Option<
     let (mut sim, clk) = build_tms(tms, activity, SimOptions::default(), &cfg);
     let path = std::env::temp_dir().join(format!("dualstream-bench-{}.vcd", std::process::id()));
     if let Some(f) = trace {
+        // A measurement of the tracer's speed: no size guard.
         let spec = TraceSpec {
             filter: f.to_string(),
             from: 0,
             to: u64::MAX,
+            max_bytes: 0,
         };
         sim.attach_tracer(Tracer::to_file(&path, spec).expect("temp file"))
             .expect("filter matches");
