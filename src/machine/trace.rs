@@ -190,7 +190,7 @@ mod tests {
 
     fn traced(units: &str) -> Vec<&'static str> {
         let f = resolve(units, &paths()).unwrap();
-        let s = spec(f, 0, None, 1000);
+        let s = spec(f, 0, None, 1000, 0);
         paths().into_iter().filter(|p| s.matches(p)).collect()
     }
 
@@ -253,8 +253,8 @@ mod tests {
             let e = parse_window(bad).unwrap_err();
             assert!(e.contains("--trace-window") && e.contains("A..B"), "{e}");
         }
-        let s = spec(String::new(), 10, Some(19), 1000);
+        let s = spec(String::new(), 10, Some(19), 1000, 0);
         assert_eq!((s.from, s.to), (10_000, 19_999));
-        assert_eq!(spec(String::new(), 3, None, 1000).to, Time::MAX);
+        assert_eq!(spec(String::new(), 3, None, 1000, 0).to, Time::MAX);
     }
 }

@@ -284,7 +284,7 @@ impl Tracer {
             let (from, span) = (self.spec.from, end.saturating_sub(self.spec.from));
             let frac = t.saturating_sub(from) as f64 / span.max(1) as f64;
             let projected = written as f64 / frac.max(1e-9);
-            (frac >= PROJECT_AFTER && frac < 1.0 && projected > self.max_bytes as f64).then(|| {
+            ((PROJECT_AFTER..1.0).contains(&frac) && projected > self.max_bytes as f64).then(|| {
                 format!(
                     "would take about {} (projected from its first {:.0}%)",
                     gb(projected),
@@ -582,6 +582,7 @@ mod tests {
             filter: f.into(),
             from: 0,
             to: 10,
+            ..TraceSpec::all()
         };
         assert!(s("").matches("chip.tm3.box_pipe"));
         assert!(s("box_pipe").matches("chip.tm3.box_pipe"));
@@ -598,6 +599,7 @@ mod tests {
             filter: String::new(),
             from: 10,
             to: 5,
+            ..TraceSpec::all()
         }
         .validate()
         .unwrap_err();
