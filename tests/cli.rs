@@ -852,3 +852,36 @@ fn the_pass_log_is_written_in_cycle_mode_and_refused_elsewhere() {
     assert!(rows.iter().all(|r| r.len() == 5 && r[3] < r[4]));
     assert!(rows.iter().any(|r| r[0] == 1), "the bounce's passes too");
 }
+
+/// A TP whose traversal stack overflows stops; the chip then starves. The
+/// error names the stack and the setting to raise, not the starvation.
+#[test]
+fn a_tp_stack_overflow_names_the_scratchpad() {
+    let t = Scratch::new("cli-stack");
+    let cfg = t.join("small.toml");
+    std::fs::write(&cfg, "[tm]\nscratchpad_bytes = 36\n").unwrap();
+    let png = t.join("s.png");
+    fails_with(
+        &[
+            "--config",
+            cfg.to_str().unwrap(),
+            "render",
+            "--scene",
+            "cornell",
+            "--mode",
+            "cycle",
+            "--res",
+            "8x8",
+            "--threads",
+            "1",
+            "--out",
+            png.to_str().unwrap(),
+        ],
+        &[
+            "traversal stack",
+            "overflowed",
+            "tm.scratchpad_bytes = 36 holds 3 entries",
+            "can need up to",
+        ],
+    );
+}
