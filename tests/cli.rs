@@ -853,6 +853,29 @@ fn the_pass_log_is_written_in_cycle_mode_and_refused_elsewhere() {
     assert!(rows.iter().any(|r| r[0] == 1), "the bounce's passes too");
 }
 
+#[test]
+fn coordinates_beyond_the_datapath_range_name_the_vertex_and_the_fix() {
+    let t = Scratch::new("cli-range");
+    // Near 1e38: cross products overflow (once refused as "all degenerate").
+    let huge = t.join("huge.obj");
+    std::fs::write(&huge, "v 1e38 0 0\nv 0 1e38 0\nv 0 0 1e38\nf 1 2 3\n").unwrap();
+    // One small triangle far out (once: "camera up is parallel to the view").
+    let far = t.join("far.obj");
+    std::fs::write(&far, "v 0 0 0\nv 1e38 1 0\nv 1e38 0 1\nf 1 2 3\n").unwrap();
+    for (f, vertex) in [
+        (&huge, "huge.obj:1: vertex 1"),
+        (&far, "far.obj:2: vertex 2"),
+    ] {
+        let f = f.to_str().unwrap();
+        for args in [
+            vec!["scene", "info", f],
+            vec!["render", "--scene", f, "--res", "8x8"],
+        ] {
+            fails_with(&args, &[vertex, "1e6", "f32 datapath", "scale or recentre"]);
+        }
+    }
+}
+
 /// A TP whose traversal stack overflows stops; the chip then starves. The
 /// error names the stack and the setting to raise, not the starvation.
 #[test]
