@@ -1,6 +1,8 @@
 //! obvhs 0.4's PLOC builder (`PlocBuilder::build`, its single-threaded path: the
-//! crate is built without its `parallel` feature), copied operation for operation
-//! so that its merge loop can be bounded.
+//! crate is built without its `parallel` feature), vendored from the obvhs 0.4.0
+//! crate (our dependency; dual-licensed MIT OR Apache-2.0, whose terms allow a
+//! modified copy with this notice) and changed in one place: its merge loop is
+//! bounded by a work budget.
 //!
 //! PLOC merges, in each pass, the nodes that are each other's best neighbour
 //! (smallest union area) within a window of the Morton order. On ordinary meshes a
