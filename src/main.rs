@@ -380,6 +380,15 @@ enum SceneCmd {
     },
 }
 
+/// Says that the BVH came from the fallback builder, and why.
+fn bvh_fallback_warning(why: &str) -> String {
+    format!(
+        "BVH: {why}; built with the binned-SAH fallback instead (bounded in time and depth). \
+         Meshes of long, thin, overlapping triangles do this, e.g. a large polygon \
+         triangulated as a fan"
+    )
+}
+
 fn parse_res(s: &str) -> Result<(u32, u32), String> {
     let bad = || format!("--res '{s}' is not WIDTHxHEIGHT (e.g. 256x256)");
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
@@ -700,6 +709,9 @@ fn run(cli: Cli) -> Result<(), String> {
             if let Some(path) = &pass_log {
                 output::write_pass_log(&frame, path)?;
             }
+            if let Some(why) = &frame.accel.bvh_fallback {
+                eprintln!("warning: {}", bvh_fallback_warning(why));
+            }
             print!("{}", output::summary(&frame));
             if let Some(e) = &estimate {
                 print!("{}", output::window_summary(e));
@@ -827,6 +839,9 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             let p = dualstream::render::prepare(&sc, &render_cfg(&config, threads))?;
             let i = &p.info;
+            if let Some(why) = &i.bvh_fallback {
+                eprintln!("warning: {}", bvh_fallback_warning(why));
+            }
             println!("scene {}", sc.name);
             println!("  triangles            {}", i.triangles);
             println!(

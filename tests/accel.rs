@@ -2,13 +2,14 @@
 
 use std::collections::HashSet;
 
-use dualstream::accel::{AccelCfg, Bvh, BvhCfg, Child, SceneImage, Segmentation};
+use dualstream::accel::{AccelCfg, Bvh, BvhBuilder, BvhCfg, Child, SceneImage, Segmentation};
 use dualstream::contract::{
     MemoryMap, MemoryMapCfg, NODE_BYTES, NodeRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES,
     SEGMENT_MAGIC, SegEntry, SparseMem, TRI_BYTES, TriRec,
 };
 use dualstream::geom::shapes::uv_sphere;
-use dualstream::geom::{Aabb, Triangle};
+use dualstream::geom::{Aabb, Triangle, ray_triangle};
+use dualstream::render::traverse::reference_trace;
 use dualstream::util::rng::Rng;
 use glam::Vec3;
 
@@ -35,6 +36,11 @@ fn check(tris: &[Triangle], budget: u32, leaf: u32) {
         },
     )
     .unwrap();
+    check_bvh(tris, &bvh, budget, leaf);
+}
+
+/// The invariants of a built BVH, its segments and their DRAM image.
+fn check_bvh(tris: &[Triangle], bvh: &Bvh, budget: u32, leaf: u32) {
     // Every triangle in exactly one leaf; boxes contain their children.
     let mut seen: Vec<u32> = bvh.tri_order.clone();
     seen.sort();
@@ -55,7 +61,7 @@ fn check(tris: &[Triangle], budget: u32, leaf: u32) {
             }
         }
     }
-    let seg = Segmentation::build(&bvh, budget).unwrap();
+    let seg = Segmentation::build(bvh, budget).unwrap();
     let mut node_seen = vec![0u32; bvh.nodes.len()];
     let mut tri_seen = 0u32;
     for (i, s) in seg.segments.iter().enumerate() {
@@ -124,7 +130,7 @@ fn check(tris: &[Triangle], budget: u32, leaf: u32) {
     .unwrap();
     let mut mem = SparseMem::new(map.capacity);
     let mats = vec![0u32; tris.len()];
-    let img = SceneImage::write(&mut mem, &map, tris, &mats, &bvh, &seg);
+    let img = SceneImage::write(&mut mem, &map, tris, &mats, bvh, &seg);
     let mut tri_ids = HashSet::new();
     for s in &seg.segments {
         let base = img.seg_base[s.id as usize];
@@ -226,4 +232,135 @@ fn build_is_deterministic() {
     assert_eq!(a.tri_order, b.tri_order);
     assert_eq!(a.nodes, b.nodes);
     let _ = Aabb::empty();
+}
+
+/// A polygon of `n` vertices on the unit circle triangulated as a fan from
+/// vertex 0, as an OBJ `f` line of all of them loads: thin triangles sharing one
+/// vertex, their boxes overlapping.
+fn fan(n: usize) -> Vec<Triangle> {
+    let p = |i: usize| {
+        let (s, c) = dualstream::geom::shapes::sin_cos(i as f64 / n as f64 * std::f64::consts::TAU);
+        Vec3::new(c as f32, s as f32, 0.0)
+    };
+    (1..n - 1)
+        .map(|i| Triangle::new(p(0), p(i), p(i + 1)))
+        .filter(|t| !t.is_degenerate())
+        .collect()
+}
+
+/// PLOC stalls on the fan (a minute and a tree 25K levels deep for 100K
+/// vertices); the build falls back to binned SAH and stays fast and shallow,
+/// shallow enough for the TP's stack (42 entries by default).
+#[test]
+fn a_fan_of_thin_triangles_builds_fast_and_shallow() {
+    let tris = fan(100_000);
+    assert!(tris.len() > 99_990);
+    let t0 = std::time::Instant::now();
+    let bvh = Bvh::build(&tris, &BvhCfg::default()).unwrap();
+    let secs = t0.elapsed().as_secs_f64();
+    assert!(secs < 5.0, "the fan took {secs:.2} s to build");
+    assert!(
+        matches!(&bvh.builder, BvhBuilder::BinnedSah { reason } if reason.contains("PLOC")),
+        "{:?}",
+        bvh.builder
+    );
+    // SAH levels (48), then medians: ceil(log2 n) more at most.
+    assert!(bvh.depth <= 48 + 17, "depth {}", bvh.depth);
+    check_bvh(&tris, &bvh, 64 << 10, 1);
+    // The tree finds the closest hit, as a test of every triangle does.
+    let mut rng = Rng::new(8);
+    for _ in 0..40 {
+        let o = Vec3::new(rng.range_f32(-1.5, 1.5), rng.range_f32(-1.5, 1.5), 2.0);
+        let aim = Vec3::new(rng.range_f32(-1.0, 1.0), rng.range_f32(-1.0, 1.0), 0.0);
+        let d = aim - o;
+        let got = reference_trace(&bvh, &tris, o, d, false);
+        let want = tris
+            .iter()
+            .enumerate()
+            .filter_map(|(i, t)| ray_triangle(o, d, 0.0, f32::INFINITY, t).map(|h| (h.t, i as u32)))
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        match want {
+            Some((t, id)) => assert_eq!((got.t, got.tri_id), (t, id), "ray {o} {d}"),
+            None => assert!(!got.is_hit(), "ray {o} {d}"),
+        }
+    }
+    let seg = Segmentation::build(&bvh, 64 << 10).unwrap();
+    let tp_stack = dualstream::units::tm::TmCfg::default().stack_entries();
+    assert!(
+        seg.stack_bound(&bvh) <= tp_stack,
+        "{}",
+        seg.stack_bound(&bvh)
+    );
+    // The fallback keeps leaf sizes: up to 4 per leaf when asked.
+    let four = BvhCfg {
+        max_prims_per_leaf: 4,
+        ..BvhCfg::default()
+    };
+    let small = fan(3000);
+    let b4 = Bvh::build(&small, &four).unwrap();
+    assert!(matches!(b4.builder, BvhBuilder::BinnedSah { .. }));
+    check_bvh(&small, &b4, 16 << 10, 4);
+}
+
+/// Deepest stack of a traversal of every segment in which every box is hit (the
+/// worst case for the stack), pushing children as the TP does (inner nodes,
+/// leaves and exits alike), the child leading deepest into the segment on top:
+/// the order in which the stack grows most.
+fn deepest_first_stack(bvh: &Bvh, seg: &Segmentation) -> u32 {
+    let mut most = 0;
+    for s in &seg.segments {
+        let mine: HashSet<u32> = s.nodes.iter().copied().collect();
+        // Levels below each node of the segment, within the segment (children
+        // come after parents in the node array, so a reverse sweep sees them first).
+        let mut below = std::collections::HashMap::new();
+        let mut nodes = s.nodes.clone();
+        nodes.sort_unstable();
+        for &i in nodes.iter().rev() {
+            let h = bvh.nodes[i as usize]
+                .children
+                .iter()
+                .filter_map(|c| match c {
+                    Child::Inner(j) if mine.contains(j) => Some(below[j] + 1),
+                    _ => None,
+                })
+                .max()
+                .unwrap_or(0);
+            below.insert(i, h);
+        }
+        let depth_of = |c: &Child| match c {
+            Child::Inner(j) if mine.contains(j) => below[j] as i64,
+            _ => -1,
+        };
+        for &r in &s.roots {
+            let mut stack = vec![r];
+            most = most.max(1);
+            while let Some(c) = stack.pop() {
+                if let Child::Inner(i) = c
+                    && mine.contains(&i)
+                {
+                    let mut kids = bvh.nodes[i as usize].children;
+                    kids.sort_by_key(depth_of);
+                    stack.extend(kids);
+                    most = most.max(stack.len() as u32);
+                }
+            }
+        }
+    }
+    most
+}
+
+/// The stack bound is the deepest stack a traversal of a segment can reach.
+#[test]
+fn the_stack_bound_is_the_deepest_stack_a_segment_can_need() {
+    for (tris, budget) in [
+        (spheres(8, 6), 4 << 10),
+        (spheres(8, 6), 64 << 10),
+        (fan(600), 8 << 10),
+    ] {
+        let bvh = Bvh::build(&tris, &BvhCfg::default()).unwrap();
+        let seg = Segmentation::build(&bvh, budget).unwrap();
+        let bound = seg.stack_bound(&bvh);
+        assert_eq!(bound, deepest_first_stack(&bvh, &seg));
+        assert!(bound >= 3, "the trees are deeper than a node");
+    }
 }

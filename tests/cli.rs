@@ -971,4 +971,59 @@ fn threads_and_memory_choices_are_checked() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("model = \"fixed\""));
     let o = run(&["config"]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("model = \"gddr5\""));
+
+#[test]
+fn coordinates_beyond_the_datapath_range_name_the_vertex_and_the_fix() {
+    let t = Scratch::new("cli-range");
+    // Near 1e38: cross products overflow (once refused as "all degenerate").
+    let huge = t.join("huge.obj");
+    std::fs::write(&huge, "v 1e38 0 0\nv 0 1e38 0\nv 0 0 1e38\nf 1 2 3\n").unwrap();
+    // One small triangle far out (once: "camera up is parallel to the view").
+    let far = t.join("far.obj");
+    std::fs::write(&far, "v 0 0 0\nv 1e38 1 0\nv 1e38 0 1\nf 1 2 3\n").unwrap();
+    for (f, vertex) in [
+        (&huge, "huge.obj:1: vertex 1"),
+        (&far, "far.obj:2: vertex 2"),
+    ] {
+        let f = f.to_str().unwrap();
+        for args in [
+            vec!["scene", "info", f],
+            vec!["render", "--scene", f, "--res", "8x8"],
+        ] {
+            fails_with(&args, &[vertex, "1e6", "f32 datapath", "scale or recentre"]);
+        }
+    }
+}
+
+/// A TP whose traversal stack overflows stops; the chip then starves. The
+/// error names the stack and the setting to raise, not the starvation.
+#[test]
+fn a_tp_stack_overflow_names_the_scratchpad() {
+    let t = Scratch::new("cli-stack");
+    let cfg = t.join("small.toml");
+    std::fs::write(&cfg, "[tm]\nscratchpad_bytes = 36\n").unwrap();
+    let png = t.join("s.png");
+    fails_with(
+        &[
+            "--config",
+            cfg.to_str().unwrap(),
+            "render",
+            "--scene",
+            "cornell",
+            "--mode",
+            "cycle",
+            "--res",
+            "8x8",
+            "--threads",
+            "1",
+            "--out",
+            png.to_str().unwrap(),
+        ],
+        &[
+            "traversal stack",
+            "overflowed",
+            "tm.scratchpad_bytes = 36 holds 3 entries",
+            "can need up to",
+        ],
+    );
 }

@@ -2,11 +2,13 @@
 //! layout in the DRAM image (the scene stream of the data contract).
 pub mod bvh;
 pub mod layout;
+mod ploc;
+mod sah;
 pub mod treelet;
 
 use serde::{Deserialize, Serialize};
 
-pub use bvh::{Bvh, BvhCfg, Child};
+pub use bvh::{Bvh, BvhBuilder, BvhCfg, Child};
 pub use layout::SceneImage;
 pub use treelet::{Segment, Segmentation};
 

@@ -168,6 +168,39 @@ impl Builder<'_> {
 }
 
 impl Segmentation {
+    /// The most traversal-stack entries a ray can need inside any one segment
+    /// (the stack starts afresh in each): a ray pops a node and pushes both
+    /// children, so after a node `L` levels below its segment's entry the stack
+    /// holds at most `L + 2` entries.
+    pub fn stack_bound(&self, bvh: &Bvh) -> u32 {
+        let mut seg_of = vec![u32::MAX; bvh.nodes.len()];
+        for s in &self.segments {
+            for &n in &s.nodes {
+                seg_of[n as usize] = s.id;
+            }
+        }
+        let mut most = 1;
+        let mut todo: Vec<(u32, u32)> = Vec::new();
+        for s in &self.segments {
+            for &r in &s.roots {
+                if let Child::Inner(i) = r {
+                    todo.push((i, 0));
+                }
+            }
+            while let Some((i, level)) = todo.pop() {
+                most = most.max(level + 2);
+                for c in bvh.nodes[i as usize].children {
+                    if let Child::Inner(j) = c
+                        && seg_of[j as usize] == s.id
+                    {
+                        todo.push((j, level + 1));
+                    }
+                }
+            }
+        }
+        most
+    }
+
     /// Partitions `bvh` into segments of at most `budget` bytes.
     pub fn build(bvh: &Bvh, budget: u32) -> Result<Segmentation, String> {
         let max_leaf = bvh

@@ -364,4 +364,110 @@ mod tests {
         let huge = Triangle::new(Vec3::ZERO, Vec3::X * 3e38, Vec3::Y * 3e38);
         assert!(huge.is_degenerate());
     }
+
+    /// An f32 that records the largest magnitude any operation produces.
+    mod peak {
+        use crate::geom::ops::Scalar;
+        use std::cell::Cell;
+        use std::ops::{Add, Div, Mul, Sub};
+
+        thread_local! {
+            static PEAK: Cell<f32> = const { Cell::new(0.0) };
+        }
+
+        #[derive(Clone, Copy, PartialEq, PartialOrd)]
+        pub struct Peak(pub f32);
+
+        fn seen(x: f32) -> Peak {
+            // NaN and inf are recorded as inf.
+            PEAK.with(|p| {
+                p.set(if x.is_finite() {
+                    p.get().max(x.abs())
+                } else {
+                    f32::INFINITY
+                })
+            });
+            Peak(x)
+        }
+
+        /// The largest magnitude produced while running `f`.
+        pub fn peak(f: impl FnOnce()) -> f32 {
+            PEAK.with(|p| p.set(0.0));
+            f();
+            PEAK.with(|p| p.get())
+        }
+
+        impl Add for Peak {
+            type Output = Peak;
+            fn add(self, o: Peak) -> Peak {
+                seen(self.0 + o.0)
+            }
+        }
+        impl Sub for Peak {
+            type Output = Peak;
+            fn sub(self, o: Peak) -> Peak {
+                seen(self.0 - o.0)
+            }
+        }
+        impl Mul for Peak {
+            type Output = Peak;
+            fn mul(self, o: Peak) -> Peak {
+                seen(self.0 * o.0)
+            }
+        }
+        impl Div for Peak {
+            type Output = Peak;
+            fn div(self, o: Peak) -> Peak {
+                seen(self.0 / o.0)
+            }
+        }
+        impl Scalar for Peak {
+            fn from_f32(x: f32) -> Peak {
+                Peak(x)
+            }
+            fn to_f32(self) -> f32 {
+                self.0
+            }
+            fn max_acc(acc: Peak, x: Peak) -> Peak {
+                Peak(f32::max_acc(acc.0, x.0))
+            }
+            fn min_acc(acc: Peak, x: Peak) -> Peak {
+                Peak(f32::min_acc(acc.0, x.0))
+            }
+        }
+    }
+
+    /// The datapath's coordinate limits keep every intermediate of the triangle
+    /// test finite in the worst case: a shadow ray from one corner of the
+    /// vertex range to a light at the far corner of the view range, against
+    /// triangles spanning the vertex range; ten times farther out, it overflows.
+    #[test]
+    fn coordinate_limits_keep_the_triangle_test_finite() {
+        use super::super::{MAX_COORD, MAX_VIEW_COORD};
+        use peak::{Peak, peak};
+        let worst = |m: f32, v: f32| {
+            let mut most = 0.0f32;
+            for s in [1.0f32, -1.0] {
+                let o = [-m * s, -m * s, -m * s];
+                let light = [v * s, v * s, v * s * 0.999];
+                let d = [light[0] - o[0], light[1] - o[1], light[2] - o[2]];
+                let tris = [
+                    [[m, -m, m], [-m, m, -m], [m, m, -m]],
+                    [[m * s, m * s, -m * s], [-m, m, m], [m, -m, -m]],
+                    [[0.5 * m, m, m], [m, 0.5 * m, -m], [-m, -m, m]],
+                ];
+                for tri in tris {
+                    let p = |a: [f32; 3]| a.map(Peak);
+                    most = most.max(peak(|| {
+                        let _ = ray_triangle_generic(p(o), p(d), Peak(0.0), Peak(1.0), tri.map(p));
+                    }));
+                }
+            }
+            most
+        };
+        let at_limit = worst(MAX_COORD, MAX_VIEW_COORD);
+        assert!(at_limit < f32::MAX / 1000.0, "{at_limit:e}");
+        assert!(at_limit > 1e33, "the worst case is exercised: {at_limit:e}");
+        assert!(worst(10.0 * MAX_COORD, 10.0 * MAX_VIEW_COORD).is_infinite());
+    }
 }

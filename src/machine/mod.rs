@@ -409,6 +409,12 @@ pub struct Chip {
     /// Simulated cycles and wall time of the traced wavefronts.
     pub total_cycles: u64,
     pub wall_s: f64,
+    /// The most stack entries a traversal of this scene's segments can need
+    /// (`Segmentation::stack_bound`), when the caller knows it: named in the
+    /// error if a TP's stack overflows.
+    pub stack_need: Option<u32>,
+    /// TP scratchpad bytes and stack entry bytes (`tm.*`), for that error.
+    stack_cfg: (u32, u32),
 }
 
 fn counter(sim: &Sim, u: UnitId, name: &str) -> u64 {
@@ -681,6 +687,8 @@ impl Chip {
             watchdog: ch.watchdog_cycles,
             segments,
             wave: 0,
+            stack_need: None,
+            stack_cfg: (cfg.tm.scratchpad_bytes, cfg.tm.stack_entry_bytes),
             total_cycles: 0,
             wall_s: 0.0,
         })
@@ -1339,6 +1347,38 @@ impl Chip {
     }
 
     fn stuck(&self, why: &str) -> String {
+        // A TP whose stack overflowed stops for good; the chip then starves.
+        // That is the cause to report, not the starvation.
+        let overflowed: Vec<String> = self
+            .tms
+            .iter()
+            .enumerate()
+            .flat_map(|(k, t)| {
+                t.tps
+                    .iter()
+                    .enumerate()
+                    .filter(|&(_, &u)| self.sim.unit_ref::<Tp>(u).overflowed())
+                    .map(move |(j, _)| format!("chip.tm{k}.tp{j}"))
+            })
+            .collect();
+        if let Some(first) = overflowed.first() {
+            let (pad, entry) = self.stack_cfg;
+            let need = match self.stack_need {
+                Some(n) => format!(
+                    "; this scene's segments can need up to {n} entries: tm.scratchpad_bytes = {} holds them",
+                    n * entry
+                ),
+                None => String::new(),
+            };
+            return format!(
+                "the traversal stack of {first} overflowed at cycle {} ({} TPs overflowed): \
+                 tm.scratchpad_bytes = {pad} holds {} entries of tm.stack_entry_bytes = {entry}; \
+                 raise tm.scratchpad_bytes{need}",
+                self.sim.cycle(self.clock),
+                overflowed.len(),
+                pad / entry.max(1),
+            );
+        }
         let mut msg = format!(
             "the chip is stuck at cycle {}: {why}",
             self.sim.cycle(self.clock)

@@ -635,6 +635,10 @@ pub struct AccelInfo {
     pub segment_bytes_mean: f64,
     pub bvh_build_s: f64,
     pub segment_build_s: f64,
+    /// Why the BVH was built by the binned-SAH fallback rather than PLOC (absent,
+    /// and not in the statistics, for a PLOC tree).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bvh_fallback: Option<String>,
 }
 
 /// A rendered frame.
@@ -730,6 +734,10 @@ pub fn prepare(scene: &Scene, cfg: &RenderCfg) -> Result<Prepared, String> {
             / bytes.len().max(1) as f64,
         bvh_build_s: bvh.build_time.as_secs_f64(),
         segment_build_s,
+        bvh_fallback: match &bvh.builder {
+            crate::accel::BvhBuilder::Ploc => None,
+            crate::accel::BvhBuilder::BinnedSah { reason } => Some(reason.clone()),
+        },
     };
     Ok(Prepared {
         bvh,
@@ -800,6 +808,7 @@ pub fn render(
         chip_cfg.memory = cfg.memory.clone();
         let consts = shade_consts(scene, &p);
         let mut c = crate::machine::Chip::new(&chip_cfg, &p.map, nseg, &consts, run.sim)?;
+        c.stack_need = Some(p.seg.stack_bound(&p.bvh));
         if let Some(t) = &run.trace {
             let paths: Vec<String> = (0..c.sim.unit_count())
                 .map(|i| c.sim.unit_path(crate::rtl::UnitId(i as u32)).to_string())

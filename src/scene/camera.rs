@@ -2,8 +2,8 @@
 
 use glam::Vec3;
 
-use crate::geom::Aabb;
 use crate::geom::shapes::sin_cos;
+use crate::geom::{Aabb, MAX_VIEW_COORD, beyond};
 
 /// A pinhole camera. `vfov_deg` is the full vertical field of view.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,6 +53,16 @@ impl Camera {
                 ));
             }
         }
+        for (name, v) in [("eye", self.eye), ("look_at", self.look_at)] {
+            if beyond(v, MAX_VIEW_COORD) {
+                return Err(format!(
+                    "camera {name} [{:?}, {:?}, {:?}] is beyond ±{MAX_VIEW_COORD:e}, the f32 datapath's limit \
+                     for the camera and light (ray arithmetic would overflow); move it closer, \
+                     or scale and recentre the scene",
+                    v.x, v.y, v.z
+                ));
+            }
+        }
         if !(self.vfov_deg > 0.0 && self.vfov_deg < 180.0) {
             return Err(format!(
                 "camera vfov {} degrees is outside (0, 180); use e.g. 45",
@@ -66,9 +76,16 @@ impl Camera {
                 self.eye
             ));
         }
+        if self.up == Vec3::ZERO {
+            return Err("camera up is the zero vector; use e.g. [0, 1, 0]".to_string());
+        }
         let up = unit(self.up);
         if !finite(up) {
-            return Err("camera up is the zero vector; use e.g. [0, 1, 0]".to_string());
+            return Err(format!(
+                "camera up {:?} cannot be normalised in f32 (its squared length over- or \
+                 underflows); give a vector of ordinary length, e.g. [0, 1, 0]",
+                self.up
+            ));
         }
         // sin of the angle between up and the view direction.
         if cross(w, up).length() < 1e-6 {

@@ -155,7 +155,9 @@ pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, String>
 
     let aspect = s.width as f32 / s.height as f32;
     // The copyable snippet is reported only for what is missing.
-    let (auto_cam, auto_light) = b.auto_view(aspect, d.camera.is_none(), d.light.is_none());
+    let (auto_cam, auto_light) = b
+        .auto_view(aspect, d.camera.is_none(), d.light.is_none())
+        .map_err(|e| format!("{shown}: {e}"))?;
     let camera = match &d.camera {
         Some(c) => {
             let cd = c.get_ref();
@@ -185,6 +187,8 @@ pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, String>
                     ld.intensity
                 ));
             }
+            super::light_in_range(v3(ld.position))
+                .map_err(|e| format!("{}: {e}", at(l.span().start)))?;
             PointLight {
                 position: v3(ld.position),
                 intensity: v3(ld.intensity),
@@ -353,6 +357,13 @@ fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(),
     {
         return Err(format!(
             "{here}: coordinates overflow after the transform; use a smaller scale"
+        ));
+    }
+    if let Some((i, v)) = super::first_beyond(&tris) {
+        return Err(format!(
+            "{here}: builtin \"{kind}\" triangle {} has a vertex {}",
+            i + 1,
+            super::too_far(v)
         ));
     }
     b.add_mesh(

@@ -15,7 +15,7 @@ mod obj;
 use glam::Vec3;
 
 use crate::geom::shapes::sin_cos;
-use crate::geom::{Aabb, Triangle};
+use crate::geom::{Aabb, MAX_COORD, MAX_VIEW_COORD, Triangle, beyond};
 
 pub use camera::Camera;
 
@@ -130,6 +130,9 @@ impl Scene {
                 self.tri_material.len()
             ));
         }
+        if let Some((i, v)) = first_beyond(&self.triangles) {
+            return Err(format!("triangle {i} has a vertex {}", too_far(v)));
+        }
         if let Some(i) = self.triangles.iter().position(|t| t.is_degenerate()) {
             return Err(format!(
                 "triangle {i} is degenerate or not finite; drop it before building the scene"
@@ -161,6 +164,7 @@ impl Scene {
                 self.light
             ));
         }
+        light_in_range(self.light.position)?;
         if !non_negative(self.sky) {
             return Err(format!(
                 "sky {:?} must be finite and non-negative",
@@ -217,27 +221,45 @@ impl Xform {
         translate: Vec3::ZERO,
     };
 
+    /// Where `p` goes.
+    pub fn point(&self, p: Vec3) -> Vec3 {
+        if *self == Xform::IDENTITY {
+            return p;
+        }
+        self.map(self.sin_cos(), p)
+    }
+
     pub fn apply(&self, tris: &mut [Triangle]) {
         if *self == Xform::IDENTITY {
             return;
         }
+        let sc = self.sin_cos();
+        for tri in tris {
+            *tri = Triangle::new(
+                self.map(sc, tri.v0),
+                self.map(sc, tri.v1),
+                self.map(sc, tri.v2),
+            );
+        }
+    }
+
+    /// Sine and cosine of the rotation.
+    fn sin_cos(&self) -> (f64, f64) {
         // Reduce first: sin_cos is accurate only for small arguments.
         let deg = (self.rotate_y_deg as f64).rem_euclid(360.0);
-        let (s, c) = sin_cos(deg * (std::f64::consts::PI / 180.0));
+        sin_cos(deg * (std::f64::consts::PI / 180.0))
+    }
+
+    fn map(&self, (s, c): (f64, f64), p: Vec3) -> Vec3 {
         let k = self.scale as f64;
         let t = self.translate;
-        let f = |p: Vec3| {
-            let (x, y, z) = (p.x as f64 * k, p.y as f64 * k, p.z as f64 * k);
-            // Right-handed rotation about +y: x' = c x + s z, z' = -s x + c z.
-            Vec3::new(
-                (c * x + s * z + t.x as f64) as f32,
-                (y + t.y as f64) as f32,
-                (c * z - s * x + t.z as f64) as f32,
-            )
-        };
-        for tri in tris {
-            *tri = Triangle::new(f(tri.v0), f(tri.v1), f(tri.v2));
-        }
+        let (x, y, z) = (p.x as f64 * k, p.y as f64 * k, p.z as f64 * k);
+        // Right-handed rotation about +y: x' = c x + s z, z' = -s x + c z.
+        Vec3::new(
+            (c * x + s * z + t.x as f64) as f32,
+            (y + t.y as f64) as f32,
+            (c * z - s * x + t.z as f64) as f32,
+        )
     }
 }
 
@@ -260,7 +282,9 @@ impl Builder {
     }
 
     /// Adds triangles with one material each, dropping degenerate ones (with a
-    /// warning naming `source`).
+    /// warning naming `source`). Meshes from files are checked against the
+    /// datapath's range first ([`first_beyond`]): out there, areas overflow and
+    /// every triangle would look degenerate.
     pub fn add(&mut self, source: &str, tris: impl IntoIterator<Item = (Triangle, u32)>) {
         let mut dropped = 0usize;
         for (t, m) in tris {
@@ -288,15 +312,25 @@ impl Builder {
     }
 
     /// Camera and light framing the bounds, with a warning giving them as TOML
-    /// so the user can copy them into a scene file.
+    /// so the user can copy them into a scene file. An error if the framing
+    /// leaves the datapath's range (only a mesh near [`MAX_COORD`] seen through
+    /// a tall, narrow image can do that).
     pub fn auto_view(
         &mut self,
         aspect: f32,
         need_camera: bool,
         need_light: bool,
-    ) -> (Camera, PointLight) {
+    ) -> Result<(Camera, PointLight), String> {
         let b = self.bounds();
         let cam = Camera::frame(&b, 45.0, aspect);
+        if need_camera && beyond(cam.eye, MAX_VIEW_COORD) {
+            return Err(format!(
+                "framing the meshes automatically puts the camera eye at {}, beyond \
+                 ±{MAX_VIEW_COORD:e}, the f32 datapath's limit for the camera and light; give a \
+                 [camera] or scale the meshes down",
+                arr(cam.eye)
+            ));
+        }
         let r = (b.extent().length() * 0.5).max(1e-6);
         let c = b.centroid();
         // Above and in front of the object, so the faces the camera sees are lit.
@@ -308,6 +342,14 @@ impl Builder {
             position: pos,
             intensity: Vec3::splat(i),
         };
+        if need_light && beyond(light.position, MAX_VIEW_COORD) {
+            return Err(format!(
+                "framing the meshes automatically puts the light at {}, beyond \
+                 ±{MAX_VIEW_COORD:e}, the f32 datapath's limit for the camera and light; give a \
+                 [light] or scale the meshes down",
+                arr(light.position)
+            ));
+        }
         let mut toml = String::new();
         if need_camera {
             toml += &format!(
@@ -331,8 +373,42 @@ impl Builder {
                  edit them, put this in a scene file:\n{toml}"
             ));
         }
-        (cam, light)
+        Ok((cam, light))
     }
+}
+
+/// The first triangle (index) with a vertex beyond [`MAX_COORD`], and that vertex.
+pub(crate) fn first_beyond(tris: &[Triangle]) -> Option<(usize, Vec3)> {
+    tris.iter().enumerate().find_map(|(i, t)| {
+        [t.v0, t.v1, t.v2]
+            .into_iter()
+            .find(|&v| beyond(v, MAX_COORD))
+            .map(|v| (i, v))
+    })
+}
+
+/// Where a vertex beyond [`MAX_COORD`] is, what is wrong and the fix: follows
+/// "vertex k lies" or "triangle k has a vertex".
+pub(crate) fn too_far(v: Vec3) -> String {
+    format!(
+        "at {}, beyond ±{MAX_COORD:e}, the coordinate limit of the f32 datapath (its \
+         intersection test multiplies coordinate differences up to five deep; larger ones \
+         overflow); scale or recentre the mesh (`scale`, `translate` in a scene file)",
+        arr(v)
+    )
+}
+
+/// A light position within [`MAX_VIEW_COORD`].
+pub(crate) fn light_in_range(p: Vec3) -> Result<(), String> {
+    if beyond(p, MAX_VIEW_COORD) {
+        return Err(format!(
+            "light position {} is beyond ±{MAX_VIEW_COORD:e}, the f32 datapath's limit for the \
+             camera and light (shadow rays run from the surfaces to the light unnormalised); \
+             move the light closer, or scale and recentre the scene",
+            arr(p)
+        ));
+    }
+    Ok(())
 }
 
 /// `[x, y, z]` with round-trip float formatting, for TOML snippets.

@@ -183,6 +183,9 @@ pub(crate) fn load_into(
             "{shown}: coordinates overflow after scale/translate {xform:?}; use a smaller scale"
         ));
     }
+    if let Some((_, v)) = super::first_beyond(&only) {
+        return Err(vertex_beyond(path, xform, v));
+    }
     b.add(
         &shown.to_string(),
         only.into_iter().zip(tris.into_iter().map(|t| t.1)),
@@ -201,7 +204,9 @@ pub(crate) fn load_bare(path: &Path) -> Result<Scene, String> {
         ));
     }
     let settings = RenderSettings::default();
-    let (camera, light) = b.auto_view(settings.width as f32 / settings.height as f32, true, true);
+    let (camera, light) = b
+        .auto_view(settings.width as f32 / settings.height as f32, true, true)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(Scene {
         name: path
             .file_stem()
@@ -273,6 +278,35 @@ fn non_finite_vertex(path: &Path) -> String {
         "{}: a vertex has a non-finite coordinate (NaN or inf); replace it with finite numbers",
         path.display()
     )
+}
+
+/// Names the `v` line of the vertex that lands at `world` (beyond the
+/// datapath's range) after `xform`: the limit, where it is and the fix.
+fn vertex_beyond(path: &Path, xform: &Xform, world: Vec3) -> String {
+    let shown = path.display();
+    let why = super::too_far(world);
+    let mut k = 0usize;
+    for (n, line) in lines(path).iter().enumerate() {
+        let mut w = line.split_whitespace();
+        if w.next() != Some("v") {
+            continue;
+        }
+        k += 1;
+        let c: Vec<f32> = w.take(3).filter_map(|s| s.parse().ok()).collect();
+        if c.len() == 3 && xform.point(Vec3::new(c[0], c[1], c[2])) == world {
+            let placed = if *xform == Xform::IDENTITY {
+                String::new()
+            } else {
+                " (after the mesh's scale/rotate/translate)".to_string()
+            };
+            return format!(
+                "{shown}:{}: vertex {k} ('{}'){placed} lies {why}",
+                n + 1,
+                line.trim()
+            );
+        }
+    }
+    format!("{shown}: a vertex lies {why}")
 }
 
 /// Turns a tobj error into a message with the file, line and fix.

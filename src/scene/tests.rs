@@ -636,3 +636,123 @@ fn toml_mesh_paths_are_relative_to_the_scene_file() {
         "{e2}"
     );
 }
+
+// ---------------------------------------------------------------- coordinate range
+
+/// The error names the f32 limit and the fix, not a symptom of the overflow.
+fn names_the_range(e: &str, limit: &str) {
+    assert!(
+        e.contains(limit) && e.contains("f32 datapath"),
+        "should name the limit {limit}: {e}"
+    );
+    for symptom in ["degenerate", "parallel", "no triangles", "same point"] {
+        assert!(!e.contains(symptom), "names a symptom ({symptom}): {e}");
+    }
+}
+
+#[test]
+fn obj_beyond_the_coordinate_range_names_the_vertex_and_the_fix() {
+    // Near 1e38 every cross product overflows: the triangles used to be dropped
+    // as zero-area and the file refused as "all degenerate".
+    let huge = "v 1e38 0 0\nv 0 1e38 0\nv 0 0 1e38\nv 1e38 1e38 0\nf 1 2 3\nf 1 2 4\n";
+    let e = load_obj("huge", &[("h.obj", huge)]).unwrap_err();
+    names_the_range(&e, "1e6");
+    assert!(
+        e.contains("h.obj:1:") && e.contains("vertex 1") && e.contains("scale or recentre"),
+        "{e}"
+    );
+    // One small triangle far out: the automatic framing used to overflow and
+    // blame the camera's up vector.
+    let far = "v 1e38 0 0\nv 1e38 1 0\nv 1e38 0 1\nf 1 2 3\n";
+    let e = load_obj("far", &[("f.obj", far)]).unwrap_err();
+    names_the_range(&e, "1e6");
+    assert!(e.contains("f.obj:1:") && e.contains("vertex 1"), "{e}");
+    // The vertex named is the first one out of range, just past the limit.
+    let past = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1000001 0 0\nf 1 2 3\nf 2 4 3\n";
+    let e = load_obj("past", &[("p.obj", past)]).unwrap_err();
+    assert!(e.contains("p.obj:4:") && e.contains("vertex 4"), "{e}");
+    // At the limit is fine.
+    let at = "v 0 0 0\nv 1000000 0 0\nv 0 -1000000 0\nf 1 2 3\n";
+    assert!(load_obj("at", &[("a.obj", at)]).is_ok());
+}
+
+#[test]
+fn toml_meshes_camera_and_light_beyond_the_range_are_named() {
+    let cases = [
+        // A mesh moved out of range by its transform.
+        (
+            "translate = [0.0, 0.0, 0.1]",
+            "translate = [3e6, 0.0, 0.1]",
+            ":21: mesh 2",
+            "1e6",
+        ),
+        (
+            "center = [0.0, 1.0, 0.0]",
+            "center = [0.0, 1e38, 0.0]",
+            ":21: mesh 2",
+            "1e6",
+        ),
+        (
+            "eye = [0.0, 1.0, 5.0]",
+            "eye = [0.0, 1.0, 2e7]",
+            ":4:",
+            "1e7",
+        ),
+        (
+            "look_at = [0.0, 1.0, 0.0]",
+            "look_at = [-1e38, 1.0, 0.0]",
+            ":4:",
+            "1e7",
+        ),
+        (
+            "position = [0.0, 3.0, 0.0]",
+            "position = [0.0, 3e7, 0.0]",
+            ":8:",
+            "1e7",
+        ),
+    ];
+    for (from, to, at, limit) in cases {
+        let e = bad(from, to);
+        assert!(e.starts_with("t.toml") && e.contains(at), "{to}: {e}");
+        names_the_range(&e, limit);
+    }
+    let e = bad("eye = [0.0, 1.0, 5.0]", "eye = [0.0, 1.0, 2e7]");
+    assert!(e.contains("camera eye"), "{e}");
+    let e = bad("position = [0.0, 3.0, 0.0]", "position = [0.0, 3e7, 0.0]");
+    assert!(e.contains("light position"), "{e}");
+    // An up vector whose square underflows is not "the zero vector".
+    let e = bad("vfov = 45.0", "vfov = 45.0\nup = [0.0, 1e-30, 0.0]");
+    assert!(
+        e.contains("cannot be normalised") && e.contains(":4:"),
+        "{e}"
+    );
+}
+
+#[test]
+fn automatic_framing_out_of_range_is_named() {
+    // A mesh at the limit through a tall, narrow image: the framing camera would
+    // stand beyond the view limit.
+    let src = "[render]\nwidth = 1\nheight = 1000\n[[mesh]]\nbuiltin = \"box\"\n\
+               min = [-1e6, -1e6, -1e6]\nmax = [1e6, 1e6, 1e6]\n";
+    let e = parse(src).unwrap_err();
+    assert!(e.contains("framing") && e.contains("[camera]"), "{e}");
+    names_the_range(&e, "1e7");
+    // The same mesh through a square image frames within range.
+    let sq = src.replace("width = 1\n", "width = 1000\n");
+    let s = parse(&sq).unwrap();
+    assert!(s.camera.eye.z < crate::geom::MAX_VIEW_COORD);
+}
+
+#[test]
+fn scene_validation_checks_the_range_too() {
+    let mut s = load("cornell").unwrap();
+    s.triangles[5].v1.y = 1e38;
+    let e = s.validate().unwrap_err();
+    assert!(e.contains("triangle 5"), "{e}");
+    names_the_range(&e, "1e6");
+    let mut s = load("cornell").unwrap();
+    s.light.position.x = -2e7;
+    let e = s.validate().unwrap_err();
+    assert!(e.contains("light position"), "{e}");
+    names_the_range(&e, "1e7");
+}
