@@ -971,6 +971,7 @@ fn threads_and_memory_choices_are_checked() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("model = \"fixed\""));
     let o = run(&["config"]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("model = \"gddr5\""));
+}
 
 #[test]
 fn coordinates_beyond_the_datapath_range_name_the_vertex_and_the_fix() {
