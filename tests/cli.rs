@@ -1028,3 +1028,30 @@ fn a_tp_stack_overflow_names_the_scratchpad() {
         ],
     );
 }
+
+/// The example configurations the README points to load and say what they set.
+#[test]
+fn example_configs_load() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/examples");
+    let mut n = 0;
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") {
+            let o = run(&["--config", p.to_str().unwrap(), "config"]);
+            assert!(
+                o.status.success(),
+                "{}: {}",
+                p.display(),
+                String::from_utf8_lossy(&o.stderr)
+            );
+            n += 1;
+        }
+    }
+    assert!(n > 0, "no example configs in {}", dir.display());
+    let o = run(&[
+        "--config",
+        dir.join("chip-8tms.toml").to_str().unwrap(),
+        "config",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("tms = 8"));
+}

@@ -1140,9 +1140,16 @@ impl Sim {
             crew.threads
                 .set(handles)
                 .expect("a run's workers are spawned once");
-            let r = self.run_loop(limit, stop_when_idle, Some(crew));
-            crew.quit();
-            r
+            // Ends the workers however the loop ends: a panic on this thread
+            // would otherwise leave the scope waiting for them forever.
+            struct Quit<'c>(&'c Crew);
+            impl Drop for Quit<'_> {
+                fn drop(&mut self) {
+                    self.0.quit();
+                }
+            }
+            let _quit = Quit(crew);
+            self.run_loop(limit, stop_when_idle, Some(crew))
         })
     }
 
@@ -1457,6 +1464,10 @@ impl Sim {
         let mut result =
             unsafe { run_lane(lanes, l as u8, &self.lane_due[l - 1], t, &mut self.out) };
         let main_ns = t0.elapsed().as_nanos() as u64;
+        if self.balance.lane_ns.len() != l {
+            // Partitions set by `set_part`, without a lane plan.
+            self.balance.lane_ns = vec![0; l];
+        }
         for &k in &started {
             crew.wait(k, seq);
             // SAFETY: the worker is done with this step and waits for the next `go`.
