@@ -438,20 +438,7 @@ fn sim_threads(threads: &str) -> Result<Threads, String> {
 }
 
 fn render_cfg(config: &Config, threads: Threads) -> dualstream::render::RenderCfg {
-    dualstream::render::RenderCfg {
-        accel: config.accel.clone(),
-        memory: config.memory.clone(),
-        verify: false,
-        dump_rays: None,
-        chip: Some(Box::new(dualstream::render::ChipRun {
-            config: config.clone(),
-            sim: threads.sim(),
-            trace: None,
-        })),
-        pixels: None,
-        windows: None,
-        pass_log: false,
-    }
+    dualstream::render::RenderCfg::for_chip(config, threads.sim())
 }
 
 fn load_config(path: &Option<PathBuf>) -> Result<Config, String> {

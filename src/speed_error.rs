@@ -207,18 +207,8 @@ fn render_pixels(
 
 fn render_cfg(c: &Config, pixels: Option<Vec<u32>>, threads: Threads) -> RenderCfg {
     RenderCfg {
-        accel: c.accel.clone(),
-        memory: c.memory.clone(),
-        verify: false,
-        dump_rays: None,
-        chip: Some(Box::new(render::ChipRun {
-            config: c.clone(),
-            sim: threads.sim(),
-            trace: None,
-        })),
         pixels,
-        windows: None,
-        pass_log: false,
+        ..RenderCfg::for_chip(c, threads.sim())
     }
 }
 

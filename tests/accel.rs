@@ -7,25 +7,12 @@ use dualstream::contract::{
     MemoryMap, MemoryMapCfg, NODE_BYTES, NodeRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES,
     SEGMENT_MAGIC, SegEntry, SparseMem, TRI_BYTES, TriRec,
 };
-use dualstream::geom::shapes::uv_sphere;
 use dualstream::geom::{Aabb, Triangle, ray_triangle};
 use dualstream::render::traverse::reference_trace;
 use dualstream::util::rng::Rng;
 use glam::Vec3;
 
-fn spheres(n: usize, seed: u64) -> Vec<Triangle> {
-    let mut rng = Rng::new(seed);
-    let mut t = Vec::new();
-    for _ in 0..n {
-        let c = Vec3::new(
-            rng.range_f32(-10.0, 10.0),
-            rng.range_f32(-10.0, 10.0),
-            rng.range_f32(-10.0, 10.0),
-        );
-        t.extend(uv_sphere(c, rng.range_f32(0.2, 1.5), 12, 24));
-    }
-    t
-}
+use dualstream::geom::shapes::random_spheres as spheres;
 
 fn check(tris: &[Triangle], budget: u32, leaf: u32) {
     let bvh = Bvh::build(

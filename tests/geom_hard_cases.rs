@@ -1097,7 +1097,7 @@ impl Spawned {
 /// spawns rays at one point of every triangle (cycling through the vertices, edge
 /// midpoints and centre, approached from `center`).
 fn spawned_inside(tris: &[Triangle], center: Vec3, radius: f32, light: Vec3, res: u32) -> Spawned {
-    use dualstream::render::shade::{ShadeConsts, next_f32, pixel_seed, shade_step};
+    use dualstream::render::shade::{ShadeConsts, primary_path, shade_step};
     use dualstream::render::traverse::reference_trace;
     // As the scene builder does.
     let tris: Vec<Triangle> = tris
@@ -1132,18 +1132,7 @@ fn spawned_inside(tris: &[Triangle], center: Vec3, radius: f32, light: Vec3, res
     };
     let mut n = Spawned::default();
     for pix in 0..res * res {
-        let mut rng = pixel_seed(7, pix);
-        let jitter = (next_f32(&mut rng), next_f32(&mut rng));
-        let (o, d) = cam.ray(pix % res, pix / res, res, res, jitter);
-        let mut path = PathRec {
-            throughput: Vec3::ONE,
-            pending: Vec3::ZERO,
-            radiance: Vec3::ZERO,
-            dir: d,
-            rng,
-            depth: 0,
-            flags: PATH_BOUNCE_IN_FLIGHT,
-        };
+        let (o, d, mut path) = primary_path(&cam, 7, pix, res, res);
         let mut bounce = Some(reference_trace(&bvh, &tris, o, d, false));
         let mut shadow = None;
         n.count(bounce, None);

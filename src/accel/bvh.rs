@@ -325,21 +325,8 @@ fn flatten(ob: &obvhs::bvh2::Bvh2, tris: &[Triangle]) -> Bvh {
 mod tests {
     use super::*;
     use crate::geom::shapes::uv_sphere;
-    use crate::util::rng::Rng;
 
-    fn spheres(n: usize, seed: u64) -> Vec<Triangle> {
-        let mut rng = Rng::new(seed);
-        let mut t = Vec::new();
-        for _ in 0..n {
-            let c = Vec3::new(
-                rng.range_f32(-10.0, 10.0),
-                rng.range_f32(-10.0, 10.0),
-                rng.range_f32(-10.0, 10.0),
-            );
-            t.extend(uv_sphere(c, rng.range_f32(0.2, 1.5), 12, 24));
-        }
-        t
-    }
+    use crate::geom::shapes::random_spheres as spheres;
 
     /// What `Bvh::build` made before PLOC ran in our copy: obvhs's whole builder.
     fn obvhs_bvh(tris: &[Triangle], cfg: &BvhCfg) -> Bvh {

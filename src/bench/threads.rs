@@ -8,7 +8,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::Instant;
 
 use crate::config::Config;
-use crate::render::{self, ChipRun, Mode, RenderCfg};
+use crate::render::{self, Mode, RenderCfg};
 use crate::rtl::Threads;
 
 /// One frame the benchmark times.
@@ -97,20 +97,7 @@ fn time_one(
         )?;
         return Ok((t0.elapsed().as_secs_f64(), Vec::new()));
     }
-    let rc = RenderCfg {
-        accel: config.accel.clone(),
-        memory: config.memory.clone(),
-        verify: false,
-        dump_rays: None,
-        chip: Some(Box::new(ChipRun {
-            config: config.clone(),
-            sim: threads.sim(),
-            trace: None,
-        })),
-        pixels: None,
-        windows: None,
-        pass_log: false,
-    };
+    let rc = RenderCfg::for_chip(config, threads.sim());
     let f = render::render(&sc, Mode::Cycle, &rc, &mut |_| {})?;
     let by = f.chip.map(|c| c.sim_steps_by_lanes).unwrap_or_default();
     Ok((t0.elapsed().as_secs_f64(), by))

@@ -46,6 +46,22 @@ fn place(center: Vec3, radius: f32, unit: [f64; 3]) -> Vec3 {
     )
 }
 
+/// `n` UV spheres (12 x 24) of radius 0.2-1.5 at random centres in a 20-unit
+/// cube, from `seed`: a scene of many separate objects for BVH tests.
+pub fn random_spheres(n: usize, seed: u64) -> Vec<Triangle> {
+    let mut rng = crate::util::rng::Rng::new(seed);
+    let mut t = Vec::new();
+    for _ in 0..n {
+        let c = Vec3::new(
+            rng.range_f32(-10.0, 10.0),
+            rng.range_f32(-10.0, 10.0),
+            rng.range_f32(-10.0, 10.0),
+        );
+        t.extend(uv_sphere(c, rng.range_f32(0.2, 1.5), 12, 24));
+    }
+    t
+}
+
 /// A closed UV sphere: `stacks` bands from the +y pole to the -y pole and
 /// `slices` columns around y (clamped to at least 2 and 3). Poles are single
 /// vertices; the seam column reuses column 0. Produces

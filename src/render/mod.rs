@@ -22,8 +22,8 @@ use serde::Serialize;
 
 use crate::accel::{AccelCfg, Bvh, SceneImage, Segmentation};
 use crate::contract::{
-    HitRec, LINE_BYTES, MemoryMap, MemoryMapCfg, PATH_BOUNCE_IN_FLIGHT, PathRec, RayRec,
-    SHADOW_BIT, SegEntry, SparseMem, TriRec, lines_touched,
+    HitRec, LINE_BYTES, MemoryMap, MemoryMapCfg, PathRec, RayRec, SHADOW_BIT, SegEntry, SparseMem,
+    TriRec, lines_touched,
 };
 use crate::scene::Scene;
 use queues::{RayQueues, queue_lines_written};
@@ -69,6 +69,27 @@ pub struct RenderCfg {
     /// Cycle mode: record every segment pass's admission and retirement
     /// ([`Frame::passes`]).
     pub pass_log: bool,
+}
+
+impl RenderCfg {
+    /// A frame of `config`'s chip (its `accel` and `memory` too) with the
+    /// simulator options `sim`: nothing checked, dumped or logged.
+    pub fn for_chip(config: &crate::config::Config, sim: crate::rtl::SimOptions) -> RenderCfg {
+        RenderCfg {
+            accel: config.accel.clone(),
+            memory: config.memory.clone(),
+            verify: false,
+            dump_rays: None,
+            chip: Some(Box::new(ChipRun {
+                config: config.clone(),
+                sim,
+                trace: None,
+            })),
+            pixels: None,
+            windows: None,
+            pass_log: false,
+        }
+    }
 }
 
 /// Time sampling (`bench speed-error --modes windows`): while the functional model
@@ -892,9 +913,7 @@ pub fn render(
     // Ray generation: path state and primary rays into the root segment's queue.
     let mut st = WaveStats::default();
     for (pix, &real) in (0..pixels).zip(&sample) {
-        let mut rng = pixel_seed(scene.settings.seed, real);
-        let jitter = (next_f32(&mut rng), next_f32(&mut rng));
-        let (o, d) = scene.camera.ray(real % w, real / w, w, h, jitter);
+        let (o, d, path) = shade::primary_path(&scene.camera, scene.settings.seed, real, w, h);
         let ray = RayRec {
             origin: o,
             dir: d,
@@ -902,16 +921,7 @@ pub fn render(
             entry: root_entry,
         };
         emit(&mut p, &mut q, &mut st, &ray, keep, &mut rays_this_wave)?;
-        PathRec {
-            throughput: Vec3::ONE,
-            pending: Vec3::ZERO,
-            radiance: Vec3::ZERO,
-            dir: d,
-            rng,
-            depth: 0,
-            flags: PATH_BOUNCE_IN_FLIGHT,
-        }
-        .write(&mut p.mem, p.map.path_addr(pix as u64));
+        path.write(&mut p.mem, p.map.path_addr(pix as u64));
         st.shading_lines += 1;
     }
     let mut work: Vec<u32> = (0..pixels).collect();

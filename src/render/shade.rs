@@ -101,6 +101,30 @@ pub fn spawn(v: &[Vec3; 3], u: f32, w: f32, dir: Vec3) -> (Vec3, Vec3) {
     (n, offset_ray(p, n, h_p + TRI_TEST_ERR * l * (1.0 + sliver)))
 }
 
+/// Pixel `real`'s camera ray (jittered by its first two random numbers) and the
+/// path state it starts with, for a `w` x `h` frame rendered with `seed`.
+pub fn primary_path(
+    camera: &crate::scene::Camera,
+    seed: u64,
+    real: u32,
+    w: u32,
+    h: u32,
+) -> (Vec3, Vec3, PathRec) {
+    let mut rng = pixel_seed(seed, real);
+    let jitter = (next_f32(&mut rng), next_f32(&mut rng));
+    let (o, d) = camera.ray(real % w, real / w, w, h, jitter);
+    let path = PathRec {
+        throughput: Vec3::ONE,
+        pending: Vec3::ZERO,
+        radiance: Vec3::ZERO,
+        dir: d,
+        rng,
+        depth: 0,
+        flags: PATH_BOUNCE_IN_FLIGHT,
+    };
+    (o, d, path)
+}
+
 /// Orthonormal basis around a unit normal (Duff et al. 2017, branchless).
 pub fn basis(n: Vec3) -> (Vec3, Vec3) {
     let s = if n.z >= 0.0 { 1.0 } else { -1.0 };

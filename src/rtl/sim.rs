@@ -1036,6 +1036,8 @@ impl Sim {
         }
         self.local = vec![0; self.links.len()];
         self.relocal();
+        // A lane's time per balancing window (the plan's partitions or `set_part`'s).
+        self.balance.lane_ns = vec![0; self.lanes];
         self.elaborated = true;
         self.reset();
         Ok(())
@@ -1464,10 +1466,6 @@ impl Sim {
         let mut result =
             unsafe { run_lane(lanes, l as u8, &self.lane_due[l - 1], t, &mut self.out) };
         let main_ns = t0.elapsed().as_nanos() as u64;
-        if self.balance.lane_ns.len() != l {
-            // Partitions set by `set_part`, without a lane plan.
-            self.balance.lane_ns = vec![0; l];
-        }
         for &k in &started {
             crew.wait(k, seq);
             // SAFETY: the worker is done with this step and waits for the next `go`.
@@ -1509,7 +1507,7 @@ impl Sim {
         let ns = std::mem::replace(&mut self.balance.lane_ns, vec![0; l]);
         self.balance.steps = 0;
         let Some(plan) = &self.plan else { return };
-        if l < 2 || ns.len() != l {
+        if l < 2 {
             return;
         }
         let parts = &self.parts;
