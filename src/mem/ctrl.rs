@@ -31,8 +31,8 @@
 
 use std::collections::VecDeque;
 
+use super::books::Books;
 use super::config::MemCfg;
-use super::energy::EnergyModel;
 use super::map::AddrMap;
 use super::stats::ChannelStats;
 use super::timing::{ChannelTiming, Command, DramCmd};
@@ -125,11 +125,7 @@ pub struct ChannelCtrl {
     refresh_pending: bool,
     next_event: u64,
     last_cmd: Option<Command>,
-    log: Option<Vec<Command>>,
-    stats: ChannelStats,
-    em: EnergyModel,
-    occ_since: u64,
-    bg_since: u64,
+    books: Books,
     /// Something changed this cycle (the edge commits it); `pre` holds what the
     /// traced registers showed before the change.
     dirty: bool,
@@ -183,11 +179,7 @@ impl ChannelCtrl {
             refresh_pending: false,
             next_event: cfg.timing.refi as u64,
             last_cmd: None,
-            log: None,
-            stats: ChannelStats::default(),
-            em: EnergyModel::new(&cfg.energy, &cfg.timing, g.burst_cycles(), tck_ps),
-            occ_since: 0,
-            bg_since: 0,
+            books: Books::new(cfg, tck_ps),
             dirty: false,
             pre: Traced::default(),
         }
@@ -195,10 +187,10 @@ impl ChannelCtrl {
 
     /// Records every issued command (for the timing checker).
     pub fn record_commands(&mut self, on: bool) {
-        self.log = on.then(Vec::new);
+        self.books.log = on.then(Vec::new);
     }
     pub fn commands(&self) -> &[Command] {
-        self.log.as_deref().unwrap_or(&[])
+        self.books.log.as_deref().unwrap_or(&[])
     }
 
     /// Nothing queued, in flight or waiting to be returned.
@@ -246,24 +238,12 @@ impl ChannelCtrl {
 
     /// Queue occupancy integrals up to (not including) cycle `c`.
     fn occ_integrate(&mut self, c: u64) {
-        if c > self.occ_since {
-            let d = c - self.occ_since;
-            self.stats.rq_occupancy_sum += self.order[0].len() as u64 * d;
-            self.stats.wq_occupancy_sum += self.order[1].len() as u64 * d;
-            self.occ_since = c;
-        }
+        self.books
+            .occupancy(c, self.order[0].len(), self.order[1].len());
     }
     /// Background (standby) time up to cycle `c`.
     fn bg_integrate(&mut self, c: u64) {
-        if c > self.bg_since {
-            let d = c - self.bg_since;
-            if self.timing.open_banks() > 0 {
-                self.stats.active_cycles += d;
-            } else {
-                self.stats.precharged_cycles += d;
-            }
-            self.bg_since = c;
-        }
+        self.books.background(c, self.timing.open_banks() > 0);
     }
 
     fn update_drain(&mut self) {
@@ -283,12 +263,12 @@ impl ChannelCtrl {
         let loc = match self.map.decode(req.addr) {
             Ok(l) => l,
             Err(_) => {
-                self.stats.bad_addresses += 1;
+                self.books.stats.bad_addresses += 1;
                 self.map.decode_unchecked(req.addr % self.map.capacity())
             }
         };
         if loc.channel != self.channel {
-            self.stats.bad_addresses += 1;
+            self.books.stats.bad_addresses += 1;
         }
         let e = Entry {
             seq: self.next_seq,
@@ -306,10 +286,10 @@ impl ChannelCtrl {
         let len = self.order[q].len() + 1;
         if e.req.write {
             assert!(len <= self.wq_cap, "write queue overflow");
-            self.stats.wq_max = self.stats.wq_max.max(len as u32);
+            self.books.stats.wq_max = self.books.stats.wq_max.max(len as u32);
         } else {
             assert!(len <= self.rq_cap, "read queue overflow");
-            self.stats.rq_max = self.stats.rq_max.max(len as u32);
+            self.books.stats.rq_max = self.books.stats.rq_max.max(len as u32);
         }
         let qb = q * self.nbanks as usize + e.bank as usize;
         if self.timing.open_row(e.bank) == Some(e.row) {
@@ -602,27 +582,8 @@ impl ChannelCtrl {
             }
             _ => {}
         }
-        let cmd = Command {
-            cycle: c,
-            kind,
-            bank_group: bank / self.banks_per_group,
-            bank,
-            row,
-            column,
-        };
+        let cmd = self.books.issued(c, kind, bank, row, column);
         self.last_cmd = Some(cmd);
-        if let Some(l) = &mut self.log {
-            l.push(cmd);
-        }
-        let s = &mut self.stats;
-        match kind {
-            DramCmd::Act => s.acts += 1,
-            DramCmd::Pre => s.pres += 1,
-            DramCmd::Rd => s.rd_bursts += 1,
-            DramCmd::Wr => s.wr_bursts += 1,
-            DramCmd::Ref => s.refs += 1,
-            DramCmd::Nop => {}
-        }
     }
 
     fn apply(&mut self, c: u64, ch: Choice) {
@@ -662,9 +623,9 @@ impl ChannelCtrl {
                 self.command(c, kind, bank, row, col);
                 if first {
                     match class {
-                        Class::Unset => self.stats.row_hits += 1,
-                        Class::Miss => self.stats.row_misses += 1,
-                        Class::Conflict => self.stats.row_conflicts += 1,
+                        Class::Unset => self.books.stats.row_hits += 1,
+                        Class::Miss => self.books.stats.row_misses += 1,
+                        Class::Conflict => self.books.stats.row_conflicts += 1,
                     }
                 }
                 if last {
@@ -702,7 +663,7 @@ impl ChannelCtrl {
         let done = c + lat + self.burst;
         let latency = done - e.arrive;
         let (tag_i, id, tag) = (e.req.tag as usize, e.req.id, e.req.tag);
-        let s = &mut self.stats;
+        let s = &mut self.books.stats;
         let tagst = &mut s.per_tag[tag_i];
         if write {
             s.writes += 1;
@@ -730,29 +691,26 @@ impl ChannelCtrl {
     /// background energy integrated (the controller itself is not changed).
     pub fn stats_at(&self, end: u64) -> ChannelStats {
         let mut me = self.clone();
-        me.log = None;
+        me.books.log = None;
         me.advance_to(end);
-        me.occ_integrate(end);
-        me.bg_integrate(end);
-        let mut s = me.stats;
-        s.until = end;
-        s.energy = super::energy::energy_of(&s, &me.em);
-        s
+        let active = me.timing.open_banks() > 0;
+        me.books
+            .stats_at(end, me.order[0].len(), me.order[1].len(), active)
     }
 
     /// The command log including refreshes due before `end`.
     pub fn commands_until(&self, end: u64) -> Vec<Command> {
         let mut me = self.clone();
-        if me.log.is_none() {
+        if me.books.log.is_none() {
             return Vec::new();
         }
         me.advance_to(end);
-        me.log.take().unwrap_or_default()
+        me.books.log.take().unwrap_or_default()
     }
 
     /// Counters for the unit's statistics.
     pub fn counters(&self) -> Vec<(&'static str, u64)> {
-        let s = &self.stats;
+        let s = &self.books.stats;
         vec![
             ("reads", s.reads),
             ("writes", s.writes),
@@ -838,7 +796,7 @@ impl State for ChannelCtrl {
         self.dirty = false;
     }
     fn reset(&mut self) {
-        let log = self.log.is_some();
+        let log = self.books.log.is_some();
         *self = ChannelCtrl::new(&self.cfg, self.tck_ps, self.channel);
         self.record_commands(log);
     }

@@ -43,8 +43,8 @@
 
 use std::collections::{HashMap, VecDeque};
 
+use super::books::Books;
 use super::config::MemCfg;
-use super::energy::EnergyModel;
 use super::map::AddrMap;
 use super::stats::ChannelStats;
 use super::timing::{ChannelTiming, Command, DramCmd};
@@ -115,11 +115,7 @@ pub struct Dramsim3Ctrl {
     refresh_due: u64,
     refresh_pending: bool,
     next_event: u64,
-    log: Option<Vec<Command>>,
-    stats: ChannelStats,
-    em: EnergyModel,
-    occ_since: u64,
-    bg_since: u64,
+    books: Books,
     every_cycle: bool,
 }
 
@@ -160,18 +156,14 @@ impl Dramsim3Ctrl {
             refresh_due: cfg.timing.refi as u64,
             refresh_pending: false,
             next_event: cfg.timing.refi as u64,
-            log: None,
-            stats: ChannelStats::default(),
-            em: EnergyModel::new(&cfg.energy, &cfg.timing, g.burst_cycles(), tck_ps),
-            occ_since: 0,
-            bg_since: 0,
+            books: Books::new(cfg, tck_ps),
             every_cycle: false,
         }
     }
 
     /// Records every issued command (for the timing checker).
     pub fn record_commands(&mut self, on: bool) {
-        self.log = on.then(Vec::new);
+        self.books.log = on.then(Vec::new);
     }
 
     /// Nothing can happen until a request arrives: no response to return, no
@@ -211,23 +203,10 @@ impl Dramsim3Ctrl {
     }
 
     fn occ_integrate(&mut self, c: u64) {
-        if c > self.occ_since {
-            let d = c - self.occ_since;
-            self.stats.rq_occupancy_sum += self.reads_held as u64 * d;
-            self.stats.wq_occupancy_sum += self.writes_held as u64 * d;
-            self.occ_since = c;
-        }
+        self.books.occupancy(c, self.reads_held, self.writes_held);
     }
     fn bg_integrate(&mut self, c: u64) {
-        if c > self.bg_since {
-            let d = c - self.bg_since;
-            if self.timing.open_banks() > 0 {
-                self.stats.active_cycles += d;
-            } else {
-                self.stats.precharged_cycles += d;
-            }
-            self.bg_since = c;
-        }
+        self.books.background(c, self.timing.open_banks() > 0);
     }
 
     fn respond(&mut self, done: u64, r: MemResp) {
@@ -242,7 +221,7 @@ impl Dramsim3Ctrl {
     /// A read returned at `done` (its data end, or a forwarded write's value).
     fn read_done(&mut self, done: u64, w: Waiter) {
         let lat = done - w.arrive;
-        let s = &mut self.stats;
+        let s = &mut self.books.stats;
         s.reads += 1;
         s.read_latency.add(lat);
         let t = &mut s.per_tag[w.tag as usize];
@@ -266,12 +245,12 @@ impl Dramsim3Ctrl {
         let loc = match self.map.decode(req.addr) {
             Ok(l) => l,
             Err(_) => {
-                self.stats.bad_addresses += 1;
+                self.books.stats.bad_addresses += 1;
                 self.map.decode_unchecked(req.addr % self.map.capacity())
             }
         };
         if loc.channel != self.channel {
-            self.stats.bad_addresses += 1;
+            self.books.stats.bad_addresses += 1;
         }
         self.occ_integrate(arrive);
         let t = Trans {
@@ -288,10 +267,10 @@ impl Dramsim3Ctrl {
                 v.insert(arrive);
                 self.wq.push(t);
                 self.writes_held += 1;
-                self.stats.wq_max = self.stats.wq_max.max(self.writes_held as u32);
+                self.books.stats.wq_max = self.books.stats.wq_max.max(self.writes_held as u32);
             }
             // Acknowledged when the buffer holds it.
-            let s = &mut self.stats;
+            let s = &mut self.books.stats;
             s.writes += 1;
             let tg = &mut s.per_tag[req.tag as usize];
             tg.writes += 1;
@@ -320,7 +299,7 @@ impl Dramsim3Ctrl {
                 if list.len() == 1 {
                     self.rq.push(t);
                     self.reads_held += 1;
-                    self.stats.rq_max = self.stats.rq_max.max(self.reads_held as u32);
+                    self.books.stats.rq_max = self.books.stats.rq_max.max(self.reads_held as u32);
                 }
             }
         }
@@ -465,26 +444,7 @@ impl Dramsim3Ctrl {
             self.bg_integrate(c);
         }
         self.timing.issue(c, kind, bank, row);
-        let cmd = Command {
-            cycle: c,
-            kind,
-            bank_group: bank / self.banks_per_group,
-            bank,
-            row,
-            column,
-        };
-        if let Some(l) = &mut self.log {
-            l.push(cmd);
-        }
-        let s = &mut self.stats;
-        match kind {
-            DramCmd::Act => s.acts += 1,
-            DramCmd::Pre => s.pres += 1,
-            DramCmd::Rd => s.rd_bursts += 1,
-            DramCmd::Wr => s.wr_bursts += 1,
-            DramCmd::Ref => s.refs += 1,
-            DramCmd::Nop => {}
-        }
+        self.books.issued(c, kind, bank, row, column);
     }
 
     fn apply(&mut self, c: u64, b: u32, i: usize, kind: DramCmd) {
@@ -517,9 +477,9 @@ impl Dramsim3Ctrl {
                 self.cmds -= 1;
                 self.row_hits[bi] += 1;
                 match e.class {
-                    Class::Unset => self.stats.row_hits += 1,
-                    Class::Miss => self.stats.row_misses += 1,
-                    Class::Conflict => self.stats.row_conflicts += 1,
+                    Class::Unset => self.books.stats.row_hits += 1,
+                    Class::Miss => self.books.stats.row_misses += 1,
+                    Class::Conflict => self.books.stats.row_conflicts += 1,
                 }
                 self.command(c, kind, b, e.row, e.col);
                 if kind == DramCmd::Rd {
@@ -531,7 +491,8 @@ impl Dramsim3Ctrl {
                 } else {
                     self.writes_held -= 1;
                     let arrive = self.pending_wr.remove(&e.addr).expect("a pending write");
-                    self.stats
+                    self.books
+                        .stats
                         .write_latency
                         .add(c + self.cwl + self.burst - arrive);
                 }
@@ -597,24 +558,21 @@ impl Dramsim3Ctrl {
     /// background energy integrated (the controller itself is not changed).
     pub fn stats_at(&self, end: u64) -> ChannelStats {
         let mut me = self.clone();
-        me.log = None;
+        me.books.log = None;
         me.advance_to(end);
-        me.occ_integrate(end);
-        me.bg_integrate(end);
-        let mut s = me.stats;
-        s.until = end;
-        s.energy = super::energy::energy_of(&s, &me.em);
-        s
+        let active = me.timing.open_banks() > 0;
+        me.books
+            .stats_at(end, me.reads_held, me.writes_held, active)
     }
 
     /// The command log including the events due before `end`.
     pub fn commands_until(&self, end: u64) -> Vec<Command> {
         let mut me = self.clone();
-        if me.log.is_none() {
+        if me.books.log.is_none() {
             return Vec::new();
         }
         me.advance_to(end);
-        me.log.take().unwrap_or_default()
+        me.books.log.take().unwrap_or_default()
     }
 
     /// Evaluates every cycle instead of sleeping until the computed next event

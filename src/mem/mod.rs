@@ -14,6 +14,7 @@
 //! - `trace`, `replay`: DRAMsim3 trace format, generators, and the in-order replay.
 
 pub mod bench;
+mod books;
 pub mod checker;
 pub mod config;
 pub mod ctrl;
