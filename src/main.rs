@@ -451,7 +451,7 @@ fn load_config(path: &Option<PathBuf>) -> Result<Config, String> {
 fn run(cli: Cli) -> Result<(), String> {
     let mut config = load_config(&cli.config)?;
     if let Some(m) = &cli.memory {
-        config.chip.memory.model = dualstream::machine::config::MemoryModel::parse(m)?;
+        config.chip.memory.model = dualstream::units::memory::MemoryModel::parse(m)?;
     }
     let threads = sim_threads(&cli.threads)?;
     match cli.cmd {
@@ -764,7 +764,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 let mut cfg = config.clone();
                 if mode == dualstream::render::Mode::Cycle {
                     // Time, bandwidth and DRAM energy need the GDDR5 model.
-                    cfg.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+                    cfg.chip.memory.model = dualstream::units::memory::MemoryModel::Gddr5;
                 }
                 let t0 = std::time::Instant::now();
                 if sampled {

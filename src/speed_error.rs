@@ -27,7 +27,7 @@
 //! estimated from the line counts ([`dram_energy_estimate`]).
 
 use crate::config::Config;
-use crate::machine::config::MemoryModel;
+use crate::units::memory::MemoryModel;
 use crate::render::{self, Frame, Mode, RenderCfg};
 use crate::rtl::Threads;
 use crate::scene::Scene;

@@ -3,7 +3,8 @@
 use glam::Vec3;
 
 use super::pipe_tb::PipeKind;
-use crate::config::{Config, PipeCfg};
+use crate::config::Config;
+use crate::rtl::PipeCfg;
 use crate::rtl::{In, Out};
 use crate::units::divider::{DivReq, DivResp, Divider, div};
 use crate::util::rng::Rng;

@@ -22,7 +22,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use crate::contract::{HIT_BYTES, HitRec, LINE_BYTES, SparseMem};
-use crate::machine::config::HitUpdaterCfg;
+use crate::units::hit_record_updater::HitUpdaterCfg;
 use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateList};
 use crate::rtl::{

@@ -26,7 +26,7 @@
 use std::collections::BTreeMap;
 
 use crate::contract::SparseMem;
-use crate::machine::config::L2Cfg;
+use crate::units::l2::L2Cfg;
 use crate::mem::StreamTag;
 use crate::rtl::{SharedBuf, Sim, Status, Tracer, UnitId};
 use crate::units::l1::Line;

@@ -12,7 +12,8 @@
 
 use std::path::PathBuf;
 
-use crate::config::{Config, PipeCfg};
+use crate::config::Config;
+use crate::rtl::PipeCfg;
 use crate::rtl::bits::packed;
 use crate::rtl::link::LinkEvent;
 use crate::rtl::{

@@ -22,7 +22,7 @@
 //! - bank conflicts are counted (reported; the tests require some).
 
 use crate::contract::{LINE_BYTES, SparseMem};
-use crate::machine::config::SceneBufferCfg;
+use crate::units::scene_buffer::SceneBufferCfg;
 use crate::mem::StreamTag;
 use crate::rtl::link::LinkEvent;
 use crate::rtl::{LinkId, SharedBuf, Sim, Status, Tracer, UnitId};

@@ -3,7 +3,8 @@
 use glam::Vec3;
 
 use super::pipe_tb::PipeKind;
-use crate::config::{Config, PipeCfg};
+use crate::config::Config;
+use crate::rtl::PipeCfg;
 use crate::rtl::{In, Out};
 use crate::units::tri_pipe::{TriPipe, TriReq, TriResp, tri_test};
 use crate::util::rng::Rng;

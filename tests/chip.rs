@@ -5,14 +5,14 @@
 
 use dualstream::accel::AccelCfg;
 use dualstream::config::Config;
-use dualstream::machine::config::Shading;
+use dualstream::config::Shading;
 use dualstream::render::{ChipRun, Frame, Mode, RenderCfg, WaveStats, render};
 use dualstream::rtl::SimOptions;
 
 /// The chip on the fixed-latency memory (`gddr5_cfg`: the default GDDR5).
 fn chip_cfg(tms: u32, tps: u32) -> Config {
     let mut c = Config::default();
-    c.chip.memory.model = dualstream::machine::config::MemoryModel::Fixed;
+    c.chip.memory.model = dualstream::units::memory::MemoryModel::Fixed;
     c.chip.tms = tms;
     c.tm.tps = tps;
     c
@@ -479,7 +479,7 @@ fn bad_chip_configs_are_named() {
     let c = Config::from_toml("[chip.memory]\nmodel = \"gddr5\"\n").unwrap();
     assert_eq!(
         c.chip.memory.model,
-        dualstream::machine::config::MemoryModel::Gddr5
+        dualstream::units::memory::MemoryModel::Gddr5
     );
     let e = Config::from_toml("[chip.memory]\nmodel = \"ddr4\"\n").unwrap_err();
     assert!(e.contains("fixed") && e.contains("gddr5"), "{e}");
@@ -556,7 +556,7 @@ fn the_watchdog_names_the_units_holding_work() {
 
 fn gddr5_cfg(tms: u32, tps: u32) -> Config {
     let mut c = chip_cfg(tms, tps);
-    c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    c.chip.memory.model = dualstream::units::memory::MemoryModel::Gddr5;
     c.chip.memory.check_timing = true;
     c
 }

@@ -350,7 +350,7 @@ fn l2_scoreboard_fails_on_a_lost_writeback() {
 
 #[test]
 fn l2_rejects_a_bad_geometry_with_the_fix() {
-    let mut c = dualstream::machine::config::L2Cfg {
+    let mut c = dualstream::units::l2::L2Cfg {
         bytes: 1000,
         ..Default::default()
     };

@@ -230,7 +230,7 @@ fn paper_comparison_rows() {
 
 #[test]
 fn cycle_rows_add_the_time_and_dram_energy_figures() {
-    use dualstream::machine::config::MemoryModel;
+    use dualstream::units::memory::MemoryModel;
     use dualstream::report::paper::{TABLE2, compare, figures};
     let s = small("tiny", 8);
     let mut c = dualstream::config::Config::default();

@@ -262,7 +262,7 @@ fn reference_files(
 ) -> (Scratch, std::path::PathBuf, std::path::PathBuf) {
     use dualstream::render::{self, ChipRun, Mode, RenderCfg};
     let mut g = c.clone();
-    g.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    g.chip.memory.model = dualstream::units::memory::MemoryModel::Gddr5;
     let rc = RenderCfg {
         accel: g.accel.clone(),
         memory: g.memory.clone(),
@@ -560,7 +560,7 @@ fn cornell_in_rows() -> (dualstream::scene::Scene, Config) {
     s.settings.width = 16;
     s.settings.height = 16;
     s.settings.bounces = 2;
-    c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    c.chip.memory.model = dualstream::units::memory::MemoryModel::Gddr5;
     c.accel.segment_bytes = c.memory.row_bytes as u32;
     (s, c)
 }
@@ -1114,7 +1114,7 @@ fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
 #[test]
 fn shading_windows_are_scaled_by_the_pixels_lines() {
     let (_, mut c) = tiny();
-    c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    c.chip.memory.model = dualstream::units::memory::MemoryModel::Gddr5;
     // An L2 far smaller than the path states, as at the paper's size (with the
     // default one the tiny frame's path states stay in it from pass to pass,
     // which a window's cold L2 does not see).
@@ -1439,7 +1439,7 @@ fn a_time_sampled_frame_estimates_every_figure_of_the_cycle_frame() {
     let (s, mut c) = tiny();
     c.chip.l2.bytes = 2048;
     c.chip.l2.banks = 4;
-    c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
+    c.chip.memory.model = dualstream::units::memory::MemoryModel::Gddr5;
     let ts =
         dualstream::speed_error::time_sampled(&s, &c, 1, &windows_plan(1 << 20, 1 << 20)).unwrap();
     let rc = dualstream::render::RenderCfg {

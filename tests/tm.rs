@@ -249,7 +249,7 @@ fn predict(
 ) -> (u64, [u64; 5]) {
     let c = &cfg.tm.costs;
     let d = cfg.links.tm.delay as u64;
-    let rt = |p: &dualstream::config::PipeCfg| p.latency as u64 + 3 * d;
+    let rt = |p: &dualstream::rtl::PipeCfg| p.latency as u64 + 3 * d;
     let r_hit = d + cfg.tm.l1.hit_latency as u64;
     let r_miss = 3 * d + mem_latency;
     let lines = (cfg.tm.l1.bytes / 64) as u64;

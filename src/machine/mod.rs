@@ -28,7 +28,6 @@
 //! until every unit is idle. The DRAM image moves into the memory unit for the
 //! run and back out for shading.
 
-pub mod config;
 pub mod hdl;
 pub mod host;
 pub mod trace;
@@ -605,7 +604,7 @@ impl Chip {
             mresp_o,
         );
         let mut dram = None;
-        if ch.memory.model == config::MemoryModel::Gddr5 {
+        if ch.memory.model == crate::units::memory::MemoryModel::Gddr5 {
             let m = &cfg.mem;
             MemCtrl::supports(m)?;
             let dclk = sim
@@ -681,7 +680,7 @@ impl Chip {
             memory,
             host,
             l2,
-            l2_invalidate: ch.shading == config::Shading::Host,
+            l2_invalidate: ch.shading == crate::config::Shading::Host,
             flush_cycles: 0,
             dram,
             watchdog: ch.watchdog_cycles,

@@ -871,7 +871,7 @@ pub fn render(
             let mut c = run.config;
             c.accel = cfg.accel.clone();
             c.memory = cfg.memory.clone();
-            if c.chip.shading != crate::machine::config::Shading::Tps {
+            if c.chip.shading != crate::config::Shading::Tps {
                 return Err(
                     "time sampling needs the shading pass on the TPs (chip.shading = \"tps\")"
                         .into(),
@@ -893,7 +893,7 @@ pub fn render(
     // Cycle mode with shading on the TPs: every chip run after the first shades the
     // finished wavefront and traces the one it emits.
     let tp_shading =
-        mode == Mode::Cycle && chip_cfg.chip.shading == crate::machine::config::Shading::Tps;
+        mode == Mode::Cycle && chip_cfg.chip.shading == crate::config::Shading::Tps;
     let rpb = cfg.memory.rays_per_bucket();
     let mut waves = Vec::new();
     let mut trace_s = 0.0;
@@ -1307,7 +1307,7 @@ pub fn render(
             memory_model: chip_cfg.chip.memory.model.name().into(),
             core_ps: chip_cfg.clocks.core_ps,
             line_bytes: crate::contract::LINE_BYTES,
-            dram: (chip_cfg.chip.memory.model == crate::machine::config::MemoryModel::Gddr5).then(
+            dram: (chip_cfg.chip.memory.model == crate::units::memory::MemoryModel::Gddr5).then(
                 || {
                     let mut t = crate::machine::DramWave::default();
                     for w in &chip_waves {

@@ -16,7 +16,7 @@ pub mod verilog;
 pub use bits::{Bits, Payload};
 pub use decl::{PortDecl, PortDir, SignalDecl, StateDecl, UnitDecl};
 pub use link::{In, LinkCfg, LinkEvent, LinkId, Out, PortArray, PortEnd};
-pub use pipe::{FixedPipe, LocalEnds, LocalLink, PipeEnds};
+pub use pipe::{FixedPipe, LocalEnds, LocalLink, PipeCfg, PipeEnds};
 pub use sim::{
     ClockId, Ctx, ModuleEvals, RunEnd, Sim, SimError, SimOptions, Threads, Time, UnitId, UnitStats,
     round_robin,

@@ -21,6 +21,17 @@ use super::sim::Ctx;
 use super::state::{Reg, State};
 use super::unit::{Next, Status};
 
+/// A fixed-latency pipelined unit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PipeCfg {
+    /// Cycles from acceptance of a request to the result being visible to the
+    /// requester, including the output link register.
+    pub latency: u32,
+    /// Initiation interval: cycles between two acceptances.
+    pub interval: u32,
+}
+
 pub struct FixedPipe<T: Payload> {
     stages: u32,
     interval: u32,

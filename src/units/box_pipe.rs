@@ -12,7 +12,7 @@
 use glam::Vec3;
 
 use super::Tag;
-use crate::config::PipeCfg;
+use crate::rtl::PipeCfg;
 use crate::geom::{Aabb, ray_box};
 use crate::rtl::{Ctx, FixedPipe, In, Logic, Next, Out};
 

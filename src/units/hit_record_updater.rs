@@ -18,7 +18,6 @@
 use std::collections::VecDeque;
 
 use crate::contract::{HIT_BYTES, HitRec, LINE_BYTES};
-use crate::machine::config::HitUpdaterCfg;
 use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
@@ -27,6 +26,27 @@ use crate::rtl::{Ctx, In, Logic, Next, Out, Status, round_robin};
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
 use super::tp::HitUpdate;
+
+use serde::{Deserialize, Serialize};
+
+/// The hit record updater.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HitUpdaterCfg {
+    /// Pending updates (merged per hit index). Assumption: 64.
+    pub queue: u32,
+    /// Read-compare-writes in flight. Assumption: 32.
+    pub in_flight: u32,
+}
+
+impl Default for HitUpdaterCfg {
+    fn default() -> Self {
+        HitUpdaterCfg {
+            queue: 64,
+            in_flight: 32,
+        }
+    }
+}
 
 /// `head_index`: not read yet.
 const NO_HEAD: u32 = u32::MAX;

@@ -30,13 +30,80 @@
 use std::collections::VecDeque;
 
 use crate::contract::{LINE_BYTES, SparseMem};
-use crate::machine::config::MemoryUnitCfg;
 use crate::mem::{AddrMap, MemReq, MemResp, StreamTag};
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
 use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
 
 use super::l1::Line;
+
+use serde::{Deserialize, Serialize};
+
+/// Which timing model serves the memory unit's lines.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MemoryModel {
+    /// Fixed latency and a bandwidth limit (the "simple memory" switch of the
+    /// paper group's simulator): an explicit choice (`--memory fixed`) for
+    /// tests and quick looks; it misses the DRAM's row and bank effects
+    /// (docs/speed-error.md measures what that costs).
+    Fixed,
+    /// The memory unit routes every line by the address mapping (`mem.mapping`)
+    /// to one `mem_ctrl` unit per channel (`mem.geometry.channels`, 16) on the
+    /// DRAM clock (`clocks.dram_ps`): timing, bandwidth, row hits and energy come
+    /// from the GDDR5 model (`[mem]`), data from the DRAM image. The default:
+    /// the paper's memory system [DS17 Table 1, §5.1] ("a full memory
+    /// simulator is essential"); `latency` and `bytes_per_cycle` are then unused.
+    Gddr5,
+}
+
+/// The memory unit (DRAM image + timing).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MemoryUnitCfg {
+    pub model: MemoryModel,
+    /// `fixed`: cycles from acceptance of a line request to its response being
+    /// visible to the requester (response link included). Assumption: 100 core
+    /// cycles, a loaded GDDR5 access at 1 GHz.
+    pub latency: u32,
+    /// `fixed`: peak bandwidth in bytes per core cycle: 512 GB/s at 1 GHz
+    /// [DS17 §5.1] = 512 B = 8 lines per cycle.
+    pub bytes_per_cycle: u32,
+    /// `gddr5`: record every DRAM command and run the independent timing checker
+    /// (`mem::checker`) after every wavefront; a violation stops the run. Costs
+    /// memory and time: for tests.
+    pub check_timing: bool,
+}
+
+impl MemoryModel {
+    /// The model by its configuration name (`fixed`, `gddr5`), e.g. from `--memory`.
+    pub fn parse(s: &str) -> Result<MemoryModel, String> {
+        match s {
+            "fixed" => Ok(MemoryModel::Fixed),
+            "gddr5" => Ok(MemoryModel::Gddr5),
+            _ => Err(format!(
+                "unknown memory model '{s}'; give gddr5 (the paper's GDDR5, the default) or fixed (a fixed latency)"
+            )),
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            MemoryModel::Fixed => "fixed",
+            MemoryModel::Gddr5 => "gddr5",
+        }
+    }
+}
+
+impl Default for MemoryUnitCfg {
+    fn default() -> Self {
+        MemoryUnitCfg {
+            model: MemoryModel::Gddr5,
+            latency: 100,
+            bytes_per_cycle: 512,
+            check_timing: false,
+        }
+    }
+}
 
 crate::payload_struct! {
     /// A line request: read (`write` = false) or write of the bytes of `data`

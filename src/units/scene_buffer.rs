@@ -20,13 +20,46 @@
 use std::collections::VecDeque;
 
 use crate::contract::LINE_BYTES;
-use crate::machine::config::SceneBufferCfg;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
 use crate::rtl::{Ctx, In, Logic, Next, Out, Payload, Status};
 
 use super::l1::{L1Req, L1Resp, Line};
 use super::memory::MemLineResp;
+
+use serde::{Deserialize, Serialize};
+
+/// The scene buffer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SceneBufferCfg {
+    /// 4 MB [DS17 Table 1].
+    pub bytes: u32,
+    /// One slot per segment: 64 KB, 64 slots [DS17 §5.1].
+    pub slot_bytes: u32,
+    /// Banks, one line per bank per cycle. Assumption: 32, like the L2 of Table 1.
+    pub banks: u32,
+    /// Cycles from acceptance of an L1 miss to the line visible at the L1
+    /// (response link included). Assumption: 4.
+    pub latency: u32,
+}
+
+impl Default for SceneBufferCfg {
+    fn default() -> Self {
+        SceneBufferCfg {
+            bytes: 4 << 20,
+            slot_bytes: 64 << 10,
+            banks: 32,
+            latency: 4,
+        }
+    }
+}
+
+impl SceneBufferCfg {
+    pub fn slots(&self) -> u32 {
+        self.bytes / self.slot_bytes.max(1)
+    }
+}
 
 crate::payload_struct! {
     /// The scheduler maps a segment into a slot.

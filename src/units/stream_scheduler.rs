@@ -80,12 +80,12 @@ use crate::contract::{
     BUCKET_HEADER_BYTES, LINE_BYTES, MemoryMap, QUEUE_REC_BYTES, QueueRec, RAY_BYTES, RayRec,
     SEG_ENTRY_BYTES, SegEntry, lines_touched,
 };
-use crate::machine::config::{SceneBufferCfg, SchedulerCfg};
+use super::scene_buffer::SceneBufferCfg;
 use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
 use crate::rtl::{Ctx, In, Logic, Next, Out, Status, round_robin};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
@@ -93,6 +93,64 @@ use super::scene_buffer::{SlotMap, fill_id};
 use super::staging_buffer::{SbFill, SbHeader};
 use super::tp::RayWrite;
 use super::tp_shade::SHADE_SEG;
+
+
+/// Most memory ports one stream may have (`ray_lines_per_cycle`,
+/// `scene_lines_per_cycle`).
+pub const MAX_STREAM_LANES: u32 = 16;
+
+/// The stream scheduler.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SchedulerCfg {
+    /// Segments streamed into the scene buffer at once: 8 [DS17 §4.1].
+    pub streams: u32,
+    /// Destination table: the working set's potential write destinations (its
+    /// segments' children; closed queues wait in DRAM as queue records): about a
+    /// thousand [DS17 §4.1].
+    pub dest_entries: u32,
+    /// Ray writes (duplicates and end markers) accepted per cycle from the TMs.
+    /// Assumption: 4.
+    pub ray_writes_per_cycle: u32,
+    /// Buckets being read from DRAM at once. Assumption: 8.
+    pub bucket_reads: u32,
+    /// On-chip bucket buffers (read from DRAM, not yet forwarded to a TM), at
+    /// 2 KB each. Assumption: 16.
+    pub bucket_buffers: u32,
+    /// Line requests queued towards the memory (ray stream). Assumption: 32.
+    pub mem_queue: u32,
+    /// Ray-stream lines (bucket reads, coalesced bucket writes, segment info)
+    /// the scheduler issues and takes answers for per cycle: one memory port
+    /// (`mem_req[j]`/`mem_resp[j]`) per line. 4 (256 GB/s at 1 GHz): the paper's
+    /// ray stream averages 1.8 lines per cycle (San Miguel 146.34 M lines in
+    /// 79.61 ms, Crytek Sponza 80.56 M in 44.6 ms, [DS17 Table 2]), more than one
+    /// port carries, and bursts at admission need more; with
+    /// `scene_lines_per_cycle` the two streams can reach the GDDR5 peak of
+    /// 512 GB/s = 8 lines per cycle [DS17 §5.1], so the DRAM, not the ports,
+    /// limits them.
+    pub ray_lines_per_cycle: u32,
+    /// Scene-stream lines the scheduler issues per cycle: one memory port per
+    /// line (`scene_req[j]`, answered into the scene buffer's `fill[j]`). 4: the
+    /// paper's scene stream averages up to 1.3 lines per cycle (Dragon Sponza
+    /// 54.31 M lines in 40.93 ms) and comes in bursts of whole segments when
+    /// they are admitted; 4 + 4 lanes match the 8-line GDDR5 peak.
+    pub scene_lines_per_cycle: u32,
+}
+
+impl Default for SchedulerCfg {
+    fn default() -> Self {
+        SchedulerCfg {
+            streams: 8,
+            dest_entries: 1024,
+            ray_writes_per_cycle: 4,
+            bucket_reads: 8,
+            bucket_buffers: 16,
+            mem_queue: 32,
+            ray_lines_per_cycle: 4,
+            scene_lines_per_cycle: 4,
+        }
+    }
+}
 
 crate::payload_struct! {
     /// Start wavefront `wave`: its rays are in the root queue (`shade_pixels` = 0:

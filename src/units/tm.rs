@@ -16,7 +16,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{Config, PipeCfg};
+use crate::config::Config;
+use crate::rtl::PipeCfg;
 use crate::contract::{HitRec, RayRec};
 use crate::rtl::bits::{Bits, Payload};
 use crate::rtl::{ClockId, In, LinkCfg, Out, Sim, UnitId};

@@ -5,7 +5,7 @@
 use glam::Vec3;
 
 use super::Tag;
-use crate::config::PipeCfg;
+use crate::rtl::PipeCfg;
 use crate::geom::{Triangle, ray_triangle};
 use crate::rtl::{Ctx, FixedPipe, In, Logic, Next, Out};
 

@@ -2,9 +2,13 @@
 //! defaults are the paper's Table 1 and section 5.1 (Shkurko et al. 2017); each
 //! default names its source. Loaded from TOML; unknown keys are errors.
 
+mod chip;
+
+pub use chip::{ChipCfg, Shading};
+
 use serde::{Deserialize, Serialize};
 
-use crate::rtl::LinkCfg;
+use crate::rtl::{LinkCfg, PipeCfg};
 
 /// Clock domains on the common picosecond time base.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -24,17 +28,6 @@ impl Default for ClockCfg {
             dram_ps: 500,
         }
     }
-}
-
-/// A fixed-latency pipelined unit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PipeCfg {
-    /// Cycles from acceptance of a request to the result being visible to the
-    /// requester, including the output link register.
-    pub latency: u32,
-    /// Initiation interval: cycles between two acceptances.
-    pub interval: u32,
 }
 
 /// Links between units.
@@ -83,7 +76,7 @@ pub struct Config {
     /// On-chip and compute energy per access and per operation (65 nm).
     pub energy: crate::energy::EnergyCfg,
     /// The chip top: TMs, stream scheduler, scene buffer, hit record updater, memory.
-    pub chip: crate::machine::config::ChipCfg,
+    pub chip: ChipCfg,
 }
 
 impl Default for Config {
@@ -108,7 +101,7 @@ impl Default for Config {
             mem: crate::mem::MemCfg::default(),
             tm: crate::units::tm::TmCfg::default(),
             energy: crate::energy::EnergyCfg::default(),
-            chip: crate::machine::config::ChipCfg::default(),
+            chip: ChipCfg::default(),
         }
     }
 }
