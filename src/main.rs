@@ -857,7 +857,7 @@ fn run(cli: Cli) -> Result<(), String> {
             Ok(())
         }
         Cmd::Hdl { out } => {
-            for p in dualstream::units::write_hdl(&config, &out)? {
+            for p in dualstream::machine::hdl::write_hdl(&config, &out)? {
                 println!("wrote {}", p.display());
             }
             Ok(())

@@ -342,7 +342,7 @@ pub fn run_job(
     let units = tm::build(
         &mut sim,
         clk,
-        cfg,
+        &cfg.tm_spec(),
         "tb.tm",
         TmPorts {
             fill: fill_i,

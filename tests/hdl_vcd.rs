@@ -10,7 +10,7 @@ use std::process::Command;
 use dualstream::config::Config;
 use dualstream::rtl::TraceSpec;
 use dualstream::testbench::{self, TbOptions};
-use dualstream::units::{catalog, write_hdl};
+use dualstream::machine::hdl::{catalog, write_hdl};
 
 mod common;
 use common::Scratch;

@@ -107,6 +107,18 @@ impl Default for Config {
 }
 
 impl Config {
+    /// What a TM is built from (`units::tm::build`).
+    pub fn tm_spec(&self) -> crate::units::tm::TmSpec {
+        crate::units::tm::TmSpec {
+            tm: self.tm.clone(),
+            box_pipe: self.box_pipe,
+            tri_pipe: self.tri_pipe,
+            divider: self.divider,
+            link: self.links.tm,
+            core_ps: self.clocks.core_ps,
+        }
+    }
+
     /// Parses TOML; missing keys take their defaults, unknown keys are errors.
     pub fn from_toml(text: &str) -> Result<Config, String> {
         let c: Config = toml::from_str(text).map_err(|e| format!("config: {e}"))?;

@@ -13,7 +13,9 @@ use std::fmt::Write;
 
 use crate::config::Config;
 use crate::rtl::decl::PortDir;
-use crate::rtl::{SimOptions, UnitDecl, UnitId};
+use crate::rtl::link::LinkId;
+use crate::rtl::{Declared, In, Out, SimOptions, UnitDecl, UnitId};
+use crate::units;
 
 use super::Chip;
 
@@ -400,6 +402,75 @@ pub fn emit_chip(cfg: &Config) -> Result<String, String> {
     let _ = writeln!(v, "    wire _unused_ok = &{{1'b0, TPS[0], 1'b0}};");
     let _ = writeln!(v, "endmodule");
     Ok(v)
+}
+
+/// The declaration of every hardware unit, built with `cfg` (for `dualstream hdl`
+/// and the declaration tests). Link ids are placeholders: only the interface
+/// matters. Panics on an invalid `cfg` (tests); `dualstream hdl` uses
+/// [`catalog_checked`].
+pub fn catalog(cfg: &Config) -> Vec<UnitDecl> {
+    catalog_checked(cfg).expect("a valid configuration")
+}
+
+/// [`catalog`], with an error naming what is wrong in `cfg`.
+pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
+    let d = cfg.links.tm.delay;
+    let (i, o) = (LinkId(0), LinkId(1));
+    let mut v: Vec<UnitDecl> = vec![
+        units::box_pipe::BoxPipe::new(&cfg.box_pipe, d, In::new(i), Out::new(o)).decl(),
+        units::tri_pipe::TriPipe::new(&cfg.tri_pipe, d, In::new(i), Out::new(o)).decl(),
+        units::divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl(),
+        units::mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o)).decl(),
+    ];
+    v.extend(units::tm_unit_decls(&cfg.tm_spec()));
+    // The chip's global units as the chip instantiates them (one source: the
+    // elaborated chip, so `hdl/chip.v` and these modules agree).
+    for g in global_decls(cfg)? {
+        if !v.iter().any(|x| x.module == g.module) {
+            v.push(g);
+        }
+    }
+    Ok(v)
+}
+
+/// Writes one `<module>.v` per unit into `dir` (created if missing); returns the paths.
+pub fn write_hdl(cfg: &Config, dir: &std::path::Path) -> Result<Vec<std::path::PathBuf>, String> {
+    std::fs::create_dir_all(dir).map_err(|e| {
+        format!(
+            "cannot create the HDL directory '{}': {e}; choose a writable --out",
+            dir.display()
+        )
+    })?;
+    let mut out = Vec::new();
+    for d in catalog_checked(cfg)? {
+        let p = dir.join(format!("{}.v", d.module));
+        std::fs::write(&p, crate::rtl::verilog::emit_module(&d)).map_err(|e| {
+            format!(
+                "cannot write '{}': {e}; choose a writable --out",
+                p.display()
+            )
+        })?;
+        out.push(p);
+    }
+    // The TM is structural: instances of the units above, wired as simulated.
+    let p = dir.join("tm.v");
+    std::fs::write(&p, units::tm::emit_verilog(&cfg.tm_spec())).map_err(|e| {
+        format!(
+            "cannot write '{}': {e}; choose a writable --out",
+            p.display()
+        )
+    })?;
+    out.push(p);
+    // The chip top: every unit instantiated and wired as simulated.
+    let p = dir.join("chip.v");
+    std::fs::write(&p, emit_chip(cfg)?).map_err(|e| {
+        format!(
+            "cannot write '{}': {e}; choose a writable --out",
+            p.display()
+        )
+    })?;
+    out.push(p);
+    Ok(out)
 }
 
 #[cfg(test)]

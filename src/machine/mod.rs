@@ -644,11 +644,12 @@ impl Chip {
         }
         let memory = sim.add("chip.memory", clock, memory_unit);
         let mut tms = Vec::with_capacity(n);
+        let tm_spec = cfg.tm_spec();
         for (k, ports) in tm_ports.into_iter().enumerate() {
             tms.push(tm::build(
                 &mut sim,
                 clock,
-                cfg,
+                &tm_spec,
                 &format!("chip.tm{k}"),
                 ports,
             ));

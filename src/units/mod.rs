@@ -19,41 +19,11 @@ pub mod tri_pipe;
 /// can be routed back. 16 bits cover 16 TPs with room for per-TP sub-ids.
 pub type Tag = u16;
 
-use crate::config::Config;
 use crate::rtl::link::LinkId;
 use crate::rtl::{Declared, In, Out, UnitDecl};
 
-/// The declaration of every hardware unit, built with `cfg` (for `dualstream hdl`
-/// and the declaration tests). Link ids are placeholders: only the interface
-/// matters. Panics on an invalid `cfg` (tests); `dualstream hdl` uses
-/// [`catalog_checked`].
-pub fn catalog(cfg: &Config) -> Vec<UnitDecl> {
-    catalog_checked(cfg).expect("a valid configuration")
-}
-
-/// [`catalog`], with an error naming what is wrong in `cfg`.
-pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
-    let d = cfg.links.tm.delay;
-    let (i, o) = (LinkId(0), LinkId(1));
-    let mut v: Vec<UnitDecl> = vec![
-        box_pipe::BoxPipe::new(&cfg.box_pipe, d, In::new(i), Out::new(o)).decl(),
-        tri_pipe::TriPipe::new(&cfg.tri_pipe, d, In::new(i), Out::new(o)).decl(),
-        divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl(),
-        mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o)).decl(),
-    ];
-    v.extend(tm_unit_decls(cfg));
-    // The chip's global units as the chip instantiates them (one source: the
-    // elaborated chip, so `hdl/chip.v` and these modules agree).
-    for g in crate::machine::hdl::global_decls(cfg)? {
-        if !v.iter().any(|x| x.module == g.module) {
-            v.push(g);
-        }
-    }
-    Ok(v)
-}
-
 /// Declarations of the TM's own units: tp, l1, staging_buffer, tm_xbar.
-fn tm_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
+pub fn tm_unit_decls(cfg: &tm::TmSpec) -> Vec<UnitDecl> {
     let n = cfg.tm.tps as usize;
     let np = cfg.tm.tri_pipes as usize;
     fn ins<T>(k: usize) -> Vec<In<T>> {
@@ -84,7 +54,7 @@ fn tm_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
     );
     let l1 = l1::L1::new(
         &cfg.tm.l1,
-        cfg.links.tm.delay,
+        cfg.link.delay,
         ins(n),
         outs(n),
         Out::new(o),
@@ -122,44 +92,4 @@ fn tm_unit_decls(cfg: &Config) -> Vec<UnitDecl> {
         stats: Default::default(),
     };
     vec![tp.decl(), l1.decl(), sb.decl(), xbar.decl()]
-}
-
-/// Writes one `<module>.v` per unit into `dir` (created if missing); returns the paths.
-pub fn write_hdl(cfg: &Config, dir: &std::path::Path) -> Result<Vec<std::path::PathBuf>, String> {
-    std::fs::create_dir_all(dir).map_err(|e| {
-        format!(
-            "cannot create the HDL directory '{}': {e}; choose a writable --out",
-            dir.display()
-        )
-    })?;
-    let mut out = Vec::new();
-    for d in catalog_checked(cfg)? {
-        let p = dir.join(format!("{}.v", d.module));
-        std::fs::write(&p, crate::rtl::verilog::emit_module(&d)).map_err(|e| {
-            format!(
-                "cannot write '{}': {e}; choose a writable --out",
-                p.display()
-            )
-        })?;
-        out.push(p);
-    }
-    // The TM is structural: instances of the units above, wired as simulated.
-    let p = dir.join("tm.v");
-    std::fs::write(&p, tm::emit_verilog(cfg)).map_err(|e| {
-        format!(
-            "cannot write '{}': {e}; choose a writable --out",
-            p.display()
-        )
-    })?;
-    out.push(p);
-    // The chip top: every unit instantiated and wired as simulated.
-    let p = dir.join("chip.v");
-    std::fs::write(&p, crate::machine::hdl::emit_chip(cfg)?).map_err(|e| {
-        format!(
-            "cannot write '{}': {e}; choose a writable --out",
-            p.display()
-        )
-    })?;
-    out.push(p);
-    Ok(out)
 }

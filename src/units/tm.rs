@@ -16,7 +16,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::Config;
 use crate::rtl::PipeCfg;
 use crate::contract::{HitRec, RayRec};
 use crate::rtl::bits::{Bits, Payload};
@@ -29,6 +28,22 @@ use super::staging_buffer::{SbFill, StagingBuffer};
 use super::tm_xbar::TmXbar;
 use super::tp::{HitUpdate, RayWrite, Tp};
 use super::tri_pipe::TriPipe;
+
+/// Everything a TM is built from: its own configuration and the timing of the
+/// pipelines it holds and of its internal links (the model configuration's
+/// `[tm]`, `[box_pipe]`, `[tri_pipe]`, `[divider]`, `[links] tm` and
+/// `[clocks] core_ps`; `Config::tm_spec`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TmSpec {
+    pub tm: TmCfg,
+    pub box_pipe: PipeCfg,
+    pub tri_pipe: PipeCfg,
+    pub divider: PipeCfg,
+    /// Request and response links between the TPs and the shared units.
+    pub link: LinkCfg,
+    /// The core clock period (ps), for the scratch simulator of `emit_verilog`.
+    pub core_ps: u64,
+}
 
 // ---- payloads of data-contract records ----
 
@@ -428,8 +443,8 @@ pub fn round_trip(pipe: &PipeCfg, links: &LinkCfg) -> u64 {
 }
 
 /// Builds a TM under `path` (e.g. `chip.tm3`) in `sim`.
-pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmPorts) -> TmUnits {
-    let l = cfg.links.tm;
+pub fn build(sim: &mut Sim, clock: ClockId, cfg: &TmSpec, path: &str, ports: TmPorts) -> TmUnits {
+    let l = cfg.link;
     let n = cfg.tm.tps as usize;
     let p = |s: &str| format!("{path}.{s}");
     macro_rules! links {
@@ -558,13 +573,13 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &Config, path: &str, ports: TmP
 /// The structural Verilog of the TM: one instance per unit, one valid/ready/data
 /// wire triple per internal link, and the outside links as module ports. Built from
 /// a TM elaborated in a scratch simulator, so it is exactly the simulated netlist.
-pub fn emit_verilog(cfg: &Config) -> String {
+pub fn emit_verilog(cfg: &TmSpec) -> String {
     use crate::rtl::decl::PortDir;
     use std::collections::BTreeMap;
     use std::fmt::Write;
     let mut sim = Sim::default();
-    let clk = sim.clock("core", cfg.clocks.core_ps).expect("valid clock");
-    let l = cfg.links.tm;
+    let clk = sim.clock("core", cfg.core_ps).expect("valid clock");
+    let l = cfg.link;
     let (_, fill) = sim.link::<SbFill>("fill", l);
     let (miss_req, _) = sim.link::<L1Req>("miss_req", l);
     let (_, miss_resp) = sim.link::<L1Resp>("miss_resp", l);

@@ -19,7 +19,6 @@ use super::divider::{DivReq, DivResp};
 use super::memory::{MemLineReq, MemLineResp};
 use super::tp::{HitUpdate, RayWrite};
 use super::tri_pipe::{TriReq, TriResp};
-use crate::config::Config;
 use crate::rtl::{
     Ctx, FixedPipe, In, LocalEnds, LocalLink, Logic, Next, Out, Payload, PortArray, Ram, Status,
 };
@@ -70,8 +69,8 @@ crate::unit! {
 /// the pipeline and its result FIFO (both FIFOs with the TM's link timing). The
 /// pipeline's latency counts its result FIFO's delay, as a separate unit's counts
 /// its output link's, so a test takes `box_pipe.latency` from grant to routing.
-pub fn box_path(cfg: &Config) -> (LocalLink<BoxReq>, FixedPipe<BoxReq>, LocalLink<BoxResp>) {
-    let l = cfg.links.tm;
+pub fn box_path(cfg: &super::tm::TmSpec) -> (LocalLink<BoxReq>, FixedPipe<BoxReq>, LocalLink<BoxResp>) {
+    let l = cfg.link;
     (
         LocalLink::new(l),
         FixedPipe::new(cfg.box_pipe.latency - l.delay, cfg.box_pipe.interval),

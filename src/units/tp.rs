@@ -25,7 +25,6 @@ use super::staging_buffer::{SbHeader, SbRay};
 use super::tm::{COST_NAMES, COSTS, TpCosts, round_trip};
 pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
-use crate::config::Config;
 use crate::contract::{HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, TRI_BYTES};
 use crate::render::traverse::cull;
 use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Ram, Reg, Status};
@@ -271,9 +270,9 @@ fn vec3_at(l: &Line, off: usize) -> Vec3 {
 }
 
 impl Tp {
-    pub fn new(cfg: &Config, index: u16, l: TpLinks) -> Self {
+    pub fn new(cfg: &super::tm::TmSpec, index: u16, l: TpLinks) -> Self {
         let entries = cfg.tm.stack_entries();
-        let d = &cfg.links.tm;
+        let d = &cfg.link;
         Tp {
             index,
             stack_entries: entries,
