@@ -27,10 +27,10 @@
 //! estimated from the line counts ([`dram_energy_estimate`]).
 
 use crate::config::Config;
-use crate::units::memory::MemoryModel;
 use crate::render::{self, Frame, Mode, RenderCfg};
 use crate::rtl::Threads;
 use crate::scene::Scene;
+use crate::units::memory::MemoryModel;
 use serde::Serialize;
 use std::fmt::Write;
 use std::path::Path;

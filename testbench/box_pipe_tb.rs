@@ -4,8 +4,8 @@ use glam::Vec3;
 
 use super::pipe_tb::PipeKind;
 use crate::config::Config;
-use crate::rtl::PipeCfg;
 use crate::geom::inverse_dir;
+use crate::rtl::PipeCfg;
 use crate::rtl::{In, Out};
 use crate::units::box_pipe::{BoxPipe, BoxReq, BoxResp, box_test};
 use crate::util::rng::Rng;

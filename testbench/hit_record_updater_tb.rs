@@ -22,7 +22,6 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use crate::contract::{HIT_BYTES, HitRec, LINE_BYTES, SparseMem};
-use crate::units::hit_record_updater::HitUpdaterCfg;
 use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateList};
 use crate::rtl::{
@@ -30,6 +29,7 @@ use crate::rtl::{
     Tracer, UnitDecl, UnitId,
 };
 use crate::units::hit_record_updater::HitRecordUpdater;
+use crate::units::hit_record_updater::HitUpdaterCfg;
 use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::units::tp::HitUpdate;
 use crate::util::rng::Rng;

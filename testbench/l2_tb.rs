@@ -26,10 +26,10 @@
 use std::collections::BTreeMap;
 
 use crate::contract::SparseMem;
-use crate::units::l2::L2Cfg;
 use crate::mem::StreamTag;
 use crate::rtl::{SharedBuf, Sim, Status, Tracer, UnitId};
 use crate::units::l1::Line;
+use crate::units::l2::L2Cfg;
 use crate::units::l2::{L2, L2Flush};
 use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::util::rng::Rng;

@@ -22,12 +22,12 @@
 //! - bank conflicts are counted (reported; the tests require some).
 
 use crate::contract::{LINE_BYTES, SparseMem};
-use crate::units::scene_buffer::SceneBufferCfg;
 use crate::mem::StreamTag;
 use crate::rtl::link::LinkEvent;
 use crate::rtl::{LinkId, SharedBuf, Sim, Status, Tracer, UnitId};
 use crate::units::l1::{L1Req, L1Resp, Line};
 use crate::units::memory::MemLineResp;
+use crate::units::scene_buffer::SceneBufferCfg;
 use crate::units::scene_buffer::{SceneBuffer, SlotMap, fill_id};
 use crate::util::rng::Rng;
 

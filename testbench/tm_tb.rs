@@ -15,7 +15,6 @@ use std::time::Instant;
 
 use crate::config::Config;
 use crate::contract::{HitRec, LINE_BYTES, RayRec, SegEntry, SparseMem};
-use crate::render::shade::{next_f32, pixel_seed};
 use crate::render::traverse::{SegmentView, TraversalCounts, traverse_segment};
 use crate::render::{Prepared, RenderCfg, prepare};
 use crate::rtl::decl::{Samples, StateList};
@@ -26,6 +25,7 @@ use crate::rtl::{
 use crate::scene::Scene;
 use crate::units::l1::{L1, L1Req, L1Resp, Line};
 use crate::units::memory::{MemLineReq, MemLineResp};
+use crate::units::shade::{next_f32, pixel_seed};
 use crate::units::staging_buffer::{SbFill, SbHeader};
 use crate::units::tm::{self, TmPorts, TmUnits};
 use crate::units::tp::{HitUpdate, RayWrite, Tp};

@@ -974,7 +974,7 @@ fn dense_grid_is_watertight() {
 }
 
 // ---------------------------------------------------------------------------
-// Secondary rays spawned inside closed spheres (render::shade::spawn)
+// Secondary rays spawned inside closed spheres (units::shade::spawn)
 // ---------------------------------------------------------------------------
 
 /// The spawn offset's two bounds on random triangles (well shaped and slivers,
@@ -984,7 +984,7 @@ fn dense_grid_is_watertight() {
 /// into that hemisphere, grazing ones included, hits the triangle again.
 #[test]
 fn spawn_bounds_hold_on_random_triangles() {
-    use dualstream::render::shade::{cosine_sample, hit_point, spawn};
+    use dualstream::units::shade::{cosine_sample, hit_point, spawn};
     let mut rng = Rng::new(41);
     let (mut worst, mut rays) = (0.0f64, 0);
     for case in 0..1500 {
@@ -1097,8 +1097,8 @@ impl Spawned {
 /// spawns rays at one point of every triangle (cycling through the vertices, edge
 /// midpoints and centre, approached from `center`).
 fn spawned_inside(tris: &[Triangle], center: Vec3, radius: f32, light: Vec3, res: u32) -> Spawned {
-    use dualstream::render::shade::{ShadeConsts, primary_path, shade_step};
     use dualstream::render::traverse::reference_trace;
+    use dualstream::units::shade::{ShadeConsts, primary_path, shade_step};
     // As the scene builder does.
     let tris: Vec<Triangle> = tris
         .iter()

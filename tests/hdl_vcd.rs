@@ -8,9 +8,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use dualstream::config::Config;
+use dualstream::machine::hdl::{catalog, write_hdl};
 use dualstream::rtl::TraceSpec;
 use dualstream::testbench::{self, TbOptions};
-use dualstream::machine::hdl::{catalog, write_hdl};
 
 mod common;
 use common::Scratch;

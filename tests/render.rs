@@ -230,8 +230,8 @@ fn paper_comparison_rows() {
 
 #[test]
 fn cycle_rows_add_the_time_and_dram_energy_figures() {
-    use dualstream::units::memory::MemoryModel;
     use dualstream::report::paper::{TABLE2, compare, figures};
+    use dualstream::units::memory::MemoryModel;
     let s = small("tiny", 8);
     let mut c = dualstream::config::Config::default();
     c.chip.tms = 2;

@@ -7,8 +7,9 @@ use dualstream::config::Config;
 use dualstream::contract::{
     HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, SegEntry, TRI_BYTES,
 };
+use dualstream::geom::cull;
 use dualstream::geom::{Aabb, Triangle, inverse_dir, ray_box, ray_triangle};
-use dualstream::render::traverse::{SegmentView, cull};
+use dualstream::render::traverse::SegmentView;
 use dualstream::render::{Prepared, RenderCfg, prepare};
 use dualstream::rtl::{LinkCfg, SimOptions, TraceSpec};
 use dualstream::scene::Scene;

@@ -460,6 +460,22 @@ pub fn lines_touched(addr: u64, len: u64) -> u64 {
     (addr + len - 1) / LINE_BYTES - addr / LINE_BYTES + 1
 }
 
+/// The ray stream between two segments of a wavefront, in the order the functional
+/// model takes them: every queue holding rays (all closed: their parents are done)
+/// as the record the stream scheduler reads, and the bucket pool. What a chip needs
+/// to take the wavefront over at that point (`machine::Chip::trace_window`).
+#[derive(Clone, Debug, Default)]
+pub struct Boundary {
+    pub queues: Vec<(u32, QueueRec)>,
+    pub free_chunks: Vec<u64>,
+    pub chunk_live: Vec<u8>,
+    pub live_buckets: u64,
+    /// Bytes written into the window's snapshot of the image before the chip
+    /// starts: a compacted root queue and its hit records
+    /// (`render::queues::RayQueues::boundary_compact`).
+    pub writes: Vec<(u64, Vec<u8>)>,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -38,6 +38,16 @@ pub const MAX_COORD: f32 = 1e6;
 /// coordinates reach at most 4.5 M, the eye's 5.6 M.
 pub const MAX_VIEW_COORD: f32 = 1e7;
 
+/// Boxes and segment exits are culled only beyond this distance from the best hit
+/// so far. The box test may place a box's entry a few ulps after a hit on a triangle
+/// inside it (independent roundings), and a tie on a shared edge must still reach
+/// the triangle with the smaller id, so culling keeps a margin of 2^-16 relative
+/// (triangle tests themselves use the exact best t, inclusively).
+#[inline]
+pub fn cull(t: f32) -> f32 {
+    t * (1.0 + 1.0 / 65536.0)
+}
+
 /// Whether a coordinate of `v` exceeds `limit` in magnitude (NaN does).
 pub fn beyond(v: glam::Vec3, limit: f32) -> bool {
     !(v.x.abs() <= limit && v.y.abs() <= limit && v.z.abs() <= limit)

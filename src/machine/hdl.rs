@@ -33,7 +33,7 @@ fn elaborate(cfg: &Config) -> Result<Chip, String> {
         1,
         1,
     )?;
-    let shade = crate::render::shade::ShadeConsts {
+    let shade = crate::units::shade::ShadeConsts {
         light_pos: glam::Vec3::ZERO,
         light_intensity: glam::Vec3::ZERO,
         sky: glam::Vec3::ZERO,
@@ -420,7 +420,8 @@ pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
         units::box_pipe::BoxPipe::new(&cfg.box_pipe, d, In::new(i), Out::new(o)).decl(),
         units::tri_pipe::TriPipe::new(&cfg.tri_pipe, d, In::new(i), Out::new(o)).decl(),
         units::divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl(),
-        units::mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o)).decl(),
+        units::mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o))
+            .decl(),
     ];
     v.extend(units::tm_unit_decls(&cfg.tm_spec()));
     // The chip's global units as the chip instantiates them (one source: the

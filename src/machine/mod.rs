@@ -40,7 +40,6 @@ use crate::mem::config::EnergyCfg;
 use crate::mem::energy::{EnergyModel, energy_of};
 use crate::mem::stats::ChannelStats;
 use crate::mem::{AddrMap, MemCfg, MemReq, MemResp, StreamTag};
-use crate::render::shade::ShadeConsts;
 use crate::rtl::{ClockId, Sim, SimOptions, UnitId};
 use crate::units::hit_record_updater::HitRecordUpdater;
 use crate::units::l1::{L1Req, L1Resp};
@@ -48,6 +47,7 @@ use crate::units::l2::{L2, L2Flush};
 use crate::units::mem_ctrl::MemCtrl;
 use crate::units::memory::{MemLineReq, MemLineResp, Memory};
 use crate::units::scene_buffer::{SceneBuffer, SlotMap};
+use crate::units::shade::ShadeConsts;
 use crate::units::staging_buffer::SbFill;
 use crate::units::stream_scheduler::{StreamScheduler, WaveStart};
 use crate::units::tm::{self, TmPorts, TmUnits};
@@ -322,7 +322,7 @@ const WINDOW_STEP: u64 = 32;
 /// What a sampling window runs (see [`Chip::trace_window`]).
 pub enum WindowKind {
     /// The rest of a wavefront from a segment boundary; marks are admissions.
-    Trace(crate::render::queues::Boundary),
+    Trace(crate::contract::Boundary),
     /// The host emitting these rays into the root queue; marks are rays taken.
     Emit(Vec<RayRec>),
     /// The shading pass over pixels `first..pixels`, its rays into the bucket
@@ -330,14 +330,14 @@ pub enum WindowKind {
     Shade {
         first: u32,
         pixels: u32,
-        pool: crate::render::queues::Boundary,
+        pool: crate::contract::Boundary,
     },
     /// A wavefront's root pass (the boundary's root queue, perhaps compacted);
     /// marks are the rays finished in the root segment. The window runs to the
     /// pass's end, at the next admission (its children's) or the wavefront's
     /// end; the measurement is a stretch of it, at most to its last ray
     /// finished.
-    Root(crate::render::queues::Boundary),
+    Root(crate::contract::Boundary),
     /// A short wavefront (too few passes for a window between them) over a
     /// sample of its root queue, from its root pass to its end; marks are the
     /// rays finished in any segment (ray visits). The measured stretch is chosen
@@ -347,7 +347,7 @@ pub enum WindowKind {
     /// Its chip is built with `l2_share` of the configured L2 (see
     /// `WindowPlan::wave_l2_share`).
     Wave {
-        boundary: crate::render::queues::Boundary,
+        boundary: crate::contract::Boundary,
         tenths: (u64, u64),
         step: u64,
         l2_share: u32,

@@ -11,7 +11,6 @@
 
 pub mod output;
 pub mod queues;
-pub mod shade;
 pub mod traverse;
 mod windows;
 
@@ -26,6 +25,7 @@ use crate::contract::{
     TriRec, lines_touched,
 };
 use crate::scene::Scene;
+use crate::units::shade;
 use queues::{RayQueues, queue_lines_written};
 use shade::{ShadeConsts, next_f32, pixel_seed, shade_reads, shade_step};
 use traverse::{SegmentView, TraversalCounts, reference_trace, traverse_segment};
@@ -892,8 +892,7 @@ pub fn render(
     };
     // Cycle mode with shading on the TPs: every chip run after the first shades the
     // finished wavefront and traces the one it emits.
-    let tp_shading =
-        mode == Mode::Cycle && chip_cfg.chip.shading == crate::config::Shading::Tps;
+    let tp_shading = mode == Mode::Cycle && chip_cfg.chip.shading == crate::config::Shading::Tps;
     let rpb = cfg.memory.rays_per_bucket();
     let mut waves = Vec::new();
     let mut trace_s = 0.0;

@@ -11,25 +11,9 @@
 //! the lines of its header and its rays.
 
 use crate::contract::{
-    BUCKET_HEADER_BYTES, BucketHeader, HIT_BYTES, MemoryMap, QueueRec, RAY_BYTES, RayRec,
+    BUCKET_HEADER_BYTES, Boundary, BucketHeader, HIT_BYTES, MemoryMap, QueueRec, RAY_BYTES, RayRec,
     SHADOW_BIT, SparseMem, lines_touched,
 };
-
-/// The ray stream between two segments of a wavefront, in the order the functional
-/// model takes them: every queue holding rays (all closed: their parents are done)
-/// as the record the stream scheduler reads, and the bucket pool. What a chip needs
-/// to take the wavefront over at that point (`Chip::trace_window`).
-#[derive(Clone, Debug, Default)]
-pub struct Boundary {
-    pub queues: Vec<(u32, QueueRec)>,
-    pub free_chunks: Vec<u64>,
-    pub chunk_live: Vec<u8>,
-    pub live_buckets: u64,
-    /// Bytes written into the window's snapshot of the image before the chip
-    /// starts: a compacted root queue and its hit records
-    /// (`boundary_compact`).
-    pub writes: Vec<(u64, Vec<u8>)>,
-}
 
 /// Traffic of the ray stream, in 64 B lines.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]

@@ -13,17 +13,7 @@ use crate::contract::{
     TriRec,
 };
 use crate::geom::aabb::ray_box_screened;
-use crate::geom::{Aabb, Triangle, inverse_dir, ray_box, ray_triangle};
-
-/// Boxes and segment exits are culled only beyond this distance from the best hit
-/// so far. The box test may place a box's entry a few ulps after a hit on a triangle
-/// inside it (independent roundings), and a tie on a shared edge must still reach
-/// the triangle with the smaller id, so culling keeps a margin of 2^-16 relative
-/// (triangle tests themselves use the exact best t, inclusively).
-#[inline]
-pub fn cull(t: f32) -> f32 {
-    t * (1.0 + 1.0 / 65536.0)
-}
+use crate::geom::{Aabb, Triangle, cull, inverse_dir, ray_box, ray_triangle};
 
 /// Work done by a traversal.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]

@@ -10,9 +10,9 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use super::queues::Boundary;
 use super::shade::{ShadeConsts, mix64};
 use super::{Prepared, RayRec, SampleKind, WindowPlan, WindowRecord, WindowSample};
+use crate::contract::Boundary;
 use crate::contract::{MemoryMap, SparseMem};
 use crate::machine::WindowKind;
 

@@ -12,8 +12,8 @@
 use glam::Vec3;
 
 use super::Tag;
-use crate::rtl::PipeCfg;
 use crate::geom::{Aabb, ray_box};
+use crate::rtl::PipeCfg;
 use crate::rtl::{Ctx, FixedPipe, In, Logic, Next, Out};
 
 crate::payload_struct! {

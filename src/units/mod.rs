@@ -7,6 +7,7 @@ pub mod l2;
 pub mod mem_ctrl;
 pub mod memory;
 pub mod scene_buffer;
+pub mod shade;
 pub mod staging_buffer;
 pub mod stream_scheduler;
 pub mod tm;

@@ -76,11 +76,11 @@
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 
+use super::scene_buffer::SceneBufferCfg;
 use crate::contract::{
     BUCKET_HEADER_BYTES, LINE_BYTES, MemoryMap, QUEUE_REC_BYTES, QueueRec, RAY_BYTES, RayRec,
     SEG_ENTRY_BYTES, SegEntry, lines_touched,
 };
-use super::scene_buffer::SceneBufferCfg;
 use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
@@ -93,7 +93,6 @@ use super::scene_buffer::{SlotMap, fill_id};
 use super::staging_buffer::{SbFill, SbHeader};
 use super::tp::RayWrite;
 use super::tp_shade::SHADE_SEG;
-
 
 /// Most memory ports one stream may have (`ray_lines_per_cycle`,
 /// `scene_lines_per_cycle`).
@@ -588,7 +587,7 @@ impl StreamScheduler {
     /// queues that hold rays become eligible (their records are in DRAM, so they are
     /// read at admission as for any queue that left the destination table) and the
     /// bucket pool is the one that laid them out. Only on a fresh scheduler.
-    pub fn resume(&mut self, b: &crate::render::queues::Boundary) {
+    pub fn resume(&mut self, b: &crate::contract::Boundary) {
         assert!(self.idle(), "resume on an idle scheduler");
         assert_eq!(
             b.chunk_live.len(),

@@ -16,8 +16,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::rtl::PipeCfg;
 use crate::contract::{HitRec, RayRec};
+use crate::rtl::PipeCfg;
 use crate::rtl::bits::{Bits, Payload};
 use crate::rtl::{ClockId, In, LinkCfg, Out, Sim, UnitId};
 
@@ -166,7 +166,7 @@ pub struct TpCosts {
     /// Shading: address of a record (path state, hit records, triangle index,
     /// triangle, material) and its global load through the L2.
     pub shade_load: StateCost,
-    /// Shading: the shading arithmetic of one pixel (`render::shade::shade_step`).
+    /// Shading: the shading arithmetic of one pixel (`units::shade::shade_step`).
     pub shade: StateCost,
     /// Shading: send one new ray (8 words) to the root queue, or the item's end marker.
     pub shade_emit: StateCost,

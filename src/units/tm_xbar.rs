@@ -69,7 +69,9 @@ crate::unit! {
 /// the pipeline and its result FIFO (both FIFOs with the TM's link timing). The
 /// pipeline's latency counts its result FIFO's delay, as a separate unit's counts
 /// its output link's, so a test takes `box_pipe.latency` from grant to routing.
-pub fn box_path(cfg: &super::tm::TmSpec) -> (LocalLink<BoxReq>, FixedPipe<BoxReq>, LocalLink<BoxResp>) {
+pub fn box_path(
+    cfg: &super::tm::TmSpec,
+) -> (LocalLink<BoxReq>, FixedPipe<BoxReq>, LocalLink<BoxResp>) {
     let l = cfg.link;
     (
         LocalLink::new(l),

@@ -26,7 +26,7 @@ use super::tm::{COST_NAMES, COSTS, TpCosts, round_trip};
 pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::contract::{HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, TRI_BYTES};
-use crate::render::traverse::cull;
+use crate::geom::cull;
 use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Ram, Reg, Status};
 
 crate::payload_struct! {

@@ -25,12 +25,12 @@ use glam::Vec3;
 
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
+use super::shade::{ShadeConsts, shade_reads, shade_step};
 use super::tp::{RayWrite, Tp, TpState};
 use crate::contract::{
     HIT_BYTES, HitRec, LINE_BYTES, MemoryMap, PathRec, RayRec, TRI_BYTES, TriRec,
 };
 use crate::mem::StreamTag;
-use crate::render::shade::{ShadeConsts, shade_reads, shade_step};
 use crate::rtl::{Ctx, Next};
 
 /// The header segment of a shading work item and of its end marker.

@@ -5,8 +5,8 @@
 use glam::Vec3;
 
 use super::Tag;
-use crate::rtl::PipeCfg;
 use crate::geom::{Triangle, ray_triangle};
+use crate::rtl::PipeCfg;
 use crate::rtl::{Ctx, FixedPipe, In, Logic, Next, Out};
 
 crate::payload_struct! {

@@ -1,6 +1,8 @@
 //! Shading: what happens to a path at each hit, and the numerics it needs
 //! (per-pixel random numbers, robust ray offsets, cosine sampling), all
-//! deterministic and free of platform maths libraries.
+//! deterministic and free of platform maths libraries. One step, two callers:
+//! the TPs run it between wavefronts (`tp_shade`), the host runs the same
+//! function in functional mode and with `chip.shading = "host"`.
 
 use glam::Vec3;
 
