@@ -690,7 +690,7 @@ fn run(cli: Cli) -> Result<(), String> {
             // A time-sampled frame's energy is the estimate's (below), not the
             // functional model's TMs-only figure.
             if mode != Mode::Reference && !sampled {
-                frame.energy = Some(dualstream::energy::frame_energy(&config, &frame));
+                frame.energy = Some(dualstream::render::energy::frame_energy(&config, &frame));
             }
             output::write_png(&frame, &out)?;
             if let Some(path) = &pass_log {
@@ -787,7 +787,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 let mut frame =
                     dualstream::render::render(&sc, mode, &render_cfg(&cfg, threads), &mut |_| {})?;
                 eprintln!("  {:.1} s", t0.elapsed().as_secs_f64());
-                frame.energy = Some(dualstream::energy::frame_energy(&cfg, &frame));
+                frame.energy = Some(dualstream::render::energy::frame_energy(&cfg, &frame));
                 rows.extend(dualstream::report::paper::compare(row, &frame));
             }
             print!("{}", dualstream::report::paper::table(&rows));

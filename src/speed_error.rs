@@ -22,7 +22,7 @@
 //!   the pixel ratio). Each states its sampling error as the standard error of the
 //!   mean over the samples (relative), next to its actual error.
 //!
-//! Energy everywhere is compute + on-chip ([`crate::energy::frame_energy`]) + DRAM
+//! Energy everywhere is compute + on-chip ([`crate::render::energy::frame_energy`]) + DRAM
 //! with the `paper` preset; where the mode has no DRAM timing its DRAM energy is
 //! estimated from the line counts ([`dram_energy_estimate`]).
 
@@ -1363,7 +1363,7 @@ fn windowed_parts(c: &Config, f: &Frame) -> Result<Windowed, String> {
         evals_by_module: Vec::new(),
         sim_steps_by_lanes: Vec::new(),
     });
-    let e = crate::energy::frame_energy(c, &g);
+    let e = crate::render::energy::frame_energy(c, &g);
     let p = [
         total[0],
         total[1],
@@ -1924,7 +1924,7 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
 /// the shading pass; compute + on-chip energy; DRAM energy.
 fn parts(c: &Config, f: &Frame, cycles: f64) -> Result<[f64; 7], String> {
     let t = &f.total;
-    let e = crate::energy::frame_energy(c, f);
+    let e = crate::render::energy::frame_energy(c, f);
     let dram = match f.chip.as_ref().and_then(|ch| ch.dram) {
         Some(d) => d.energy_paper_j,
         None => dram_energy_estimate(c, f, cycles)?,

@@ -248,12 +248,12 @@ fn cycle_rows_add_the_time_and_dram_energy_figures() {
     // Leakage: off by default; on, a separate figure over the render time that
     // leaves the totals alone.
     let mut c = rc.chip.as_ref().unwrap().config.clone();
-    let off = dualstream::energy::frame_energy(&c, &f);
+    let off = dualstream::render::energy::frame_energy(&c, &f);
     assert_eq!(off.leakage_j, None);
     c.energy.leakage = true;
-    let on = dualstream::energy::frame_energy(&c, &f);
+    let on = dualstream::render::energy::frame_energy(&c, &f);
     let secs = f.chip.as_ref().unwrap().total_cycles as f64 * 1e-9;
-    let want = dualstream::energy::leakage_w(&c) * secs;
+    let want = dualstream::render::energy::leakage_w(&c) * secs;
     assert!((on.leakage_j.unwrap() - want).abs() <= 1e-12 * want.max(1.0));
     assert_eq!((on.compute_j, on.onchip_j), (off.compute_j, off.onchip_j));
     let rows = compare(&TABLE2[1], &f);

@@ -278,7 +278,7 @@ fn reference_files(
         ..rc
     };
     let mut f = render::render(s, Mode::Cycle, &rc, &mut |_| {}).unwrap();
-    f.energy = Some(dualstream::energy::frame_energy(&g, &f));
+    f.energy = Some(dualstream::render::energy::frame_energy(&g, &f));
     let dir = Scratch::new(&format!("se-ref-{tag}"));
     let (j, p) = (dir.join("ref.json"), dir.join("ref.png"));
     render::output::write_json(&f, &j).unwrap();
@@ -1456,7 +1456,7 @@ fn a_time_sampled_frame_estimates_every_figure_of_the_cycle_frame() {
     let e = &ts.estimate;
     let chip = f.chip.as_ref().unwrap();
     let dram = chip.dram.unwrap();
-    let en = dualstream::energy::frame_energy(&c, &f);
+    let en = dualstream::render::energy::frame_energy(&c, &f);
     let t = &f.total;
     for (what, est, cyc, tol) in [
         ("cycles", e.cycles, chip.total_cycles as f64, 0.03),

@@ -9,6 +9,7 @@
 //! wavefront. Everything a unit would touch lives in the DRAM image laid out by the
 //! data contract; traffic is counted per stream in 64 B lines.
 
+pub mod energy;
 pub mod output;
 pub mod queues;
 pub mod traverse;
