@@ -27,7 +27,7 @@ module box_pipe #(
         if (rst) begin
             pipe_stage_valid <= '0;
             pipe_frozen <= '0;
-            pipe_ii_count <= '0;
+            pipe_ii_count <= 1'h1;
             for (int i = 0; i < 7; i++) pipe_stage_data[i] <= '0;
         end
     end

@@ -27,7 +27,7 @@ module divider #(
         if (rst) begin
             pipe_stage_valid <= '0;
             pipe_frozen <= '0;
-            pipe_ii_count <= '0;
+            pipe_ii_count <= 2'h3;
             for (int i = 0; i < 17; i++) pipe_stage_data[i] <= '0;
         end
     end

@@ -849,7 +849,7 @@ module stream_scheduler #(
             queues <= '0;
             buckets_ready <= '0;
             mem_queued <= '0;
-            next_eligible <= '0;
+            next_eligible <= 32'hffffffff;
             next_tm <= '0;
             for (int i = 0; i < 1024; i++) dest_table[i] <= '0;
             for (int i = 0; i < 8; i++) stream_table[i] <= '0;

@@ -547,7 +547,7 @@ module tm_xbar #(
             for (int i = 0; i < 2; i++) box_req_q_mem[i] <= '0;
             box_pipe_stage_valid <= '0;
             box_pipe_frozen <= '0;
-            box_pipe_ii_count <= '0;
+            box_pipe_ii_count <= 1'h1;
             for (int i = 0; i < 7; i++) box_pipe_stage_data[i] <= '0;
             box_resp_q_count <= '0;
             box_resp_q_valid <= '0;

@@ -93,7 +93,7 @@ module tp #(
             req_at <= '0;
             cur <= '0;
             inv_dir <= '0;
-            best <= '0;
+            best <= 128'h0000000000000000ffffffff7f800000;
             entry <= '0;
             line0 <= '0;
             line1 <= '0;

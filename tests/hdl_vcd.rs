@@ -419,3 +419,133 @@ fn lint_with_library(lib: &std::path::Path, file: &std::path::Path, what: &str) 
         );
     }
 }
+
+/// Signal -> value (binary digits, no leading zeros) at the first time step of a
+/// VCD, for the signals under `scope`.
+fn first_values(path: &Path, scope: &str) -> BTreeMap<String, String> {
+    let f = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let mut stack: Vec<String> = Vec::new();
+    let mut names = std::collections::HashMap::new();
+    let mut out = BTreeMap::new();
+    let mut steps = 0;
+    let bin = |v: &mut dyn Iterator<Item = vcd::Value>| -> String {
+        let s: String = v
+            .map(|b| if b == vcd::Value::V1 { '1' } else { '0' })
+            .collect();
+        let t = s.trim_start_matches('0');
+        if t.is_empty() { "0".into() } else { t.into() }
+    };
+    for cmd in vcd::Parser::new(f) {
+        match cmd.expect("valid VCD") {
+            vcd::Command::ScopeDef(_, name) => stack.push(name),
+            vcd::Command::Upscope => {
+                stack.pop();
+            }
+            vcd::Command::VarDef(_, _, code, name, _) if stack.join(".") == scope => {
+                names.insert(code, name);
+            }
+            vcd::Command::Timestamp(_) => {
+                steps += 1;
+                if steps > 1 {
+                    break;
+                }
+            }
+            vcd::Command::ChangeScalar(code, v) => {
+                if let Some(n) = names.get(&code) {
+                    out.insert(n.clone(), bin(&mut std::iter::once(v)));
+                }
+            }
+            vcd::Command::ChangeVector(code, v) => {
+                if let Some(n) = names.get(&code) {
+                    out.insert(n.clone(), bin(&mut v.iter()));
+                }
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+/// Register -> reset value (binary digits, no leading zeros) from a module's
+/// reset block (`name <= '0;` or `name <= W'hHEX;`).
+fn verilog_resets(module: &str) -> BTreeMap<String, String> {
+    let mut out = BTreeMap::new();
+    for l in module.lines() {
+        let l = l.trim();
+        let Some((name, v)) = l.strip_suffix(';').and_then(|l| l.split_once(" <= ")) else {
+            continue;
+        };
+        if name.contains('[') {
+            continue;
+        }
+        let bits = match v.split_once("'h") {
+            Some((_, hex)) => {
+                let s: String = hex
+                    .chars()
+                    .map(|c| format!("{:04b}", c.to_digit(16).expect("hex digit")))
+                    .collect();
+                let t = s.trim_start_matches('0');
+                if t.is_empty() {
+                    "0".to_string()
+                } else {
+                    t.to_string()
+                }
+            }
+            None => {
+                assert_eq!(v, "'0", "{l}");
+                "0".to_string()
+            }
+        };
+        out.insert(name.to_string(), bits);
+    }
+    out
+}
+
+/// The Verilog skeletons reset every register to the value the model starts from,
+/// and the waveform's first values are those: one reset, three views (e.g. a
+/// pipeline's initiation-interval counter starts at its interval, a TP's best hit
+/// at infinity).
+#[test]
+fn verilog_resets_are_the_models_first_values() {
+    let dir = tmpdir("resets");
+    let mut nonzero = 0;
+    for name in ["box_pipe", "tri_pipe", "divider"] {
+        let decls = catalog(&testbench::bench_config(name, &Config::default()));
+        let decl = decls.iter().find(|d| d.module == name).unwrap();
+        let resets = verilog_resets(&dualstream::rtl::verilog::emit_module(decl));
+        assert!(!resets.is_empty(), "{name}: no reset block");
+        let vcd = dir.join(format!("{name}.vcd"));
+        let opts = TbOptions {
+            cycles: 50,
+            vcd: Some(vcd.clone()),
+            trace: TraceSpec::all(),
+            ..TbOptions::default()
+        };
+        assert!(testbench::run_by_name(name, &opts).unwrap().passed());
+        let first = first_values(&vcd, &format!("tb.{name}"));
+        for (reg, want) in &resets {
+            assert_eq!(
+                first.get(reg),
+                Some(want),
+                "{name}.{reg}: the Verilog resets it to {want} (binary), the waveform starts at {:?}",
+                first.get(reg)
+            );
+            nonzero += (want != "0") as u32;
+        }
+    }
+    assert!(
+        nonzero >= 3,
+        "each pipeline's interval counter starts non-zero"
+    );
+    // A TP's best hit resets to "no hit": t = +inf, triangle id all ones.
+    let tp = catalog(&Config::default())
+        .into_iter()
+        .find(|d| d.module == "tp")
+        .unwrap();
+    let best = tp.state.iter().find(|s| s.name == "best").unwrap();
+    assert!(
+        best.reset_literal().ends_with("ffffffff7f800000"),
+        "{}",
+        best.reset_literal()
+    );
+}

@@ -49,11 +49,15 @@ fn elaborate(cfg: &Config) -> Result<Chip, String> {
 pub fn global_decls(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
     let chip = elaborate(cfg)?;
     let mut v: Vec<UnitDecl> = Vec::new();
-    for (path, d) in chip.sim.decls() {
+    for i in 0..chip.sim.unit_count() {
+        let u = UnitId(i as u32);
+        let path = chip.sim.unit_path(u).to_string();
         let top = top_of(&path);
         if path != format!("chip.{top}") || top == "host" {
             continue;
         }
+        // Fresh from elaboration: the registers stand at their reset values.
+        let d = chip.sim.unit(u).decl_at_reset();
         if !v.iter().any(|x| x.module == d.module) {
             v.push(d);
         }
@@ -140,7 +144,7 @@ pub fn emit_chip(cfg: &Config) -> Result<String, String> {
     for i in 0..sim.unit_count() {
         let u = UnitId(i as u32);
         let path = sim.unit_path(u).to_string();
-        let d = sim.unit(u).decl();
+        let d = sim.unit(u).decl_at_reset();
         let top = top_of(&path).to_string();
         let leaf = path == format!("chip.{top}");
         let inst = insts.entry(top.clone()).or_insert_with(|| Inst {
@@ -417,11 +421,11 @@ pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
     let d = cfg.links.tm.delay;
     let (i, o) = (LinkId(0), LinkId(1));
     let mut v: Vec<UnitDecl> = vec![
-        units::box_pipe::BoxPipe::new(&cfg.box_pipe, d, In::new(i), Out::new(o)).decl(),
-        units::tri_pipe::TriPipe::new(&cfg.tri_pipe, d, In::new(i), Out::new(o)).decl(),
-        units::divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl(),
+        units::box_pipe::BoxPipe::new(&cfg.box_pipe, d, In::new(i), Out::new(o)).decl_at_reset(),
+        units::tri_pipe::TriPipe::new(&cfg.tri_pipe, d, In::new(i), Out::new(o)).decl_at_reset(),
+        units::divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl_at_reset(),
         units::mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o))
-            .decl(),
+            .decl_at_reset(),
     ];
     v.extend(units::tm_unit_decls(&cfg.tm_spec()));
     // The chip's global units as the chip instantiates them (one source: the

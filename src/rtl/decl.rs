@@ -34,6 +34,10 @@ pub struct StateDecl {
     pub depth: Option<u32>,
     /// FSM encodings, for the VCD header comment.
     pub enum_names: Option<&'static [&'static str]>,
+    /// The value at reset, packed LSB-first (empty: all zeros): what the model
+    /// holds before its first edge, so the Verilog's reset agrees with the model
+    /// and the waveform (`Declared::decl_at_reset` fills it in for registers).
+    pub reset: super::bits::Bits,
 }
 
 impl StateDecl {
@@ -43,6 +47,7 @@ impl StateDecl {
             width,
             depth: None,
             enum_names: None,
+            reset: super::bits::Bits::new(),
         }
     }
     pub fn array(name: impl Into<String>, width: u32, depth: u32) -> Self {
@@ -51,6 +56,7 @@ impl StateDecl {
             width,
             depth: Some(depth),
             enum_names: None,
+            reset: super::bits::Bits::new(),
         }
     }
     pub fn bits(&self) -> u64 {
@@ -58,6 +64,28 @@ impl StateDecl {
     }
     pub fn traced(&self) -> bool {
         self.depth.is_none()
+    }
+    /// The reset value as a Verilog literal of the declared width.
+    pub fn reset_literal(&self) -> String {
+        let w = self.width.max(1);
+        if self.reset.words().iter().all(|x| *x == 0) {
+            return "'0".into();
+        }
+        let digits = w.div_ceil(4) as usize;
+        let mut hex = String::with_capacity(digits);
+        for k in (0..digits).rev() {
+            let at = 4 * k as u32;
+            let word = self
+                .reset
+                .words()
+                .get((at / 64) as usize)
+                .copied()
+                .unwrap_or(0);
+            let mask = (1u64 << 4.min(w - at)) - 1;
+            let nib = (word >> (at % 64)) & mask;
+            hex.push(char::from_digit(nib as u32, 16).expect("a nibble"));
+        }
+        format!("{w}'h{hex}")
     }
 }
 

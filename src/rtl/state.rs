@@ -171,8 +171,9 @@ impl<T: Payload> Ram<T> {
 
 impl<T: Payload> State for Ram<T> {
     fn declare(&self, name: &str, out: &mut StateList) {
-        out.items
-            .push(StateDecl::array(name, T::BITS, self.depth()));
+        let mut d = StateDecl::array(name, T::BITS, self.depth());
+        d.reset = super::bits::packed(&self.init);
+        out.items.push(d);
     }
     fn sample(&self, _cycle: u64, _out: &mut Samples) {}
     fn commit(&mut self) {

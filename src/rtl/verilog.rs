@@ -105,13 +105,14 @@ pub fn emit_module(d: &UnitDecl) -> String {
     for s in &d.state {
         match s.depth {
             None => {
-                let _ = writeln!(w, "            {} <= '0;", s.name);
+                let _ = writeln!(w, "            {} <= {};", s.name, s.reset_literal());
             }
             Some(depth) => {
                 let _ = writeln!(
                     w,
-                    "            for (int i = 0; i < {depth}; i++) {}[i] <= '0;",
-                    s.name
+                    "            for (int i = 0; i < {depth}; i++) {}[i] <= {};",
+                    s.name,
+                    s.reset_literal()
                 );
             }
         }

@@ -92,5 +92,10 @@ pub fn tm_unit_decls(cfg: &tm::TmSpec) -> Vec<UnitDecl> {
         box_resp_q,
         stats: Default::default(),
     };
-    vec![tp.decl(), l1.decl(), sb.decl(), xbar.decl()]
+    vec![
+        tp.decl_at_reset(),
+        l1.decl_at_reset(),
+        sb.decl_at_reset(),
+        xbar.decl_at_reset(),
+    ]
 }
