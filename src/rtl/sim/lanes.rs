@@ -1,6 +1,7 @@
 //! Parallel evaluation lanes: the worker threads of a multi-threaded run, their
-//! hand-over with the caller's thread, load balancing between lanes, and the
-//! automatic choice of the lane count (`SimOptions::auto_lanes`).
+//! hand-over with the caller's thread, and the state of load balancing between
+//! lanes and of the automatic choice of the lane count (`SimOptions::auto_lanes`;
+//! the decisions themselves are in `partition.rs`).
 //!
 //! A step with work in two or more lanes hands each worker lane its due units
 //! (`Job`), evaluates the last lane on the caller's thread, and waits for the
@@ -15,7 +16,10 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::Thread;
 use std::time::{Duration, Instant};
 
-use super::{LaneOut, Net, Sched, SimError, Slot, Time, eval_commit_slot};
+use super::context::{LaneOut, eval_commit_slot};
+use super::network::Net;
+use super::scheduling::Sched;
+use super::{SimError, Slot, Time};
 use crate::rtl::calendar::Calendar;
 
 /// `Worker::go` value that ends the worker.

@@ -1,0 +1,177 @@
+//! What the rest of the crate reads of a simulator between runs: the time, the
+//! units and their statistics, evaluations by unit kind, link statistics and
+//! transfer logs, and the VCD tracer that samples registers during a run.
+
+use super::{Clock, ClockId, Sim, SimError, Time, UnitId};
+use crate::rtl::decl::UnitDecl;
+use crate::rtl::link::{LinkEvent, LinkId, LinkStats};
+use crate::rtl::trace::{TraceStats, Tracer};
+use crate::rtl::unit::{self, Unit};
+
+/// Evaluations of the units of one kind (see [`Sim::evals_by_module`]).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct ModuleEvals {
+    pub module: &'static str,
+    pub units: usize,
+    pub evals: u64,
+}
+
+/// Statistics of one unit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnitStats {
+    pub path: String,
+    pub module: &'static str,
+    /// Cycles (of the unit's clock) spent in each [`Status`](unit::Status), indexed
+    /// by its value.
+    pub status_cycles: [u64; 4],
+    pub counters: Vec<(&'static str, u64)>,
+}
+
+impl Sim {
+    pub fn now(&self) -> Time {
+        self.now
+    }
+
+    /// Current cycle of a clock.
+    pub fn cycle(&self, clock: ClockId) -> u64 {
+        self.now / self.clocks[clock.0 as usize].period_ps
+    }
+
+    /// Evaluations so far by unit kind (Verilog module name): units of the kind
+    /// and their evaluations, most evaluated first (ties by name). Where a
+    /// simulation's time goes: an evaluation costs about the same whatever the
+    /// unit (docs/kernel.md).
+    pub fn evals_by_module(&self) -> Vec<ModuleEvals> {
+        let mut m: std::collections::BTreeMap<&'static str, ModuleEvals> = Default::default();
+        for s in &self.slots {
+            let module = s.unit.decl().module;
+            let e = m.entry(module).or_insert(ModuleEvals {
+                module,
+                units: 0,
+                evals: 0,
+            });
+            e.units += 1;
+            e.evals += s.evals;
+        }
+        let mut v: Vec<ModuleEvals> = m.into_values().collect();
+        v.sort_by(|a, b| b.evals.cmp(&a.evals).then(a.module.cmp(b.module)));
+        v
+    }
+
+    pub fn unit_count(&self) -> usize {
+        self.slots.len()
+    }
+
+    pub fn unit_path(&self, u: UnitId) -> &str {
+        &self.slots[u.0 as usize].path
+    }
+
+    pub fn unit_id(&self, path: &str) -> Option<UnitId> {
+        self.slots
+            .iter()
+            .position(|s| s.path == path)
+            .map(|i| UnitId(i as u32))
+    }
+
+    pub fn unit(&self, u: UnitId) -> &dyn Unit {
+        &*self.slots[u.0 as usize].unit
+    }
+
+    /// Typed access to a unit between steps (testbenches). Wake it after changing it.
+    pub fn unit_mut<U: Unit>(&mut self, u: UnitId) -> &mut U {
+        let slot = &mut self.slots[u.0 as usize];
+        slot.commit_all = true;
+        unit::downcast_mut::<U>(&mut *slot.unit).expect("unit type matches")
+    }
+
+    pub fn unit_ref<U: Unit>(&self, u: UnitId) -> &U {
+        unit::downcast_ref::<U>(&*self.slots[u.0 as usize].unit).expect("unit type matches")
+    }
+
+    pub fn unit_clock(&self, u: UnitId) -> ClockId {
+        self.slots[u.0 as usize].clock
+    }
+
+    /// Status cycles integrated up to now, and the unit's counters.
+    pub fn unit_stats(&self, u: UnitId) -> UnitStats {
+        let s = &self.slots[u.0 as usize];
+        let mut ps = s.status_ps;
+        match s.ahead {
+            // A status from the next cycle on, not begun yet.
+            Some(a) if self.now < s.since => ps[a as usize] -= s.since - self.now,
+            _ => ps[s.status as usize] += self.now - s.since,
+        }
+        UnitStats {
+            path: s.path.clone(),
+            module: s.unit.decl().module,
+            status_cycles: ps.map(|x| x / s.period),
+            counters: s.unit.counters(),
+        }
+    }
+
+    pub fn all_stats(&self) -> Vec<UnitStats> {
+        (0..self.slots.len())
+            .map(|i| self.unit_stats(UnitId(i as u32)))
+            .collect()
+    }
+
+    pub fn link_stats(&self) -> Vec<(String, LinkStats)> {
+        self.links
+            .iter()
+            .map(|l| (l.name().to_string(), l.stats()))
+            .collect()
+    }
+
+    pub fn link_occupancy(&self, id: LinkId) -> u32 {
+        self.links[id.0 as usize].occupancy()
+    }
+
+    /// Turns on the transfer log of a link (testbenches check latencies with it).
+    pub fn log_link(&mut self, id: LinkId, on: bool) {
+        self.links[id.0 as usize].set_log(on);
+    }
+
+    pub fn link_log(&self, id: LinkId) -> &[LinkEvent] {
+        self.links[id.0 as usize].log()
+    }
+
+    /// Attaches a VCD tracer (see [`crate::rtl::trace`]).
+    pub fn attach_tracer(&mut self, mut tracer: Tracer) -> Result<(), SimError> {
+        self.elaborate()?;
+        let units: Vec<(&str, &dyn Unit, &Clock)> = self
+            .slots
+            .iter()
+            .map(|s| (s.path.as_str(), &*s.unit, &self.clocks[s.clock.0 as usize]))
+            .collect();
+        if let Err(e) = tracer.bind(&units) {
+            tracer.discard();
+            return Err(SimError::Elaboration(e));
+        }
+        if let Err(e) = tracer.check_estimate() {
+            tracer.discard();
+            return Err(SimError::Trace(e));
+        }
+        for i in tracer.unit_indices() {
+            self.slots[i].watched = true;
+        }
+        self.tracer = Some(tracer);
+        Ok(())
+    }
+
+    /// Detaches the tracer, flushing its output.
+    pub fn finish_trace(&mut self) -> Option<std::io::Result<TraceStats>> {
+        let now = self.now;
+        for s in &mut self.slots {
+            s.watched = false;
+        }
+        self.tracer.take().map(|t| t.finish(now))
+    }
+
+    /// Every unit's declaration with its instance path (for hdl emission and reports).
+    pub fn decls(&self) -> Vec<(String, UnitDecl)> {
+        self.slots
+            .iter()
+            .map(|s| (s.path.clone(), s.unit.decl()))
+            .collect()
+    }
+}
