@@ -4,10 +4,10 @@
 //! here fails if the corresponding property breaks.
 
 mod boxes;
-mod triangles;
+mod determinism;
 mod leaks;
 mod spawn;
-mod determinism;
+mod triangles;
 
 use dualstream::accel::{Bvh, BvhCfg};
 use dualstream::contract::{HitRec, PATH_BOUNCE_IN_FLIGHT, PathRec, TriRec};
