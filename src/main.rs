@@ -48,11 +48,11 @@ enum Cmd {
     },
     /// Write the Verilog skeleton of every unit.
     Hdl(cli::hdl::HdlArgs),
-    /// Measure the simulator: kernel (pipelines of 128 TMs at several activities),
-    /// dram (the memory model's replay speed), speed-error (every faster mode's wall
-    /// time and error against the full cycle model on a scene), threads (one lane,
-    /// one per core and auto, idle and beside a busy process, on --scene).
-    Bench(cli::bench::BenchArgs),
+    /// Measure the simulator: kernel, dram, speed-error or threads.
+    Bench {
+        #[command(subcommand)]
+        cmd: cli::bench::BenchCmd,
+    },
     /// The memory system: replay a DRAMsim3-format trace and print statistics, or
     /// generate a trace (random, stream, mixed).
     Dram(cli::dram::DramArgs),
@@ -72,7 +72,7 @@ fn run(cli: Cli) -> Result<(), String> {
         Cmd::Report(a) => cli::report::report(config, threads, a),
         Cmd::Scene { cmd } => cli::scene::scene(&config, threads, cmd),
         Cmd::Hdl(a) => cli::hdl::hdl(&config, a),
-        Cmd::Bench(a) => cli::bench::bench(config, threads, a),
+        Cmd::Bench { cmd } => cli::bench::bench(config, threads, cmd),
         Cmd::Dram(a) => cli::dram::dram(config, a),
         Cmd::Config(a) => cli::config::config(&config, a),
     }

@@ -818,6 +818,79 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
     );
 }
 
+/// Each benchmark is a subcommand with only its own flags: the time-sampling
+/// plan's (`--window-*`, `--shade-*`) belong to `bench speed-error` alone, so
+/// neither `render --help` nor the other benchmarks list them.
+#[test]
+fn bench_subcommands_carry_only_their_own_flags() {
+    let help = |args: &[&str]| -> String {
+        let o = run(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let se = help(&["bench", "speed-error", "--help"]);
+    for f in [
+        "--window-every",
+        "--window-waves",
+        "--window-wave-ray-share",
+        "--shade-head",
+        "--window-log",
+        "--reference-passes",
+        "--small-tms",
+        "Windows mode (time sampling)",
+    ] {
+        assert!(se.contains(f), "bench speed-error --help lacks {f}: {se}");
+    }
+    for args in [
+        &["--help"][..],
+        &["render", "--help"],
+        &["bench", "--help"],
+        &["bench", "kernel", "--help"],
+        &["bench", "dram", "--help"],
+        &["bench", "threads", "--help"],
+    ] {
+        let h = help(args);
+        assert!(
+            !h.contains("--window-") && !h.contains("--shade-"),
+            "{args:?} lists time-sampling flags: {h}"
+        );
+    }
+    let list = help(&["bench", "--help"]);
+    for name in ["kernel", "dram", "speed-error", "threads"] {
+        assert!(list.contains(name), "{name}: {list}");
+    }
+    assert!(
+        !list.lines().any(|l| l.trim_start().starts_with("busy")),
+        "the competing process stays hidden: {list}"
+    );
+    // A flag given to a benchmark it does not belong to is refused, named.
+    fails_with(
+        &["bench", "kernel", "--window-every", "3"],
+        &["--window-every"],
+    );
+    fails_with(&["bench", "threads", "--res", "8x8"], &["--res"]);
+    fails_with(
+        &["bench", "kernel", "--scale", "0"],
+        &["--scale must be positive"],
+    );
+    fails_with(
+        &["bench", "dram", "--scale=-1"],
+        &["--scale must be positive"],
+    );
+    // Each name runs its own benchmark.
+    let k = help(&["bench", "kernel", "--scale", "0.001"]);
+    assert!(k.contains("128 TMs") && k.contains("cycles/s"), "{k}");
+    let d = help(&["bench", "dram", "--scale", "0.001"]);
+    assert!(
+        d.contains("energy per 64 B line") && d.contains("requests/s"),
+        "{d}"
+    );
+}
+
 #[test]
 fn the_pass_log_is_written_in_cycle_mode_and_refused_elsewhere() {
     let t = Scratch::new("cli-passes");
