@@ -1,6 +1,7 @@
 //! Waveforms of the chip (`render --mode cycle --vcd`): the chosen units and window,
 //! read back with the `vcd` crate; and the size guard of every waveform (render and tb).
 
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::common::Scratch;
@@ -45,41 +46,46 @@ fn vcd_scopes_and_times(path: &std::path::Path) -> (std::collections::BTreeSet<S
     (scopes, times)
 }
 
-#[test]
-fn render_cycle_writes_a_waveform_of_the_chosen_units_and_window() {
-    let t = Scratch::new("cli-chipv");
+/// `render --mode cycle` of the tiny scene on a chip of 2 TMs x 4 TPs with
+/// GDDR5, its waveform written to `NAME.vcd` in `t`: the arguments (the last
+/// two are `--vcd FILE`) and the waveform's path.
+fn traced_render(t: &Scratch, name: &str) -> (Vec<String>, PathBuf) {
     let (cfg, vcd, png) = (
-        t.join("chipv.toml"),
-        t.join("chipv.vcd"),
-        t.join("chipv.png"),
+        t.join(format!("{name}.toml")),
+        t.join(format!("{name}.vcd")),
+        t.join(format!("{name}.png")),
     );
     std::fs::write(
         &cfg,
         "[tm]\ntps = 4\n[chip]\ntms = 2\n[chip.memory]\nmodel = \"gddr5\"\n",
     )
     .unwrap();
-    let (c, v, p) = (
-        cfg.to_str().unwrap(),
-        vcd.to_str().unwrap(),
-        png.to_str().unwrap(),
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let mut args = vec!["--config".to_string(), s(&cfg)];
+    args.extend(
+        [
+            "render",
+            "--mode",
+            "cycle",
+            "--scene",
+            "tiny",
+            "--res",
+            "8x8",
+            "--bounces",
+            "1",
+            "--out",
+        ]
+        .map(String::from),
     );
-    let base = [
-        "--config",
-        c,
-        "render",
-        "--mode",
-        "cycle",
-        "--scene",
-        "tiny",
-        "--res",
-        "8x8",
-        "--bounces",
-        "1",
-        "--out",
-        p,
-        "--vcd",
-        v,
-    ];
+    args.extend([s(&png), "--vcd".to_string(), s(&vcd)]);
+    (args, vcd)
+}
+
+#[test]
+fn render_cycle_writes_a_waveform_of_the_chosen_units_and_window() {
+    let t = Scratch::new("cli-chipv");
+    let (owned, vcd) = traced_render(&t, "chipv");
+    let base: Vec<&str> = owned.iter().map(String::as_str).collect();
     let args: Vec<&str> = base
         .iter()
         .copied()
@@ -160,6 +166,16 @@ fn render_cycle_writes_a_waveform_of_the_chosen_units_and_window() {
             String::from_utf8_lossy(&o.stderr)
         );
     }
+}
+
+/// The chip's waveform also takes the testbenches' flags; bad unit names and
+/// windows, and trace options without `--vcd` or cycle mode, are refused.
+#[test]
+fn render_cycle_takes_the_old_trace_flags_and_names_bad_units() {
+    let t = Scratch::new("cli-chipv-old");
+    let (owned, vcd) = traced_render(&t, "chipv");
+    let base: Vec<&str> = owned.iter().map(String::as_str).collect();
+    let v = vcd.to_str().unwrap();
     // The old flags: --trace (instance patterns) and --trace-from/--trace-to.
     let args: Vec<&str> = base
         .iter()
