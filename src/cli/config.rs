@@ -1,0 +1,21 @@
+//! `dualstream config`: the configuration in force, or the default one, as TOML.
+
+use clap::Args;
+
+use dualstream::config::Config;
+
+#[derive(Args)]
+pub struct ConfigArgs {
+    /// Print the default configuration as TOML.
+    #[arg(long)]
+    print_default: bool,
+}
+
+pub fn config(config: &Config, a: ConfigArgs) -> Result<(), String> {
+    if a.print_default {
+        print!("{}", Config::default().to_toml());
+    } else {
+        print!("{}", config.to_toml());
+    }
+    Ok(())
+}

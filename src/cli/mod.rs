@@ -1,0 +1,94 @@
+//! The subcommands, one file each, and what several of them share: the
+//! resolution, size and thread-count parsers, the chip's render settings and
+//! the BVH fallback warning.
+
+use std::path::PathBuf;
+
+use dualstream::config::Config;
+use dualstream::rtl::Threads;
+
+pub mod bench;
+pub mod config;
+pub mod dram;
+pub mod hdl;
+pub mod render;
+pub mod report;
+pub mod scene;
+pub mod tb;
+
+/// Time sampling (the window plan, `time_sampled`) and the speed/error study.
+/// The cli's only path to that module, so moving it changes this line alone.
+pub use dualstream::speed_error as sampling;
+
+/// Says that the BVH came from the fallback builder, and why.
+pub fn bvh_fallback_warning(why: &str) -> String {
+    format!(
+        "BVH: {why}; built with the binned-SAH fallback instead (bounded in time and depth). \
+         Meshes of long, thin, overlapping triangles do this, e.g. a large polygon \
+         triangulated as a fan"
+    )
+}
+
+pub fn parse_res(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("--res '{s}' is not WIDTHxHEIGHT (e.g. 256x256)");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    Ok((
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    ))
+}
+
+/// A size in bytes with an optional K, M or G (powers of 1024).
+pub fn parse_size(s: &str, flag: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let (num, mul) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => (
+            &t[..i],
+            match c.to_ascii_uppercase() {
+                'K' => 1u64 << 10,
+                'M' => 1 << 20,
+                'G' => 1 << 30,
+                _ => 0,
+            },
+        ),
+        _ => (t, 1),
+    };
+    match num.trim().parse::<u64>() {
+        Ok(n) if mul > 0 => n.checked_mul(mul).ok_or(()),
+        _ => Err(()),
+    }
+    .map_err(|()| format!("{flag} {s}: give a size in bytes, e.g. 500M or 2G (0: no limit)"))
+}
+
+/// `--threads`, checked.
+pub fn sim_threads(threads: &str) -> Result<Threads, String> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if threads == "auto" {
+        return Ok(Threads::auto());
+    }
+    match threads.parse::<usize>() {
+        Ok(n) if (1..=cores).contains(&n) => Ok(Threads::fixed(n)),
+        Ok(n) => Err(format!(
+            "--threads {n}: this machine has {cores} core(s); give --threads auto or a number from 1 to {cores}"
+        )),
+        Err(_) => Err(format!(
+            "--threads {threads}: not a number; give --threads auto or a number from 1 to {cores}"
+        )),
+    }
+}
+
+pub fn render_cfg(config: &Config, threads: Threads) -> dualstream::render::RenderCfg {
+    dualstream::render::RenderCfg::for_chip(config, threads.sim())
+}
+
+pub fn load_config(path: &Option<PathBuf>) -> Result<Config, String> {
+    match path {
+        Some(p) => Config::load(p),
+        None => Ok(Config::default()),
+    }
+}
+
+/// Writes `text` to `p`, naming the file when it cannot.
+pub fn write_file(p: &std::path::Path, text: impl AsRef<[u8]>) -> Result<(), String> {
+    std::fs::write(p, text).map_err(|e| format!("cannot write '{}': {e}", p.display()))
+}

@@ -1,0 +1,135 @@
+//! `dualstream report paper`: our figures next to the paper's Table 2, with
+//! optional JSON and SVG figures.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use dualstream::config::Config;
+use dualstream::render::Mode;
+use dualstream::report::paper;
+use dualstream::rtl::Threads;
+use dualstream::units::memory::MemoryModel;
+
+use super::{parse_res, render_cfg, sampling};
+
+#[derive(Args)]
+pub struct ReportArgs {
+    /// What to report: paper.
+    what: String,
+    /// Resolution (the paper's is 1024x1024).
+    #[arg(long, default_value = "1024x1024")]
+    res: String,
+    /// Directory of the scene files (dragon.toml, dragon_box.toml, dabrovic_sponza.toml).
+    #[arg(long, default_value = "scenes")]
+    scenes_dir: PathBuf,
+    /// Write the comparison as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Write paper-style figures (SVG) into this directory.
+    #[arg(long)]
+    plots: Option<PathBuf>,
+    /// functional (counts only, fast), cycle (the chip with GDDR5: also
+    /// render time, rays/s, bandwidth and DRAM energy; about an hour for the
+    /// three scenes at 1024x1024) or windows (time sampling: the cycle
+    /// model's figures estimated from windows of the chip, within 3% of it
+    /// on these scenes (docs/speed-error.md), in minutes; same image).
+    #[arg(long, default_value = "functional")]
+    mode: String,
+}
+
+/// `dualstream report paper`: renders the three paper scenes and prints the
+/// comparison table.
+pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), String> {
+    let sampled = a.mode == "windows";
+    let mode = match a.mode.as_str() {
+        "functional" | "windows" => Mode::Functional,
+        "cycle" => Mode::Cycle,
+        m => {
+            return Err(format!(
+                "unknown report mode '{m}'; use --mode functional, cycle or windows"
+            ));
+        }
+    };
+    if a.what != "paper" {
+        return Err(format!("unknown report '{}'; available: paper", a.what));
+    }
+    let (w, h) = parse_res(&a.res)?;
+    let mut rows = Vec::new();
+    for row in paper::TABLE2.iter() {
+        let path = a.scenes_dir.join(row.scene_file);
+        let spec = path.to_str().ok_or("scene path is not UTF-8")?;
+        let mut sc = dualstream::scene::load(spec).map_err(|e| {
+            format!("{e}\n(the paper scenes need the meshes in ../shared/scenes; run from the repository root or pass --scenes-dir)")
+        })?;
+        sc.settings.width = w;
+        sc.settings.height = h;
+        sc.settings.validate()?;
+        let how = if sampled {
+            "time sampling".to_string()
+        } else {
+            format!("{mode:?}")
+        };
+        eprintln!("rendering {} at {w}x{h} ({how})...", row.scene);
+        let mut cfg = config.clone();
+        if mode == Mode::Cycle {
+            // Time, bandwidth and DRAM energy need the GDDR5 model.
+            cfg.chip.memory.model = MemoryModel::Gddr5;
+        }
+        let t0 = std::time::Instant::now();
+        if sampled {
+            let plan = sampling::default_windows();
+            let ts = sampling::time_sampled(&sc, &cfg, threads, &plan)?;
+            let e = &ts.estimate;
+            eprintln!(
+                "  {:.1} s ({} windows, {:.0} s in the chips: {}){}",
+                t0.elapsed().as_secs_f64(),
+                e.windows,
+                e.chip_s,
+                dualstream::render::kind_times_text(&e.chip_s_by_kind),
+                e.se_text().map(|t| format!("; {t}")).unwrap_or_default()
+            );
+            rows.extend(paper::compare_sampled(row, &ts.frame, e));
+            continue;
+        }
+        let mut frame =
+            dualstream::render::render(&sc, mode, &render_cfg(&cfg, threads), &mut |_| {})?;
+        eprintln!("  {:.1} s", t0.elapsed().as_secs_f64());
+        frame.energy = Some(dualstream::render::energy::frame_energy(&cfg, &frame));
+        rows.extend(paper::compare(row, &frame));
+    }
+    print!("{}", paper::table(&rows));
+    write_outputs(&rows, a.json, a.plots)
+}
+
+/// The comparison as JSON and the figures as SVG, if asked for.
+fn write_outputs(
+    rows: &[paper::Compared],
+    json: Option<PathBuf>,
+    plots: Option<PathBuf>,
+) -> Result<(), String> {
+    if let Some(p) = json {
+        let text = serde_json::to_string_pretty(rows).expect("rows serialise");
+        std::fs::write(&p, text).map_err(|e| {
+            format!(
+                "cannot write '{}': {e}; choose a writable --json",
+                p.display()
+            )
+        })?;
+        println!("comparison: {}", p.display());
+    }
+    if let Some(dir) = plots {
+        std::fs::create_dir_all(&dir).map_err(|e| {
+            format!(
+                "cannot create '{}': {e}; choose a writable --plots directory",
+                dir.display()
+            )
+        })?;
+        for (name, svg) in paper::figures(rows) {
+            let p = dir.join(name);
+            std::fs::write(&p, svg).map_err(|e| format!("cannot write '{}': {e}", p.display()))?;
+            println!("figure: {}", p.display());
+        }
+    }
+    Ok(())
+}

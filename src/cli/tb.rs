@@ -1,0 +1,146 @@
+//! `dualstream tb`: a unit testbench (random stimulus, scoreboard against the
+//! reference, optional VCD), or the TM testbench on one treelet.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use dualstream::config::Config;
+use dualstream::rtl::{SimOptions, TraceSpec};
+use dualstream::testbench::{self, TbOptions};
+
+use super::{parse_res, parse_size};
+
+#[derive(Args)]
+pub struct TbArgs {
+    /// Unit to test: box_pipe, tri_pipe, divider or tm.
+    unit: String,
+    /// Cycles of stimulus (the bench then drains).
+    #[arg(long, default_value_t = 10_000)]
+    cycles: u64,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Probability that the consumer is ready in a cycle (back-pressure below 1).
+    #[arg(long, default_value_t = 0.8)]
+    ready: f64,
+    /// Probability of a new request per cycle.
+    #[arg(long, default_value_t = 0.5)]
+    load: f64,
+    /// Write a VCD waveform here.
+    #[arg(long)]
+    vcd: Option<PathBuf>,
+    /// Units to trace (comma-separated instance patterns, `*` wildcard).
+    #[arg(long, default_value = "")]
+    trace: String,
+    /// First core cycle to trace.
+    #[arg(long, default_value_t = 0)]
+    trace_from: u64,
+    /// Last core cycle to trace.
+    #[arg(long)]
+    trace_to: Option<u64>,
+    /// The most the waveform may take (bytes, or with K, M, G; 0: no
+    /// limit): a larger one is refused or stopped, and its file removed.
+    #[arg(long, default_value = "1G")]
+    trace_max_bytes: String,
+    /// Evaluate every unit every cycle (no sleeping): slower, same results.
+    #[arg(long)]
+    no_sleep: bool,
+    /// Also evaluate sleeping units and fail if that would change anything.
+    #[arg(long)]
+    shadow: bool,
+    /// tm: scene (builtin name, `builtin:NAME`, .toml or .obj).
+    #[arg(long, default_value = dualstream::scene::DEFAULT_SCENE)]
+    scene: String,
+    /// tm: the treelet (segment id) whose primary rays the TM traverses.
+    #[arg(long, default_value_t = 0)]
+    treelet: u32,
+    /// tm: ideal memory latency behind the L1 miss port (cycles).
+    #[arg(long, default_value_t = 20)]
+    mem_latency: u32,
+    /// tm: use only the first N rays of the treelet.
+    #[arg(long)]
+    rays: Option<usize>,
+    /// tm: resolution WIDTHxHEIGHT (default: the scene's).
+    #[arg(long)]
+    res: Option<String>,
+}
+
+/// `dualstream tb UNIT`: runs the bench, prints its report and fails if the
+/// scoreboard found errors.
+pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
+    let p = config.clocks.core_ps;
+    let spec = TraceSpec {
+        filter: a.trace,
+        from: a.trace_from.saturating_mul(p),
+        to: a.trace_to.map_or(u64::MAX, |c| c.saturating_mul(p)),
+        max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
+    };
+    spec.validate().map_err(|e| {
+        e.replace(" (", " (ps ")
+            .replace("trace window", "--trace-from/--trace-to: trace window")
+    })?;
+    let opts = TbOptions {
+        cycles: a.cycles,
+        seed: a.seed,
+        ready_p: a.ready,
+        load: a.load,
+        vcd: a.vcd.clone(),
+        trace: spec,
+        sim: SimOptions {
+            sleep: !a.no_sleep,
+            shadow: a.shadow,
+            shuffle_seed: None,
+            threads: 1,
+            auto_lanes: false,
+        },
+        config,
+    };
+    let start = std::time::Instant::now();
+    if a.unit == "tm" {
+        let topts = testbench::tm_tb::TmTbOptions {
+            scene: a.scene,
+            treelet: a.treelet,
+            res: a.res.as_deref().map(parse_res).transpose()?,
+            max_rays: a.rays,
+            run: testbench::tm_tb::RunOptions {
+                mem_latency: a.mem_latency,
+                sim: opts.sim.clone(),
+                trace: opts.trace.clone(),
+                log: false,
+            },
+            vcd: a.vcd.clone(),
+            config: opts.config.clone(),
+        };
+        let rep = testbench::tm_tb::run(&topts)?;
+        print!("{rep}");
+        println!("  wall time {:.3} s", start.elapsed().as_secs_f64());
+        print_waveform(&a.vcd);
+        return if rep.passed() {
+            Ok(())
+        } else {
+            Err("the TM testbench failed".into())
+        };
+    }
+    let rep = testbench::run_by_name(&a.unit, &opts)?;
+    print!("{rep}");
+    println!("  wall time {:.3} s", start.elapsed().as_secs_f64());
+    print_waveform(&a.vcd);
+    if !rep.passed() {
+        return Err(format!(
+            "testbench {} failed with {} errors",
+            a.unit,
+            rep.errors.len()
+        ));
+    }
+    Ok(())
+}
+
+fn print_waveform(vcd: &Option<PathBuf>) {
+    if let Some(v) = vcd {
+        println!(
+            "  waveform: {} (open with: gtkwave {})",
+            v.display(),
+            v.display()
+        );
+    }
+}

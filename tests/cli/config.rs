@@ -1,0 +1,94 @@
+//! The configuration: `--config` files (impossible ones refused), `dualstream
+//! config`, the example configs, and the global `--threads` and `--memory`.
+
+use crate::common::Scratch;
+use crate::{fails_with, run};
+
+#[test]
+fn impossible_config() {
+    let t = Scratch::new("cli-config");
+    let cfg = t.join("bad.toml");
+    std::fs::write(&cfg, "[box_pipe]\nlatency = 0\ninterval = 1\n").unwrap();
+    fails_with(
+        &["--config", cfg.to_str().unwrap(), "tb", "box_pipe"],
+        &["box_pipe.latency = 0", "set latency"],
+    );
+    std::fs::write(&cfg, "[tri_pipe]\nlatency = 31\ninterval = 0\n").unwrap();
+    fails_with(
+        &["--config", cfg.to_str().unwrap(), "tb", "tri_pipe"],
+        &["interval = 0"],
+    );
+    std::fs::write(&cfg, "[box_pipe\n").unwrap();
+    fails_with(
+        &["--config", cfg.to_str().unwrap(), "tb", "box_pipe"],
+        &["config"],
+    );
+    fails_with(
+        &["--config", "/nonexistent/x.toml", "tb", "box_pipe"],
+        &["cannot read config", "/nonexistent/x.toml"],
+    );
+}
+
+#[test]
+fn prints_the_default_config() {
+    let o = run(&["config", "--print-default"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success());
+    assert!(
+        out.contains("[box_pipe]") && out.contains("latency = 8"),
+        "{out}"
+    );
+}
+
+#[test]
+fn threads_and_memory_choices_are_checked() {
+    fails_with(
+        &["--threads", "0", "config", "--print-default"],
+        &["--threads 0", "auto"],
+    );
+    fails_with(
+        &["--threads", "9999", "config", "--print-default"],
+        &["core(s)", "auto"],
+    );
+    fails_with(
+        &["--threads", "two", "config", "--print-default"],
+        &["not a number"],
+    );
+    fails_with(
+        &["--memory", "sram", "config", "--print-default"],
+        &["gddr5", "fixed"],
+    );
+    // `config` without --print-default prints the configuration in force.
+    let o = run(&["--threads", "1", "--memory", "fixed", "config"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("model = \"fixed\""));
+    let o = run(&["config"]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("model = \"gddr5\""));
+}
+
+/// The example configurations the README points to load and say what they set.
+#[test]
+fn example_configs_load() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/examples");
+    let mut n = 0;
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") {
+            let o = run(&["--config", p.to_str().unwrap(), "config"]);
+            assert!(
+                o.status.success(),
+                "{}: {}",
+                p.display(),
+                String::from_utf8_lossy(&o.stderr)
+            );
+            n += 1;
+        }
+    }
+    assert!(n > 0, "no example configs in {}", dir.display());
+    let o = run(&[
+        "--config",
+        dir.join("chip-8tms.toml").to_str().unwrap(),
+        "config",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("tms = 8"));
+}

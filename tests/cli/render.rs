@@ -1,0 +1,285 @@
+//! `dualstream render`: functional, cycle and time-sampled frames, their images,
+//! statistics, ray dumps and pass logs, and bad input.
+
+use crate::common::Scratch;
+use crate::{fails_with, run};
+
+#[test]
+fn render_writes_image_and_statistics() {
+    let t = Scratch::new("cli-render");
+    let (png, json) = (t.join("r.png"), t.join("r.json"));
+    let o = run(&[
+        "render",
+        "--scene",
+        "tiny",
+        "--res",
+        "16x16",
+        "--out",
+        png.to_str().unwrap(),
+        "--stats",
+        json.to_str().unwrap(),
+        "--verify",
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        out.contains("ray duplication") && out.contains("verified"),
+        "{out}"
+    );
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(stats["total"]["rays"].as_u64().unwrap() > 256);
+    assert_eq!(stats["width"], 16);
+}
+
+#[test]
+fn render_and_scene_bad_input() {
+    let t = Scratch::new("cli-bad");
+    fails_with(
+        &["render", "--scene", "tiny", "--res", "0x10"],
+        &["width = 0"],
+    );
+    fails_with(
+        &["render", "--scene", "tiny", "--res", "banana"],
+        &["WIDTHxHEIGHT"],
+    );
+    fails_with(
+        &["render", "--scene", "tiny", "--bounces", "17"],
+        &["bounces"],
+    );
+    fails_with(
+        &["render", "--scene", "tiny", "--mode", "warp"],
+        &["unknown --mode"],
+    );
+    fails_with(
+        &["render", "--scene", "/nonexistent/scene.obj"],
+        &["/nonexistent/scene.obj"],
+    );
+    fails_with(
+        &[
+            "render",
+            "--scene",
+            "tiny",
+            "--out",
+            "/nonexistent-dir/x.png",
+        ],
+        &["--out"],
+    );
+    fails_with(&["scene", "info", "nosuchscene"], &["nosuchscene"]);
+    let cfg = t.join("seg.toml");
+    std::fs::write(&cfg, "[accel]\nsegment_bytes = 1000\n").unwrap();
+    fails_with(
+        &["--config", cfg.to_str().unwrap(), "scene", "info", "tiny"],
+        &["segment_bytes", "multiple of the DRAM row"],
+    );
+}
+
+#[test]
+fn dump_rays_writes_each_wavefront() {
+    let t = Scratch::new("cli-dump");
+    let dir = t.join("dump");
+    let o = run(&[
+        "render",
+        "--scene",
+        "tiny",
+        "--res",
+        "8x8",
+        "--out",
+        t.join("d.png").to_str().unwrap(),
+        "--dump-rays",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rays = std::fs::read(dir.join("wave0_rays.bin")).unwrap();
+    let hits = std::fs::read(dir.join("wave0_hits.bin")).unwrap();
+    assert_eq!(
+        rays.len(),
+        64 * 32,
+        "wavefront 0: one primary ray per pixel"
+    );
+    assert_eq!(hits.len(), 64 * 16);
+    // Ray 5's id is pixel 5, a bounce ray.
+    assert_eq!(
+        u32::from_le_bytes(rays[5 * 32 + 24..5 * 32 + 28].try_into().unwrap()),
+        5
+    );
+    assert!(dir.join("wave1_rays.bin").exists());
+}
+
+/// `render --mode windows`: time sampling as a user runs it. The image is the
+/// cycle model's (the frame is the functional model's, every ray the same), the
+/// summary and the statistics carry the estimate of the cycle model's figures,
+/// and options that need a clocked frame are refused.
+#[test]
+fn render_in_windows_estimates_the_cycle_frame() {
+    let t = Scratch::new("cli-win");
+    let cfg = t.join("win.toml");
+    std::fs::write(
+        &cfg,
+        "[tm]\ntps = 4\n[chip]\ntms = 2\n[chip.memory]\nmodel = \"gddr5\"\n",
+    )
+    .unwrap();
+    let (w_png, c_png, json) = (t.join("win.png"), t.join("cyc.png"), t.join("win.json"));
+    let c = cfg.to_str().unwrap();
+    let args = |mode: &'static str, png: &std::path::Path| -> Vec<String> {
+        [
+            "--config",
+            c,
+            "render",
+            "--scene",
+            "tiny",
+            "--res",
+            "16x16",
+            "--bounces",
+            "1",
+            "--mode",
+            mode,
+            "--out",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .chain([png.to_str().unwrap().to_string()])
+        .collect()
+    };
+    let mut a = args("windows", &w_png);
+    a.extend(["--stats".to_string(), json.to_str().unwrap().to_string()]);
+    let o = run(&a.iter().map(|x| x.as_str()).collect::<Vec<_>>());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        out.contains("time sampling:") && out.contains("docs/speed-error.md"),
+        "{out}"
+    );
+    let o = run(&args("cycle", &c_png)
+        .iter()
+        .map(|x| x.as_str())
+        .collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        std::fs::read(&w_png).unwrap(),
+        std::fs::read(&c_png).unwrap(),
+        "the same image"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let e = &v["estimate"];
+    for k in [
+        "cycles",
+        "ray_lines",
+        "dram_paper_j",
+        "dram_physical_j",
+        "onchip_j",
+    ] {
+        assert!(e[k].as_f64().unwrap() > 0.0, "{k}: {e}");
+    }
+    assert!(
+        v["total"]["rays"].as_u64().unwrap() > 0,
+        "the frame's statistics too"
+    );
+    let mut a = args("windows", &w_png);
+    a.extend([
+        "--vcd".to_string(),
+        t.join("win.vcd").to_str().unwrap().to_string(),
+    ]);
+    fails_with(
+        &a.iter().map(|x| x.as_str()).collect::<Vec<_>>(),
+        &["--mode cycle"],
+    );
+}
+
+#[test]
+fn the_pass_log_is_written_in_cycle_mode_and_refused_elsewhere() {
+    let t = Scratch::new("cli-passes");
+    let (csv, png) = (t.join("passes.csv"), t.join("passes.png"));
+    let args = [
+        "render",
+        "--scene",
+        "cornell",
+        "--res",
+        "16x16",
+        "--bounces",
+        "1",
+        "--out",
+        png.to_str().unwrap(),
+        "--pass-log",
+        csv.to_str().unwrap(),
+    ];
+    fails_with(
+        &[&args[..], &["--mode", "functional"]].concat(),
+        &["--pass-log", "--mode cycle"],
+    );
+    let o = run(&[&args[..], &["--mode", "cycle"]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("run,segment,rays,admit,retire"));
+    let rows: Vec<Vec<u64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    // The primary rays' root pass retires first, carrying every ray.
+    assert_eq!(rows[0][..3], [0, 0, 256]);
+    assert!(rows.iter().all(|r| r.len() == 5 && r[3] < r[4]));
+    assert!(rows.iter().any(|r| r[0] == 1), "the bounce's passes too");
+}
+
+#[test]
+fn coordinates_beyond_the_datapath_range_name_the_vertex_and_the_fix() {
+    let t = Scratch::new("cli-range");
+    // Near 1e38: cross products overflow (once refused as "all degenerate").
+    let huge = t.join("huge.obj");
+    std::fs::write(&huge, "v 1e38 0 0\nv 0 1e38 0\nv 0 0 1e38\nf 1 2 3\n").unwrap();
+    // One small triangle far out (once: "camera up is parallel to the view").
+    let far = t.join("far.obj");
+    std::fs::write(&far, "v 0 0 0\nv 1e38 1 0\nv 1e38 0 1\nf 1 2 3\n").unwrap();
+    for (f, vertex) in [
+        (&huge, "huge.obj:1: vertex 1"),
+        (&far, "far.obj:2: vertex 2"),
+    ] {
+        let f = f.to_str().unwrap();
+        for args in [
+            vec!["scene", "info", f],
+            vec!["render", "--scene", f, "--res", "8x8"],
+        ] {
+            fails_with(&args, &[vertex, "1e6", "f32 datapath", "scale or recentre"]);
+        }
+    }
+}
+
+/// A TP whose traversal stack overflows stops; the chip then starves. The
+/// error names the stack and the setting to raise, not the starvation.
+#[test]
+fn a_tp_stack_overflow_names_the_scratchpad() {
+    let t = Scratch::new("cli-stack");
+    let cfg = t.join("small.toml");
+    std::fs::write(&cfg, "[tm]\nscratchpad_bytes = 36\n").unwrap();
+    let png = t.join("s.png");
+    fails_with(
+        &[
+            "--config",
+            cfg.to_str().unwrap(),
+            "render",
+            "--scene",
+            "cornell",
+            "--mode",
+            "cycle",
+            "--res",
+            "8x8",
+            "--threads",
+            "1",
+            "--out",
+            png.to_str().unwrap(),
+        ],
+        &[
+            "traversal stack",
+            "overflowed",
+            "tm.scratchpad_bytes = 36 holds 3 entries",
+            "can need up to",
+        ],
+    );
+}
