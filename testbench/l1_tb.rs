@@ -19,11 +19,12 @@
 //! - port 0 then misses on line C and port 1 on line D (other banks);
 //! - C and D come back on consecutive cycles, long before port 0 is ready.
 
-use crate::rtl::{ClockId, LinkCfg, Sim, SimOptions, UnitId};
+use crate::rtl::{ClockId, LinkCfg, Sim, SimOptions, Status, TraceStats, Tracer, UnitId};
 use crate::units::l1::{L1, L1Req, L1Resp, Line};
 use crate::units::tm::L1Cfg;
 
 use super::harness::{Driver, Sink};
+use super::{TbOptions, TbReport};
 
 /// Lines A, C and D: consecutive lines, so three different banks.
 pub const LINE_A: u64 = 0x1000;
@@ -82,6 +83,80 @@ pub fn fill_behind_blocked_fill(
     sim_opts: SimOptions,
     b: FillBehindCfg,
 ) -> Result<FillBehindRun, String> {
+    fill_behind(sim_opts, b, None).map(|(run, _, _)| run)
+}
+
+/// `dualstream tb l1`: the script under `opts.sim`, with a waveform if asked,
+/// checked against the timing the L1 owes it (the report's errors say what
+/// came late or twice). The stimulus is directed: `--cycles`, `--load` and
+/// `--ready` do not apply.
+pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
+    let b = FillBehindCfg::default();
+    let tracer = match &opts.vcd {
+        Some(path) => Some(Tracer::to_file(path, opts.trace.clone())?),
+        None => None,
+    };
+    let (got, status_cycles, trace) = fill_behind(opts.sim.clone(), b, tracer)?;
+    let r = b.ready_from;
+    let mut errors = Vec::new();
+    // Port 0 takes A when its sink starts; the freed link wakes the L1 the next
+    // cycle, which answers C; D, behind it, goes the cycle after.
+    let want0 = vec![
+        (r, LINE_A, line_of(LINE_A)),
+        (r + 2, LINE_C, line_of(LINE_C)),
+    ];
+    let want1 = vec![(r + 3, LINE_D, line_of(LINE_D))];
+    for (port, have, want) in [(0, &got.port0, &want0), (1, &got.port1, &want1)] {
+        if have != want {
+            let when = |v: &Vec<(u64, u64, Line)>| -> Vec<(u64, u64)> {
+                v.iter().map(|(c, a, _)| (*c, *a)).collect()
+            };
+            errors.push(format!(
+                "port {port}: got (cycle, line) {:x?}, want {:x?}",
+                when(have),
+                when(want)
+            ));
+        }
+    }
+    let mut asked = got.miss_reqs.clone();
+    asked.sort_unstable();
+    if asked != [LINE_A, LINE_C, LINE_D] {
+        errors.push(format!("misses {asked:x?}: want one per line (A, C, D)"));
+    }
+    if (got.fills, got.accesses) != (3, 3) {
+        errors.push(format!(
+            "{} fills and {} accesses: want 3 and 3",
+            got.fills, got.accesses
+        ));
+    }
+    let mut rep = TbReport {
+        unit: "l1",
+        requests: 3,
+        results: (got.port0.len() + got.port1.len()) as u64,
+        cycles: got.end,
+        min_latency: 0,
+        max_latency: 0,
+        stall_cycles: status_cycles[Status::OutputBlocked as usize],
+        errors,
+        vcd_changes: 0,
+        vcd_bytes: 0,
+        status_cycles,
+        counters: vec![("fills", got.fills), ("accesses", got.accesses)],
+    };
+    if let Some(s) = trace {
+        rep.vcd_changes = s.changes;
+        rep.vcd_bytes = s.bytes;
+    }
+    Ok(rep)
+}
+
+/// The script; with a tracer, its waveform. Returns the run, the L1's status
+/// cycles and the waveform's statistics.
+fn fill_behind(
+    sim_opts: SimOptions,
+    b: FillBehindCfg,
+    tracer: Option<Tracer>,
+) -> Result<(FillBehindRun, [u64; 4], Option<TraceStats>), String> {
     let mut sim = Sim::new(sim_opts);
     let clk: ClockId = sim.clock("core", 1000).map_err(|e| e.to_string())?;
     let link = LinkCfg { depth: 2, delay: 1 };
@@ -117,6 +192,9 @@ pub fn fill_behind_blocked_fill(
     let lines = sim.add("tb.lines", clk, Driver::new(mr_o));
     let miss_sink = sim.add("tb.miss_sink", clk, Sink::new(mq_i, 1.0, 0));
     sim.elaborate().map_err(|e| e.to_string())?;
+    if let Some(t) = tracer {
+        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+    }
     let req = |a: u64| L1Req { addr: a };
     let resp = |a: u64| L1Resp {
         addr: a,
@@ -150,7 +228,8 @@ pub fn fill_behind_blocked_fill(
             .find(|(k, _)| *k == n)
             .map_or(0, |&(_, v)| v)
     };
-    Ok(FillBehindRun {
+    let status_cycles = st.status_cycles;
+    let run = FillBehindRun {
         port0: got(sinks[0]),
         port1: got(sinks[1]),
         miss_reqs: sim
@@ -162,5 +241,10 @@ pub fn fill_behind_blocked_fill(
         fills: counter("fills"),
         accesses: counter("accesses"),
         end: end / 1000,
-    })
+    };
+    let trace = match sim.finish_trace() {
+        Some(r) => Some(r.map_err(|e| format!("writing the VCD failed: {e}"))?),
+        None => None,
+    };
+    Ok((run, status_cycles, trace))
 }

@@ -23,30 +23,124 @@ pub mod tri_pipe_tb;
 pub use harness::{Driver, LoadGen, Sink};
 pub use pipe_tb::{PipeKind, PipeTb, TbOptions, TbReport};
 
-/// Names accepted by `dualstream tb` (each a module name; `dram` also runs mem_ctrl).
-pub const BENCHES: &[&str] = &[
-    "box_pipe",
-    "tri_pipe",
-    "divider",
-    "mem_ctrl",
-    "hit_record_updater",
-    "l2",
+/// How a testbench is driven.
+#[derive(Clone, Copy)]
+pub enum Runner {
+    /// From [`TbOptions`] (cycles, seed, back-pressure, load, waveform).
+    Unit(fn(&TbOptions) -> Result<TbReport, String>),
+    /// The TM bench: a scene's treelet through one TM ([`tm_tb::run`], its own
+    /// options: scene, treelet, memory latency).
+    Treelet,
+}
+
+/// One unit testbench: the single list `dualstream tb`, its help and errors, the
+/// README and the tests read.
+pub struct Bench {
+    /// The unit's module name, as `dualstream tb NAME` takes it.
+    pub name: &'static str,
+    /// Other names `tb` accepts.
+    pub aliases: &'static [&'static str],
+    /// What the bench checks, in a line.
+    pub checks: &'static str,
+    pub runner: Runner,
+}
+
+/// Every testbench, in the order `tb --help` lists them.
+pub const BENCHES: &[Bench] = &[
+    Bench {
+        name: "box_pipe",
+        aliases: &[],
+        checks: "ray-box pipeline: results against the reference test, exact latency and interval",
+        runner: Runner::Unit(pipe_tb::run_random::<box_pipe_tb::BoxKind>),
+    },
+    Bench {
+        name: "tri_pipe",
+        aliases: &[],
+        checks: "ray-triangle pipeline: results against the reference test, exact latency and interval",
+        runner: Runner::Unit(pipe_tb::run_random::<tri_pipe_tb::TriKind>),
+    },
+    Bench {
+        name: "divider",
+        aliases: &[],
+        checks: "TM-shared divider: reciprocals against the reference, exact latency and interval",
+        runner: Runner::Unit(pipe_tb::run_random::<divider_tb::DivKind>),
+    },
+    Bench {
+        name: "l1",
+        aliases: &[],
+        checks: "L1 (directed): a line behind a blocked fill is answered the next cycle",
+        runner: Runner::Unit(l1_tb::run),
+    },
+    Bench {
+        name: "mem_ctrl",
+        aliases: &["dram"],
+        checks: "one GDDR5 channel: one response per request, the command stream passes the independent timing checker",
+        runner: Runner::Unit(mem_ctrl_tb::run_random),
+    },
+    Bench {
+        name: "hit_record_updater",
+        aliases: &["hru"],
+        checks: "hit record updater: each record equals the atomic-min of its updates, bit for bit; merges counted",
+        runner: Runner::Unit(hit_record_updater_tb::run),
+    },
+    Bench {
+        name: "scene_buffer",
+        aliases: &[],
+        checks: "scene buffer: every line answered with the DRAM image's bytes, slots reused while late lines of retired segments are dropped",
+        runner: Runner::Unit(scene_buffer_tb::run),
+    },
+    Bench {
+        name: "l2",
+        aliases: &[],
+        checks: "L2: every read equals a replay of the access log (hits, MSHR merges, dirty evictions, flushes)",
+        runner: Runner::Unit(l2_tb::run),
+    },
+    Bench {
+        name: "stream_scheduler",
+        aliases: &[],
+        checks: "stream scheduler on a real scene: every ray reaches every segment it is sent to, once, skipped subtrees stay skipped",
+        runner: Runner::Unit(stream_scheduler_tb::run),
+    },
+    Bench {
+        name: "tm",
+        aliases: &[],
+        checks: "a whole TM on a treelet: every ray's hit against the functional traversal",
+        runner: Runner::Treelet,
+    },
 ];
 
-/// Runs a testbench by unit name (the CLI's `tb` command).
+/// The bench named `name` (or one of its aliases), or an error listing them all.
+pub fn find(name: &str) -> Result<&'static Bench, String> {
+    BENCHES
+        .iter()
+        .find(|b| b.name == name || b.aliases.contains(&name))
+        .ok_or_else(|| {
+            format!(
+                "unknown unit '{name}'; testbenches exist for: {}",
+                bench_names()
+            )
+        })
+}
+
+/// The benches' names, comma-separated, aliases in parentheses.
+pub fn bench_names() -> String {
+    BENCHES
+        .iter()
+        .map(|b| match b.aliases {
+            [] => b.name.to_string(),
+            a => format!("{} ({})", b.name, a.join(", ")),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Runs a unit testbench by name (the CLI's `tb` command; `tm` has its own
+/// options: [`tm_tb::run`]).
 pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, String> {
-    match name {
-        "box_pipe" => pipe_tb::run_random::<box_pipe_tb::BoxKind>(opts),
-        "tri_pipe" => pipe_tb::run_random::<tri_pipe_tb::TriKind>(opts),
-        "divider" => pipe_tb::run_random::<divider_tb::DivKind>(opts),
-        "mem_ctrl" | "dram" => mem_ctrl_tb::run_random(opts),
-        "hit_record_updater" | "hru" => hit_record_updater_tb::run(opts),
-        "scene_buffer" => scene_buffer_tb::run(opts),
-        "l2" => l2_tb::run(opts),
-        "stream_scheduler" => stream_scheduler_tb::run(opts),
-        _ => Err(format!(
-            "unknown unit '{name}'; testbenches exist for: {}, tm (dram = mem_ctrl)",
-            BENCHES.join(", ")
+    match find(name)?.runner {
+        Runner::Unit(run) => run(opts),
+        Runner::Treelet => Err(format!(
+            "'{name}' runs on a scene's treelet: use `dualstream tb {name}` or testbench::tm_tb::run"
         )),
     }
 }
@@ -54,6 +148,7 @@ pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, String> {
 /// The configuration `dualstream tb <name>` elaborates its unit with, from the
 /// base configuration: the global units' benches set their own TM count and sizes.
 pub fn bench_config(name: &str, base: &crate::config::Config) -> crate::config::Config {
+    let name = find(name).map_or(name, |b| b.name);
     match name {
         "hit_record_updater" | "hru" => {
             hit_record_updater_tb::unit_config(base, &hit_record_updater_tb::HruTbCfg::default())

@@ -147,7 +147,15 @@ fn read_vcd(path: &Path) -> (BTreeMap<String, BTreeMap<String, u32>>, u64) {
 #[test]
 fn vcd_scopes_equal_verilog_modules_and_read_back() {
     let dir = tmpdir("vcd");
-    for name in testbench::BENCHES {
+    // The benches whose unit is the scope `tb.<name>` with a random stimulus.
+    for name in [
+        "box_pipe",
+        "tri_pipe",
+        "divider",
+        "mem_ctrl",
+        "hit_record_updater",
+        "l2",
+    ] {
         // The global units' benches elaborate them with their own TM count.
         let decls = catalog(&testbench::bench_config(name, &Config::default()));
         let vcd = dir.join(format!("{name}.vcd"));

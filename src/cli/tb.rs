@@ -13,7 +13,7 @@ use super::{parse_res, parse_size};
 
 #[derive(Args)]
 pub struct TbArgs {
-    /// Unit to test: box_pipe, tri_pipe, divider or tm.
+    #[arg(help = unit_help(), long_help = unit_long_help())]
     unit: String,
     /// Cycles of stimulus (the bench then drains).
     #[arg(long, default_value_t = 10_000)]
@@ -65,9 +65,28 @@ pub struct TbArgs {
     res: Option<String>,
 }
 
+/// The unit argument's help, from the registry of testbenches.
+fn unit_help() -> String {
+    format!("Unit to test: {}", testbench::bench_names())
+}
+
+/// The unit argument's long help (`tb --help`): each bench and what it checks.
+fn unit_long_help() -> String {
+    let mut s = String::from("Unit to test:");
+    for b in testbench::BENCHES {
+        let name = match b.aliases {
+            [] => b.name.to_string(),
+            al => format!("{} ({})", b.name, al.join(", ")),
+        };
+        s.push_str(&format!("\n  {name:<24} {}", b.checks));
+    }
+    s
+}
+
 /// `dualstream tb UNIT`: runs the bench, prints its report and fails if the
 /// scoreboard found errors.
 pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
+    let bench = testbench::find(&a.unit)?;
     let p = config.clocks.core_ps;
     let spec = TraceSpec {
         filter: a.trace,
@@ -96,7 +115,7 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
         config,
     };
     let start = std::time::Instant::now();
-    if a.unit == "tm" {
+    if matches!(bench.runner, testbench::Runner::Treelet) {
         let topts = testbench::tm_tb::TmTbOptions {
             scene: a.scene,
             treelet: a.treelet,
