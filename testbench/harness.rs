@@ -5,8 +5,11 @@ use std::collections::VecDeque;
 
 use crate::rtl::decl::{Samples, StateList};
 use crate::rtl::{
-    Ctx, Declared, In, Logic, Next, Out, Payload, PortDecl, PortDir, Status, UnitDecl,
+    Ctx, Declared, In, Logic, Next, Out, Payload, PortDecl, PortDir, SharedBuf, Sim, Status,
+    Tracer, UnitDecl, UnitStats,
 };
+
+use super::pipe_tb::{TbOptions, TbReport};
 
 fn decl(module: &'static str, ports: Vec<PortDecl>) -> UnitDecl {
     UnitDecl {
@@ -248,4 +251,39 @@ impl<T: Payload> Logic for LoadGen<T> {
     fn counters(&self) -> Vec<(&'static str, u64)> {
         vec![("sent", self.sent)]
     }
+}
+
+/// Attaches a bench's waveform: into `buf` (the invariance tests) if given,
+/// else to the file `opts.vcd` names, if any.
+pub fn attach_trace(
+    sim: &mut Sim,
+    opts: &TbOptions,
+    buf: Option<&SharedBuf>,
+) -> Result<(), String> {
+    if let Some(buf) = buf {
+        let t = Tracer::new(Box::new(buf.clone()), opts.trace.clone())?;
+        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+    } else if let Some(path) = &opts.vcd {
+        let t = Tracer::to_file(path, opts.trace.clone())?;
+        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// Closes the waveform, if any, and records its size in `rep`.
+pub fn finish_trace(sim: &mut Sim, mut rep: TbReport) -> Result<TbReport, String> {
+    if let Some(r) = sim.finish_trace() {
+        let s = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
+        rep.vcd_changes = s.changes;
+        rep.vcd_bytes = s.bytes;
+    }
+    Ok(rep)
+}
+
+/// A unit's counter by name (0 if it has none of that name).
+pub fn counter(st: &UnitStats, name: &str) -> u64 {
+    st.counters
+        .iter()
+        .find(|(k, _)| *k == name)
+        .map_or(0, |(_, v)| *v)
 }

@@ -26,7 +26,7 @@ use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateList};
 use crate::rtl::{
     Ctx, Declared, In, Logic, Next, Out, Payload, PortDecl, PortDir, SharedBuf, Sim, Status,
-    Tracer, UnitDecl, UnitId,
+    UnitDecl, UnitId, UnitStats,
 };
 use crate::units::hit_record_updater::HitRecordUpdater;
 use crate::units::hit_record_updater::HitUpdaterCfg;
@@ -34,7 +34,7 @@ use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::units::tp::HitUpdate;
 use crate::util::rng::Rng;
 
-use super::harness::Driver;
+use super::harness::{Driver, attach_trace, counter, finish_trace};
 use super::pipe_tb::{TbOptions, TbReport};
 
 /// Faults injected into the stand-in, to show the scoreboard catches them.
@@ -350,7 +350,38 @@ pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
     run_with(opts, &HruTbCfg::default())
 }
 
+/// Where the bench puts the hit records.
+const HITS_BASE: u64 = 0x1_0000;
+
+/// The elaborated bench: the simulator and the units the scoreboard reads.
+struct Bench {
+    sim: Sim,
+    drivers: Vec<UnitId>,
+    dut: UnitId,
+    memu: UnitId,
+}
+
 pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
+    check_knobs(opts, b)?;
+    let cfg = &unit_config(&opts.config, b);
+    let mut rng = Rng::new(opts.seed);
+    let (image, mut expect) = initial_records(b, &mut rng);
+    let mut bench = build(opts, b, cfg, image)?;
+    attach_trace(&mut bench.sim, opts, b.trace_buf.as_ref())?;
+    let sent = drive(&mut bench, opts, b, &mut rng, &mut expect);
+    let p = cfg.clocks.core_ps;
+    let end = bench
+        .sim
+        .run_to_idle((sent * 100 + 100_000) * p)
+        .map_err(|e| e.to_string())?
+        / p;
+    let st = bench.sim.unit_stats(bench.dut);
+    let errors = check(&bench, b, &st, &expect, sent);
+    let rep = report(&bench, b, &st, sent, end, errors);
+    finish_trace(&mut bench.sim, rep)
+}
+
+fn check_knobs(opts: &TbOptions, b: &HruTbCfg) -> Result<(), String> {
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) || !prob(opts.load) {
         return Err("--ready and --load are probabilities in (0, 1]".into());
@@ -358,12 +389,13 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
     if b.tms == 0 || b.indices == 0 || b.mem_latency < 2 {
         return Err("the bench needs TMs, indices and a memory latency >= 2".into());
     }
-    let cfg = &unit_config(&opts.config, b);
-    let link = cfg.chip.links;
-    let hits_base = 0x1_0000u64;
-    let mut rng = Rng::new(opts.seed);
-    // The initial image: no hit, or an earlier hit (so some updates lose).
-    let mut image = SparseMem::new(hits_base + (b.indices as u64 + 8) * HIT_BYTES as u64);
+    Ok(())
+}
+
+/// The initial image: no hit, or an earlier hit (so some updates lose); and
+/// the records as they are so far (the scoreboard's expectation).
+fn initial_records(b: &HruTbCfg, rng: &mut Rng) -> (SparseMem, Vec<HitRec>) {
+    let mut image = SparseMem::new(HITS_BASE + (b.indices as u64 + 8) * HIT_BYTES as u64);
     let mut expect: Vec<HitRec> = Vec::new();
     for i in 0..b.indices {
         let h = if rng.chance(0.25) {
@@ -371,9 +403,20 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
         } else {
             HitRec::NONE
         };
-        h.write(&mut image, hits_base + i as u64 * HIT_BYTES as u64);
+        h.write(&mut image, HITS_BASE + i as u64 * HIT_BYTES as u64);
         expect.push(h);
     }
+    (image, expect)
+}
+
+/// One driver per TM on `hit[k]`, the unit, and the memory stand-in on `image`.
+fn build(
+    opts: &TbOptions,
+    b: &HruTbCfg,
+    cfg: &crate::config::Config,
+    image: SparseMem,
+) -> Result<Bench, String> {
+    let link = cfg.chip.links;
     let mut sim = Sim::new(opts.sim.clone());
     let clk = sim
         .clock("core", cfg.clocks.core_ps)
@@ -394,7 +437,7 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
     let dut = sim.add(
         "tb.hit_record_updater",
         clk,
-        HitRecordUpdater::new(&cfg.chip.hit_updater, hits_base, hit_in, qo, ri),
+        HitRecordUpdater::new(&cfg.chip.hit_updater, HITS_BASE, hit_in, qo, ri),
     );
     let mut mem = LineMem::new(
         qi,
@@ -404,22 +447,31 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
         link.delay,
         opts.ready_p,
         opts.seed ^ 0x5EED,
-        hits_base,
+        HITS_BASE,
     );
     mem.faults = b.faults.clone();
     let memu = sim.add("tb.mem", clk, mem);
     sim.elaborate().map_err(|e| e.to_string())?;
-    if let Some(buf) = &b.trace_buf {
-        let t = Tracer::new(Box::new(buf.clone()), opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
-    } else if let Some(path) = &opts.vcd {
-        let t = Tracer::to_file(path, opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
-    }
-    // Stimulus: per TM, updates at seeded cycles with probability `load`.
+    Ok(Bench {
+        sim,
+        drivers,
+        dut,
+        memu,
+    })
+}
+
+/// Stimulus: per TM, updates at seeded cycles with probability `load`; each
+/// is folded into `expect` (the atomic-min). Returns the updates sent.
+fn drive(
+    bench: &mut Bench,
+    opts: &TbOptions,
+    b: &HruTbCfg,
+    rng: &mut Rng,
+    expect: &mut [HitRec],
+) -> u64 {
     let hot = (b.indices / 8).max(1);
     let mut sent = 0u64;
-    for &d in &drivers {
+    for &d in &bench.drivers {
         let mut c = 0u64;
         for _ in 0..b.updates_per_tm {
             while !rng.chance(opts.load) {
@@ -441,24 +493,26 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
             if wins {
                 *e = h;
             }
-            sim.unit_mut::<Driver<HitUpdate>>(d)
+            bench
+                .sim
+                .unit_mut::<Driver<HitUpdate>>(d)
                 .send(c, HitUpdate { index, hit: h });
             sent += 1;
             c += 1;
         }
-        sim.wake(d);
+        bench.sim.wake(d);
     }
-    let p = cfg.clocks.core_ps;
-    let end = sim
-        .run_to_idle((sent * 100 + 100_000) * p)
-        .map_err(|e| e.to_string())?
-        / p;
-    // Scoreboard.
+    sent
+}
+
+/// The scoreboard (see the module doc): the records, the bytes around them,
+/// the unit's counts against the memory's.
+fn check(bench: &Bench, b: &HruTbCfg, st: &UnitStats, expect: &[HitRec], sent: u64) -> Vec<String> {
     let mut errors = Vec::new();
-    let m = sim.unit_ref::<LineMem>(memu);
+    let m = bench.sim.unit_ref::<LineMem>(bench.memu);
     errors.extend(m.violations.iter().take(20).cloned());
     for (i, e) in expect.iter().enumerate() {
-        let got = HitRec::read(&m.image, hits_base + i as u64 * HIT_BYTES as u64);
+        let got = HitRec::read(&m.image, HITS_BASE + i as u64 * HIT_BYTES as u64);
         if bits(&got) != bits(e) {
             errors.push(format!(
                 "hit {i}: record (t {}, id {}, u {}, v {}), expected (t {}, id {}, u {}, v {})",
@@ -467,19 +521,13 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
         }
     }
     // Nothing outside the records' bytes written (the region's tail line).
-    let tail = hits_base + b.indices as u64 * HIT_BYTES as u64;
+    let tail = HITS_BASE + b.indices as u64 * HIT_BYTES as u64;
     let mut t0 = [0u8; 64];
     m.image.read(tail, &mut t0);
     if t0.iter().any(|&x| x != 0) {
         errors.push("bytes after the last record were written".into());
     }
-    let st = sim.unit_stats(dut);
-    let ctr = |n: &str| {
-        st.counters
-            .iter()
-            .find(|(k, _)| *k == n)
-            .map_or(0, |(_, v)| *v)
-    };
+    let ctr = |n: &str| counter(st, n);
     let (updates, merged, reads, writes) =
         (ctr("updates"), ctr("merged"), ctr("reads"), ctr("writes"));
     if updates != sent {
@@ -504,14 +552,27 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
             m.answered.len()
         ));
     }
-    let blocked: u64 = drivers
+    errors
+}
+
+fn report(
+    bench: &Bench,
+    b: &HruTbCfg,
+    st: &UnitStats,
+    sent: u64,
+    end: u64,
+    errors: Vec<String>,
+) -> TbReport {
+    let ctr = |n: &str| counter(st, n);
+    let blocked: u64 = bench
+        .drivers
         .iter()
-        .map(|&d| sim.unit_stats(d).status_cycles[Status::OutputBlocked as usize])
+        .map(|&d| bench.sim.unit_stats(d).status_cycles[Status::OutputBlocked as usize])
         .sum();
-    let mut rep = TbReport {
+    TbReport {
         unit: "hit_record_updater",
         requests: sent,
-        results: writes,
+        results: ctr("writes"),
         cycles: end,
         min_latency: 0,
         max_latency: 0,
@@ -521,10 +582,10 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
         vcd_bytes: 0,
         status_cycles: st.status_cycles,
         counters: vec![
-            ("updates", updates),
-            ("merged", merged),
-            ("reads", reads),
-            ("writes", writes),
+            ("updates", ctr("updates")),
+            ("merged", ctr("merged")),
+            ("reads", ctr("reads")),
+            ("writes", ctr("writes")),
             ("hazard_waits", ctr("hazard_waits")),
             (
                 "queue_full_cycles",
@@ -533,11 +594,5 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
             ("tm_blocked_cycles", blocked),
             ("records_checked", b.indices as u64),
         ],
-    };
-    if let Some(r) = sim.finish_trace() {
-        let s = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
-        rep.vcd_changes = s.changes;
-        rep.vcd_bytes = s.bytes;
     }
-    Ok(rep)
 }

@@ -27,14 +27,13 @@ use std::collections::BTreeMap;
 
 use crate::contract::SparseMem;
 use crate::mem::StreamTag;
-use crate::rtl::{SharedBuf, Sim, Status, Tracer, UnitId};
+use crate::rtl::{ClockId, SharedBuf, Sim, Status, UnitId};
 use crate::units::l1::Line;
-use crate::units::l2::L2Cfg;
-use crate::units::l2::{L2, L2Flush};
+use crate::units::l2::{L2, L2Applied, L2Cfg, L2Flush};
 use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::util::rng::Rng;
 
-use super::harness::{Driver, Sink};
+use super::harness::{Driver, Sink, attach_trace, finish_trace};
 use super::hit_record_updater_tb::{LineMem, MemFaults};
 use super::pipe_tb::{TbOptions, TbReport};
 
@@ -93,7 +92,65 @@ pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
     run_with(opts, &L2TbCfg::default())
 }
 
+/// The address of line `i` of the pool.
+fn line_addr(i: u64) -> u64 {
+    BASE + i * 64
+}
+
+/// The memory lane of a line (`line index mod lanes`, as the L2 has it).
+fn lane_of(addr: u64, lanes: usize) -> usize {
+    (addr / 64 % lanes as u64) as usize
+}
+
+/// The elaborated bench: the simulator and the units the scoreboard reads.
+struct Bench {
+    sim: Sim,
+    clk: ClockId,
+    lanes: usize,
+    drivers: Vec<UnitId>,
+    sinks: Vec<UnitId>,
+    flusher: UnitId,
+    flush_sink: UnitId,
+    dut: UnitId,
+    memus: Vec<UnitId>,
+}
+
 pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
+    check_knobs(opts, b)?;
+    let cfg = &unit_config(&opts.config, b);
+    cfg.chip.l2.validate(cfg.chip.links.delay)?;
+    let mut rng = Rng::new(opts.seed);
+    let lanes = cfg.chip.l2.mem_lines_per_cycle as usize;
+    let (images, initial) = initial_images(b, lanes, &mut rng);
+    let mut bench = build(opts, b, cfg, images)?;
+    attach_trace(&mut bench.sim, opts, b.trace_buf.as_ref())?;
+    let (sent, end) = drive(&mut bench, opts, b, cfg, &mut rng)?;
+    let mut errors = Vec::new();
+    let log = bench
+        .sim
+        .unit_ref::<L2>(bench.dut)
+        .log
+        .clone()
+        .unwrap_or_default();
+    let (reference, expect) = check_log(&log, initial, sent, &mut errors);
+    let answered = check_answers(&bench, &expect, sent, &mut errors);
+    check_real_time(&log, &answered, &mut errors);
+    check_dram(&bench, b, &reference, &mut errors);
+    let mem_lines_peak = check_memory_side(&bench, &mut errors);
+    check_counts(&bench, sent, &mut errors);
+    let rep = report(
+        &bench,
+        b,
+        sent,
+        answered.len() as u64,
+        end,
+        mem_lines_peak,
+        errors,
+    );
+    finish_trace(&mut bench.sim, rep)
+}
+
+fn check_knobs(opts: &TbOptions, b: &L2TbCfg) -> Result<(), String> {
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) || !prob(opts.load) {
         return Err("--ready and --load are probabilities in (0, 1]".into());
@@ -101,24 +158,34 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
     if b.clients < 2 || b.lines == 0 || b.mem_latency < 2 {
         return Err("the bench needs at least 2 clients, lines and a memory latency >= 2".into());
     }
-    let cfg = &unit_config(&opts.config, b);
-    cfg.chip.l2.validate(cfg.chip.links.delay)?;
-    let link = cfg.chip.links;
-    let mut rng = Rng::new(opts.seed);
-    let line_addr = |i: u64| BASE + i * 64;
-    // The initial image: seeded bytes on every line of the pool.
+    Ok(())
+}
+
+/// The initial image: seeded bytes on every line of the pool, as one DRAM
+/// image per memory lane (holding the lane's lines) and as a whole.
+fn initial_images(b: &L2TbCfg, lanes: usize, rng: &mut Rng) -> (Vec<SparseMem>, SparseMem) {
     let cap = BASE + (b.lines as u64 + 1) * 64;
-    let lanes = cfg.chip.l2.mem_lines_per_cycle as usize;
-    let lane_of = |addr: u64| (addr / 64 % lanes as u64) as usize;
-    // One DRAM image per memory lane, holding the lane's lines.
     let mut images: Vec<SparseMem> = (0..lanes).map(|_| SparseMem::new(cap)).collect();
     let mut initial = SparseMem::new(cap);
     for i in 0..b.lines as u64 {
         let mut l = [0u8; 64];
         l.iter_mut().for_each(|x| *x = rng.below(256) as u8);
-        images[lane_of(line_addr(i))].write(line_addr(i), &l);
+        images[lane_of(line_addr(i), lanes)].write(line_addr(i), &l);
         initial.write(line_addr(i), &l);
     }
+    (images, initial)
+}
+
+/// A driver and a sink per client, the flush driver and its sink, the unit
+/// (logging every access) and one memory stand-in per lane on `images`.
+fn build(
+    opts: &TbOptions,
+    b: &L2TbCfg,
+    cfg: &crate::config::Config,
+    images: Vec<SparseMem>,
+) -> Result<Bench, String> {
+    let link = cfg.chip.links;
+    let lanes = images.len();
     let mut sim = Sim::new(opts.sim.clone());
     let clk = sim
         .clock("core", cfg.clocks.core_ps)
@@ -179,19 +246,36 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
         memus.push(sim.add(&format!("tb.mem{j}"), clk, mem));
     }
     sim.elaborate().map_err(|e| e.to_string())?;
-    if let Some(buf) = &b.trace_buf {
-        let t = Tracer::new(Box::new(buf.clone()), opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
-    } else if let Some(path) = &opts.vcd {
-        let t = Tracer::to_file(path, opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
-    }
-    // Stimulus: per client, requests at seeded cycles; a hot quarter of the pool.
+    Ok(Bench {
+        sim,
+        clk,
+        lanes,
+        drivers,
+        sinks,
+        flusher,
+        flush_sink,
+        dut,
+        memus,
+    })
+}
+
+/// Stimulus: per client, requests at seeded cycles (a hot quarter of the
+/// pool), a flush with invalidation in the middle of the traffic, and after
+/// it the final flush, as the chip does after a run. Returns the requests
+/// sent and the last cycle.
+fn drive(
+    bench: &mut Bench,
+    opts: &TbOptions,
+    b: &L2TbCfg,
+    cfg: &crate::config::Config,
+    rng: &mut Rng,
+) -> Result<(u64, u64), String> {
+    let sim = &mut bench.sim;
     let hot = (b.lines / 4).max(1) as u64;
     let mut sent = 0u64;
     let mut last = 0u64;
     let tags = [StreamTag::Shading, StreamTag::Other];
-    for &d in &drivers {
+    for &d in &bench.drivers {
         let mut c = 0u64;
         for id in 0..b.requests_per_client {
             while !rng.chance(opts.load) {
@@ -225,30 +309,36 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
         last = last.max(c);
         sim.wake(d);
     }
-    // A flush (with invalidation) in the middle of the traffic.
-    sim.unit_mut::<Driver<L2Flush>>(flusher)
+    sim.unit_mut::<Driver<L2Flush>>(bench.flusher)
         .send(last / 2, L2Flush { invalidate: true });
-    sim.wake(flusher);
+    sim.wake(bench.flusher);
     let p = cfg.clocks.core_ps;
     let limit = (sent * 200 + 100_000) * p;
     sim.run_to_idle(limit).map_err(|e| e.to_string())?;
-    // The final flush, as the chip does after a run.
-    let now = sim.cycle(clk);
-    sim.unit_mut::<Driver<L2Flush>>(flusher)
+    let now = sim.cycle(bench.clk);
+    sim.unit_mut::<Driver<L2Flush>>(bench.flusher)
         .send(now, L2Flush { invalidate: false });
-    sim.wake(flusher);
+    sim.wake(bench.flusher);
     let end = sim
         .run_to_idle(sim.now() + limit)
         .map_err(|e| e.to_string())?
         / p;
-    // Scoreboard.
-    let mut errors = Vec::new();
-    let u = sim.unit_ref::<L2>(dut);
-    let log = u.log.clone().unwrap_or_default();
+    Ok((sent, end))
+}
+
+/// Replays the unit's log of applied accesses on `initial` (per client and
+/// line in the client's order); returns the reference image after it and
+/// each read's expected line by (client, request).
+fn check_log(
+    log: &[L2Applied],
+    initial: SparseMem,
+    sent: u64,
+    errors: &mut Vec<String>,
+) -> (SparseMem, BTreeMap<(u16, u32), Line>) {
     let mut reference = initial;
     let mut expect: BTreeMap<(u16, u32), Line> = BTreeMap::new();
     let mut order: BTreeMap<(u16, u64), u32> = BTreeMap::new();
-    for a in &log {
+    for a in log {
         let r = &a.req;
         if let Some(&prev) = order.get(&(a.port, r.addr))
             && prev >= r.id
@@ -280,10 +370,20 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             log.len()
         ));
     }
-    // Answers: one per request, reads with the reference bytes at their turn.
+    (reference, expect)
+}
+
+/// Answers: one per request, reads with the reference bytes at their turn.
+/// Returns the cycle each (client, request) was answered.
+fn check_answers(
+    bench: &Bench,
+    expect: &BTreeMap<(u16, u32), Line>,
+    sent: u64,
+    errors: &mut Vec<String>,
+) -> BTreeMap<(u16, u32), u64> {
     let mut answered_at: BTreeMap<(u16, u32), u64> = BTreeMap::new();
-    for (k, &s) in sinks.iter().enumerate() {
-        for (c, r) in &sim.unit_ref::<Sink<MemLineResp>>(s).got {
+    for (k, &s) in bench.sinks.iter().enumerate() {
+        for (c, r) in &bench.sim.unit_ref::<Sink<MemLineResp>>(s).got {
             if answered_at.insert((k as u16, r.id), *c).is_some() {
                 errors.push(format!("client {k}: request {} answered twice", r.id));
             }
@@ -308,7 +408,17 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             answered_at.len()
         ));
     }
-    // Real time: per line, the log position of the writes and when answered.
+    answered_at
+}
+
+/// Real time: an access accepted after a write to its line was answered is
+/// applied after that write.
+fn check_real_time(
+    log: &[L2Applied],
+    answered_at: &BTreeMap<(u16, u32), u64>,
+    errors: &mut Vec<String>,
+) {
+    // Per line, the log position of the writes and when answered.
     let mut writes: BTreeMap<u64, Vec<(usize, u64)>> = BTreeMap::new();
     for (pos, a) in log.iter().enumerate() {
         if a.req.write
@@ -327,11 +437,24 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             }
         }
     }
-    // DRAM after the final flush (each line from its lane's stand-in).
-    let mems: Vec<&LineMem> = memus.iter().map(|&u| sim.unit_ref::<LineMem>(u)).collect();
+}
+
+/// The memory stand-ins, lane by lane.
+fn mems(bench: &Bench) -> Vec<&LineMem> {
+    bench
+        .memus
+        .iter()
+        .map(|&u| bench.sim.unit_ref::<LineMem>(u))
+        .collect()
+}
+
+/// DRAM after the final flush equals the reference (each line from its
+/// lane's stand-in).
+fn check_dram(bench: &Bench, b: &L2TbCfg, reference: &SparseMem, errors: &mut Vec<String>) {
+    let mems = mems(bench);
     for i in 0..b.lines as u64 {
         let (mut got, mut want) = ([0u8; 64], [0u8; 64]);
-        mems[lane_of(line_addr(i))]
+        mems[lane_of(line_addr(i), bench.lanes)]
             .image
             .read(line_addr(i), &mut got);
         reference.read(line_addr(i), &mut want);
@@ -342,19 +465,23 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             ));
         }
     }
-    // The memory side: every request on its line's lane, never two requests for
-    // one line at once (a line has one lane, whose stand-in answers in acceptance
-    // order); the most lines accepted in one cycle over the lanes.
+}
+
+/// The memory side: every request on its line's lane, never two requests for
+/// one line at once (a line has one lane, whose stand-in answers in acceptance
+/// order). Returns the most lines accepted in one cycle over the lanes.
+fn check_memory_side(bench: &Bench, errors: &mut Vec<String>) -> u64 {
+    let lanes = bench.lanes;
     let mut per_cycle: BTreeMap<u64, u64> = BTreeMap::new();
-    for (j, m) in mems.iter().enumerate() {
+    for (j, m) in mems(bench).iter().enumerate() {
         let mut busy_until: BTreeMap<u64, u64> = BTreeMap::new();
         for ((ca, r), (cr, _)) in m.accepted.iter().zip(m.answered.iter()) {
             *per_cycle.entry(*ca).or_default() += 1;
-            if lane_of(r.addr) != j {
+            if lane_of(r.addr, lanes) != j {
                 errors.push(format!(
                     "line {:#x}: a memory request on lane {j}, its lane is {}",
                     r.addr,
-                    lane_of(r.addr)
+                    lane_of(r.addr, lanes)
                 ));
             }
             if let Some(&t) = busy_until.get(&r.addr)
@@ -375,9 +502,14 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             ));
         }
     }
-    let mem_lines_peak = per_cycle.values().copied().max().unwrap_or(0);
-    let st = sim.unit_stats(dut);
-    let s = u.stats;
+    per_cycle.values().copied().max().unwrap_or(0)
+}
+
+/// Counters: accesses = requests, hits + misses = accesses, fills = memory
+/// reads, writebacks = memory writes, two flushes answered.
+fn check_counts(bench: &Bench, sent: u64, errors: &mut Vec<String>) {
+    let mems = mems(bench);
+    let s = bench.sim.unit_ref::<L2>(bench.dut).stats;
     let maccepted: u64 = mems.iter().map(|m| m.accepted.len() as u64).sum();
     let mreads = mems
         .iter()
@@ -385,7 +517,6 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
         .filter(|(_, r)| !r.write)
         .count() as u64;
     let mwrites = maccepted - mreads;
-    let lane0_writes = mems[0].accepted.iter().filter(|(_, r)| r.write).count() as u64;
     if s.accesses != sent || s.hits + s.misses != s.accesses {
         errors.push(format!(
             "accesses {} (sent {sent}), hits {} + misses {} must equal them",
@@ -398,18 +529,42 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
             s.fills, s.writebacks
         ));
     }
-    let flushed = sim.unit_ref::<Sink<L2Flush>>(flush_sink).got.len();
+    let flushed = bench
+        .sim
+        .unit_ref::<Sink<L2Flush>>(bench.flush_sink)
+        .got
+        .len();
     if flushed != 2 {
         errors.push(format!("2 flushes sent, {flushed} answered"));
     }
-    let blocked: u64 = drivers
+}
+
+fn report(
+    bench: &Bench,
+    b: &L2TbCfg,
+    sent: u64,
+    answered: u64,
+    end: u64,
+    mem_lines_peak: u64,
+    errors: Vec<String>,
+) -> TbReport {
+    let sim = &bench.sim;
+    let st = sim.unit_stats(bench.dut);
+    let u = sim.unit_ref::<L2>(bench.dut);
+    let lane0_writes = mems(bench)[0]
+        .accepted
+        .iter()
+        .filter(|(_, r)| r.write)
+        .count() as u64;
+    let blocked: u64 = bench
+        .drivers
         .iter()
         .map(|&d| sim.unit_stats(d).status_cycles[Status::OutputBlocked as usize])
         .sum();
-    let mut rep = TbReport {
+    TbReport {
         unit: "l2",
         requests: sent,
-        results: answered_at.len() as u64,
+        results: answered,
         cycles: end,
         min_latency: 0,
         max_latency: 0,
@@ -428,11 +583,5 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
                 ("lines_checked", b.lines as u64),
             ])
             .collect(),
-    };
-    if let Some(r) = sim.finish_trace() {
-        let s = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
-        rep.vcd_changes = s.changes;
-        rep.vcd_bytes = s.bytes;
     }
-    Ok(rep)
 }

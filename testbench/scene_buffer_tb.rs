@@ -24,14 +24,14 @@
 use crate::contract::{LINE_BYTES, SparseMem};
 use crate::mem::StreamTag;
 use crate::rtl::link::LinkEvent;
-use crate::rtl::{LinkId, SharedBuf, Sim, Status, Tracer, UnitId};
+use crate::rtl::{LinkId, SharedBuf, Sim, Status, UnitId, UnitStats};
 use crate::units::l1::{L1Req, L1Resp, Line};
 use crate::units::memory::MemLineResp;
 use crate::units::scene_buffer::SceneBufferCfg;
 use crate::units::scene_buffer::{SceneBuffer, SlotMap, fill_id};
 use crate::util::rng::Rng;
 
-use super::harness::{Driver, Sink};
+use super::harness::{Driver, Sink, attach_trace, counter, finish_trace};
 use super::pipe_tb::{TbOptions, TbReport};
 
 /// The bench's knobs beyond `TbOptions`.
@@ -106,7 +106,100 @@ pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
     run_with(opts, &SbTbCfg::default())
 }
 
+/// The elaborated bench: the simulator, the units the bench drives and reads,
+/// and the links whose pushes and pops the scoreboard times.
+struct Bench {
+    sim: Sim,
+    map_drv: UnitId,
+    fill_drv: UnitId,
+    drivers: Vec<UnitId>,
+    dut: UnitId,
+    sinks: Vec<UnitId>,
+    fill_link: LinkId,
+    req_links: Vec<LinkId>,
+}
+
+/// What the bench sent, for the scoreboard.
+#[derive(Default)]
+struct Sent {
+    fills: Vec<Fill>,
+    /// Per TM the requested line addresses, the segment line serving each
+    /// (index into `fills`) and the phase.
+    asked: Vec<Vec<(u64, usize, u32)>>,
+    maps: u64,
+    stale_n: u64,
+    /// slot -> (segment, generation) after each phase.
+    holder: Vec<(usize, u8)>,
+}
+
+/// One phase of the script: its number (0, 1), its first cycle and the slots
+/// it remapped.
+struct Phase {
+    n: u32,
+    t0: u64,
+    remapped: Vec<u16>,
+}
+
+/// What the scoreboard measured beside its errors.
+struct Score {
+    errors: Vec<String>,
+    requests: u64,
+    results: u64,
+    /// Requests made before their line was taken.
+    early: u64,
+    min_l: u64,
+    max_l: u64,
+}
+
 pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
+    check_knobs(opts, b)?;
+    let cfg = &unit_config(&opts.config, b);
+    let p = cfg.clocks.core_ps;
+    let mut rng = Rng::new(opts.seed);
+    let (segs, image) = segments(b, &mut rng);
+    let mut bench = build(opts, b, cfg)?;
+    attach_trace(&mut bench.sim, opts, b.trace_buf.as_ref())?;
+    let mut sent = Sent {
+        asked: vec![Vec::new(); b.tms as usize],
+        holder: (0..b.sb.slots() as usize).map(|s| (s, 1)).collect(),
+        ..Sent::default()
+    };
+    let mut end = 0u64;
+    for phase in 0..2u32 {
+        let t0 = end + 2;
+        let (ev, remapped) = if phase == 0 {
+            (
+                map_all(&mut bench, b, &segs, t0, &mut sent, &mut rng),
+                Vec::new(),
+            )
+        } else {
+            remap_even(&mut bench, b, &segs, t0, &mut sent, &mut rng)
+        };
+        send_fills(&mut bench, &segs, &image, ev, &mut sent);
+        let ph = Phase {
+            n: phase,
+            t0,
+            remapped,
+        };
+        send_requests(&mut bench, b, &segs, &ph, &mut sent, &mut rng);
+        for &d in &bench.drivers {
+            bench.sim.wake(d);
+        }
+        bench.sim.wake(bench.map_drv);
+        bench.sim.wake(bench.fill_drv);
+        end = bench
+            .sim
+            .run_to_idle((end + 1_000_000) * p)
+            .map_err(|e| e.to_string())?
+            / p;
+    }
+    let st = bench.sim.unit_stats(bench.dut);
+    let score = check(&bench, b, image, &sent, &st, p);
+    let rep = report(&st, &sent, score, end);
+    finish_trace(&mut bench.sim, rep)
+}
+
+fn check_knobs(opts: &TbOptions, b: &SbTbCfg) -> Result<(), String> {
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) {
         return Err("--ready is a probability in (0, 1]".into());
@@ -116,11 +209,14 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
     if b.tms == 0 || slots < 2 || slot_lines < 8 || b.sb.banks == 0 || b.sb.latency < 2 {
         return Err("the bench needs TMs, >= 2 slots of >= 8 lines, banks and latency >= 2".into());
     }
-    let cfg = &unit_config(&opts.config, b);
-    let link = cfg.chip.links;
-    let p = cfg.clocks.core_ps;
-    let mut rng = Rng::new(opts.seed);
-    // Segments: phase 1 fills every slot, phase 2 replaces the even slots.
+    Ok(())
+}
+
+/// Segments (phase 1 fills every slot, phase 2 replaces the even slots) of
+/// seeded lengths, and the DRAM image of their lines.
+fn segments(b: &SbTbCfg, rng: &mut Rng) -> (Vec<Seg>, SparseMem) {
+    let slots = b.sb.slots();
+    let slot_lines = b.sb.slot_bytes / LINE_BYTES as u32;
     let base0 = 0x10_0000u64;
     let mut segs: Vec<Seg> = Vec::new();
     let n_segs = slots + slots.div_ceil(2);
@@ -137,8 +233,17 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
             image.write(s.base + l * LINE_BYTES, &bytes);
         }
     }
+    (segs, image)
+}
+
+/// The scheduler and stream stand-ins, one request driver and one sink per
+/// TM, and the unit; the fill and request links are logged.
+fn build(opts: &TbOptions, b: &SbTbCfg, cfg: &crate::config::Config) -> Result<Bench, String> {
+    let link = cfg.chip.links;
     let mut sim = Sim::new(opts.sim.clone());
-    let clk = sim.clock("core", p).map_err(|e| e.to_string())?;
+    let clk = sim
+        .clock("core", cfg.clocks.core_ps)
+        .map_err(|e| e.to_string())?;
     let (mo, mi) = sim.link::<SlotMap>("sb.slot_map", link);
     let (fo, fi) = sim.link::<MemLineResp>("sb.fill", link);
     let mut reqs = Vec::new();
@@ -155,6 +260,7 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
         resps.push(ro);
         resp_ins.push(ri);
     }
+    let fill_link = fo.id;
     let map_drv = sim.add("tb.scheduler", clk, Driver::new(mo));
     let fill_drv = sim.add("tb.stream", clk, Driver::new(fo));
     let mut drivers: Vec<UnitId> = Vec::new();
@@ -182,160 +288,227 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
         ));
     }
     sim.elaborate().map_err(|e| e.to_string())?;
-    sim.log_link(fo.id, true);
+    sim.log_link(fill_link, true);
     for &l in &req_links {
         sim.log_link(l, true);
     }
-    if let Some(buf) = &b.trace_buf {
-        let t = Tracer::new(Box::new(buf.clone()), opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
-    } else if let Some(path) = &opts.vcd {
-        let t = Tracer::to_file(path, opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
-    }
-    // The scoreboard's record: per TM the requested line addresses and the
-    // segment line serving each (index into `fills`, once known).
-    let mut fills: Vec<Fill> = Vec::new();
-    let mut asked: Vec<Vec<(u64, usize, u32)>> = vec![Vec::new(); b.tms as usize];
-    let mut maps = 0u64;
-    let mut stale_n = 0u64;
-    let mut end = 0u64;
-    // slot -> (segment, generation) after each phase.
-    let mut holder: Vec<(usize, u8)> = (0..slots as usize).map(|s| (s, 1)).collect();
-    for phase in 0..2u32 {
-        let t0 = end + 2;
-        let mut ev: Vec<Fill> = Vec::new();
-        let mut remapped: Vec<u16> = Vec::new();
-        if phase == 0 {
-            for s in 0..slots as u16 {
-                let at = t0 + s as u64 * 3;
-                let sg = &segs[s as usize];
-                sim.unit_mut::<Driver<SlotMap>>(map_drv).send(
-                    at,
-                    SlotMap {
-                        slot: s,
-                        generation: 1,
-                        base: sg.base,
-                        lines: sg.lines,
-                    },
-                );
-                maps += 1;
-                for l in 0..sg.lines {
-                    ev.push(Fill {
-                        at: at + 1 + rng.below(b.max_fill_delay),
-                        slot: s,
-                        generation: 1,
-                        seg: s as usize,
-                        line: l,
-                        stale: false,
-                    });
-                }
-            }
-        } else {
-            for s in (0..slots as u16).step_by(2) {
-                let e = slots as usize + s as usize / 2;
-                let (old, og) = holder[s as usize];
-                let sg = &segs[e];
-                sim.unit_mut::<Driver<SlotMap>>(map_drv).send(
-                    t0,
-                    SlotMap {
-                        slot: s,
-                        generation: og + 1,
-                        base: sg.base,
-                        lines: sg.lines,
-                    },
-                );
-                maps += 1;
-                holder[s as usize] = (e, og + 1);
-                remapped.push(s);
-                // Late lines of the retired segment, then the new segment's.
-                for l in 0..4u32 {
-                    ev.push(Fill {
-                        at: t0 + 1 + l as u64,
-                        slot: s,
-                        generation: if b.stale_as_current { og + 1 } else { og },
-                        seg: old,
-                        line: l,
-                        stale: true,
-                    });
-                    stale_n += 1;
-                }
-                for l in 0..sg.lines {
-                    ev.push(Fill {
-                        at: t0 + 60 + rng.below(b.max_fill_delay),
-                        slot: s,
-                        generation: og + 1,
-                        seg: e,
-                        line: l,
-                        stale: false,
-                    });
-                }
-            }
+    Ok(Bench {
+        sim,
+        map_drv,
+        fill_drv,
+        drivers,
+        dut,
+        sinks,
+        fill_link,
+        req_links,
+    })
+}
+
+/// Phase 1: every slot mapped (generation 1), its segment's lines streamed
+/// after seeded delays. Returns the fills.
+fn map_all(
+    bench: &mut Bench,
+    b: &SbTbCfg,
+    segs: &[Seg],
+    t0: u64,
+    sent: &mut Sent,
+    rng: &mut Rng,
+) -> Vec<Fill> {
+    let mut ev: Vec<Fill> = Vec::new();
+    for s in 0..b.sb.slots() as u16 {
+        let at = t0 + s as u64 * 3;
+        let sg = &segs[s as usize];
+        bench.sim.unit_mut::<Driver<SlotMap>>(bench.map_drv).send(
+            at,
+            SlotMap {
+                slot: s,
+                generation: 1,
+                base: sg.base,
+                lines: sg.lines,
+            },
+        );
+        sent.maps += 1;
+        for l in 0..sg.lines {
+            ev.push(Fill {
+                at: at + 1 + rng.below(b.max_fill_delay),
+                slot: s,
+                generation: 1,
+                seg: s as usize,
+                line: l,
+                stale: false,
+            });
         }
-        ev.sort_by_key(|f| f.at);
-        for f in &ev {
-            let sg = &segs[f.seg];
-            let a = sg.base + f.line as u64 * LINE_BYTES;
-            sim.unit_mut::<Driver<MemLineResp>>(fill_drv).send(
+    }
+    ev
+}
+
+/// Phase 2: the even slots remapped to new segments (the next generation);
+/// late lines of the retired segments arrive first, then the new segments'.
+/// Returns the fills and the remapped slots.
+fn remap_even(
+    bench: &mut Bench,
+    b: &SbTbCfg,
+    segs: &[Seg],
+    t0: u64,
+    sent: &mut Sent,
+    rng: &mut Rng,
+) -> (Vec<Fill>, Vec<u16>) {
+    let slots = b.sb.slots();
+    let mut ev: Vec<Fill> = Vec::new();
+    let mut remapped: Vec<u16> = Vec::new();
+    for s in (0..slots as u16).step_by(2) {
+        let e = slots as usize + s as usize / 2;
+        let (old, og) = sent.holder[s as usize];
+        let sg = &segs[e];
+        bench.sim.unit_mut::<Driver<SlotMap>>(bench.map_drv).send(
+            t0,
+            SlotMap {
+                slot: s,
+                generation: og + 1,
+                base: sg.base,
+                lines: sg.lines,
+            },
+        );
+        sent.maps += 1;
+        sent.holder[s as usize] = (e, og + 1);
+        remapped.push(s);
+        // Late lines of the retired segment, then the new segment's.
+        for l in 0..4u32 {
+            ev.push(Fill {
+                at: t0 + 1 + l as u64,
+                slot: s,
+                generation: if b.stale_as_current { og + 1 } else { og },
+                seg: old,
+                line: l,
+                stale: true,
+            });
+            sent.stale_n += 1;
+        }
+        for l in 0..sg.lines {
+            ev.push(Fill {
+                at: t0 + 60 + rng.below(b.max_fill_delay),
+                slot: s,
+                generation: og + 1,
+                seg: e,
+                line: l,
+                stale: false,
+            });
+        }
+    }
+    (ev, remapped)
+}
+
+/// The stream stand-in sends the phase's fills in time order.
+fn send_fills(
+    bench: &mut Bench,
+    segs: &[Seg],
+    image: &SparseMem,
+    mut ev: Vec<Fill>,
+    sent: &mut Sent,
+) {
+    ev.sort_by_key(|f| f.at);
+    for f in &ev {
+        let sg = &segs[f.seg];
+        let a = sg.base + f.line as u64 * LINE_BYTES;
+        bench
+            .sim
+            .unit_mut::<Driver<MemLineResp>>(bench.fill_drv)
+            .send(
                 f.at,
                 MemLineResp {
                     addr: a,
                     write: false,
                     tag: StreamTag::Scene,
                     id: fill_id(f.generation, f.slot, f.line),
-                    data: line_of(&image, a),
+                    data: line_of(image, a),
                 },
             );
-        }
-        fills.extend(ev.iter().copied());
-        // Requests: current segments' lines, some before they stream in (and in
-        // phase 2 the remapped slots' first lines right after their stale lines).
-        for (k, &d) in drivers.iter().enumerate() {
-            let mut at = t0;
-            for n in 0..b.requests_per_tm {
-                at += rng.below(4);
-                let s = if phase == 1 && n < 2 {
-                    remapped[(k + n as usize) % remapped.len()] as usize
-                } else {
-                    rng.below(slots as u64) as usize
-                };
-                let (e, g) = holder[s];
-                let l = if phase == 1 && n < 2 {
-                    (k as u32 + n) % 4
-                } else {
-                    rng.below(segs[e].lines as u64) as u32
-                };
-                let req_at = if phase == 1 && n < 2 { t0 + 20 } else { at };
-                let a = segs[e].base + l as u64 * LINE_BYTES;
-                sim.unit_mut::<Driver<L1Req>>(d).send(
-                    req_at.max(at),
-                    L1Req {
-                        addr: a + rng.below(LINE_BYTES),
-                    },
-                );
-                // The fill that serves it: this phase's current-generation line, or
-                // phase 1's for slots kept.
-                let serve = fills
-                    .iter()
-                    .enumerate()
-                    .rev()
-                    .find(|(_, f)| !f.stale && f.seg == e && f.line == l && f.generation == g)
-                    .map(|(i, _)| i)
-                    .expect("every requested line is streamed");
-                asked[k].push((a, serve, phase));
-            }
-        }
-        for &d in &drivers {
-            sim.wake(d);
-        }
-        sim.wake(map_drv);
-        sim.wake(fill_drv);
-        end = sim
-            .run_to_idle((end + 1_000_000) * p)
-            .map_err(|e| e.to_string())?
-            / p;
     }
-    // Scoreboard.
+    sent.fills.extend(ev.iter().copied());
+}
+
+/// Requests: current segments' lines, some before they stream in (and in
+/// phase 2 the remapped slots' first lines right after their stale lines).
+fn send_requests(
+    bench: &mut Bench,
+    b: &SbTbCfg,
+    segs: &[Seg],
+    ph: &Phase,
+    sent: &mut Sent,
+    rng: &mut Rng,
+) {
+    let (phase, t0, remapped) = (ph.n, ph.t0, &ph.remapped);
+    let slots = b.sb.slots();
+    for (k, &d) in bench.drivers.iter().enumerate() {
+        let mut at = t0;
+        for n in 0..b.requests_per_tm {
+            at += rng.below(4);
+            let s = if phase == 1 && n < 2 {
+                remapped[(k + n as usize) % remapped.len()] as usize
+            } else {
+                rng.below(slots as u64) as usize
+            };
+            let (e, g) = sent.holder[s];
+            let l = if phase == 1 && n < 2 {
+                (k as u32 + n) % 4
+            } else {
+                rng.below(segs[e].lines as u64) as u32
+            };
+            let req_at = if phase == 1 && n < 2 { t0 + 20 } else { at };
+            let a = segs[e].base + l as u64 * LINE_BYTES;
+            bench.sim.unit_mut::<Driver<L1Req>>(d).send(
+                req_at.max(at),
+                L1Req {
+                    addr: a + rng.below(LINE_BYTES),
+                },
+            );
+            // The fill that serves it: this phase's current-generation line, or
+            // phase 1's for slots kept.
+            let serve = sent
+                .fills
+                .iter()
+                .enumerate()
+                .rev()
+                .find(|(_, f)| !f.stale && f.seg == e && f.line == l && f.generation == g)
+                .map(|(i, _)| i)
+                .expect("every requested line is streamed");
+            sent.asked[k].push((a, serve, phase));
+        }
+    }
+}
+
+/// The cycles each entry of link `id` became visible and was taken.
+fn pushes(sim: &Sim, id: LinkId, p: u64) -> Vec<(u64, u64)> {
+    let log = sim.link_log(id);
+    let v: Vec<u64> = log
+        .iter()
+        .filter_map(|e| match e {
+            LinkEvent::Push { visible, .. } => Some(*visible / p),
+            _ => None,
+        })
+        .collect();
+    let pops: Vec<u64> = log
+        .iter()
+        .filter_map(|e| match e {
+            LinkEvent::Pop { at } => Some(*at / p),
+            _ => None,
+        })
+        .collect();
+    v.into_iter().zip(pops).collect()
+}
+
+/// The scoreboard (see the module doc): every response's bytes, order and
+/// timing per TM, then the unit's counters.
+fn check(
+    bench: &Bench,
+    b: &SbTbCfg,
+    image: SparseMem,
+    sent: &Sent,
+    st: &UnitStats,
+    p: u64,
+) -> Score {
+    let sim = &bench.sim;
+    let asked = &sent.asked;
     let mut expect_img = image;
     if b.corrupt_expect {
         let a = asked[0][0].0 + 5;
@@ -343,44 +516,26 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
         expect_img.read(a, &mut x);
         expect_img.write(a, &[x[0] ^ 0x40]);
     }
-    let pushes = |id: LinkId| -> Vec<(u64, u64)> {
-        let log = sim.link_log(id);
-        let v: Vec<u64> = log
-            .iter()
-            .filter_map(|e| match e {
-                LinkEvent::Push { visible, .. } => Some(*visible / p),
-                _ => None,
-            })
-            .collect();
-        let pops: Vec<u64> = log
-            .iter()
-            .filter_map(|e| match e {
-                LinkEvent::Pop { at } => Some(*at / p),
-                _ => None,
-            })
-            .collect();
-        v.into_iter().zip(pops).collect()
-    };
-    let fill_t = pushes(fo.id);
+    let fill_t = pushes(sim, bench.fill_link, p);
     let lat = b.sb.latency as u64;
     let mut errors = Vec::new();
     let mut requests = 0u64;
     let mut results = 0u64;
     let mut early = 0u64;
     let (mut min_l, mut max_l) = (u64::MAX, 0u64);
-    for k in 0..b.tms as usize {
-        let got = &sim.unit_ref::<Sink<L1Resp>>(sinks[k]).got;
-        let req_t = pushes(req_links[k]);
-        requests += asked[k].len() as u64;
+    for (k, asked_k) in asked.iter().enumerate() {
+        let got = &sim.unit_ref::<Sink<L1Resp>>(bench.sinks[k]).got;
+        let req_t = pushes(sim, bench.req_links[k], p);
+        requests += asked_k.len() as u64;
         results += got.len() as u64;
-        if got.len() != asked[k].len() {
+        if got.len() != asked_k.len() {
             errors.push(format!(
                 "TM {k}: {} requests, {} responses",
-                asked[k].len(),
+                asked_k.len(),
                 got.len()
             ));
         }
-        for (i, ((c, r), &(a, serve, phase))) in got.iter().zip(&asked[k]).enumerate() {
+        for (i, ((c, r), &(a, serve, phase))) in got.iter().zip(asked_k).enumerate() {
             if r.addr != a {
                 errors.push(format!(
                     "TM {k} response {i}: line {:#x}, requested {a:#x}",
@@ -408,14 +563,31 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
             max_l = max_l.max(c - rv);
         }
     }
-    let st = sim.unit_stats(dut);
-    let ctr = |n: &str| {
-        st.counters
-            .iter()
-            .find(|(k, _)| *k == n)
-            .map_or(0, |(_, v)| *v)
-    };
-    let fresh = fills.len() as u64 - stale_n;
+    check_counters(b, sent, st, requests, early, &mut errors);
+    Score {
+        errors,
+        requests,
+        results,
+        early,
+        min_l,
+        max_l,
+    }
+}
+
+/// `reads` = requests, `fills` = current-generation lines streamed,
+/// `stale_fills` = late lines of retired segments, `stalls` at most the early
+/// requests.
+fn check_counters(
+    b: &SbTbCfg,
+    sent: &Sent,
+    st: &UnitStats,
+    requests: u64,
+    early: u64,
+    errors: &mut Vec<String>,
+) {
+    let ctr = |n: &str| counter(st, n);
+    let stale_n = sent.stale_n;
+    let fresh = sent.fills.len() as u64 - stale_n;
     let checks = [
         ("reads", requests),
         ("fills", fresh),
@@ -438,23 +610,31 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
             ctr("stalls")
         ));
     }
-    let mut rep = TbReport {
+}
+
+fn report(st: &UnitStats, sent: &Sent, score: Score, end: u64) -> TbReport {
+    let ctr = |n: &str| counter(st, n);
+    TbReport {
         unit: "scene_buffer",
-        requests,
-        results,
+        requests: score.requests,
+        results: score.results,
         cycles: end,
-        min_latency: if min_l == u64::MAX { 0 } else { min_l },
-        max_latency: max_l,
+        min_latency: if score.min_l == u64::MAX {
+            0
+        } else {
+            score.min_l
+        },
+        max_latency: score.max_l,
         stall_cycles: ctr("stall_cycles"),
-        errors,
+        errors: score.errors,
         vcd_changes: 0,
         vcd_bytes: 0,
         status_cycles: st.status_cycles,
         counters: vec![
-            ("maps", maps),
+            ("maps", sent.maps),
             ("fills", ctr("fills")),
             ("stale_fills", ctr("stale_fills")),
-            ("early_requests", early),
+            ("early_requests", score.early),
             ("stalls", ctr("stalls")),
             ("stall_cycles", ctr("stall_cycles")),
             ("bank_conflicts", ctr("bank_conflicts")),
@@ -463,11 +643,5 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
                 st.status_cycles[Status::OutputBlocked as usize],
             ),
         ],
-    };
-    if let Some(r) = sim.finish_trace() {
-        let s = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
-        rep.vcd_changes = s.changes;
-        rep.vcd_bytes = s.bytes;
     }
-    Ok(rep)
 }

@@ -20,15 +20,15 @@
 //! - every admitted segment's lines are streamed exactly once;
 //! - every bucket is freed: written = read = forwarded buckets, no live bucket.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
 
-use crate::contract::{LINE_BYTES, RayRec, SegEntry};
+use crate::contract::{RayRec, SegEntry};
 use crate::machine::host::Host;
-use crate::render::{RenderCfg, prepare};
+use crate::render::{Prepared, RenderCfg, prepare};
 use crate::rtl::decl::{Samples, StateList};
 use crate::rtl::{
     Ctx, Declared, In, Logic, Next, Out, Payload, PortDecl, PortDir, SharedBuf, Sim, Status,
-    Tracer, UnitDecl, UnitId,
+    UnitDecl, UnitId,
 };
 use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::units::scene_buffer::SlotMap;
@@ -37,9 +37,12 @@ use crate::units::stream_scheduler::{StreamScheduler, WaveStart};
 use crate::units::tp::RayWrite;
 use crate::util::rng::Rng;
 
-use super::harness::Sink;
+use super::harness::{Sink, attach_trace, finish_trace};
 use super::hit_record_updater_tb::LineMem;
 use super::pipe_tb::{TbOptions, TbReport};
+
+mod scoreboard;
+use scoreboard::{Traffic, check_admissions, check_buckets, check_rays, check_streams, forwarded};
 
 /// A TM stand-in on the fill and ray-write ports.
 pub struct FakeTm {
@@ -305,14 +308,29 @@ pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
 
 type Key = (u32, Vec<u8>);
 
+/// The segment tree as the scoreboard and the fake TMs see it: each segment's
+/// table entry (base, bytes), children and parent.
+struct SegTree {
+    entries: Vec<SegEntry>,
+    children: std::sync::Arc<Vec<Vec<u32>>>,
+    parent: Vec<Option<u32>>,
+}
+
+/// The elaborated bench: the simulator and the units the scoreboard reads.
+struct Bench {
+    sim: Sim,
+    host: UnitId,
+    dut: UnitId,
+    memu: UnitId,
+    map_sink: UnitId,
+    scene_sinks: Vec<UnitId>,
+    tms: Vec<UnitId>,
+    /// The core clock's period (ps).
+    p: u64,
+}
+
 pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
-    let prob = |p: f64| p > 0.0 && p <= 1.0;
-    if !prob(opts.ready_p) {
-        return Err("--ready is a probability in (0, 1]".into());
-    }
-    if b.tms == 0 || b.rays == 0 || b.mem_latency < 2 {
-        return Err("the bench needs TMs, rays and a memory latency >= 2".into());
-    }
+    check_knobs(opts, b)?;
     let cfg = &unit_config(&opts.config, b);
     cfg.validate()?;
     let scene = crate::scene::load(&b.scene)?;
@@ -322,6 +340,35 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
         ..RenderCfg::default()
     };
     let prep = prepare(&scene, &rcfg)?;
+    let tree = seg_tree(&prep);
+    let mut bench = build(opts, b, cfg, prep, &tree)?;
+    attach_trace(&mut bench.sim, opts, b.trace_buf.as_ref())?;
+    let (rays, end) = drive(&mut bench, opts, b)?;
+    let mut errors = Vec::new();
+    let traffic = forwarded(&bench, b, &tree, &rays, &mut errors);
+    check_rays(&traffic, &mut errors);
+    let admitted = check_admissions(&bench, &tree, &traffic, &mut errors);
+    let scene_lines = check_streams(&bench, &tree, &admitted, &mut errors);
+    check_buckets(&bench, &traffic, &admitted, &mut errors);
+    let nseg = tree.entries.len();
+    let admitted = admitted.len() as u64;
+    let rep = report(&bench, &traffic, nseg, scene_lines, admitted, end, errors);
+    finish_trace(&mut bench.sim, rep)
+}
+
+fn check_knobs(opts: &TbOptions, b: &SchedTbCfg) -> Result<(), String> {
+    let prob = |p: f64| p > 0.0 && p <= 1.0;
+    if !prob(opts.ready_p) {
+        return Err("--ready is a probability in (0, 1]".into());
+    }
+    if b.tms == 0 || b.rays == 0 || b.mem_latency < 2 {
+        return Err("the bench needs TMs, rays and a memory latency >= 2".into());
+    }
+    Ok(())
+}
+
+/// The segment tree of the prepared scene, its entries read from the image.
+fn seg_tree(prep: &Prepared) -> SegTree {
     let nseg = prep.seg.segments.len();
     let entries: Vec<SegEntry> = (0..nseg as u32)
         .map(|s| SegEntry::read(&prep.mem, prep.map.seg_entry_addr(s)))
@@ -333,7 +380,23 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
         .map(|s| s.children.clone())
         .collect();
     let parent: Vec<Option<u32>> = prep.seg.segments.iter().map(|s| s.parent).collect();
-    let children = std::sync::Arc::new(children);
+    SegTree {
+        entries,
+        children: std::sync::Arc::new(children),
+        parent,
+    }
+}
+
+/// The host, the unit, the lane mux onto the line memory (holding the scene's
+/// DRAM image), the slot-map and scene-stream sinks, and one fake TM per port.
+fn build(
+    opts: &TbOptions,
+    b: &SchedTbCfg,
+    cfg: &crate::config::Config,
+    prep: Prepared,
+    tree: &SegTree,
+) -> Result<Bench, String> {
+    let nseg = tree.entries.len();
     let link = cfg.chip.links;
     let p = cfg.clocks.core_ps;
     let mut sim = Sim::new(opts.sim.clone());
@@ -423,7 +486,7 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
             FakeTm {
                 fill: fi,
                 out: wo,
-                children: children.clone(),
+                children: tree.children.clone(),
                 dup_p: b.dup_p,
                 ready_p: opts.ready_p,
                 seed: opts.seed.wrapping_mul(77) + k as u64,
@@ -437,13 +500,26 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
         ));
     }
     sim.elaborate().map_err(|e| e.to_string())?;
-    if let Some(buf) = &b.trace_buf {
-        let t = Tracer::new(Box::new(buf.clone()), opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
-    } else if let Some(path) = &opts.vcd {
-        let t = Tracer::to_file(path, opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
-    }
+    Ok(Bench {
+        sim,
+        host,
+        dut,
+        memu,
+        map_sink,
+        scene_sinks,
+        tms,
+        p,
+    })
+}
+
+/// The host emits one wavefront of seeded rays into the root queue; runs to
+/// idle. Returns the rays and the last cycle.
+fn drive(
+    bench: &mut Bench,
+    opts: &TbOptions,
+    b: &SchedTbCfg,
+) -> Result<(Vec<RayRec>, u64), String> {
+    let (sim, p) = (&mut bench.sim, bench.p);
     let mut rng = Rng::new(opts.seed);
     let rays: Vec<RayRec> = (0..b.rays)
         .map(|i| RayRec {
@@ -453,227 +529,30 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
             entry: rng.next_u32(),
         })
         .collect();
-    sim.unit_mut::<Host>(host).load(rays.clone(), 0, 0);
-    sim.wake(host);
+    sim.unit_mut::<Host>(bench.host).load(rays.clone(), 0, 0);
+    sim.wake(bench.host);
     let end = sim
         .run_to_idle((b.rays as u64 * 2000 + 1_000_000) * p)
         .map_err(|e| e.to_string())?
         / p;
-    // Scoreboard.
-    let mut errors = Vec::new();
-    let mut want: BTreeMap<Key, u32> = BTreeMap::new();
-    for (i, r) in rays.iter().enumerate() {
-        if b.drop_expected && i == 0 {
-            continue;
-        }
-        *want.entry((0, r.encode().to_vec())).or_default() += 1;
-    }
-    let mut got: BTreeMap<Key, u32> = BTreeMap::new();
-    // Per segment: first ray forwarded, last marker sent.
-    let mut last_marker: BTreeMap<u32, u64> = BTreeMap::new();
-    let mut first_fwd: BTreeMap<u32, u64> = BTreeMap::new();
-    let mut lasts = 0u64;
-    let mut fwd_rays = 0u64;
-    for (k, &t) in tms.iter().enumerate() {
-        let tm = sim.unit_ref::<FakeTm>(t);
-        let mut bucket_seg: Option<u32> = None;
-        for (c, f) in &tm.got {
-            fwd_rays += 1;
-            let s = f.hdr.seg;
-            *got.entry((s, f.ray.encode().to_vec())).or_default() += 1;
-            first_fwd.entry(s).or_insert(*c);
-            if let Some(bs) = bucket_seg
-                && bs != s
-            {
-                errors.push(format!(
-                    "TM {k}: a bucket of segment {bs} holds a ray of segment {s}"
-                ));
-            }
-            bucket_seg = if f.last { None } else { Some(s) };
-            if f.last {
-                lasts += 1;
-            }
-            if f.hdr.base != entries[s as usize].base {
-                errors.push(format!(
-                    "TM {k}: bucket header of segment {s} has base {:#x}, the table {:#x}",
-                    f.hdr.base, entries[s as usize].base
-                ));
-            }
-        }
-        for (c, w) in &tm.sent {
-            if w.done {
-                let e = last_marker.entry(w.seg).or_insert(0);
-                *e = (*e).max(*c);
-            } else {
-                *want.entry((w.seg, w.ray.encode().to_vec())).or_default() += 1;
-            }
-        }
-    }
-    let mut lost = 0u64;
-    let mut extra = 0u64;
-    for (k, n) in &want {
-        let g = got.get(k).copied().unwrap_or(0);
-        if g != *n {
-            if g < *n {
-                lost += 1;
-            } else {
-                extra += 1;
-            }
-            if lost + extra <= 10 {
-                errors.push(format!(
-                    "segment {} ray {}: enqueued {n} times, forwarded {g}",
-                    k.0,
-                    u32::from_le_bytes(k.1[24..28].try_into().expect("4 bytes"))
-                ));
-            }
-        }
-    }
-    for (k, g) in &got {
-        if !want.contains_key(k) {
-            extra += 1;
-            if lost + extra <= 10 {
-                errors.push(format!(
-                    "segment {}: forwarded a ray never enqueued ({g}x)",
-                    k.0
-                ));
-            }
-        }
-    }
-    if lost + extra > 0 {
-        errors.push(format!(
-            "{lost} enqueued rays lost, {extra} extra forwarded"
-        ));
-    }
-    // Order: admissions from the slot mappings.
-    let maps = &sim.unit_ref::<Sink<SlotMap>>(map_sink).got;
-    let by_base: BTreeMap<u64, u32> = entries
-        .iter()
-        .enumerate()
-        .map(|(s, e)| (e.base, s as u32))
-        .collect();
-    let mut admitted: BTreeMap<u32, u64> = BTreeMap::new();
-    let mut order = Vec::new();
-    for (c, m) in maps {
-        let Some(&s) = by_base.get(&m.base) else {
-            errors.push(format!("slot map of an unknown base {:#x}", m.base));
-            continue;
-        };
-        if admitted.insert(s, *c).is_some() {
-            errors.push(format!("segment {s} admitted twice"));
-        }
-        order.push(s);
-        if let Some(par) = parent[s as usize] {
-            match (admitted.get(&par), last_marker.get(&par)) {
-                (None, _) => errors.push(format!(
-                    "segment {s} admitted at {c} before its parent {par}"
-                )),
-                (Some(_), Some(&lm)) if lm >= *c => errors.push(format!(
-                    "segment {s} admitted at {c}, its parent {par}'s last end marker was sent at {lm}"
-                )),
-                _ => {}
-            }
-        }
-    }
-    // Siblings in increasing id.
-    let mut last_child: BTreeMap<u32, u32> = BTreeMap::new();
-    for &s in &order {
-        if let Some(par) = parent[s as usize] {
-            if let Some(&prev) = last_child.get(&par)
-                && prev > s
-            {
-                errors.push(format!(
-                    "segment {s} admitted after its higher sibling {prev}: not depth-first order"
-                ));
-            }
-            last_child.insert(par, s);
-        }
-    }
-    let with_rays: Vec<u32> = {
-        let mut v: Vec<u32> = want.keys().map(|k| k.0).collect();
-        v.dedup();
-        v
-    };
-    let adm: Vec<u32> = admitted.keys().copied().collect();
-    if adm != with_rays {
-        errors.push(format!(
-            "admitted {} segments, {} received rays",
-            adm.len(),
-            with_rays.len()
-        ));
-    }
-    for (s, &c) in &first_fwd {
-        if admitted.get(s).is_none_or(|&a| a > c) {
-            errors.push(format!(
-                "segment {s}: a ray forwarded at {c} before its admission"
-            ));
-        }
-    }
-    // Segment streams: every line of every admitted segment once.
-    let scene: Vec<_> = scene_sinks
-        .iter()
-        .flat_map(|&u| sim.unit_ref::<Sink<MemLineReq>>(u).got.iter())
-        .collect();
-    let mut lines: BTreeMap<u64, u32> = BTreeMap::new();
-    for (_, r) in &scene {
-        *lines.entry(r.addr).or_default() += 1;
-    }
-    let mut want_lines = 0u64;
-    for &s in admitted.keys() {
-        let e = &entries[s as usize];
-        let mut a = e.base / LINE_BYTES * LINE_BYTES;
-        while a < e.base + e.bytes as u64 {
-            want_lines += 1;
-            if lines.get(&a).copied().unwrap_or(0) != 1 {
-                errors.push(format!(
-                    "segment {s}: line {a:#x} streamed {} times",
-                    lines.get(&a).copied().unwrap_or(0)
-                ));
-            }
-            a += LINE_BYTES;
-        }
-    }
-    if scene.len() as u64 != want_lines {
-        errors.push(format!(
-            "{} scene lines streamed, the admitted segments have {want_lines}",
-            scene.len()
-        ));
-    }
-    let sch = sim.unit_ref::<StreamScheduler>(dut);
-    let s = sch.stats();
-    if sch.live_buckets() != 0 {
-        errors.push(format!("{} buckets never freed", sch.live_buckets()));
-    }
-    if s.buckets_written != s.buckets_read || s.buckets_read != s.buckets_forwarded {
-        errors.push(format!(
-            "buckets written {} read {} forwarded {}",
-            s.buckets_written, s.buckets_read, s.buckets_forwarded
-        ));
-    }
-    if lasts != s.buckets_forwarded {
-        errors.push(format!(
-            "{lasts} bucket ends seen by the TMs, {} forwarded",
-            s.buckets_forwarded
-        ));
-    }
-    if s.retired != admitted.len() as u64 {
-        errors.push(format!(
-            "{} segments retired of {} admitted",
-            s.retired,
-            admitted.len()
-        ));
-    }
-    if sch.dest_blocked() {
-        errors.push("the destination table blocked".into());
-    }
-    let m = sim.unit_ref::<LineMem>(memu);
-    if m.accepted.len() != m.answered.len() {
-        errors.push("a memory request was not answered".into());
-    }
-    let st = sim.unit_stats(dut);
-    let mut rep = TbReport {
+    Ok((rays, end))
+}
+
+fn report(
+    bench: &Bench,
+    t: &Traffic,
+    nseg: usize,
+    scene_lines: u64,
+    admitted: u64,
+    end: u64,
+    errors: Vec<String>,
+) -> TbReport {
+    let s = bench.sim.unit_ref::<StreamScheduler>(bench.dut).stats();
+    let st = bench.sim.unit_stats(bench.dut);
+    TbReport {
         unit: "stream_scheduler",
-        requests: want.values().map(|&n| n as u64).sum(),
-        results: fwd_rays,
+        requests: t.want.values().map(|&n| n as u64).sum(),
+        results: t.fwd_rays,
         cycles: end,
         min_latency: 0,
         max_latency: 0,
@@ -684,20 +563,14 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
         vcd_bytes: 0,
         status_cycles: st.status_cycles,
         counters: vec![
-            ("segments_admitted", admitted.len() as u64),
+            ("segments_admitted", admitted),
             ("segments", nseg as u64),
             ("retired", s.retired),
             ("skipped_children", s.skipped_children),
             ("buckets_forwarded", s.buckets_forwarded),
             ("rays_forwarded", s.rays_forwarded),
-            ("scene_lines", scene.len() as u64),
+            ("scene_lines", scene_lines),
             ("same_segment_picks", s.same_segment_picks),
         ],
-    };
-    if let Some(r) = sim.finish_trace() {
-        let s = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
-        rep.vcd_changes = s.changes;
-        rep.vcd_bytes = s.bytes;
     }
-    Ok(rep)
 }

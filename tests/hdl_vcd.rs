@@ -174,7 +174,7 @@ fn vcd_scopes_equal_verilog_modules_and_read_back() {
         );
         assert!(changes > 100);
         let traced = &scopes[&format!("tb.{name}")];
-        let decl = decls.iter().find(|d| d.module == *name).unwrap();
+        let decl = decls.iter().find(|d| d.module == name).unwrap();
         let module = dualstream::rtl::verilog::emit_module(decl);
         let verilog = verilog_signals(&module);
         let traced: BTreeMap<String, u32> = traced.clone();

@@ -51,73 +51,111 @@ fn data_window(c: &Command, t: &TimingCfg, burst: u64) -> Option<(u64, u64)> {
     Some((c.cycle + lat, c.cycle + lat + burst))
 }
 
-/// Checks a channel's command log (in issue order). Returns one message per
-/// violation; `end` is the cycle the run ended (for the refresh-rate rule).
-pub fn check(cmds: &[Command], t: &TimingCfg, g: &GeometryCfg, end: u64) -> Vec<String> {
-    let burst = (g.burst_length / g.transfers_per_ck) as u64;
-    let window = [
-        t.rc, t.rfc, t.ras, t.faw, t.t32aw, t.cl, t.cwl, t.rcd_rd, t.rcd_wr,
-    ]
-    .iter()
-    .map(|&x| x as u64)
-    .max()
-    .unwrap_or(0)
-        + t.wr as u64
-        + t.wtr_l as u64
-        + burst
-        + t.cl as u64
-        + 8;
-    let mut out = Vec::new();
-    let mut recent: VecDeque<Command> = VecDeque::new();
-    let mut open: Vec<Option<u32>> = vec![None; g.banks() as usize];
-    let mut acts: VecDeque<u64> = VecDeque::new();
-    let mut refs: Vec<u64> = Vec::new();
-    let mut last_cycle: Option<u64> = None;
-    let say = |out: &mut Vec<String>, c: &Command, what: String| {
-        if out.len() < 1000 {
-            out.push(format!(
-                "cycle {} {:?} bank {} (group {}) row {}: {what}",
-                c.cycle, c.kind, c.bank, c.bank_group, c.row
-            ));
+/// Records a violation by command `c` (the first 1000).
+fn say(out: &mut Vec<String>, c: &Command, what: String) {
+    if out.len() < 1000 {
+        out.push(format!(
+            "cycle {} {:?} bank {} (group {}) row {}: {what}",
+            c.cycle, c.kind, c.bank, c.bank_group, c.row
+        ));
+    }
+}
+
+/// What the checker remembers while it reads a log.
+struct Checker<'a> {
+    t: &'a TimingCfg,
+    g: &'a GeometryCfg,
+    burst: u64,
+    /// How far back a pairwise rule can reach (cycles).
+    window: u64,
+    out: Vec<String>,
+    /// The commands within `window` of the current one.
+    recent: VecDeque<Command>,
+    /// Per bank: the open row.
+    open: Vec<Option<u32>>,
+    /// The last 33 ACTs' cycles, and every REF's.
+    acts: VecDeque<u64>,
+    refs: Vec<u64>,
+    last_cycle: Option<u64>,
+}
+
+impl<'a> Checker<'a> {
+    fn new(t: &'a TimingCfg, g: &'a GeometryCfg) -> Self {
+        let burst = (g.burst_length / g.transfers_per_ck) as u64;
+        let window = [
+            t.rc, t.rfc, t.ras, t.faw, t.t32aw, t.cl, t.cwl, t.rcd_rd, t.rcd_wr,
+        ]
+        .iter()
+        .map(|&x| x as u64)
+        .max()
+        .unwrap_or(0)
+            + t.wr as u64
+            + t.wtr_l as u64
+            + burst
+            + t.cl as u64
+            + 8;
+        Checker {
+            t,
+            g,
+            burst,
+            window,
+            out: Vec::new(),
+            recent: VecDeque::new(),
+            open: vec![None; g.banks() as usize],
+            acts: VecDeque::new(),
+            refs: Vec::new(),
+            last_cycle: None,
         }
-    };
-    for c in cmds {
-        if let Some(l) = last_cycle {
+    }
+
+    /// One command bus: one command per cycle, in time order.
+    fn bus_order(&mut self, c: &Command) {
+        if let Some(l) = self.last_cycle {
             if c.cycle == l {
                 say(
-                    &mut out,
+                    &mut self.out,
                     c,
                     "two commands in one cycle (one command bus)".into(),
                 );
             } else if c.cycle < l {
-                say(&mut out, c, "log is not in time order".into());
+                say(&mut self.out, c, "log is not in time order".into());
             }
         }
-        last_cycle = Some(c.cycle);
+        self.last_cycle = Some(c.cycle);
+    }
+
+    /// Bank, bank group, row and column within the geometry.
+    fn in_range(&mut self, c: &Command) {
+        let g = self.g;
         if c.bank >= g.banks()
             || c.bank_group != c.bank / g.banks_per_group
             || c.row >= g.rows
             || c.column >= g.columns
         {
             say(
-                &mut out,
+                &mut self.out,
                 c,
                 "bank, group, row or column out of range".into(),
             );
         }
-        // Bank state machine.
+    }
+
+    /// The bank state machine: ACT to a closed bank, column commands to the
+    /// open row, PRE to an open bank, REF with every bank closed.
+    fn bank_state(&mut self, c: &Command) {
+        let (out, open) = (&mut self.out, &mut self.open);
         let b = (c.bank as usize).min(open.len() - 1);
         match c.kind {
             DramCmd::Act => {
                 if open[b].is_some() {
-                    say(&mut out, c, "ACT to a bank that is already open".into());
+                    say(out, c, "ACT to a bank that is already open".into());
                 }
                 open[b] = Some(c.row);
             }
             DramCmd::Rd | DramCmd::Wr => {
                 if open[b] != Some(c.row) {
                     say(
-                        &mut out,
+                        out,
                         c,
                         format!("column command but the bank has row {:?} open", open[b]),
                     );
@@ -125,28 +163,36 @@ pub fn check(cmds: &[Command], t: &TimingCfg, g: &GeometryCfg, end: u64) -> Vec<
             }
             DramCmd::Pre => {
                 if open[b].is_none() {
-                    say(&mut out, c, "PRE to a closed bank".into());
+                    say(out, c, "PRE to a closed bank".into());
                 }
                 open[b] = None;
             }
             DramCmd::Ref => {
                 if open.iter().any(|o| o.is_some()) {
-                    say(&mut out, c, "REF while a bank is open".into());
+                    say(out, c, "REF while a bank is open".into());
                 }
-                refs.push(c.cycle);
+                self.refs.push(c.cycle);
             }
             DramCmd::Nop => {}
         }
-        // Pairwise rules and data-bus overlap against recent commands.
-        while recent.front().is_some_and(|p| p.cycle + window < c.cycle) {
-            recent.pop_front();
+    }
+
+    /// Pairwise rules and data-bus overlap against the recent commands.
+    fn pair_rules(&mut self, c: &Command) {
+        let (t, burst) = (self.t, self.burst);
+        while self
+            .recent
+            .front()
+            .is_some_and(|p| p.cycle + self.window < c.cycle)
+        {
+            self.recent.pop_front();
         }
-        for p in &recent {
+        for p in &self.recent {
             if let Some((gap, name)) = pair_rule(p, c, t, burst)
                 && c.cycle < p.cycle + gap
             {
                 say(
-                    &mut out,
+                    &mut self.out,
                     c,
                     format!(
                         "{name}: {} cycles after {:?} at {} (bank {}), needs {gap}",
@@ -163,61 +209,85 @@ pub fn check(cmds: &[Command], t: &TimingCfg, g: &GeometryCfg, end: u64) -> Vec<
                 && s1 < e0
             {
                 say(
-                    &mut out,
+                    &mut self.out,
                     c,
                     format!("data bus overlap with {:?} at {}", p.kind, p.cycle),
                 );
             }
         }
-        recent.push_back(*c);
-        // Activate windows.
-        if c.kind == DramCmd::Act {
-            acts.push_back(c.cycle);
-            if t.faw > 0 && acts.len() >= 5 {
-                let w = acts[acts.len() - 5];
-                if c.cycle < w + t.faw as u64 {
-                    say(
-                        &mut out,
-                        c,
-                        format!("fifth ACT within tFAW of the ACT at {w}"),
-                    );
-                }
-            }
-            if t.t32aw > 0 && acts.len() >= 33 {
-                let w = acts[acts.len() - 33];
-                if c.cycle < w + t.t32aw as u64 {
-                    say(
-                        &mut out,
-                        c,
-                        format!("33rd ACT within t32AW of the ACT at {w}"),
-                    );
-                }
-            }
-            if acts.len() > 33 {
-                acts.pop_front();
+        self.recent.push_back(*c);
+    }
+
+    /// The activate windows: at most four ACTs in tFAW, 32 in t32AW.
+    fn activate_windows(&mut self, c: &Command) {
+        if c.kind != DramCmd::Act {
+            return;
+        }
+        let (t, acts) = (self.t, &mut self.acts);
+        acts.push_back(c.cycle);
+        if t.faw > 0 && acts.len() >= 5 {
+            let w = acts[acts.len() - 5];
+            if c.cycle < w + t.faw as u64 {
+                say(
+                    &mut self.out,
+                    c,
+                    format!("fifth ACT within tFAW of the ACT at {w}"),
+                );
             }
         }
+        if t.t32aw > 0 && acts.len() >= 33 {
+            let w = acts[acts.len() - 33];
+            if c.cycle < w + t.t32aw as u64 {
+                say(
+                    &mut self.out,
+                    c,
+                    format!("33rd ACT within t32AW of the ACT at {w}"),
+                );
+            }
+        }
+        if acts.len() > 33 {
+            acts.pop_front();
+        }
     }
-    // Refresh rate: JEDEC lets a controller postpone up to 8 refreshes.
-    let refi = t.refi as u64;
-    let owed = (end / refi).saturating_sub(8);
-    if (refs.len() as u64) < owed {
-        out.push(format!(
-            "only {} REF commands in {end} cycles; at least {owed} are needed (tREFI {refi}, 8 may be postponed)",
-            refs.len()
-        ));
-    }
-    let mut prev = 0;
-    for &r in &refs {
-        if r - prev > 9 * refi {
+
+    /// Refresh rate over a run ending at `end`: JEDEC lets a controller
+    /// postpone up to 8 refreshes.
+    fn refresh_rate(&mut self, end: u64) {
+        let (refs, out) = (&self.refs, &mut self.out);
+        let refi = self.t.refi as u64;
+        let owed = (end / refi).saturating_sub(8);
+        if (refs.len() as u64) < owed {
             out.push(format!(
-                "REF at {r} is {} cycles after the previous one (more than 9 x tREFI)",
-                r - prev
+                "only {} REF commands in {end} cycles; at least {owed} are needed (tREFI {refi}, 8 may be postponed)",
+                refs.len()
             ));
         }
-        prev = r;
+        let mut prev = 0;
+        for &r in refs {
+            if r - prev > 9 * refi {
+                out.push(format!(
+                    "REF at {r} is {} cycles after the previous one (more than 9 x tREFI)",
+                    r - prev
+                ));
+            }
+            prev = r;
+        }
     }
-    out
+}
+
+/// Checks a channel's command log (in issue order). Returns one message per
+/// violation; `end` is the cycle the run ended (for the refresh-rate rule).
+pub fn check(cmds: &[Command], t: &TimingCfg, g: &GeometryCfg, end: u64) -> Vec<String> {
+    let mut k = Checker::new(t, g);
+    for c in cmds {
+        k.bus_order(c);
+        k.in_range(c);
+        k.bank_state(c);
+        k.pair_rules(c);
+        k.activate_windows(c);
+    }
+    k.refresh_rate(end);
+    k.out
 }
 
 #[cfg(test)]
@@ -269,5 +339,58 @@ mod tests {
         // No refresh over a long run.
         let v = check(&[], t, g, 100 * t.refi as u64);
         assert!(v[0].contains("REF commands"));
+    }
+
+    #[test]
+    fn catches_bus_order_range_bank_state_data_bus_t32aw_and_refresh_gaps() {
+        let m = MemCfg::paper();
+        let (t, g) = (&m.timing, &m.geometry);
+        use DramCmd::*;
+        let first = |cmds: &[Command]| check(cmds, t, g, 100).first().cloned();
+        let has = |cmds: &[Command], what: &str| first(cmds).is_some_and(|v| v.contains(what));
+        assert!(has(
+            &[cmd(0, Act, 0, 5), cmd(0, Act, 4, 5)],
+            "two commands in one cycle"
+        ));
+        assert!(has(
+            &[cmd(100, Act, 0, 5), cmd(5, Pre, 8, 5)],
+            "log is not in time order"
+        ));
+        assert!(has(&[cmd(0, Act, 16, 5)], "out of range"));
+        assert!(has(&[cmd(0, Pre, 0, 5)], "PRE to a closed bank"));
+        let v = check(&[cmd(0, Act, 0, 5), cmd(100, Act, 0, 6)], t, g, 100);
+        assert!(v.iter().any(|x| x.contains("already open")), "{v:?}");
+        // Two reads in different bank groups one cycle apart: their bursts overlap.
+        let rd = [
+            cmd(0, Act, 0, 5),
+            cmd(10, Act, 4, 5),
+            cmd(40, Rd, 0, 5),
+            cmd(41, Rd, 4, 5),
+        ];
+        let v = check(&rd, t, g, 100);
+        assert!(v.iter().any(|x| x.contains("data bus overlap")), "{v:?}");
+        // 33 ACTs 10 apart (tRRD and tFAW kept), each bank precharged 85 cycles
+        // after its ACT: only t32AW is broken, by the 33rd.
+        let mut acts: Vec<Command> = (0..33u64)
+            .map(|i| cmd(10 * i, Act, (i % 16) as u32, 1))
+            .collect();
+        acts.extend((0..25u64).map(|j| cmd(10 * j + 85, Pre, (j % 16) as u32, 1)));
+        acts.sort_by_key(|c| c.cycle);
+        let v = check(&acts, t, g, 100);
+        assert!(
+            v.len() == 1 && v[0].contains("33rd ACT within t32AW"),
+            "{v:?}"
+        );
+        let refi = t.refi as u64;
+        let v = check(
+            &[cmd(10, Ref, 0, 0), cmd(10 + 10 * refi, Ref, 0, 0)],
+            t,
+            g,
+            100,
+        );
+        assert!(
+            v.len() == 1 && v[0].contains("more than 9 x tREFI"),
+            "{v:?}"
+        );
     }
 }

@@ -28,6 +28,17 @@ pub(crate) fn load_into(
     xform: &Xform,
     albedo: Option<Vec3>,
 ) -> Result<usize, String> {
+    let geometry = read_geometry(path)?;
+    let (models, mats) = parse(b, path, &geometry)?;
+    let mat_ids = scene_materials(b, path, &mats, albedo)?;
+    let tris = triangles(b, path, &models, &mat_ids, albedo)?;
+    let n = tris.len();
+    place(b, path, xform, tris)?;
+    Ok(n)
+}
+
+/// The file as text with its `vt`/`vn` lines blanked.
+fn read_geometry(path: &Path) -> Result<String, String> {
     let shown = path.display();
     let bytes = std::fs::read(path).map_err(|e| {
         format!("cannot open OBJ file '{shown}' ({e}); check the path (paths in a scene file are relative to that file)")
@@ -41,15 +52,24 @@ pub(crate) fn load_into(
     // tobj indexes texture coordinates and normals without overflow checks (a
     // bad `vt`/`vn` index panics in debug builds) and the model uses neither,
     // so those lines are blanked (kept as empty lines: numbering unchanged).
-    let geometry: String = text
+    Ok(text
         .lines()
         .map(|l| match l.split_whitespace().next() {
             Some("vt" | "vn") => "",
             _ => l,
         })
         .collect::<Vec<_>>()
-        .join("\n");
-    drop(text);
+        .join("\n"))
+}
+
+/// tobj's models and the materials of the libraries it could read (a warning
+/// names each library it could not).
+fn parse(
+    b: &mut Builder,
+    path: &Path,
+    geometry: &str,
+) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), String> {
+    let shown = path.display();
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     // Which material libraries the file asked for, whether they loaded, and
     // syntax errors in them (tobj panics on a short `Kd` line, so they are
@@ -89,13 +109,22 @@ pub(crate) fn load_into(
             ));
         }
     }
+    Ok((models, mats))
+}
 
-    // Scene material index for each tobj material (the libraries in order, as
-    // tobj numbers them).
+/// Scene material index for each tobj material (the libraries in order, as
+/// tobj numbers them).
+fn scene_materials(
+    b: &mut Builder,
+    path: &Path,
+    mats: &[tobj::Material],
+    albedo: Option<Vec3>,
+) -> Result<Vec<u32>, String> {
+    let shown = path.display();
     // Materials are created on first use (Builder::material deduplicates).
     let grey = Vec3::splat(DEFAULT_ALBEDO);
     let mut mat_ids = Vec::with_capacity(mats.len());
-    for m in &mats {
+    for m in mats {
         let id = match (albedo, m.diffuse) {
             (Some(a), _) => b.material(a),
             (None, Some(kd)) => {
@@ -132,11 +161,23 @@ pub(crate) fn load_into(
         }
         mat_ids.push(id);
     }
-    let fallback = albedo.unwrap_or(grey);
+    Ok(mat_ids)
+}
 
+/// Every face as a triangle with its scene material (`albedo`, else grey, for
+/// faces without one from an .mtl).
+fn triangles(
+    b: &mut Builder,
+    path: &Path,
+    models: &[tobj::Model],
+    mat_ids: &[u32],
+    albedo: Option<Vec3>,
+) -> Result<Vec<(Triangle, u32)>, String> {
+    let shown = path.display();
+    let fallback = albedo.unwrap_or(Vec3::splat(DEFAULT_ALBEDO));
     let mut tris = Vec::new();
     let mut no_material = 0usize;
-    for model in &models {
+    for model in models {
         let mesh = &model.mesh;
         if mesh.positions.iter().any(|c| !c.is_finite()) {
             return Err(non_finite_vertex(path));
@@ -172,7 +213,18 @@ pub(crate) fn load_into(
             "{shown}: scene has no triangles (the file has no `f` faces with 3 or more vertices); check that it is a mesh OBJ"
         ));
     }
-    let n = tris.len();
+    Ok(tris)
+}
+
+/// Moves the triangles to world space by `xform`, checks they stay within the
+/// datapath's range and adds them to `b`.
+fn place(
+    b: &mut Builder,
+    path: &Path,
+    xform: &Xform,
+    tris: Vec<(Triangle, u32)>,
+) -> Result<(), String> {
+    let shown = path.display();
     let mut only: Vec<Triangle> = tris.iter().map(|t| t.0).collect();
     xform.apply(&mut only);
     if only
@@ -190,7 +242,7 @@ pub(crate) fn load_into(
         &shown.to_string(),
         only.into_iter().zip(tris.into_iter().map(|t| t.1)),
     );
-    Ok(n)
+    Ok(())
 }
 
 /// A bare .obj: the mesh plus a camera and light that frame it.

@@ -124,6 +124,21 @@ pub struct L1Scratch {
     bank_busy: Vec<bool>,
 }
 
+/// What one evaluation did, for its status and its next evaluation.
+#[derive(Clone, Copy, Debug, Default)]
+struct Outcome {
+    worked: bool,
+    /// A request could not be served (bank, slot, MSHRs): try again next cycle.
+    waiting: bool,
+    /// Only an output is full; the pop that frees it wakes us, so we sleep
+    /// meanwhile (re-offering changes nothing).
+    blocked: bool,
+    /// An input popped this cycle holds another entry (only a push wakes us).
+    more: bool,
+    /// The earliest hit still in the data array.
+    next_due: Option<u64>,
+}
+
 /// Event counters.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct L1Stats {
@@ -192,62 +207,55 @@ impl L1 {
         let per_bank = div(self.lines(), banks);
         (rem(i, banks) * per_bank + rem(div(i, banks), per_bank)) as u32
     }
-}
 
-impl Logic for L1 {
-    fn eval(&mut self, ctx: &mut Ctx) -> Next {
-        let c = ctx.cycle();
+    /// The miss registers and response slots as working copies for this
+    /// evaluation (written back by `end_cycle`).
+    fn begin_cycle(&mut self) -> L1Scratch {
         let n = self.req.len();
-        let mut worked = false;
-        // `waiting`: a request could not be served (bank, slot, MSHRs): try again
-        // next cycle. `blocked`: only an output is full; the pop that frees it wakes
-        // us, so we sleep meanwhile (re-offering changes nothing).
-        let mut waiting = false;
-        let mut blocked = false;
-        // An input popped this cycle holds another entry (only a push wakes us).
-        let mut more = false;
-        let L1Scratch {
-            mut mshr,
-            mut mshr_dirty,
-            mut pend,
-            mut bank_busy,
-        } = std::mem::take(&mut self.scratch);
-        mshr.clear();
-        mshr.extend((0..self.mshr_count).map(|k| self.mshr.read(k).clone()));
-        mshr_dirty.clear();
-        mshr_dirty.resize(mshr.len(), false);
-        pend.clear();
-        pend.resize(n, None);
-        // 1. A line from the miss port: fill its slot, answer its waiters now.
-        let mut filled: Option<L1Resp> = None;
-        if let Some(f) = ctx.peek(&self.miss_resp).cloned() {
-            let k = mshr.iter().position(|m| m.valid && m.addr == f.addr);
-            let k = k.expect("a line comes back only for a miss register");
-            let ok =
-                (0..n).all(|p| mshr[k].waiters & (1 << p) == 0 || ctx.can_push(&self.resp.at(p)));
-            if ok {
-                ctx.pop(&self.miss_resp);
-                more |= ctx.holds_more(&self.miss_resp);
-                let slot = self.slot_of(f.addr);
-                self.tags.write(slot, f.addr + 1);
-                self.data.write(slot, f.line.clone());
-                for p in 0..n {
-                    if mshr[k].waiters & (1 << p) != 0 {
-                        ctx.push(&self.resp.at(p), f.clone());
-                    }
-                }
-                mshr[k] = Mshr::default();
-                mshr_dirty[k] = true;
-                self.stats.fills += 1;
-                filled = Some(f);
-                worked = true;
-            } else {
-                blocked = true;
+        let mut s = std::mem::take(&mut self.scratch);
+        s.mshr.clear();
+        s.mshr
+            .extend((0..self.mshr_count).map(|k| self.mshr.read(k).clone()));
+        s.mshr_dirty.clear();
+        s.mshr_dirty.resize(s.mshr.len(), false);
+        s.pend.clear();
+        s.pend.resize(n, None);
+        s
+    }
+
+    /// A line from the miss port: fill its slot, answer its waiters now.
+    fn accept_fill(&mut self, ctx: &mut Ctx, s: &mut L1Scratch, o: &mut Outcome) -> Option<L1Resp> {
+        let n = self.req.len();
+        let mshr = &mut s.mshr;
+        let f = ctx.peek(&self.miss_resp).cloned()?;
+        let k = mshr.iter().position(|m| m.valid && m.addr == f.addr);
+        let k = k.expect("a line comes back only for a miss register");
+        let ok = (0..n).all(|p| mshr[k].waiters & (1 << p) == 0 || ctx.can_push(&self.resp.at(p)));
+        if !ok {
+            o.blocked = true;
+            return None;
+        }
+        ctx.pop(&self.miss_resp);
+        o.more |= ctx.holds_more(&self.miss_resp);
+        let slot = self.slot_of(f.addr);
+        self.tags.write(slot, f.addr + 1);
+        self.data.write(slot, f.line.clone());
+        for p in 0..n {
+            if mshr[k].waiters & (1 << p) != 0 {
+                ctx.push(&self.resp.at(p), f.clone());
             }
         }
-        // 2. Hits whose data array access is done.
-        let mut next_due: Option<u64> = None;
-        for (p, slot) in pend.iter_mut().enumerate() {
+        mshr[k] = Mshr::default();
+        s.mshr_dirty[k] = true;
+        self.stats.fills += 1;
+        o.worked = true;
+        Some(f)
+    }
+
+    /// Hits whose data array access is done leave on their port.
+    fn answer_hits(&mut self, ctx: &mut Ctx, s: &mut L1Scratch, o: &mut Outcome) {
+        let c = ctx.cycle();
+        for (p, slot) in s.pend.iter_mut().enumerate() {
             let e = *self.pending.read(p as u32);
             if !e.valid {
                 continue;
@@ -259,15 +267,28 @@ impl Logic for L1 {
                 };
                 if ctx.offer(&self.resp.at(p), r) {
                     *slot = Some(Pending::default());
-                    worked = true;
+                    o.worked = true;
                 } else {
-                    blocked = true;
+                    o.blocked = true;
                 }
             } else {
-                next_due = Some(next_due.map_or(e.due, |d: u64| d.min(e.due)));
+                o.next_due = Some(o.next_due.map_or(e.due, |d: u64| d.min(e.due)));
             }
         }
-        // 3. Requests: one per bank per cycle, round-robin from TP `c mod n`.
+    }
+
+    /// TP requests: one per bank per cycle, round-robin from TP `c mod n`; a hit
+    /// enters the data array, a miss takes or joins a miss register.
+    fn accept_requests(
+        &mut self,
+        ctx: &mut Ctx,
+        s: &mut L1Scratch,
+        o: &mut Outcome,
+        filled: &Option<L1Resp>,
+    ) {
+        let c = ctx.cycle();
+        let n = self.req.len();
+        let (mshr, bank_busy) = (&mut s.mshr, &mut s.bank_busy);
         bank_busy.clear();
         bank_busy.resize(self.banks as usize, false);
         let start = ctx.round_robin_start(n);
@@ -285,14 +306,14 @@ impl Logic for L1 {
             };
             let b = self.bank_of(r.addr) as usize;
             // A port has one response slot; a TP has one load outstanding anyway.
-            let slot_busy = self.pending.read(p as u32).valid && pend[p].is_none();
+            let slot_busy = self.pending.read(p as u32).valid && s.pend[p].is_none();
             if bank_busy[b] || slot_busy {
                 self.stats.bank_conflicts += bank_busy[b] as u64;
-                waiting = true;
+                o.waiting = true;
                 continue;
             }
             let slot = self.slot_of(r.addr);
-            let hit_line = match &filled {
+            let hit_line = match filled {
                 Some(f) if f.addr == r.addr => Some(f.line.clone()),
                 _ if *self.tags.read(slot) == r.addr + 1 => Some(self.data.read(slot).clone()),
                 _ => None,
@@ -301,19 +322,19 @@ impl Logic for L1 {
                 Some(line) => {
                     bank_busy[b] = true;
                     ctx.pop(&self.req.at(p));
-                    more |= ctx.holds_more(&self.req.at(p));
+                    o.more |= ctx.holds_more(&self.req.at(p));
                     self.stats.hits += 1;
                     let due = c + (self.hit_latency - self.out_delay) as u64;
                     if due == c {
                         ctx.push(&self.resp.at(p), L1Resp { addr: r.addr, line });
                     } else {
-                        pend[p] = Some(Pending {
+                        s.pend[p] = Some(Pending {
                             valid: true,
                             due,
                             addr: r.addr,
                         });
                         self.pending_line.write(p as u32, line);
-                        next_due = Some(next_due.map_or(due, |d| d.min(due)));
+                        o.next_due = Some(o.next_due.map_or(due, |d| d.min(due)));
                     }
                 }
                 None => {
@@ -321,12 +342,12 @@ impl Logic for L1 {
                     let k = same.or_else(|| mshr.iter().position(|m| !m.valid));
                     let Some(k) = k else {
                         self.stats.mshr_stalls += 1;
-                        waiting = true;
+                        o.waiting = true;
                         continue;
                     };
                     bank_busy[b] = true;
                     ctx.pop(&self.req.at(p));
-                    more |= ctx.holds_more(&self.req.at(p));
+                    o.more |= ctx.holds_more(&self.req.at(p));
                     self.stats.misses += 1;
                     if same.is_some() {
                         self.stats.merged += 1;
@@ -342,16 +363,20 @@ impl Logic for L1 {
                         };
                     }
                     mshr[k].waiters |= 1 << p;
-                    mshr_dirty[k] = true;
+                    s.mshr_dirty[k] = true;
                 }
             }
             self.stats.accesses += 1;
             if let Some(log) = &mut self.log {
                 log.push((p as u16, r.addr));
             }
-            worked = true;
+            o.worked = true;
         }
-        // 4. The oldest unsent miss leaves on the miss port.
+    }
+
+    /// The oldest unsent miss leaves on the miss port.
+    fn issue_miss(&mut self, ctx: &mut Ctx, s: &mut L1Scratch, o: &mut Outcome) {
+        let mshr = &mut s.mshr;
         let oldest = mshr
             .iter()
             .enumerate()
@@ -362,50 +387,68 @@ impl Logic for L1 {
             if ctx.can_push(&self.miss_req) {
                 ctx.push(&self.miss_req, L1Req { addr: mshr[k].addr });
                 mshr[k].sent = true;
-                mshr_dirty[k] = true;
-                worked = true;
+                s.mshr_dirty[k] = true;
+                o.worked = true;
             } else {
-                blocked = true;
+                o.blocked = true;
             }
         }
-        let unsent = mshr.iter().any(|m| m.valid && !m.sent);
-        for (k, m) in mshr.drain(..).enumerate() {
-            if mshr_dirty[k] {
+    }
+
+    /// Writes the changed miss registers and response slots back; returns
+    /// whether a miss is still waiting to be sent.
+    fn end_cycle(&mut self, mut s: L1Scratch) -> bool {
+        let unsent = s.mshr.iter().any(|m| m.valid && !m.sent);
+        for (k, m) in s.mshr.drain(..).enumerate() {
+            if s.mshr_dirty[k] {
                 self.mshr.write(k as u32, m);
             }
         }
-        for (p, e) in pend.drain(..).enumerate() {
+        for (p, e) in s.pend.drain(..).enumerate() {
             if let Some(e) = e {
                 self.pending.write(p as u32, e);
             }
         }
-        self.scratch = L1Scratch {
-            mshr,
-            mshr_dirty,
-            pend,
-            bank_busy,
-        };
-        ctx.set_status(if worked {
+        self.scratch = s;
+        unsent
+    }
+
+    /// The evaluation's status and when the L1 must be evaluated next.
+    fn settle(&self, ctx: &mut Ctx, o: &Outcome, unsent: bool) -> Next {
+        ctx.set_status(if o.worked {
             Status::Busy
-        } else if waiting || blocked {
+        } else if o.waiting || o.blocked {
             Status::ResourceBusy
         } else {
             Status::WaitInput
         });
-        if worked && !waiting && !blocked && !more && !unsent {
+        if o.worked && !o.waiting && !o.blocked && !o.more && !unsent {
             // Everything visible was served and nothing is left to send: the next
             // cycle would find nothing to do but wait for the hits in the data
             // array, a push or a line. Sleep till the first hit is due, waiting for
             // input from the next cycle on.
             ctx.set_status_from_next(Status::WaitInput);
-            next_due.map_or(Next::Idle, Next::AtCycle)
-        } else if worked || waiting {
+            o.next_due.map_or(Next::Idle, Next::AtCycle)
+        } else if o.worked || o.waiting {
             Next::Cycle
-        } else if let Some(d) = next_due {
+        } else if let Some(d) = o.next_due {
             Next::AtCycle(d)
         } else {
             Next::Idle
         }
+    }
+}
+
+impl Logic for L1 {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let mut o = Outcome::default();
+        let mut s = self.begin_cycle();
+        let filled = self.accept_fill(ctx, &mut s, &mut o);
+        self.answer_hits(ctx, &mut s, &mut o);
+        self.accept_requests(ctx, &mut s, &mut o, &filled);
+        self.issue_miss(ctx, &mut s, &mut o);
+        let unsent = self.end_cycle(s);
+        self.settle(ctx, &o, unsent)
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {

@@ -45,12 +45,10 @@
 //!   then answers on `flush_done`. The chip flushes after every run so the host
 //!   reads DRAM; it invalidates when the host may write DRAM between runs.
 
-use std::collections::{BTreeSet, HashMap, VecDeque};
-use std::hash::{BuildHasherDefault, Hasher};
+use std::collections::VecDeque;
 
 use crate::mem::StreamTag;
-use crate::rtl::decl::{Samples, StateDecl, StateList};
-use crate::rtl::model::{Behavioural, Model};
+use crate::rtl::model::Model;
 use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
 use crate::util::{div, rem};
 
@@ -174,31 +172,16 @@ impl L2Cfg {
     }
 }
 
+mod state;
+use state::free_bits;
+pub use state::{L2Mshr, L2State, L2Tag, LineHasher};
+
 crate::payload_struct! {
     /// A flush request (and its answer on `flush_done`).
     pub struct L2Flush {
         /// Also invalidate every line (the host will write DRAM).
         pub invalidate: bool,
     }
-}
-
-/// One cache line's tag state.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct L2Tag {
-    /// Line address + 1; 0 = invalid.
-    pub tag: u64,
-    pub dirty: bool,
-    /// Last use (LRU).
-    pub stamp: u64,
-    /// Stream tag of the last write (for the writeback's DRAM statistics).
-    pub mtag: StreamTag,
-}
-
-/// A miss register's targets (client, cycle accepted, request); its line is
-/// its key in `L2State::mshr_index`.
-#[derive(Clone, Debug)]
-pub struct L2Mshr {
-    pub targets: Vec<(u16, u64, MemLineReq)>,
 }
 
 /// An entry of the serialisation log (`L2::enable_log`): the access as applied
@@ -208,108 +191,6 @@ pub struct L2Applied {
     pub port: u16,
     pub accepted: u64,
     pub req: MemLineReq,
-}
-
-#[derive(Clone, Debug, Default)]
-pub struct L2State {
-    /// Indexed by slot = set * ways + way.
-    pub tags: Vec<L2Tag>,
-    pub data: Vec<Line>,
-    pub mshrs: Vec<Option<L2Mshr>>,
-    /// The live MSHRs by line address (the MSHRs' address CAM), and a bit per
-    /// free one (bit k of word k / 64): while the MSHRs are full every waiting
-    /// client retries every cycle, and two scans of the MSHRs per client (is the
-    /// line missing already, which one is free) were half of a shading window's
-    /// time at the paper's size.
-    pub mshr_index: HashMap<u64, u32, BuildHasherDefault<LineHasher>>,
-    pub mshr_free: Vec<u64>,
-    /// Requests towards the memory, in order.
-    pub out_q: VecDeque<MemLineReq>,
-    /// Lines with a request at the memory.
-    pub mem_busy: BTreeSet<u64>,
-    /// Writebacks in `out_q` (the writeback buffer's fill).
-    pub wb_queued: u32,
-    /// Per client: answers in order, with the cycle they may leave.
-    pub resp_q: Vec<VecDeque<(u64, MemLineResp)>>,
-    /// Bit k (of word k / 64) set while `resp_q[k]` holds an answer: the
-    /// answer stage looks at those clients only, not at every client's queue.
-    pub answering: Vec<u64>,
-    /// Per client: requests accepted and not yet answered.
-    pub outstanding: Vec<u32>,
-    /// Dirty slots (the flush's priority encoder).
-    pub dirty: BTreeSet<u32>,
-    pub flushing: Option<bool>,
-    pub stamp: u64,
-}
-
-impl L2State {
-    fn mshr_of(&self, addr: u64) -> Option<usize> {
-        self.mshr_index.get(&addr).map(|&k| k as usize)
-    }
-    pub fn live_mshrs(&self) -> usize {
-        self.mshr_index.len()
-    }
-    /// The lowest free MSHR.
-    fn free_mshr(&self) -> Option<usize> {
-        let w = self.mshr_free.iter().position(|&w| w != 0)?;
-        Some(w * 64 + self.mshr_free[w].trailing_zeros() as usize)
-    }
-    /// MSHR `k` takes the miss of `addr` (its register, index entry and free
-    /// bit change together).
-    fn take_mshr(&mut self, k: usize, addr: u64, m: L2Mshr) {
-        debug_assert!(self.mshrs[k].is_none(), "MSHR {k} is free");
-        self.mshrs[k] = Some(m);
-        self.mshr_index.insert(addr, k as u32);
-        self.mshr_free[k / 64] &= !(1 << (k % 64));
-    }
-    /// Frees MSHR `k`, the miss of `addr`, and returns it.
-    fn release_mshr(&mut self, k: usize, addr: u64) -> L2Mshr {
-        self.mshr_index.remove(&addr);
-        self.mshr_free[k / 64] |= 1 << (k % 64);
-        self.mshrs[k].take().expect("live")
-    }
-    /// Nothing held: no miss, no memory request, no answer, no flush.
-    pub fn idle(&self) -> bool {
-        self.live_mshrs() == 0
-            && self.out_q.is_empty()
-            && self.mem_busy.is_empty()
-            && self.resp_q.iter().all(|q| q.is_empty())
-            && self.flushing.is_none()
-    }
-}
-
-impl Behavioural for L2State {
-    fn declare(&self, out: &mut StateList) {
-        // The tag, LRU and data SRAMs (8192 lines at the defaults) are memory
-        // macros, left out of the skeleton like the scene buffer's data: as
-        // reset register arrays they would swamp the lint tools.
-        out.items
-            .push(StateDecl::array("mshr_addr", 64, self.mshrs.len() as u32));
-        out.items.push(StateDecl::reg("mshrs_live", 16));
-        out.items.push(StateDecl::reg("mem_queued", 16));
-        out.items.push(StateDecl::reg("flushing", 1));
-    }
-    fn sample(&self, out: &mut Samples) {
-        out.slot().push(self.live_mshrs() as u64, 16);
-        out.slot().push(self.out_q.len() as u64, 16);
-        out.slot().push(self.flushing.is_some() as u64, 1);
-    }
-    fn reset(&mut self) {
-        self.tags.iter_mut().for_each(|t| *t = L2Tag::default());
-        self.data.iter_mut().for_each(|d| *d = Line::default());
-        self.mshrs.iter_mut().for_each(|m| *m = None);
-        self.mshr_index.clear();
-        self.mshr_free = free_bits(self.mshrs.len());
-        self.out_q.clear();
-        self.mem_busy.clear();
-        self.wb_queued = 0;
-        self.resp_q.iter_mut().for_each(|q| q.clear());
-        self.answering.iter_mut().for_each(|w| *w = 0);
-        self.outstanding.iter_mut().for_each(|o| *o = 0);
-        self.dirty.clear();
-        self.flushing = None;
-        self.stamp = 0;
-    }
 }
 
 /// Event counters.
@@ -371,6 +252,25 @@ crate::unit! {
 const FREE: u64 = u64::MAX;
 const BUSY: u64 = u64::MAX - 1;
 
+/// What one evaluation did, for its status and its next evaluation.
+#[derive(Clone, Copy, Debug, Default)]
+struct Outcome {
+    worked: bool,
+    /// A request or a fill could not be served: try again next cycle.
+    waiting: bool,
+    /// An output is full.
+    blocked: bool,
+    /// The earliest answer queued for a client.
+    next_due: Option<u64>,
+}
+
+impl Outcome {
+    /// An answer is due at `d`.
+    fn due(&mut self, d: u64) {
+        self.next_due = Some(self.next_due.map_or(d, |x: u64| x.min(d)));
+    }
+}
+
 /// How `L2::admit` would take a request.
 #[derive(Clone, Copy, Debug)]
 enum Admit {
@@ -382,36 +282,6 @@ enum Admit {
     Allocate(usize),
     /// A new miss in MSHR k.
     Miss(usize),
-}
-
-/// `n` MSHRs, all free (see `L2State::mshr_free`).
-fn free_bits(n: usize) -> Vec<u64> {
-    (0..n.div_ceil(64))
-        .map(|w| match n - w * 64 {
-            r if r >= 64 => u64::MAX,
-            r => (1u64 << r) - 1,
-        })
-        .collect()
-}
-
-/// Hashes a line address for `L2State::mshr_index`: the line index times an
-/// odd constant (SipHash, the default, is built to resist attacks this table
-/// never sees, at several times the cost).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct LineHasher(u64);
-
-impl Hasher for LineHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0.rotate_left(8) ^ b as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        }
-    }
-    fn write_u64(&mut self, x: u64) {
-        self.0 = (x >> 6).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    }
 }
 
 /// Applies the masked bytes of a write to a line.
@@ -737,31 +607,19 @@ impl L2 {
     fn any_issuable(&self) -> bool {
         (0..self.mem_lanes as usize).any(|j| self.issuable(j).is_some())
     }
-}
 
-impl Logic for L2 {
-    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+    /// The memory's answers, one per lane in lane order: a fill (takes its
+    /// bank, or waits a cycle if another lane's fill took it) or a writeback's
+    /// ack.
+    fn take_memory_answers(&mut self, ctx: &mut Ctx, bank: &mut [u64], o: &mut Outcome) {
         let c = ctx.cycle();
-        let n = self.req.len();
-        let mut worked = false;
-        let mut waiting = false;
-        let mut blocked = false;
-        // This cycle's use of each bank: FREE, BUSY, or the line a read took it
-        // for (reads of that line may join, `chip.l2.combine_reads`). Reused, so
-        // the per-cycle path does not allocate.
-        let mut bank = std::mem::take(&mut self.bank_use);
-        bank.clear();
-        bank.resize(self.banks as usize, FREE);
-        // 1. The memory's answers, one per lane in lane order: a fill (takes its
-        // bank, or waits a cycle if another lane's fill took it) or a writeback's
-        // ack.
         for j in 0..self.mem_resp.len() {
             let Some(f) = ctx.peek(&self.mem_resp.at(j)) else {
                 continue;
             };
             let (write, b) = (f.write, self.bank_of(f.addr));
             if !write && (bank[b] != FREE) {
-                waiting = true;
+                o.waiting = true;
                 continue;
             }
             let f = ctx.pop(&self.mem_resp.at(j)).expect("peeked");
@@ -770,10 +628,13 @@ impl Logic for L2 {
                 bank[b] = BUSY;
                 self.fill(f, c);
             }
-            worked = true;
+            o.worked = true;
         }
-        // 2. Answers whose time has come, one per client per cycle.
-        let mut next_due: Option<u64> = None;
+    }
+
+    /// Answers whose time has come leave, one per client per cycle.
+    fn answer_clients(&mut self, ctx: &mut Ctx, o: &mut Outcome) {
+        let c = ctx.cycle();
         for w in 0..self.st.r().answering.len() {
             let mut bits = self.st.r().answering[w];
             while bits != 0 {
@@ -782,141 +643,155 @@ impl Logic for L2 {
                 let head = self.st.r().resp_q[p].front().map(|(d, _)| *d);
                 let d = head.expect("a client marked answering has an answer queued");
                 if d > c {
-                    next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
+                    o.due(d);
                     continue;
                 }
                 if !ctx.can_push(&self.resp.at(p)) {
-                    blocked = true;
+                    o.blocked = true;
                     continue;
                 }
                 let st = self.st.m();
                 let (_, r) = st.resp_q[p].pop_front().expect("head");
                 st.outstanding[p] -= 1;
                 ctx.push(&self.resp.at(p), r);
-                worked = true;
+                o.worked = true;
                 match st.resp_q[p].front() {
-                    Some(&(d, _)) => next_due = Some(next_due.map_or(d, |x: u64| x.min(d))),
+                    Some(&(d, _)) => o.due(d),
                     None => st.answering[w] &= !(1 << (p % 64)),
                 }
             }
         }
-        // 3. A flush request.
+    }
+
+    /// A flush request starts a flush (none while one runs).
+    fn accept_flush(&mut self, ctx: &mut Ctx, o: &mut Outcome) {
         if self.st.r().flushing.is_none()
             && let Some(f) = ctx.pop(&self.flush)
         {
             self.st.m().flushing = Some(f.invalidate);
             self.stats.flushes += 1;
-            worked = true;
+            o.worked = true;
         }
-        if let Some(inv) = self.st.r().flushing {
-            // 4f. Write back up to one dirty line per lane (the lowest slots on
-            // free banks and distinct lanes, from a window of the lowest
-            // `2 x ways x lanes`), then finish.
-            let lanes = self.mem_lanes as usize;
-            let window = 2 * self.ways as usize * lanes;
-            let mut lane_used = vec![false; lanes];
-            let mut picked = Vec::new();
-            for &slot in self.st.r().dirty.iter().take(window) {
-                if picked.len() == lanes
-                    || self.st.r().wb_queued as usize + picked.len() >= self.writebacks as usize
-                {
-                    break;
-                }
-                let b = self.slot_bank(slot);
-                let lane = self.lane_of(self.st.r().tags[slot as usize].tag - 1);
-                if bank[b] == FREE && !lane_used[lane] {
-                    bank[b] = BUSY;
-                    lane_used[lane] = true;
-                    picked.push(slot);
-                }
+    }
+
+    /// A flush in progress: write back up to one dirty line per lane (the
+    /// lowest slots on free banks and distinct lanes, from a window of the
+    /// lowest `2 x ways x lanes`); with none left, finish.
+    fn flush_step(&mut self, ctx: &mut Ctx, inv: bool, bank: &mut [u64], o: &mut Outcome) {
+        let lanes = self.mem_lanes as usize;
+        let window = 2 * self.ways as usize * lanes;
+        let mut lane_used = vec![false; lanes];
+        let mut picked = Vec::new();
+        for &slot in self.st.r().dirty.iter().take(window) {
+            if picked.len() == lanes
+                || self.st.r().wb_queued as usize + picked.len() >= self.writebacks as usize
+            {
+                break;
             }
-            if !self.st.r().dirty.is_empty() {
-                if picked.is_empty() {
-                    waiting = true;
-                }
-                for slot in picked {
-                    let st = self.st.m();
-                    let t = &mut st.tags[slot as usize];
-                    t.dirty = false;
-                    let wb = MemLineReq {
-                        addr: t.tag - 1,
-                        write: true,
-                        tag: t.mtag,
-                        id: 0,
-                        mask: u64::MAX,
-                        data: st.data[slot as usize].clone(),
-                    };
-                    st.out_q.push_back(wb);
-                    st.wb_queued += 1;
-                    st.dirty.remove(&slot);
-                    self.stats.writebacks += 1;
-                    worked = true;
-                }
-            } else {
-                let s = self.st.r();
-                let drained = s.live_mshrs() == 0
-                    && s.out_q.is_empty()
-                    && s.mem_busy.is_empty()
-                    && s.resp_q.iter().all(|q| q.is_empty());
-                if drained {
-                    if ctx.can_push(&self.flush_done) {
-                        let st = self.st.m();
-                        if inv {
-                            st.tags.iter_mut().for_each(|t| *t = L2Tag::default());
-                        }
-                        st.flushing = None;
-                        ctx.push(&self.flush_done, L2Flush { invalidate: inv });
-                        worked = true;
-                    } else {
-                        blocked = true;
-                    }
-                }
+            let b = self.slot_bank(slot);
+            let lane = self.lane_of(self.st.r().tags[slot as usize].tag - 1);
+            if bank[b] == FREE && !lane_used[lane] {
+                bank[b] = BUSY;
+                lane_used[lane] = true;
+                picked.push(slot);
             }
         }
-        // 4. Client requests, one per bank, round-robin from client `c mod n`
-        // (none while flushing).
-        if self.st.r().flushing.is_none() {
-            let start = ctx.round_robin_start(n);
-            // The clients with a visible request, in round-robin order: a scan of
-            // their links' flags, not a peek at each of the clients.
-            let mut visible = std::mem::take(&mut self.visible);
-            ctx.visible_words(&self.req, &mut visible);
-            for p in crate::rtl::round_robin(&visible, start) {
-                // Not cloned (a request carries a line): most of them only wait.
-                let r = ctx.peek(&self.req.at(p)).expect("visible");
-                let (addr, write, whole) = (r.addr, r.write, r.write && r.mask == u64::MAX);
-                let b = self.bank_of(addr);
-                let combined = !write && self.combine_reads != 0 && bank[b] == addr;
-                if bank[b] != FREE && !combined {
-                    self.stats.bank_conflicts += 1;
-                    waiting = true;
-                    continue;
-                }
-                if self.st.r().outstanding[p] >= self.port_queue {
-                    waiting = true;
-                    continue;
-                }
-                let Some(how) = self.admit(addr, whole) else {
-                    self.stats.mshr_stalls += 1;
-                    waiting = true;
-                    continue;
+        if !self.st.r().dirty.is_empty() {
+            if picked.is_empty() {
+                o.waiting = true;
+            }
+            for slot in picked {
+                let st = self.st.m();
+                let t = &mut st.tags[slot as usize];
+                t.dirty = false;
+                let wb = MemLineReq {
+                    addr: t.tag - 1,
+                    write: true,
+                    tag: t.mtag,
+                    id: 0,
+                    mask: u64::MAX,
+                    data: st.data[slot as usize].clone(),
                 };
-                self.take(p, r, c, how);
-                ctx.pop(&self.req.at(p));
-                if combined {
-                    self.stats.combined += 1;
-                }
-                bank[b] = if write { BUSY } else { addr };
-                worked = true;
-                if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
-                    next_due = Some(next_due.map_or(d, |x: u64| x.min(d)));
-                }
+                st.out_q.push_back(wb);
+                st.wb_queued += 1;
+                st.dirty.remove(&slot);
+                self.stats.writebacks += 1;
+                o.worked = true;
             }
-            self.visible = visible;
-        } else if self.req.iter().any(|q| ctx.peek(q).is_some()) {
-            waiting = true;
+        } else {
+            self.finish_flush(ctx, inv, o);
         }
-        // 5. One request to the memory per lane.
+    }
+
+    /// No dirty line left: once every MSHR, memory request and answer is done,
+    /// invalidate if asked and answer on `flush_done`.
+    fn finish_flush(&mut self, ctx: &mut Ctx, inv: bool, o: &mut Outcome) {
+        let s = self.st.r();
+        let drained = s.live_mshrs() == 0
+            && s.out_q.is_empty()
+            && s.mem_busy.is_empty()
+            && s.resp_q.iter().all(|q| q.is_empty());
+        if drained {
+            if ctx.can_push(&self.flush_done) {
+                let st = self.st.m();
+                if inv {
+                    st.tags.iter_mut().for_each(|t| *t = L2Tag::default());
+                }
+                st.flushing = None;
+                ctx.push(&self.flush_done, L2Flush { invalidate: inv });
+                o.worked = true;
+            } else {
+                o.blocked = true;
+            }
+        }
+    }
+
+    /// Client requests, one per bank, round-robin from client `c mod n`: a hit,
+    /// a merge into a live MSHR, a new miss or a whole-line allocation.
+    fn accept_requests(&mut self, ctx: &mut Ctx, bank: &mut [u64], o: &mut Outcome) {
+        let c = ctx.cycle();
+        let n = self.req.len();
+        let start = ctx.round_robin_start(n);
+        // The clients with a visible request, in round-robin order: a scan of
+        // their links' flags, not a peek at each of the clients.
+        let mut visible = std::mem::take(&mut self.visible);
+        ctx.visible_words(&self.req, &mut visible);
+        for p in crate::rtl::round_robin(&visible, start) {
+            // Not cloned (a request carries a line): most of them only wait.
+            let r = ctx.peek(&self.req.at(p)).expect("visible");
+            let (addr, write, whole) = (r.addr, r.write, r.write && r.mask == u64::MAX);
+            let b = self.bank_of(addr);
+            let combined = !write && self.combine_reads != 0 && bank[b] == addr;
+            if bank[b] != FREE && !combined {
+                self.stats.bank_conflicts += 1;
+                o.waiting = true;
+                continue;
+            }
+            if self.st.r().outstanding[p] >= self.port_queue {
+                o.waiting = true;
+                continue;
+            }
+            let Some(how) = self.admit(addr, whole) else {
+                self.stats.mshr_stalls += 1;
+                o.waiting = true;
+                continue;
+            };
+            self.take(p, r, c, how);
+            ctx.pop(&self.req.at(p));
+            if combined {
+                self.stats.combined += 1;
+            }
+            bank[b] = if write { BUSY } else { addr };
+            o.worked = true;
+            if let Some(&(d, _)) = self.st.r().resp_q[p].front() {
+                o.due(d);
+            }
+        }
+        self.visible = visible;
+    }
+
+    /// One request to the memory per lane.
+    fn issue_memory_requests(&mut self, ctx: &mut Ctx, o: &mut Outcome) {
         for j in 0..self.mem_req.len() {
             let Some(i) = self.issuable(j) else { continue };
             if ctx.can_push(&self.mem_req.at(j)) {
@@ -927,29 +802,60 @@ impl Logic for L2 {
                 }
                 st.mem_busy.insert(r.addr);
                 ctx.push(&self.mem_req.at(j), r);
-                worked = true;
+                o.worked = true;
             } else {
-                blocked = true;
+                o.blocked = true;
             }
         }
-        self.bank_use = bank;
-        ctx.set_status(if blocked {
+    }
+
+    /// The evaluation's status and when the L2 must be evaluated next.
+    fn settle(&self, ctx: &mut Ctx, o: &Outcome) -> Next {
+        let c = ctx.cycle();
+        ctx.set_status(if o.blocked {
             Status::OutputBlocked
-        } else if waiting {
+        } else if o.waiting {
             Status::ResourceBusy
-        } else if worked || self.busy() {
+        } else if o.worked || self.busy() {
             Status::Busy
         } else {
             Status::WaitInput
         });
-        if worked || waiting || blocked || self.any_issuable() {
+        if o.worked || o.waiting || o.blocked || self.any_issuable() {
             Next::Cycle
-        } else if let Some(d) = next_due {
+        } else if let Some(d) = o.next_due {
             Next::AtCycle(d.max(c + 1))
         } else {
             // Memory answers, requests and flushes wake us.
             Next::Idle
         }
+    }
+}
+
+impl Logic for L2 {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let mut o = Outcome::default();
+        // This cycle's use of each bank: FREE, BUSY, or the line a read took it
+        // for (reads of that line may join, `chip.l2.combine_reads`). Reused, so
+        // the per-cycle path does not allocate.
+        let mut bank = std::mem::take(&mut self.bank_use);
+        bank.clear();
+        bank.resize(self.banks as usize, FREE);
+        self.take_memory_answers(ctx, &mut bank, &mut o);
+        self.answer_clients(ctx, &mut o);
+        self.accept_flush(ctx, &mut o);
+        if let Some(inv) = self.st.r().flushing {
+            self.flush_step(ctx, inv, &mut bank, &mut o);
+        }
+        // No client request is taken while flushing.
+        if self.st.r().flushing.is_none() {
+            self.accept_requests(ctx, &mut bank, &mut o);
+        } else if self.req.iter().any(|q| ctx.peek(q).is_some()) {
+            o.waiting = true;
+        }
+        self.issue_memory_requests(ctx, &mut o);
+        self.bank_use = bank;
+        self.settle(ctx, &o)
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {

@@ -197,20 +197,58 @@ fn flush_wait(s: &mut XbarStats, c: u64) {
     }
 }
 
-impl Logic for TmXbar {
-    fn eval(&mut self, ctx: &mut Ctx) -> Next {
-        let c = ctx.cycle();
-        let start = ctx.round_robin_start(self.tps as usize);
-        let mut worked = false;
-        let mut waiting = false;
-        // An input popped this cycle holds another entry.
-        let mut more = false;
-        // This cycle's conflicts, per class (added to the stats at the end).
-        let mut cf = [0u64; 6];
-        // Responses back to their TPs.
+/// What one evaluation did, for its status, its statistics and its next
+/// evaluation.
+#[derive(Clone, Copy, Debug, Default)]
+struct Outcome {
+    worked: bool,
+    waiting: bool,
+    /// An input popped this cycle holds another entry.
+    more: bool,
+    /// This cycle's conflicts, per class (added to the stats at the end).
+    cf: [u64; 6],
+}
+
+/// The triangle pipelines' tests in flight, as working copies on the stack (the
+/// config allows at most 8 pipes): this runs every busy cycle, so no allocation.
+#[derive(Clone, Copy, Debug, Default)]
+struct TriCounts {
+    outstanding: [u16; 8],
+    changed: [bool; 8],
+}
+
+/// Grants class `k`'s round-robin pick among `inputs` onto `out` if it has room.
+fn forward<T: Payload>(
+    ctx: &mut Ctx,
+    inputs: &PortArray<In<T>>,
+    out: &Out<T>,
+    start: usize,
+    k: usize,
+    grants: &mut u64,
+    o: &mut Outcome,
+) {
+    let free = ctx.can_push(out);
+    if let Some((_, v)) = pick(ctx, inputs, start, free, &mut o.cf[k], &mut o.more) {
+        ctx.push(out, v);
+        *grants += 1;
+        o.worked = true;
+    }
+    o.waiting |= o.cf[k] > 0;
+}
+
+impl TmXbar {
+    /// Responses of the divider, the ray-box pipeline and global memory back to
+    /// their TPs; returns whether a box result was routed.
+    fn route_responses(&mut self, ctx: &mut Ctx, c: u64, o: &mut Outcome) -> bool {
         let box_routed;
         for (w, b) in [
-            route(ctx, &self.div_resp, &self.tp_div_resp, |r| r.tag, &mut more),
+            route(
+                ctx,
+                &self.div_resp,
+                &self.tp_div_resp,
+                |r| r.tag,
+                &mut o.more,
+            ),
             {
                 let r = route_local(ctx, c, &mut self.box_resp_q, &self.tp_box_resp);
                 box_routed = r.0;
@@ -221,50 +259,78 @@ impl Logic for TmXbar {
                 &self.gmem_resp,
                 &self.tp_gmem_resp,
                 |r| r.id as u16,
-                &mut more,
+                &mut o.more,
             ),
         ] {
-            worked |= w;
-            waiting |= b;
+            o.worked |= w;
+            o.waiting |= b;
         }
-        // Per-pipe scratch on the stack (the config allows at most 8 pipes): this
-        // runs every busy cycle, so no allocation here.
+        box_routed
+    }
+
+    /// The triangle pipelines' tests in flight, from their registers.
+    fn load_tri_counts(&self) -> TriCounts {
+        let mut tri = TriCounts::default();
         let np = self.tri_pipes as usize;
-        let mut outstanding = [0u16; 8];
-        for (p, o) in outstanding.iter_mut().enumerate().take(np) {
-            *o = *self.tri_outstanding.read(p as u32);
+        for (p, t) in tri.outstanding.iter_mut().enumerate().take(np) {
+            *t = *self.tri_outstanding.read(p as u32);
         }
-        let mut changed = [false; 8];
+        tri
+    }
+
+    /// The triangle pipelines' results back to their TPs.
+    fn route_tri_responses(&mut self, ctx: &mut Ctx, tri: &mut TriCounts, o: &mut Outcome) {
         for p in 0..self.tri_resp.len() {
-            let tri = self.tri_resp.at(p);
-            let (w, b) = route(ctx, &tri, &self.tp_tri_resp, |r| r.tag, &mut more);
+            let resp = self.tri_resp.at(p);
+            let (w, b) = route(ctx, &resp, &self.tp_tri_resp, |r| r.tag, &mut o.more);
             if w {
-                outstanding[p] -= 1;
-                changed[p] = true;
+                tri.outstanding[p] -= 1;
+                tri.changed[p] = true;
             }
-            worked |= w;
-            waiting |= b;
+            o.worked |= w;
+            o.waiting |= b;
         }
-        // Requests onto the shared units and outputs.
-        macro_rules! forward {
-            ($class:expr, $inputs:expr, $out:expr) => {{
-                let free = ctx.can_push(&$out);
-                if let Some((_, v)) = pick(ctx, &$inputs, start, free, &mut cf[$class], &mut more) {
-                    ctx.push(&$out, v);
-                    self.stats.grants[$class] += 1;
-                    worked = true;
-                }
-                waiting |= cf[$class] > 0;
-            }};
-        }
-        forward!(0, self.tp_div_req, self.div_req);
-        // The ray-box pipeline: one step on its two FIFOs (their registered room and
-        // visibility make the order of these three steps irrelevant), then this
-        // cycle's box grant into its request FIFO.
+    }
+
+    /// This cycle's divider grant.
+    fn grant_div(&mut self, ctx: &mut Ctx, start: usize, o: &mut Outcome) {
+        let g = &mut self.stats.grants[0];
+        forward(ctx, &self.tp_div_req, &self.div_req, start, 0, g, o);
+    }
+
+    /// This cycle's grants onto the TM's outside ports: ray writes (duplicates
+    /// and end markers), hit updates and global memory requests.
+    fn grant_outputs(&mut self, ctx: &mut Ctx, start: usize, o: &mut Outcome) {
+        let g = &mut self.stats.grants;
+        forward(
+            ctx,
+            &self.tp_ray_write,
+            &self.ray_write,
+            start,
+            3,
+            &mut g[3],
+            o,
+        );
+        forward(ctx, &self.tp_hit, &self.hit, start, 4, &mut g[4], o);
+        forward(
+            ctx,
+            &self.tp_gmem_req,
+            &self.gmem_req,
+            start,
+            5,
+            &mut g[5],
+            o,
+        );
+    }
+
+    /// One step of the ray-box pipeline on its two FIFOs (their registered room
+    /// and visibility make the order of this, the box grant and the routing
+    /// irrelevant); returns the pipeline's own next step.
+    fn step_box_pipe(&mut self, c: u64) -> Next {
         // (An empty pipeline with empty FIFOs has nothing to step: most
         // evaluations.)
         let box_busy = !self.box_req_q.is_empty() || self.box_pipe.occupancy() > 0;
-        let pipe_next = if box_busy {
+        if box_busy {
             self.box_pipe
                 .step_on(
                     c,
@@ -278,40 +344,67 @@ impl Logic for TmXbar {
                 .1
         } else {
             Next::Idle
-        };
+        }
+    }
+
+    /// This cycle's box grant into the ray-box pipeline's request FIFO.
+    fn grant_box(&mut self, ctx: &mut Ctx, c: u64, start: usize, o: &mut Outcome) {
         let free = self.box_req_q.can_push();
-        if let Some((_, v)) = pick(ctx, &self.tp_box_req, start, free, &mut cf[1], &mut more) {
+        if let Some((_, v)) = pick(
+            ctx,
+            &self.tp_box_req,
+            start,
+            free,
+            &mut o.cf[1],
+            &mut o.more,
+        ) {
             self.box_req_q.push(c, v);
             self.stats.grants[1] += 1;
-            worked = true;
+            o.worked = true;
         }
-        waiting |= cf[1] > 0;
-        forward!(3, self.tp_ray_write, self.ray_write);
-        forward!(4, self.tp_hit, self.hit);
-        forward!(5, self.tp_gmem_req, self.gmem_req);
+        o.waiting |= o.cf[1] > 0;
+    }
+
+    /// This cycle's triangle grant, to the pipeline with room and the fewest
+    /// tests in flight.
+    fn grant_tri(&mut self, ctx: &mut Ctx, start: usize, tri: &mut TriCounts, o: &mut Outcome) {
         let target = (0..self.tri_req.len())
             .filter(|&p| ctx.can_push(&self.tri_req.at(p)))
-            .min_by_key(|&p| (outstanding[p], p));
+            .min_by_key(|&p| (tri.outstanding[p], p));
         let free = target.is_some();
-        if let Some((_, v)) = pick(ctx, &self.tp_tri_req, start, free, &mut cf[2], &mut more) {
+        if let Some((_, v)) = pick(
+            ctx,
+            &self.tp_tri_req,
+            start,
+            free,
+            &mut o.cf[2],
+            &mut o.more,
+        ) {
             let p = target.expect("granted only with a target");
             ctx.push(&self.tri_req.at(p), v);
-            outstanding[p] += 1;
-            changed[p] = true;
+            tri.outstanding[p] += 1;
+            tri.changed[p] = true;
             self.stats.grants[2] += 1;
-            worked = true;
+            o.worked = true;
         }
-        waiting |= cf[2] > 0;
-        for p in 0..np {
-            if changed[p] {
-                self.tri_outstanding.write(p as u32, outstanding[p]);
+        o.waiting |= o.cf[2] > 0;
+    }
+
+    /// Writes the changed counts of tests in flight back to their registers.
+    fn store_tri_counts(&mut self, tri: &TriCounts) {
+        for p in 0..self.tri_pipes as usize {
+            if tri.changed[p] {
+                self.tri_outstanding.write(p as u32, tri.outstanding[p]);
             }
         }
-        // When the pipeline and its FIFOs need the crossbar again without any link
-        // waking it: the pipeline's own next step, the next request or result
-        // becoming visible (one behind a result routed now, too; a visible result
-        // that stays is blocked by its TP's full link, whose pop wakes us), and
-        // room freed in a full FIFO (seen from the next cycle).
+    }
+
+    /// When the pipeline and its FIFOs need the crossbar again without any link
+    /// waking it: the pipeline's own next step, the next request or result
+    /// becoming visible (one behind a result routed now, too; a visible result
+    /// that stays is blocked by its TP's full link, whose pop wakes us), and
+    /// room freed in a full FIFO (seen from the next cycle).
+    fn box_wake(&self, c: u64, pipe_next: Next, box_routed: bool) -> Next {
         let mut wake = match pipe_next {
             Next::Cycle => Some(c + 1),
             Next::AtCycle(t) => Some(t),
@@ -331,10 +424,16 @@ impl Logic for TmXbar {
         if self.box_req_q.freed_full() || self.box_resp_q.freed_full() {
             at(c + 1);
         }
-        let idle = match wake {
+        match wake {
             Some(t) => Next::AtCycle(t.max(c + 1)),
             None => Next::Idle,
-        };
+        }
+    }
+
+    /// The evaluation's status and conflict counts, and when the crossbar must
+    /// be evaluated next (`idle`: when the ray-box pipeline needs it).
+    fn settle(&mut self, ctx: &mut Ctx, c: u64, o: &Outcome, idle: Next) -> Next {
+        let (worked, waiting, cf) = (o.worked, o.waiting, o.cf);
         ctx.set_status(if worked {
             Status::Busy
         } else if waiting {
@@ -359,7 +458,7 @@ impl Logic for TmXbar {
         for (k, n) in cf.iter().enumerate() {
             s.conflicts[k] += n;
         }
-        if worked && !waiting && !more {
+        if worked && !waiting && !o.more {
             // Every visible head went this cycle and none is left behind one: until
             // a push wakes it the crossbar would only find nothing, so it sleeps,
             // waiting for input from the next cycle on.
@@ -367,6 +466,28 @@ impl Logic for TmXbar {
             return idle;
         }
         if worked { Next::Cycle } else { idle }
+    }
+}
+
+impl Logic for TmXbar {
+    fn eval(&mut self, ctx: &mut Ctx) -> Next {
+        let c = ctx.cycle();
+        let start = ctx.round_robin_start(self.tps as usize);
+        let mut o = Outcome::default();
+        let box_routed = self.route_responses(ctx, c, &mut o);
+        let mut tri = self.load_tri_counts();
+        self.route_tri_responses(ctx, &mut tri, &mut o);
+        // Requests onto the shared units and outputs.
+        self.grant_div(ctx, start, &mut o);
+        // The ray-box pipeline: one step on its two FIFOs, then this cycle's box
+        // grant into its request FIFO.
+        let pipe_next = self.step_box_pipe(c);
+        self.grant_box(ctx, c, start, &mut o);
+        self.grant_outputs(ctx, start, &mut o);
+        self.grant_tri(ctx, start, &mut tri, &mut o);
+        self.store_tri_counts(&tri);
+        let idle = self.box_wake(c, pipe_next, box_routed);
+        self.settle(ctx, c, &o, idle)
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {
