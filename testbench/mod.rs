@@ -154,7 +154,9 @@ pub fn bench_config(name: &str, base: &crate::config::Config) -> crate::config::
             hit_record_updater_tb::unit_config(base, &hit_record_updater_tb::HruTbCfg::default())
         }
         "l2" => l2_tb::unit_config(base, &l2_tb::L2TbCfg::default()),
-        "scene_buffer" => scene_buffer_tb::unit_config(base, &scene_buffer_tb::SbTbCfg::default()),
+        "scene_buffer" => {
+            scene_buffer_tb::unit_config(base, &scene_buffer_tb::SceneBufferTbCfg::default())
+        }
         "stream_scheduler" => {
             stream_scheduler_tb::unit_config(base, &stream_scheduler_tb::SchedTbCfg::default())
         }

@@ -36,7 +36,7 @@ use super::pipe_tb::{TbOptions, TbReport};
 
 /// The bench's knobs beyond `TbOptions`.
 #[derive(Clone)]
-pub struct SbTbCfg {
+pub struct SceneBufferTbCfg {
     pub tms: u32,
     /// Requests per TM and phase.
     pub requests_per_tm: u32,
@@ -50,9 +50,9 @@ pub struct SbTbCfg {
     pub trace_buf: Option<SharedBuf>,
 }
 
-impl Default for SbTbCfg {
+impl Default for SceneBufferTbCfg {
     fn default() -> Self {
-        SbTbCfg {
+        SceneBufferTbCfg {
             tms: 6,
             requests_per_tm: 150,
             sb: SceneBufferCfg {
@@ -93,7 +93,7 @@ fn line_of(mem: &SparseMem, a: u64) -> Line {
 
 /// The configuration the bench elaborates its unit with: `base` with the bench's
 /// TM count and scene-buffer geometry (the Verilog module of the traced scope).
-pub fn unit_config(base: &crate::config::Config, b: &SbTbCfg) -> crate::config::Config {
+pub fn unit_config(base: &crate::config::Config, b: &SceneBufferTbCfg) -> crate::config::Config {
     let mut c = base.clone();
     c.chip.tms = b.tms;
     c.chip.scene_buffer = b.sb.clone();
@@ -103,7 +103,7 @@ pub fn unit_config(base: &crate::config::Config, b: &SbTbCfg) -> crate::config::
 }
 
 pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
-    run_with(opts, &SbTbCfg::default())
+    run_with(opts, &SceneBufferTbCfg::default())
 }
 
 /// The elaborated bench: the simulator, the units the bench drives and reads,
@@ -151,7 +151,7 @@ struct Score {
     max_l: u64,
 }
 
-pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
+pub fn run_with(opts: &TbOptions, b: &SceneBufferTbCfg) -> Result<TbReport, String> {
     check_knobs(opts, b)?;
     let cfg = &unit_config(&opts.config, b);
     let p = cfg.clocks.core_ps;
@@ -199,7 +199,7 @@ pub fn run_with(opts: &TbOptions, b: &SbTbCfg) -> Result<TbReport, String> {
     finish_trace(&mut bench.sim, rep)
 }
 
-fn check_knobs(opts: &TbOptions, b: &SbTbCfg) -> Result<(), String> {
+fn check_knobs(opts: &TbOptions, b: &SceneBufferTbCfg) -> Result<(), String> {
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) {
         return Err("--ready is a probability in (0, 1]".into());
@@ -214,7 +214,7 @@ fn check_knobs(opts: &TbOptions, b: &SbTbCfg) -> Result<(), String> {
 
 /// Segments (phase 1 fills every slot, phase 2 replaces the even slots) of
 /// seeded lengths, and the DRAM image of their lines.
-fn segments(b: &SbTbCfg, rng: &mut Rng) -> (Vec<Seg>, SparseMem) {
+fn segments(b: &SceneBufferTbCfg, rng: &mut Rng) -> (Vec<Seg>, SparseMem) {
     let slots = b.sb.slots();
     let slot_lines = b.sb.slot_bytes / LINE_BYTES as u32;
     let base0 = 0x10_0000u64;
@@ -238,7 +238,11 @@ fn segments(b: &SbTbCfg, rng: &mut Rng) -> (Vec<Seg>, SparseMem) {
 
 /// The scheduler and stream stand-ins, one request driver and one sink per
 /// TM, and the unit; the fill and request links are logged.
-fn build(opts: &TbOptions, b: &SbTbCfg, cfg: &crate::config::Config) -> Result<Bench, String> {
+fn build(
+    opts: &TbOptions,
+    b: &SceneBufferTbCfg,
+    cfg: &crate::config::Config,
+) -> Result<Bench, String> {
     let link = cfg.chip.links;
     let mut sim = Sim::new(opts.sim.clone());
     let clk = sim
@@ -308,7 +312,7 @@ fn build(opts: &TbOptions, b: &SbTbCfg, cfg: &crate::config::Config) -> Result<B
 /// after seeded delays. Returns the fills.
 fn map_all(
     bench: &mut Bench,
-    b: &SbTbCfg,
+    b: &SceneBufferTbCfg,
     segs: &[Seg],
     t0: u64,
     sent: &mut Sent,
@@ -347,7 +351,7 @@ fn map_all(
 /// Returns the fills and the remapped slots.
 fn remap_even(
     bench: &mut Bench,
-    b: &SbTbCfg,
+    b: &SceneBufferTbCfg,
     segs: &[Seg],
     t0: u64,
     sent: &mut Sent,
@@ -431,7 +435,7 @@ fn send_fills(
 /// phase 2 the remapped slots' first lines right after their stale lines).
 fn send_requests(
     bench: &mut Bench,
-    b: &SbTbCfg,
+    b: &SceneBufferTbCfg,
     segs: &[Seg],
     ph: &Phase,
     sent: &mut Sent,
@@ -501,7 +505,7 @@ fn pushes(sim: &Sim, id: LinkId, p: u64) -> Vec<(u64, u64)> {
 /// timing per TM, then the unit's counters.
 fn check(
     bench: &Bench,
-    b: &SbTbCfg,
+    b: &SceneBufferTbCfg,
     image: SparseMem,
     sent: &Sent,
     st: &UnitStats,
@@ -578,7 +582,7 @@ fn check(
 /// `stale_fills` = late lines of retired segments, `stalls` at most the early
 /// requests.
 fn check_counters(
-    b: &SbTbCfg,
+    b: &SceneBufferTbCfg,
     sent: &Sent,
     st: &UnitStats,
     requests: u64,

@@ -143,7 +143,7 @@ fn hru_sleep_shadow_shuffle_invariance() {
 
 // ---- scene buffer ----
 
-use dualstream::testbench::scene_buffer_tb::{self as sb, SbTbCfg};
+use dualstream::testbench::scene_buffer_tb::{self as sb, SceneBufferTbCfg};
 
 #[test]
 fn sb_scoreboard_passes_with_stalls_conflicts_and_slot_reuse() {
@@ -165,9 +165,9 @@ fn sb_scoreboard_passes_with_stalls_conflicts_and_slot_reuse() {
 
 #[test]
 fn sb_scoreboard_fails_on_a_wrong_expectation() {
-    let b = SbTbCfg {
+    let b = SceneBufferTbCfg {
         corrupt_expect: true,
-        ..SbTbCfg::default()
+        ..SceneBufferTbCfg::default()
     };
     let r = sb::run_with(&opts(1), &b).unwrap();
     assert!(!r.passed(), "{r}");
@@ -181,9 +181,9 @@ fn sb_scoreboard_fails_on_a_wrong_expectation() {
 fn sb_scoreboard_catches_stale_lines_after_slot_reuse() {
     // Late lines of a retired segment that (wrongly) carry the new generation
     // are accepted by the unit: requests for the new segment get stale bytes.
-    let b = SbTbCfg {
+    let b = SceneBufferTbCfg {
         stale_as_current: true,
-        ..SbTbCfg::default()
+        ..SceneBufferTbCfg::default()
     };
     let r = sb::run_with(&opts(1), &b).unwrap();
     assert!(!r.passed(), "{r}");
@@ -197,10 +197,10 @@ fn sb_outcome(sim: SimOptions, seed: u64) -> (String, u64) {
         trace: TraceSpec::all(),
         ..opts(seed)
     };
-    let b = SbTbCfg {
+    let b = SceneBufferTbCfg {
         trace_buf: Some(buf.clone()),
         requests_per_tm: 60,
-        ..SbTbCfg::default()
+        ..SceneBufferTbCfg::default()
     };
     let r = sb::run_with(&o, &b).unwrap();
     assert!(r.passed(), "{r}");

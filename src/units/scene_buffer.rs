@@ -87,7 +87,7 @@ pub struct Slot {
 }
 
 #[derive(Clone, Debug, Default)]
-pub struct SbState {
+pub struct SceneBufferState {
     pub slots: Vec<Slot>,
     /// Per TM: responses in flight (cycle pushed, response).
     pub out: Vec<VecDeque<(u64, L1Resp)>>,
@@ -95,7 +95,7 @@ pub struct SbState {
     pub wait_since: Vec<Option<u64>>,
 }
 
-impl Behavioural for SbState {
+impl Behavioural for SceneBufferState {
     fn declare(&self, out: &mut StateList) {
         out.items.push(StateDecl::reg("waiting", 16));
         out.items.push(StateDecl::array(
@@ -139,7 +139,7 @@ crate::unit! {
         outputs { }
         in_arrays { req: L1Req, fill: MemLineResp }
         out_arrays { resp: L1Resp }
-        state { st: Model<SbState> }
+        state { st: Model<SceneBufferState> }
         extra {
             out_delay: u32,
             reads: u64,
@@ -180,7 +180,7 @@ impl SceneBuffer {
             fill: fill.into(),
             req: req.into(),
             resp: resp.into(),
-            st: Model::new(SbState {
+            st: Model::new(SceneBufferState {
                 slots,
                 out: vec![VecDeque::new(); n],
                 wait_since: vec![None; n],
