@@ -14,9 +14,10 @@
 //! state begins in the following cycle. Waiting states end in the cycle the
 //! response is visible, so a ray's time is the sum of state costs and round trips.
 
+mod traverse;
+
 use glam::Vec3;
 
-use super::Tag;
 use super::box_pipe::{BoxReq, BoxResp};
 use super::divider::{DivReq, DivResp};
 use super::l1::{L1Req, L1Resp, Line};
@@ -25,8 +26,7 @@ use super::staging_buffer::{SbHeader, SbRay};
 use super::tm::{COST_NAMES, COSTS, TpCosts, round_trip};
 pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
-use crate::contract::{HitRec, NODE_BYTES, RayRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES, TRI_BYTES};
-use crate::geom::cull;
+use crate::contract::{HitRec, RayRec};
 use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Ram, Reg, Status};
 
 crate::payload_struct! {
@@ -265,10 +265,6 @@ impl TpStats {
     }
 }
 
-fn vec3_at(l: &Line, off: usize) -> Vec3 {
-    Vec3::new(l.f32_at(off), l.f32_at(off + 4), l.f32_at(off + 8))
-}
-
 impl Tp {
     pub fn new(cfg: &super::tm::TmSpec, index: u16, l: TpLinks) -> Self {
         let entries = cfg.tm.stack_entries();
@@ -384,267 +380,29 @@ impl Tp {
         }
     }
 
-    fn t_ray(&self) -> f32 {
-        self.cur.get().ray.t_max()
-    }
-
-    fn hdr(&self) -> &SbHeader {
-        &self.cur.get().hdr
-    }
-
-    fn tri_addr(&self, k: u32) -> u64 {
-        let h = self.hdr();
-        h.base
-            + SEGMENT_HEADER_BYTES as u64
-            + h.nodes as u64 * NODE_BYTES as u64
-            + k as u64 * TRI_BYTES as u64
-    }
-
-    fn load(&mut self, ctx: &mut Ctx, addr: u64) -> bool {
-        let line = addr & !63;
-        if ctx.offer(&self.mem_req, L1Req { addr: line }) {
-            self.stats.l1_loads += 1;
-            if let Some(l) = &mut self.log {
-                l.push(line);
-            }
-            true
-        } else {
-            false
-        }
-    }
-
     /// A computing state's action in cycle `c`; `None` if an output was full.
     fn act(&mut self, ctx: &mut Ctx, s: TpState, c: u64) -> Option<Next> {
-        let tag = self.index as Tag;
-        let ray = self.cur.get().ray;
-        Some(match s {
-            TpState::Fetch => {
-                if !ctx.offer(&self.div_req, DivReq { dir: ray.dir, tag }) {
-                    return None;
-                }
-                self.req_at.set(c);
-                self.go(TpState::DivWait, c)
-            }
-            TpState::Init => {
-                self.best.set(HitRec::NONE);
-                self.stack.write(
-                    0,
-                    StackEntry {
-                        r: ray.entry,
-                        seg: SEG_SAME,
-                        t: 0.0,
-                    },
-                );
-                self.stack_depth.set(1);
-                self.stats.max_stack = self.stats.max_stack.max(1);
-                self.go(TpState::Pop, c)
-            }
-            TpState::Pop => {
-                let depth = self.stack_depth.val();
-                if depth == 0 {
-                    return Some(self.go(TpState::Finish, c));
-                }
-                let e = self.stack.read(depth as u32 - 1).clone();
-                self.stack_depth.set(depth - 1);
-                self.entry.set(e.clone());
-                let limit = self.best.get().t.min(self.t_ray());
-                if e.t > cull(limit) {
-                    self.go(TpState::Pop, c)
-                } else if e.seg != SEG_SAME {
-                    self.go(TpState::Exit, c)
-                } else {
-                    match Ref::decode(e.r) {
-                        Ref::Leaf { first, count } => {
-                            self.tri_k.set(first);
-                            self.tri_end.set(first + count);
-                            self.go(TpState::TriFetch, c)
-                        }
-                        Ref::Node(i) => {
-                            let h = self.hdr();
-                            let a =
-                                h.base + SEGMENT_HEADER_BYTES as u64 + i as u64 * NODE_BYTES as u64;
-                            self.node_addr.set(a);
-                            self.go(TpState::NodeFetch, c)
-                        }
-                        Ref::None => self.go(TpState::Pop, c),
-                    }
-                }
-            }
-            TpState::Exit => {
-                let e = self.entry.get().clone();
-                let w = RayWrite {
-                    seg: e.seg,
-                    ray: RayRec { entry: e.r, ..ray },
-                    done: false,
-                };
-                if !ctx.offer(&self.ray_write, w) {
-                    return None;
-                }
-                self.stats.exits += 1;
-                self.go(TpState::Pop, c)
-            }
-            TpState::NodeFetch => {
-                if !self.load(ctx, self.node_addr.val()) {
-                    return None;
-                }
-                self.req_at.set(c);
-                self.go(TpState::NodeWait, c)
-            }
-            TpState::BoxIssue | TpState::BoxIssue1 => {
-                let side = (s == TpState::BoxIssue1) as usize;
-                let l = self.line0.get();
-                let lim = cull(self.best.get().t.min(self.t_ray()));
-                let req = BoxReq {
-                    origin: ray.origin,
-                    inv_dir: self.inv_dir.val(),
-                    t_min: 0.0,
-                    t_max: lim,
-                    bmin: vec3_at(l, 24 * side),
-                    bmax: vec3_at(l, 24 * side + 12),
-                    tag: tag | (side as Tag) << 8,
-                };
-                if !ctx.offer(&self.box_req, req) {
-                    return None;
-                }
-                self.stats.box_tests += 1;
-                if side == 0 {
-                    self.box_got.set(false);
-                    self.state.set(TpState::BoxIssue1);
-                    self.act_at.set(c + 1);
-                    Next::AtCycle(c + 1)
-                } else {
-                    self.req_at.set(c);
-                    self.go(TpState::BoxWait, c)
-                }
-            }
-            TpState::NodePush => {
-                let l = self.line0.get().clone();
-                let hit = [self.box0.val(), self.box1.val()];
-                // Push the far child first so the near one is visited first.
-                let order = match (hit[0], hit[1]) {
-                    (Some(a), Some(b)) if b < a => [0, 1],
-                    _ => [1, 0],
-                };
-                let mut depth = self.stack_depth.val() as u32;
-                for side in order {
-                    if let Some(t) = hit[side] {
-                        if depth >= self.stack_entries {
-                            // The config promised a deep enough scratchpad; stop loudly.
-                            self.state.set(TpState::Overflow);
-                            return Some(Next::Idle);
-                        }
-                        self.stack.write(
-                            depth,
-                            StackEntry {
-                                r: l.u32_at(48 + 4 * side),
-                                seg: l.u32_at(56 + 4 * side),
-                                t,
-                            },
-                        );
-                        depth += 1;
-                    }
-                }
-                self.stack_depth.set(depth as u16);
-                self.stats.max_stack = self.stats.max_stack.max(depth as u64);
-                self.go(TpState::Pop, c)
-            }
-            TpState::TriFetch => {
-                let a = self.tri_addr(self.tri_k.val());
-                if !self.load(ctx, a) {
-                    return None;
-                }
-                self.req_at.set(c);
-                self.go(TpState::TriMemWait, c)
-            }
-            TpState::TriIssue => {
-                let a = self.tri_addr(self.tri_k.val());
-                let off = (a & 63) as usize;
-                let mut b = [0u8; 48];
-                for (i, x) in b.iter_mut().enumerate() {
-                    let o = off + i;
-                    *x = if o < 64 {
-                        self.line0.get().0[o]
-                    } else {
-                        self.line1.get().0[o - 64]
-                    };
-                }
-                let mut l = Line::default();
-                l.0[..48].copy_from_slice(&b);
-                let req = TriReq {
-                    origin: ray.origin,
-                    dir: ray.dir,
-                    t_min: 0.0,
-                    t_max: self.best.get().t.min(self.t_ray()),
-                    v0: vec3_at(&l, 0),
-                    v1: vec3_at(&l, 12),
-                    v2: vec3_at(&l, 24),
-                    tri_id: l.u32_at(36),
-                    tag,
-                };
-                if !ctx.offer(&self.tri_req, req) {
-                    return None;
-                }
-                self.stats.tri_tests += 1;
-                self.req_at.set(c);
-                self.go(TpState::TriTestWait, c)
-            }
-            TpState::TriResult => {
-                if let Some(h) = self.tri_hit.val() {
-                    if h.closer_than(self.best.get()) {
-                        self.best.set(h);
-                    }
-                    if ray.is_shadow() {
-                        return Some(self.go(TpState::Finish, c));
-                    }
-                }
-                let k = self.tri_k.val() + 1;
-                self.tri_k.set(k);
-                if k < self.tri_end.val() {
-                    self.go(TpState::TriFetch, c)
-                } else {
-                    self.go(TpState::Pop, c)
-                }
-            }
-            TpState::Finish => {
-                // The end marker first (same path as the duplicates, so it arrives
-                // after them), then the hit; a refused hit retries without the marker.
-                if !self.done_sent.val() {
-                    let m = RayWrite {
-                        seg: self.hdr().seg,
-                        ray,
-                        done: true,
-                    };
-                    if !ctx.offer(&self.ray_write, m) {
-                        return None;
-                    }
-                    self.done_sent.set(true);
-                }
-                let best = self.best.val();
-                if best.is_hit() {
-                    let u = HitUpdate {
-                        index: ray.hit_index() as u32,
-                        hit: best,
-                    };
-                    if !ctx.offer(&self.hit, u) {
-                        return None;
-                    }
-                    self.stats.hits += 1;
-                }
-                self.stats.last_finish = c;
-                self.done_sent.set(false);
-                self.state.set(TpState::Idle);
-                // The next ray may already wait in the link: look next cycle.
-                Next::Cycle
-            }
+        match s {
+            TpState::Fetch => self.fetch(ctx, c),
+            TpState::Init => Some(self.init(c)),
+            TpState::Pop => Some(self.pop(c)),
+            TpState::Exit => self.exit(ctx, c),
+            TpState::NodeFetch => self.node_fetch(ctx, c),
+            TpState::BoxIssue | TpState::BoxIssue1 => self.box_issue(ctx, s, c),
+            TpState::NodePush => Some(self.node_push(c)),
+            TpState::TriFetch => self.tri_fetch(ctx, c),
+            TpState::TriIssue => self.tri_issue(ctx, c),
+            TpState::TriResult => Some(self.tri_result(c)),
+            TpState::Finish => self.finish(ctx, c),
             TpState::ShPath
             | TpState::ShLoad
             | TpState::Shade
             | TpState::ShEmit
             | TpState::ShStore
             | TpState::ShStore1
-            | TpState::ShDone => return self.shade_act(ctx, s, c),
+            | TpState::ShDone => self.shade_act(ctx, s, c),
             _ => unreachable!("not a computing state"),
-        })
+        }
     }
 }
 
@@ -748,150 +506,16 @@ impl Tp {
         let costed =
             self.cost_cycles(s).is_some() || s == TpState::BoxIssue1 || s == TpState::ShStore1;
         if costed {
-            if c < self.act_at.val() {
-                ctx.set_status(Status::Busy);
-                return Next::AtCycle(self.act_at.val());
-            }
-            return match self.act(ctx, s, c) {
-                Some(n) => {
-                    if let Some(b) = self.blocked_since.take() {
-                        self.stats.blocked += c - b;
-                    }
-                    self.used(s);
-                    ctx.set_status(Status::Busy);
-                    if n == Next::Cycle && awaits_response(*self.state.next()) {
-                        // The request just sent cannot be answered by the next
-                        // cycle: wait from then on, asleep until the response's
-                        // push wakes the TP.
-                        ctx.set_status_from_next(Status::ResourceBusy);
-                        return Next::Idle;
-                    }
-                    n
-                }
-                None => {
-                    // Offered and refused: the link holds the offer, and the pop that
-                    // makes room wakes the TP (a pop from a full link wakes its
-                    // producer), which then offers the same again. Until then nothing
-                    // can change, so the TP sleeps; its blocked cycles are counted
-                    // when the offer is taken (`blocked_since`, the first refusal).
-                    self.blocked_since.get_or_insert(c);
-                    ctx.set_status(Status::OutputBlocked);
-                    Next::Idle
-                }
-            };
+            return self.act_when_due(ctx, s, c);
         }
-        let wait = |ctx: &mut Ctx, st: Status| {
-            ctx.set_status(st);
-            Next::Idle // a push onto the awaited link wakes the TP
-        };
         match s {
-            TpState::Idle => match ctx.pop(&self.ray) {
-                Some(r) if r.hdr.seg == SHADE_SEG => {
-                    // A shading work item: the pixel in `ray_id`.
-                    self.ray_index.set(r.ray.ray_id);
-                    self.cur.set(r);
-                    self.stats.shade_items += 1;
-                    ctx.set_status(Status::Busy);
-                    self.go(TpState::ShPath, c)
-                }
-                Some(r) => {
-                    self.ray_index.set(r.ray.ray_id);
-                    self.cur.set(r);
-                    self.stats.rays += 1;
-                    self.stats.first_ray.get_or_insert(c);
-                    ctx.set_status(Status::Busy);
-                    self.go(TpState::Fetch, c)
-                }
-                None => wait(ctx, Status::WaitInput),
-            },
-            TpState::DivWait => match ctx.pop(&self.div_resp) {
-                Some(r) => {
-                    self.inv_dir.set(r.inv_dir);
-                    let w = c - self.req_at.val();
-                    self.stats.wait[0] += w;
-                    self.stats.stall[0] += w.saturating_sub(self.rt[0]);
-                    ctx.set_status(Status::Busy);
-                    self.go(TpState::Init, c)
-                }
-                None => wait(ctx, Status::ResourceBusy),
-            },
-            TpState::NodeWait => match ctx.pop(&self.mem_resp) {
-                Some(r) => {
-                    self.line0.set(r.line);
-                    self.stats.wait[3] += c - self.req_at.val();
-                    ctx.set_status(Status::Busy);
-                    self.go(TpState::BoxIssue, c)
-                }
-                None => wait(ctx, Status::ResourceBusy),
-            },
-            TpState::BoxWait => match ctx.pop(&self.box_resp) {
-                Some(r) => {
-                    let v = r.hit.then_some(r.t_entry);
-                    if r.tag >> 8 == 0 {
-                        self.box0.set(v);
-                    } else {
-                        self.box1.set(v);
-                    }
-                    ctx.set_status(Status::Busy);
-                    if self.box_got.val() {
-                        let w = c - self.req_at.val();
-                        self.stats.wait[1] += w;
-                        self.stats.stall[1] += w.saturating_sub(self.rt[1]);
-                        self.go(TpState::NodePush, c)
-                    } else {
-                        self.box_got.set(true);
-                        Next::Cycle
-                    }
-                }
-                None => wait(ctx, Status::ResourceBusy),
-            },
-            TpState::TriMemWait => match ctx.pop(&self.mem_resp) {
-                Some(r) => {
-                    self.stats.wait[3] += c - self.req_at.val();
-                    ctx.set_status(Status::Busy);
-                    let a = self.tri_addr(self.tri_k.val());
-                    let last = (a + TRI_BYTES as u64 - 1) & !63;
-                    if r.addr == a & !63 {
-                        self.line0.set(r.line);
-                        if last != r.addr {
-                            // The triangle straddles two lines: load the second now.
-                            let ok = self.load(ctx, last);
-                            assert!(ok, "a TP's load link is empty while it waits");
-                            self.req_at.set(c);
-                            return Next::Cycle;
-                        }
-                    } else {
-                        self.line1.set(r.line);
-                    }
-                    self.go(TpState::TriIssue, c)
-                }
-                None => wait(ctx, Status::ResourceBusy),
-            },
-            TpState::TriTestWait => match ctx.pop(&self.tri_resp) {
-                Some(r) => {
-                    self.stats.tri_hits += r.hit as u64;
-                    self.tri_hit.set(r.hit.then_some(HitRec {
-                        t: r.t,
-                        tri_id: r.tri_id,
-                        u: r.u,
-                        v: r.v,
-                    }));
-                    let w = c - self.req_at.val();
-                    self.stats.wait[2] += w;
-                    self.stats.stall[2] += w.saturating_sub(self.rt[2]);
-                    ctx.set_status(Status::Busy);
-                    self.go(TpState::TriResult, c)
-                }
-                None => wait(ctx, Status::ResourceBusy),
-            },
-            TpState::ShWait => match ctx.pop(&self.gmem_resp) {
-                Some(r) => {
-                    self.stats.gmem_wait += c - self.req_at.val();
-                    ctx.set_status(Status::Busy);
-                    self.shade_response(ctx, r, c)
-                }
-                None => wait(ctx, Status::ResourceBusy),
-            },
+            TpState::Idle => self.idle(ctx, c),
+            TpState::DivWait => self.div_wait(ctx, c),
+            TpState::NodeWait => self.node_wait(ctx, c),
+            TpState::BoxWait => self.box_wait(ctx, c),
+            TpState::TriMemWait => self.tri_mem_wait(ctx, c),
+            TpState::TriTestWait => self.tri_test_wait(ctx, c),
+            TpState::ShWait => self.sh_wait(ctx, c),
             _ => {
                 // Overflow: stopped for good, reported by the testbench.
                 ctx.set_status(Status::ResourceBusy);
@@ -899,6 +523,83 @@ impl Tp {
             }
         }
     }
+
+    /// A computing state: busy until its last cycle, then its action (a refused
+    /// offer sleeps until the link has room).
+    fn act_when_due(&mut self, ctx: &mut Ctx, s: TpState, c: u64) -> Next {
+        if c < self.act_at.val() {
+            ctx.set_status(Status::Busy);
+            return Next::AtCycle(self.act_at.val());
+        }
+        match self.act(ctx, s, c) {
+            Some(n) => {
+                if let Some(b) = self.blocked_since.take() {
+                    self.stats.blocked += c - b;
+                }
+                self.used(s);
+                ctx.set_status(Status::Busy);
+                if n == Next::Cycle && awaits_response(*self.state.next()) {
+                    // The request just sent cannot be answered by the next
+                    // cycle: wait from then on, asleep until the response's
+                    // push wakes the TP.
+                    ctx.set_status_from_next(Status::ResourceBusy);
+                    return Next::Idle;
+                }
+                n
+            }
+            None => {
+                // Offered and refused: the link holds the offer, and the pop that
+                // makes room wakes the TP (a pop from a full link wakes its
+                // producer), which then offers the same again. Until then nothing
+                // can change, so the TP sleeps; its blocked cycles are counted
+                // when the offer is taken (`blocked_since`, the first refusal).
+                self.blocked_since.get_or_insert(c);
+                ctx.set_status(Status::OutputBlocked);
+                Next::Idle
+            }
+        }
+    }
+
+    /// Idle: takes the next ray, or a shading work item, from the staging buffer.
+    fn idle(&mut self, ctx: &mut Ctx, c: u64) -> Next {
+        match ctx.pop(&self.ray) {
+            Some(r) if r.hdr.seg == SHADE_SEG => {
+                // A shading work item: the pixel in `ray_id`.
+                self.ray_index.set(r.ray.ray_id);
+                self.cur.set(r);
+                self.stats.shade_items += 1;
+                ctx.set_status(Status::Busy);
+                self.go(TpState::ShPath, c)
+            }
+            Some(r) => {
+                self.ray_index.set(r.ray.ray_id);
+                self.cur.set(r);
+                self.stats.rays += 1;
+                self.stats.first_ray.get_or_insert(c);
+                ctx.set_status(Status::Busy);
+                self.go(TpState::Fetch, c)
+            }
+            None => wait(ctx, Status::WaitInput),
+        }
+    }
+
+    /// ShWait: a global-memory answer for the shading kernel.
+    fn sh_wait(&mut self, ctx: &mut Ctx, c: u64) -> Next {
+        match ctx.pop(&self.gmem_resp) {
+            Some(r) => {
+                self.stats.gmem_wait += c - self.req_at.val();
+                ctx.set_status(Status::Busy);
+                self.shade_response(ctx, r, c)
+            }
+            None => wait(ctx, Status::ResourceBusy),
+        }
+    }
+}
+
+/// A waiting state with nothing on its link yet: status `st`, asleep.
+fn wait(ctx: &mut Ctx, st: Status) -> Next {
+    ctx.set_status(st);
+    Next::Idle // a push onto the awaited link wakes the TP
 }
 
 impl Tp {
