@@ -211,8 +211,9 @@ impl Default for TpCosts {
             tri_issue: StateCost::new(2, [0, 0, 0, 0, 1, 0, 0, 1]),
             tri_result: StateCost::new(12, [6, 0, 0, 0, 2, 4, 0, 0]),
             finish: StateCost::new(4, [2, 0, 0, 0, 0, 1, 0, 1]),
-            // Shading (docs/tm.md, "Shading"): estimates from the operation counts
-            // of `shade_step`, not calibrated against simtrax like the rest.
+            // Shading (docs/tm.md, "Cost table calibration"): estimates from the
+            // operation counts of `shade_step`, not calibrated against simtrax like
+            // the rest.
             shade_load: StateCost::new(3, [2, 1, 0, 0, 0, 0, 0, 0]),
             shade: StateCost::new(124, [15, 2, 36, 40, 13, 8, 0, 0]),
             shade_emit: StateCost::new(8, [0, 0, 0, 0, 0, 0, 0, 8]),
