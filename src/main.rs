@@ -220,50 +220,50 @@ enum Cmd {
         subsets: u32,
         /// speed-error, windows (time sampling): a window's measurement starts
         /// every this many segment passes of a wavefront (after its head).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().every)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().every)]
         window_every: u64,
         /// speed-error, windows: admissions measured from each wavefront's start:
         /// the root pass (by its root window), then the next ones simulated whole.
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().head)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().head)]
         window_head: u64,
         /// speed-error, windows: rays of each wavefront's root window (a shorter
         /// root pass whole, a longer one over one run of 8 rays in k of its
         /// queue, packed).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().root_rays)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().root_rays)]
         window_root_rays: u64,
         /// speed-error, windows: the same for the later wavefronts' root
         /// windows (the primary rays' root pass needs a longer sample).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().bounce_root_rays)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().bounce_root_rays)]
         window_bounce_root_rays: u64,
         /// speed-error, windows: rays of a short wavefront's sample (one with
         /// too few passes for a window): a longer one is traced from its root
         /// pass to its end over one run of up to 1024 rays in k of its root
         /// queue, hashed, hit records in place (0: simulated whole after its
         /// root window).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_rays)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().wave_rays)]
         window_wave_rays: u64,
         /// speed-error, windows: sampled short wavefronts from the second to
         /// this one also simulated whole; the ratio of whole to sample corrects
         /// the other sampled ones (0: none).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_whole)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().wave_whole)]
         window_wave_whole: u64,
         /// speed-error, windows: a short wavefront's sample runs on this share
         /// of the L2 (its rays come back to their hit records k times sooner).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_l2_share)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().wave_l2_share)]
         window_wave_l2: u32,
         /// speed-error, windows: a short wavefront is sampled only if its
         /// sample's ray lines per pass reach this share of a segment's (else
         /// its passes are bound by the scene stream; it is simulated whole).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_ray_share)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().wave_ray_share)]
         window_wave_ray_share: f64,
         /// speed-error, windows: each wavefront's tail, from the first boundary
         /// with at most this many queues holding rays, simulated to its end (0:
         /// none, the tail scaled like the rest).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().tail_pending)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().tail_pending)]
         window_tail: u64,
         /// speed-error, windows: admissions the tail window runs unmeasured
         /// first (counted in the rest).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().tail_warm)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().tail_warm)]
         window_tail_warm: u64,
         /// speed-error, windows: wavefronts traced in windows: the first, the
         /// last and every N-th from the second on (1: all); the others take their
@@ -272,35 +272,35 @@ enum Cmd {
         /// windows). Above 1, a wavefront too short for windows and traced over a
         /// sample borrows from the fourth on, from the sampled ones from the third
         /// on, while its rays are alike the last measured one's.
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().wave_every)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().wave_every)]
         window_waves: u64,
         /// speed-error, windows: segment passes the chip runs before a window's
         /// measurement, unmeasured, to fill its buffers, caches and queues and
         /// stagger its 64 scene-buffer slots (docs/speed-error.md: 64 leaves
         /// every window 12-19% fast at the paper's size, 96 does not).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().warm)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().warm)]
         window_warm: u64,
         /// speed-error, windows: segment passes measured per window.
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().measure)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().measure)]
         window_measure: u64,
         /// speed-error, windows: shading windows per shading pass (and of the
         /// ray generation: one).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_windows)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().shade_windows)]
         shade_windows: u32,
         /// speed-error, windows: shading items (pixels) a shading window runs
         /// before its measurement.
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_warm)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().shade_warm)]
         shade_warm: u64,
         /// speed-error, windows: cycles a shading window runs at least before
         /// its measurement (with --shade-warm items).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_warm_cycles)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().shade_warm_cycles)]
         shade_warm_cycles: u64,
         /// speed-error, windows: shading items measured per shading window.
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_measure)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().shade_measure)]
         shade_measure: u64,
         /// speed-error, windows: items of each shading pass simulated from its
         /// start as they are (the start-up phase, which windows do not see).
-        #[arg(long, default_value_t = dualstream::speed_error::default_windows().shade_head)]
+        #[arg(long, default_value_t = dualstream::sampling::default_windows().shade_head)]
         shade_head: u64,
         /// speed-error, windows: write every window (kind, position, warm-up and
         /// measured counts, the segment passes it retired) and the functional
@@ -672,8 +672,8 @@ fn run(cli: Cli) -> Result<(), String> {
             let (mut frame, estimate) = if sampled {
                 bar.finish_and_clear();
                 eprintln!("time sampling (windows of the chip with GDDR5)...");
-                let plan = dualstream::speed_error::default_windows();
-                let ts = dualstream::speed_error::time_sampled_with(&sc, &config, rc, &plan)?;
+                let plan = dualstream::sampling::default_windows();
+                let ts = dualstream::sampling::time_sampled_with(&sc, &config, rc, &plan)?;
                 (ts.frame, Some(ts.estimate))
             } else {
                 let f = render::render(&sc, mode, &rc, &mut |p: &render::Progress| {
@@ -701,7 +701,7 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             print!("{}", output::summary(&frame));
             if let Some(e) = &estimate {
-                print!("{}", output::window_summary(e));
+                print!("{}", dualstream::sampling::window_summary(e));
             }
             println!("image: {}", out.display());
             if let (Some(p), Some(v)) = (&vcd, frame.chip.as_ref().and_then(|c| c.vcd)) {
@@ -716,7 +716,7 @@ fn run(cli: Cli) -> Result<(), String> {
             }
             if let Some(p) = stats {
                 match &estimate {
-                    Some(e) => output::write_json_estimated(&frame, e, &p)?,
+                    Some(e) => dualstream::sampling::write_json_estimated(&frame, e, &p)?,
                     None => output::write_json(&frame, &p)?,
                 }
                 println!("statistics: {}", p.display());
@@ -768,15 +768,15 @@ fn run(cli: Cli) -> Result<(), String> {
                 }
                 let t0 = std::time::Instant::now();
                 if sampled {
-                    let plan = dualstream::speed_error::default_windows();
-                    let ts = dualstream::speed_error::time_sampled(&sc, &cfg, threads, &plan)?;
+                    let plan = dualstream::sampling::default_windows();
+                    let ts = dualstream::sampling::time_sampled(&sc, &cfg, threads, &plan)?;
                     let e = &ts.estimate;
                     eprintln!(
                         "  {:.1} s ({} windows, {:.0} s in the chips: {}){}",
                         t0.elapsed().as_secs_f64(),
                         e.windows,
                         e.chip_s,
-                        dualstream::render::kind_times_text(&e.chip_s_by_kind),
+                        dualstream::sampling::kind_times_text(&e.chip_s_by_kind),
                         e.se_text().map(|t| format!("; {t}")).unwrap_or_default()
                     );
                     rows.extend(dualstream::report::paper::compare_sampled(
@@ -927,7 +927,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 }
                 "dram" => print!("{}", dualstream::mem::bench::report(scale)?),
                 "speed-error" => {
-                    use dualstream::speed_error as se;
+                    use dualstream::sampling::speed_error as se;
                     let mut sc = dualstream::scene::load(&scene)?;
                     (sc.settings.width, sc.settings.height) = parse_res(&res)?;
                     sc.settings.validate()?;
@@ -950,7 +950,7 @@ fn run(cli: Cli) -> Result<(), String> {
                         subsets,
                         modes: modes.map(|m| m.split(',').map(|x| x.trim().to_string()).collect()),
                         threads,
-                        windows: dualstream::render::WindowPlan {
+                        windows: dualstream::sampling::WindowPlan {
                             every: window_every,
                             head: window_head,
                             root_rays: window_root_rays,

@@ -2,7 +2,8 @@
 //! the same frame, and the figures are consistent with the modes' own runs.
 
 use dualstream::config::Config;
-use dualstream::speed_error::{SpeedErrorOpts, estimate, plot, run, table, tile_sample};
+use dualstream::sampling::estimate;
+use dualstream::sampling::speed_error::{SpeedErrorOpts, plot, run, table, tile_sample};
 
 mod common;
 use common::Scratch;
@@ -290,7 +291,7 @@ fn reference_files(
 
 #[test]
 fn a_reference_read_back_gives_the_same_errors() {
-    use dualstream::speed_error::Reference;
+    use dualstream::sampling::speed_error::Reference;
     let (s, c) = tiny();
     let (_dir, j, p) = reference_files(&s, &c, "same");
     let modes = Some(vec![
@@ -348,7 +349,7 @@ fn a_reference_read_back_gives_the_same_errors() {
 
 #[test]
 fn a_reference_of_another_frame_is_refused() {
-    use dualstream::speed_error::Reference;
+    use dualstream::sampling::speed_error::Reference;
     let (s, c) = tiny();
     let (_dir, j, p) = reference_files(&s, &c, "other");
     // Another resolution is named from the file alone.
@@ -385,11 +386,14 @@ fn a_reference_of_another_frame_is_refused() {
 fn windows_against(
     s: &dualstream::scene::Scene,
     c: &Config,
-    plan: dualstream::render::WindowPlan,
+    plan: dualstream::sampling::WindowPlan,
     (j, png): (&std::path::Path, &std::path::Path),
     log: &std::path::Path,
-) -> (dualstream::speed_error::ModeResult, serde_json::Value) {
-    use dualstream::speed_error::Reference;
+) -> (
+    dualstream::sampling::speed_error::ModeResult,
+    serde_json::Value,
+) {
+    use dualstream::sampling::speed_error::Reference;
     let rows = run(
         s,
         c,
@@ -411,8 +415,8 @@ fn windows_against(
     (rows[1].clone(), v)
 }
 
-fn windows_plan(head: u64, every: u64) -> dualstream::render::WindowPlan {
-    dualstream::render::WindowPlan {
+fn windows_plan(head: u64, every: u64) -> dualstream::sampling::WindowPlan {
+    dualstream::sampling::WindowPlan {
         head,
         root_rays: u64::MAX,
         bounce_root_rays: u64::MAX,
@@ -466,8 +470,8 @@ fn trace_parts(v: &serde_json::Value, wave: u64) -> Vec<(String, f64, bool)> {
 
 /// Two rows' errors in cycles, lines and energy, side by side.
 fn figure_errors(
-    a: &dualstream::speed_error::ModeResult,
-    b: &dualstream::speed_error::ModeResult,
+    a: &dualstream::sampling::speed_error::ModeResult,
+    b: &dualstream::sampling::speed_error::ModeResult,
 ) -> [(&'static str, f64, f64); 3] {
     [
         ("cycles", a.err_cycles, b.err_cycles),
@@ -479,7 +483,7 @@ fn figure_errors(
 /// A small plan for the borrowing tests: windows of 6 admissions after 2 of
 /// warm-up every 4, the tail from 2 pending queues, wavefronts traced every
 /// `wave_every`, root windows of `root_rays`.
-fn borrowing_plan(wave_every: u64, root_rays: u64) -> dualstream::render::WindowPlan {
+fn borrowing_plan(wave_every: u64, root_rays: u64) -> dualstream::sampling::WindowPlan {
     let mut plan = windows_plan(4, 6);
     plan.warm = 2;
     plan.measure = 6;
@@ -515,17 +519,20 @@ fn part_of<'a>(v: &'a serde_json::Value, wave: u64, part: &str) -> &'a serde_jso
 
 /// The windows of one kind, in the order they ran.
 fn of_kind(
-    r: &dualstream::render::WindowRecord,
-    kind: dualstream::render::SampleKind,
-) -> Vec<&dualstream::render::WindowSample> {
+    r: &dualstream::sampling::WindowRecord,
+    kind: dualstream::sampling::SampleKind,
+) -> Vec<&dualstream::sampling::WindowSample> {
     r.samples.iter().filter(|x| x.kind == kind).collect()
 }
 
 fn render_windows(
     s: &dualstream::scene::Scene,
     c: &Config,
-    plan: dualstream::render::WindowPlan,
-) -> dualstream::render::Frame {
+    plan: dualstream::sampling::WindowPlan,
+) -> (
+    dualstream::render::Frame,
+    dualstream::sampling::WindowRecord,
+) {
     render_windows_on(s, c, plan, 1)
 }
 
@@ -533,9 +540,12 @@ fn render_windows(
 fn render_windows_on(
     s: &dualstream::scene::Scene,
     c: &Config,
-    plan: dualstream::render::WindowPlan,
+    plan: dualstream::sampling::WindowPlan,
     threads: usize,
-) -> dualstream::render::Frame {
+) -> (
+    dualstream::render::Frame,
+    dualstream::sampling::WindowRecord,
+) {
     let rc = dualstream::render::RenderCfg {
         accel: c.accel.clone(),
         chip: Some(Box::new(dualstream::render::ChipRun {
@@ -546,10 +556,9 @@ fn render_windows_on(
             },
             ..Default::default()
         })),
-        windows: Some(plan),
         ..Default::default()
     };
-    dualstream::render::render(s, dualstream::render::Mode::Functional, &rc, &mut |_| {}).unwrap()
+    dualstream::sampling::render_windows(s, &rc, &plan).unwrap()
 }
 
 /// The Cornell box, 16x16, 2 bounces, on the tiny chip with GDDR5, in segments
@@ -577,12 +586,12 @@ fn windows_side_by_side_record_what_one_thread_does() {
     plan.shade_windows = 2;
     plan.shade_measure = 32;
     plan.tail_pending = 2;
-    let one = render_windows_on(&s, &c, plan.clone(), 1);
-    let two = render_windows_on(&s, &c, plan, 2);
+    let (one, one_rec) = render_windows_on(&s, &c, plan.clone(), 1);
+    let (two, two_rec) = render_windows_on(&s, &c, plan, 2);
     assert_eq!(one.radiance, two.radiance);
     // Everything but the wall times.
-    let record = |f: &dualstream::render::Frame| {
-        let mut v = serde_json::to_value(f.windows.as_ref().unwrap()).unwrap();
+    let record = |rec: &dualstream::sampling::WindowRecord| {
+        let mut v = serde_json::to_value(rec).unwrap();
         v.as_object_mut().unwrap().remove("chip_s");
         for smp in v["samples"].as_array_mut().unwrap() {
             smp.as_object_mut().unwrap().remove("wall_s");
@@ -592,8 +601,7 @@ fn windows_side_by_side_record_what_one_thread_does() {
     };
     // The schedule: one thread runs the windows one after another, two at
     // most two at a time; the time by kind adds up to the windows' time.
-    for (f, threads) in [(&one, 1), (&two, 2)] {
-        let rec = f.windows.as_ref().unwrap();
+    for (rec, threads) in [(&one_rec, 1), (&two_rec, 2)] {
         let spans: Vec<(f64, f64)> = rec
             .samples
             .iter()
@@ -629,7 +637,7 @@ fn windows_side_by_side_record_what_one_thread_does() {
             assert_eq!(n, k.windows, "{:?}", k.kind);
         }
     }
-    let (a, b) = (record(&one), record(&two));
+    let (a, b) = (record(&one_rec), record(&two_rec));
     let (sa, sb) = (
         a["samples"].as_array().unwrap(),
         b["samples"].as_array().unwrap(),
@@ -655,14 +663,14 @@ fn windows_side_by_side_record_what_one_thread_does() {
 /// in the functional model's frame.
 #[test]
 fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
-    use dualstream::render::SampleKind;
+    use dualstream::sampling::SampleKind;
     let (s, c) = cornell_in_rows();
-    let plain = render_windows(&s, &c, windows_plan(1, 1 << 20));
-    let rec = plain.windows.as_ref().unwrap();
+    let (plain, plain_rec) = render_windows(&s, &c, windows_plan(1, 1 << 20));
+    let rec = &plain_rec;
     for head in [1u64, 3] {
-        let f = render_windows(&s, &c, windows_plan(head, 1 << 20));
+        let (f, rec) = render_windows(&s, &c, windows_plan(head, 1 << 20));
         assert_eq!(f.radiance, plain.radiance, "windows do not touch the frame");
-        let rec = f.windows.as_ref().unwrap();
+        let rec = &rec;
         let mut mids = 0;
         for smp in of_kind(rec, SampleKind::Trace) {
             let segs = &rec.segs[smp.wave];
@@ -720,9 +728,9 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
     tail.tail_pending = u64::MAX;
     // The windows' warm-up (longer than any wavefront) is not the tail's.
     tail.warm = 1 << 20;
-    let f = render_windows(&s, &c, tail);
+    let (f, r) = render_windows(&s, &c, tail);
     assert_eq!(f.radiance, plain.radiance);
-    let r = f.windows.as_ref().unwrap();
+    let r = &r;
     let tails = of_kind(r, SampleKind::Tail);
     assert!(!tails.is_empty());
     assert!(
@@ -744,9 +752,9 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
         sh.shade_warm,
         sh.shade_measure,
     ) = (50, 2, 10, 20);
-    let f = render_windows(&s, &c, sh);
+    let (f, r) = render_windows(&s, &c, sh);
     assert_eq!(f.radiance, plain.radiance);
-    let r = f.windows.as_ref().unwrap();
+    let r = &r;
     let heads = of_kind(r, SampleKind::ShadeHead);
     assert_eq!(heads.len(), r.segs.len(), "one per shading pass");
     for h in heads {
@@ -773,12 +781,12 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
     // The first wavefront's root window keeps about 40 rays, the later ones'
     // about 24.
     (thin.root_rays, thin.bounce_root_rays) = (40, 24);
-    let f = render_windows(&s, &c, thin);
+    let (f, r) = render_windows(&s, &c, thin);
     assert_eq!(
         f.radiance, plain.radiance,
         "a compacted root window leaves no trace"
     );
-    let r = f.windows.as_ref().unwrap();
+    let r = &r;
     let roots = of_kind(r, SampleKind::Root);
     assert_eq!(roots.len(), r.segs.len(), "one root window per wavefront");
     for smp in roots {
@@ -792,7 +800,7 @@ fn a_wavefront_taken_over_midway_does_the_rest_of_its_work() {
         assert!(smp.run.ended, "wave {}: run to the pass's end", smp.wave);
         // The plan's tenths of the rays finished before the measurement and
         // in it (checked in steps: a few more).
-        let (a, b) = dualstream::render::ROOT_STEADY_TENTHS;
+        let (a, b) = dualstream::sampling::ROOT_STEADY_TENTHS;
         assert!(
             smp.run.from >= kept * a / 10 && smp.run.from + smp.run.marks <= kept,
             "wave {}: {} + {} of {kept}",
@@ -867,8 +875,8 @@ fn windows_that_cover_the_frame_agree_with_the_cycle_model() {
 /// wavefronts only; the others' roots go by their rays.
 #[test]
 fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
-    use dualstream::render::SampleKind;
-    use dualstream::speed_error::Reference;
+    use dualstream::sampling::SampleKind;
+    use dualstream::sampling::speed_error::Reference;
     let (mut s, c) = cornell_in_rows();
     s.settings.bounces = 4;
     let (dir, j, png) = reference_files(&s, &c, "borrowed");
@@ -986,7 +994,7 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
 /// default plan's first window at admission 1040).
 #[test]
 fn a_wavefront_too_short_for_a_window_is_simulated_whole() {
-    use dualstream::render::SampleKind;
+    use dualstream::sampling::SampleKind;
     let (mut s, mut c) = cornell_in_rows();
     s.settings.bounces = 4;
     // An L2 smaller than a pass's hit records, as at the paper's size (see
@@ -1143,8 +1151,7 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
     let log = dir.join("w.json");
     let (row, v) = windows_against(&s, &c, plan.clone(), (&j, &png), &log);
     // The record: per shading pass, per pixel, its lines; a done path one.
-    let f = render_windows(&s, &c, plan);
-    let rec = f.windows.as_ref().unwrap();
+    let (_, rec) = render_windows(&s, &c, plan);
     assert_eq!(rec.shade_lines.len(), 2, "two shading passes");
     for l in &rec.shade_lines {
         assert_eq!(l.len(), 48 * 48);
@@ -1162,7 +1169,7 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
     // The second pass, estimated from windows over mostly done paths: by
     // their lines within 3% of the reference, by their items far off (here
     // -1.1% against -13.1%; the windows' places are hashed, see
-    // `render::windows::shade_window_starts`).
+    // `sampling::windows::shade_window_starts`).
     let (mut cyc, mut items) = (0.0, 0.0);
     for x in v["record"]["samples"].as_array().unwrap() {
         if x["wave"] == 1 && x["kind"] == "Shade" {
@@ -1190,22 +1197,22 @@ fn shading_windows_are_scaled_by_the_pixels_lines() {
 /// really ended, which the lines proxy of its range reads.
 #[test]
 fn a_shading_window_warms_up_for_its_cycles_too() {
-    use dualstream::render::SampleKind;
+    use dualstream::sampling::SampleKind;
     let (s, c) = cornell_in_rows();
     let mut sh = windows_plan(1, 1 << 20);
     (sh.shade_windows, sh.shade_warm, sh.shade_measure) = (2, 8, 16);
-    let items = render_windows(&s, &c, sh.clone());
+    let (items, items_rec) = render_windows(&s, &c, sh.clone());
     sh.shade_warm_cycles = 2000;
-    let cycles = render_windows(&s, &c, sh);
+    let (cycles, cycles_rec) = render_windows(&s, &c, sh);
     assert_eq!(items.radiance, cycles.radiance);
     let (a, b) = (
-        of_kind(items.windows.as_ref().unwrap(), SampleKind::Shade),
-        of_kind(cycles.windows.as_ref().unwrap(), SampleKind::Shade),
+        of_kind(&items_rec, SampleKind::Shade),
+        of_kind(&cycles_rec, SampleKind::Shade),
     );
     // Where each window's pixels start: the first measured item less the
     // items warmed up. The same places either way (a window may start near
     // its pass's end, so the cycles' warm-up can leave it nothing to measure).
-    let start = |w: &dualstream::render::WindowSample| (w.wave, w.first - w.run.from);
+    let start = |w: &dualstream::sampling::WindowSample| (w.wave, w.first - w.run.from);
     assert!(!b.is_empty());
     assert!(b.len() <= a.len());
     for y in &b {
@@ -1224,23 +1231,23 @@ fn a_shading_window_warms_up_for_its_cycles_too() {
 /// (root window, then the head to the end), and the frame is as it was.
 #[test]
 fn a_short_wavefront_is_traced_over_a_sample_to_its_end() {
-    use dualstream::render::SampleKind;
+    use dualstream::sampling::SampleKind;
     let (s, c) = cornell_in_rows();
     // No window fits before admission 1004 (these wavefronts have about 27
     // passes).
     let mut short = windows_plan(4, 1000);
     (short.warm, short.measure) = (3, 6);
-    let plain = render_windows(&s, &c, short.clone());
+    let (plain, _) = render_windows(&s, &c, short.clone());
     let mut plan = short;
     plan.wave_rays = 40;
     plan.wave_whole = 1;
     (plan.root_rays, plan.bounce_root_rays) = (40, 40);
-    let f = render_windows(&s, &c, plan.clone());
+    let (f, r) = render_windows(&s, &c, plan.clone());
     assert_eq!(
         f.radiance, plain.radiance,
         "a sampled wavefront leaves no trace"
     );
-    let r = f.windows.as_ref().unwrap();
+    let r = &r;
     assert!(r.whole.iter().all(|&w| w), "{:?}", r.whole);
     let waves = of_kind(r, SampleKind::Wave);
     let sampled: Vec<usize> = (0..r.segs.len())
@@ -1278,7 +1285,7 @@ fn a_short_wavefront_is_traced_over_a_sample_to_its_end() {
         assert!(smp.run.ended);
         // Measured from the first tenth of its visits to the ninth (looked at
         // in steps: a little past each).
-        let (a, b) = dualstream::render::ROOT_STEADY_TENTHS;
+        let (a, b) = dualstream::sampling::ROOT_STEADY_TENTHS;
         assert!(
             smp.run.from >= visits * a / 10
                 && smp.run.from + smp.run.marks >= visits * b / 10
@@ -1302,9 +1309,9 @@ fn a_short_wavefront_is_traced_over_a_sample_to_its_end() {
     // A sample whose passes would stream more scene than rays is not taken:
     // those wavefronts are simulated whole after their root pass.
     plan.wave_ray_share = 1e6;
-    let g = render_windows(&s, &c, plan);
+    let (g, r) = render_windows(&s, &c, plan);
     assert_eq!(g.radiance, plain.radiance);
-    let r = g.windows.as_ref().unwrap();
+    let r = &r;
     assert!(of_kind(r, SampleKind::Wave).is_empty());
     for &w in &sampled {
         assert!(
@@ -1324,7 +1331,7 @@ fn a_short_wavefront_is_traced_over_a_sample_to_its_end() {
 /// close to the one that measured every sample.
 #[test]
 fn a_sampled_wavefront_alike_its_sampled_neighbours_borrows_them() {
-    use dualstream::render::{BORROW_ALIKE, SAMPLE_BORROW_FROM, SampleKind};
+    use dualstream::sampling::{BORROW_ALIKE, SAMPLE_BORROW_FROM, SampleKind};
     let (mut s, c) = cornell_in_rows();
     s.settings.bounces = 6;
     let (dir, j, png) = reference_files(&s, &c, "sample-borrow");
@@ -1441,7 +1448,7 @@ fn a_time_sampled_frame_estimates_every_figure_of_the_cycle_frame() {
     c.chip.l2.banks = 4;
     c.chip.memory.model = dualstream::machine::config::MemoryModel::Gddr5;
     let ts =
-        dualstream::speed_error::time_sampled(&s, &c, 1, &windows_plan(1 << 20, 1 << 20)).unwrap();
+        dualstream::sampling::time_sampled(&s, &c, 1, &windows_plan(1 << 20, 1 << 20)).unwrap();
     let rc = dualstream::render::RenderCfg {
         accel: c.accel.clone(),
         chip: Some(Box::new(dualstream::render::ChipRun {
@@ -1514,7 +1521,7 @@ fn a_time_sampled_frame_estimates_every_figure_of_the_cycle_frame() {
 /// is extrapolated.
 #[test]
 fn a_root_pass_between_unlike_root_windows_lies_on_their_line() {
-    use dualstream::speed_error::root_between;
+    use dualstream::sampling::root_between;
     // The Dragon's reference (1024x1024, default chip, GDDR5): root passes of
     // wavefronts 1-5 in rays and cycles.
     let roots = [

@@ -13,7 +13,6 @@ pub mod output;
 pub mod queues;
 pub mod shade;
 pub mod traverse;
-mod windows;
 
 use std::time::Instant;
 
@@ -27,7 +26,7 @@ use crate::contract::{
 };
 use crate::scene::Scene;
 use queues::{RayQueues, queue_lines_written};
-use shade::{ShadeConsts, next_f32, pixel_seed, shade_reads, shade_step};
+use shade::{ShadeConsts, shade_reads, shade_step};
 use traverse::{SegmentView, TraversalCounts, reference_trace, traverse_segment};
 
 /// How rays are traced.
@@ -63,9 +62,6 @@ pub struct RenderCfg {
     /// whole frame, so its radiance is the whole frame's; the others stay black.
     /// For sampled simulation (`bench speed-error`).
     pub pixels: Option<Vec<u32>>,
-    /// Functional mode with time sampling: the chip (`chip`) simulates windows
-    /// of each wavefront taken over from the functional model (see [`WindowPlan`]).
-    pub windows: Option<WindowPlan>,
     /// Cycle mode: record every segment pass's admission and retirement
     /// ([`Frame::passes`]).
     pub pass_log: bool,
@@ -86,365 +82,8 @@ impl RenderCfg {
                 trace: None,
             })),
             pixels: None,
-            windows: None,
             pass_log: false,
         }
-    }
-}
-
-/// Time sampling (`bench speed-error --modes windows`): while the functional model
-/// traces a wavefront segment by segment, the chip takes it over at some segment
-/// boundaries (`Chip::trace_window`) and is measured for a stretch of admissions;
-/// after each wavefront it measures stretches of the shading pass that follows.
-/// Counts are in segments that hold rays (admissions), in the order the functional
-/// model and the scheduler both take them.
-#[derive(Clone, Debug, PartialEq)]
-pub struct WindowPlan {
-    /// Admissions measured from each wavefront's start: the root pass (by its
-    /// root window) and the next `head - 1` admissions simulated whole (the top
-    /// of the tree, where the rays are).
-    pub head: u64,
-    /// Rays of the first wavefront's root window: a root pass of at most this
-    /// many rays simulated whole, a longer one over about this many of its
-    /// rays, one run in k of its queue packed into its first buckets
-    /// (`RayQueues::boundary_compact`). The rays left out cost the cycles and
-    /// DRAM energy per ray of its steady stretch ([`ROOT_STEADY_TENTHS`]), and
-    /// k times its lines and other counts but for its segment's load.
-    pub root_rays: u64,
-    /// The same for the later wavefronts' root windows. Half of `root_rays`
-    /// by default: the primary rays' root pass needs a longer sample, as it
-    /// takes 77-81 cycles a bucket for its first 65 K cycles and 123-138
-    /// after (the Dragon Box at 1024x1024; a fresh chip's time, not the
-    /// rays': a sample of 32 K rays ends within them and reads -13.5%
-    /// against -5.5% with 64 K), while the later root passes read the same
-    /// with half the rays (Dragon -1.4% and -0.3%; Dragon Box +7.0% and
-    /// +6.6%, +0.9% and +1.6%) at half the cost (docs/speed-error.md).
-    pub bounce_root_rays: u64,
-    /// Rays of a short wavefront's sample (one with too few passes for a
-    /// window, see [`WindowPlan::first_window_start`]): such a wavefront of
-    /// more rays is simulated from its root pass to its end over one run of
-    /// rays in k of its root queue (`queues::Thinning::wave`: runs of
-    /// [`WindowPlan::sample_run`] rays, hit records in place), on
-    /// `wave_l2_share` of the L2, and measured
-    /// over its visits (rays finished in a segment) from the first tenth to the
-    /// ninth ([`ROOT_STEADY_TENTHS`]); the visits it left out cost that
-    /// stretch's cycles and DRAM energy each, its other counts go by the
-    /// functional work. With `wave_every` above 1, one between the fourth
-    /// wavefront and the last borrows from the sampled ones from the third on
-    /// (`SAMPLE_BORROW_FROM`) if its rays are alike the last measured one's
-    /// and the wavefront before it was sampled too. 0: such a wavefront
-    /// is simulated whole after its root window.
-    pub wave_rays: u64,
-    /// A wavefront sample's L2 is this share of the chip's. The sample
-    /// passes its rays' hit records through the passes k times faster than
-    /// the wavefront does, so a whole L2 still holds them when a ray comes
-    /// back in a later pass and the sample's hit-record lines read low; one
-    /// k-th of it loses the reuse between neighbouring rays in a pass. On
-    /// Dabrovic Sponza (k 16-28, runs of 1024 rays), a wavefront simulated
-    /// whole over its sample is 0.97-1.02 in cycles, 0.97-1.03 in lines and
-    /// 0.98-1.02 in DRAM energy with a quarter of the L2; with half, runs of
-    /// 512, lines read 1.01-1.08. Against the cycle reference's runs, a
-    /// quarter put the bounce wavefronts' hit-record lines 5-6% low (the
-    /// frame's -4.0%), an eighth within 1% (docs/speed-error.md). The choice
-    /// is measured, not derived.
-    pub wave_l2_share: u32,
-    /// A short wavefront is traced over a sample only if the sample's ray
-    /// stream per pass (its rays times the visits a ray makes, guessed from
-    /// the last wavefront, else one, over the passes) comes to at least this
-    /// share of a segment's lines; else it is simulated whole. Below that the
-    /// sample's passes are bound by loading their segments, not by their rays,
-    /// and its cycles per visit say nothing of the whole wavefront's: the
-    /// Dragon at 1024x1024 with `--window-every 2048` (so every wavefront is
-    /// short), 33 rays a pass in a sample of 64 K over 1963 passes, comes to
-    /// 0.02-0.09 of a segment and its samples read +82% to +260% in cycles;
-    /// Dabrovic Sponza's, measured good, come to 0.28-0.9. 0.15 sits about
-    /// halfway (by ratio) between.
-    pub wave_ray_share: f64,
-    /// Of the sampled short wavefronts, those from the second to this one
-    /// are also simulated whole (root window, then the rest whole): the ratio
-    /// of their whole figures to their samples' corrects every other sampled
-    /// wavefront, count by count (double sampling: what is left of a sample's
-    /// bias, see `wave_l2_share`, is alike over the wavefronts). A whole
-    /// wavefront costs as much as the cycle model's, so this is for checking
-    /// a sample on a new scene. 0: no correction.
-    pub wave_whole: u64,
-    /// Admissions simulated before a window's measurement (to fill the working
-    /// set, the TMs and the caches) and measured.
-    pub warm: u64,
-    pub measure: u64,
-    /// One window's measurement starts every `every` admissions after the head.
-    pub every: u64,
-    /// Shading windows per pass (evenly spread over the pixels), their warm-up
-    /// and measured items.
-    pub shade_windows: u32,
-    pub shade_warm: u64,
-    pub shade_measure: u64,
-    /// And at least this many cycles of warm-up: a shading pass's rate
-    /// settles over time, not items (the Dragon at 256x256, a pass of done
-    /// paths: 0.50 cycles per item for its first 24 K items, 0.40 after, the
-    /// same with a 4x larger L2).
-    pub shade_warm_cycles: u64,
-    /// Items of each shading pass simulated from its start, as is.
-    pub shade_head: u64,
-    /// The tail window starts (its warm-up) at the first boundary after the
-    /// head where at most this many queues hold rays.
-    pub tail_pending: u64,
-    /// Admissions the tail window runs before its measurement (the tail is
-    /// shorter than a window's warm-up, so it has its own).
-    pub tail_warm: u64,
-    /// Wavefronts traced in windows: the first (primary rays), the last (the
-    /// last hit points' shadow rays) and every `wave_every`-th from the second
-    /// on (1: all). The others take no trace window: their root, head, rest and
-    /// tail are their functional proxies times the ratios of the nearest
-    /// measured wavefronts between the first and the last (their shading
-    /// passes keep their windows). With `wave_every` above 1, root windows run
-    /// in the first, second and last wavefronts only, and the other roots go
-    /// by the rays of the nearest of those after the first: a root pass costs
-    /// the same per ray in every wavefront after the first (once the root pass
-    /// is longer than a root window). A wavefront whose rays differ from the
-    /// last measured one's by more than [`BORROW_ALIKE`] is traced in windows
-    /// all the same, but its root pass is still borrowed: on the line through
-    /// the nearest root windows before and after it, in rays
-    /// (`speed_error::root_between`).
-    pub wave_every: u64,
-}
-
-/// A root window's measured stretch, in tenths of its rays finished: from the
-/// first tenth to the ninth, past the pass's start-up (the TMs filling) and
-/// before its drain (its last rays traced), which the whole pass has once.
-pub const ROOT_STEADY_TENTHS: (u64, u64) = (1, 9);
-
-/// The first wavefront whose sample (`WindowPlan::wave_rays`) a later one may
-/// borrow: the primary rays' and the first bounce's cost more per visit (see
-/// `render`'s hook).
-pub const SAMPLE_BORROW_FROM: usize = 2;
-/// Time sampling borrows for a wavefront (its trace or its root pass) only if
-/// its rays are within this fraction of the last measured one's: the ratios it
-/// borrows were measured at that load, and a wavefront with fewer rays is more
-/// latency-bound (Dragon Box: every bounce wavefront within 3% of the next).
-pub const BORROW_ALIKE: f64 = 0.1;
-
-impl WindowPlan {
-    /// Whether wavefront `wave` of a frame whose last is `last` is traced in
-    /// windows (see `wave_every`).
-    pub fn measures_wave(&self, wave: usize, last: usize) -> bool {
-        wave == 0 || wave >= last || (wave as u64 - 1).is_multiple_of(self.wave_every.max(1))
-    }
-
-    /// The admission where a wavefront's first measured stretch starts: a
-    /// wavefront with no more passes holds no window, so it is simulated whole
-    /// after its root pass (its passes are guessed from the last wavefront's,
-    /// or from the segments for the first).
-    pub fn first_window_start(&self) -> u64 {
-        // A window starts at admission k >= 1 (>= 2 after a head window) with
-        // k + warm - head a multiple of `every` (see `render`'s hook).
-        let k_min = if self.head > 1 { 2 } else { 1 };
-        let lo = (k_min + self.warm).saturating_sub(self.head);
-        self.head
-            .saturating_add(lo.div_ceil(self.every.max(1)).saturating_mul(self.every))
-    }
-
-    /// Whether a short wavefront of `rays` (the last wavefront's passes
-    /// `last`, if any; `passes` expected) is worth a sample: its ray-stream
-    /// lines per pass at least `wave_ray_share` of a segment's (of
-    /// `segment_bytes`, the scene's mean; see there).
-    pub fn sample_streams_rays(
-        &self,
-        rays: u64,
-        last: Option<&[SegWork]>,
-        passes: u64,
-        segment_bytes: f64,
-    ) -> bool {
-        let kept = rays / rays.div_ceil(self.wave_rays.max(1));
-        let visits = last
-            .filter(|s| s.first().is_some_and(|f| f.rays > 0))
-            .map_or(1.0, |s| {
-                s.iter().map(|x| x.rays).sum::<u64>() as f64 / s[0].rays as f64
-            });
-        let line = crate::contract::LINE_BYTES as f64;
-        let ray_lines = kept as f64 * visits * crate::contract::RAY_BYTES as f64 / line;
-        let seg_lines = segment_bytes / line;
-        ray_lines / passes.max(1) as f64 >= self.wave_ray_share * seg_lines
-    }
-
-    /// Rays in a run of a wavefront sample: [`queues::SAMPLE_RUN`], fewer
-    /// for a sample of fewer than 16 such runs (at least
-    /// [`queues::COMPACT_RUN`]).
-    pub fn sample_run(&self) -> u64 {
-        (self.wave_rays / 16).clamp(queues::COMPACT_RUN, queues::SAMPLE_RUN)
-    }
-
-    /// Whether wavefront `wave` takes a root window (see `wave_every`).
-    pub fn measures_root(&self, wave: usize, last: usize) -> bool {
-        self.wave_every <= 1 || wave <= 1 || wave >= last
-    }
-
-    /// A root pass of at most this many rays between the second wavefront and
-    /// the last is simulated whole, not borrowed: a quarter of such a
-    /// wavefront's root window (`bounce_root_rays`).
-    /// Such a pass is so latency-bound that borrowing misses it (Cornell box
-    /// 64x64: 18-34% high), and it is cheap. One up to a whole root window
-    /// is not cheap: the Dragon's fifth wavefront (32,747 rays) cost 12.9 M
-    /// unit evaluations, as many as a root window, for 0.4% of the frame.
-    pub fn root_whole(&self) -> u64 {
-        self.bounce_root_rays / 4
-    }
-
-    /// Rays of wavefront `wave`'s root window (`root_rays` for the first,
-    /// `bounce_root_rays` after).
-    pub fn root_window_rays(&self, wave: usize) -> u64 {
-        if wave == 0 {
-            self.root_rays
-        } else {
-            self.bounce_root_rays
-        }
-    }
-}
-
-/// Functional work of one segment pass (for the ratio estimator of time sampling).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct SegWork {
-    /// The segment.
-    pub seg: u32,
-    /// Rays the segment's queue held.
-    pub rays: u64,
-    pub nodes: u64,
-    pub tri_tests: u64,
-    pub pops: u64,
-    pub exits: u64,
-    /// Rays written into child queues.
-    pub enqueues: u64,
-    pub scene_lines: u64,
-    pub ray_lines: u64,
-    pub hit_lines: u64,
-}
-
-/// One measured window of time sampling.
-#[derive(Clone, Debug, Serialize)]
-pub struct WindowSample {
-    /// The functional wavefront it belongs to (a shading window: the pass that
-    /// shades this wavefront's hits).
-    pub wave: usize,
-    pub kind: SampleKind,
-    /// First measured admission (its ordinal in the wavefront), shading item or
-    /// emitted ray.
-    pub first: u64,
-    pub run: crate::machine::WindowRun,
-    /// Simulator wall time of the window (building the chip included).
-    pub wall_s: f64,
-    /// When its chip started, in seconds after the frame's time sampling
-    /// began: with more than one thread the windows run side by side, and
-    /// these with `wall_s` are their schedule (which window held the frame up).
-    pub start_s: f64,
-}
-
-/// What a window measured.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
-pub enum SampleKind {
-    /// The host emitting the primary rays (before the first wavefront).
-    Emit,
-    /// A wavefront's root pass over a sample of its queue (`first`: the rays
-    /// left out), to the next admission.
-    Root,
-    /// A short wavefront over a sample of its root queue, from its root pass to
-    /// its end (`WindowPlan::wave_rays`; `first`: the rays left out).
-    Wave,
-    /// Segment passes of a wavefront.
-    Trace,
-    /// A wavefront's last segment passes (from the first boundary after the
-    /// head with at most `WindowPlan::tail_pending` queues holding rays),
-    /// measured to its end.
-    Tail,
-    /// The shading pass after a wavefront.
-    Shade,
-    /// A shading pass's first `WindowPlan::shade_head` items, from its start.
-    ShadeHead,
-}
-
-/// The windows of one kind and their summed wall time (see
-/// [`WindowRecord::chip_s_by_kind`]).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct KindTime {
-    pub kind: SampleKind,
-    pub windows: usize,
-    pub chip_s: f64,
-}
-
-/// What time sampling recorded (see [`WindowPlan`]).
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct WindowRecord {
-    /// Per functional wavefront, per segment pass in order.
-    pub segs: Vec<Vec<SegWork>>,
-    pub samples: Vec<WindowSample>,
-    /// Shading items per pass (the frame's pixels) = primary rays.
-    pub pixels: u32,
-    /// Wall time in the chip windows (building the chip included).
-    pub chip_s: f64,
-    /// The plan's head (admissions from each wavefront's start measured whole).
-    pub head: u64,
-    /// Per wavefront: whether it was traced in windows (`WindowPlan::wave_every`),
-    /// and the first admission of its tail (its pass count if it has none).
-    pub measured: Vec<bool>,
-    pub tail_from: Vec<u64>,
-    /// Per wavefront: whether it was too short to hold a window after its head
-    /// (`WindowPlan::first_window_start`), so simulated whole after its root pass
-    /// (borrowed: its part after the root is one, like its neighbours').
-    pub whole: Vec<bool>,
-    /// Per shading pass, per pixel: the shading lines the functional model
-    /// moved for it (a path that was done: 1, the path state the chip reads),
-    /// the work proxy the pass's windows are scaled by. Not in the window log.
-    #[serde(skip)]
-    pub shade_lines: Vec<Vec<u8>>,
-    /// The frame's last possible wavefront (the shadow rays of the paths' last
-    /// hit points: the bounce count).
-    pub final_wave: usize,
-}
-
-impl SampleKind {
-    /// Its name in summaries.
-    pub fn label(self) -> &'static str {
-        match self {
-            SampleKind::Emit => "emission",
-            SampleKind::Root => "root",
-            SampleKind::Wave => "wavefront samples",
-            SampleKind::Trace => "trace",
-            SampleKind::Tail => "tail",
-            SampleKind::Shade => "shading",
-            SampleKind::ShadeHead => "shading heads",
-        }
-    }
-}
-
-/// The windows' wall time by kind as text: "12 trace 53.7 s, 3 root 11.2 s, ...".
-pub fn kind_times_text(by: &[KindTime]) -> String {
-    by.iter()
-        .map(|k| format!("{} {} {:.1} s", k.windows, k.kind.label(), k.chip_s))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-impl WindowRecord {
-    /// The windows' wall time by kind, in [`SampleKind`] order (kinds with no
-    /// window left out): where time sampling's cost goes, so that a plan is
-    /// tuned where it pays.
-    pub fn chip_s_by_kind(&self) -> Vec<KindTime> {
-        let mut by: Vec<KindTime> = Vec::new();
-        let mut samples: Vec<&WindowSample> = self.samples.iter().collect();
-        samples.sort_by_key(|s| s.kind);
-        for s in samples {
-            match by.last_mut() {
-                Some(k) if k.kind == s.kind => {
-                    k.windows += 1;
-                    k.chip_s += s.wall_s;
-                }
-                _ => by.push(KindTime {
-                    kind: s.kind,
-                    windows: 1,
-                    chip_s: s.wall_s,
-                }),
-            }
-        }
-        by
     }
 }
 
@@ -685,9 +324,6 @@ pub struct Frame {
     pub energy: Option<crate::energy::Energy>,
     /// Cycle mode only.
     pub chip: Option<ChipFrame>,
-    /// Functional mode with [`RenderCfg::windows`].
-    #[serde(skip)]
-    pub windows: Option<WindowRecord>,
     /// Cycle mode with [`RenderCfg::pass_log`]: per chip run, the segment passes
     /// in retirement order.
     #[serde(skip)]
@@ -788,6 +424,55 @@ pub fn render(
     cfg: &RenderCfg,
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<Frame, String> {
+    render_hooked(scene, mode, cfg, progress, None)
+}
+
+/// What may act at the points of a functional frame where the chip can take
+/// the work over: time sampling (`crate::sampling`) implements it. Every
+/// method may fail the frame with its error.
+pub trait FunctionalHooks {
+    /// The frame is laid out (`p`) and its `pixels` chosen; no ray yet.
+    fn begin(&mut self, scene: &Scene, p: &Prepared, pixels: u32) -> Result<(), String>;
+    /// Ray generation is done: the primary rays of the pixels `sample`
+    /// (raster indices; ray and path `i` is `sample[i]`) are in the root queue.
+    fn generated(&mut self, scene: &Scene, p: &Prepared, sample: &[u32]) -> Result<(), String>;
+    /// Before each segment pass of wavefront `wave` that holds rays (segment
+    /// `s`, admitted in depth-first order), and once after its last
+    /// (`u32::MAX`).
+    fn segment(
+        &mut self,
+        wave: usize,
+        s: u32,
+        p: &mut Prepared,
+        q: &RayQueues,
+        st: &WaveStats,
+    ) -> Result<(), String>;
+    /// Wavefront `wave` is traced; its shading pass comes next.
+    fn traced(&mut self, wave: usize, p: &Prepared, q: &RayQueues) -> Result<(), String>;
+    /// A shading pass is done: the shading lines it moved for each pixel
+    /// (at most 255).
+    fn shaded(&mut self, lines: Vec<u8>);
+    /// The frame is traced and shaded.
+    fn end(&mut self) -> Result<(), String>;
+}
+
+/// [`render`] in functional mode with `hooks` called at its take-over points.
+pub fn render_with_hooks(
+    scene: &Scene,
+    cfg: &RenderCfg,
+    progress: &mut dyn FnMut(&Progress),
+    hooks: &mut dyn FunctionalHooks,
+) -> Result<Frame, String> {
+    render_hooked(scene, Mode::Functional, cfg, progress, Some(hooks))
+}
+
+fn render_hooked(
+    scene: &Scene,
+    mode: Mode,
+    cfg: &RenderCfg,
+    progress: &mut dyn FnMut(&Progress),
+    mut hooks: Option<&mut dyn FunctionalHooks>,
+) -> Result<Frame, String> {
     scene.settings.validate()?;
     let start = Instant::now();
     let mut p = prepare(scene, cfg)?;
@@ -860,36 +545,9 @@ pub fn render(
         chip = Some(c);
         q.divert();
     }
-    let mut windows = match &cfg.windows {
-        None => None,
-        Some(plan) => {
-            if mode != Mode::Functional {
-                return Err("time sampling (windows) runs in functional mode".into());
-            }
-            plan.validate()?;
-            let run = cfg.chip.as_deref().cloned().unwrap_or_default();
-            let mut c = run.config;
-            c.accel = cfg.accel.clone();
-            c.memory = cfg.memory.clone();
-            if c.chip.shading != crate::machine::config::Shading::Tps {
-                return Err(
-                    "time sampling needs the shading pass on the TPs (chip.shading = \"tps\")"
-                        .into(),
-                );
-            }
-            let mut w = windows::Windows::new(
-                plan.clone(),
-                c,
-                p.map.clone(),
-                shade_consts(scene, &p),
-                nseg,
-                run.sim,
-                pixels,
-            )?;
-            w.rec.final_wave = scene.settings.bounces as usize;
-            Some(w)
-        }
-    };
+    if let Some(h) = hooks.as_deref_mut() {
+        h.begin(scene, &p, pixels)?;
+    }
     // Cycle mode with shading on the TPs: every chip run after the first shades the
     // finished wavefront and traces the one it emits.
     let tp_shading =
@@ -926,31 +584,10 @@ pub fn render(
     }
     let mut work: Vec<u32> = (0..pixels).collect();
     q.close(&mut p.mem, &p.map, 0);
-    if let Some(win) = windows.as_mut() {
-        let n =
-            (win.plan.shade_warm.saturating_add(win.plan.shade_measure)).min(pixels as u64) as u32;
-        let rays = (0..n)
-            .map(|pix| {
-                let real = sample[pix as usize];
-                let mut rng = pixel_seed(scene.settings.seed, real);
-                let jitter = (next_f32(&mut rng), next_f32(&mut rng));
-                let (o, d) = scene.camera.ray(real % w, real / w, w, h, jitter);
-                RayRec {
-                    origin: o,
-                    dir: d,
-                    ray_id: pix,
-                    entry: root_entry,
-                }
-            })
-            .collect();
-        win.emit_window(&p, rays)?;
+    if let Some(h) = hooks.as_deref_mut() {
+        h.generated(scene, &p, &sample)?;
     }
 
-    // Time sampling: the rays of the last wavefront traced in windows (see
-    // `BORROW_ALIKE`).
-    let mut traced_rays: Option<u64> = None;
-    // Whether the last wavefront was one traced over a sample (see there).
-    let mut last_sampled = false;
     while !work.is_empty() {
         let mut prog = Progress {
             wave: waves.len(),
@@ -965,191 +602,11 @@ pub fn render(
         match mode {
             Mode::Functional => {
                 let wave = waves.len();
-                let mut segs = Vec::new();
-                let mut ord = 0u64;
-                let mut tail_started = false;
-                let mut tail_from = None;
-                let last = scene.settings.bounces as usize;
-                // Decided at the root pass, from the wavefront's rays.
-                let mut measured = true;
-                // Decided there too: a wavefront too short to hold a window
-                // after its head is simulated whole from its second admission.
-                let mut whole = false;
-                let mut prev: Option<(u32, u64, WorkSoFar)> = None;
-                let mut hook = |s: u32,
-                                p: &mut Prepared,
-                                q: &RayQueues,
-                                st: &WaveStats|
-                 -> Result<(), String> {
-                    let now = WorkSoFar::of(st, q);
-                    if let Some((seg, rays, b)) = prev.take() {
-                        segs.push(now.since(&b, seg, rays));
-                    }
-                    if s == u32::MAX {
-                        return Ok(());
-                    }
-                    prev = Some((s, q.len(s), now));
-                    let k = ord;
-                    ord += 1;
-                    let (Some(plan), Some(w)) = (&cfg.windows, windows.as_mut()) else {
-                        return Ok(());
-                    };
-                    if k == 0 {
-                        // Borrowing needs neighbours alike: a wavefront whose rays
-                        // differ from the last measured one's by more than
-                        // `BORROW_ALIKE` is measured (an open scene's wavefronts
-                        // shrink, and a smaller one is more latency-bound).
-                        let rays = q.len(s);
-                        let alike = |m: Option<u64>| {
-                            m.is_some_and(|m| rays.abs_diff(m) as f64 <= BORROW_ALIKE * m as f64)
-                        };
-                        // Its passes: the last wavefront's, else one per segment.
-                        let expect =
-                            w.rec.segs.last().map_or(p.seg.segments.len(), |s| s.len()) as u64;
-                        whole = expect <= plan.first_window_start();
-                        // A short wavefront of many rays is traced over a
-                        // sample from its root pass to its end, unless it
-                        // borrows (below).
-                        let sampled = whole
-                            && plan.wave_rays > 0
-                            && rays > plan.wave_rays
-                            && plan.sample_streams_rays(
-                                rays,
-                                w.rec.segs.last().map(|s| s.as_slice()),
-                                expect,
-                                p.info.segment_bytes_mean,
-                            );
-                        // A sampled one between the third and the last borrows
-                        // from the sampled ones from the third on
-                        // (`speed_error::windowed_parts`), so only right after
-                        // one: the first bounce's rays (from the primary hits)
-                        // cost more per visit than the later ones' (Dabrovic
-                        // Sponza at 1024x1024: 1.01 cycles a visit, then
-                        // 0.92-0.96).
-                        measured = if sampled {
-                            plan.wave_every <= 1
-                                || wave <= SAMPLE_BORROW_FROM
-                                || wave >= last
-                                || !last_sampled
-                                || !alike(traced_rays)
-                        } else {
-                            plan.measures_wave(wave, last) || !alike(traced_rays)
-                        };
-                        last_sampled = sampled;
-                        if sampled && measured {
-                            traced_rays = Some(rays);
-                            let every = rays.div_ceil(plan.wave_rays);
-                            let (b, kept) = q.boundary_compact(
-                                &p.mem,
-                                &p.map,
-                                s as usize,
-                                queues::Thinning::wave(every, plan.sample_run()),
-                            );
-                            let spec = windows::WindowSpec {
-                                what: crate::machine::WindowKind::Wave {
-                                    boundary: b,
-                                    tenths: ROOT_STEADY_TENTHS,
-                                    // About 160 looks for ten visits a ray.
-                                    step: (kept / 16).max(1),
-                                    l2_share: plan.wave_l2_share,
-                                },
-                                warm: 0,
-                                warm_cycles: 0,
-                                measure: 0,
-                                wave,
-                                kind: SampleKind::Wave,
-                                first: rays - kept,
-                            };
-                            w.run(p, spec)?;
-                            // The first `wave_whole` of them from the second
-                            // on are simulated whole as well (root window and
-                            // the rest as the head), to correct the others.
-                            if !(1..=plan.wave_whole).contains(&(wave as u64)) {
-                                tail_started = true;
-                                return Ok(());
-                            }
-                        }
-                        // Between the second wavefront and the last a root pass
-                        // is borrowed: by the ratio of its neighbours' root
-                        // windows if its rays are alike theirs, else on the line
-                        // through them (`speed_error::root_between`: a smaller
-                        // root pass costs more per ray). A small one
-                        // (`WindowPlan::root_whole`) is simulated whole: cheap,
-                        // and so latency-bound that neither holds (Cornell box
-                        // 64x64: borrowed roots 18-34% high; the spheres
-                        // without their room at 16x16: 55% low on the line).
-                        let root = measured
-                            && (plan.measures_root(wave, last) || rays <= plan.root_whole());
-                        if measured {
-                            traced_rays = Some(rays);
-                        }
-                        if !root {
-                            return Ok(());
-                        }
-                        // The root pass (every ray of the wavefront): whole, or
-                        // over one ray in `every` of its queue, packed.
-                        let n = q.len(s);
-                        let every = n.div_ceil(plan.root_window_rays(wave));
-                        let (b, kept) = q.boundary_compact(
-                            &p.mem,
-                            &p.map,
-                            s as usize,
-                            queues::Thinning::root(every),
-                        );
-                        let spec = windows::WindowSpec {
-                            what: crate::machine::WindowKind::Root(b),
-                            warm: (kept * ROOT_STEADY_TENTHS.0 / 10).max(1),
-                            warm_cycles: 0,
-                            measure: kept * (ROOT_STEADY_TENTHS.1 - ROOT_STEADY_TENTHS.0) / 10,
-                            wave,
-                            kind: SampleKind::Root,
-                            first: n - kept,
-                        };
-                        w.run(p, spec)?;
-                        return Ok(());
-                    }
-                    if tail_started {
-                        return Ok(());
-                    }
-                    let pending = q.pending() as u64;
-                    let tail_now = k >= plan.head && pending <= plan.tail_pending;
-                    let (warm, measure, kind) = if whole && !tail_now {
-                        // No window would fit before the wavefront ends: all
-                        // of it after the root pass is measured as its head.
-                        tail_started = true;
-                        (0, u64::MAX, SampleKind::Trace)
-                    } else if k == 1 && plan.head > 1 {
-                        (0, plan.head - 1, SampleKind::Trace)
-                    } else if tail_now {
-                        // The wavefront's tail: too few queues left to fill the
-                        // chip, so the passes go by their dependency chain rather
-                        // than the throughput the windows measure; measured to
-                        // the end.
-                        tail_started = true;
-                        tail_from = Some(k + plan.tail_warm);
-                        (plan.tail_warm, u64::MAX, SampleKind::Tail)
-                    } else if k + plan.warm >= plan.head
-                        && (k + plan.warm - plan.head).is_multiple_of(plan.every)
-                    {
-                        (plan.warm, plan.measure, SampleKind::Trace)
-                    } else {
-                        return Ok(());
-                    };
-                    if !measured {
-                        // Borrowed: the tail's start is all this wavefront records.
-                        return Ok(());
-                    }
-                    let spec = windows::WindowSpec {
-                        what: crate::machine::WindowKind::Trace(q.boundary(&p.map)),
-                        warm,
-                        warm_cycles: 0,
-                        measure,
-                        wave,
-                        kind,
-                        first: k + warm,
-                    };
-                    w.run(p, spec)?;
-                    Ok(())
+                let mut hook = |s: u32, p: &mut Prepared, q: &RayQueues, st: &WaveStats| match hooks
+                    .as_deref_mut()
+                {
+                    Some(h) => h.segment(wave, s, p, q, st),
+                    None => Ok(()),
                 };
                 trace_functional(
                     &mut p,
@@ -1162,15 +619,8 @@ pub fn render(
                     },
                     &mut hook,
                 )?;
-                if let Some(w) = windows.as_mut() {
-                    w.rec
-                        .tail_from
-                        .push(tail_from.map_or(segs.len() as u64, |t| t.min(segs.len() as u64)));
-                    w.rec.measured.push(measured);
-                    w.rec.whole.push(whole);
-                    w.rec.segs.push(segs);
-                    let pool = q.boundary(&p.map);
-                    w.shade_windows(&p, wave, pixels, &pool)?;
+                if let Some(h) = hooks.as_deref_mut() {
+                    h.traced(wave, &p, &q)?;
                 }
             }
             Mode::Reference => trace_reference(&mut p, &mut q, scene, &mut st),
@@ -1223,7 +673,7 @@ pub fn render(
         let mut next_work = Vec::new();
         let mut next = WaveStats::default();
         // Time sampling scales a shading pass's windows by its lines per pixel.
-        let mut lines = windows.as_ref().map(|_| vec![1u8; pixels as usize]);
+        let mut lines = hooks.is_some().then(|| vec![1u8; pixels as usize]);
         for &pix in &work {
             let before = st.shading_lines;
             shade_pixel(
@@ -1241,8 +691,8 @@ pub fn render(
                 l[pix as usize] = (st.shading_lines - before).min(u8::MAX as u64) as u8;
             }
         }
-        if let (Some(w), Some(l)) = (windows.as_mut(), lines) {
-            w.rec.shade_lines.push(l);
+        if let (Some(h), Some(l)) = (hooks.as_deref_mut(), lines) {
+            h.shaded(l);
         }
         q.close(&mut p.mem, &p.map, 0);
         st.ray_lines_read += q.traffic.lines_read - r0;
@@ -1258,7 +708,9 @@ pub fn render(
         st = next;
         work = next_work;
     }
-    let windows = windows.map(|w| w.finish()).transpose()?;
+    if let Some(h) = hooks {
+        h.end()?;
+    }
     let mut total = WaveStats::default();
     for wv in &waves {
         total.add(wv);
@@ -1280,7 +732,6 @@ pub fn render(
         radiance[real as usize] = PathRec::read(&p.mem, p.map.path_addr(pix as u64)).radiance;
     }
     Ok(Frame {
-        windows,
         passes,
         scene: scene.name.clone(),
         mode,
@@ -1451,94 +902,7 @@ fn trace_functional(
     hook(u32::MAX, p, q, st)
 }
 
-impl WindowPlan {
-    pub fn validate(&self) -> Result<(), String> {
-        if self.head == 0 || self.measure == 0 || self.every == 0 {
-            return Err(format!(
-                "time sampling needs a head, a measured stretch and a period of at least one segment admission (head {}, --window-measure {}, --window-every {}); raise the zero one",
-                self.head, self.measure, self.every
-            ));
-        }
-        if self.wave_every == 0 {
-            return Err(
-                "--window-waves 0 has no period: use 1 to trace every wavefront in windows, N to trace the first, the last and every N-th from the second".into(),
-            );
-        }
-        for (flag, rays) in [
-            ("--window-root-rays", self.root_rays),
-            ("--window-bounce-root-rays", self.bounce_root_rays),
-        ] {
-            if rays < 4 {
-                return Err(format!(
-                    "{flag} {rays}: the root window needs at least 4 rays (a warm-up and a measured stretch); raise it"
-                ));
-            }
-        }
-        if self.measure > self.every {
-            return Err(format!(
-                "windows overlap: --window-measure {} admissions every --window-every {}; measure at most every",
-                self.measure, self.every
-            ));
-        }
-        if !(self.wave_ray_share.is_finite() && self.wave_ray_share >= 0.0) {
-            return Err(format!(
-                "--window-wave-ray-share {}: give a share of a segment's lines, 0 or more (0: sample every short wavefront of many rays)",
-                self.wave_ray_share
-            ));
-        }
-        if self.shade_windows == 0 || self.shade_measure == 0 {
-            return Err(format!(
-                "--shade-windows {} of {} measured items: the shading passes would go unmeasured; use at least one window of one item",
-                self.shade_windows, self.shade_measure
-            ));
-        }
-        Ok(())
-    }
-}
-
 type SegHook<'a> = dyn FnMut(u32, &mut Prepared, &RayQueues, &WaveStats) -> Result<(), String> + 'a;
-
-/// Running totals of the functional model's work, for [`SegWork`] by difference.
-#[derive(Clone, Copy, Default)]
-struct WorkSoFar {
-    nodes: u64,
-    tri_tests: u64,
-    pops: u64,
-    exits: u64,
-    enqueues: u64,
-    scene_lines: u64,
-    ray_lines: u64,
-    hit_lines: u64,
-}
-
-impl WorkSoFar {
-    fn of(st: &WaveStats, q: &RayQueues) -> Self {
-        WorkSoFar {
-            nodes: st.traversal.nodes,
-            tri_tests: st.traversal.tri_tests,
-            pops: st.traversal.pops,
-            exits: st.traversal.exits,
-            enqueues: st.enqueues,
-            scene_lines: st.scene_lines,
-            ray_lines: q.traffic.lines_read + q.traffic.lines_written,
-            hit_lines: st.hit_lines_read + st.hit_lines_written,
-        }
-    }
-    fn since(&self, b: &WorkSoFar, seg: u32, rays: u64) -> SegWork {
-        SegWork {
-            seg,
-            rays,
-            nodes: self.nodes - b.nodes,
-            tri_tests: self.tri_tests - b.tri_tests,
-            pops: self.pops - b.pops,
-            exits: self.exits - b.exits,
-            enqueues: self.enqueues - b.enqueues,
-            scene_lines: self.scene_lines - b.scene_lines,
-            ray_lines: self.ray_lines - b.ray_lines,
-            hit_lines: self.hit_lines - b.hit_lines,
-        }
-    }
-}
 
 /// The reference: every ray of the root queue traced through the whole BVH.
 fn trace_reference(p: &mut Prepared, q: &mut RayQueues, scene: &Scene, st: &mut WaveStats) {
