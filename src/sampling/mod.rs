@@ -12,8 +12,8 @@
 //! - `windows.rs`: the chip side, every window on a fresh chip, side by side
 //!   on worker threads;
 //! - `record.rs`: what the windows recorded ([`WindowRecord`]);
-//! - `counts.rs`, `estimate.rs`: the estimate ([`time_sampled`],
-//!   [`WindowEstimate`]);
+//! - `counts.rs`, `parts.rs`, `estimate.rs`: the estimate, part by part
+//!   ([`time_sampled`], [`WindowEstimate`]);
 //! - `analytic.rs`: the first-order figures of a functional frame (cycles
 //!   from resource bounds, DRAM energy from lines);
 //! - `output.rs`: the estimate's summary and JSON;
@@ -28,6 +28,7 @@ mod counts;
 mod estimate;
 mod frame;
 mod output;
+mod parts;
 mod plan;
 mod record;
 pub mod speed_error;
