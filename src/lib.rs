@@ -11,8 +11,8 @@ pub mod mem;
 pub mod render;
 pub mod report;
 pub mod rtl;
+pub mod sampling;
 pub mod scene;
-pub mod speed_error;
 #[path = "../testbench/mod.rs"]
 pub mod testbench;
 pub mod units;

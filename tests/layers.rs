@@ -19,7 +19,7 @@ const LAYERS: &[&[&str]] = &[
     &["energy"],
     &["config"],
     &["machine"],
-    &["render", "sampling", "report", "testbench", "speed_error"],
+    &["render", "sampling", "report", "testbench"],
     &["bench", "cli"],
 ];
 

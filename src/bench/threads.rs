@@ -89,12 +89,7 @@ fn time_one(
     sc.settings.validate()?;
     let t0 = Instant::now();
     if case.windows {
-        crate::speed_error::time_sampled(
-            &sc,
-            config,
-            threads,
-            &crate::speed_error::default_windows(),
-        )?;
+        crate::sampling::time_sampled(&sc, config, threads, &crate::sampling::default_windows())?;
         return Ok((t0.elapsed().as_secs_f64(), Vec::new()));
     }
     let rc = RenderCfg::for_chip(config, threads.sim());

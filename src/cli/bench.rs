@@ -7,10 +7,10 @@ use std::path::PathBuf;
 use clap::{Args, Subcommand};
 
 use dualstream::config::Config;
-use dualstream::render::WindowPlan;
 use dualstream::rtl::Threads;
+use dualstream::sampling::{self, WindowPlan, speed_error};
 
-use super::{parse_res, sampling, write_file};
+use super::{parse_res, write_file};
 
 #[derive(Subcommand)]
 pub enum BenchCmd {
@@ -277,7 +277,7 @@ fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(
     sc.settings.validate()?;
     let reference = match &a.reference {
         Some(p) => {
-            let mut r = sampling::Reference::load(p, a.reference_image.as_deref(), &sc, config)?;
+            let mut r = speed_error::Reference::load(p, a.reference_image.as_deref(), &sc, config)?;
             if let Some(csv) = &a.reference_passes {
                 r.read_passes(csv)?;
             }
@@ -285,7 +285,7 @@ fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(
         }
         None => None,
     };
-    let opts = sampling::SpeedErrorOpts {
+    let opts = speed_error::SpeedErrorOpts {
         reference,
         small_tms: a.small_tms,
         sample_every: a.sample_every,
@@ -298,21 +298,21 @@ fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(
         windows: a.windows.plan(),
         window_log: a.windows.window_log,
     };
-    let rows = sampling::run(&sc, config, &opts)?;
+    let rows = speed_error::run(&sc, config, &opts)?;
     println!(
         "speed against error: {} {}x{} on {} x {} TPs (reference: cycle mode, GDDR5)",
         sc.name, sc.settings.width, sc.settings.height, config.chip.tms, config.tm.tps
     );
-    print!("{}", sampling::table(&rows));
+    print!("{}", speed_error::table(&rows));
     for r in rows.iter().filter(|r| !r.by_part.is_empty()) {
-        print!("{}", sampling::part_table(&r.by_part));
+        print!("{}", speed_error::part_table(&r.by_part));
     }
     if let Some(p) = a.json {
         let text = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
         write_file(&p, text)?;
     }
     if let Some(p) = a.plot {
-        write_file(&p, sampling::plot(&rows))?;
+        write_file(&p, speed_error::plot(&rows))?;
     }
     Ok(())
 }

@@ -16,10 +16,6 @@ pub mod report;
 pub mod scene;
 pub mod tb;
 
-/// Time sampling (the window plan, `time_sampled`) and the speed/error study.
-/// The cli's only path to that module, so moving it changes this line alone.
-pub use dualstream::speed_error as sampling;
-
 /// Says that the BVH came from the fallback builder, and why.
 pub fn bvh_fallback_warning(why: &str) -> String {
     format!(

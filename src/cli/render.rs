@@ -10,8 +10,8 @@ use dualstream::render::{self, Frame, Mode, RenderCfg, output};
 use dualstream::rtl::Threads;
 use dualstream::scene::Scene;
 
-use super::sampling::{self, WindowEstimate};
 use super::{bvh_fallback_warning, parse_res, parse_size, render_cfg};
+use dualstream::sampling::{self, WindowEstimate};
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -242,7 +242,7 @@ fn write_outputs(
     }
     print!("{}", output::summary(frame));
     if let Some(e) = estimate {
-        print!("{}", output::window_summary(e));
+        print!("{}", sampling::window_summary(e));
     }
     println!("image: {}", a.out.display());
     if let (Some(p), Some(v)) = (&a.vcd, frame.chip.as_ref().and_then(|c| c.vcd)) {
@@ -257,7 +257,7 @@ fn write_outputs(
     }
     if let Some(p) = &a.stats {
         match estimate {
-            Some(e) => output::write_json_estimated(frame, e, p)?,
+            Some(e) => sampling::write_json_estimated(frame, e, p)?,
             None => output::write_json(frame, p)?,
         }
         println!("statistics: {}", p.display());

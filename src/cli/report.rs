@@ -11,7 +11,8 @@ use dualstream::report::paper;
 use dualstream::rtl::Threads;
 use dualstream::units::memory::MemoryModel;
 
-use super::{parse_res, render_cfg, sampling};
+use super::{parse_res, render_cfg};
+use dualstream::sampling;
 
 #[derive(Args)]
 pub struct ReportArgs {
@@ -86,7 +87,7 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Str
                 t0.elapsed().as_secs_f64(),
                 e.windows,
                 e.chip_s,
-                dualstream::render::kind_times_text(&e.chip_s_by_kind),
+                sampling::kind_times_text(&e.chip_s_by_kind),
                 e.se_text().map(|t| format!("; {t}")).unwrap_or_default()
             );
             rows.extend(paper::compare_sampled(row, &ts.frame, e));

@@ -1,5 +1,6 @@
 //! The wavefront path tracer over the DRAM image, with dual-streaming traversal in
-//! functional mode (no clock) or the plain reference traversal.
+//! functional mode (no clock), the plain reference traversal, or the chip in
+//! cycle mode (`cycle.rs`).
 //!
 //! The workload is the paper's: paths of up to `bounces` (5) hit points, Lambertian
 //! surfaces, a point light. Wavefront 0 holds the primary rays; shading a hit of
@@ -9,27 +10,35 @@
 //! wavefront. Everything a unit would touch lives in the DRAM image laid out by the
 //! data contract; traffic is counted per stream in 64 B lines.
 
+mod cycle;
 pub mod energy;
+mod frame;
 pub mod output;
+mod prepare;
 pub mod queues;
+mod trace;
 pub mod traverse;
-mod windows;
+
+pub use cycle::{
+    ChipFrame, ChipRun, ChipTrace, VcdInfo, WALL_S_PER_PIXEL_HIT, estimated_frame_cycles,
+    long_frame_note,
+};
+pub use frame::{AccelInfo, Frame, Progress, WaveStats};
+pub use prepare::{Prepared, prepare};
+pub use trace::trace_rays;
 
 use std::time::Instant;
 
 use glam::Vec3;
 use serde::Serialize;
 
-use crate::accel::{AccelCfg, Bvh, SceneImage, Segmentation};
-use crate::contract::{
-    HitRec, LINE_BYTES, MemoryMap, MemoryMapCfg, PathRec, RayRec, SHADOW_BIT, SegEntry, SparseMem,
-    TriRec, lines_touched,
-};
+use crate::accel::AccelCfg;
+use crate::contract::{HitRec, MemoryMapCfg, PathRec, RayRec, TriRec, lines_touched};
 use crate::scene::Scene;
 use crate::units::shade;
 use queues::{RayQueues, queue_lines_written};
-use shade::{ShadeConsts, next_f32, pixel_seed, shade_reads, shade_step};
-use traverse::{SegmentView, TraversalCounts, reference_trace, traverse_segment};
+use shade::{ShadeConsts, shade_reads, shade_step};
+use trace::{dump, emit, trace_functional, trace_reference, verify};
 
 /// How rays are traced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -64,9 +73,6 @@ pub struct RenderCfg {
     /// whole frame, so its radiance is the whole frame's; the others stay black.
     /// For sampled simulation (`bench speed-error`).
     pub pixels: Option<Vec<u32>>,
-    /// Functional mode with time sampling: the chip (`chip`) simulates windows
-    /// of each wavefront taken over from the functional model (see [`WindowPlan`]).
-    pub windows: Option<WindowPlan>,
     /// Cycle mode: record every segment pass's admission and retirement
     /// ([`Frame::passes`]).
     pub pass_log: bool,
@@ -87,698 +93,8 @@ impl RenderCfg {
                 trace: None,
             })),
             pixels: None,
-            windows: None,
             pass_log: false,
         }
-    }
-}
-
-/// Time sampling (`bench speed-error --modes windows`): while the functional model
-/// traces a wavefront segment by segment, the chip takes it over at some segment
-/// boundaries (`Chip::trace_window`) and is measured for a stretch of admissions;
-/// after each wavefront it measures stretches of the shading pass that follows.
-/// Counts are in segments that hold rays (admissions), in the order the functional
-/// model and the scheduler both take them.
-#[derive(Clone, Debug, PartialEq)]
-pub struct WindowPlan {
-    /// Admissions measured from each wavefront's start: the root pass (by its
-    /// root window) and the next `head - 1` admissions simulated whole (the top
-    /// of the tree, where the rays are).
-    pub head: u64,
-    /// Rays of the first wavefront's root window: a root pass of at most this
-    /// many rays simulated whole, a longer one over about this many of its
-    /// rays, one run in k of its queue packed into its first buckets
-    /// (`RayQueues::boundary_compact`). The rays left out cost the cycles and
-    /// DRAM energy per ray of its steady stretch ([`ROOT_STEADY_TENTHS`]), and
-    /// k times its lines and other counts but for its segment's load.
-    pub root_rays: u64,
-    /// The same for the later wavefronts' root windows. Half of `root_rays`
-    /// by default: the primary rays' root pass needs a longer sample, as it
-    /// takes 77-81 cycles a bucket for its first 65 K cycles and 123-138
-    /// after (the Dragon Box at 1024x1024; a fresh chip's time, not the
-    /// rays': a sample of 32 K rays ends within them and reads -13.5%
-    /// against -5.5% with 64 K), while the later root passes read the same
-    /// with half the rays (Dragon -1.4% and -0.3%; Dragon Box +7.0% and
-    /// +6.6%, +0.9% and +1.6%) at half the cost (docs/speed-error.md).
-    pub bounce_root_rays: u64,
-    /// Rays of a short wavefront's sample (one with too few passes for a
-    /// window, see [`WindowPlan::first_window_start`]): such a wavefront of
-    /// more rays is simulated from its root pass to its end over one run of
-    /// rays in k of its root queue (`queues::Thinning::wave`: runs of
-    /// [`WindowPlan::sample_run`] rays, hit records in place), on
-    /// `wave_l2_share` of the L2, and measured
-    /// over its visits (rays finished in a segment) from the first tenth to the
-    /// ninth ([`ROOT_STEADY_TENTHS`]); the visits it left out cost that
-    /// stretch's cycles and DRAM energy each, its other counts go by the
-    /// functional work. With `wave_every` above 1, one between the fourth
-    /// wavefront and the last borrows from the sampled ones from the third on
-    /// (`SAMPLE_BORROW_FROM`) if its rays are alike the last measured one's
-    /// and the wavefront before it was sampled too. 0: such a wavefront
-    /// is simulated whole after its root window.
-    pub wave_rays: u64,
-    /// A wavefront sample's L2 is this share of the chip's. The sample
-    /// passes its rays' hit records through the passes k times faster than
-    /// the wavefront does, so a whole L2 still holds them when a ray comes
-    /// back in a later pass and the sample's hit-record lines read low; one
-    /// k-th of it loses the reuse between neighbouring rays in a pass. On
-    /// Dabrovic Sponza (k 16-28, runs of 1024 rays), a wavefront simulated
-    /// whole over its sample is 0.97-1.02 in cycles, 0.97-1.03 in lines and
-    /// 0.98-1.02 in DRAM energy with a quarter of the L2; with half, runs of
-    /// 512, lines read 1.01-1.08. Against the cycle reference's runs, a
-    /// quarter put the bounce wavefronts' hit-record lines 5-6% low (the
-    /// frame's -4.0%), an eighth within 1% (docs/speed-error.md). The choice
-    /// is measured, not derived.
-    pub wave_l2_share: u32,
-    /// A short wavefront is traced over a sample only if the sample's ray
-    /// stream per pass (its rays times the visits a ray makes, guessed from
-    /// the last wavefront, else one, over the passes) comes to at least this
-    /// share of a segment's lines; else it is simulated whole. Below that the
-    /// sample's passes are bound by loading their segments, not by their rays,
-    /// and its cycles per visit say nothing of the whole wavefront's: the
-    /// Dragon at 1024x1024 with `--window-every 2048` (so every wavefront is
-    /// short), 33 rays a pass in a sample of 64 K over 1963 passes, comes to
-    /// 0.02-0.09 of a segment and its samples read +82% to +260% in cycles;
-    /// Dabrovic Sponza's, measured good, come to 0.28-0.9. 0.15 sits about
-    /// halfway (by ratio) between.
-    pub wave_ray_share: f64,
-    /// Of the sampled short wavefronts, those from the second to this one
-    /// are also simulated whole (root window, then the rest whole): the ratio
-    /// of their whole figures to their samples' corrects every other sampled
-    /// wavefront, count by count (double sampling: what is left of a sample's
-    /// bias, see `wave_l2_share`, is alike over the wavefronts). A whole
-    /// wavefront costs as much as the cycle model's, so this is for checking
-    /// a sample on a new scene. 0: no correction.
-    pub wave_whole: u64,
-    /// Admissions simulated before a window's measurement (to fill the working
-    /// set, the TMs and the caches) and measured.
-    pub warm: u64,
-    pub measure: u64,
-    /// One window's measurement starts every `every` admissions after the head.
-    pub every: u64,
-    /// Shading windows per pass (evenly spread over the pixels), their warm-up
-    /// and measured items.
-    pub shade_windows: u32,
-    pub shade_warm: u64,
-    pub shade_measure: u64,
-    /// And at least this many cycles of warm-up: a shading pass's rate
-    /// settles over time, not items (the Dragon at 256x256, a pass of done
-    /// paths: 0.50 cycles per item for its first 24 K items, 0.40 after, the
-    /// same with a 4x larger L2).
-    pub shade_warm_cycles: u64,
-    /// Items of each shading pass simulated from its start, as is.
-    pub shade_head: u64,
-    /// The tail window starts (its warm-up) at the first boundary after the
-    /// head where at most this many queues hold rays.
-    pub tail_pending: u64,
-    /// Admissions the tail window runs before its measurement (the tail is
-    /// shorter than a window's warm-up, so it has its own).
-    pub tail_warm: u64,
-    /// Wavefronts traced in windows: the first (primary rays), the last (the
-    /// last hit points' shadow rays) and every `wave_every`-th from the second
-    /// on (1: all). The others take no trace window: their root, head, rest and
-    /// tail are their functional proxies times the ratios of the nearest
-    /// measured wavefronts between the first and the last (their shading
-    /// passes keep their windows). With `wave_every` above 1, root windows run
-    /// in the first, second and last wavefronts only, and the other roots go
-    /// by the rays of the nearest of those after the first: a root pass costs
-    /// the same per ray in every wavefront after the first (once the root pass
-    /// is longer than a root window). A wavefront whose rays differ from the
-    /// last measured one's by more than [`BORROW_ALIKE`] is traced in windows
-    /// all the same, but its root pass is still borrowed: on the line through
-    /// the nearest root windows before and after it, in rays
-    /// (`speed_error::root_between`).
-    pub wave_every: u64,
-}
-
-/// A root window's measured stretch, in tenths of its rays finished: from the
-/// first tenth to the ninth, past the pass's start-up (the TMs filling) and
-/// before its drain (its last rays traced), which the whole pass has once.
-pub const ROOT_STEADY_TENTHS: (u64, u64) = (1, 9);
-
-/// The first wavefront whose sample (`WindowPlan::wave_rays`) a later one may
-/// borrow: the primary rays' and the first bounce's cost more per visit (see
-/// `render`'s hook).
-pub const SAMPLE_BORROW_FROM: usize = 2;
-/// Time sampling borrows for a wavefront (its trace or its root pass) only if
-/// its rays are within this fraction of the last measured one's: the ratios it
-/// borrows were measured at that load, and a wavefront with fewer rays is more
-/// latency-bound (Dragon Box: every bounce wavefront within 3% of the next).
-pub const BORROW_ALIKE: f64 = 0.1;
-
-impl WindowPlan {
-    /// Whether wavefront `wave` of a frame whose last is `last` is traced in
-    /// windows (see `wave_every`).
-    pub fn measures_wave(&self, wave: usize, last: usize) -> bool {
-        wave == 0 || wave >= last || (wave as u64 - 1).is_multiple_of(self.wave_every.max(1))
-    }
-
-    /// The admission where a wavefront's first measured stretch starts: a
-    /// wavefront with no more passes holds no window, so it is simulated whole
-    /// after its root pass (its passes are guessed from the last wavefront's,
-    /// or from the segments for the first).
-    pub fn first_window_start(&self) -> u64 {
-        // A window starts at admission k >= 1 (>= 2 after a head window) with
-        // k + warm - head a multiple of `every` (see `render`'s hook).
-        let k_min = if self.head > 1 { 2 } else { 1 };
-        let lo = (k_min + self.warm).saturating_sub(self.head);
-        self.head
-            .saturating_add(lo.div_ceil(self.every.max(1)).saturating_mul(self.every))
-    }
-
-    /// Whether a short wavefront of `rays` (the last wavefront's passes
-    /// `last`, if any; `passes` expected) is worth a sample: its ray-stream
-    /// lines per pass at least `wave_ray_share` of a segment's (of
-    /// `segment_bytes`, the scene's mean; see there).
-    pub fn sample_streams_rays(
-        &self,
-        rays: u64,
-        last: Option<&[SegWork]>,
-        passes: u64,
-        segment_bytes: f64,
-    ) -> bool {
-        let kept = rays / rays.div_ceil(self.wave_rays.max(1));
-        let visits = last
-            .filter(|s| s.first().is_some_and(|f| f.rays > 0))
-            .map_or(1.0, |s| {
-                s.iter().map(|x| x.rays).sum::<u64>() as f64 / s[0].rays as f64
-            });
-        let line = crate::contract::LINE_BYTES as f64;
-        let ray_lines = kept as f64 * visits * crate::contract::RAY_BYTES as f64 / line;
-        let seg_lines = segment_bytes / line;
-        ray_lines / passes.max(1) as f64 >= self.wave_ray_share * seg_lines
-    }
-
-    /// Rays in a run of a wavefront sample: [`queues::SAMPLE_RUN`], fewer
-    /// for a sample of fewer than 16 such runs (at least
-    /// [`queues::COMPACT_RUN`]).
-    pub fn sample_run(&self) -> u64 {
-        (self.wave_rays / 16).clamp(queues::COMPACT_RUN, queues::SAMPLE_RUN)
-    }
-
-    /// Whether wavefront `wave` takes a root window (see `wave_every`).
-    pub fn measures_root(&self, wave: usize, last: usize) -> bool {
-        self.wave_every <= 1 || wave <= 1 || wave >= last
-    }
-
-    /// A root pass of at most this many rays between the second wavefront and
-    /// the last is simulated whole, not borrowed: a quarter of such a
-    /// wavefront's root window (`bounce_root_rays`).
-    /// Such a pass is so latency-bound that borrowing misses it (Cornell box
-    /// 64x64: 18-34% high), and it is cheap. One up to a whole root window
-    /// is not cheap: the Dragon's fifth wavefront (32,747 rays) cost 12.9 M
-    /// unit evaluations, as many as a root window, for 0.4% of the frame.
-    pub fn root_whole(&self) -> u64 {
-        self.bounce_root_rays / 4
-    }
-
-    /// Rays of wavefront `wave`'s root window (`root_rays` for the first,
-    /// `bounce_root_rays` after).
-    pub fn root_window_rays(&self, wave: usize) -> u64 {
-        if wave == 0 {
-            self.root_rays
-        } else {
-            self.bounce_root_rays
-        }
-    }
-}
-
-/// Functional work of one segment pass (for the ratio estimator of time sampling).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct SegWork {
-    /// The segment.
-    pub seg: u32,
-    /// Rays the segment's queue held.
-    pub rays: u64,
-    pub nodes: u64,
-    pub tri_tests: u64,
-    pub pops: u64,
-    pub exits: u64,
-    /// Rays written into child queues.
-    pub enqueues: u64,
-    pub scene_lines: u64,
-    pub ray_lines: u64,
-    pub hit_lines: u64,
-}
-
-/// One measured window of time sampling.
-#[derive(Clone, Debug, Serialize)]
-pub struct WindowSample {
-    /// The functional wavefront it belongs to (a shading window: the pass that
-    /// shades this wavefront's hits).
-    pub wave: usize,
-    pub kind: SampleKind,
-    /// First measured admission (its ordinal in the wavefront), shading item or
-    /// emitted ray.
-    pub first: u64,
-    pub run: crate::machine::WindowRun,
-    /// Simulator wall time of the window (building the chip included).
-    pub wall_s: f64,
-    /// When its chip started, in seconds after the frame's time sampling
-    /// began: with more than one thread the windows run side by side, and
-    /// these with `wall_s` are their schedule (which window held the frame up).
-    pub start_s: f64,
-}
-
-/// What a window measured.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
-pub enum SampleKind {
-    /// The host emitting the primary rays (before the first wavefront).
-    Emit,
-    /// A wavefront's root pass over a sample of its queue (`first`: the rays
-    /// left out), to the next admission.
-    Root,
-    /// A short wavefront over a sample of its root queue, from its root pass to
-    /// its end (`WindowPlan::wave_rays`; `first`: the rays left out).
-    Wave,
-    /// Segment passes of a wavefront.
-    Trace,
-    /// A wavefront's last segment passes (from the first boundary after the
-    /// head with at most `WindowPlan::tail_pending` queues holding rays),
-    /// measured to its end.
-    Tail,
-    /// The shading pass after a wavefront.
-    Shade,
-    /// A shading pass's first `WindowPlan::shade_head` items, from its start.
-    ShadeHead,
-}
-
-/// The windows of one kind and their summed wall time (see
-/// [`WindowRecord::chip_s_by_kind`]).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct KindTime {
-    pub kind: SampleKind,
-    pub windows: usize,
-    pub chip_s: f64,
-}
-
-/// What time sampling recorded (see [`WindowPlan`]).
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct WindowRecord {
-    /// Per functional wavefront, per segment pass in order.
-    pub segs: Vec<Vec<SegWork>>,
-    pub samples: Vec<WindowSample>,
-    /// Shading items per pass (the frame's pixels) = primary rays.
-    pub pixels: u32,
-    /// Wall time in the chip windows (building the chip included).
-    pub chip_s: f64,
-    /// The plan's head (admissions from each wavefront's start measured whole).
-    pub head: u64,
-    /// Per wavefront: whether it was traced in windows (`WindowPlan::wave_every`),
-    /// and the first admission of its tail (its pass count if it has none).
-    pub measured: Vec<bool>,
-    pub tail_from: Vec<u64>,
-    /// Per wavefront: whether it was too short to hold a window after its head
-    /// (`WindowPlan::first_window_start`), so simulated whole after its root pass
-    /// (borrowed: its part after the root is one, like its neighbours').
-    pub whole: Vec<bool>,
-    /// Per shading pass, per pixel: the shading lines the functional model
-    /// moved for it (a path that was done: 1, the path state the chip reads),
-    /// the work proxy the pass's windows are scaled by. Not in the window log.
-    #[serde(skip)]
-    pub shade_lines: Vec<Vec<u8>>,
-    /// The frame's last possible wavefront (the shadow rays of the paths' last
-    /// hit points: the bounce count).
-    pub final_wave: usize,
-}
-
-impl SampleKind {
-    /// Its name in summaries.
-    pub fn label(self) -> &'static str {
-        match self {
-            SampleKind::Emit => "emission",
-            SampleKind::Root => "root",
-            SampleKind::Wave => "wavefront samples",
-            SampleKind::Trace => "trace",
-            SampleKind::Tail => "tail",
-            SampleKind::Shade => "shading",
-            SampleKind::ShadeHead => "shading heads",
-        }
-    }
-}
-
-/// The windows' wall time by kind as text: "12 trace 53.7 s, 3 root 11.2 s, ...".
-pub fn kind_times_text(by: &[KindTime]) -> String {
-    by.iter()
-        .map(|k| format!("{} {} {:.1} s", k.windows, k.kind.label(), k.chip_s))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-impl WindowRecord {
-    /// The windows' wall time by kind, in [`SampleKind`] order (kinds with no
-    /// window left out): where time sampling's cost goes, so that a plan is
-    /// tuned where it pays.
-    pub fn chip_s_by_kind(&self) -> Vec<KindTime> {
-        let mut by: Vec<KindTime> = Vec::new();
-        let mut samples: Vec<&WindowSample> = self.samples.iter().collect();
-        samples.sort_by_key(|s| s.kind);
-        for s in samples {
-            match by.last_mut() {
-                Some(k) if k.kind == s.kind => {
-                    k.windows += 1;
-                    k.chip_s += s.wall_s;
-                }
-                _ => by.push(KindTime {
-                    kind: s.kind,
-                    windows: 1,
-                    chip_s: s.wall_s,
-                }),
-            }
-        }
-        by
-    }
-}
-
-/// How to build and run the chip in cycle mode.
-#[derive(Clone, Debug, Default)]
-pub struct ChipRun {
-    pub config: crate::config::Config,
-    pub sim: crate::rtl::SimOptions,
-    /// Write a VCD waveform of the run (`render --vcd`).
-    pub trace: Option<ChipTrace>,
-}
-
-/// A waveform of the chip over a window of core cycles (docs/chip.md).
-#[derive(Clone, Debug, Default)]
-pub struct ChipTrace {
-    pub path: std::path::PathBuf,
-    /// Comma-separated unit names and instance patterns
-    /// (`crate::machine::trace::resolve`); empty: every unit.
-    pub units: String,
-    /// First and last core cycle traced (`None`: to the end).
-    pub from: u64,
-    pub to: Option<u64>,
-    /// The size guard (`--trace-max-bytes`; 0: no limit).
-    pub max_bytes: u64,
-}
-
-/// Core cycles per pixel and hit point of a cycle-mode frame on the paper's
-/// 128 TMs: 7.7-8.1 measured on the Dragon Box, Dabrovic Sponza and Cornell
-/// with 5 hit points (the Dragon, mostly sky: 2.9). Scales with 128 / TMs.
-const CYCLES_PER_PIXEL_HIT: f64 = 8.0;
-
-/// Wall seconds per pixel and hit point of a cycle-mode frame on a 2-core
-/// machine of 2026: 0.17 (Cornell 64x64) to 0.45 ms (the Dragon Box at
-/// 1024x1024, 39 minutes), about the same for any number of TMs (cycles
-/// scale with 128 / TMs and the work of a cycle with TMs).
-pub const WALL_S_PER_PIXEL_HIT: (f64, f64) = (0.17e-3, 0.45e-3);
-
-/// Before a cycle-mode frame of more than five minutes: how long it takes,
-/// and the faster mode.
-pub fn long_frame_note(s: &crate::scene::RenderSettings, tms: u32) -> Option<String> {
-    let pixels = s.width as f64 * s.height as f64;
-    let hits = s.bounces as f64;
-    let (lo, hi) = WALL_S_PER_PIXEL_HIT;
-    let (lo, hi) = (pixels * hits * lo, pixels * hits * hi);
-    if hi < 300.0 {
-        return None;
-    }
-    let span = |s: f64| {
-        if s >= 5400.0 {
-            format!("{:.1} h", s / 3600.0)
-        } else {
-            format!("{:.0} min", s / 60.0)
-        }
-    };
-    let cycles = estimated_frame_cycles(pixels as u64, s.bounces, tms);
-    Some(format!(
-        "this cycle-mode frame ({}x{}, {} hit points, about {:.0} M cycles) takes about {} to {} on a 2-core machine; --mode windows estimates its cycles, traffic and energy within about 3% in minutes (docs/speed-error.md)",
-        s.width,
-        s.height,
-        s.bounces,
-        cycles as f64 / 1e6,
-        span(lo),
-        span(hi)
-    ))
-}
-
-/// A cycle-mode frame's core cycles, estimated before it runs (for the trace
-/// guard and the long-run note).
-pub fn estimated_frame_cycles(pixels: u64, hit_points: u32, tms: u32) -> u64 {
-    (pixels as f64 * hit_points.max(1) as f64 * CYCLES_PER_PIXEL_HIT * 128.0 / tms.max(1) as f64)
-        as u64
-}
-
-/// What a waveform holds.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-pub struct VcdInfo {
-    pub units: u64,
-    pub signals: u64,
-    pub changes: u64,
-    pub bytes: u64,
-}
-
-/// Cycle-mode figures of a frame.
-#[derive(Clone, Debug, Serialize)]
-pub struct ChipFrame {
-    /// Shading ran on the TPs (`chip.shading = "tps"`), so the cycles include it.
-    pub shading_on_tps: bool,
-    pub tms: u32,
-    pub tps_per_tm: u32,
-    /// Per wavefront: cycles and the chip's own counts.
-    pub waves: Vec<crate::machine::WaveCycles>,
-    pub total_cycles: u64,
-    /// Wall time of the chip simulation (tracing only) and simulated cycles/s.
-    pub sim_wall_s: f64,
-    pub cycles_per_s: f64,
-    /// `chip.memory.model`: "fixed" or "gddr5".
-    pub memory_model: String,
-    /// Core clock period (ps) and line size, for bandwidths.
-    pub core_ps: u64,
-    pub line_bytes: u64,
-    /// `gddr5`: the controllers' figures over the whole frame (sum of `waves`).
-    pub dram: Option<crate::machine::DramWave>,
-    /// The waveform written (`ChipRun::trace`).
-    pub vcd: Option<VcdInfo>,
-    /// The simulator's evaluations by unit kind over the frame, most first
-    /// (where its time went; they depend on the kernel, not the chip's results).
-    pub evals_by_module: Vec<crate::rtl::ModuleEvals>,
-    /// Simulator steps taken with 1, 2, ... evaluation lanes (`--threads`; how
-    /// the run spent its time, not a result).
-    pub sim_steps_by_lanes: Vec<u64>,
-}
-
-impl ChipFrame {
-    /// Achieved DRAM bandwidth (GB/s) over the traced cycles (`gddr5`).
-    pub fn dram_bandwidth_gbs(&self) -> Option<f64> {
-        self.dram
-            .map(|d| d.bandwidth_gbs(self.line_bytes, self.total_cycles, self.core_ps))
-    }
-}
-
-/// Where a render is, for progress reporting.
-#[derive(Clone, Copy, Debug)]
-pub struct Progress {
-    pub wave: usize,
-    /// Upper bound on wavefronts (hit points per path + 1).
-    pub waves_max: usize,
-    /// Rays of this wavefront (unique).
-    pub rays: u64,
-    /// Ray-segment traversals done and known so far in this wavefront.
-    pub done: u64,
-    pub known: u64,
-}
-
-/// Counts of one wavefront (or of a frame, summed).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct WaveStats {
-    pub rays: u64,
-    pub bounce_rays: u64,
-    pub shadow_rays: u64,
-    /// Rays enqueued into any segment, the initial one included.
-    pub enqueues: u64,
-    pub segments_loaded: u64,
-    pub traversal: TraversalCounts,
-    pub ray_lines_read: u64,
-    pub ray_lines_written: u64,
-    pub scene_lines: u64,
-    pub hit_lines_read: u64,
-    pub hit_lines_written: u64,
-    pub shading_lines: u64,
-    pub hits: u64,
-    pub occluded: u64,
-}
-
-impl WaveStats {
-    fn add(&mut self, o: &WaveStats) {
-        self.rays += o.rays;
-        self.bounce_rays += o.bounce_rays;
-        self.shadow_rays += o.shadow_rays;
-        self.enqueues += o.enqueues;
-        self.segments_loaded += o.segments_loaded;
-        self.traversal += o.traversal;
-        self.ray_lines_read += o.ray_lines_read;
-        self.ray_lines_written += o.ray_lines_written;
-        self.scene_lines += o.scene_lines;
-        self.hit_lines_read += o.hit_lines_read;
-        self.hit_lines_written += o.hit_lines_written;
-        self.shading_lines += o.shading_lines;
-        self.hits += o.hits;
-        self.occluded += o.occluded;
-    }
-    /// Enqueues per unique ray (the paper's ray duplication).
-    pub fn duplication(&self) -> f64 {
-        if self.rays == 0 {
-            0.0
-        } else {
-            self.enqueues as f64 / self.rays as f64
-        }
-    }
-    pub fn ray_lines(&self) -> u64 {
-        self.ray_lines_read + self.ray_lines_written
-    }
-    pub fn hit_lines(&self) -> u64 {
-        self.hit_lines_read + self.hit_lines_written
-    }
-    pub fn total_lines(&self) -> u64 {
-        self.ray_lines() + self.scene_lines + self.hit_lines() + self.shading_lines
-    }
-    /// DRAM bytes per ray (the paper's Table 3).
-    pub fn bytes_per_ray(&self) -> f64 {
-        if self.rays == 0 {
-            0.0
-        } else {
-            (self.total_lines() * LINE_BYTES) as f64 / self.rays as f64
-        }
-    }
-}
-
-/// Facts about the acceleration structure.
-#[derive(Clone, Debug, Serialize)]
-pub struct AccelInfo {
-    pub triangles: u64,
-    pub bvh_nodes: u64,
-    pub bvh_depth: u32,
-    pub segments: u64,
-    pub scene_bytes: u64,
-    pub children_min: u64,
-    pub children_mean: f64,
-    pub children_max: u64,
-    pub segment_bytes_mean: f64,
-    pub bvh_build_s: f64,
-    pub segment_build_s: f64,
-    /// Why the BVH was built by the binned-SAH fallback rather than PLOC (absent,
-    /// and not in the statistics, for a PLOC tree).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub bvh_fallback: Option<String>,
-}
-
-/// A rendered frame.
-#[derive(Clone, Debug, Serialize)]
-pub struct Frame {
-    pub scene: String,
-    pub mode: Mode,
-    pub width: u32,
-    pub height: u32,
-    #[serde(skip)]
-    pub radiance: Vec<Vec3>,
-    pub accel: AccelInfo,
-    pub waves: Vec<WaveStats>,
-    pub total: WaveStats,
-    pub duplication: f64,
-    pub bytes_per_ray: f64,
-    pub wall_s: f64,
-    pub trace_s: f64,
-    pub verified_rays: u64,
-    pub dram_resident_mb: f64,
-    /// Compute and on-chip energy of the TMs implied by the traversal (set by the
-    /// caller from the energy table and the TP cost table; functional mode only).
-    pub energy: Option<crate::energy::Energy>,
-    /// Cycle mode only.
-    pub chip: Option<ChipFrame>,
-    /// Functional mode with [`RenderCfg::windows`].
-    #[serde(skip)]
-    pub windows: Option<WindowRecord>,
-    /// Cycle mode with [`RenderCfg::pass_log`]: per chip run, the segment passes
-    /// in retirement order.
-    #[serde(skip)]
-    pub passes: Vec<Vec<crate::units::stream_scheduler::PassEvent>>,
-}
-
-/// The scene built for the chip: BVH, segments and the DRAM image.
-pub struct Prepared {
-    pub bvh: Bvh,
-    pub seg: Segmentation,
-    pub map: MemoryMap,
-    pub mem: SparseMem,
-    pub image: SceneImage,
-    pub info: AccelInfo,
-}
-
-/// Builds the BVH and the segments and writes the scene stream into a fresh image.
-pub fn prepare(scene: &Scene, cfg: &RenderCfg) -> Result<Prepared, String> {
-    cfg.memory.validate()?;
-    cfg.accel.validate(cfg.memory.row_bytes)?;
-    let bvh = Bvh::build(&scene.triangles, &cfg.accel.bvh)?;
-    let t0 = Instant::now();
-    let seg = Segmentation::build(&bvh, cfg.accel.segment_bytes)?;
-    let segment_build_s = t0.elapsed().as_secs_f64();
-    let bytes: Vec<u32> = seg.segments.iter().map(|s| s.bytes).collect();
-    let pixels = scene.settings.width as u64 * scene.settings.height as u64;
-    let map = MemoryMap::new(
-        &cfg.memory,
-        &bytes,
-        SceneImage::children_total(&seg),
-        scene.triangles.len() as u64,
-        scene.materials.len() as u64,
-        pixels,
-    )?;
-    let mut mem = SparseMem::new(map.capacity);
-    let image = SceneImage::write(
-        &mut mem,
-        &map,
-        &scene.triangles,
-        &scene.tri_material,
-        &bvh,
-        &seg,
-    );
-    for (i, m) in scene.materials.iter().enumerate() {
-        let a = map.materials + i as u64 * 16;
-        mem.write_f32(a, m.albedo.x);
-        mem.write_f32(a + 4, m.albedo.y);
-        mem.write_f32(a + 8, m.albedo.z);
-    }
-    let kids: Vec<u64> = seg
-        .segments
-        .iter()
-        .map(|s| s.children.len() as u64)
-        .collect();
-    let info = AccelInfo {
-        triangles: scene.triangles.len() as u64,
-        bvh_nodes: bvh.nodes.len() as u64,
-        bvh_depth: bvh.depth,
-        segments: seg.segments.len() as u64,
-        scene_bytes: bytes.iter().map(|&b| b as u64).sum(),
-        children_min: kids.iter().copied().min().unwrap_or(0),
-        children_mean: kids.iter().sum::<u64>() as f64 / kids.len().max(1) as f64,
-        children_max: kids.iter().copied().max().unwrap_or(0),
-        segment_bytes_mean: bytes.iter().map(|&b| b as f64).sum::<f64>()
-            / bytes.len().max(1) as f64,
-        bvh_build_s: bvh.build_time.as_secs_f64(),
-        segment_build_s,
-        bvh_fallback: match &bvh.builder {
-            crate::accel::BvhBuilder::Ploc => None,
-            crate::accel::BvhBuilder::BinnedSah { reason } => Some(reason.clone()),
-        },
-    };
-    Ok(Prepared {
-        bvh,
-        seg,
-        map,
-        mem,
-        image,
-        info,
-    })
-}
-
-/// Reads and updates a hit record with atomic-min semantics on (t, id).
-fn update_hit(mem: &mut SparseMem, map: &MemoryMap, idx: u64, h: HitRec, st: &mut WaveStats) {
-    let a = map.hit_addr(idx);
-    let cur = HitRec::read(mem, a);
-    st.hit_lines_read += 1;
-    if h.closer_than(&cur) {
-        h.write(mem, a);
-        st.hit_lines_written += 1;
     }
 }
 
@@ -789,118 +105,63 @@ pub fn render(
     cfg: &RenderCfg,
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<Frame, String> {
+    render_hooked(scene, mode, cfg, progress, None)
+}
+
+/// What may act at the points of a functional frame where the chip can take
+/// the work over: time sampling (`crate::sampling`) implements it. Every
+/// method may fail the frame with its error.
+pub trait FunctionalHooks {
+    /// The frame is laid out (`p`) and its `pixels` chosen; no ray yet.
+    fn begin(&mut self, scene: &Scene, p: &Prepared, pixels: u32) -> Result<(), String>;
+    /// Ray generation is done: the primary rays of the pixels `sample`
+    /// (raster indices; ray and path `i` is `sample[i]`) are in the root queue.
+    fn generated(&mut self, scene: &Scene, p: &Prepared, sample: &[u32]) -> Result<(), String>;
+    /// Before each segment pass of wavefront `wave` that holds rays (segment
+    /// `s`, admitted in depth-first order), and once after its last
+    /// (`u32::MAX`).
+    fn segment(
+        &mut self,
+        wave: usize,
+        s: u32,
+        p: &mut Prepared,
+        q: &RayQueues,
+        st: &WaveStats,
+    ) -> Result<(), String>;
+    /// Wavefront `wave` is traced; its shading pass comes next.
+    fn traced(&mut self, wave: usize, p: &Prepared, q: &RayQueues) -> Result<(), String>;
+    /// A shading pass is done: the shading lines it moved for each pixel
+    /// (at most 255).
+    fn shaded(&mut self, lines: Vec<u8>);
+    /// The frame is traced and shaded.
+    fn end(&mut self) -> Result<(), String>;
+}
+
+/// [`render`] in functional mode with `hooks` called at its take-over points.
+pub fn render_with_hooks(
+    scene: &Scene,
+    cfg: &RenderCfg,
+    progress: &mut dyn FnMut(&Progress),
+    hooks: &mut dyn FunctionalHooks,
+) -> Result<Frame, String> {
+    render_hooked(scene, Mode::Functional, cfg, progress, Some(hooks))
+}
+
+/// [`render`], with `hooks` (functional mode) called at its take-over points:
+/// ray generation, then each wavefront's segment passes and its shading.
+fn render_hooked(
+    scene: &Scene,
+    mode: Mode,
+    cfg: &RenderCfg,
+    progress: &mut dyn FnMut(&Progress),
+    mut hooks: Option<&mut dyn FunctionalHooks>,
+) -> Result<Frame, String> {
     scene.settings.validate()?;
     let start = Instant::now();
-    let mut p = prepare(scene, cfg)?;
-    let (w, h) = (scene.settings.width, scene.settings.height);
-    let sample: Vec<u32> = match &cfg.pixels {
-        None => (0..w * h).collect(),
-        Some(v) => {
-            if v.is_empty() {
-                return Err("the pixel sample is empty; keep at least one pixel".into());
-            }
-            if let Some(k) = v.windows(2).position(|x| x[0] >= x[1]) {
-                return Err(format!(
-                    "the pixel sample is not increasing at entry {} ({} then {}); list each pixel once, in raster order",
-                    k + 1,
-                    v[k],
-                    v[k + 1]
-                ));
-            }
-            if v[v.len() - 1] >= w * h {
-                return Err(format!(
-                    "the pixel sample lists pixel {}, outside the {w}x{h} frame",
-                    v[v.len() - 1]
-                ));
-            }
-            v.clone()
-        }
-    };
-    let pixels = sample.len() as u32;
-    let nseg = p.seg.segments.len();
-    let mut q = RayQueues::new(&p.map, nseg);
-    let root_entry = p.image.root_entry.encode();
-    let mut chip = None;
-    let mut chip_waves = Vec::new();
-    let mut chip_cfg = crate::config::Config::default();
-    if mode == Mode::Cycle {
-        let run = cfg.chip.as_deref().cloned().unwrap_or_default();
-        chip_cfg = run.config;
-        chip_cfg.accel = cfg.accel.clone();
-        chip_cfg.memory = cfg.memory.clone();
-        let consts = shade_consts(scene, &p);
-        let mut c = crate::machine::Chip::new(&chip_cfg, &p.map, nseg, &consts, run.sim)?;
-        c.stack_need = Some(p.seg.stack_bound(&p.bvh));
-        if let Some(t) = &run.trace {
-            let paths: Vec<String> = (0..c.sim.unit_count())
-                .map(|i| c.sim.unit_path(crate::rtl::UnitId(i as u32)).to_string())
-                .collect();
-            let paths: Vec<&str> = paths.iter().map(String::as_str).collect();
-            let filter = crate::machine::trace::resolve(&t.units, &paths)?;
-            let spec = crate::machine::trace::spec(
-                filter,
-                t.from,
-                t.to,
-                chip_cfg.clocks.core_ps,
-                t.max_bytes,
-            );
-            let mut tracer = crate::rtl::Tracer::to_file(&t.path, spec)?;
-            // Twice the frame's estimated cycles: the guard projects the bytes
-            // written to the window's end.
-            let cycles =
-                estimated_frame_cycles(pixels as u64, scene.settings.bounces, chip_cfg.chip.tms);
-            tracer.expect_end(2 * cycles * chip_cfg.clocks.core_ps);
-            c.sim.attach_tracer(tracer).map_err(|e| e.to_string())?;
-        }
-        if cfg.verify || cfg.dump_rays.is_some() {
-            c.enable_root_log();
-        }
-        if cfg.pass_log {
-            c.enable_pass_log();
-        }
-        chip = Some(c);
-        q.divert();
+    let mut f = FrameRun::new(scene, mode, cfg)?;
+    if let Some(h) = hooks.as_deref_mut() {
+        h.begin(scene, &f.p, f.pixels)?;
     }
-    let mut windows = match &cfg.windows {
-        None => None,
-        Some(plan) => {
-            if mode != Mode::Functional {
-                return Err("time sampling (windows) runs in functional mode".into());
-            }
-            plan.validate()?;
-            let run = cfg.chip.as_deref().cloned().unwrap_or_default();
-            let mut c = run.config;
-            c.accel = cfg.accel.clone();
-            c.memory = cfg.memory.clone();
-            if c.chip.shading != crate::config::Shading::Tps {
-                return Err(
-                    "time sampling needs the shading pass on the TPs (chip.shading = \"tps\")"
-                        .into(),
-                );
-            }
-            let mut w = windows::Windows::new(
-                plan.clone(),
-                c,
-                p.map.clone(),
-                shade_consts(scene, &p),
-                nseg,
-                run.sim,
-                pixels,
-            )?;
-            w.rec.final_wave = scene.settings.bounces as usize;
-            Some(w)
-        }
-    };
-    // Cycle mode with shading on the TPs: every chip run after the first shades the
-    // finished wavefront and traces the one it emits.
-    let tp_shading = mode == Mode::Cycle && chip_cfg.chip.shading == crate::config::Shading::Tps;
-    let rpb = cfg.memory.rays_per_bucket();
-    let mut waves = Vec::new();
-    let mut trace_s = 0.0;
-    let mut verified = 0u64;
-    let mut rays_this_wave: Vec<RayRec> = Vec::new();
-    let mut passes = Vec::new();
-    let keep = cfg.verify || cfg.dump_rays.is_some();
     if let Some(dir) = &cfg.dump_rays {
         std::fs::create_dir_all(dir).map_err(|e| {
             format!(
@@ -909,681 +170,341 @@ pub fn render(
             )
         })?;
     }
+    f.generate()?;
+    if let Some(h) = hooks.as_deref_mut() {
+        h.generated(scene, &f.p, &f.sample)?;
+    }
+    while !f.work.is_empty() {
+        if !f.wavefront(progress, hooks.as_deref_mut())? {
+            break;
+        }
+    }
+    if let Some(h) = hooks {
+        h.end()?;
+    }
+    f.finish(start)
+}
 
-    // Ray generation: path state and primary rays into the root segment's queue.
-    let mut st = WaveStats::default();
-    for (pix, &real) in (0..pixels).zip(&sample) {
-        let (o, d, path) = shade::primary_path(&scene.camera, scene.settings.seed, real, w, h);
-        let ray = RayRec {
-            origin: o,
-            dir: d,
-            ray_id: pix,
-            entry: root_entry,
+/// A frame being rendered: its DRAM image and queues, and what it counted.
+struct FrameRun<'a> {
+    scene: &'a Scene,
+    mode: Mode,
+    cfg: &'a RenderCfg,
+    p: Prepared,
+    q: RayQueues,
+    /// Ray and path `i` are pixel `sample[i]` (raster index).
+    sample: Vec<u32>,
+    pixels: u32,
+    /// Cycle mode.
+    chip: Option<cycle::FrameChip>,
+    /// The finished wavefronts, and the one under way.
+    waves: Vec<WaveStats>,
+    st: WaveStats,
+    /// The paths still going (pixel ids), to shade after this wavefront.
+    work: Vec<u32>,
+    trace_s: f64,
+    verified: u64,
+    /// This wavefront's rays, kept to verify or dump them (`keep`).
+    keep: bool,
+    rays_this_wave: Vec<RayRec>,
+    /// Cycle mode with `cfg.pass_log`.
+    passes: Vec<Vec<crate::units::stream_scheduler::PassEvent>>,
+}
+
+impl<'a> FrameRun<'a> {
+    /// Lays the scene out, checks the pixel sample and, in cycle mode, builds
+    /// the chip.
+    fn new(scene: &'a Scene, mode: Mode, cfg: &'a RenderCfg) -> Result<FrameRun<'a>, String> {
+        let p = prepare(scene, cfg)?;
+        let sample = pixel_sample(cfg, scene.settings.width, scene.settings.height)?;
+        let pixels = sample.len() as u32;
+        let mut q = RayQueues::new(&p.map, p.seg.segments.len());
+        let chip = if mode == Mode::Cycle {
+            let c = cycle::FrameChip::new(scene, cfg, &p, pixels)?;
+            q.divert();
+            Some(c)
+        } else {
+            None
         };
-        emit(&mut p, &mut q, &mut st, &ray, keep, &mut rays_this_wave)?;
-        path.write(&mut p.mem, p.map.path_addr(pix as u64));
-        st.shading_lines += 1;
-    }
-    let mut work: Vec<u32> = (0..pixels).collect();
-    q.close(&mut p.mem, &p.map, 0);
-    if let Some(win) = windows.as_mut() {
-        let n =
-            (win.plan.shade_warm.saturating_add(win.plan.shade_measure)).min(pixels as u64) as u32;
-        let rays = (0..n)
-            .map(|pix| {
-                let real = sample[pix as usize];
-                let mut rng = pixel_seed(scene.settings.seed, real);
-                let jitter = (next_f32(&mut rng), next_f32(&mut rng));
-                let (o, d) = scene.camera.ray(real % w, real / w, w, h, jitter);
-                RayRec {
-                    origin: o,
-                    dir: d,
-                    ray_id: pix,
-                    entry: root_entry,
-                }
-            })
-            .collect();
-        win.emit_window(&p, rays)?;
+        Ok(FrameRun {
+            scene,
+            mode,
+            cfg,
+            p,
+            q,
+            sample,
+            pixels,
+            chip,
+            waves: Vec::new(),
+            st: WaveStats::default(),
+            work: Vec::new(),
+            trace_s: 0.0,
+            verified: 0,
+            keep: cfg.verify || cfg.dump_rays.is_some(),
+            rays_this_wave: Vec::new(),
+            passes: Vec::new(),
+        })
     }
 
-    // Time sampling: the rays of the last wavefront traced in windows (see
-    // `BORROW_ALIKE`).
-    let mut traced_rays: Option<u64> = None;
-    // Whether the last wavefront was one traced over a sample (see there).
-    let mut last_sampled = false;
-    while !work.is_empty() {
+    /// Cycle mode with shading on the TPs: every chip run after the first
+    /// shades the finished wavefront and traces the one it emits.
+    fn tp_shading(&self) -> bool {
+        self.chip.as_ref().is_some_and(|c| c.tp_shading)
+    }
+
+    /// Ray generation: path state and primary rays into the root segment's queue.
+    fn generate(&mut self) -> Result<(), String> {
+        let (scene, p) = (self.scene, &mut self.p);
+        let (w, h) = (scene.settings.width, scene.settings.height);
+        let root_entry = p.image.root_entry.encode();
+        for (pix, &real) in (0..self.pixels).zip(&self.sample) {
+            let (o, d, path) = shade::primary_path(&scene.camera, scene.settings.seed, real, w, h);
+            let ray = RayRec {
+                origin: o,
+                dir: d,
+                ray_id: pix,
+                entry: root_entry,
+            };
+            emit(
+                p,
+                &mut self.q,
+                &mut self.st,
+                &ray,
+                self.keep,
+                &mut self.rays_this_wave,
+            )?;
+            path.write(&mut p.mem, p.map.path_addr(pix as u64));
+            self.st.shading_lines += 1;
+        }
+        self.work = (0..self.pixels).collect();
+        self.q.close(&mut p.mem, &p.map, 0);
+        Ok(())
+    }
+
+    /// Traces one wavefront, checks it and shades it; `false` once the frame
+    /// is done before its shading (cycle mode: the last shading pass on the
+    /// TPs emitted nothing).
+    fn wavefront<'h>(
+        &mut self,
+        progress: &mut dyn FnMut(&Progress),
+        mut hooks: Option<&mut (dyn FunctionalHooks + 'h)>,
+    ) -> Result<bool, String> {
         let mut prog = Progress {
-            wave: waves.len(),
-            waves_max: scene.settings.bounces as usize + 1,
-            rays: st.rays,
+            wave: self.waves.len(),
+            waves_max: self.scene.settings.bounces as usize + 1,
+            rays: self.st.rays,
             done: 0,
-            known: st.enqueues,
+            known: self.st.enqueues,
         };
         progress(&prog);
         let t0 = Instant::now();
-        let (r0, w0) = (q.traffic.lines_read, q.traffic.lines_written);
-        match mode {
+        let traffic = (self.q.traffic.lines_read, self.q.traffic.lines_written);
+        match self.mode {
             Mode::Functional => {
-                let wave = waves.len();
-                let mut segs = Vec::new();
-                let mut ord = 0u64;
-                let mut tail_started = false;
-                let mut tail_from = None;
-                let last = scene.settings.bounces as usize;
-                // Decided at the root pass, from the wavefront's rays.
-                let mut measured = true;
-                // Decided there too: a wavefront too short to hold a window
-                // after its head is simulated whole from its second admission.
-                let mut whole = false;
-                let mut prev: Option<(u32, u64, WorkSoFar)> = None;
-                let mut hook = |s: u32,
-                                p: &mut Prepared,
-                                q: &RayQueues,
-                                st: &WaveStats|
-                 -> Result<(), String> {
-                    let now = WorkSoFar::of(st, q);
-                    if let Some((seg, rays, b)) = prev.take() {
-                        segs.push(now.since(&b, seg, rays));
-                    }
-                    if s == u32::MAX {
-                        return Ok(());
-                    }
-                    prev = Some((s, q.len(s), now));
-                    let k = ord;
-                    ord += 1;
-                    let (Some(plan), Some(w)) = (&cfg.windows, windows.as_mut()) else {
-                        return Ok(());
-                    };
-                    if k == 0 {
-                        // Borrowing needs neighbours alike: a wavefront whose rays
-                        // differ from the last measured one's by more than
-                        // `BORROW_ALIKE` is measured (an open scene's wavefronts
-                        // shrink, and a smaller one is more latency-bound).
-                        let rays = q.len(s);
-                        let alike = |m: Option<u64>| {
-                            m.is_some_and(|m| rays.abs_diff(m) as f64 <= BORROW_ALIKE * m as f64)
-                        };
-                        // Its passes: the last wavefront's, else one per segment.
-                        let expect =
-                            w.rec.segs.last().map_or(p.seg.segments.len(), |s| s.len()) as u64;
-                        whole = expect <= plan.first_window_start();
-                        // A short wavefront of many rays is traced over a
-                        // sample from its root pass to its end, unless it
-                        // borrows (below).
-                        let sampled = whole
-                            && plan.wave_rays > 0
-                            && rays > plan.wave_rays
-                            && plan.sample_streams_rays(
-                                rays,
-                                w.rec.segs.last().map(|s| s.as_slice()),
-                                expect,
-                                p.info.segment_bytes_mean,
-                            );
-                        // A sampled one between the third and the last borrows
-                        // from the sampled ones from the third on
-                        // (`speed_error::windowed_parts`), so only right after
-                        // one: the first bounce's rays (from the primary hits)
-                        // cost more per visit than the later ones' (Dabrovic
-                        // Sponza at 1024x1024: 1.01 cycles a visit, then
-                        // 0.92-0.96).
-                        measured = if sampled {
-                            plan.wave_every <= 1
-                                || wave <= SAMPLE_BORROW_FROM
-                                || wave >= last
-                                || !last_sampled
-                                || !alike(traced_rays)
-                        } else {
-                            plan.measures_wave(wave, last) || !alike(traced_rays)
-                        };
-                        last_sampled = sampled;
-                        if sampled && measured {
-                            traced_rays = Some(rays);
-                            let every = rays.div_ceil(plan.wave_rays);
-                            let (b, kept) = q.boundary_compact(
-                                &p.mem,
-                                &p.map,
-                                s as usize,
-                                queues::Thinning::wave(every, plan.sample_run()),
-                            );
-                            let spec = windows::WindowSpec {
-                                what: crate::machine::WindowKind::Wave {
-                                    boundary: b,
-                                    tenths: ROOT_STEADY_TENTHS,
-                                    // About 160 looks for ten visits a ray.
-                                    step: (kept / 16).max(1),
-                                    l2_share: plan.wave_l2_share,
-                                },
-                                warm: 0,
-                                warm_cycles: 0,
-                                measure: 0,
-                                wave,
-                                kind: SampleKind::Wave,
-                                first: rays - kept,
-                            };
-                            w.run(p, spec)?;
-                            // The first `wave_whole` of them from the second
-                            // on are simulated whole as well (root window and
-                            // the rest as the head), to correct the others.
-                            if !(1..=plan.wave_whole).contains(&(wave as u64)) {
-                                tail_started = true;
-                                return Ok(());
-                            }
-                        }
-                        // Between the second wavefront and the last a root pass
-                        // is borrowed: by the ratio of its neighbours' root
-                        // windows if its rays are alike theirs, else on the line
-                        // through them (`speed_error::root_between`: a smaller
-                        // root pass costs more per ray). A small one
-                        // (`WindowPlan::root_whole`) is simulated whole: cheap,
-                        // and so latency-bound that neither holds (Cornell box
-                        // 64x64: borrowed roots 18-34% high; the spheres
-                        // without their room at 16x16: 55% low on the line).
-                        let root = measured
-                            && (plan.measures_root(wave, last) || rays <= plan.root_whole());
-                        if measured {
-                            traced_rays = Some(rays);
-                        }
-                        if !root {
-                            return Ok(());
-                        }
-                        // The root pass (every ray of the wavefront): whole, or
-                        // over one ray in `every` of its queue, packed.
-                        let n = q.len(s);
-                        let every = n.div_ceil(plan.root_window_rays(wave));
-                        let (b, kept) = q.boundary_compact(
-                            &p.mem,
-                            &p.map,
-                            s as usize,
-                            queues::Thinning::root(every),
-                        );
-                        let spec = windows::WindowSpec {
-                            what: crate::machine::WindowKind::Root(b),
-                            warm: (kept * ROOT_STEADY_TENTHS.0 / 10).max(1),
-                            warm_cycles: 0,
-                            measure: kept * (ROOT_STEADY_TENTHS.1 - ROOT_STEADY_TENTHS.0) / 10,
-                            wave,
-                            kind: SampleKind::Root,
-                            first: n - kept,
-                        };
-                        w.run(p, spec)?;
-                        return Ok(());
-                    }
-                    if tail_started {
-                        return Ok(());
-                    }
-                    let pending = q.pending() as u64;
-                    let tail_now = k >= plan.head && pending <= plan.tail_pending;
-                    let (warm, measure, kind) = if whole && !tail_now {
-                        // No window would fit before the wavefront ends: all
-                        // of it after the root pass is measured as its head.
-                        tail_started = true;
-                        (0, u64::MAX, SampleKind::Trace)
-                    } else if k == 1 && plan.head > 1 {
-                        (0, plan.head - 1, SampleKind::Trace)
-                    } else if tail_now {
-                        // The wavefront's tail: too few queues left to fill the
-                        // chip, so the passes go by their dependency chain rather
-                        // than the throughput the windows measure; measured to
-                        // the end.
-                        tail_started = true;
-                        tail_from = Some(k + plan.tail_warm);
-                        (plan.tail_warm, u64::MAX, SampleKind::Tail)
-                    } else if k + plan.warm >= plan.head
-                        && (k + plan.warm - plan.head).is_multiple_of(plan.every)
-                    {
-                        (plan.warm, plan.measure, SampleKind::Trace)
-                    } else {
-                        return Ok(());
-                    };
-                    if !measured {
-                        // Borrowed: the tail's start is all this wavefront records.
-                        return Ok(());
-                    }
-                    let spec = windows::WindowSpec {
-                        what: crate::machine::WindowKind::Trace(q.boundary(&p.map)),
-                        warm,
-                        warm_cycles: 0,
-                        measure,
-                        wave,
-                        kind,
-                        first: k + warm,
-                    };
-                    w.run(p, spec)?;
-                    Ok(())
-                };
-                trace_functional(
-                    &mut p,
-                    &mut q,
-                    &mut st,
-                    &mut |done, known| {
-                        prog.done = done;
-                        prog.known = known;
-                        progress(&prog)
-                    },
-                    &mut hook,
-                )?;
-                if let Some(w) = windows.as_mut() {
-                    w.rec
-                        .tail_from
-                        .push(tail_from.map_or(segs.len() as u64, |t| t.min(segs.len() as u64)));
-                    w.rec.measured.push(measured);
-                    w.rec.whole.push(whole);
-                    w.rec.segs.push(segs);
-                    let pool = q.boundary(&p.map);
-                    w.shade_windows(&p, wave, pixels, &pool)?;
-                }
+                self.trace_functional(&mut prog, progress, hooks.as_deref_mut())?;
             }
-            Mode::Reference => trace_reference(&mut p, &mut q, scene, &mut st),
+            Mode::Reference => trace_reference(&mut self.p, &mut self.q, self.scene, &mut self.st),
             Mode::Cycle => {
-                let chip = chip.as_mut().expect("built for cycle mode");
-                let w = if tp_shading && !waves.is_empty() {
-                    chip.shade_and_trace(&mut p.mem, pixels)?
-                } else {
-                    let rays = q.take_diverted();
-                    chip.trace_wave(&mut p.mem, &rays)?
-                };
-                if tp_shading {
-                    if keep {
-                        rays_this_wave = chip.take_root_log();
-                    }
-                    if let Some(prev) = waves.last_mut() {
-                        add_chip_shading(prev, &mut st, &w, rpb);
-                    }
-                }
-                let last = tp_shading && w.rays_emitted == 0;
-                if !last {
-                    add_chip_wave(&mut st, &w, rpb);
-                }
-                chip_waves.push(w);
-                if cfg.pass_log {
-                    passes.push(chip.take_pass_log());
-                }
-                if last {
+                if self.trace_on_chip()? {
                     // The shading pass of the last wavefront emitted nothing.
-                    trace_s += t0.elapsed().as_secs_f64();
-                    break;
+                    self.trace_s += t0.elapsed().as_secs_f64();
+                    return Ok(false);
                 }
             }
         }
-        trace_s += t0.elapsed().as_secs_f64();
-        if cfg.verify {
-            verified += verify(&p, scene, &rays_this_wave)?;
-        }
-        if let Some(dir) = &cfg.dump_rays {
-            dump(dir, waves.len(), &p, &rays_this_wave)?;
-        }
-        rays_this_wave.clear();
-        if tp_shading {
+        self.trace_s += t0.elapsed().as_secs_f64();
+        self.check_wave()?;
+        if self.tp_shading() {
             // The next chip run shades this wavefront on the TPs.
-            waves.push(st);
-            st = WaveStats::default();
-            continue;
+            self.waves.push(self.st);
+            self.st = WaveStats::default();
+            return Ok(true);
         }
-        // Shading (produces the next wavefront into the root queue).
+        self.shade_wave(traffic, hooks)?;
+        Ok(true)
+    }
+
+    /// Dual streaming, functional, with `hooks` at every segment pass.
+    fn trace_functional<'h>(
+        &mut self,
+        prog: &mut Progress,
+        progress: &mut dyn FnMut(&Progress),
+        mut hooks: Option<&mut (dyn FunctionalHooks + 'h)>,
+    ) -> Result<(), String> {
+        let wave = self.waves.len();
+        let mut hook =
+            |s: u32, p: &mut Prepared, q: &RayQueues, st: &WaveStats| match hooks.as_deref_mut() {
+                Some(h) => h.segment(wave, s, p, q, st),
+                None => Ok(()),
+            };
+        trace_functional(
+            &mut self.p,
+            &mut self.q,
+            &mut self.st,
+            &mut |done, known| {
+                prog.done = done;
+                prog.known = known;
+                progress(prog)
+            },
+            &mut hook,
+        )?;
+        if let Some(h) = hooks {
+            h.traced(wave, &self.p, &self.q)?;
+        }
+        Ok(())
+    }
+
+    /// Cycle mode: one chip run (the last wavefront's shading on the TPs, if
+    /// there, then this wavefront's trace) and its counts; `true` if it was
+    /// the last (its shading emitted nothing).
+    fn trace_on_chip(&mut self) -> Result<bool, String> {
+        let chip = self.chip.as_mut().expect("built for cycle mode");
+        let first = self.waves.is_empty();
+        let w = chip.run(&mut self.q, &mut self.p.mem, self.pixels, first)?;
+        let rpb = self.cfg.memory.rays_per_bucket();
+        if chip.tp_shading {
+            if self.keep {
+                self.rays_this_wave = chip.chip.take_root_log();
+            }
+            if let Some(prev) = self.waves.last_mut() {
+                cycle::add_chip_shading(prev, &mut self.st, &w, rpb);
+            }
+        }
+        let last = chip.tp_shading && w.rays_emitted == 0;
+        if !last {
+            cycle::add_chip_wave(&mut self.st, &w, rpb);
+        }
+        chip.waves.push(w);
+        if self.cfg.pass_log {
+            self.passes.push(chip.chip.take_pass_log());
+        }
+        Ok(last)
+    }
+
+    /// Checks this wavefront's rays against the reference (`--verify`) and
+    /// dumps them (`--dump-rays`).
+    fn check_wave(&mut self) -> Result<(), String> {
+        if self.cfg.verify {
+            self.verified += verify(&self.p, self.scene, &self.rays_this_wave)?;
+        }
+        if let Some(dir) = &self.cfg.dump_rays {
+            dump(dir, self.waves.len(), &self.p, &self.rays_this_wave)?;
+        }
+        self.rays_this_wave.clear();
+        Ok(())
+    }
+
+    /// The host's shading pass: shades every path still going and emits the
+    /// next wavefront into the root queue. `(r0, w0)`: the ray stream's lines
+    /// read and written before this wavefront's trace.
+    fn shade_wave<'h>(
+        &mut self,
+        (r0, w0): (u64, u64),
+        hooks: Option<&mut (dyn FunctionalHooks + 'h)>,
+    ) -> Result<(), String> {
         let mut next_work = Vec::new();
         let mut next = WaveStats::default();
         // Time sampling scales a shading pass's windows by its lines per pixel.
-        let mut lines = windows.as_ref().map(|_| vec![1u8; pixels as usize]);
-        for &pix in &work {
-            let before = st.shading_lines;
+        let mut lines = hooks.is_some().then(|| vec![1u8; self.pixels as usize]);
+        for &pix in &self.work {
+            let before = self.st.shading_lines;
             shade_pixel(
-                &mut p,
-                &mut q,
-                scene,
+                &mut self.p,
+                &mut self.q,
+                self.scene,
                 pix,
-                &mut st,
+                &mut self.st,
                 &mut next,
-                keep,
-                &mut rays_this_wave,
+                self.keep,
+                &mut self.rays_this_wave,
                 &mut next_work,
             )?;
             if let Some(l) = lines.as_mut() {
-                l[pix as usize] = (st.shading_lines - before).min(u8::MAX as u64) as u8;
+                l[pix as usize] = (self.st.shading_lines - before).min(u8::MAX as u64) as u8;
             }
         }
-        if let (Some(w), Some(l)) = (windows.as_mut(), lines) {
-            w.rec.shade_lines.push(l);
+        if let (Some(h), Some(l)) = (hooks, lines) {
+            h.shaded(l);
         }
+        let (p, q, st) = (&mut self.p, &mut self.q, &mut self.st);
         q.close(&mut p.mem, &p.map, 0);
         st.ray_lines_read += q.traffic.lines_read - r0;
         st.ray_lines_written += q.traffic.lines_written - w0;
-        if mode == Mode::Cycle {
+        if self.mode == Mode::Cycle {
             // The functional model counts a wavefront's root-queue writes with the
             // shading that emits them (the previous wavefront; ray generation's
             // nowhere); the chip writes them while tracing. Same attribution here.
             let emitted = next.rays;
-            st.ray_lines_written += queue_lines_written(emitted, rpb);
+            st.ray_lines_written += queue_lines_written(emitted, self.cfg.memory.rays_per_bucket());
         }
-        waves.push(st);
-        st = next;
-        work = next_work;
-    }
-    let windows = windows.map(|w| w.finish()).transpose()?;
-    let mut total = WaveStats::default();
-    for wv in &waves {
-        total.add(wv);
-    }
-    let mut vcd = None;
-    if let Some(c) = chip.as_mut()
-        && let Some(r) = c.sim.finish_trace()
-    {
-        let t = r.map_err(|e| format!("writing the VCD file failed: {e}"))?;
-        vcd = Some(VcdInfo {
-            units: t.units,
-            signals: t.signals,
-            changes: t.changes,
-            bytes: t.bytes,
-        });
-    }
-    let mut radiance = vec![Vec3::ZERO; (w * h) as usize];
-    for (pix, &real) in (0..pixels).zip(&sample) {
-        radiance[real as usize] = PathRec::read(&p.mem, p.map.path_addr(pix as u64)).radiance;
-    }
-    Ok(Frame {
-        windows,
-        passes,
-        scene: scene.name.clone(),
-        mode,
-        width: w,
-        height: h,
-        radiance,
-        accel: p.info.clone(),
-        duplication: total.duplication(),
-        bytes_per_ray: total.bytes_per_ray(),
-        waves,
-        total,
-        wall_s: start.elapsed().as_secs_f64(),
-        trace_s,
-        verified_rays: verified,
-        energy: None,
-        dram_resident_mb: p.mem.resident_bytes() as f64 / (1 << 20) as f64,
-        chip: chip.map(|c| ChipFrame {
-            shading_on_tps: tp_shading,
-            tms: chip_cfg.chip.tms,
-            tps_per_tm: chip_cfg.tm.tps,
-            total_cycles: c.total_cycles,
-            sim_wall_s: c.wall_s,
-            cycles_per_s: c.total_cycles as f64 / c.wall_s.max(1e-9),
-            memory_model: chip_cfg.chip.memory.model.name().into(),
-            core_ps: chip_cfg.clocks.core_ps,
-            line_bytes: crate::contract::LINE_BYTES,
-            dram: (chip_cfg.chip.memory.model == crate::units::memory::MemoryModel::Gddr5).then(
-                || {
-                    let mut t = crate::machine::DramWave::default();
-                    for w in &chip_waves {
-                        t.add(&w.dram);
-                    }
-                    t
-                },
-            ),
-            waves: chip_waves,
-            vcd,
-            evals_by_module: c.sim.evals_by_module(),
-            sim_steps_by_lanes: c.sim.steps_by_lanes().to_vec(),
-        }),
-    })
-}
-
-/// Cycle mode with shading on the TPs: what a chip run's shading pass did goes to
-/// the wavefront it shaded (`prev`: hits, blocked shadow rays, shading lines and,
-/// as in functional mode, the root-queue writes of the rays it emitted); the rays
-/// it emitted start the new wavefront's counts (`st`).
-fn add_chip_shading(
-    prev: &mut WaveStats,
-    st: &mut WaveStats,
-    w: &crate::machine::WaveCycles,
-    rpb: u32,
-) {
-    use crate::mem::StreamTag;
-    let sh = StreamTag::Shading as usize;
-    prev.hits += w.shade_hits;
-    prev.occluded += w.shade_occluded;
-    prev.shading_lines += w.lines_read[sh] + w.lines_written[sh];
-    prev.ray_lines_written += queue_lines_written(w.rays_emitted, rpb);
-    st.rays += w.rays_emitted;
-    st.shadow_rays += w.shade_shadow_rays;
-    st.bounce_rays += w.rays_emitted - w.shade_shadow_rays;
-    st.enqueues += w.rays_emitted;
-}
-
-/// Adds a chip-traced wavefront's counts to the wavefront's statistics, with the
-/// functional model's attribution of the root queue's writes (see `render`).
-fn add_chip_wave(st: &mut WaveStats, w: &crate::machine::WaveCycles, rpb: u32) {
-    use crate::mem::StreamTag;
-    st.enqueues += w.duplicates;
-    st.segments_loaded += w.segments_loaded;
-    st.traversal.box_tests += w.box_tests;
-    st.traversal.nodes += w.box_tests / 2;
-    st.traversal.tri_tests += w.tri_tests;
-    st.traversal.exits += w.exits;
-    st.traversal.pops += w.pops;
-    st.traversal.tri_hits += w.tri_hits;
-    st.traversal.l1_lines += w.l1_lines;
-    st.traversal.max_stack = st.traversal.max_stack.max(w.max_stack);
-    st.scene_lines += w.lines_read[StreamTag::Scene as usize];
-    st.ray_lines_read += w.lines_read[StreamTag::Ray as usize];
-    st.ray_lines_written +=
-        w.lines_written[StreamTag::Ray as usize] - queue_lines_written(w.rays_emitted, rpb);
-    st.hit_lines_read += w.lines_read[StreamTag::Hit as usize];
-    st.hit_lines_written += w.lines_written[StreamTag::Hit as usize];
-}
-
-/// Puts a new ray into the root segment's queue and resets its hit record.
-fn emit(
-    p: &mut Prepared,
-    q: &mut RayQueues,
-    st: &mut WaveStats,
-    ray: &RayRec,
-    keep: bool,
-    list: &mut Vec<RayRec>,
-) -> Result<(), String> {
-    q.push(&mut p.mem, &p.map, 0, ray)?;
-    HitRec::NONE.write(&mut p.mem, p.map.hit_addr(ray.hit_index()));
-    st.hit_lines_written += 1;
-    st.rays += 1;
-    st.enqueues += 1;
-    if ray.is_shadow() {
-        st.shadow_rays += 1;
-    } else {
-        st.bounce_rays += 1;
-    }
-    if keep {
-        list.push(*ray);
-    }
-    Ok(())
-}
-
-/// Dual streaming, functional: segments in depth-first order, each loaded once if
-/// its queue has rays; every ray of the queue traverses the segment locally and is
-/// duplicated into the queue of each child segment it exits into.
-/// `hook` is called before each segment that holds rays (with its id) and once at
-/// the end (with `u32::MAX`).
-fn trace_functional(
-    p: &mut Prepared,
-    q: &mut RayQueues,
-    st: &mut WaveStats,
-    progress: &mut dyn FnMut(u64, u64),
-    hook: &mut SegHook,
-) -> Result<(), String> {
-    let mut done = 0u64;
-    let mut rays = Vec::new();
-    let mut stack = Vec::new();
-    let mut exits: Vec<(u32, u32)> = Vec::new();
-    for s in 0..p.seg.segments.len() as u32 {
-        if q.is_empty(s) {
-            // No rays: the segment and (since rays come only from parents) its whole
-            // subtree are skipped.
-            continue;
-        }
-        hook(s, p, q, st)?;
-        let e = SegEntry::read(&p.mem, p.map.seg_entry_addr(s));
-        let view = SegmentView::load(&p.mem, e.base, s, e.nodes, e.tris);
-        st.segments_loaded += 1;
-        st.scene_lines += lines_touched(e.base, e.bytes as u64);
-        while {
-            rays.clear();
-            q.pop_bucket(&p.mem, &p.map, s, &mut rays)
-        } {
-            for ray in &rays {
-                exits.clear();
-                let best =
-                    traverse_segment(&view, ray, &mut stack, &mut st.traversal, |seg, entry| {
-                        exits.push((seg, entry))
-                    });
-                for &(cs, entry) in &exits {
-                    q.push(&mut p.mem, &p.map, cs, &RayRec { entry, ..*ray })?;
-                    st.enqueues += 1;
-                }
-                if best.is_hit() {
-                    update_hit(&mut p.mem, &p.map, ray.hit_index(), best, st);
-                }
-            }
-            done += rays.len() as u64;
-            progress(done, st.enqueues);
-        }
-        for k in 0..e.child_count {
-            let c = p
-                .mem
-                .read_u32(p.map.child_list + (e.first_child + k) as u64 * 4);
-            q.close(&mut p.mem, &p.map, c);
-        }
-    }
-    hook(u32::MAX, p, q, st)
-}
-
-impl WindowPlan {
-    pub fn validate(&self) -> Result<(), String> {
-        if self.head == 0 || self.measure == 0 || self.every == 0 {
-            return Err(format!(
-                "time sampling needs a head, a measured stretch and a period of at least one segment admission (head {}, --window-measure {}, --window-every {}); raise the zero one",
-                self.head, self.measure, self.every
-            ));
-        }
-        if self.wave_every == 0 {
-            return Err(
-                "--window-waves 0 has no period: use 1 to trace every wavefront in windows, N to trace the first, the last and every N-th from the second".into(),
-            );
-        }
-        for (flag, rays) in [
-            ("--window-root-rays", self.root_rays),
-            ("--window-bounce-root-rays", self.bounce_root_rays),
-        ] {
-            if rays < 4 {
-                return Err(format!(
-                    "{flag} {rays}: the root window needs at least 4 rays (a warm-up and a measured stretch); raise it"
-                ));
-            }
-        }
-        if self.measure > self.every {
-            return Err(format!(
-                "windows overlap: --window-measure {} admissions every --window-every {}; measure at most every",
-                self.measure, self.every
-            ));
-        }
-        if !(self.wave_ray_share.is_finite() && self.wave_ray_share >= 0.0) {
-            return Err(format!(
-                "--window-wave-ray-share {}: give a share of a segment's lines, 0 or more (0: sample every short wavefront of many rays)",
-                self.wave_ray_share
-            ));
-        }
-        if self.shade_windows == 0 || self.shade_measure == 0 {
-            return Err(format!(
-                "--shade-windows {} of {} measured items: the shading passes would go unmeasured; use at least one window of one item",
-                self.shade_windows, self.shade_measure
-            ));
-        }
+        self.waves.push(self.st);
+        self.st = next;
+        self.work = next_work;
         Ok(())
     }
-}
 
-type SegHook<'a> = dyn FnMut(u32, &mut Prepared, &RayQueues, &WaveStats) -> Result<(), String> + 'a;
-
-/// Running totals of the functional model's work, for [`SegWork`] by difference.
-#[derive(Clone, Copy, Default)]
-struct WorkSoFar {
-    nodes: u64,
-    tri_tests: u64,
-    pops: u64,
-    exits: u64,
-    enqueues: u64,
-    scene_lines: u64,
-    ray_lines: u64,
-    hit_lines: u64,
-}
-
-impl WorkSoFar {
-    fn of(st: &WaveStats, q: &RayQueues) -> Self {
-        WorkSoFar {
-            nodes: st.traversal.nodes,
-            tri_tests: st.traversal.tri_tests,
-            pops: st.traversal.pops,
-            exits: st.traversal.exits,
-            enqueues: st.enqueues,
-            scene_lines: st.scene_lines,
-            ray_lines: q.traffic.lines_read + q.traffic.lines_written,
-            hit_lines: st.hit_lines_read + st.hit_lines_written,
+    /// The frame: its totals, its image and, in cycle mode, the chip's figures.
+    fn finish(mut self, start: Instant) -> Result<Frame, String> {
+        let mut total = WaveStats::default();
+        for wv in &self.waves {
+            total.add(wv);
         }
-    }
-    fn since(&self, b: &WorkSoFar, seg: u32, rays: u64) -> SegWork {
-        SegWork {
-            seg,
-            rays,
-            nodes: self.nodes - b.nodes,
-            tri_tests: self.tri_tests - b.tri_tests,
-            pops: self.pops - b.pops,
-            exits: self.exits - b.exits,
-            enqueues: self.enqueues - b.enqueues,
-            scene_lines: self.scene_lines - b.scene_lines,
-            ray_lines: self.ray_lines - b.ray_lines,
-            hit_lines: self.hit_lines - b.hit_lines,
-        }
-    }
-}
-
-/// The reference: every ray of the root queue traced through the whole BVH.
-fn trace_reference(p: &mut Prepared, q: &mut RayQueues, scene: &Scene, st: &mut WaveStats) {
-    let mut rays = Vec::new();
-    while q.pop_bucket(&p.mem, &p.map, 0, &mut rays) {}
-    for ray in &rays {
-        let best = traverse::reference_trace_counted(
-            &p.bvh,
-            &scene.triangles,
-            ray.origin,
-            ray.dir,
-            ray.is_shadow(),
-            &mut st.traversal,
-        );
-        if best.is_hit() {
-            update_hit(&mut p.mem, &p.map, ray.hit_index(), best, st);
-        }
-    }
-}
-
-/// Compares every hit record of the wavefront with the reference traversal:
-/// the closest (t, id) for bounce rays, occluded or not for shadow rays.
-fn verify(p: &Prepared, scene: &Scene, rays: &[RayRec]) -> Result<u64, String> {
-    for ray in rays {
-        let got = HitRec::read(&p.mem, p.map.hit_addr(ray.hit_index()));
-        let want = reference_trace(
-            &p.bvh,
-            &scene.triangles,
-            ray.origin,
-            ray.dir,
-            ray.is_shadow(),
-        );
-        let same = if ray.is_shadow() {
-            got.is_hit() == want.is_hit()
-        } else {
-            got.tri_id == want.tri_id && got.t.to_bits() == want.t.to_bits()
+        let vcd = match self.chip.as_mut() {
+            Some(c) => c.finish_trace()?,
+            None => None,
         };
-        if !same {
-            return Err(format!(
-                "ray {:#x} (origin {:?}, dir {:?}): traced {:?}, reference {:?}",
-                ray.ray_id, ray.origin, ray.dir, got, want
-            ));
+        let (w, h) = (self.scene.settings.width, self.scene.settings.height);
+        let p = &self.p;
+        let mut radiance = vec![Vec3::ZERO; (w * h) as usize];
+        for (pix, &real) in (0..self.pixels).zip(&self.sample) {
+            radiance[real as usize] = PathRec::read(&p.mem, p.map.path_addr(pix as u64)).radiance;
         }
+        Ok(Frame {
+            passes: self.passes,
+            scene: self.scene.name.clone(),
+            mode: self.mode,
+            width: w,
+            height: h,
+            radiance,
+            accel: p.info.clone(),
+            duplication: total.duplication(),
+            bytes_per_ray: total.bytes_per_ray(),
+            waves: self.waves,
+            total,
+            wall_s: start.elapsed().as_secs_f64(),
+            trace_s: self.trace_s,
+            verified_rays: self.verified,
+            energy: None,
+            dram_resident_mb: p.mem.resident_bytes() as f64 / (1 << 20) as f64,
+            chip: self.chip.map(|c| c.frame(vcd)),
+        })
     }
-    Ok(rays.len() as u64)
+}
+
+/// The pixels a frame renders (ray and path `i` is the `i`-th): all of them,
+/// or `cfg.pixels` once checked.
+fn pixel_sample(cfg: &RenderCfg, w: u32, h: u32) -> Result<Vec<u32>, String> {
+    let Some(v) = &cfg.pixels else {
+        return Ok((0..w * h).collect());
+    };
+    if v.is_empty() {
+        return Err("the pixel sample is empty; keep at least one pixel".into());
+    }
+    if let Some(k) = v.windows(2).position(|x| x[0] >= x[1]) {
+        return Err(format!(
+            "the pixel sample is not increasing at entry {} ({} then {}); list each pixel once, in raster order",
+            k + 1,
+            v[k],
+            v[k + 1]
+        ));
+    }
+    if v[v.len() - 1] >= w * h {
+        return Err(format!(
+            "the pixel sample lists pixel {}, outside the {w}x{h} frame",
+            v[v.len() - 1]
+        ));
+    }
+    Ok(v.clone())
 }
 
 /// Shades one pixel's rays of the finished wavefront and emits its next rays.
@@ -1655,91 +576,4 @@ pub fn shade_consts(scene: &Scene, p: &Prepared) -> ShadeConsts {
         bounces: scene.settings.bounces,
         root_entry: p.image.root_entry.encode(),
     }
-}
-
-/// Traces a batch of rays (origin, direction, shadow?) as one wavefront and returns
-/// their hit records, read back from the DRAM image. Ray i gets pixel id i, so the
-/// batch may hold at most one bounce and one shadow ray per index (tests use it to
-/// aim rays at shared edges and vertices).
-pub fn trace_rays(
-    scene: &Scene,
-    cfg: &RenderCfg,
-    mode: Mode,
-    rays: &[(Vec3, Vec3, bool)],
-) -> Result<(Vec<HitRec>, WaveStats), String> {
-    let mut sc = scene.clone();
-    // Room for one hit-record pair per ray.
-    sc.settings.width = rays.len().max(1) as u32;
-    sc.settings.height = 1;
-    let mut p = prepare(&sc, cfg)?;
-    let mut q = RayQueues::new(&p.map, p.seg.segments.len());
-    let mut st = WaveStats::default();
-    let root = p.image.root_entry.encode();
-    let recs: Vec<RayRec> = rays
-        .iter()
-        .enumerate()
-        .map(|(i, &(o, d, sh))| RayRec {
-            origin: o,
-            dir: d,
-            ray_id: i as u32 | if sh { SHADOW_BIT } else { 0 },
-            entry: root,
-        })
-        .collect();
-    let mut unused = Vec::new();
-    for r in &recs {
-        emit(&mut p, &mut q, &mut st, r, false, &mut unused)?;
-    }
-    q.close(&mut p.mem, &p.map, 0);
-    match mode {
-        Mode::Functional => trace_functional(
-            &mut p,
-            &mut q,
-            &mut st,
-            &mut |_, _| {},
-            &mut |_, _, _, _| Ok(()),
-        )?,
-        Mode::Reference => trace_reference(&mut p, &mut q, &sc, &mut st),
-        Mode::Cycle => {
-            return Err(
-                "trace_rays runs functional or reference mode; render a frame for cycle mode"
-                    .into(),
-            );
-        }
-    }
-    Ok((
-        recs.iter()
-            .map(|r| HitRec::read(&p.mem, p.map.hit_addr(r.hit_index())))
-            .collect(),
-        st,
-    ))
-}
-
-/// Writes a wavefront's rays (32 B ray records) and their hit records (16 B), in the
-/// same order, as `wave<k>_rays.bin` and `wave<k>_hits.bin` (data contract layouts).
-fn dump(dir: &std::path::Path, wave: usize, p: &Prepared, rays: &[RayRec]) -> Result<(), String> {
-    let mut rb = Vec::with_capacity(rays.len() * 32);
-    let mut hb = Vec::with_capacity(rays.len() * 16);
-    for r in rays {
-        for f in [
-            r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z,
-        ] {
-            rb.extend_from_slice(&f.to_le_bytes());
-        }
-        rb.extend_from_slice(&r.ray_id.to_le_bytes());
-        rb.extend_from_slice(&r.entry.to_le_bytes());
-        let h = HitRec::read(&p.mem, p.map.hit_addr(r.hit_index()));
-        hb.extend_from_slice(&h.t.to_le_bytes());
-        hb.extend_from_slice(&h.tri_id.to_le_bytes());
-        hb.extend_from_slice(&h.u.to_le_bytes());
-        hb.extend_from_slice(&h.v.to_le_bytes());
-    }
-    for (name, bytes) in [
-        (format!("wave{wave}_rays.bin"), rb),
-        (format!("wave{wave}_hits.bin"), hb),
-    ] {
-        let path = dir.join(name);
-        std::fs::write(&path, bytes)
-            .map_err(|e| format!("cannot write '{}': {e}", path.display()))?;
-    }
-    Ok(())
 }

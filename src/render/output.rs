@@ -68,7 +68,8 @@ pub fn write_json(frame: &Frame, path: &Path) -> Result<(), String> {
     write_stats(frame, path)
 }
 
-fn write_stats(stats: &impl serde::Serialize, path: &Path) -> Result<(), String> {
+/// Writes `stats` as pretty JSON to `path` (`--stats`).
+pub fn write_stats(stats: &impl serde::Serialize, path: &Path) -> Result<(), String> {
     let text = serde_json::to_string_pretty(stats).expect("stats serialise");
     std::fs::write(path, text).map_err(|e| {
         format!(
@@ -76,56 +77,6 @@ fn write_stats(stats: &impl serde::Serialize, path: &Path) -> Result<(), String>
             path.display()
         )
     })
-}
-
-/// [`write_json`] of a time-sampled frame: the functional frame's statistics and,
-/// as `estimate`, the windows' estimate of the cycle model's figures.
-pub fn write_json_estimated(
-    frame: &Frame,
-    estimate: &crate::speed_error::WindowEstimate,
-    path: &Path,
-) -> Result<(), String> {
-    #[derive(serde::Serialize)]
-    struct Estimated<'a> {
-        #[serde(flatten)]
-        frame: &'a Frame,
-        estimate: &'a crate::speed_error::WindowEstimate,
-    }
-    write_stats(&Estimated { frame, estimate }, path)
-}
-
-/// The chip's figures as time sampling estimates them (`render --mode windows`).
-pub fn window_summary(e: &crate::speed_error::WindowEstimate) -> String {
-    let mut s = format!(
-        "  time sampling: {} windows of the chip with GDDR5 ({:.1} s in the chips: {}); the cycle model's figures, estimated:\n",
-        e.windows,
-        e.chip_s,
-        crate::render::kind_times_text(&e.chip_s_by_kind)
-    );
-    s += &format!(
-        "  cycles {:.0} ({:.3} ms, {:.1} M rays/s)\n",
-        e.cycles,
-        e.time_ms(),
-        e.mrays_per_s()
-    );
-    s += &format!(
-        "  DRAM lines {:.3} M: rays {:.3} M, scene {:.3} M, hit records {:.3} M, shading {:.3} M ({:.1} GB/s)\n",
-        e.lines() / 1e6,
-        e.ray_lines / 1e6,
-        e.scene_lines / 1e6,
-        e.hit_lines / 1e6,
-        e.shading_lines / 1e6,
-        e.bandwidth_gbs()
-    );
-    s += &format!(
-        "  energy: DRAM {:.4} J (paper preset; physical {:.4} J), on-chip {:.4} J, compute {:.4} J\n",
-        e.dram_paper_j, e.dram_physical_j, e.onchip_j, e.compute_j
-    );
-    if let Some(se) = e.se_text() {
-        s += &format!("  {se}\n");
-    }
-    s += "  measured error against the cycle model on the paper scenes: docs/speed-error.md\n";
-    s
 }
 
 fn m(x: u64) -> String {
@@ -205,25 +156,7 @@ pub fn summary(f: &Frame) -> String {
         f.wall_s, f.trace_s, f.dram_resident_mb
     );
     if let Some(e) = &f.energy {
-        s += &format!(
-            "  {:<34} {:>12.4}\n",
-            "compute energy, TMs (J)", e.compute_j
-        );
-        s += &format!(
-            "  {:<34} {:>12.4}\n",
-            "on-chip memory energy, TMs (J)", e.onchip_j
-        );
-        for (k, j) in &e.parts {
-            s += &format!("    {:<32} {:>12.4}\n", k, j);
-        }
-        if let Some(l) = e.leakage_j {
-            s += &format!("  {:<34} {:>12.4}\n", "SRAM leakage (J, not in totals)", l);
-        }
-        if f.chip.as_ref().is_some_and(|c| c.dram.is_some()) {
-            s += "  (DRAM energy: the gddr5 figures below; L2 and scene buffer counted in cycle mode only)\n";
-        } else {
-            s += "  (DRAM energy needs the DRAM model: --mode cycle (GDDR5 unless --memory fixed), or --mode windows (estimated, minutes at 1024x1024); the L2 and the scene buffer are counted there only)\n";
-        }
+        s += &energy_summary(f, e);
     }
     if f.verified_rays > 0 {
         s += &format!(
@@ -232,130 +165,169 @@ pub fn summary(f: &Frame) -> String {
         );
     }
     if let Some(c) = &f.chip {
+        s += &chip_summary(c);
+    }
+    s
+}
+
+/// The energy rows of [`summary`]: the TMs' compute and on-chip energy, by part.
+fn energy_summary(f: &Frame, e: &crate::energy::Energy) -> String {
+    let mut s = String::new();
+    s += &format!(
+        "  {:<34} {:>12.4}\n",
+        "compute energy, TMs (J)", e.compute_j
+    );
+    s += &format!(
+        "  {:<34} {:>12.4}\n",
+        "on-chip memory energy, TMs (J)", e.onchip_j
+    );
+    for (k, j) in &e.parts {
+        s += &format!("    {:<32} {:>12.4}\n", k, j);
+    }
+    if let Some(l) = e.leakage_j {
+        s += &format!("  {:<34} {:>12.4}\n", "SRAM leakage (J, not in totals)", l);
+    }
+    if f.chip.as_ref().is_some_and(|c| c.dram.is_some()) {
+        s += "  (DRAM energy: the gddr5 figures below; L2 and scene buffer counted in cycle mode only)\n";
+    } else {
+        s += "  (DRAM energy needs the DRAM model: --mode cycle (GDDR5 unless --memory fixed), or --mode windows (estimated, minutes at 1024x1024); the L2 and the scene buffer are counted there only)\n";
+    }
+    s
+}
+
+/// The chip's rows of [`summary`] (cycle mode): each run, then the frame's totals.
+fn chip_summary(c: &super::ChipFrame) -> String {
+    let mut s = String::new();
+    s += &format!(
+        "  chip {} TMs x {} TPs ({})\n",
+        c.tms,
+        c.tps_per_tm,
+        if c.shading_on_tps {
+            "shading on the TPs: every run after the first shades the previous wavefront, then traces"
+        } else {
+            "shading on the host between wavefronts, untimed"
+        }
+    );
+    for (k, w) in c.waves.iter().enumerate() {
+        s += &run_summary(c, k, w);
+    }
+    s += &format!("  {:<34} {:>12}\n", "total cycles", c.total_cycles);
+    s += &format!("  {:<34} {:>12}\n", "memory timing model", c.memory_model);
+    let mut l2 = crate::machine::L2Wave::default();
+    c.waves.iter().for_each(|w| l2.add(&w.l2));
+    if l2.accesses > 0 {
         s += &format!(
-            "  chip {} TMs x {} TPs ({})\n",
-            c.tms,
-            c.tps_per_tm,
-            if c.shading_on_tps {
-                "shading on the TPs: every run after the first shades the previous wavefront, then traces"
-            } else {
-                "shading on the host between wavefronts, untimed"
-            }
+            "  {:<34} {:>12}\n  {:<34} {:>12.1}\n  {:<34} {:>12}\n",
+            "L2 accesses",
+            l2.accesses,
+            "L2 hit rate (%)",
+            100.0 * l2.hit_rate(),
+            "L2 fills / writebacks",
+            format!("{} / {}", l2.fills, l2.writebacks)
         );
-        for (k, w) in c.waves.iter().enumerate() {
-            s += &format!(
-                "    run {k}: {:>10} cycles (shading {:>8}, drain {:>5})  {:>8} rays  {:>8} duplicates  {:>5} segments  scene-buffer stalls {} ({} cycles)  hit updates merged {}\n",
-                w.cycles,
-                w.shade_cycles,
-                w.drain_cycles,
-                w.rays_emitted,
-                w.duplicates,
-                w.segments_loaded,
-                w.scene_buffer_stalls,
-                w.scene_buffer_stall_cycles,
-                w.hit_merged
-            );
-            if w.l2.accesses > 0 {
-                s += &format!(
-                    "      L2: {:>8} accesses ({} combined)  hits {:>5.1}%  {} misses ({} merged)  {} bank-conflict stalls  {} fills  {} writebacks  flush {} cycles\n",
-                    w.l2.accesses,
-                    w.l2.combined,
-                    100.0 * w.l2.hit_rate(),
-                    w.l2.misses,
-                    w.l2.merges,
-                    w.l2.bank_conflicts,
-                    w.l2.fills,
-                    w.l2.writebacks,
-                    w.l2.flush_cycles
-                );
-            }
-            if w.rays_traced() > 0 {
-                s += &format!(
-                    "      TMs: {}/{} got rays, rays per TM min {} max {} (max/mean {:.2})\n",
-                    w.tms_with_rays,
-                    c.tms,
-                    w.tm_rays_min,
-                    w.tm_rays_max,
-                    w.tm_imbalance(c.tms as u64)
-                );
-            }
-            if c.dram.is_some() {
-                s += &format!(
-                    "      DRAM: {:>9} lines  {:>7.1} GB/s  row hits {:>5.1}%  energy {} (paper) {} (physical)\n",
-                    w.dram.lines(),
-                    w.dram.bandwidth_gbs(c.line_bytes, w.cycles, c.core_ps),
-                    100.0 * w.dram.row_hit_rate(),
-                    crate::mem::stats::joules(w.dram.energy_paper_j),
-                    crate::mem::stats::joules(w.dram.energy_physical_j)
-                );
-            }
+    }
+    let lines: u64 = c
+        .waves
+        .iter()
+        .map(|w| w.lines_read.iter().sum::<u64>() + w.lines_written.iter().sum::<u64>())
+        .sum();
+    let secs = c.total_cycles as f64 * c.core_ps as f64 * 1e-12;
+    s += &format!(
+        "  {:<34} {:>12.1}\n",
+        "memory unit bandwidth (GB/s)",
+        if secs > 0.0 {
+            (lines * c.line_bytes) as f64 / secs / 1e9
+        } else {
+            0.0
         }
-        s += &format!("  {:<34} {:>12}\n", "total cycles", c.total_cycles);
-        s += &format!("  {:<34} {:>12}\n", "memory timing model", c.memory_model);
-        let mut l2 = crate::machine::L2Wave::default();
-        c.waves.iter().for_each(|w| l2.add(&w.l2));
-        if l2.accesses > 0 {
-            s += &format!(
-                "  {:<34} {:>12}\n  {:<34} {:>12.1}\n  {:<34} {:>12}\n",
-                "L2 accesses",
-                l2.accesses,
-                "L2 hit rate (%)",
-                100.0 * l2.hit_rate(),
-                "L2 fills / writebacks",
-                format!("{} / {}", l2.fills, l2.writebacks)
-            );
-        }
-        let lines: u64 = c
-            .waves
+    );
+    if let Some(d) = &c.dram {
+        s += &format!(
+            "  {:<34} {:>12}\n  {:<34} {:>12.1}\n  {:<34} {:>11.1}%\n  {:<34} {:>12}\n  {:<34} {:>12}\n",
+            "DRAM lines (read + written)",
+            d.lines(),
+            "DRAM bandwidth (GB/s)",
+            c.dram_bandwidth_gbs().unwrap_or(0.0),
+            "DRAM row-hit rate",
+            100.0 * d.row_hit_rate(),
+            "DRAM energy, paper preset",
+            crate::mem::stats::joules(d.energy_paper_j),
+            "DRAM energy, physical preset",
+            crate::mem::stats::joules(d.energy_physical_j)
+        );
+    }
+    s += &format!(
+        "  chip simulation {:.2} s, {:.0} simulated cycles/s{}\n",
+        c.sim_wall_s,
+        c.cycles_per_s,
+        lanes_note(&c.sim_steps_by_lanes)
+    );
+    let evals: u64 = c.evals_by_module.iter().map(|e| e.evals).sum();
+    if evals > 0 {
+        let top: Vec<String> = c
+            .evals_by_module
             .iter()
-            .map(|w| w.lines_read.iter().sum::<u64>() + w.lines_written.iter().sum::<u64>())
-            .sum();
-        let secs = c.total_cycles as f64 * c.core_ps as f64 * 1e-12;
+            .take(6)
+            .map(|e| format!("{} {:.0}%", e.module, 100.0 * e.evals as f64 / evals as f64))
+            .collect();
         s += &format!(
-            "  {:<34} {:>12.1}\n",
-            "memory unit bandwidth (GB/s)",
-            if secs > 0.0 {
-                (lines * c.line_bytes) as f64 / secs / 1e9
-            } else {
-                0.0
-            }
+            "  unit evaluations {:.1} M, {:.1} per cycle: {}\n",
+            evals as f64 / 1e6,
+            evals as f64 / c.total_cycles.max(1) as f64,
+            top.join(", ")
         );
-        if let Some(d) = &c.dram {
-            s += &format!(
-                "  {:<34} {:>12}\n  {:<34} {:>12.1}\n  {:<34} {:>11.1}%\n  {:<34} {:>12}\n  {:<34} {:>12}\n",
-                "DRAM lines (read + written)",
-                d.lines(),
-                "DRAM bandwidth (GB/s)",
-                c.dram_bandwidth_gbs().unwrap_or(0.0),
-                "DRAM row-hit rate",
-                100.0 * d.row_hit_rate(),
-                "DRAM energy, paper preset",
-                crate::mem::stats::joules(d.energy_paper_j),
-                "DRAM energy, physical preset",
-                crate::mem::stats::joules(d.energy_physical_j)
-            );
-        }
+    }
+    s
+}
+
+/// Chip run `k` of [`chip_summary`]: its cycles and counts, L2, TMs and DRAM.
+fn run_summary(c: &super::ChipFrame, k: usize, w: &crate::machine::WaveCycles) -> String {
+    let mut s = String::new();
+    s += &format!(
+        "    run {k}: {:>10} cycles (shading {:>8}, drain {:>5})  {:>8} rays  {:>8} duplicates  {:>5} segments  scene-buffer stalls {} ({} cycles)  hit updates merged {}\n",
+        w.cycles,
+        w.shade_cycles,
+        w.drain_cycles,
+        w.rays_emitted,
+        w.duplicates,
+        w.segments_loaded,
+        w.scene_buffer_stalls,
+        w.scene_buffer_stall_cycles,
+        w.hit_merged
+    );
+    if w.l2.accesses > 0 {
         s += &format!(
-            "  chip simulation {:.2} s, {:.0} simulated cycles/s{}\n",
-            c.sim_wall_s,
-            c.cycles_per_s,
-            lanes_note(&c.sim_steps_by_lanes)
+            "      L2: {:>8} accesses ({} combined)  hits {:>5.1}%  {} misses ({} merged)  {} bank-conflict stalls  {} fills  {} writebacks  flush {} cycles\n",
+            w.l2.accesses,
+            w.l2.combined,
+            100.0 * w.l2.hit_rate(),
+            w.l2.misses,
+            w.l2.merges,
+            w.l2.bank_conflicts,
+            w.l2.fills,
+            w.l2.writebacks,
+            w.l2.flush_cycles
         );
-        let evals: u64 = c.evals_by_module.iter().map(|e| e.evals).sum();
-        if evals > 0 {
-            let top: Vec<String> = c
-                .evals_by_module
-                .iter()
-                .take(6)
-                .map(|e| format!("{} {:.0}%", e.module, 100.0 * e.evals as f64 / evals as f64))
-                .collect();
-            s += &format!(
-                "  unit evaluations {:.1} M, {:.1} per cycle: {}\n",
-                evals as f64 / 1e6,
-                evals as f64 / c.total_cycles.max(1) as f64,
-                top.join(", ")
-            );
-        }
+    }
+    if w.rays_traced() > 0 {
+        s += &format!(
+            "      TMs: {}/{} got rays, rays per TM min {} max {} (max/mean {:.2})\n",
+            w.tms_with_rays,
+            c.tms,
+            w.tm_rays_min,
+            w.tm_rays_max,
+            w.tm_imbalance(c.tms as u64)
+        );
+    }
+    if c.dram.is_some() {
+        s += &format!(
+            "      DRAM: {:>9} lines  {:>7.1} GB/s  row hits {:>5.1}%  energy {} (paper) {} (physical)\n",
+            w.dram.lines(),
+            w.dram.bandwidth_gbs(c.line_bytes, w.cycles, c.core_ps),
+            100.0 * w.dram.row_hit_rate(),
+            crate::mem::stats::joules(w.dram.energy_paper_j),
+            crate::mem::stats::joules(w.dram.energy_physical_j)
+        );
     }
     s
 }

@@ -8,7 +8,7 @@
 use serde::Serialize;
 
 use crate::render::Frame;
-use crate::speed_error::WindowEstimate;
+use crate::sampling::WindowEstimate;
 
 /// One scene's Dual Streaming figures from Table 2.
 #[derive(Clone, Copy, Debug, Serialize)]

@@ -10,11 +10,12 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use super::shade::{ShadeConsts, mix64};
-use super::{Prepared, RayRec, SampleKind, WindowPlan, WindowRecord, WindowSample};
+use super::{SampleKind, WindowPlan, WindowRecord, WindowSample};
 use crate::contract::Boundary;
-use crate::contract::{MemoryMap, SparseMem};
+use crate::contract::{MemoryMap, RayRec, SparseMem};
 use crate::machine::WindowKind;
+use crate::render::Prepared;
+use crate::units::shade::{ShadeConsts, mix64};
 
 /// What every window of a frame is built from.
 struct WindowChip {
@@ -426,34 +427,6 @@ pub(super) fn shade_window_starts(
 #[cfg(test)]
 mod tests {
     use super::shade_window_starts;
-    use crate::render::SegWork;
-
-    /// The sample's ray stream against the scene stream, with the paper
-    /// scenes' figures: Sponza's first wavefront (1 M rays, 135 segments of
-    /// 55 KB on average, no visits known yet) is sampled, the Dragon's (1984 segments of
-    /// 49 KB) is not, nor its later ones (3.9 visits a ray), and a low enough
-    /// share takes both.
-    #[test]
-    fn a_sample_must_stream_rays_more_than_scene() {
-        let plan = crate::speed_error::default_windows();
-        let (sponza, dragon) = (55_195.0, 49_251.0);
-        assert!(plan.sample_streams_rays(1 << 20, None, 135, sponza));
-        assert!(!plan.sample_streams_rays(1 << 20, None, 1984, dragon));
-        // The last wavefront: 1 M rays at the root, 3.9 visits a ray.
-        let last: Vec<SegWork> = std::iter::once(1 << 20)
-            .chain(std::iter::repeat_n(1_552, 1962))
-            .map(|rays| SegWork {
-                rays,
-                ..Default::default()
-            })
-            .collect();
-        assert!(!plan.sample_streams_rays(767_169, Some(&last), 1963, dragon));
-        let low = crate::render::WindowPlan {
-            wave_ray_share: 0.01,
-            ..plan
-        };
-        assert!(low.sample_streams_rays(767_169, Some(&last), 1963, dragon));
-    }
 
     #[test]
     fn shading_windows_fall_in_their_strata_at_spread_phases() {

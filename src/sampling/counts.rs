@@ -1,0 +1,184 @@
+//! What time sampling scales: a window's counts and each count's functional
+//! proxy for a segment pass.
+
+use super::analytic::peak_bytes_per_cycle;
+use super::{BORROW_ALIKE, SegWork, WindowSample};
+use crate::config::Config;
+
+/// First-order cycles of one segment pass from its functional work: the largest
+/// of the bounds `estimate` takes per wavefront. The proxy time sampling scales by.
+pub(super) fn seg_proxy(c: &Config, w: &SegWork) -> f64 {
+    let line = crate::contract::LINE_BYTES as f64;
+    let tms = c.chip.tms as f64;
+    let tps = tms * c.tm.tps as f64;
+    let k = &c.tm.costs;
+    let tp = (k.fetch.cycles + k.init.cycles + k.finish.cycles) as f64 * w.rays as f64
+        + k.pop.cycles as f64 * w.pops as f64
+        + k.exit.cycles as f64 * w.exits as f64
+        + (k.node_fetch.cycles + k.box_issue.cycles + k.node_push.cycles + c.box_pipe.latency)
+            as f64
+            * w.nodes as f64
+        + (k.tri_fetch.cycles + k.tri_issue.cycles + k.tri_result.cycles + c.tri_pipe.latency)
+            as f64
+            * w.tri_tests as f64;
+    [
+        (w.scene_lines + w.ray_lines + w.hit_lines) as f64 * line / peak_bytes_per_cycle(c),
+        w.ray_lines as f64 / c.chip.scheduler.ray_lines_per_cycle as f64,
+        w.scene_lines as f64 / c.chip.scheduler.scene_lines_per_cycle as f64,
+        w.nodes as f64 * c.box_pipe.interval as f64 / tms,
+        w.tri_tests as f64 * c.tri_pipe.interval as f64 / (tms * c.tm.tri_pipes as f64),
+        tp / tps,
+    ]
+    .into_iter()
+    .fold(0.0, f64::max)
+}
+
+/// Each of [`window_counts`]' functional proxy for one segment pass: the
+/// first-order cycles for the cycles, DRAM energy and the shading actions; the
+/// functional model's own lines for each stream; box and triangle tests for the
+/// scene-buffer reads (L1 misses); hit-record lines for the L2.
+pub(super) fn seg_proxies(c: &Config, w: &SegWork) -> [f64; WCOUNTS] {
+    let cyc = seg_proxy(c, w);
+    [
+        cyc,
+        w.ray_lines as f64,
+        w.scene_lines as f64,
+        w.hit_lines as f64,
+        0.0,
+        cyc,
+        (w.nodes + w.tri_tests) as f64,
+        w.hit_lines as f64,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        cyc,
+    ]
+}
+
+/// What time sampling scales, per window: cycles; lines of the ray, scene, hit and
+/// shading streams; DRAM energy (`paper`); scene-buffer reads, L2 array accesses
+/// and the four shading actions (for the on-chip energy); DRAM energy
+/// (`physical`, scaled as the `paper` one: [`DRAM_J`]).
+pub(super) const WCOUNTS: usize = 13;
+
+/// The counts that are DRAM energy (`paper`, `physical` preset): they go with
+/// time as well as lines, so they share the cycles' proxies.
+pub(super) const DRAM_J: [usize; 2] = [5, 12];
+
+/// A window's counts; the writebacks it owes (`WindowRun::dirtied`) are added to
+/// their stream's lines and charged `wb_j` each.
+pub(super) fn window_counts(r: &crate::machine::WindowRun, wb_j: [f64; 2]) -> [f64; WCOUNTS] {
+    wave_counts(&r.counts, &r.dirtied, wb_j)
+}
+
+/// [`window_counts`] of counts `w` owing the writebacks `dirtied`.
+pub(super) fn wave_counts(
+    w: &crate::machine::WaveCycles,
+    dirtied: &[i64; crate::mem::StreamTag::COUNT],
+    wb_j: [f64; 2],
+) -> [f64; WCOUNTS] {
+    use crate::mem::StreamTag as T;
+    let l = |t: T| {
+        (w.lines_read[t as usize] + w.lines_written[t as usize]) as f64 + dirtied[t as usize] as f64
+    };
+    let owed: i64 = dirtied.iter().sum();
+    [
+        w.cycles as f64,
+        l(T::Ray),
+        l(T::Scene),
+        l(T::Hit),
+        l(T::Shading),
+        w.dram.energy_paper_j + owed as f64 * wb_j[0],
+        w.scene_buffer_reads as f64,
+        w.l2.array_accesses() as f64,
+        w.shade_uses[0] as f64,
+        w.shade_uses[1] as f64,
+        w.shade_uses[2] as f64,
+        w.shade_uses[3] as f64,
+        w.dram.energy_physical_j + owed as f64 * wb_j[1],
+    ]
+}
+
+/// Where a borrowed root pass of `rays` lies between the root windows of the
+/// nearest measured wavefronts before and after it (`before` and `after` rays):
+/// the fraction of the way from the one to the other, if it lies between them
+/// (no extrapolation) and its rays are alike neither's (within
+/// [`BORROW_ALIKE`]: a pass alike a window costs what it does per ray,
+/// so it takes their ratio, as in the Dragon Box's bounce wavefronts). Its
+/// cycles and DRAM energy are then interpolated on the line through the two:
+/// measured on the Dragon at 1024x1024 (reference pass log, wavefronts 1 and 5
+/// at 767,169 and 6,115 rays), the line puts the roots of wavefronts 2-4 at
+/// -4.6%, -11.8% and -11.3% (-0.2% of the frame's cycles), where the ratio of
+/// wavefront 1 would put them at -7% to -22%: a smaller root pass costs more
+/// per ray, as its start-up and drain weigh more.
+pub fn root_between(rays: f64, before: f64, after: f64) -> Option<f64> {
+    let (lo, hi) = (before.min(after), before.max(after));
+    let alike = |m: f64| (rays - m).abs() <= BORROW_ALIKE * m;
+    ((lo..=hi).contains(&rays) && !alike(before) && !alike(after))
+        .then(|| (rays - before) / (after - before))
+}
+
+/// `t += k x`, count by count.
+pub(super) fn add(t: &mut [f64; WCOUNTS], x: &[f64; WCOUNTS], k: f64) {
+    for i in 0..WCOUNTS {
+        t[i] += x[i] * k;
+    }
+}
+
+/// A short wavefront's estimate from its [`SampleKind::Wave`] window,
+/// which traced one run of rays in k of its root queue to the wavefront's end.
+/// The visits (rays finished in a segment) it left out cost the cycles and the
+/// DRAM energy (which goes with time and rows as well as lines) per visit of
+/// its steady stretch: its start-up and drain are the wavefront's once. Its
+/// other counts are scaled by the functional work: the wavefront's over that of
+/// the visits the window made (each pass's proxy by its share of rays done),
+/// but the scene lines by the passes (a pass loads its segment however few
+/// rays it has), and the writebacks it owes once (the L2 holds as many at the
+/// wavefront's end).
+pub(super) fn wave_window(
+    smp: &WindowSample,
+    segs: &[SegWork],
+    proxy: &[[f64; WCOUNTS]],
+    index: &std::collections::HashMap<u32, usize>,
+    wb_j: [f64; 2],
+) -> [f64; WCOUNTS] {
+    let r = &smp.run;
+    let none = [0; crate::mem::StreamTag::COUNT];
+    let plain = |w| wave_counts(w, &none, wb_j);
+    let mut t = plain(&r.counts);
+    add(&mut t, &plain(&r.warm), 1.0);
+    add(&mut t, &plain(&r.after), 1.0);
+    let owed = wave_counts(&Default::default(), &r.dirtied, wb_j);
+    let steady = plain(&r.counts);
+    let visits: u64 = r.done.iter().map(|d| d.1).sum();
+    let all: u64 = segs.iter().map(|s| s.rays).sum();
+    let left = all.saturating_sub(visits) as f64;
+    let (mut full, mut did) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+    for p in proxy {
+        add(&mut full, p, 1.0);
+    }
+    for &(sg, d) in &r.done {
+        if let Some(&i) = index.get(&sg)
+            && segs[i].rays > 0
+        {
+            let share = d as f64 / segs[i].rays as f64;
+            add(&mut did, &proxy[i], share);
+            did[2] += proxy[i][2] * (1.0 - share);
+        }
+    }
+    std::array::from_fn(|i| {
+        if i == 0 || DRAM_J.contains(&i) {
+            let rate = if r.marks > 0 {
+                steady[i] / r.marks as f64
+            } else {
+                0.0
+            };
+            t[i] + left * rate + owed[i]
+        } else {
+            let j = if did[i] > 0.0 { i } else { 0 };
+            let k = if did[j] > 0.0 { full[j] / did[j] } else { 1.0 };
+            t[i] * k + owed[i]
+        }
+    })
+}
