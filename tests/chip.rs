@@ -869,3 +869,143 @@ fn the_pass_log_lists_every_segment_pass_once() {
     }
     assert!(c.passes[0].len() > 1, "several segments");
 }
+
+/// What the chip top reads of each unit goes through the unit's probe: the
+/// probes agree with the counters each unit reports by name, and the
+/// wavefront's figures (a fresh chip: its totals) are those counters.
+#[test]
+fn every_probe_reads_what_its_unit_counts() {
+    use dualstream::rtl::UnitId;
+    use dualstream::units::{
+        hit_record_updater::HitRecordUpdater, l2::L2, memory::Memory, scene_buffer::SceneBuffer,
+        stream_scheduler::StreamScheduler, tp::Tp,
+    };
+    let s = scene("cornell", 8, 8, 1);
+    let rc = rcfg(8, None);
+    let mut p = dualstream::render::prepare(&s, &rc).unwrap();
+    let rays = dualstream::testbench::tm_tb::treelet_rays(&p, &s, 0).swap_remove(0);
+    for r in &rays {
+        HitRec::NONE.write(&mut p.mem, p.map.hit_addr(r.hit_index()));
+    }
+    let mut cfg = chip_cfg(2, 4);
+    assert!(cfg.chip.l2.enabled, "the default chip has an L2");
+    cfg.accel = rc.accel.clone();
+    let consts = dualstream::render::shade_consts(&s, &p);
+    let nseg = p.seg.segments.len();
+    let mut chip = Chip::new(&cfg, &p.map, nseg, &consts, SimOptions::default()).unwrap();
+    let w = chip.trace_wave(&mut p.mem, &rays).unwrap();
+    let sim = &chip.sim;
+    let named = |u: UnitId| -> std::collections::BTreeMap<&'static str, u64> {
+        sim.unit(u).counters().into_iter().collect()
+    };
+
+    let sch = sim.unit_ref::<StreamScheduler>(chip.scheduler);
+    let (st, c) = (sch.probe().stats, named(chip.scheduler));
+    assert!(st.segments_loaded > 1 && st.rays_forwarded > 0, "{st:?}");
+    for (name, v) in [
+        ("segments_loaded", st.segments_loaded),
+        ("enqueues", st.enqueues),
+        ("markers", st.markers),
+        ("rays_forwarded", st.rays_forwarded),
+        ("shade_done", st.shade_done),
+    ] {
+        assert_eq!(c[name], v, "scheduler {name}");
+    }
+    assert_eq!(w.segments_loaded, st.segments_loaded);
+    assert_eq!(w.duplicates + rays.len() as u64, st.enqueues);
+    let done: u64 = sch.done_by_segment().iter().sum();
+    assert_eq!(done, sch.enqueued_by_segment().iter().sum::<u64>());
+    assert_eq!(done, st.markers, "every ray finished once, in its segments");
+    assert_eq!(sch.done_by_segment().len(), nseg);
+    assert_eq!(sch.dest_entries(), cfg.chip.scheduler.dest_entries);
+
+    let m = sim.unit_ref::<Memory>(chip.memory).probe();
+    let c = named(chip.memory);
+    assert!(m.responses > 0);
+    assert_eq!((c["requests"], c["responses"]), (m.requests, m.responses));
+    assert_eq!(m.in_flight, 0, "drained");
+    let tags = ["ray", "scene", "hit", "shading", "other"];
+    for (k, t) in tags.iter().enumerate() {
+        assert_eq!(
+            c[format!("{t}_lines_read").as_str()],
+            m.lines_read[k],
+            "{t}"
+        );
+        assert_eq!(c[format!("{t}_lines_written").as_str()], m.lines_written[k]);
+    }
+    assert_eq!(w.lines_read, m.lines_read);
+    assert_eq!(w.lines_written, m.lines_written);
+
+    let sb = sim.unit_ref::<SceneBuffer>(chip.scene_buffer).probe();
+    let c = named(chip.scene_buffer);
+    assert!(sb.reads > 0 && sb.fills > 0, "{sb:?}");
+    for (name, v) in [
+        ("reads", sb.reads),
+        ("fills", sb.fills),
+        ("stale_fills", sb.stale_fills),
+        ("stalls", sb.stalls),
+        ("stall_cycles", sb.stall_cycles),
+        ("bank_conflicts", sb.bank_conflicts),
+    ] {
+        assert_eq!(c[name], v, "scene buffer {name}");
+    }
+    assert_eq!(
+        (w.scene_buffer_reads, w.scene_buffer_stalls),
+        (sb.reads, sb.stalls)
+    );
+    assert_eq!(w.scene_buffer_stall_cycles, sb.stall_cycles);
+
+    let h = sim.unit_ref::<HitRecordUpdater>(chip.hit_updater).probe();
+    let c = named(chip.hit_updater);
+    assert!(h.updates > 0 && h.reads > 0, "{h:?}");
+    for (name, v) in [
+        ("updates", h.updates),
+        ("merged", h.merged),
+        ("reads", h.reads),
+        ("writes", h.writes),
+        ("hazard_waits", h.hazard_waits),
+    ] {
+        assert_eq!(c[name], v, "hit record updater {name}");
+    }
+    assert_eq!((h.queued, h.in_flight), (0, 0), "drained");
+    assert_eq!(w.hit_merged, h.merged);
+
+    let l2u = chip.l2.expect("an L2");
+    let l2 = sim.unit_ref::<L2>(l2u).probe();
+    let c = named(l2u);
+    assert!(l2.stats.accesses > 0, "{l2:?}");
+    for (name, v) in [
+        ("accesses", l2.stats.accesses),
+        ("hits", l2.stats.hits),
+        ("misses", l2.stats.misses),
+        ("merges", l2.stats.merges),
+        ("bank_conflicts", l2.stats.bank_conflicts),
+        ("fills", l2.stats.fills),
+        ("writebacks", l2.stats.writebacks),
+        ("combined", l2.stats.combined),
+    ] {
+        assert_eq!(c[name], v, "L2 {name}");
+    }
+    assert_eq!((l2.live_mshrs, l2.mem_queued, l2.at_memory), (0, 0, 0));
+    assert_eq!(
+        (w.l2.accesses, w.l2.fills),
+        (l2.stats.accesses, l2.stats.fills)
+    );
+
+    let tps: Vec<UnitId> = chip.tms.iter().flat_map(|t| t.tps.clone()).collect();
+    let sum = |name: &str| -> u64 { tps.iter().map(|&u| named(u)[name]).sum() };
+    let probed = |f: fn(&dualstream::units::tp::TpStats) -> u64| -> u64 {
+        tps.iter().map(|&u| f(sim.unit_ref::<Tp>(u).probe())).sum()
+    };
+    assert!(sum("box_tests") > 0);
+    assert_eq!(probed(|s| s.box_tests), sum("box_tests"));
+    assert_eq!(probed(|s| s.tri_tests), sum("tri_tests"));
+    assert_eq!(probed(|s| s.l1_loads), sum("l1_loads"));
+    assert_eq!(w.box_tests, sum("box_tests"));
+    assert_eq!(w.tri_tests, sum("tri_tests"));
+    assert_eq!(w.l1_lines, sum("l1_loads"));
+    assert_eq!(w.hits_sent, sum("hits"));
+    let deepest = tps.iter().map(|&u| named(u)["max_stack"]).max().unwrap();
+    assert_eq!(w.max_stack, deepest);
+    assert!(tps.iter().all(|&u| !sim.unit_ref::<Tp>(u).holds_work()));
+}

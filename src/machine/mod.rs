@@ -416,12 +416,48 @@ pub struct Chip {
     stack_cfg: (u32, u32),
 }
 
-fn counter(sim: &Sim, u: UnitId, name: &str) -> u64 {
-    sim.unit(u)
-        .counters()
-        .into_iter()
-        .find(|(n, _)| *n == name)
-        .map_or(0, |(_, v)| v)
+/// The one place each unit type is found in the simulation (a downcast);
+/// everything else reads a unit through its probe (`probe()` and named
+/// accessors in the unit's file), so a unit's internals can change without the
+/// chip top changing.
+impl Chip {
+    fn sched(&self) -> &StreamScheduler {
+        self.sim.unit_ref(self.scheduler)
+    }
+    fn sched_mut(&mut self) -> &mut StreamScheduler {
+        self.sim.unit_mut(self.scheduler)
+    }
+    fn memory_unit(&self) -> &Memory {
+        self.sim.unit_ref(self.memory)
+    }
+    fn memory_unit_mut(&mut self) -> &mut Memory {
+        self.sim.unit_mut(self.memory)
+    }
+    fn scene_buffer_unit(&self) -> &SceneBuffer {
+        self.sim.unit_ref(self.scene_buffer)
+    }
+    fn hit_updater_unit(&self) -> &HitRecordUpdater {
+        self.sim.unit_ref(self.hit_updater)
+    }
+    fn l2_unit(&self) -> Option<&L2> {
+        self.l2.map(|u| self.sim.unit_ref(u))
+    }
+    fn host_mut(&mut self) -> &mut Host {
+        self.sim.unit_mut(self.host)
+    }
+    /// Every TP of every TM, TM by TM.
+    fn tps(&self) -> impl Iterator<Item = UnitId> + '_ {
+        self.tms.iter().flat_map(|t| t.tps.iter().copied())
+    }
+    fn tp(&self, u: UnitId) -> &Tp {
+        self.sim.unit_ref(u)
+    }
+    fn tp_mut(&mut self, u: UnitId) -> &mut Tp {
+        self.sim.unit_mut(u)
+    }
+    fn ctrl(&self, u: UnitId) -> &MemCtrl {
+        self.sim.unit_ref(u)
+    }
 }
 
 impl Chip {
@@ -665,13 +701,7 @@ impl Chip {
             );
         }
         sim.elaborate().map_err(|e| e.to_string())?;
-        let shading = ShadeRegs::new(*shade, map);
-        for t in &tms {
-            for &u in &t.tps {
-                sim.unit_mut::<Tp>(u).set_shading(Some(shading));
-            }
-        }
-        Ok(Chip {
+        let mut chip = Chip {
             sim,
             clock,
             tms,
@@ -691,7 +721,12 @@ impl Chip {
             stack_cfg: (cfg.tm.scratchpad_bytes, cfg.tm.stack_entry_bytes),
             total_cycles: 0,
             wall_s: 0.0,
-        })
+        };
+        let shading = ShadeRegs::new(*shade, map);
+        for u in chip.tps().collect::<Vec<_>>() {
+            chip.tp_mut(u).set_shading(Some(shading));
+        }
+        Ok(chip)
     }
 
     /// Every TP's counters added up, in one pass over the TPs (a snapshot needs
@@ -699,8 +734,8 @@ impl Chip {
     /// dozen times, 8% of a small frame's instructions).
     fn tp_totals(&self) -> TpStats {
         let mut t = TpStats::default();
-        for &u in self.tms.iter().flat_map(|t| t.tps.iter()) {
-            t.add(&self.sim.unit_ref::<Tp>(u).stats);
+        for u in self.tps() {
+            t.add(self.tp(u).probe());
         }
         t
     }
@@ -711,7 +746,7 @@ impl Chip {
         let end = self.sim.cycle(d.clock);
         let mut t = ChannelStats::default();
         for &u in &d.ctrls {
-            t.merge(&self.sim.unit_ref::<MemCtrl>(u).ctrl.stats_at(end));
+            t.merge(&self.ctrl(u).stats_at(end));
         }
         Some(t)
     }
@@ -725,7 +760,7 @@ impl Chip {
         let end = self.sim.cycle(d.clock);
         let mut v = Vec::new();
         for (k, &u) in d.ctrls.iter().enumerate() {
-            let log = self.sim.unit_ref::<MemCtrl>(u).ctrl.commands_until(end);
+            let log = self.ctrl(u).commands_until(end);
             for x in crate::mem::checker::check(&log, &d.cfg.timing, &d.cfg.geometry, end) {
                 v.push(format!("channel {k}: {x}"));
             }
@@ -758,15 +793,16 @@ impl Chip {
 
     fn snapshot(&self) -> WaveCycles {
         let s = &self.sim;
-        let mem = s.unit_ref::<Memory>(self.memory);
-        let sb = self.scene_buffer;
-        let sched = s.unit_ref::<StreamScheduler>(self.scheduler).stats();
+        let mem = self.memory_unit().probe();
+        let sb = self.scene_buffer_unit().probe();
+        let sched = self.sched().probe();
+        let hru = self.hit_updater_unit().probe();
         let tp = self.tp_totals();
         WaveCycles {
             cycles: s.cycle(self.clock),
             rays_emitted: 0,
-            duplicates: sched.enqueues,
-            segments_loaded: sched.segments_loaded,
+            duplicates: sched.stats.enqueues,
+            segments_loaded: sched.stats.segments_loaded,
             box_tests: tp.box_tests,
             tri_tests: tp.tri_tests,
             exits: tp.exits,
@@ -777,10 +813,10 @@ impl Chip {
             hits_sent: tp.hits,
             lines_read: mem.lines_read,
             lines_written: mem.lines_written,
-            hit_merged: counter(s, self.hit_updater, "merged"),
-            scene_buffer_stalls: counter(s, sb, "stalls"),
-            scene_buffer_stall_cycles: counter(s, sb, "stall_cycles"),
-            scene_buffer_reads: counter(s, sb, "reads"),
+            hit_merged: hru.merged,
+            scene_buffer_stalls: sb.stalls,
+            scene_buffer_stall_cycles: sb.stall_cycles,
+            scene_buffer_reads: sb.reads,
             evals: s.evals,
             dram: self.dram_snapshot(),
             shade_items: tp.shade_items,
@@ -789,11 +825,11 @@ impl Chip {
             shade_hits: tp.shade_hits,
             shade_occluded: tp.shade_occluded,
             // The cycle the last shading pass ended (see `run_wave`).
-            shade_cycles: s.unit_ref::<StreamScheduler>(self.scheduler).last_shade_end,
+            shade_cycles: sched.last_shade_end,
             drain_cycles: 0,
             shade_uses: ["shade_load", "shade", "shade_emit", "shade_store"].map(|n| tp.uses_of(n)),
-            l2: self.l2.map_or(L2Wave::default(), |u| {
-                let st = s.unit_ref::<L2>(u).stats;
+            l2: self.l2_unit().map_or(L2Wave::default(), |u| {
+                let st = u.probe().stats;
                 L2Wave {
                     accesses: st.accesses,
                     hits: st.hits,
@@ -813,54 +849,42 @@ impl Chip {
     }
 
     fn sched_tm_rays(&self) -> Vec<u64> {
-        self.sim
-            .unit_ref::<StreamScheduler>(self.scheduler)
-            .tm_rays()
-            .to_vec()
+        self.sched().tm_rays().to_vec()
     }
 
     /// Units holding work, and what they wait for (the watchdog's report).
     pub fn holding(&self) -> Vec<String> {
-        let s = &self.sim;
         let mut v = Vec::new();
-        let sch = s.unit_ref::<StreamScheduler>(self.scheduler);
+        let sch = self.sched();
         if !sch.idle() {
             v.push(format!("chip.scheduler: {}", sch.holding()));
         }
-        let sb = s.unit_ref::<SceneBuffer>(self.scene_buffer);
-        if sb.busy() {
+        if self.scene_buffer_unit().busy() {
             v.push("chip.scene_buffer: L1 misses wait for lines not streamed in, or responses in flight".into());
         }
-        let h = s.unit_ref::<HitRecordUpdater>(self.hit_updater);
+        let h = self.hit_updater_unit();
         if h.busy() {
+            let p = h.probe();
             v.push(format!(
                 "chip.hit_updater: {} queued, {} read-compare-writes in flight",
-                h.st.r().queue.len(),
-                h.st.r().in_flight.len()
+                p.queued, p.in_flight
             ));
         }
-        if let Some(u) = self.l2 {
-            let l2 = s.unit_ref::<L2>(u);
-            if l2.busy() {
-                let st = l2.st.r();
-                v.push(format!(
-                    "chip.l2: {} MSHRs live, {} memory requests queued, {} at the memory",
-                    st.live_mshrs(),
-                    st.out_q.len(),
-                    st.mem_busy.len()
-                ));
-            }
+        if let Some(l2) = self.l2_unit()
+            && l2.busy()
+        {
+            let p = l2.probe();
+            v.push(format!(
+                "chip.l2: {} MSHRs live, {} memory requests queued, {} at the memory",
+                p.live_mshrs, p.mem_queued, p.at_memory
+            ));
         }
-        let m = s.unit_ref::<Memory>(self.memory);
-        if m.in_flight() > 0 {
-            v.push(format!("chip.memory: {} requests in flight", m.in_flight()));
+        let m = self.memory_unit().probe();
+        if m.in_flight > 0 {
+            v.push(format!("chip.memory: {} requests in flight", m.in_flight));
         }
         for (k, t) in self.tms.iter().enumerate() {
-            let busy = t
-                .tps
-                .iter()
-                .filter(|&&u| s.unit_ref::<Tp>(u).state.val() != crate::units::tp::TpState::Idle)
-                .count();
+            let busy = t.tps.iter().filter(|&&u| self.tp(u).holds_work()).count();
             if busy > 0 {
                 v.push(format!("chip.tm{k}: {busy} TPs hold a ray"));
             }
@@ -871,28 +895,20 @@ impl Chip {
     /// Records every segment pass's admission and retirement (see
     /// `take_pass_log`).
     pub fn enable_pass_log(&mut self) {
-        self.sim
-            .unit_mut::<StreamScheduler>(self.scheduler)
-            .enable_pass_log();
+        self.sched_mut().enable_pass_log();
     }
     /// The segment passes retired since the last call.
     pub fn take_pass_log(&mut self) -> Vec<crate::units::stream_scheduler::PassEvent> {
-        self.sim
-            .unit_mut::<StreamScheduler>(self.scheduler)
-            .take_pass_log()
+        self.sched_mut().take_pass_log()
     }
 
     /// Records the rays written into the root queue (see `take_root_log`).
     pub fn enable_root_log(&mut self) {
-        self.sim
-            .unit_mut::<StreamScheduler>(self.scheduler)
-            .enable_root_log();
+        self.sched_mut().enable_root_log();
     }
     /// The rays written into the root queue since the last call.
     pub fn take_root_log(&mut self) -> Vec<RayRec> {
-        self.sim
-            .unit_mut::<StreamScheduler>(self.scheduler)
-            .take_root_log()
+        self.sched_mut().take_root_log()
     }
 
     /// Traces one wavefront: `rays` into the root queue, run until idle. The DRAM
@@ -922,15 +938,12 @@ impl Chip {
         shade_pixels: u32,
     ) -> Result<WaveCycles, String> {
         let t0 = Instant::now();
-        std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
+        self.memory_unit_mut().swap_image(mem);
         let before = self.snapshot();
         let tm_before = self.sched_tm_rays();
-        self.sim
-            .unit_mut::<StreamScheduler>(self.scheduler)
-            .new_wave();
-        self.sim
-            .unit_mut::<Host>(self.host)
-            .load(rays.to_vec(), self.wave, shade_pixels);
+        self.sched_mut().new_wave();
+        let wave = self.wave;
+        self.host_mut().load(rays.to_vec(), wave, shade_pixels);
         self.sim.wake(self.host);
         self.wave += 1;
         let mut res = self.run_until_idle();
@@ -939,12 +952,12 @@ impl Chip {
             // cycles count in the run).
             let inv = self.l2_invalidate;
             let c0 = self.sim.cycle(self.clock);
-            self.sim.unit_mut::<Host>(self.host).request_flush(inv);
+            self.host_mut().request_flush(inv);
             self.sim.wake(self.host);
             res = self.run_until_idle();
             self.flush_cycles += self.sim.cycle(self.clock) - c0;
         }
-        std::mem::swap(&mut self.sim.unit_mut::<Memory>(self.memory).image, mem);
+        self.memory_unit_mut().swap_image(mem);
         res?;
         let after = self.snapshot();
         self.wall_s += t0.elapsed().as_secs_f64();
@@ -989,11 +1002,7 @@ impl Chip {
             // apart (`l2.flush_cycles`).
             drain_cycles: after.cycles
                 - (after.l2.flush_cycles - before.l2.flush_cycles)
-                - self
-                    .sim
-                    .unit_ref::<StreamScheduler>(self.scheduler)
-                    .last_marker
-                    .max(before.cycles),
+                - self.sched().probe().last_marker.max(before.cycles),
             tm_rays_max: 0,
             tm_rays_min: 0,
             tms_with_rays: 0,
@@ -1012,10 +1021,8 @@ impl Chip {
         w.tm_rays_min = per_tm.iter().copied().min().unwrap_or(0);
         w.tms_with_rays = per_tm.iter().filter(|&&r| r > 0).count() as u64;
         w.max_stack = self
-            .tms
-            .iter()
-            .flat_map(|t| t.tps.iter())
-            .map(|&u| self.sim.unit_ref::<Tp>(u).stats.max_stack)
+            .tps()
+            .map(|u| self.tp(u).probe().max_stack)
             .max()
             .unwrap_or(0);
         self.total_cycles += w.cycles;
@@ -1065,7 +1072,7 @@ impl Chip {
         if let WindowKind::Trace(b) | WindowKind::Root(b) | WindowKind::Wave { boundary: b, .. } =
             &kind
         {
-            let map = self.sim.unit_ref::<StreamScheduler>(sch).map.clone();
+            let map = self.sched().memory_map().clone();
             for (s, rec) in &b.queues {
                 mem.write(map.queue_rec_addr(*s), &rec.encode());
             }
@@ -1073,16 +1080,14 @@ impl Chip {
                 mem.write(*a, bytes);
             }
         }
-        self.sim.unit_mut::<Memory>(self.memory).image = mem;
+        self.memory_unit_mut().set_image(mem);
         match &kind {
             WindowKind::Trace(b) | WindowKind::Root(b) | WindowKind::Wave { boundary: b, .. } => {
-                self.sim.unit_mut::<StreamScheduler>(sch).resume(b);
+                self.sched_mut().resume(b);
                 self.sim.wake(sch);
             }
             WindowKind::Emit(rays) => {
-                self.sim
-                    .unit_mut::<Host>(self.host)
-                    .load(rays.clone(), 0, 0);
+                self.host_mut().load(rays.clone(), 0, 0);
                 self.sim.wake(self.host);
             }
             WindowKind::Shade {
@@ -1090,12 +1095,10 @@ impl Chip {
                 pixels,
                 pool,
             } => {
-                let u = self.sim.unit_mut::<StreamScheduler>(sch);
+                let u = self.sched_mut();
                 u.resume(pool);
                 u.shade_from(*first);
-                self.sim
-                    .unit_mut::<Host>(self.host)
-                    .load(Vec::new(), 1, *pixels);
+                self.host_mut().load(Vec::new(), 1, *pixels);
                 self.sim.wake(self.host);
             }
         }
@@ -1112,25 +1115,18 @@ impl Chip {
         };
         let root = mark == 3;
         let count = |c: &Chip| {
-            let u = c.sim.unit_ref::<StreamScheduler>(c.scheduler);
+            let u = c.sched();
             let st = u.stats();
             [
                 st.segments_loaded,
                 st.enqueues,
                 st.shade_done,
-                u.pub_done.first().copied().unwrap_or(0),
+                u.done_by_segment().first().copied().unwrap_or(0),
             ][mark]
         };
         // A root window's pass is over when its children are admitted (it is
         // checked in steps, so their first rays may have gone out).
-        let root_over = |c: &Chip| {
-            root && c
-                .sim
-                .unit_ref::<StreamScheduler>(c.scheduler)
-                .stats()
-                .segments_loaded
-                >= 2
-        };
+        let root_over = |c: &Chip| root && c.sched().stats().segments_loaded >= 2;
         let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
         let start = self.snapshot();
         let owed = |a: &[u64; StreamTag::COUNT], b: &[u64; StreamTag::COUNT]| {
@@ -1152,7 +1148,7 @@ impl Chip {
                     self.l2_dirty()
                 };
                 from = Some((self.snapshot(), n, d0));
-                done0 = self.sim.unit_ref::<StreamScheduler>(sch).pub_done.clone();
+                done0 = self.sched().done_by_segment().to_vec();
             }
             if from.is_none() && n >= all {
                 return Ok(None);
@@ -1209,11 +1205,9 @@ impl Chip {
     /// `tenths` of the visits it did in all (the total is known only at the
     /// end). Its L2 started empty, so all it leaves dirty is owed.
     fn wave_window(&mut self, tenths: (u64, u64), step: u64) -> Result<Option<WindowRun>, String> {
-        let sch = self.scheduler;
-        let visits =
-            |c: &Chip| -> u64 { c.sim.unit_ref::<StreamScheduler>(sch).pub_done.iter().sum() };
+        let visits = |c: &Chip| -> u64 { c.sched().done_by_segment().iter().sum() };
         let start = self.snapshot();
-        let done0 = self.sim.unit_ref::<StreamScheduler>(sch).pub_done.clone();
+        let done0 = self.sched().done_by_segment().to_vec();
         let v0 = visits(self);
         let mut looks: Vec<(u64, WaveCycles)> = Vec::new();
         let mut next = 0u64;
@@ -1266,7 +1260,7 @@ impl Chip {
             .sim
             .run_until(self.sim.now() + WINDOW_STEP * period)
             .map_err(|e| e.to_string())?;
-        match self.sim.unit_ref::<StreamScheduler>(self.scheduler).error() {
+        match self.sched().error() {
             Some(e) => Err(e.to_string()),
             None => Ok(end),
         }
@@ -1284,10 +1278,7 @@ impl Chip {
 
     /// Rays finished (end markers) since the counts `d0`, by segment.
     fn done_since(&self, d0: &[u64]) -> Vec<(u32, u64)> {
-        let d = &self
-            .sim
-            .unit_ref::<StreamScheduler>(self.scheduler)
-            .pub_done;
+        let d = self.sched().done_by_segment();
         d.iter()
             .zip(d0)
             .enumerate()
@@ -1298,9 +1289,8 @@ impl Chip {
 
     /// Dirty L2 lines by stream tag (none without an L2).
     fn l2_dirty(&self) -> [u64; StreamTag::COUNT] {
-        self.l2.map_or([0; StreamTag::COUNT], |u| {
-            self.sim.unit_ref::<L2>(u).dirty_by_tag()
-        })
+        self.l2_unit()
+            .map_or([0; StreamTag::COUNT], |u| u.dirty_by_tag())
     }
 
     /// Runs in watchdog windows until every unit sleeps with nothing scheduled.
@@ -1317,7 +1307,7 @@ impl Chip {
                     crate::rtl::SimError::Elaboration(m) if m.contains("still busy") => Ok(false),
                     e => Err(e.to_string()),
                 })?;
-            if let Some(e) = self.sim.unit_ref::<StreamScheduler>(self.scheduler).error() {
+            if let Some(e) = self.sched().error() {
                 return Err(e.to_string());
             }
             if end {
@@ -1336,13 +1326,12 @@ impl Chip {
 
     /// A monotonic measure of work done (memory answers, rays forwarded, markers).
     fn progress(&self) -> (u64, u64, u64, u64) {
-        let s = &self.sim;
-        let st = s.unit_ref::<StreamScheduler>(self.scheduler).stats();
+        let st = self.sched().stats();
         (
-            counter(s, self.memory, "responses"),
+            self.memory_unit().probe().responses,
             st.rays_forwarded,
             st.markers + st.shade_done,
-            counter(s, self.scene_buffer, "reads"),
+            self.scene_buffer_unit().probe().reads,
         )
     }
 
@@ -1357,7 +1346,7 @@ impl Chip {
                 t.tps
                     .iter()
                     .enumerate()
-                    .filter(|&(_, &u)| self.sim.unit_ref::<Tp>(u).overflowed())
+                    .filter(|&(_, &u)| self.tp(u).overflowed())
                     .map(move |(j, _)| format!("chip.tm{k}.tp{j}"))
             })
             .collect();
@@ -1383,11 +1372,11 @@ impl Chip {
             "the chip is stuck at cycle {}: {why}",
             self.sim.cycle(self.clock)
         );
-        let sch = self.sim.unit_ref::<StreamScheduler>(self.scheduler);
+        let sch = self.sched();
         if sch.dest_blocked() {
             msg.push_str(&format!(
                 "; the destination table is full (chip.scheduler.dest_entries = {}): raise it",
-                sch.dest_entries
+                sch.dest_entries()
             ));
         }
         msg.push_str("; units holding work:");
@@ -1401,16 +1390,16 @@ impl Chip {
     /// Nothing is lost: asserted after every wavefront.
     fn check_drained(&self) -> Result<(), String> {
         let s = &self.sim;
-        let sch = s.unit_ref::<StreamScheduler>(self.scheduler);
+        let sch = self.sched();
         let held = self.holding();
         if !held.is_empty() {
             return Err(self.stuck("every unit sleeps but work is left (a deadlock)"));
         }
         for seg in 0..self.segments {
-            if sch.pub_enqueued[seg] != sch.pub_done[seg] {
+            let (enq, done) = (sch.enqueued_by_segment()[seg], sch.done_by_segment()[seg]);
+            if enq != done {
                 return Err(format!(
-                    "segment {seg}: {} rays enqueued but {} processed in this wavefront",
-                    sch.pub_enqueued[seg], sch.pub_done[seg]
+                    "segment {seg}: {enq} rays enqueued but {done} processed in this wavefront"
                 ));
             }
         }
@@ -1420,8 +1409,8 @@ impl Chip {
                 sch.live_buckets()
             ));
         }
-        let m = s.unit_ref::<Memory>(self.memory);
-        if counter(s, self.memory, "requests") != m.responses {
+        let m = self.memory_unit().probe();
+        if m.requests != m.responses {
             return Err("a memory request was not answered".into());
         }
         for (i, (name, _)) in s.link_stats().into_iter().enumerate() {

@@ -321,3 +321,33 @@ impl Logic for HitRecordUpdater {
         self.hazard_waits = 0;
     }
 }
+
+/// What the chip top reads of the hit record updater: its event counters and
+/// what it holds (a probe, not hardware).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HitUpdaterProbe {
+    pub updates: u64,
+    pub merged: u64,
+    pub reads: u64,
+    pub writes: u64,
+    pub hazard_waits: u64,
+    /// Updates queued, and read-compare-writes in flight.
+    pub queued: usize,
+    pub in_flight: usize,
+}
+
+impl HitRecordUpdater {
+    /// The counters and occupancy (see [`HitUpdaterProbe`]).
+    pub fn probe(&self) -> HitUpdaterProbe {
+        let s = self.st.r();
+        HitUpdaterProbe {
+            updates: self.updates,
+            merged: self.merged,
+            reads: self.reads,
+            writes: self.writes,
+            hazard_waits: self.hazard_waits,
+            queued: s.queue.len(),
+            in_flight: s.in_flight.len(),
+        }
+    }
+}

@@ -766,3 +766,27 @@ impl Logic for L2 {
         }
     }
 }
+
+/// What the chip top reads of the L2: its event counters and what it holds (a
+/// probe, not hardware).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct L2Probe {
+    pub stats: L2Stats,
+    /// Live MSHRs, requests queued towards the memory, lines at the memory.
+    pub live_mshrs: usize,
+    pub mem_queued: usize,
+    pub at_memory: usize,
+}
+
+impl L2 {
+    /// The counters and occupancy (see [`L2Probe`]).
+    pub fn probe(&self) -> L2Probe {
+        let st = self.st.r();
+        L2Probe {
+            stats: self.stats,
+            live_mshrs: st.live_mshrs(),
+            mem_queued: st.out_q.len(),
+            at_memory: st.mem_busy.len(),
+        }
+    }
+}

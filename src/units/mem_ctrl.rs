@@ -164,3 +164,19 @@ impl Logic for MemCtrl {
         self.ctrl.counters()
     }
 }
+
+impl MemCtrl {
+    /// Records the issued DRAM commands (`chip.memory.check_timing`).
+    pub fn record_commands(&mut self, on: bool) {
+        self.ctrl.record_commands(on);
+    }
+    /// The channel's statistics up to DRAM cycle `end` (a probe: the controller
+    /// is not advanced).
+    pub fn stats_at(&self, end: u64) -> crate::mem::stats::ChannelStats {
+        self.ctrl.stats_at(end)
+    }
+    /// The commands issued up to DRAM cycle `end` (empty unless recorded).
+    pub fn commands_until(&self, end: u64) -> Vec<crate::mem::Command> {
+        self.ctrl.commands_until(end)
+    }
+}

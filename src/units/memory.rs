@@ -488,3 +488,37 @@ impl Logic for Memory {
         self.responses = 0;
     }
 }
+
+/// What the chip top reads of the memory unit: requests and answers so far,
+/// and the lines answered by stream tag (a probe, not hardware).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryProbe {
+    pub requests: u64,
+    pub responses: u64,
+    pub lines_read: [u64; StreamTag::COUNT],
+    pub lines_written: [u64; StreamTag::COUNT],
+    /// Requests accepted and not yet answered.
+    pub in_flight: usize,
+}
+
+impl Memory {
+    /// The counters (see [`MemoryProbe`]).
+    pub fn probe(&self) -> MemoryProbe {
+        MemoryProbe {
+            requests: self.requests,
+            responses: self.responses,
+            lines_read: self.lines_read,
+            lines_written: self.lines_written,
+            in_flight: self.in_flight(),
+        }
+    }
+    /// Exchanges the DRAM image with `image`: the chip lends it for a run and
+    /// takes it back for the host.
+    pub fn swap_image(&mut self, image: &mut SparseMem) {
+        std::mem::swap(&mut self.image, image);
+    }
+    /// Replaces the DRAM image (a sampling window's snapshot).
+    pub fn set_image(&mut self, image: SparseMem) {
+        self.image = image;
+    }
+}

@@ -357,3 +357,29 @@ impl Logic for SceneBuffer {
         self.bank_conflicts = 0;
     }
 }
+
+/// What the chip top reads of the scene buffer: its event counters (a probe,
+/// not hardware).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SceneBufferProbe {
+    pub reads: u64,
+    pub fills: u64,
+    pub stale_fills: u64,
+    pub stalls: u64,
+    pub stall_cycles: u64,
+    pub bank_conflicts: u64,
+}
+
+impl SceneBuffer {
+    /// The counters (see [`SceneBufferProbe`]).
+    pub fn probe(&self) -> SceneBufferProbe {
+        SceneBufferProbe {
+            reads: self.reads,
+            fills: self.fills,
+            stale_fills: self.stale_fills,
+            stalls: self.stalls,
+            stall_cycles: self.stall_cycles,
+            bank_conflicts: self.bank_conflicts,
+        }
+    }
+}

@@ -510,3 +510,44 @@ impl Logic for StreamScheduler {
         self.tm_rays.iter_mut().for_each(|x| *x = 0);
     }
 }
+
+/// What the chip top reads of the scheduler after (or during) a run: its event
+/// counters and the cycles of the last finished work. A probe, not hardware:
+/// the scheduler's internals can change without the chip top changing.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SchedulerProbe {
+    pub stats: SchedStats,
+    /// Cycle the last shading pass ended (its last item's end marker).
+    pub last_shade_end: u64,
+    /// Cycle the last end marker (a ray's or a shading item's) arrived.
+    pub last_marker: u64,
+}
+
+impl StreamScheduler {
+    /// The counters and last-work cycles (see [`SchedulerProbe`]).
+    pub fn probe(&self) -> SchedulerProbe {
+        SchedulerProbe {
+            stats: self.stats,
+            last_shade_end: self.last_shade_end,
+            last_marker: self.last_marker,
+        }
+    }
+    /// Rays finished (end markers) in this wavefront, by segment (cleared by
+    /// `new_wave`). A slice, not a copy: sampling windows look at it every
+    /// few cycles.
+    pub fn done_by_segment(&self) -> &[u64] {
+        &self.pub_done
+    }
+    /// Rays enqueued in this wavefront, by segment (cleared by `new_wave`).
+    pub fn enqueued_by_segment(&self) -> &[u64] {
+        &self.pub_enqueued
+    }
+    /// The memory map the scheduler lays its queues out by.
+    pub fn memory_map(&self) -> &MemoryMap {
+        &self.map
+    }
+    /// Destination table entries (`chip.scheduler.dest_entries`).
+    pub fn dest_entries(&self) -> u32 {
+        self.dest_entries
+    }
+}

@@ -608,3 +608,15 @@ impl Tp {
         self.state.val() == TpState::Overflow
     }
 }
+
+impl Tp {
+    /// The TP's event counters (a probe, not hardware; by reference: the chip
+    /// adds up every TP's at each snapshot).
+    pub fn probe(&self) -> &TpStats {
+        &self.stats
+    }
+    /// Whether the TP holds work (a ray or a shading item): not idle.
+    pub fn holds_work(&self) -> bool {
+        self.state.val() != TpState::Idle
+    }
+}
