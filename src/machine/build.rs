@@ -1,12 +1,13 @@
 //! Elaboration: `Chip::new` builds the units and wires them through declared
 //! links (the wiring is listed in the module docs of `machine`).
 
+use crate::config::ChipCfg;
 use crate::config::Config;
 use crate::contract::{MemoryMap, SparseMem};
 use crate::mem::config::EnergyCfg;
 use crate::mem::energy::EnergyModel;
 use crate::mem::{AddrMap, MemReq, MemResp};
-use crate::rtl::{Sim, SimOptions};
+use crate::rtl::{ClockId, In, Out, Sim, SimOptions};
 use crate::units::hit_record_updater::HitRecordUpdater;
 use crate::units::l1::{L1Req, L1Resp};
 use crate::units::l2::{L2, L2Flush};
@@ -16,14 +17,16 @@ use crate::units::scene_buffer::{SceneBuffer, SlotMap};
 use crate::units::shade::ShadeConsts;
 use crate::units::staging_buffer::SbFill;
 use crate::units::stream_scheduler::{StreamScheduler, WaveStart};
-use crate::units::tm::{self, TmPorts};
+use crate::units::tm::{self, TmPorts, TmUnits};
 use crate::units::tp::{HitUpdate, RayWrite, ShadeRegs};
 
 use super::host::Host;
-use super::{Chip, Dram, PORT_HITS, PORT_L2, PORT_SCENE, PORT_SCHED};
+use super::{Chip, Dram, PORT_HITS, PORT_SCENE, PORT_SCHED};
 
 impl Chip {
     /// Builds the chip for a scene laid out by `map` with `segments` segments.
+    /// The steps run in a fixed order: link and unit ids (and so the waveform
+    /// and the evaluation order) follow it.
     pub fn new(
         cfg: &Config,
         map: &MemoryMap,
@@ -38,14 +41,138 @@ impl Chip {
             .clock("core", cfg.clocks.core_ps)
             .map_err(|e| e.to_string())?;
         let l = ch.links;
-        let n = ch.tms as usize;
-        // Memory ports.
+        let mut mem = MemPorts::link(&mut sim, ch);
+        let (emit_o, emit_i) = sim.link::<RayWrite>("chip.emit", l);
+        let (start_o, start_i) = sim.link::<WaveStart>("chip.start", l);
+        let (map_o, map_i) = sim.link::<SlotMap>("chip.slot_map", l);
+        let mut tml = TmLinks::link(&mut sim, ch);
+        let l2_side = L2Side::link(&mut sim, ch, &mut mem, &mut tml, Host::new(emit_o, start_o));
+        let host = sim.add("chip.host", clock, l2_side.host);
+        let scheduler = sim.add(
+            "chip.scheduler",
+            clock,
+            StreamScheduler::new(
+                &ch.scheduler,
+                &ch.scene_buffer,
+                map,
+                segments,
+                emit_i,
+                start_i,
+                mem.sched_resp,
+                map_o,
+                mem.scene_req,
+                mem.sched_req,
+                tml.ray_write,
+                tml.fill,
+            ),
+        );
+        let scene_buffer = sim.add(
+            "chip.scene_buffer",
+            clock,
+            SceneBuffer::new(
+                &ch.scene_buffer,
+                l.delay,
+                map_i,
+                mem.scene_fill,
+                tml.miss_req,
+                tml.miss_resp,
+            ),
+        );
+        let hit_updater = sim.add(
+            "chip.hit_updater",
+            clock,
+            HitRecordUpdater::new(
+                &ch.hit_updater,
+                map.hits,
+                tml.hit,
+                l2_side.hru_req,
+                l2_side.hru_resp,
+            ),
+        );
+        let l2 = l2_side.unit.map(|u| sim.add("chip.l2", clock, u));
+        let memory_unit = mem.memory.into_memory(
+            ch,
+            map,
+            (tml.gmem_req, tml.gmem_resp),
+            (l2_side.lane_req, l2_side.lane_resp),
+        );
+        let (memory_unit, dram) = add_dram(&mut sim, cfg, memory_unit)?;
+        let memory = sim.add("chip.memory", clock, memory_unit);
+        let tms = add_tms(&mut sim, clock, cfg, tml.ports);
+        // Several evaluation lanes: the TMs spread over them, the first lane (a
+        // worker's) also takes the hit record updater and the scene buffer, the
+        // last (this thread's) the other global units (the DRAM controllers' own
+        // clock edges then need no hand-over) and the step's bookkeeping.
+        if tms.len() >= 2 {
+            sim.set_lane_plan(
+                tms.iter().map(|t| t.all().collect()).collect(),
+                vec![hit_updater, scene_buffer],
+            );
+        }
+        sim.elaborate().map_err(|e| e.to_string())?;
+        let mut chip = Chip {
+            sim,
+            clock,
+            tms,
+            scheduler,
+            scene_buffer,
+            hit_updater,
+            memory,
+            host,
+            l2,
+            l2_invalidate: ch.shading == crate::config::Shading::Host,
+            flush_cycles: 0,
+            dram,
+            watchdog: ch.watchdog_cycles,
+            segments,
+            wave: 0,
+            stack_need: None,
+            stack_cfg: (cfg.tm.scratchpad_bytes, cfg.tm.stack_entry_bytes),
+            total_cycles: 0,
+            wall_s: 0.0,
+        };
+        let shading = ShadeRegs::new(*shade, map);
+        for u in chip.tps().collect::<Vec<_>>() {
+            chip.tp_mut(u).set_shading(Some(shading));
+        }
+        Ok(chip)
+    }
+}
+
+/// The memory unit's line ports: ports 0-2 (scheduler, scene stream, port 2),
+/// then the streams' further lanes (one port per line per cycle). The
+/// requesters take their ends; the memory's ends, in port order, become its
+/// port lists.
+struct MemPorts {
+    memory: MemSide,
+    /// Port 2's requester ends (the L2's memory side, or the hit record updater).
+    port2: Option<(Out<MemLineReq>, In<MemLineResp>)>,
+    /// The scheduler's ray-stream lanes and scene-stream lanes (port 0 and
+    /// port 1 first).
+    sched_req: Vec<Out<MemLineReq>>,
+    sched_resp: Vec<In<MemLineResp>>,
+    scene_req: Vec<Out<MemLineReq>>,
+    scene_fill: Vec<In<MemLineResp>>,
+}
+
+/// The memory's ends of its line ports.
+struct MemSide {
+    /// Ports 0-2.
+    req: Vec<In<MemLineReq>>,
+    resp: Vec<Out<MemLineResp>>,
+    /// The further lanes: their ports come after the TMs'.
+    lane_req: Vec<In<MemLineReq>>,
+    lane_resp: Vec<Out<MemLineResp>>,
+}
+
+impl MemPorts {
+    fn link(sim: &mut Sim, ch: &ChipCfg) -> MemPorts {
+        let l = ch.links;
         let mut mreq_o = Vec::new();
         let mut mreq_i = Vec::new();
         let mut mresp_o = Vec::new();
         let mut mresp_i = Vec::new();
-        let with_l2 = ch.l2.enabled;
-        let port2 = if with_l2 { "l2" } else { "hits" };
+        let port2 = if ch.l2.enabled { "l2" } else { "hits" };
         for (k, who) in ["sched", "scene", port2].iter().enumerate() {
             let (a, b) = sim.link::<MemLineReq>(&format!("chip.mem_req{k}_{who}"), l);
             mreq_o.push(Some(a));
@@ -86,9 +213,78 @@ impl Chip {
         let scene_fill: Vec<_> = std::iter::once(mresp_i[PORT_SCENE].take().expect("port"))
             .chain(lane_resp_i)
             .collect();
-        let (emit_o, emit_i) = sim.link::<RayWrite>("chip.emit", l);
-        let (start_o, start_i) = sim.link::<WaveStart>("chip.start", l);
-        let (map_o, map_i) = sim.link::<SlotMap>("chip.slot_map", l);
+        // Port 2 (`PORT_HITS`, `PORT_L2`): the hit record updater's or the L2's.
+        let port2 = Some((
+            mreq_o[PORT_HITS].take().expect("port"),
+            mresp_i[PORT_HITS].take().expect("port"),
+        ));
+        MemPorts {
+            memory: MemSide {
+                req: mreq_i,
+                resp: mresp_o,
+                lane_req: lane_req_i,
+                lane_resp: lane_resp_o,
+            },
+            port2,
+            sched_req,
+            sched_resp,
+            scene_req,
+            scene_fill,
+        }
+    }
+}
+
+impl MemSide {
+    /// The memory unit on its ports: 0-2, then the TMs' global-memory ports
+    /// `gmem` (without the L2; empty with it), the streams' further lanes, the
+    /// L2's further lanes `l2_lanes`.
+    fn into_memory(
+        mut self,
+        ch: &ChipCfg,
+        map: &MemoryMap,
+        gmem: (Vec<In<MemLineReq>>, Vec<Out<MemLineResp>>),
+        l2_lanes: (Vec<In<MemLineReq>>, Vec<Out<MemLineResp>>),
+    ) -> Memory {
+        // Without the L2 the TMs' global-memory ports (the shading pass) go to
+        // the memory too (empty with it).
+        self.req.extend(gmem.0);
+        self.resp.extend(gmem.1);
+        self.req.extend(self.lane_req);
+        self.resp.extend(self.lane_resp);
+        self.req.extend(l2_lanes.0);
+        self.resp.extend(l2_lanes.1);
+        Memory::new(
+            &ch.memory,
+            ch.links.delay,
+            SparseMem::new(map.capacity),
+            self.req,
+            self.resp,
+        )
+    }
+}
+
+/// The TMs' links to the global units, the other ends of each TM's ports.
+struct TmLinks {
+    /// Each TM's own ends.
+    ports: Vec<TmPorts>,
+    /// The scheduler's, the scene buffer's and the hit record updater's ends.
+    fill: Vec<Out<SbFill>>,
+    miss_req: Vec<In<L1Req>>,
+    miss_resp: Vec<Out<L1Resp>>,
+    ray_write: Vec<In<RayWrite>>,
+    hit: Vec<In<HitUpdate>>,
+    /// The hit record updater's links to the L2 (client 0), with the L2.
+    hru_l2_req: Option<(Out<MemLineReq>, In<MemLineReq>)>,
+    hru_l2_resp: Option<(Out<MemLineResp>, In<MemLineResp>)>,
+    /// The far ends of the TMs' global-memory ports: the L2's clients 1.., or
+    /// memory ports without the L2.
+    gmem_req: Vec<In<MemLineReq>>,
+    gmem_resp: Vec<Out<MemLineResp>>,
+}
+
+impl TmLinks {
+    fn link(sim: &mut Sim, ch: &ChipCfg) -> TmLinks {
+        let (l, n) = (ch.links, ch.tms as usize);
         // One kind of TM link at a time: each array port (the scheduler's
         // `ray_write`, the hit record updater's `hit`, the L2's clients) then has
         // consecutive links, so an arbiter finds its visible inputs in a word of
@@ -105,11 +301,12 @@ impl Chip {
         let (hit_o, hit_i) = per_tm!(HitUpdate, "hit");
         // The hit record updater is the L2's client 0, the TMs 1..: its links go
         // right before the TMs'.
+        let with_l2 = ch.l2.enabled;
         let hru_l2_req = with_l2.then(|| sim.link::<MemLineReq>("chip.l2_req0_hits", l));
-        let (gq_o, mut gmem_i) = per_tm!(MemLineReq, "gmem_req");
+        let (gq_o, gmem_i) = per_tm!(MemLineReq, "gmem_req");
         let hru_l2_resp = with_l2.then(|| sim.link::<MemLineResp>("chip.l2_resp0_hits", l));
-        let (mut gmem_o, gr_i) = per_tm!(MemLineResp, "gmem_resp");
-        let tm_ports: Vec<TmPorts> = (0..n)
+        let (gmem_o, gr_i) = per_tm!(MemLineResp, "gmem_resp");
+        let ports: Vec<TmPorts> = (0..n)
             .map(|k| TmPorts {
                 fill: fill_i[k],
                 miss_req: miss_o[k],
@@ -120,174 +317,155 @@ impl Chip {
                 gmem_resp: gr_i[k],
             })
             .collect();
-        // The L2 between its clients and memory port 2.
-        let mut l2_unit = None;
-        let mut host_unit = Host::new(emit_o, start_o);
-        let (mut l2_lane_req_i, mut l2_lane_resp_o) = (Vec::new(), Vec::new());
-        let (hru_req, hru_resp) = if with_l2 {
-            // The L2's memory lanes: lane 0 is port 2, the further ones are
-            // appended after the scheduler's lanes.
-            let mut l2_mreq = vec![mreq_o[PORT_L2].take().expect("port")];
-            let mut l2_mresp = vec![mresp_i[PORT_L2].take().expect("port")];
-            for j in 1..ch.l2.mem_lines_per_cycle {
-                let (a, b) = sim.link::<MemLineReq>(&format!("chip.mem_req_l2_lane{j}"), l);
-                l2_mreq.push(a);
-                l2_lane_req_i.push(b);
-                let (a, b) = sim.link::<MemLineResp>(&format!("chip.mem_resp_l2_lane{j}"), l);
-                l2_lane_resp_o.push(a);
-                l2_mresp.push(b);
-            }
-            let (ho, hi) = hru_l2_req.expect("made with the L2");
-            let (hro, hri) = hru_l2_resp.expect("made with the L2");
-            let (fo, fi) = sim.link::<L2Flush>("chip.l2_flush", l);
-            let (fdo, fdi) = sim.link::<L2Flush>("chip.l2_flush_done", l);
-            host_unit = host_unit.with_flush(fo, fdi);
-            let mut reqs = vec![hi];
-            reqs.append(&mut gmem_i);
-            let mut resps = vec![hro];
-            resps.append(&mut gmem_o);
-            l2_unit = Some(L2::new(
-                &ch.l2, l.delay, reqs, resps, l2_mreq, l2_mresp, fi, fdo,
-            ));
-            (ho, hri)
-        } else {
-            (
-                mreq_o[PORT_HITS].take().expect("port"),
-                mresp_i[PORT_HITS].take().expect("port"),
-            )
-        };
-        let host = sim.add("chip.host", clock, host_unit);
-        let scheduler = sim.add(
-            "chip.scheduler",
-            clock,
-            StreamScheduler::new(
-                &ch.scheduler,
-                &ch.scene_buffer,
-                map,
-                segments,
-                emit_i,
-                start_i,
-                sched_resp,
-                map_o,
-                scene_req,
-                sched_req,
-                rw_i,
-                fill_o,
-            ),
-        );
-        let scene_buffer = sim.add(
-            "chip.scene_buffer",
-            clock,
-            SceneBuffer::new(&ch.scene_buffer, l.delay, map_i, scene_fill, sbq_i, sbr_o),
-        );
-        let hit_updater = sim.add(
-            "chip.hit_updater",
-            clock,
-            HitRecordUpdater::new(&ch.hit_updater, map.hits, hit_i, hru_req, hru_resp),
-        );
-        let l2 = l2_unit.map(|u| sim.add("chip.l2", clock, u));
-        // Without the L2 the TMs' global-memory ports (the shading pass) go to
-        // the memory too (empty with it).
-        mreq_i.extend(gmem_i);
-        mresp_o.extend(gmem_o);
-        mreq_i.extend(lane_req_i);
-        mresp_o.extend(lane_resp_o);
-        mreq_i.extend(l2_lane_req_i);
-        mresp_o.extend(l2_lane_resp_o);
-        let mut memory_unit = Memory::new(
-            &ch.memory,
-            l.delay,
-            SparseMem::new(map.capacity),
-            mreq_i,
-            mresp_o,
-        );
-        let mut dram = None;
-        if ch.memory.model == crate::units::memory::MemoryModel::Gddr5 {
-            let m = &cfg.mem;
-            MemCtrl::supports(m)?;
-            let dclk = sim
-                .clock("dram", cfg.clocks.dram_ps)
-                .map_err(|e| e.to_string())?;
-            let amap = AddrMap::new(&m.geometry, &m.mapping)?;
-            let mut ch_req = Vec::new();
-            let mut ch_resp = Vec::new();
-            let mut ctrls = Vec::new();
-            for c in 0..m.geometry.channels {
-                let (qo, qi) = sim.link::<MemReq>(&format!("chip.dram_req{c}"), m.ctrl.req_link);
-                let (ro, ri) = sim.link::<MemResp>(&format!("chip.dram_resp{c}"), m.ctrl.resp_link);
-                let mut u = MemCtrl::new(m, cfg.clocks.dram_ps, c, qi, ro);
-                u.ctrl.record_commands(ch.memory.check_timing);
-                ctrls.push(sim.add(&format!("chip.mem_ctrl{c}"), dclk, u));
-                ch_req.push(qo);
-                ch_resp.push(ri);
-            }
-            memory_unit = memory_unit.with_channels(amap, ch_req, ch_resp);
-            let g = &m.geometry;
-            let em = |name: &str| -> Result<EnergyModel, String> {
-                Ok(EnergyModel::new(
-                    &EnergyCfg::by_name(name, g)?,
-                    &m.timing,
-                    g.burst_cycles(),
-                    cfg.clocks.dram_ps,
-                ))
+        TmLinks {
+            ports,
+            fill: fill_o,
+            miss_req: sbq_i,
+            miss_resp: sbr_o,
+            ray_write: rw_i,
+            hit: hit_i,
+            hru_l2_req,
+            hru_l2_resp,
+            gmem_req: gmem_i,
+            gmem_resp: gmem_o,
+        }
+    }
+}
+
+/// What sits at memory port 2: the L2 (`chip.l2.enabled`, with its clients,
+/// its further memory lanes and the host's flush links), or the hit record
+/// updater alone.
+struct L2Side {
+    unit: Option<L2>,
+    /// The host, with the flush links when there is an L2.
+    host: Host,
+    /// The hit record updater's memory-side ends (to the L2 or to port 2).
+    hru_req: Out<MemLineReq>,
+    hru_resp: In<MemLineResp>,
+    /// The memory's ends of the L2's further lanes: their ports come last.
+    lane_req: Vec<In<MemLineReq>>,
+    lane_resp: Vec<Out<MemLineResp>>,
+}
+
+impl L2Side {
+    /// Takes port 2 from `mem` and, with the L2, the TMs' global-memory ends
+    /// from `tml` (as its clients 1..).
+    fn link(
+        sim: &mut Sim,
+        ch: &ChipCfg,
+        mem: &mut MemPorts,
+        tml: &mut TmLinks,
+        host: Host,
+    ) -> L2Side {
+        let l = ch.links;
+        let (port2_req, port2_resp) = mem.port2.take().expect("port 2");
+        if !ch.l2.enabled {
+            return L2Side {
+                unit: None,
+                host,
+                hru_req: port2_req,
+                hru_resp: port2_resp,
+                lane_req: Vec::new(),
+                lane_resp: Vec::new(),
             };
-            dram = Some(Dram {
-                clock: dclk,
-                ctrls,
-                cfg: m.clone(),
-                paper: em("paper")?,
-                physical: em("physical")?,
-                check: ch.memory.check_timing,
-            });
         }
-        let memory = sim.add("chip.memory", clock, memory_unit);
-        let mut tms = Vec::with_capacity(n);
-        let tm_spec = cfg.tm_spec();
-        for (k, ports) in tm_ports.into_iter().enumerate() {
-            tms.push(tm::build(
-                &mut sim,
-                clock,
-                &tm_spec,
-                &format!("chip.tm{k}"),
-                ports,
-            ));
+        let (mut l2_lane_req_i, mut l2_lane_resp_o) = (Vec::new(), Vec::new());
+        // The L2's memory lanes: lane 0 is port 2, the further ones are
+        // appended after the scheduler's lanes.
+        let mut l2_mreq = vec![port2_req];
+        let mut l2_mresp = vec![port2_resp];
+        for j in 1..ch.l2.mem_lines_per_cycle {
+            let (a, b) = sim.link::<MemLineReq>(&format!("chip.mem_req_l2_lane{j}"), l);
+            l2_mreq.push(a);
+            l2_lane_req_i.push(b);
+            let (a, b) = sim.link::<MemLineResp>(&format!("chip.mem_resp_l2_lane{j}"), l);
+            l2_lane_resp_o.push(a);
+            l2_mresp.push(b);
         }
-        // Several evaluation lanes: the TMs spread over them, the first lane (a
-        // worker's) also takes the hit record updater and the scene buffer, the
-        // last (this thread's) the other global units (the DRAM controllers' own
-        // clock edges then need no hand-over) and the step's bookkeeping.
-        if n >= 2 {
-            sim.set_lane_plan(
-                tms.iter().map(|t| t.all().collect()).collect(),
-                vec![hit_updater, scene_buffer],
-            );
+        let (ho, hi) = tml.hru_l2_req.take().expect("made with the L2");
+        let (hro, hri) = tml.hru_l2_resp.take().expect("made with the L2");
+        let (fo, fi) = sim.link::<L2Flush>("chip.l2_flush", l);
+        let (fdo, fdi) = sim.link::<L2Flush>("chip.l2_flush_done", l);
+        let mut reqs = vec![hi];
+        reqs.append(&mut tml.gmem_req);
+        let mut resps = vec![hro];
+        resps.append(&mut tml.gmem_resp);
+        L2Side {
+            unit: Some(L2::new(
+                &ch.l2, l.delay, reqs, resps, l2_mreq, l2_mresp, fi, fdo,
+            )),
+            host: host.with_flush(fo, fdi),
+            hru_req: ho,
+            hru_resp: hri,
+            lane_req: l2_lane_req_i,
+            lane_resp: l2_lane_resp_o,
         }
-        sim.elaborate().map_err(|e| e.to_string())?;
-        let mut chip = Chip {
+    }
+}
+
+/// `chip.memory.model = "gddr5"`: one controller per channel on the DRAM
+/// clock behind the memory unit, and the energy models of its figures; the
+/// memory unit unchanged with `fixed`.
+fn add_dram(
+    sim: &mut Sim,
+    cfg: &Config,
+    memory_unit: Memory,
+) -> Result<(Memory, Option<Dram>), String> {
+    let ch = &cfg.chip;
+    if ch.memory.model != crate::units::memory::MemoryModel::Gddr5 {
+        return Ok((memory_unit, None));
+    }
+    let m = &cfg.mem;
+    MemCtrl::supports(m)?;
+    let dclk = sim
+        .clock("dram", cfg.clocks.dram_ps)
+        .map_err(|e| e.to_string())?;
+    let amap = AddrMap::new(&m.geometry, &m.mapping)?;
+    let mut ch_req = Vec::new();
+    let mut ch_resp = Vec::new();
+    let mut ctrls = Vec::new();
+    for c in 0..m.geometry.channels {
+        let (qo, qi) = sim.link::<MemReq>(&format!("chip.dram_req{c}"), m.ctrl.req_link);
+        let (ro, ri) = sim.link::<MemResp>(&format!("chip.dram_resp{c}"), m.ctrl.resp_link);
+        let mut u = MemCtrl::new(m, cfg.clocks.dram_ps, c, qi, ro);
+        u.record_commands(ch.memory.check_timing);
+        ctrls.push(sim.add(&format!("chip.mem_ctrl{c}"), dclk, u));
+        ch_req.push(qo);
+        ch_resp.push(ri);
+    }
+    let memory_unit = memory_unit.with_channels(amap, ch_req, ch_resp);
+    let g = &m.geometry;
+    let em = |name: &str| -> Result<EnergyModel, String> {
+        Ok(EnergyModel::new(
+            &EnergyCfg::by_name(name, g)?,
+            &m.timing,
+            g.burst_cycles(),
+            cfg.clocks.dram_ps,
+        ))
+    };
+    let dram = Dram {
+        clock: dclk,
+        ctrls,
+        cfg: m.clone(),
+        paper: em("paper")?,
+        physical: em("physical")?,
+        check: ch.memory.check_timing,
+    };
+    Ok((memory_unit, Some(dram)))
+}
+
+/// The TMs, `chip.tm<k>`, each on its ports.
+fn add_tms(sim: &mut Sim, clock: ClockId, cfg: &Config, ports: Vec<TmPorts>) -> Vec<TmUnits> {
+    let mut tms = Vec::with_capacity(ports.len());
+    let tm_spec = cfg.tm_spec();
+    for (k, ports) in ports.into_iter().enumerate() {
+        tms.push(tm::build(
             sim,
             clock,
-            tms,
-            scheduler,
-            scene_buffer,
-            hit_updater,
-            memory,
-            host,
-            l2,
-            l2_invalidate: ch.shading == crate::config::Shading::Host,
-            flush_cycles: 0,
-            dram,
-            watchdog: ch.watchdog_cycles,
-            segments,
-            wave: 0,
-            stack_need: None,
-            stack_cfg: (cfg.tm.scratchpad_bytes, cfg.tm.stack_entry_bytes),
-            total_cycles: 0,
-            wall_s: 0.0,
-        };
-        let shading = ShadeRegs::new(*shade, map);
-        for u in chip.tps().collect::<Vec<_>>() {
-            chip.tp_mut(u).set_shading(Some(shading));
-        }
-        Ok(chip)
+            &tm_spec,
+            &format!("chip.tm{k}"),
+            ports,
+        ));
     }
+    tms
 }
