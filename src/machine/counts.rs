@@ -376,3 +376,90 @@ impl Chip {
         self.sched().tm_rays().to_vec()
     }
 }
+
+impl WaveCycles {
+    /// A wavefront's figures from the snapshots `before` and `after` its run:
+    /// `rays` emitted by the host, a shading pass over `shade_pixels` first (0:
+    /// none), the last end marker at cycle `last_marker`. The distribution over
+    /// the TMs and the deepest stack are added by `Chip::add_distribution`.
+    pub(super) fn of_wave(
+        before: &WaveCycles,
+        after: &WaveCycles,
+        rays: u64,
+        shade_pixels: u32,
+        last_marker: u64,
+    ) -> WaveCycles {
+        let mut w = WaveCycles {
+            cycles: after.cycles - before.cycles,
+            rays_emitted: rays + after.shade_rays - before.shade_rays,
+            duplicates: after.duplicates
+                - before.duplicates
+                - rays
+                - (after.shade_rays - before.shade_rays),
+            shade_items: after.shade_items - before.shade_items,
+            shade_rays: after.shade_rays - before.shade_rays,
+            shade_shadow_rays: after.shade_shadow_rays - before.shade_shadow_rays,
+            shade_hits: after.shade_hits - before.shade_hits,
+            shade_occluded: after.shade_occluded - before.shade_occluded,
+            shade_uses: std::array::from_fn(|k| after.shade_uses[k] - before.shade_uses[k]),
+            shade_cycles: if shade_pixels > 0 {
+                after.shade_cycles - before.cycles
+            } else {
+                0
+            },
+            segments_loaded: after.segments_loaded - before.segments_loaded,
+            box_tests: after.box_tests - before.box_tests,
+            tri_tests: after.tri_tests - before.tri_tests,
+            exits: after.exits - before.exits,
+            pops: after.pops - before.pops,
+            tri_hits: after.tri_hits - before.tri_hits,
+            l1_lines: after.l1_lines - before.l1_lines,
+            max_stack: 0,
+            hits_sent: after.hits_sent - before.hits_sent,
+            lines_read: [0; StreamTag::COUNT],
+            lines_written: [0; StreamTag::COUNT],
+            hit_merged: after.hit_merged - before.hit_merged,
+            scene_buffer_stalls: after.scene_buffer_stalls - before.scene_buffer_stalls,
+            scene_buffer_stall_cycles: after.scene_buffer_stall_cycles
+                - before.scene_buffer_stall_cycles,
+            scene_buffer_reads: after.scene_buffer_reads - before.scene_buffer_reads,
+            evals: after.evals - before.evals,
+            dram: after.dram.sub(&before.dram),
+            l2: after.l2.sub(&before.l2),
+            // The end-of-run L2 flush is not the pass draining: it is counted
+            // apart (`l2.flush_cycles`).
+            drain_cycles: after.cycles
+                - (after.l2.flush_cycles - before.l2.flush_cycles)
+                - last_marker.max(before.cycles),
+            tm_rays_max: 0,
+            tm_rays_min: 0,
+            tms_with_rays: 0,
+        };
+        for k in 0..StreamTag::COUNT {
+            w.lines_read[k] = after.lines_read[k] - before.lines_read[k];
+            w.lines_written[k] = after.lines_written[k] - before.lines_written[k];
+        }
+        w
+    }
+}
+
+impl Chip {
+    /// The wavefront's distribution over the TMs (`tm_before`: the scheduler's
+    /// rays per TM at its start) and the deepest TP stack so far, into `w`.
+    pub(super) fn add_distribution(&self, w: &mut WaveCycles, tm_before: &[u64]) {
+        let per_tm: Vec<u64> = self
+            .sched_tm_rays()
+            .iter()
+            .zip(tm_before)
+            .map(|(a, b)| a - b)
+            .collect();
+        w.tm_rays_max = per_tm.iter().copied().max().unwrap_or(0);
+        w.tm_rays_min = per_tm.iter().copied().min().unwrap_or(0);
+        w.tms_with_rays = per_tm.iter().filter(|&&r| r > 0).count() as u64;
+        w.max_stack = self
+            .tps()
+            .map(|u| self.tp(u).probe().max_stack)
+            .max()
+            .unwrap_or(0);
+    }
+}

@@ -4,7 +4,6 @@
 use std::time::Instant;
 
 use crate::contract::{RayRec, SparseMem};
-use crate::mem::StreamTag;
 
 use super::{Chip, WaveCycles};
 
@@ -78,82 +77,18 @@ impl Chip {
         res?;
         let after = self.snapshot();
         self.wall_s += t0.elapsed().as_secs_f64();
-        let mut w = WaveCycles {
-            cycles: after.cycles - before.cycles,
-            rays_emitted: rays.len() as u64 + after.shade_rays - before.shade_rays,
-            duplicates: after.duplicates
-                - before.duplicates
-                - rays.len() as u64
-                - (after.shade_rays - before.shade_rays),
-            shade_items: after.shade_items - before.shade_items,
-            shade_rays: after.shade_rays - before.shade_rays,
-            shade_shadow_rays: after.shade_shadow_rays - before.shade_shadow_rays,
-            shade_hits: after.shade_hits - before.shade_hits,
-            shade_occluded: after.shade_occluded - before.shade_occluded,
-            shade_uses: std::array::from_fn(|k| after.shade_uses[k] - before.shade_uses[k]),
-            shade_cycles: if shade_pixels > 0 {
-                after.shade_cycles - before.cycles
-            } else {
-                0
-            },
-            segments_loaded: after.segments_loaded - before.segments_loaded,
-            box_tests: after.box_tests - before.box_tests,
-            tri_tests: after.tri_tests - before.tri_tests,
-            exits: after.exits - before.exits,
-            pops: after.pops - before.pops,
-            tri_hits: after.tri_hits - before.tri_hits,
-            l1_lines: after.l1_lines - before.l1_lines,
-            max_stack: 0,
-            hits_sent: after.hits_sent - before.hits_sent,
-            lines_read: [0; StreamTag::COUNT],
-            lines_written: [0; StreamTag::COUNT],
-            hit_merged: after.hit_merged - before.hit_merged,
-            scene_buffer_stalls: after.scene_buffer_stalls - before.scene_buffer_stalls,
-            scene_buffer_stall_cycles: after.scene_buffer_stall_cycles
-                - before.scene_buffer_stall_cycles,
-            scene_buffer_reads: after.scene_buffer_reads - before.scene_buffer_reads,
-            evals: after.evals - before.evals,
-            dram: after.dram.sub(&before.dram),
-            l2: after.l2.sub(&before.l2),
-            // The end-of-run L2 flush is not the pass draining: it is counted
-            // apart (`l2.flush_cycles`).
-            drain_cycles: after.cycles
-                - (after.l2.flush_cycles - before.l2.flush_cycles)
-                - self.sched().probe().last_marker.max(before.cycles),
-            tm_rays_max: 0,
-            tm_rays_min: 0,
-            tms_with_rays: 0,
-        };
-        for k in 0..StreamTag::COUNT {
-            w.lines_read[k] = after.lines_read[k] - before.lines_read[k];
-            w.lines_written[k] = after.lines_written[k] - before.lines_written[k];
-        }
-        let per_tm: Vec<u64> = self
-            .sched_tm_rays()
-            .iter()
-            .zip(&tm_before)
-            .map(|(a, b)| a - b)
-            .collect();
-        w.tm_rays_max = per_tm.iter().copied().max().unwrap_or(0);
-        w.tm_rays_min = per_tm.iter().copied().min().unwrap_or(0);
-        w.tms_with_rays = per_tm.iter().filter(|&&r| r > 0).count() as u64;
-        w.max_stack = self
-            .tps()
-            .map(|u| self.tp(u).probe().max_stack)
-            .max()
-            .unwrap_or(0);
+        let last_marker = self.sched().probe().last_marker;
+        let mut w = WaveCycles::of_wave(
+            &before,
+            &after,
+            rays.len() as u64,
+            shade_pixels,
+            last_marker,
+        );
+        self.add_distribution(&mut w, &tm_before);
         self.total_cycles += w.cycles;
         self.check_drained()?;
-        if self.dram.as_ref().is_some_and(|d| d.check) {
-            let v = self.dram_violations();
-            if !v.is_empty() {
-                return Err(format!(
-                    "{} DRAM timing violations (chip.memory.check_timing), first: {}",
-                    v.len(),
-                    v[0]
-                ));
-            }
-        }
+        self.check_dram_timing()?;
         Ok(w)
     }
 

@@ -131,4 +131,20 @@ impl Chip {
         }
         Ok(())
     }
+
+    /// With `chip.memory.check_timing`: the channels' command logs obey the
+    /// DRAM timing (checked after every wavefront).
+    pub(super) fn check_dram_timing(&self) -> Result<(), String> {
+        if self.dram.as_ref().is_some_and(|d| d.check) {
+            let v = self.dram_violations();
+            if !v.is_empty() {
+                return Err(format!(
+                    "{} DRAM timing violations (chip.memory.check_timing), first: {}",
+                    v.len(),
+                    v[0]
+                ));
+            }
+        }
+        Ok(())
+    }
 }

@@ -100,45 +100,12 @@ impl Chip {
 
     fn window_inner(
         &mut self,
-        mut mem: SparseMem,
+        mem: SparseMem,
         kind: WindowKind,
         (warm, warm_cycles): (u64, u64),
         measure: u64,
     ) -> Result<Option<WindowRun>, String> {
-        let sch = self.scheduler;
-        if let WindowKind::Trace(b) | WindowKind::Root(b) | WindowKind::Wave { boundary: b, .. } =
-            &kind
-        {
-            let map = self.sched().memory_map().clone();
-            for (s, rec) in &b.queues {
-                mem.write(map.queue_rec_addr(*s), &rec.encode());
-            }
-            for (a, bytes) in &b.writes {
-                mem.write(*a, bytes);
-            }
-        }
-        self.memory_unit_mut().set_image(mem);
-        match &kind {
-            WindowKind::Trace(b) | WindowKind::Root(b) | WindowKind::Wave { boundary: b, .. } => {
-                self.sched_mut().resume(b);
-                self.sim.wake(sch);
-            }
-            WindowKind::Emit(rays) => {
-                self.host_mut().load(rays.clone(), 0, 0);
-                self.sim.wake(self.host);
-            }
-            WindowKind::Shade {
-                first,
-                pixels,
-                pool,
-            } => {
-                let u = self.sched_mut();
-                u.resume(pool);
-                u.shade_from(*first);
-                self.host_mut().load(Vec::new(), 1, *pixels);
-                self.sim.wake(self.host);
-            }
-        }
+        self.load_window(mem, &kind);
         // What is counted, and when the stretch is over without the wavefront's
         // end: all rays emitted, or all items of a shading pass done (the chip
         // would go on to trace what was emitted).
@@ -232,6 +199,46 @@ impl Chip {
             idle_run = self.window_watchdog(idle_run)?;
             if count(self) > n {
                 idle_run = 0;
+            }
+        }
+    }
+
+    /// Sets a window up: the boundary's queue records and writes into the
+    /// image `mem`, which the memory unit takes, and the scheduler (taking the
+    /// wavefront over) or the host (emitting, or starting a shading pass)
+    /// woken.
+    fn load_window(&mut self, mut mem: SparseMem, kind: &WindowKind) {
+        if let WindowKind::Trace(b) | WindowKind::Root(b) | WindowKind::Wave { boundary: b, .. } =
+            kind
+        {
+            let map = self.sched().memory_map().clone();
+            for (s, rec) in &b.queues {
+                mem.write(map.queue_rec_addr(*s), &rec.encode());
+            }
+            for (a, bytes) in &b.writes {
+                mem.write(*a, bytes);
+            }
+        }
+        self.memory_unit_mut().set_image(mem);
+        match kind {
+            WindowKind::Trace(b) | WindowKind::Root(b) | WindowKind::Wave { boundary: b, .. } => {
+                self.sched_mut().resume(b);
+                self.sim.wake(self.scheduler);
+            }
+            WindowKind::Emit(rays) => {
+                self.host_mut().load(rays.clone(), 0, 0);
+                self.sim.wake(self.host);
+            }
+            WindowKind::Shade {
+                first,
+                pixels,
+                pool,
+            } => {
+                let u = self.sched_mut();
+                u.resume(pool);
+                u.shade_from(*first);
+                self.host_mut().load(Vec::new(), 1, *pixels);
+                self.sim.wake(self.host);
             }
         }
     }
