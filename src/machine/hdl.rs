@@ -125,86 +125,124 @@ struct Inst {
     ports: Vec<(&'static str, PortDir, u32)>,
 }
 
-/// The Verilog text of the chip top for `cfg`.
-pub fn emit_chip(cfg: &Config) -> Result<String, String> {
-    let chip = elaborate(cfg)?;
-    let sim = &chip.sim;
-    let link_names: Vec<String> = sim.link_stats().into_iter().map(|(n, _)| n).collect();
-    let clock_names: Vec<String> = sim.clocks().iter().map(|c| c.name.clone()).collect();
-    let clk = |name: &str| {
-        if name == "core" {
-            "clk".to_string()
-        } else {
-            format!("clk_{name}")
-        }
-    };
-    // Top instances and link ends.
-    let mut insts: BTreeMap<String, Inst> = BTreeMap::new();
-    let mut ends: BTreeMap<u32, [Option<End>; 2]> = BTreeMap::new();
-    for i in 0..sim.unit_count() {
-        let u = UnitId(i as u32);
-        let path = sim.unit_path(u).to_string();
-        let d = sim.unit(u).decl_at_reset();
-        let top = top_of(&path).to_string();
-        let leaf = path == format!("chip.{top}");
-        let inst = insts.entry(top.clone()).or_insert_with(|| Inst {
-            module: if leaf {
-                d.module.to_string()
-            } else {
-                family(&top).0.to_string()
-            },
-            params: Vec::new(),
-            clock: clk(&clock_names[sim.unit_clock(u).0 as usize]),
-            ports: Vec::new(),
-        });
-        if leaf {
-            inst.params = d.params.iter().map(|p| (p.name, p.value)).collect();
-        }
-        for p in &d.ports {
-            let e = ends.entry(p.link.0).or_default();
-            e[(p.dir == PortDir::In) as usize] = Some(End {
-                top: top.clone(),
-                port: p.name,
-                width: p.width,
+/// The chip top's instances and the links between them (links inside a
+/// structural instance, a TM, are left out), from the elaborated chip.
+struct Top {
+    insts: BTreeMap<String, Inst>,
+    /// (link, producer end, consumer end).
+    nets: Vec<(u32, End, End)>,
+    /// Numbered instances built in a generate loop (see [`families`]).
+    families: BTreeMap<String, Vec<usize>>,
+    link_names: Vec<String>,
+}
+
+/// What the chip's module declares and connects: its ports (the host's links
+/// and the clocks), its wires, and the net each instance port connects to.
+struct Wiring {
+    ports: Vec<String>,
+    wires: Vec<String>,
+    /// (instance, port) -> (valid, ready, data) expressions.
+    conn: BTreeMap<(String, &'static str), [String; 3]>,
+}
+
+/// The clock net of a clock domain.
+fn clk(name: &str) -> String {
+    if name == "core" {
+        "clk".to_string()
+    } else {
+        format!("clk_{name}")
+    }
+}
+
+/// The `localparam` holding a family's member count (`tm` -> `TMS`).
+fn count_name(base: &str) -> String {
+    format!("{}S", base.to_uppercase())
+}
+
+impl Top {
+    fn of(chip: &Chip) -> Result<Top, String> {
+        let sim = &chip.sim;
+        let link_names: Vec<String> = sim.link_stats().into_iter().map(|(n, _)| n).collect();
+        let clock_names: Vec<String> = sim.clocks().iter().map(|c| c.name.clone()).collect();
+        // Top instances and link ends.
+        let mut insts: BTreeMap<String, Inst> = BTreeMap::new();
+        let mut ends: BTreeMap<u32, [Option<End>; 2]> = BTreeMap::new();
+        for i in 0..sim.unit_count() {
+            let u = UnitId(i as u32);
+            let path = sim.unit_path(u).to_string();
+            let d = sim.unit(u).decl_at_reset();
+            let top = top_of(&path).to_string();
+            let leaf = path == format!("chip.{top}");
+            let inst = insts.entry(top.clone()).or_insert_with(|| Inst {
+                module: if leaf {
+                    d.module.to_string()
+                } else {
+                    family(&top).0.to_string()
+                },
+                params: Vec::new(),
+                clock: clk(&clock_names[sim.unit_clock(u).0 as usize]),
+                ports: Vec::new(),
             });
-        }
-    }
-    // Ports of each top instance: its ends on links leaving it.
-    let mut nets = Vec::new();
-    for (id, e) in &ends {
-        let [Some(p), Some(c)] = e else {
-            return Err(format!(
-                "link '{}' has an open end",
-                link_names[*id as usize]
-            ));
-        };
-        if p.top == c.top {
-            continue; // inside a structural instance (a TM)
-        }
-        for (end, dir) in [(p, PortDir::Out), (c, PortDir::In)] {
-            let inst = insts.get_mut(&end.top).expect("instance");
-            if !inst.ports.iter().any(|x| x.0 == end.port) {
-                inst.ports.push((end.port, dir, end.width));
+            if leaf {
+                inst.params = d.params.iter().map(|p| (p.name, p.value)).collect();
+            }
+            for p in &d.ports {
+                let e = ends.entry(p.link.0).or_default();
+                e[(p.dir == PortDir::In) as usize] = Some(End {
+                    top: top.clone(),
+                    port: p.name,
+                    width: p.width,
+                });
             }
         }
-        nets.push((*id, p.clone(), c.clone()));
-    }
-    // Families: members with the same module and ports become a generate loop.
-    let families = families(insts.keys().map(String::as_str));
-    for (base, ks) in &families {
-        let first = &insts[&format!("{base}0")];
-        for &k in ks.iter() {
-            let m = &insts[&format!("{base}{k}")];
-            if m.module != first.module || m.ports != first.ports || m.clock != first.clock {
-                return Err(format!("{base}{k} differs from {base}0 in module or ports"));
+        // Ports of each top instance: its ends on links leaving it.
+        let mut nets = Vec::new();
+        for (id, e) in &ends {
+            let [Some(p), Some(c)] = e else {
+                return Err(format!(
+                    "link '{}' has an open end",
+                    link_names[*id as usize]
+                ));
+            };
+            if p.top == c.top {
+                continue; // inside a structural instance (a TM)
+            }
+            for (end, dir) in [(p, PortDir::Out), (c, PortDir::In)] {
+                let inst = insts.get_mut(&end.top).expect("instance");
+                if !inst.ports.iter().any(|x| x.0 == end.port) {
+                    inst.ports.push((end.port, dir, end.width));
+                }
+            }
+            nets.push((*id, p.clone(), c.clone()));
+        }
+        // Families: members with the same module and ports become a generate loop.
+        let families = families(insts.keys().map(String::as_str));
+        for (base, ks) in &families {
+            let first = &insts[&format!("{base}0")];
+            for &k in ks.iter() {
+                let m = &insts[&format!("{base}{k}")];
+                if m.module != first.module || m.ports != first.ports || m.clock != first.clock {
+                    return Err(format!("{base}{k} differs from {base}0 in module or ports"));
+                }
             }
         }
+        Ok(Top {
+            insts,
+            nets,
+            families,
+            link_names,
+        })
     }
-    let count_name = |base: &str| format!("{}S", base.to_uppercase());
-    // The net a link end connects to: (valid, ready, data) expressions.
-    let signal = |end: &End, link: u32| -> [String; 3] {
+
+    /// Whether the top instance `top` is a family member (built in a loop).
+    fn in_family(&self, top: &str) -> bool {
+        family(top).1.is_some() && self.families.contains_key(family(top).0)
+    }
+
+    /// The net a link end connects to: (valid, ready, data) expressions.
+    fn signal(&self, end: &End, link: u32) -> [String; 3] {
         if let (base, Some(k)) = family(&end.top)
-            && families.contains_key(base)
+            && self.families.contains_key(base)
         {
             let n = format!("{base}_{}", end.port);
             let w = end.width;
@@ -218,72 +256,179 @@ pub fn emit_chip(cfg: &Config) -> Result<String, String> {
                 },
             ];
         }
-        let n = link_names[link as usize]
+        let n = self.link_names[link as usize]
             .trim_start_matches("chip.")
             .replace('.', "_");
         ["valid", "ready", "data"].map(|s| format!("{n}_{s}"))
-    };
-    // Chip ports (the host's links), wires, and each instance's connections.
-    let mut ports = vec!["input  wire rst".to_string()];
-    let mut clocks: Vec<String> = insts
-        .iter()
-        .filter(|(t, _)| t.as_str() != "host")
-        .map(|(_, i)| i.clock.clone())
-        .collect();
-    clocks.sort();
-    clocks.dedup();
-    for c in clocks.iter().rev() {
-        ports.insert(0, format!("input  wire {c}"));
-    }
-    let mut wires = Vec::new();
-    let mut conn: BTreeMap<(String, &'static str), [String; 3]> = BTreeMap::new();
-    for base in families.keys() {
-        let inst = &insts[&format!("{base}0")];
-        let n = count_name(base);
-        for &(port, _, w) in &inst.ports {
-            let s = format!("{base}_{port}");
-            wires.push(format!("    wire [{n}-1:0] {s}_valid;"));
-            wires.push(format!("    wire [{n}-1:0] {s}_ready;"));
-            wires.push(format!("    wire [{n}*{w}-1:0] {s}_data;"));
-        }
-    }
-    for (id, p, c) in &nets {
-        let pf = family(&p.top).1.is_some() && families.contains_key(family(&p.top).0);
-        let cf = family(&c.top).1.is_some() && families.contains_key(family(&c.top).0);
-        if pf && cf {
-            return Err(format!(
-                "link '{}' joins two families; not supported by the emitter",
-                link_names[*id as usize]
-            ));
-        }
-        let (ps, cs) = (signal(p, *id), signal(c, *id));
-        if p.top == "host" || c.top == "host" {
-            // The host's side is the chip's port, named after the host's port.
-            let (h, other, dir) = if p.top == "host" {
-                (p, c, ("input ", "output"))
-            } else {
-                (c, p, ("output", "input "))
-            };
-            ports.push(format!("{} wire {}_valid", dir.0, h.port));
-            ports.push(format!("{} wire {}_ready", dir.1, h.port));
-            ports.push(format!("{} wire {}{}_data", dir.0, range(h.width), h.port));
-            conn.insert(
-                (other.top.clone(), other.port),
-                ["valid", "ready", "data"].map(|s| format!("{}_{s}", h.port)),
-            );
-            continue;
-        }
-        if !pf && !cf {
-            wires.push(format!("    wire {};", ps[0]));
-            wires.push(format!("    wire {};", ps[1]));
-            wires.push(format!("    wire {}{};", range(p.width), ps[2]));
-        }
-        // The family side names the net; the other end indexes it.
-        let s = if pf { ps } else { cs };
-        conn.insert((p.top.clone(), p.port), s.clone());
-        conn.insert((c.top.clone(), c.port), s);
     }
 
+    /// Chip ports (the host's links), wires, and each instance's connections.
+    fn wiring(&self) -> Result<Wiring, String> {
+        let insts = &self.insts;
+        let mut ports = vec!["input  wire rst".to_string()];
+        let mut clocks: Vec<String> = insts
+            .iter()
+            .filter(|(t, _)| t.as_str() != "host")
+            .map(|(_, i)| i.clock.clone())
+            .collect();
+        clocks.sort();
+        clocks.dedup();
+        for c in clocks.iter().rev() {
+            ports.insert(0, format!("input  wire {c}"));
+        }
+        let mut wires = Vec::new();
+        let mut conn: BTreeMap<(String, &'static str), [String; 3]> = BTreeMap::new();
+        for base in self.families.keys() {
+            let inst = &insts[&format!("{base}0")];
+            let n = count_name(base);
+            for &(port, _, w) in &inst.ports {
+                let s = format!("{base}_{port}");
+                wires.push(format!("    wire [{n}-1:0] {s}_valid;"));
+                wires.push(format!("    wire [{n}-1:0] {s}_ready;"));
+                wires.push(format!("    wire [{n}*{w}-1:0] {s}_data;"));
+            }
+        }
+        for (id, p, c) in &self.nets {
+            let pf = self.in_family(&p.top);
+            let cf = self.in_family(&c.top);
+            if pf && cf {
+                return Err(format!(
+                    "link '{}' joins two families; not supported by the emitter",
+                    self.link_names[*id as usize]
+                ));
+            }
+            let (ps, cs) = (self.signal(p, *id), self.signal(c, *id));
+            if p.top == "host" || c.top == "host" {
+                // The host's side is the chip's port, named after the host's port.
+                let (h, other, dir) = if p.top == "host" {
+                    (p, c, ("input ", "output"))
+                } else {
+                    (c, p, ("output", "input "))
+                };
+                ports.push(format!("{} wire {}_valid", dir.0, h.port));
+                ports.push(format!("{} wire {}_ready", dir.1, h.port));
+                ports.push(format!("{} wire {}{}_data", dir.0, range(h.width), h.port));
+                conn.insert(
+                    (other.top.clone(), other.port),
+                    ["valid", "ready", "data"].map(|s| format!("{}_{s}", h.port)),
+                );
+                continue;
+            }
+            if !pf && !cf {
+                wires.push(format!("    wire {};", ps[0]));
+                wires.push(format!("    wire {};", ps[1]));
+                wires.push(format!("    wire {}{};", range(p.width), ps[2]));
+            }
+            // The family side names the net; the other end indexes it.
+            let s = if pf { ps } else { cs };
+            conn.insert((p.top.clone(), p.port), s.clone());
+            conn.insert((c.top.clone(), c.port), s);
+        }
+        Ok(Wiring { ports, wires, conn })
+    }
+
+    /// An instance's parameter list: its values, or for a family's members
+    /// (`members`: base name and count) one value for all or the member's index.
+    fn params_of(&self, inst: &Inst, members: Option<(&str, usize)>) -> Result<String, String> {
+        if inst.params.is_empty() {
+            return Ok(String::new());
+        }
+        let mut ps = Vec::new();
+        for (i, (name, val)) in inst.params.iter().enumerate() {
+            let expr = match members {
+                None => val.to_string(),
+                Some((base, n)) => {
+                    let vals: Vec<u64> = (0..n)
+                        .map(|k| self.insts[&format!("{base}{k}")].params[i].1)
+                        .collect();
+                    if vals.iter().all(|x| x == val) {
+                        val.to_string()
+                    } else if vals.iter().enumerate().all(|(k, &x)| x == k as u64) {
+                        "k".to_string()
+                    } else {
+                        return Err(format!(
+                            "{base}: parameter {name} varies between members in a way the emitter cannot express"
+                        ));
+                    }
+                }
+            };
+            ps.push(format!(".{name}({expr})"));
+        }
+        Ok(format!(" #({})", ps.join(", ")))
+    }
+
+    /// The instances that are not family members, one instantiation each.
+    fn write_instances(&self, v: &mut String, conn: &Wiring) -> Result<(), String> {
+        let connections = |top: &str, inst: &Inst| -> Vec<String> {
+            let mut cs = vec![format!(".clk({})", inst.clock), ".rst(rst)".to_string()];
+            for &(port, _, _) in &inst.ports {
+                let s = &conn.conn[&(top.to_string(), port)];
+                for (k, suf) in ["valid", "ready", "data"].iter().enumerate() {
+                    cs.push(format!(".{port}_{suf}({})", s[k]));
+                }
+            }
+            cs
+        };
+        for (top, inst) in &self.insts {
+            if top == "host" || self.in_family(top) {
+                continue;
+            }
+            let _ = writeln!(
+                v,
+                "    {}{} u_{top} (\n        {}\n    );",
+                inst.module,
+                self.params_of(inst, None)?,
+                connections(top, inst).join(",\n        ")
+            );
+        }
+        Ok(())
+    }
+
+    /// Each family as a generate loop over its members.
+    fn write_families(&self, v: &mut String) -> Result<(), String> {
+        for (base, ks) in &self.families {
+            let key = format!("{base}0");
+            let inst = &self.insts[&key];
+            let n = count_name(base);
+            // Vector slices of member k, written with the genvar.
+            let cs: Vec<String> = inst
+                .ports
+                .iter()
+                .flat_map(|&(port, _, w)| {
+                    let s = format!("{base}_{port}");
+                    let data = if w == 1 {
+                        format!("{s}_data[k]")
+                    } else {
+                        format!("{s}_data[k*{w} +: {w}]")
+                    };
+                    [
+                        format!(".{port}_valid({s}_valid[k])"),
+                        format!(".{port}_ready({s}_ready[k])"),
+                        format!(".{port}_data({data})"),
+                    ]
+                })
+                .collect();
+            let _ = writeln!(
+                v,
+                "    for (genvar k = 0; k < {n}; k++) begin : g_{base}\n        {}{} u_{base} (\n            {}\n        );\n    end",
+                inst.module,
+                self.params_of(inst, Some((base, ks.len())))?,
+                [format!(".clk({})", inst.clock), ".rst(rst)".to_string()]
+                    .into_iter()
+                    .chain(cs)
+                    .collect::<Vec<_>>()
+                    .join(",\n            ")
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The Verilog text of the chip top for `cfg`.
+pub fn emit_chip(cfg: &Config) -> Result<String, String> {
+    let chip = elaborate(cfg)?;
+    let top = Top::of(&chip)?;
+    let w = top.wiring()?;
     let mut v = String::new();
     let _ = writeln!(
         v,
@@ -303,8 +448,8 @@ pub fn emit_chip(cfg: &Config) -> Result<String, String> {
         v,
         "// Ports: the host's links (it is not hardware); one clock per clock domain."
     );
-    let _ = writeln!(v, "module chip (\n    {}\n);", ports.join(",\n    "));
-    for (base, ks) in &families {
+    let _ = writeln!(v, "module chip (\n    {}\n);", w.ports.join(",\n    "));
+    for (base, ks) in &top.families {
         let _ = writeln!(
             v,
             "    localparam integer {} = {};",
@@ -317,92 +462,11 @@ pub fn emit_chip(cfg: &Config) -> Result<String, String> {
         "    localparam integer TPS = {}; // TPs per TM (tm.v is generated for this many)",
         cfg.tm.tps
     );
-    for w in &wires {
-        let _ = writeln!(v, "{w}");
+    for l in &w.wires {
+        let _ = writeln!(v, "{l}");
     }
-    let params_of = |inst: &Inst, members: Option<(&str, usize)>| -> Result<String, String> {
-        if inst.params.is_empty() {
-            return Ok(String::new());
-        }
-        let mut ps = Vec::new();
-        for (i, (name, val)) in inst.params.iter().enumerate() {
-            let expr = match members {
-                None => val.to_string(),
-                Some((base, n)) => {
-                    let vals: Vec<u64> = (0..n)
-                        .map(|k| insts[&format!("{base}{k}")].params[i].1)
-                        .collect();
-                    if vals.iter().all(|x| x == val) {
-                        val.to_string()
-                    } else if vals.iter().enumerate().all(|(k, &x)| x == k as u64) {
-                        "k".to_string()
-                    } else {
-                        return Err(format!(
-                            "{base}: parameter {name} varies between members in a way the emitter cannot express"
-                        ));
-                    }
-                }
-            };
-            ps.push(format!(".{name}({expr})"));
-        }
-        Ok(format!(" #({})", ps.join(", ")))
-    };
-    let connections = |top: &str, inst: &Inst| -> Vec<String> {
-        let mut cs = vec![format!(".clk({})", inst.clock), ".rst(rst)".to_string()];
-        for &(port, _, _) in &inst.ports {
-            let s = &conn[&(top.to_string(), port)];
-            for (k, suf) in ["valid", "ready", "data"].iter().enumerate() {
-                cs.push(format!(".{port}_{suf}({})", s[k]));
-            }
-        }
-        cs
-    };
-    for (top, inst) in &insts {
-        if top == "host" || (family(top).1.is_some() && families.contains_key(family(top).0)) {
-            continue;
-        }
-        let _ = writeln!(
-            v,
-            "    {}{} u_{top} (\n        {}\n    );",
-            inst.module,
-            params_of(inst, None)?,
-            connections(top, inst).join(",\n        ")
-        );
-    }
-    for (base, ks) in &families {
-        let key = format!("{base}0");
-        let inst = &insts[&key];
-        let n = count_name(base);
-        // Vector slices of member k, written with the genvar.
-        let cs: Vec<String> = inst
-            .ports
-            .iter()
-            .flat_map(|&(port, _, w)| {
-                let s = format!("{base}_{port}");
-                let data = if w == 1 {
-                    format!("{s}_data[k]")
-                } else {
-                    format!("{s}_data[k*{w} +: {w}]")
-                };
-                [
-                    format!(".{port}_valid({s}_valid[k])"),
-                    format!(".{port}_ready({s}_ready[k])"),
-                    format!(".{port}_data({data})"),
-                ]
-            })
-            .collect();
-        let _ = writeln!(
-            v,
-            "    for (genvar k = 0; k < {n}; k++) begin : g_{base}\n        {}{} u_{base} (\n            {}\n        );\n    end",
-            inst.module,
-            params_of(inst, Some((base, ks.len())))?,
-            [format!(".clk({})", inst.clock), ".rst(rst)".to_string()]
-                .into_iter()
-                .chain(cs)
-                .collect::<Vec<_>>()
-                .join(",\n            ")
-        );
-    }
+    top.write_instances(&mut v, &w)?;
+    top.write_families(&mut v)?;
     let _ = writeln!(v, "    wire _unused_ok = &{{1'b0, TPS[0], 1'b0}};");
     let _ = writeln!(v, "endmodule");
     Ok(v)
