@@ -1,0 +1,83 @@
+//! Stuck chips and bad input: named errors, the destination table, the watchdog.
+
+use super::*;
+
+#[test]
+fn bad_chip_configs_are_named() {
+    let mut c = Config::default();
+    c.chip.tms = 0;
+    assert!(c.validate().unwrap_err().contains("chip.tms = 0"));
+    let mut c = Config::default();
+    c.chip.scene_buffer.slot_bytes = 32 << 10;
+    let e = c.validate().unwrap_err();
+    assert!(e.contains("smaller than one segment"), "{e}");
+    let mut c = Config::default();
+    c.chip.scene_buffer.bytes = 1024;
+    assert!(c.validate().is_err());
+    let e = Config::from_toml("[chip]\ntms = 0\n").unwrap_err();
+    assert!(e.contains("chip.tms"), "{e}");
+    let c = Config::from_toml("[chip.memory]\nmodel = \"gddr5\"\n").unwrap();
+    assert_eq!(
+        c.chip.memory.model,
+        dualstream::units::memory::MemoryModel::Gddr5
+    );
+    let e = Config::from_toml("[chip.memory]\nmodel = \"ddr4\"\n").unwrap_err();
+    assert!(e.contains("fixed") && e.contains("gddr5"), "{e}");
+}
+
+#[test]
+fn a_full_destination_table_stops_with_a_named_error() {
+    let s = scene("cornell", 8, 8, 1);
+    let mut cfg = chip_cfg(1, 4);
+    cfg.chip.scheduler.dest_entries = 1;
+    let e = cycle_frame(&s, cfg).unwrap_err();
+    assert!(e.contains("dest_entries"), "{e}");
+    assert!(e.contains("chip.scheduler"), "{e}");
+}
+
+#[test]
+fn the_destination_table_holds_only_the_working_sets_destinations() {
+    // 8 KB segments: the cornell box's segment tree is several levels deep, so
+    // with a table of exactly the most children of any segment a child can only
+    // be admitted if its closed siblings' queues have left the table (as queue
+    // records in DRAM), as the paper sizes it (§4.1).
+    let s = scene("cornell", 16, 16, 2);
+    let base = rcfg(8, None);
+    let p = dualstream::render::prepare(&s, &base).unwrap();
+    let max = p.info.children_max;
+    assert!(
+        max >= 2 && (p.info.segments as u64) > max + 1,
+        "the scene needs grandchildren of the root: {} segments, at most {max} children",
+        p.info.segments
+    );
+    let f = render(&s, Mode::Functional, &base, &mut |_| {}).unwrap();
+    let mut cfg = chip_cfg(2, 4);
+    cfg.chip.scheduler.dest_entries = max as u32;
+    let c = cycle_frame(&s, cfg.clone()).unwrap();
+    same_frame(&f, &c, "a table of the most children");
+    // One entry fewer can never admit that segment: the scheduler names it.
+    cfg.chip.scheduler.dest_entries = max as u32 - 1;
+    let e = cycle_frame(&s, cfg).unwrap_err();
+    assert!(
+        e.contains(&format!("has {max} children")) && e.contains("at least"),
+        "{e}"
+    );
+}
+
+#[test]
+fn the_watchdog_names_the_units_holding_work() {
+    // A scene buffer that never answers: lines longer than the watchdog.
+    let s = scene("cornell", 8, 8, 1);
+    let mut cfg = chip_cfg(1, 2);
+    cfg.chip.memory.latency = 5000;
+    cfg.chip.watchdog_cycles = 1000;
+    let e = render(
+        &s,
+        Mode::Cycle,
+        &rcfg(8, Some((cfg, SimOptions::default()))),
+        &mut |_| {},
+    )
+    .unwrap_err();
+    assert!(e.contains("no progress for 1000 cycles"), "{e}");
+    assert!(e.contains("chip.memory"), "{e}");
+}
