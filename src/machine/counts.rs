@@ -14,7 +14,9 @@ pub struct DramWave {
     /// Line reads and writes served by the controllers, per stream tag too.
     pub reads: u64,
     pub writes: u64,
+    #[serde(serialize_with = "crate::mem::per_stream")]
     pub tag_reads: [u64; StreamTag::COUNT],
+    #[serde(serialize_with = "crate::mem::per_stream")]
     pub tag_writes: [u64; StreamTag::COUNT],
     pub row_hits: u64,
     pub row_misses: u64,
@@ -101,7 +103,9 @@ pub struct WaveCycles {
     pub l1_lines: u64,
     pub max_stack: u64,
     pub hits_sent: u64,
+    #[serde(serialize_with = "crate::mem::per_stream")]
     pub lines_read: [u64; StreamTag::COUNT],
+    #[serde(serialize_with = "crate::mem::per_stream")]
     pub lines_written: [u64; StreamTag::COUNT],
     pub hit_merged: u64,
     pub scene_buffer_stalls: u64,

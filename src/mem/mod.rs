@@ -38,6 +38,21 @@ crate::fsm_states! {
     pub enum StreamTag { Ray, Scene, Hit, Shading, Other }
 }
 
+/// Serialises a per-stream array (indexed by [`StreamTag`]) as an object keyed
+/// by stream name (`{"ray": .., "scene": .., "hit": .., "shading": .., "other": ..}`),
+/// so a statistics file names what each count is.
+pub fn per_stream<S: serde::Serializer>(
+    v: &[u64; StreamTag::COUNT],
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut m = s.serialize_map(Some(StreamTag::COUNT))?;
+    for t in StreamTag::ALL {
+        m.serialize_entry(t.name(), &v[t as usize])?;
+    }
+    m.end()
+}
+
 impl StreamTag {
     pub const COUNT: usize = 5;
     pub const ALL: [StreamTag; StreamTag::COUNT] = [
