@@ -146,6 +146,17 @@ pub struct Instructions {
 }
 
 impl Instructions {
+    /// Adds `n` runs of a TP state's instruction mix.
+    pub fn add_state(&mut self, c: &crate::units::tm::StateCost, n: u64) {
+        self.int += c.int as u64 * n;
+        self.int_mul += c.int_mul as u64 * n;
+        self.fp_add += c.fp_add as u64 * n;
+        self.fp_mul += c.fp_mul as u64 * n;
+        self.fp_cmp += c.fp_cmp as u64 * n;
+        self.branch += c.branch as u64 * n;
+        self.load += c.load as u64 * n;
+        self.store += c.store as u64 * n;
+    }
     pub fn total(&self) -> u64 {
         self.int
             + self.int_mul
@@ -185,14 +196,7 @@ pub fn shading_instructions(costs: &crate::units::tm::TpCosts, uses: [u64; 4]) -
         &costs.shade_store,
     ];
     for (c, n) in states.into_iter().zip(uses) {
-        i.int += c.int as u64 * n;
-        i.int_mul += c.int_mul as u64 * n;
-        i.fp_add += c.fp_add as u64 * n;
-        i.fp_mul += c.fp_mul as u64 * n;
-        i.fp_cmp += c.fp_cmp as u64 * n;
-        i.branch += c.branch as u64 * n;
-        i.load += c.load as u64 * n;
-        i.store += c.store as u64 * n;
+        i.add_state(c, n);
     }
     i
 }

@@ -150,7 +150,7 @@ pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, String> {
 pub fn bench_config(name: &str, base: &crate::config::Config) -> crate::config::Config {
     let name = find(name).map_or(name, |b| b.name);
     match name {
-        "hit_record_updater" | "hru" => {
+        "hit_record_updater" => {
             hit_record_updater_tb::unit_config(base, &hit_record_updater_tb::HruTbCfg::default())
         }
         "l2" => l2_tb::unit_config(base, &l2_tb::L2TbCfg::default()),

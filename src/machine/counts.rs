@@ -34,12 +34,7 @@ impl DramWave {
         self.reads + self.writes
     }
     pub fn row_hit_rate(&self) -> f64 {
-        let n = self.row_hits + self.row_misses + self.row_conflicts;
-        if n == 0 {
-            0.0
-        } else {
-            self.row_hits as f64 / n as f64
-        }
+        crate::mem::stats::row_hit_rate(self.row_hits, self.row_misses, self.row_conflicts)
     }
     /// Achieved bandwidth in GB/s over `cycles` core cycles of `core_ps`.
     pub fn bandwidth_gbs(&self, line_bytes: u64, cycles: u64, core_ps: u64) -> f64 {

@@ -51,14 +51,7 @@ pub fn tm_activity(t: &TraversalCounts, traversals: u64, costs: &TpCosts) -> Act
     ];
     let mut i = Instructions::default();
     for (c, n) in uses {
-        i.int += c.int as u64 * n;
-        i.int_mul += c.int_mul as u64 * n;
-        i.fp_add += c.fp_add as u64 * n;
-        i.fp_mul += c.fp_mul as u64 * n;
-        i.fp_cmp += c.fp_cmp as u64 * n;
-        i.branch += c.branch as u64 * n;
-        i.load += c.load as u64 * n;
-        i.store += c.store as u64 * n;
+        i.add_state(c, n);
     }
     let staging = costs.fetch.load as u64 * traversals;
     Activity {
