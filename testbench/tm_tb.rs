@@ -10,7 +10,6 @@
 //! the same rays on the same segment, and the box and triangle test counts match.
 
 use std::collections::{HashMap, VecDeque};
-use std::io::Write;
 use std::time::Instant;
 
 use crate::config::Config;
@@ -293,12 +292,12 @@ impl TmRun {
     }
 }
 
-/// Runs one job on a fresh TM; `vcd` receives the waveform if given.
+/// Runs one job on a fresh TM; `tracer` writes the waveform if given.
 pub fn run_job(
     cfg: &Config,
     job: &TmJob,
     opts: &RunOptions,
-    vcd: Option<Box<dyn Write>>,
+    tracer: Option<Tracer>,
 ) -> Result<TmRun, String> {
     cfg.validate()?;
     let t0 = Instant::now();
@@ -360,9 +359,8 @@ pub fn run_job(
         }
         sim.unit_mut::<L1>(units.l1).enable_log();
     }
-    if let Some(w) = vcd {
-        sim.attach_tracer(Tracer::new(w, opts.trace.clone())?)
-            .map_err(|e| e.to_string())?;
+    if let Some(t) = tracer {
+        sim.attach_tracer(t).map_err(|e| e.to_string())?;
     } else {
         sim.elaborate().map_err(|e| e.to_string())?;
     }
@@ -644,16 +642,11 @@ pub fn run(opts: &TmTbOptions) -> Result<TmReport, String> {
         entry: SegEntry::read(&p.mem, p.map.seg_entry_addr(opts.treelet)),
         rays,
     };
-    let vcd: Option<Box<dyn Write>> = match &opts.vcd {
-        Some(path) => Some(Box::new(std::fs::File::create(path).map_err(|e| {
-            format!(
-                "cannot create '{}': {e}; choose a writable --vcd",
-                path.display()
-            )
-        })?)),
+    let tracer = match &opts.vcd {
+        Some(path) => Some(Tracer::to_file(path, opts.run.trace.clone())?),
         None => None,
     };
-    let r = run_job(cfg, &job, &opts.run, vcd).inspect_err(|_| {
+    let r = run_job(cfg, &job, &opts.run, tracer).inspect_err(|_| {
         // No partial waveform (e.g. one the size guard stopped).
         if let Some(p) = &opts.vcd {
             let _ = std::fs::remove_file(p);

@@ -11,7 +11,7 @@ use dualstream::geom::cull;
 use dualstream::geom::{Aabb, Triangle, inverse_dir, ray_box, ray_triangle};
 use dualstream::render::traverse::SegmentView;
 use dualstream::render::{Prepared, RenderCfg, prepare};
-use dualstream::rtl::{LinkCfg, SimOptions, TraceSpec};
+use dualstream::rtl::{LinkCfg, SimOptions, TraceSpec, Tracer};
 use dualstream::scene::Scene;
 use dualstream::testbench::tm_tb::{
     self, RunOptions, TmJob, TmRun, TmTbOptions, expected, run_job, scoreboard, treelet_rays,
@@ -417,7 +417,8 @@ fn outcome_with(
         trace: TraceSpec::all(),
         ..RunOptions::default()
     };
-    let r = run_job(cfg, &job, &o, Some(Box::new(buf.clone()))).unwrap();
+    let tracer = Tracer::new(Box::new(buf.clone()), o.trace.clone()).unwrap();
+    let r = run_job(cfg, &job, &o, Some(tracer)).unwrap();
     let vcd = buf.0.lock().unwrap().clone();
     (r.end_ps, r.stats, dualstream::util::fnv1a(&vcd), vcd.len())
 }
@@ -485,7 +486,7 @@ fn vcd_has_a_scope_per_tp_matching_its_verilog() {
         &Config::default(),
         &job,
         &RunOptions::default(),
-        Some(Box::new(buf.clone())),
+        Some(Tracer::new(Box::new(buf.clone()), RunOptions::default().trace).unwrap()),
     )
     .unwrap();
     let vcd = String::from_utf8(buf.0.lock().unwrap().clone()).unwrap();

@@ -49,8 +49,9 @@ pub struct RenderArgs {
     /// and retirement cycle) as CSV here.
     #[arg(long)]
     pass_log: Option<PathBuf>,
-    /// cycle: write a VCD waveform of the chip here (open with gtkwave).
-    #[arg(long)]
+    /// cycle: write a waveform of the chip here: FST for a `.fst` path (FSM
+    /// states by name), VCD otherwise. Open with gtkwave or surfer.
+    #[arg(long, alias = "wave")]
     vcd: Option<PathBuf>,
     /// cycle: units to trace, comma-separated: scheduler, scene_buffer,
     /// hit_updater, memory, mem_ctrl (every channel) or mem_ctrl<c>, tm<k> (a

@@ -26,8 +26,9 @@ pub struct TbArgs {
     /// Probability of a new request per cycle.
     #[arg(long, default_value_t = 0.5)]
     load: f64,
-    /// Write a VCD waveform here.
-    #[arg(long)]
+    /// Write a waveform here: FST for a `.fst` path (FSM states by name), VCD
+    /// otherwise.
+    #[arg(long, alias = "wave")]
     vcd: Option<PathBuf>,
     /// Units to trace (comma-separated instance patterns, `*` wildcard).
     #[arg(long, default_value = "")]

@@ -1,4 +1,4 @@
-//! VCD waveform tracing.
+//! Waveform tracing, to VCD or FST (chosen by the file's extension).
 //!
 //! One scope per unit instance (`chip.tm3.box_pipe`), with the signals of its
 //! declaration: `x_valid`, `x_ready`, `x_data` for each port and one signal per traced
@@ -14,7 +14,7 @@
 //! value while `valid` is low.
 
 use std::fs::File;
-use std::io::{self, BufWriter, Write};
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
 use super::bits::Bits;
@@ -22,6 +22,13 @@ use super::decl::{PortDir, Samples, SignalDecl};
 use super::link::{LinkDyn, LinkId};
 use super::sim::{Clock, Time};
 use super::unit::Unit;
+
+mod fst;
+mod sink;
+mod vcd;
+
+pub use fst::WriteSeek;
+use sink::{ScopeKind, Sink, VarDef, VarKind};
 
 /// Counts of what a trace wrote.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -33,7 +40,7 @@ pub struct TraceStats {
 }
 
 struct Sig {
-    id: String,
+    h: u32,
     width: u32,
     last: Option<Bits>,
 }
@@ -43,22 +50,6 @@ struct TracedUnit {
     period: Time,
     ports: Vec<(LinkId, PortDir)>,
     sigs: Vec<Sig>,
-}
-
-struct CountingWriter {
-    inner: BufWriter<Box<dyn Write>>,
-    bytes: u64,
-}
-
-impl Write for CountingWriter {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        let n = self.inner.write(buf)?;
-        self.bytes += n as u64;
-        Ok(n)
-    }
-    fn flush(&mut self) -> io::Result<()> {
-        self.inner.flush()
-    }
 }
 
 /// Which units and which time window to trace.
@@ -129,16 +120,16 @@ fn pattern_matches(p: &str, path: &str) -> bool {
     !p.contains('.') && path.split('.').any(|c| glob(p.as_bytes(), c.as_bytes()))
 }
 
-/// A VCD writer bound to a simulator.
+/// A waveform writer bound to a simulator.
 pub struct Tracer {
-    out: CountingWriter,
+    sink: Box<dyn Sink>,
+    /// "VCD" or "FST", for messages.
+    format: &'static str,
     spec: TraceSpec,
     units: Vec<TracedUnit>,
     periods: Vec<Time>,
     samples: Samples,
-    time_written: Option<Time>,
     changes: u64,
-    line: Vec<u8>,
     error: Option<io::Error>,
     /// The size guard: the most bytes the trace may take, the time the run is
     /// expected to end (for a window without an end), the file to remove when
@@ -149,7 +140,7 @@ pub struct Tracer {
     stopped: Option<String>,
     /// Bytes a sample of every traced signal would take, per ps of the window
     /// (the sum over the traced units of their signals' widths plus the VCD
-    /// identifier and line end, over their clock periods).
+    /// identifier and line end, over their clock periods; FST takes less).
     full_bytes_per_ps: f64,
     header_bytes: u64,
 }
@@ -179,7 +170,22 @@ fn gb(b: f64) -> String {
 }
 
 impl Tracer {
+    /// A VCD tracer writing to `out`.
     pub fn new(out: Box<dyn Write>, spec: TraceSpec) -> Result<Self, String> {
+        Self::with_sink(Box::new(vcd::VcdSink::new(out)), "VCD", spec)
+    }
+
+    /// An FST tracer writing to `out`.
+    pub fn new_fst(out: Box<dyn WriteSeek>, spec: TraceSpec) -> Result<Self, String> {
+        let sink = fst::FstSink::new(out).map_err(|e| format!("cannot start the FST file: {e}"))?;
+        Self::with_sink(Box::new(sink), "FST", spec)
+    }
+
+    fn with_sink(
+        sink: Box<dyn Sink>,
+        format: &'static str,
+        spec: TraceSpec,
+    ) -> Result<Self, String> {
         spec.validate()?;
         let max_bytes = if spec.max_bytes == 0 {
             u64::MAX
@@ -187,17 +193,13 @@ impl Tracer {
             spec.max_bytes
         };
         Ok(Tracer {
-            out: CountingWriter {
-                inner: BufWriter::with_capacity(1 << 16, out),
-                bytes: 0,
-            },
+            sink,
+            format,
             spec,
             units: Vec::new(),
             periods: Vec::new(),
             samples: Samples::default(),
-            time_written: None,
             changes: 0,
-            line: Vec::with_capacity(256),
             error: None,
             max_bytes,
             expect_end: None,
@@ -277,7 +279,7 @@ impl Tracer {
     /// The guard, after a sample at `t`: stop when the bytes written pass the
     /// limit, or when their projection to the window's end does.
     fn guard(&mut self, t: Time) {
-        let written = self.out.bytes;
+        let written = self.sink.bytes();
         let why = if written > self.max_bytes {
             Some(format!("reached {} at {t} ps", gb(written as f64)))
         } else if let Some(end) = self.window_end() {
@@ -300,15 +302,22 @@ impl Tracer {
         }
     }
 
-    /// A tracer writing to a file; the error names the path and what to do.
+    /// A tracer writing to a file: FST for a `.fst` path, VCD otherwise. The
+    /// error names the path and what to do.
     pub fn to_file(path: &Path, spec: TraceSpec) -> Result<Self, String> {
+        let fst = is_fst(path);
         let f = File::create(path).map_err(|e| {
             format!(
-                "cannot write the VCD file '{}': {e}; choose a writable path with --vcd",
+                "cannot write the {} file '{}': {e}; choose a writable path with --vcd",
+                if fst { "FST" } else { "VCD" },
                 path.display()
             )
         })?;
-        let mut t = Tracer::new(Box::new(f), spec)?;
+        let mut t = if fst {
+            Tracer::new_fst(Box::new(f), spec)?
+        } else {
+            Tracer::new(Box::new(f), spec)?
+        };
         t.path = Some(path.to_path_buf());
         Ok(t)
     }
@@ -334,67 +343,56 @@ impl Tracer {
                 names.join(", ")
             ));
         }
-        let mut header = String::new();
-        header.push_str("$version dualstream ");
-        header.push_str(env!("CARGO_PKG_VERSION"));
-        header.push_str(" $end\n$timescale 1ps $end\n");
-        let mut next_id = 0u64;
         let mut open: Vec<&str> = Vec::new();
         for (index, path, u, clk) in chosen {
             let decl = u.decl();
             let scopes: Vec<&str> = path.split('.').collect();
             let common = open.iter().zip(&scopes).take_while(|(a, b)| a == b).count();
             for _ in common..open.len() {
-                header.push_str("$upscope $end\n");
+                self.sink.end_scope();
             }
             open.truncate(common);
             for s in &scopes[common..] {
-                header.push_str(&format!("$scope module {s} $end\n"));
+                self.sink.begin_scope(s, ScopeKind::Module);
                 open.push(s);
             }
-            header.push_str(&format!(
-                "$comment {path}: module {} ({}), clock {} period {} ps $end\n",
+            self.sink.comment(&format!(
+                "{path}: module {} ({}), clock {} period {} ps",
                 decl.module, decl.source, clk.name, clk.period_ps
             ));
             let mut sigs = Vec::new();
-            for SignalDecl {
-                name,
-                width,
-                enum_names,
-            } in decl.signals()
-            {
-                let id = vcd_id(next_id);
-                next_id += 1;
+            // Ports' valid, ready and data come first (`UnitDecl::signals`):
+            // wires; then the registers. (A register is never taken for a port
+            // because its name starts with one: `ray_index` beside port `ray`.)
+            let port_signals = 3 * decl.ports.len();
+            for (k, sig) in decl.signals().into_iter().enumerate() {
+                let SignalDecl {
+                    name,
+                    width,
+                    enum_names,
+                } = sig;
                 if let Some(names) = enum_names {
                     let enc: Vec<String> = names
                         .iter()
                         .enumerate()
                         .map(|(i, n)| format!("{i}={n}"))
                         .collect();
-                    header.push_str(&format!(
-                        "$comment {path}.{name} states: {} $end\n",
-                        enc.join(" ")
-                    ));
+                    self.sink
+                        .comment(&format!("{path}.{name} states: {}", enc.join(" ")));
                 }
-                let kind = if decl
-                    .ports
-                    .iter()
-                    .any(|p| name.starts_with(p.name) && name[p.name.len()..].starts_with('_'))
-                {
-                    "wire"
+                let kind = if k < port_signals {
+                    VarKind::Wire
                 } else {
-                    "reg"
+                    VarKind::Reg
                 };
-                if width == 1 {
-                    header.push_str(&format!("$var {kind} 1 {id} {name} $end\n"));
-                } else {
-                    header.push_str(&format!(
-                        "$var {kind} {width} {id} {name} [{}:0] $end\n",
-                        width - 1
-                    ));
-                }
+                let h = self.sink.var(&VarDef {
+                    name: &name,
+                    kind,
+                    width,
+                    enum_names,
+                });
                 sigs.push(Sig {
-                    id,
+                    h,
                     width,
                     last: None,
                 });
@@ -402,7 +400,7 @@ impl Tracer {
             let ports = decl.ports.iter().map(|p| (p.link, p.dir)).collect();
             self.full_bytes_per_ps += sigs
                 .iter()
-                .map(|s| (s.width + s.id.len() as u32 + 3) as f64)
+                .map(|s| (s.width + self.sink.id_len(s.h) as u32 + 3) as f64)
                 .sum::<f64>()
                 / clk.period_ps as f64;
             if !self.periods.contains(&clk.period_ps) {
@@ -416,13 +414,13 @@ impl Tracer {
             });
         }
         for _ in 0..open.len() {
-            header.push_str("$upscope $end\n");
+            self.sink.end_scope();
         }
-        header.push_str("$enddefinitions $end\n");
-        self.header_bytes = header.len() as u64;
-        self.out
-            .write_all(header.as_bytes())
-            .map_err(|e| format!("cannot write the VCD header: {e}"))?;
+        let format = self.format;
+        self.header_bytes = self
+            .sink
+            .end_header()
+            .map_err(|e| format!("cannot write the {format} header: {e}"))?;
         Ok(())
     }
 
@@ -480,20 +478,7 @@ impl Tracer {
                 if sig.last.as_ref() == Some(v) {
                     continue;
                 }
-                if self.time_written != Some(t) {
-                    self.time_written = Some(t);
-                    self.line.clear();
-                    self.line.push(b'#');
-                    self.line.extend_from_slice(t.to_string().as_bytes());
-                    self.line.push(b'\n');
-                    if let Err(e) = self.out.write_all(&self.line) {
-                        self.error = Some(e);
-                        return;
-                    }
-                }
-                self.line.clear();
-                format_value(&mut self.line, v, sig.width, &sig.id);
-                if let Err(e) = self.out.write_all(&self.line) {
+                if let Err(e) = self.sink.bits(t, sig.h, v, sig.width) {
                     self.error = Some(e);
                     return;
                 }
@@ -516,60 +501,20 @@ impl Tracer {
             self.discard();
             return Err(e);
         }
-        // Close the trace at the last simulated time so viewers show the final values.
-        let end = now.min(self.spec.to);
-        if self.time_written.is_none_or(|t| t < end) {
-            writeln!(self.out, "#{end}")?;
-        }
-        self.out.flush()?;
+        self.sink.finish(now.min(self.spec.to))?;
         Ok(TraceStats {
             changes: self.changes,
-            bytes: self.out.bytes,
+            bytes: self.sink.bytes(),
             signals: self.units.iter().map(|u| u.sigs.len() as u64).sum(),
             units: self.units.len() as u64,
         })
     }
 }
 
-/// Short VCD identifier from printable ASCII 33..=126.
-fn vcd_id(mut n: u64) -> String {
-    let mut s = String::new();
-    loop {
-        s.push((33 + (n % 94) as u8) as char);
-        n /= 94;
-        if n == 0 {
-            break;
-        }
-    }
-    s
-}
-
-/// `0!` for a scalar, `b1011 !` for a vector (leading zeros dropped, as VCD allows).
-fn format_value(out: &mut Vec<u8>, v: &Bits, width: u32, id: &str) {
-    if width == 1 {
-        out.push(if v.bit(0) { b'1' } else { b'0' });
-    } else {
-        out.push(b'b');
-        let words = v.words();
-        let mut top = None;
-        for (wi, w) in words.iter().enumerate().rev() {
-            if *w != 0 {
-                top = Some(wi as u32 * 64 + 63 - w.leading_zeros());
-                break;
-            }
-        }
-        match top {
-            None => out.push(b'0'),
-            Some(top) => {
-                for i in (0..=top).rev() {
-                    out.push(b'0' + ((words[(i / 64) as usize] >> (i % 64)) & 1) as u8);
-                }
-            }
-        }
-        out.push(b' ');
-    }
-    out.extend_from_slice(id.as_bytes());
-    out.push(b'\n');
+/// Whether a path names an FST file (by its extension, any case).
+pub fn is_fst(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("fst"))
 }
 
 #[cfg(test)]
@@ -604,22 +549,6 @@ mod tests {
         .validate()
         .unwrap_err();
         assert!(e.contains("before it starts"), "{e}");
-    }
-
-    #[test]
-    fn value_format() {
-        let mut b = Bits::new();
-        b.push(0b101, 8);
-        let mut out = Vec::new();
-        format_value(&mut out, &b, 8, "!");
-        assert_eq!(out, b"b101 !\n");
-        let mut z = Bits::new();
-        z.push(0, 8);
-        out.clear();
-        format_value(&mut out, &z, 8, "#");
-        assert_eq!(out, b"b0 #\n");
-        assert_eq!(vcd_id(0), "!");
-        assert_eq!(vcd_id(94), "!\"");
     }
 }
 

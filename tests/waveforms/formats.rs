@@ -1,0 +1,115 @@
+//! FST and VCD: one trace, two formats, the same values.
+
+use crate::common::Scratch;
+use crate::{dualstream, have, read};
+
+/// A box-pipe testbench and a small chip window, traced once as VCD and once
+/// as FST: every variable and every change agree.
+#[test]
+fn fst_and_vcd_hold_the_same_values() {
+    if !have("fst2vcd") {
+        return;
+    }
+    let d = Scratch::new("wave-formats");
+    for ext in ["vcd", "fst"] {
+        let p = d.join(format!("tb.{ext}"));
+        dualstream(&[
+            "tb",
+            "box_pipe",
+            "--cycles",
+            "300",
+            "--seed",
+            "5",
+            "--vcd",
+            p.to_str().unwrap(),
+        ]);
+    }
+    let v = read::vcd(&d.join("tb.vcd"));
+    let (f, _) = read::fst(&d.join("tb.fst"));
+    assert!(v.vars.len() > 10 && v.changes.values().map(Vec::len).sum::<usize>() > 500);
+    assert_eq!(v.vars, f.vars, "the same variables, widths and kinds");
+    assert_eq!(v.end, f.end, "the same end time");
+    for (p, ch) in &v.changes {
+        // FST records each variable's value at its first time; VCD only
+        // its changes: compare the changes.
+        let dedup = |c: &Vec<(u64, String)>| {
+            let mut out: Vec<(u64, String)> = Vec::new();
+            for x in c {
+                if out.last().is_none_or(|l| l.1 != x.1) {
+                    out.push(x.clone());
+                }
+            }
+            out
+        };
+        assert_eq!(dedup(ch), dedup(&f.changes[p]), "changes of {p}");
+    }
+}
+
+/// Every register the model declares as an FSM state carries an enum table
+/// in FST (GTKWave and Surfer show names with no filter file) and is `reg`,
+/// while each port's valid, ready and data are `wire` (a register whose name
+/// starts with a port's, like the TP's `ray_index` beside port `ray`, is no
+/// port signal).
+#[test]
+fn fsm_states_are_named_and_registers_are_regs() {
+    if !have("fst2vcd") {
+        return;
+    }
+    let d = Scratch::new("wave-enums");
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/chip-8tms.toml");
+    for ext in ["vcd", "fst"] {
+        let p = d.join(format!("c.{ext}"));
+        dualstream(&[
+            "render",
+            "--config",
+            cfg,
+            "--mode",
+            "cycle",
+            "--res",
+            "8x8",
+            "--out",
+            d.join("c.png").to_str().unwrap(),
+            "--vcd",
+            p.to_str().unwrap(),
+            "--trace-units",
+            "chip.tm0.tp0,mem_ctrl0",
+            "--trace-window",
+            "1000..1400",
+        ]);
+    }
+    let v = read::vcd(&d.join("c.vcd"));
+    let (f, ext) = read::fst(&d.join("c.fst"));
+    assert_eq!(v.vars, f.vars);
+    let tp = "chip.tm0.tp0";
+    assert_eq!(v.vars[&format!("{tp}.ray_index")].kind, "reg");
+    assert_eq!(v.vars[&format!("{tp}.state")].kind, "reg");
+    assert_eq!(v.vars[&format!("{tp}.ray_valid")].kind, "wire");
+    // fst2vcd -e writes an enum table as `$attrbegin misc 07 <name> <count>
+    // <names...> <values...> $end`, and a reference to one before each
+    // variable that uses it.
+    let tables: Vec<&str> = ext
+        .lines()
+        .filter(|l| l.starts_with("$attrbegin misc 07 ") && !l.contains("\"\""))
+        .collect();
+    let tp_table = tables
+        .iter()
+        .find(|l| l.contains(" Idle Fetch DivWait "))
+        .expect("the TP's state table");
+    assert!(
+        tp_table.contains(" ShDone ") && tp_table.contains(" 00000 "),
+        "{tp_table}"
+    );
+    // Each `state` variable follows a table reference.
+    let lines: Vec<&str> = ext.lines().collect();
+    let mut states = 0;
+    for (k, l) in lines.iter().enumerate() {
+        if l.starts_with("$var ") && l.contains(" state ") {
+            states += 1;
+            assert!(
+                lines[k - 1].starts_with("$attrbegin misc 07 "),
+                "no enum table before {l}"
+            );
+        }
+    }
+    assert!(states >= 1);
+}
