@@ -64,6 +64,25 @@ impl Bits {
         (self.words[(i / 64) as usize] >> (i % 64)) & 1 == 1
     }
 
+    /// Copies bits `at..at + width` into `out` (cleared first): one field of
+    /// a packed payload.
+    pub fn slice_into(&self, at: u32, width: u32, out: &mut Bits) {
+        out.clear();
+        let mut k = 0;
+        while k < width {
+            let w = (width - k).min(64);
+            let (i, off) = (((at + k) / 64) as usize, (at + k) % 64);
+            let lo = self.words.get(i).copied().unwrap_or(0) >> off;
+            let hi = if off == 0 {
+                0
+            } else {
+                self.words.get(i + 1).copied().unwrap_or(0) << (64 - off)
+            };
+            out.push(lo | hi, w);
+            k += w;
+        }
+    }
+
     /// Reads `width` bits starting at bit `at` (for unpacking in tests).
     pub fn get(&self, at: u32, width: u32) -> u64 {
         let mut v = 0u64;
@@ -73,6 +92,38 @@ impl Bits {
             }
         }
         v
+    }
+}
+
+/// How a field's bits read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FieldKind {
+    /// An unsigned integer, a flag or raw bits.
+    Bits,
+    /// An IEEE-754 single (shown as a number where the format allows).
+    Float,
+    /// An FSM state: index k is `names[k]`.
+    Enum(&'static [&'static str]),
+}
+
+/// One leaf field of a packed payload: its path inside the payload
+/// (`ray.origin.x`), where it sits and how it reads. The waveform shows each
+/// as its own signal, as Verilator's `--trace-structs` does.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Field {
+    pub name: String,
+    /// First bit (LSB-first, as packed).
+    pub offset: u32,
+    pub width: u32,
+    pub kind: FieldKind,
+}
+
+/// `prefix.name`, or `name` at the top.
+pub fn field_path(prefix: &str, name: &str) -> String {
+    if prefix.is_empty() {
+        name.to_string()
+    } else {
+        format!("{prefix}.{name}")
     }
 }
 
@@ -86,6 +137,27 @@ pub trait Payload: Clone + std::fmt::Debug + PartialEq + Send + 'static {
     /// header so a waveform viewer user can read the integers.
     fn enum_names() -> Option<&'static [&'static str]> {
         None
+    }
+    /// Appends the leaf fields of a value packed at `offset`, named below
+    /// `prefix`. A leaf (an integer, a flag, an FSM state) is one field named
+    /// `prefix`; structs list their fields in packing order.
+    fn fields(prefix: &str, offset: u32, out: &mut Vec<Field>) {
+        out.push(Field {
+            name: prefix.to_string(),
+            offset,
+            width: Self::BITS,
+            kind: Self::enum_names().map_or(FieldKind::Bits, FieldKind::Enum),
+        });
+    }
+    /// The fields of the whole payload; empty for a leaf (its packed vector
+    /// is all there is to show).
+    fn field_list() -> Vec<Field> {
+        let mut v = Vec::new();
+        Self::fields("", 0, &mut v);
+        if v.len() == 1 && v[0].name.is_empty() {
+            v.clear();
+        }
+        v
     }
     /// Bit-exact equality (NaN payloads equal themselves, +0 and -0 differ), which is
     /// what "the value did not change" means for hardware. The packings compared;
@@ -142,6 +214,14 @@ impl Payload for bool {
 
 impl Payload for f32 {
     const BITS: u32 = 32;
+    fn fields(prefix: &str, offset: u32, out: &mut Vec<Field>) {
+        out.push(Field {
+            name: prefix.to_string(),
+            offset,
+            width: 32,
+            kind: FieldKind::Float,
+        });
+    }
     fn pack(&self, out: &mut Bits) {
         out.push(self.to_bits() as u64, 32);
     }
@@ -152,6 +232,11 @@ impl Payload for f32 {
 
 impl Payload for Vec3 {
     const BITS: u32 = 96;
+    fn fields(prefix: &str, offset: u32, out: &mut Vec<Field>) {
+        for (k, n) in ["x", "y", "z"].into_iter().enumerate() {
+            f32::fields(&field_path(prefix, n), offset + 32 * k as u32, out);
+        }
+    }
     fn pack(&self, out: &mut Bits) {
         self.x.pack(out);
         self.y.pack(out);
@@ -165,6 +250,16 @@ impl Payload for Vec3 {
 impl<T: Payload> Payload for Option<T> {
     // A valid bit in the LSB, then the payload (zeros when absent).
     const BITS: u32 = 1 + T::BITS;
+    /// `valid`, then the value's fields (a leaf value is named `value`).
+    fn fields(prefix: &str, offset: u32, out: &mut Vec<Field>) {
+        bool::fields(&field_path(prefix, "valid"), offset, out);
+        let mut inner = Vec::new();
+        T::fields(prefix, offset + 1, &mut inner);
+        if inner.len() == 1 && inner[0].name == prefix {
+            inner[0].name = field_path(prefix, "value");
+        }
+        out.extend(inner);
+    }
     fn pack(&self, out: &mut Bits) {
         match self {
             Some(v) => {
@@ -201,6 +296,15 @@ macro_rules! payload_struct {
         $vis struct $name { $($(#[$fm])* $fvis $f: $t),* }
         impl $crate::rtl::bits::Payload for $name {
             const BITS: u32 = 0 $(+ <$t as $crate::rtl::bits::Payload>::BITS)*;
+            #[allow(unused_variables, unused_mut, unused_assignments)]
+            fn fields(prefix: &str, offset: u32, out: &mut Vec<$crate::rtl::bits::Field>) {
+                let mut at = offset;
+                $(
+                    <$t as $crate::rtl::bits::Payload>::fields(
+                        &$crate::rtl::bits::field_path(prefix, stringify!($f)), at, out);
+                    at += <$t as $crate::rtl::bits::Payload>::BITS;
+                )*
+            }
             fn pack(&self, out: &mut $crate::rtl::bits::Bits) {
                 $($crate::rtl::bits::Payload::pack(&self.$f, out);)*
             }
@@ -285,6 +389,72 @@ mod tests {
         assert_eq!(bits.get(0, 8), 0xA5);
         assert_eq!(bits.get(8, 32), 1.0f32.to_bits() as u64);
         assert!(bits.bit(40));
+    }
+
+    crate::payload_struct! {
+        struct Outer { p: Pair, o: Option<Pair>, f: Option<f32>, s: Five, v: Vec3 }
+    }
+
+    /// Fields tile the packed vector in order, nested names are paths, and
+    /// each field's slice of a packed value is that field's own packing.
+    #[test]
+    fn fields_tile_the_packing() {
+        let f = Outer::field_list();
+        let names: Vec<&str> = f.iter().map(|x| x.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "p.a", "p.b", "p.c", "o.valid", "o.a", "o.b", "o.c", "f.valid", "f.value", "s",
+                "v.x", "v.y", "v.z"
+            ]
+        );
+        let mut at = 0;
+        for x in &f {
+            assert_eq!(x.offset, at, "{} starts where the last ended", x.name);
+            at += x.width;
+        }
+        assert_eq!(at, Outer::BITS);
+        assert_eq!(f[1].kind, FieldKind::Float);
+        assert_eq!(f[9].kind, FieldKind::Enum(Five::enum_names().unwrap()));
+        assert!(u32::field_list().is_empty() && Five::field_list().is_empty());
+        let v = Outer {
+            p: Pair {
+                a: 7,
+                b: -2.5,
+                c: true,
+            },
+            o: Some(Pair {
+                a: 0xFE,
+                b: 3.0,
+                c: false,
+            }),
+            f: None,
+            s: Five::D,
+            v: Vec3::new(1.0, 2.0, 3.0),
+        };
+        let bits = packed(&v);
+        let mut s = Bits::new();
+        let mut field = |k: usize| {
+            bits.slice_into(f[k].offset, f[k].width, &mut s);
+            assert_eq!(s.len(), f[k].width);
+            s.get(0, f[k].width.min(64))
+        };
+        assert_eq!(field(0), 7);
+        assert_eq!(field(1), (-2.5f32).to_bits() as u64);
+        assert_eq!(field(4), 0xFE);
+        assert_eq!(field(5), 3.0f32.to_bits() as u64);
+        assert_eq!(field(7), 0);
+        assert_eq!(field(9), 3);
+        assert_eq!(field(12), 3.0f32.to_bits() as u64);
+        // A slice wider than a word, across word boundaries.
+        let mut w = Bits::new();
+        w.push(0xAAAA_AAAA_AAAA_AAAA, 64);
+        w.push(0x5555_5555_5555_5555, 64);
+        w.push(0xF, 4);
+        w.slice_into(3, 128, &mut s);
+        assert_eq!(s.get(0, 61), 0xAAAA_AAAA_AAAA_AAAA >> 3);
+        assert_eq!(s.get(61, 64), 0x5555_5555_5555_5555);
+        assert_eq!(s.get(125, 3), 0b111);
     }
 
     #[test]

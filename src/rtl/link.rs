@@ -508,6 +508,8 @@ pub(crate) trait LinkDyn: Any + Send + Sync {
     fn edge(&mut self, violations: &mut Vec<Violation>) -> EdgeResult;
     fn sample_consumer(&self, now: Time, out: [&mut Bits; 3]);
     fn sample_producer(&self, out: [&mut Bits; 3]);
+    /// The payload's fields, for the waveform (`Payload::field_list`).
+    fn fields(&self) -> Vec<super::bits::Field>;
     fn ends(&self) -> (Option<UnitId>, Option<UnitId>);
     fn set_ends(&mut self, producer: Option<UnitId>, consumer: Option<UnitId>);
     fn set_delay_ps(&mut self, ps: Time);
@@ -599,6 +601,9 @@ impl<T: Payload> LinkDyn for Link<T> {
         } else {
             data.clear();
         }
+    }
+    fn fields(&self) -> Vec<super::bits::Field> {
+        T::field_list()
     }
     fn ends(&self) -> (Option<UnitId>, Option<UnitId>) {
         (self.producer, self.consumer)

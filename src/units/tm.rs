@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::contract::{HitRec, RayRec};
 use crate::rtl::PipeCfg;
-use crate::rtl::bits::{Bits, Payload};
+use crate::rtl::bits::{Bits, Field, Payload, field_path};
 use crate::rtl::{ClockId, In, LinkCfg, Out, Sim, UnitId};
 
 use super::divider::Divider;
@@ -49,6 +49,12 @@ pub struct TmSpec {
 
 impl Payload for RayRec {
     const BITS: u32 = 256;
+    fn fields(prefix: &str, at: u32, out: &mut Vec<Field>) {
+        glam::Vec3::fields(&field_path(prefix, "origin"), at, out);
+        glam::Vec3::fields(&field_path(prefix, "dir"), at + 96, out);
+        u32::fields(&field_path(prefix, "ray_id"), at + 192, out);
+        u32::fields(&field_path(prefix, "entry"), at + 224, out);
+    }
     fn pack(&self, out: &mut Bits) {
         self.origin.pack(out);
         self.dir.pack(out);
@@ -65,6 +71,12 @@ impl Payload for RayRec {
 
 impl Payload for HitRec {
     const BITS: u32 = 128;
+    fn fields(prefix: &str, at: u32, out: &mut Vec<Field>) {
+        f32::fields(&field_path(prefix, "t"), at, out);
+        u32::fields(&field_path(prefix, "tri_id"), at + 32, out);
+        f32::fields(&field_path(prefix, "u"), at + 64, out);
+        f32::fields(&field_path(prefix, "v"), at + 96, out);
+    }
     fn pack(&self, out: &mut Bits) {
         self.t.pack(out);
         self.tri_id.pack(out);

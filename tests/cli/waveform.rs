@@ -24,20 +24,24 @@ fn have(tool: &str) -> bool {
     ok
 }
 
-/// Scopes (dotted paths of the scopes holding variables) and timestamps of a VCD,
-/// read with the `vcd` crate.
+/// Unit scopes (dotted paths of the module scopes holding variables, below
+/// the root that holds the clocks; a port's fields are a `begin` scope inside
+/// its unit's) and timestamps of a VCD, read with the `vcd` crate.
 fn vcd_scopes_and_times(path: &std::path::Path) -> (std::collections::BTreeSet<String>, Vec<u64>) {
     let f = std::io::BufReader::new(std::fs::File::open(path).unwrap());
     let (mut scopes, mut stack, mut times) =
         (std::collections::BTreeSet::new(), Vec::new(), Vec::new());
     for cmd in vcd::Parser::new(f) {
         match cmd.expect("valid VCD") {
-            vcd::Command::ScopeDef(_, name) => stack.push(name),
+            vcd::Command::ScopeDef(t, name) => stack.push((t, name)),
             vcd::Command::Upscope => {
                 stack.pop();
             }
-            vcd::Command::VarDef(..) => {
-                scopes.insert(stack.join("."));
+            vcd::Command::VarDef(..)
+                if stack.len() > 1 && stack.iter().all(|s| s.0 == vcd::ScopeType::Module) =>
+            {
+                let path: Vec<&str> = stack.iter().map(|s| s.1.as_str()).collect();
+                scopes.insert(path.join("."));
             }
             vcd::Command::Timestamp(t) => times.push(t),
             _ => {}

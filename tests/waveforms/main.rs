@@ -10,6 +10,7 @@ mod common;
 
 mod formats;
 mod read;
+mod signals;
 
 /// Runs the command line and insists that it succeeds.
 pub fn dualstream(args: &[&str]) {

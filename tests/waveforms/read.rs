@@ -15,6 +15,8 @@ pub struct Var {
 #[derive(Default, Debug)]
 pub struct Wave {
     pub vars: BTreeMap<String, Var>,
+    /// Paths in declaration order.
+    pub order: Vec<String>,
     /// Path -> (time, value) in time order; vectors without leading zeros,
     /// reals as text.
     pub changes: BTreeMap<String, Vec<(u64, String)>>,
@@ -29,7 +31,12 @@ fn canon(bits: &str) -> String {
 }
 
 pub fn vcd(path: &Path) -> Wave {
-    let f = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    // fst2vcd writes a struct scope as `$scope struct`, which the `vcd` crate
+    // does not know: read it as the named block our VCD writes.
+    let text = std::fs::read_to_string(path)
+        .unwrap()
+        .replace("$scope struct ", "$scope begin ");
+    let f = std::io::Cursor::new(text.into_bytes());
     let mut w = Wave::default();
     let mut stack: Vec<String> = Vec::new();
     // One id may stand for several variables (aliases).
@@ -53,6 +60,7 @@ pub fn vcd(path: &Path) -> Wave {
                 let p = format!("{}.{name}", stack.join("."));
                 let kind = t.to_string();
                 w.vars.insert(p.clone(), Var { width: size, kind });
+                w.order.push(p.clone());
                 ids.entry(code).or_default().push(p);
             }
             vcd::Command::Timestamp(t) => {
@@ -65,11 +73,21 @@ pub fn vcd(path: &Path) -> Wave {
                 let s: String = v.iter().map(|b| b.to_string()).collect();
                 change(code, canon(&s))
             }
-            vcd::Command::ChangeReal(code, v) => change(code, format!("{v:?}")),
+            // As f32: the model's floats are singles, and fst2vcd prints 16 digits.
+            vcd::Command::ChangeReal(code, v) => change(code, format!("{:?}", v as f32)),
             _ => {}
         }
     }
     w
+}
+
+impl Wave {
+    /// The value of `path` at time `t` (its last change at or before `t`).
+    pub fn at(&self, path: &str, t: u64) -> Option<&str> {
+        let c = self.changes.get(path)?;
+        let k = c.partition_point(|(ct, _)| *ct <= t);
+        (k > 0).then(|| c[k - 1].1.as_str())
+    }
 }
 
 /// An FST file through GTKWave's own converter; also returns the converter's

@@ -143,7 +143,7 @@ impl Sim {
             .iter()
             .map(|s| (s.path.as_str(), &*s.unit, &self.clocks[s.clock.0 as usize]))
             .collect();
-        if let Err(e) = tracer.bind(&units) {
+        if let Err(e) = tracer.bind(&units, &self.links, &self.clocks) {
             tracer.discard();
             return Err(SimError::Elaboration(e));
         }

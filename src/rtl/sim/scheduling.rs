@@ -88,7 +88,7 @@ impl Sim {
             }
         }
         if let Some(tr) = &self.tracer
-            && let Some(te) = tr.next_sample_time(after, &self.clocks)
+            && let Some(te) = tr.next_sample_time(after)
         {
             t = t.min(te);
         }

@@ -18,17 +18,18 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
 use super::bits::Bits;
-use super::decl::{PortDir, Samples, SignalDecl};
-use super::link::{LinkDyn, LinkId};
-use super::sim::{Clock, Time};
-use super::unit::Unit;
+use super::decl::{PortDir, Samples};
+use super::link::LinkId;
+use super::sim::Time;
 
+mod bind;
 mod fst;
+mod sample;
 mod sink;
 mod vcd;
 
 pub use fst::WriteSeek;
-use sink::{ScopeKind, Sink, VarDef, VarKind};
+use sink::Sink;
 
 /// Counts of what a trace wrote.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -39,17 +40,51 @@ pub struct TraceStats {
     pub units: u64,
 }
 
+/// A written variable: its handle, width and last value written.
 struct Sig {
     h: u32,
     width: u32,
     last: Option<Bits>,
 }
 
+impl Sig {
+    fn new(h: u32, width: u32) -> Self {
+        Sig {
+            h,
+            width,
+            last: None,
+        }
+    }
+}
+
+/// How a derived signal is computed from a unit's sampled ones.
+enum Derive {
+    /// Port `port`'s valid and ready.
+    Fire { port: usize },
+    /// Bits `offset..offset + width` of sampled signal `of` (a port's data).
+    Field { of: usize, offset: u32, float: bool },
+}
+
+struct Derived {
+    sig: Sig,
+    how: Derive,
+}
+
 struct TracedUnit {
     index: usize,
     period: Time,
     ports: Vec<(LinkId, PortDir)>,
+    /// One per sampled signal, in `UnitDecl::signals` order.
     sigs: Vec<Sig>,
+    derived: Vec<Derived>,
+}
+
+/// A clock domain's waveform: its level and when it next toggles.
+struct ClockSig {
+    h: u32,
+    period: Time,
+    level: bool,
+    next: Time,
 }
 
 /// Which units and which time window to trace.
@@ -129,6 +164,11 @@ pub struct Tracer {
     units: Vec<TracedUnit>,
     periods: Vec<Time>,
     samples: Samples,
+    scratch: Bits,
+    clocks: Vec<ClockSig>,
+    rst: Option<u32>,
+    /// The time up to which the clocks are written.
+    clock_t: Option<Time>,
     changes: u64,
     error: Option<io::Error>,
     /// The size guard: the most bytes the trace may take, the time the run is
@@ -199,6 +239,10 @@ impl Tracer {
             units: Vec::new(),
             periods: Vec::new(),
             samples: Samples::default(),
+            scratch: Bits::new(),
+            clocks: Vec::new(),
+            rst: None,
+            clock_t: None,
             changes: 0,
             error: None,
             max_bytes,
@@ -327,171 +371,6 @@ impl Tracer {
         self.units.iter().map(|u| u.index)
     }
 
-    /// Selects the units to trace and writes the header.
-    pub(crate) fn bind(&mut self, units: &[(&str, &dyn Unit, &Clock)]) -> Result<(), String> {
-        let mut chosen = Vec::new();
-        for (i, (path, u, clk)) in units.iter().enumerate() {
-            if self.spec.matches(path) {
-                chosen.push((i, *path, *u, *clk));
-            }
-        }
-        if chosen.is_empty() {
-            let names: Vec<&str> = units.iter().map(|u| u.0).collect();
-            return Err(format!(
-                "no unit matches the trace filter '{}'; units are: {}",
-                self.spec.filter,
-                names.join(", ")
-            ));
-        }
-        let mut open: Vec<&str> = Vec::new();
-        for (index, path, u, clk) in chosen {
-            let decl = u.decl();
-            let scopes: Vec<&str> = path.split('.').collect();
-            let common = open.iter().zip(&scopes).take_while(|(a, b)| a == b).count();
-            for _ in common..open.len() {
-                self.sink.end_scope();
-            }
-            open.truncate(common);
-            for s in &scopes[common..] {
-                self.sink.begin_scope(s, ScopeKind::Module);
-                open.push(s);
-            }
-            self.sink.comment(&format!(
-                "{path}: module {} ({}), clock {} period {} ps",
-                decl.module, decl.source, clk.name, clk.period_ps
-            ));
-            let mut sigs = Vec::new();
-            // Ports' valid, ready and data come first (`UnitDecl::signals`):
-            // wires; then the registers. (A register is never taken for a port
-            // because its name starts with one: `ray_index` beside port `ray`.)
-            let port_signals = 3 * decl.ports.len();
-            for (k, sig) in decl.signals().into_iter().enumerate() {
-                let SignalDecl {
-                    name,
-                    width,
-                    enum_names,
-                } = sig;
-                if let Some(names) = enum_names {
-                    let enc: Vec<String> = names
-                        .iter()
-                        .enumerate()
-                        .map(|(i, n)| format!("{i}={n}"))
-                        .collect();
-                    self.sink
-                        .comment(&format!("{path}.{name} states: {}", enc.join(" ")));
-                }
-                let kind = if k < port_signals {
-                    VarKind::Wire
-                } else {
-                    VarKind::Reg
-                };
-                let h = self.sink.var(&VarDef {
-                    name: &name,
-                    kind,
-                    width,
-                    enum_names,
-                });
-                sigs.push(Sig {
-                    h,
-                    width,
-                    last: None,
-                });
-            }
-            let ports = decl.ports.iter().map(|p| (p.link, p.dir)).collect();
-            self.full_bytes_per_ps += sigs
-                .iter()
-                .map(|s| (s.width + self.sink.id_len(s.h) as u32 + 3) as f64)
-                .sum::<f64>()
-                / clk.period_ps as f64;
-            if !self.periods.contains(&clk.period_ps) {
-                self.periods.push(clk.period_ps);
-            }
-            self.units.push(TracedUnit {
-                index,
-                period: clk.period_ps,
-                ports,
-                sigs,
-            });
-        }
-        for _ in 0..open.len() {
-            self.sink.end_scope();
-        }
-        let format = self.format;
-        self.header_bytes = self
-            .sink
-            .end_header()
-            .map_err(|e| format!("cannot write the {format} header: {e}"))?;
-        Ok(())
-    }
-
-    /// The first traced edge at or after `after`, inside the window.
-    pub(crate) fn next_sample_time(&self, after: Time, _clocks: &[Clock]) -> Option<Time> {
-        let after = after.max(self.spec.from);
-        let t = self.periods.iter().map(|p| after.div_ceil(*p) * p).min()?;
-        (t <= self.spec.to).then_some(t)
-    }
-
-    pub(crate) fn sample<'u>(
-        &mut self,
-        t: Time,
-        unit_at: &dyn Fn(usize) -> &'u dyn Unit,
-        links: &[Box<dyn LinkDyn>],
-    ) {
-        if t < self.spec.from || t > self.spec.to || self.error.is_some() || self.stopped.is_some()
-        {
-            return;
-        }
-        for ui in 0..self.units.len() {
-            let (period, index) = (self.units[ui].period, self.units[ui].index);
-            if !t.is_multiple_of(period) {
-                continue;
-            }
-            let unit = unit_at(index);
-            self.samples.begin();
-            for k in 0..self.units[ui].ports.len() {
-                let (l, dir) = self.units[ui].ports[k];
-                let link = &links[l.0 as usize];
-                let base = self.samples.n;
-                self.samples.slot();
-                self.samples.slot();
-                self.samples.slot();
-                let [a, b, c] = <&mut [Bits; 3]>::try_from(&mut self.samples.vals[base..base + 3])
-                    .expect("three slots")
-                    .each_mut();
-                match dir {
-                    PortDir::In => link.sample_consumer(t, [a, b, c]),
-                    PortDir::Out => link.sample_producer([a, b, c]),
-                }
-            }
-            unit.sample_state(t / period, &mut self.samples);
-            debug_assert_eq!(
-                self.samples.n,
-                self.units[ui].sigs.len(),
-                "sampled signals match the declaration"
-            );
-            for k in 0..self.units[ui].sigs.len() {
-                let v = &self.samples.vals[k];
-                if v.is_empty() {
-                    continue; // hold
-                }
-                let sig = &mut self.units[ui].sigs[k];
-                if sig.last.as_ref() == Some(v) {
-                    continue;
-                }
-                if let Err(e) = self.sink.bits(t, sig.h, v, sig.width) {
-                    self.error = Some(e);
-                    return;
-                }
-                self.changes += 1;
-                match &mut sig.last {
-                    Some(l) => l.clone_from(v),
-                    None => sig.last = Some(v.clone()),
-                }
-            }
-        }
-        self.guard(t);
-    }
-
     /// Flushes and reports what was written.
     pub(crate) fn finish(mut self, now: Time) -> io::Result<TraceStats> {
         if let Some(why) = self.stopped.take() {
@@ -501,11 +380,21 @@ impl Tracer {
             self.discard();
             return Err(e);
         }
-        self.sink.finish(now.min(self.spec.to))?;
+        let end = now.min(self.spec.to);
+        if self.clock_t.is_some() {
+            self.clocks_until(end)?;
+        }
+        self.sink.finish(end)?;
         Ok(TraceStats {
             changes: self.changes,
             bytes: self.sink.bytes(),
-            signals: self.units.iter().map(|u| u.sigs.len() as u64).sum(),
+            signals: self
+                .units
+                .iter()
+                .map(|u| (u.sigs.len() + u.derived.len()) as u64)
+                .sum::<u64>()
+                + self.clocks.len() as u64
+                + self.rst.is_some() as u64,
             units: self.units.len() as u64,
         })
     }

@@ -1,0 +1,212 @@
+//! Binding a tracer to the simulator: which units it traces, and the header
+//! that declares their signals. Per unit instance a scope holds, per port,
+//! `valid`, `ready`, `data` (the packed vector) and `fire` (valid and ready),
+//! the payload's fields in a struct scope named after the port, then every
+//! register. The first scope holds one clock per domain and the reset.
+
+use super::super::decl::SignalDecl;
+use super::super::link::LinkDyn;
+use super::super::sim::Clock;
+use super::super::unit::Unit;
+use super::sink::{ScopeKind, VarDef, VarKind};
+use super::{ClockSig, Derive, Derived, Sig, TracedUnit, Tracer};
+use crate::rtl::bits::FieldKind;
+
+impl Tracer {
+    /// Selects the units to trace and writes the header.
+    pub(crate) fn bind(
+        &mut self,
+        units: &[(&str, &dyn Unit, &Clock)],
+        links: &[Box<dyn LinkDyn>],
+        clocks: &[Clock],
+    ) -> Result<(), String> {
+        let mut chosen = Vec::new();
+        for (i, (path, u, clk)) in units.iter().enumerate() {
+            if self.spec.matches(path) {
+                chosen.push((i, *path, *u, *clk));
+            }
+        }
+        if chosen.is_empty() {
+            let names: Vec<&str> = units.iter().map(|u| u.0).collect();
+            return Err(format!(
+                "no unit matches the trace filter '{}'; units are: {}",
+                self.spec.filter,
+                names.join(", ")
+            ));
+        }
+        let root = chosen[0].1.split('.').next().unwrap_or("top");
+        self.sink.begin_scope(root, ScopeKind::Module);
+        let mut open: Vec<&str> = vec![root];
+        self.declare_clocks(clocks);
+        for (index, path, u, clk) in chosen {
+            let scopes: Vec<&str> = path.split('.').collect();
+            let common = open.iter().zip(&scopes).take_while(|(a, b)| a == b).count();
+            for _ in common..open.len() {
+                self.sink.end_scope();
+            }
+            open.truncate(common);
+            for s in &scopes[common..] {
+                self.sink.begin_scope(s, ScopeKind::Module);
+                open.push(s);
+            }
+            let unit = self.declare_unit(index, path, u, clk, links);
+            self.units.push(unit);
+        }
+        for _ in 0..open.len() {
+            self.sink.end_scope();
+        }
+        let format = self.format;
+        self.header_bytes = self
+            .sink
+            .end_header()
+            .map_err(|e| format!("cannot write the {format} header: {e}"))?;
+        Ok(())
+    }
+
+    /// `clk_<domain>` per clock domain and `rst`, on the trace's picosecond
+    /// time base.
+    fn declare_clocks(&mut self, clocks: &[Clock]) {
+        self.sink.comment(
+            "clk_<domain>: rises at the start of each cycle (cycle n at n x period ps), \
+             when the registers take the values shown for that cycle; rst: the model \
+             leaves reset before time 0",
+        );
+        for c in clocks {
+            let h = self.sink.var(&VarDef {
+                name: &format!("clk_{}", c.name),
+                kind: VarKind::Wire,
+                width: 1,
+                enum_names: None,
+            });
+            self.clocks.push(ClockSig {
+                h,
+                period: c.period_ps,
+                level: false,
+                next: 0,
+            });
+        }
+        self.rst = Some(self.sink.var(&VarDef {
+            name: "rst",
+            kind: VarKind::Wire,
+            width: 1,
+            enum_names: None,
+        }));
+    }
+
+    fn declare(
+        &mut self,
+        name: &str,
+        kind: VarKind,
+        width: u32,
+        e: Option<&'static [&'static str]>,
+    ) -> u32 {
+        self.sink.var(&VarDef {
+            name,
+            kind,
+            width,
+            enum_names: e,
+        })
+    }
+
+    fn declare_unit(
+        &mut self,
+        index: usize,
+        path: &str,
+        u: &dyn Unit,
+        clk: &Clock,
+        links: &[Box<dyn LinkDyn>],
+    ) -> TracedUnit {
+        let decl = u.decl();
+        self.sink.comment(&format!(
+            "{path}: module {} ({}), clock {} period {} ps",
+            decl.module, decl.source, clk.name, clk.period_ps
+        ));
+        let signals = decl.signals();
+        let (mut sigs, mut derived) = (Vec::new(), Vec::new());
+        // Ports' valid, ready and data come first (`UnitDecl::signals`):
+        // wires. A register is never taken for a port because its name starts
+        // with one (`ray_index` beside port `ray`).
+        for (k, p) in decl.ports.iter().enumerate() {
+            for s in &signals[3 * k..3 * k + 3] {
+                let h = self.declare(&s.name, VarKind::Wire, s.width, None);
+                sigs.push(Sig::new(h, s.width));
+            }
+            let h = self.declare(&format!("{}_fire", p.name), VarKind::Wire, 1, None);
+            derived.push(Derived {
+                sig: Sig::new(h, 1),
+                how: Derive::Fire { port: k },
+            });
+            let fields = links[p.link.0 as usize].fields();
+            if fields.is_empty() {
+                continue;
+            }
+            self.sink.begin_scope(p.name, ScopeKind::Struct);
+            let mut open: Vec<String> = Vec::new();
+            for f in fields {
+                let parts: Vec<&str> = f.name.split('.').collect();
+                let (leaf, scopes) = parts.split_last().expect("a field has a name");
+                let common = open.iter().zip(scopes).take_while(|(a, b)| a == *b).count();
+                for _ in common..open.len() {
+                    self.sink.end_scope();
+                }
+                open.truncate(common);
+                for s in &scopes[common..] {
+                    self.sink.begin_scope(s, ScopeKind::Struct);
+                    open.push(s.to_string());
+                }
+                let (kind, e) = match f.kind {
+                    FieldKind::Float => (VarKind::Real, None),
+                    FieldKind::Enum(names) => (VarKind::Wire, Some(names)),
+                    FieldKind::Bits => (VarKind::Wire, None),
+                };
+                let h = self.declare(leaf, kind, f.width, e);
+                derived.push(Derived {
+                    sig: Sig::new(h, f.width),
+                    how: Derive::Field {
+                        of: 3 * k + 2,
+                        offset: f.offset,
+                        float: f.kind == FieldKind::Float,
+                    },
+                });
+            }
+            for _ in 0..open.len() + 1 {
+                self.sink.end_scope();
+            }
+        }
+        for SignalDecl {
+            name,
+            width,
+            enum_names,
+        } in signals.into_iter().skip(3 * decl.ports.len())
+        {
+            if let Some(names) = enum_names {
+                let enc: Vec<String> = names
+                    .iter()
+                    .enumerate()
+                    .map(|(i, n)| format!("{i}={n}"))
+                    .collect();
+                self.sink
+                    .comment(&format!("{path}.{name} states: {}", enc.join(" ")));
+            }
+            let h = self.declare(&name, VarKind::Reg, width, enum_names);
+            sigs.push(Sig::new(h, width));
+        }
+        let ports = decl.ports.iter().map(|p| (p.link, p.dir)).collect();
+        self.full_bytes_per_ps += sigs
+            .iter()
+            .chain(derived.iter().map(|d| &d.sig))
+            .map(|s| (s.width + self.sink.id_len(s.h) as u32 + 3) as f64)
+            .sum::<f64>()
+            / clk.period_ps as f64;
+        if !self.periods.contains(&clk.period_ps) {
+            self.periods.push(clk.period_ps);
+        }
+        TracedUnit {
+            index,
+            period: clk.period_ps,
+            ports,
+            sigs,
+            derived,
+        }
+    }
+}
