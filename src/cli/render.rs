@@ -248,12 +248,13 @@ fn write_outputs(
     println!("image: {}", a.out.display());
     if let (Some(p), Some(v)) = (&a.vcd, frame.chip.as_ref().and_then(|c| c.vcd)) {
         println!(
-            "waveform: {} ({} units, {} signals, {} changes; open with: gtkwave {})",
+            "waveform: {} ({} units, {} signals, {} changes; open with: gtkwave {} {})",
             p.display(),
             v.units,
             v.signals,
             v.changes,
-            p.display()
+            p.display(),
+            dualstream::rtl::trace::save_file_for(p).display()
         );
     }
     if let Some(p) = &a.stats {

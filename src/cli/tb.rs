@@ -158,9 +158,10 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
 fn print_waveform(vcd: &Option<PathBuf>) {
     if let Some(v) = vcd {
         println!(
-            "  waveform: {} (open with: gtkwave {})",
+            "  waveform: {} (open with: gtkwave {} {})",
             v.display(),
-            v.display()
+            v.display(),
+            dualstream::rtl::trace::save_file_for(v).display()
         );
     }
 }

@@ -9,6 +9,7 @@ use std::process::Command;
 mod common;
 
 mod formats;
+mod gtkwave;
 mod read;
 mod signals;
 

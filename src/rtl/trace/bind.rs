@@ -37,7 +37,7 @@ impl Tracer {
         let root = chosen[0].1.split('.').next().unwrap_or("top");
         self.sink.begin_scope(root, ScopeKind::Module);
         let mut open: Vec<&str> = vec![root];
-        self.declare_clocks(clocks);
+        self.declare_clocks(root, clocks);
         for (index, path, u, clk) in chosen {
             let scopes: Vec<&str> = path.split('.').collect();
             let common = open.iter().zip(&scopes).take_while(|(a, b)| a == b).count();
@@ -65,19 +65,21 @@ impl Tracer {
 
     /// `clk_<domain>` per clock domain and `rst`, on the trace's picosecond
     /// time base.
-    fn declare_clocks(&mut self, clocks: &[Clock]) {
+    fn declare_clocks(&mut self, root: &str, clocks: &[Clock]) {
         self.sink.comment(
             "clk_<domain>: rises at the start of each cycle (cycle n at n x period ps), \
              when the registers take the values shown for that cycle; rst: the model \
              leaves reset before time 0",
         );
         for c in clocks {
+            let name = format!("clk_{}", c.name);
             let h = self.sink.var(&VarDef {
-                name: &format!("clk_{}", c.name),
+                name: &name,
                 kind: VarKind::Wire,
                 width: 1,
                 enum_names: None,
             });
+            self.view.sig(&format!("{root}.{name}"), 1, false, None, "");
             self.clocks.push(ClockSig {
                 h,
                 period: c.period_ps,
@@ -91,6 +93,7 @@ impl Tracer {
             width: 1,
             enum_names: None,
         }));
+        self.view.sig(&format!("{root}.rst"), 1, false, None, "");
     }
 
     fn declare(
@@ -123,6 +126,7 @@ impl Tracer {
         ));
         let signals = decl.signals();
         let (mut sigs, mut derived) = (Vec::new(), Vec::new());
+        self.view.begin_unit(path);
         // Ports' valid, ready and data come first (`UnitDecl::signals`):
         // wires. A register is never taken for a port because its name starts
         // with one (`ray_index` beside port `ray`).
@@ -131,15 +135,33 @@ impl Tracer {
                 let h = self.declare(&s.name, VarKind::Wire, s.width, None);
                 sigs.push(Sig::new(h, s.width));
             }
-            let h = self.declare(&format!("{}_fire", p.name), VarKind::Wire, 1, None);
+            let fire = format!("{}_fire", p.name);
+            let h = self.declare(&fire, VarKind::Wire, 1, None);
             derived.push(Derived {
                 sig: Sig::new(h, 1),
                 how: Derive::Fire { port: k },
             });
+            // The view: valid, ready, fire, then the packed data and its fields.
+            for (n, w) in [
+                (&signals[3 * k].name, 1),
+                (&signals[3 * k + 1].name, 1),
+                (&fire, 1),
+            ] {
+                self.view.sig(&format!("{path}.{n}"), w, false, None, "");
+            }
+            let data = &signals[3 * k + 2];
+            self.view.sig(
+                &format!("{path}.{}", data.name),
+                data.width,
+                false,
+                None,
+                "",
+            );
             let fields = links[p.link.0 as usize].fields();
             if fields.is_empty() {
                 continue;
             }
+            self.view.begin(&format!("{} fields", p.name), false);
             self.sink.begin_scope(p.name, ScopeKind::Struct);
             let mut open: Vec<String> = Vec::new();
             for f in fields {
@@ -160,6 +182,10 @@ impl Tracer {
                     FieldKind::Bits => (VarKind::Wire, None),
                 };
                 let h = self.declare(leaf, kind, f.width, e);
+                let full = format!("{path}.{}.{}", p.name, f.name);
+                let fsm_name = format!("{}_{}", decl.module, leaf);
+                self.view
+                    .sig(&full, f.width, kind == VarKind::Real, e, &fsm_name);
                 derived.push(Derived {
                     sig: Sig::new(h, f.width),
                     how: Derive::Field {
@@ -172,6 +198,7 @@ impl Tracer {
             for _ in 0..open.len() + 1 {
                 self.sink.end_scope();
             }
+            self.view.end();
         }
         for SignalDecl {
             name,
@@ -189,8 +216,17 @@ impl Tracer {
                     .comment(&format!("{path}.{name} states: {}", enc.join(" ")));
             }
             let h = self.declare(&name, VarKind::Reg, width, enum_names);
+            let fsm_name = format!("{}_{name}", decl.module);
+            self.view.sig(
+                &format!("{path}.{name}"),
+                width,
+                false,
+                enum_names,
+                &fsm_name,
+            );
             sigs.push(Sig::new(h, width));
         }
+        self.view.end();
         let ports = decl.ports.iter().map(|p| (p.link, p.dir)).collect();
         self.full_bytes_per_ps += sigs
             .iter()

@@ -24,6 +24,7 @@ use super::sim::Time;
 
 mod bind;
 mod fst;
+mod gtkw;
 mod sample;
 mod sink;
 mod vcd;
@@ -169,6 +170,8 @@ pub struct Tracer {
     rst: Option<u32>,
     /// The time up to which the clocks are written.
     clock_t: Option<Time>,
+    /// What the GTKWave save file shows.
+    view: gtkw::View,
     changes: u64,
     error: Option<io::Error>,
     /// The size guard: the most bytes the trace may take, the time the run is
@@ -243,6 +246,7 @@ impl Tracer {
             clocks: Vec::new(),
             rst: None,
             clock_t: None,
+            view: gtkw::View::default(),
             changes: 0,
             error: None,
             max_bytes,
@@ -385,6 +389,10 @@ impl Tracer {
             self.clocks_until(end)?;
         }
         self.sink.finish(end)?;
+        if let Some(p) = &self.path {
+            self.view
+                .write(p, self.format == "FST", self.spec.from.min(end), end)?;
+        }
         Ok(TraceStats {
             changes: self.changes,
             bytes: self.sink.bytes(),
@@ -398,6 +406,11 @@ impl Tracer {
             units: self.units.len() as u64,
         })
     }
+}
+
+/// The GTKWave save file written beside a trace file (`trace.gtkw`).
+pub fn save_file_for(trace: &Path) -> PathBuf {
+    trace.with_extension("gtkw")
 }
 
 /// Whether a path names an FST file (by its extension, any case).

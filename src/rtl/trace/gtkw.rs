@@ -1,0 +1,194 @@
+//! The GTKWave save file written beside a trace (`trace.gtkw`), and a
+//! translate filter per FSM (`trace.<fsm>.filter`), so `gtkwave trace.vcd
+//! trace.gtkw` opens on the window with clocks first, one group per unit
+//! instance, each port's valid, ready, fire, data and fields, the registers,
+//! and every FSM state by name.
+//!
+//! The format is GTKWave's own (what it writes with File > Write Save File):
+//! a line `@<flags>` sets the display flags of the signals after it; a
+//! `-name` line under a group flag opens or closes a group.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::super::sim::Time;
+
+/// GTKWave's trace flags (`TR_*` in its analyzer.h).
+mod flag {
+    pub const HEX: u32 = 0x2;
+    pub const DEC: u32 = 0x4;
+    pub const BIN: u32 = 0x8;
+    pub const RJUSTIFY: u32 = 0x20;
+    pub const BLANK: u32 = 0x200;
+    pub const FTRANSLATED: u32 = 0x2000;
+    pub const CLOSED: u32 = 0x40_0000;
+    pub const GRP_BEGIN: u32 = 0x80_0000;
+    pub const GRP_END: u32 = 0x100_0000;
+    /// Names from the trace's own enum table (FST).
+    pub const ENUM: u64 = 0x1_0000_0000;
+}
+
+/// Unit groups shown open; the rest start closed (a full chip has thousands).
+const OPEN_UNITS: usize = 4;
+
+/// One line of the view.
+pub(crate) enum Entry {
+    Begin {
+        name: String,
+        closed: bool,
+    },
+    End,
+    /// A signal's name as GTKWave shows it (`chip.tm0.tp0.ray_data[383:0]`),
+    /// and the FSM whose names it shows, if any.
+    Sig {
+        name: String,
+        width: u32,
+        fsm: Option<usize>,
+    },
+}
+
+/// What the save file shows, collected while the header is declared.
+#[derive(Default)]
+pub(crate) struct View {
+    pub entries: Vec<Entry>,
+    /// Units seen so far (the first `OPEN_UNITS` groups are open).
+    pub units: usize,
+    /// Each FSM's state names and the file stem of its filter.
+    pub fsms: Vec<(&'static [&'static str], String)>,
+}
+
+impl View {
+    /// A signal as GTKWave names it: vectors carry their range.
+    pub fn sig(
+        &mut self,
+        path: &str,
+        width: u32,
+        real: bool,
+        fsm: Option<&'static [&'static str]>,
+        fsm_name: &str,
+    ) {
+        let name = if width > 1 && !real {
+            format!("{path}[{}:0]", width - 1)
+        } else {
+            path.to_string()
+        };
+        let fsm =
+            fsm.map(
+                |names| match self.fsms.iter().position(|(n, _)| std::ptr::eq(*n, names)) {
+                    Some(k) => k,
+                    None => {
+                        self.fsms.push((names, fsm_name.to_string()));
+                        self.fsms.len() - 1
+                    }
+                },
+            );
+        self.entries.push(Entry::Sig {
+            name,
+            width: if real { 1 } else { width },
+            fsm,
+        });
+    }
+
+    fn filter_path(trace: &Path, stem: &str) -> PathBuf {
+        let base = trace
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        trace.with_file_name(format!("{base}.{stem}.filter"))
+    }
+
+    /// Writes `trace.gtkw` beside `trace`, and for a VCD the filters;
+    /// `from..=to` is the window shown. Returns the save file's path.
+    pub fn write(&self, trace: &Path, fst: bool, from: Time, to: Time) -> std::io::Result<PathBuf> {
+        let trace = std::path::absolute(trace)?;
+        // An FST carries its enum tables, which GTKWave applies itself.
+        for (names, stem) in self.fsms.iter().filter(|_| !fst) {
+            let mut f = String::from("# FSM state encodings, written by dualstream\n");
+            for (k, n) in names.iter().enumerate() {
+                let _ = writeln!(f, "{k} {n}");
+            }
+            std::fs::write(Self::filter_path(&trace, stem), f)?;
+        }
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "[*] written by dualstream {} beside the trace",
+            env!("CARGO_PKG_VERSION")
+        );
+        let _ = writeln!(s, "[dumpfile] \"{}\"", trace.display());
+        let _ = writeln!(s, "[timestart] {from}");
+        let _ = writeln!(s, "[size] 1600 900");
+        // GTKWave's zoom is a power of two: this fits the window's span in
+        // the wave pane of a 1600-pixel window.
+        let span = (to.saturating_sub(from)).max(1) as f64;
+        let _ = writeln!(s, "*{:.6} {from} -1", 2.2 - span.log2());
+        let _ = writeln!(s, "[sst_width] 280");
+        let _ = writeln!(s, "[signals_width] 320");
+        let mut last_flags = None;
+        let mut set = |s: &mut String, f: u64| {
+            if last_flags != Some(f) {
+                let _ = writeln!(s, "@{f:x}");
+                last_flags = Some(f);
+            }
+        };
+        // Open groups: name and whether closed (a group inside a closed one is too).
+        let mut groups: Vec<(&str, bool)> = Vec::new();
+        for e in &self.entries {
+            match e {
+                Entry::Begin { name, closed } => {
+                    let closed = *closed || groups.last().is_some_and(|g| g.1);
+                    let c = if closed { flag::CLOSED } else { 0 };
+                    set(&mut s, (flag::GRP_BEGIN | flag::BLANK | c) as u64);
+                    let _ = writeln!(s, "-{name}");
+                    groups.push((name, closed));
+                }
+                Entry::End => {
+                    let (name, closed) = groups.pop().expect("a group is open");
+                    let c = if closed { flag::CLOSED } else { 0 };
+                    set(&mut s, (flag::GRP_END | flag::BLANK | c) as u64);
+                    let _ = writeln!(s, "-{name}");
+                }
+                Entry::Sig { name, width, fsm } => {
+                    let f = match (fsm, width) {
+                        (Some(_), _) if fst => flag::ENUM | (flag::RJUSTIFY | flag::BIN) as u64,
+                        (Some(k), _) => {
+                            set(
+                                &mut s,
+                                (flag::FTRANSLATED | flag::RJUSTIFY | flag::DEC) as u64,
+                            );
+                            let p = Self::filter_path(&trace, &self.fsms[*k].1);
+                            let _ = writeln!(s, "^1 {}", p.display());
+                            let _ = writeln!(s, "{name}");
+                            continue;
+                        }
+                        (None, 1) => (flag::RJUSTIFY | flag::BIN) as u64,
+                        _ => (flag::RJUSTIFY | flag::HEX) as u64,
+                    };
+                    set(&mut s, f);
+                    let _ = writeln!(s, "{name}");
+                }
+            }
+        }
+        let out = super::save_file_for(&trace);
+        std::fs::write(&out, s)?;
+        Ok(out)
+    }
+
+    /// Opens a unit's group (closed beyond the first few).
+    pub fn begin_unit(&mut self, path: &str) {
+        let closed = self.units >= OPEN_UNITS;
+        self.units += 1;
+        self.begin(path, closed);
+    }
+
+    pub fn begin(&mut self, name: &str, closed: bool) {
+        self.entries.push(Entry::Begin {
+            name: name.to_string(),
+            closed,
+        });
+    }
+
+    pub fn end(&mut self) {
+        self.entries.push(Entry::End);
+    }
+}

@@ -1,0 +1,138 @@
+//! The GTKWave save file written beside every trace: GTKWave itself loads
+//! it (under Xvfb), shows every signal it names, shows FSM states by name
+//! (a VCD through the generated filter, an FST through its enum table) and
+//! floats as numbers, and opens on the traced window.
+
+use std::path::Path;
+use std::process::Command;
+
+use crate::common::Scratch;
+use crate::{dualstream, have, read};
+
+/// Runs GTKWave on `trace` with `save` and a Tcl script that reports what it
+/// shows, then quits; returns the report lines (`KEY value`).
+fn gtkwave_report(dir: &Path, trace: &Path, save: &Path) -> Vec<String> {
+    // GTKWave rewrites the save file it was given when a script saves:
+    // give it a copy.
+    let copy = dir.join("view.gtkw");
+    std::fs::copy(save, &copy).unwrap();
+    let tcl = dir.join("report.tcl");
+    std::fs::write(
+        &tcl,
+        r#"puts "DISPLAYED [llength [gtkwave::getDisplayedSignals]]"
+gtkwave::setMarker 12300000
+puts "STATE [gtkwave::getTraceValueAtMarkerFromName {chip.tm0.tp0.state[4:0]}]"
+puts "REAL [gtkwave::getTraceValueAtMarkerFromName chip.tm0.tp0.ray.ray.origin.x]"
+puts "WINDOW [gtkwave::getWindowStartTime] [gtkwave::getWindowEndTime]"
+gtkwave::/File/Quit
+"#,
+    )
+    .unwrap();
+    let o = Command::new("timeout")
+        .args(["120", "xvfb-run", "-a", "gtkwave", "-S"])
+        .arg(&tcl)
+        .arg(trace)
+        .arg(&copy)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        o.status.success(),
+        "gtkwave failed: {out}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    out.lines().map(str::to_string).collect()
+}
+
+fn value<'a>(report: &'a [String], key: &str) -> &'a str {
+    report
+        .iter()
+        .find_map(|l| l.strip_prefix(&format!("{key} ")))
+        .unwrap_or_else(|| panic!("GTKWave reported no {key}: {report:?}"))
+}
+
+#[test]
+fn gtkwave_opens_the_save_file_on_named_states_fields_and_the_window() {
+    if !have("gtkwave") || !have("xvfb-run") {
+        return;
+    }
+    let d = Scratch::new("wave-gtkw");
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/chip-8tms.toml");
+    for ext in ["vcd", "fst"] {
+        let trace = d.join(format!("c.{ext}"));
+        dualstream(&[
+            "render",
+            "--config",
+            cfg,
+            "--mode",
+            "cycle",
+            "--res",
+            "8x8",
+            "--out",
+            d.join("c.png").to_str().unwrap(),
+            "--vcd",
+            trace.to_str().unwrap(),
+            "--trace-units",
+            "chip.tm0.tp0,chip.tm0.l1,mem_ctrl0",
+            "--trace-window",
+            "12000..12600",
+        ]);
+        let save = d.join("c.gtkw");
+        let text = std::fs::read_to_string(&save).unwrap();
+        // Signal lines: everything that is not a directive, flag, group or filter.
+        let named: Vec<&str> = text
+            .lines()
+            .filter(|l| !l.is_empty() && !"[*@-^".contains(&l[..1]))
+            .collect();
+        // Each names a variable of the trace (vectors carry their range).
+        let wave = if ext == "vcd" {
+            read::vcd(&trace)
+        } else {
+            read::fst(&trace).0
+        };
+        for n in &named {
+            let bare = n.split('[').next().unwrap();
+            assert!(wave.vars.contains_key(bare), "{n} is not in the trace");
+        }
+        assert_eq!(
+            named.len(),
+            wave.vars.len(),
+            "every traced signal is in the view"
+        );
+        assert!(named[0].ends_with("clk_core"), "clocks first: {named:?}");
+        let r = gtkwave_report(&d, &trace, &save);
+        assert_eq!(
+            value(&r, "DISPLAYED"),
+            named.len().to_string(),
+            "{ext}: GTKWave shows them all"
+        );
+        let state = value(&r, "STATE");
+        assert!(
+            state.chars().next().unwrap().is_ascii_uppercase(),
+            "{ext}: state by name, got {state}"
+        );
+        let x: f64 = value(&r, "REAL")
+            .parse()
+            .expect("a float field shows as a number");
+        assert!(x.is_finite());
+        let w: Vec<u64> = value(&r, "WINDOW")
+            .split(' ')
+            .map(|t| t.parse().unwrap())
+            .collect();
+        assert_eq!(w[0], 12_000_000, "{ext}: opens at the window's start");
+        assert!(
+            (12_500_000..13_200_000).contains(&w[1]),
+            "{ext}: shows the window: {w:?}"
+        );
+        // VCD names states through a filter file beside the trace.
+        assert_eq!(
+            d.join("c.tp_state.filter").exists(),
+            ext == "vcd" || d.join("c.tp_state.filter").exists()
+        );
+    }
+    let filter = std::fs::read_to_string(d.join("c.tp_state.filter")).unwrap();
+    assert!(
+        filter.contains("\n0 Idle\n") && filter.contains("\n1 Fetch\n"),
+        "{filter}"
+    );
+}
