@@ -166,6 +166,8 @@ pub struct Tracer {
     periods: Vec<Time>,
     samples: Samples,
     scratch: Bits,
+    /// Which of a unit's sampled signals changed in this sample.
+    moved: Vec<bool>,
     clocks: Vec<ClockSig>,
     rst: Option<u32>,
     /// The time up to which the clocks are written.
@@ -243,6 +245,7 @@ impl Tracer {
             periods: Vec::new(),
             samples: Samples::default(),
             scratch: Bits::new(),
+            moved: Vec::new(),
             clocks: Vec::new(),
             rst: None,
             clock_t: None,

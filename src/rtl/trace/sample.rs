@@ -73,31 +73,36 @@ impl Tracer {
     /// Writes what changed of unit `ui`'s sampled and derived signals.
     fn write_unit(&mut self, ui: usize, t: Time) -> std::io::Result<()> {
         let unit = &mut self.units[ui];
+        let moved = &mut self.moved;
+        moved.clear();
         for (k, sig) in unit.sigs.iter_mut().enumerate() {
             let v = &self.samples.vals[k];
-            if v.is_empty() {
-                continue; // hold
-            }
-            if changed(sig, v) {
+            // An empty sample holds the last value.
+            let m = !v.is_empty() && changed(sig, v);
+            if m {
                 self.sink.bits(t, sig.h, v, sig.width)?;
                 self.changes += 1;
             }
+            moved.push(m);
         }
+        // A derived signal can only change with what it is derived from.
         for d in &mut unit.derived {
             let s = &mut self.scratch;
             let float = match d.how {
                 Derive::Fire { port } => {
+                    if !moved[3 * port] && !moved[3 * port + 1] {
+                        continue;
+                    }
                     let v = &self.samples.vals;
                     s.clear();
                     s.push((v[3 * port].bit(0) && v[3 * port + 1].bit(0)) as u64, 1);
                     false
                 }
                 Derive::Field { of, offset, float } => {
-                    let v = &self.samples.vals[of];
-                    if v.is_empty() {
-                        continue; // the packed vector holds; so do its fields
+                    if !moved[of] {
+                        continue;
                     }
-                    v.slice_into(offset, d.sig.width, s);
+                    self.samples.vals[of].slice_into(offset, d.sig.width, s);
                     float
                 }
             };
