@@ -485,11 +485,43 @@ pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
     let d = cfg.links.tm.delay;
     let (i, o) = (LinkId(0), LinkId(1));
     let mut v: Vec<UnitDecl> = vec![
-        units::box_pipe::BoxPipe::new(&cfg.box_pipe, d, In::new(i), Out::new(o)).decl_at_reset(),
-        units::tri_pipe::TriPipe::new(&cfg.tri_pipe, d, In::new(i), Out::new(o)).decl_at_reset(),
-        units::divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl_at_reset(),
-        units::mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o))
-            .decl_at_reset(),
+        units::box_pipe::BoxPipe::new(
+            &cfg.box_pipe,
+            d,
+            units::box_pipe::BoxPipePorts {
+                req: In::new(i),
+                resp: Out::new(o),
+            },
+        )
+        .decl_at_reset(),
+        units::tri_pipe::TriPipe::new(
+            &cfg.tri_pipe,
+            d,
+            units::tri_pipe::TriPipePorts {
+                req: In::new(i),
+                resp: Out::new(o),
+            },
+        )
+        .decl_at_reset(),
+        units::divider::Divider::new(
+            &cfg.divider,
+            d,
+            units::divider::DividerPorts {
+                req: In::new(i),
+                resp: Out::new(o),
+            },
+        )
+        .decl_at_reset(),
+        units::mem_ctrl::MemCtrl::new(
+            &cfg.mem,
+            cfg.clocks.dram_ps,
+            0,
+            units::mem_ctrl::MemCtrlPorts {
+                req: In::new(i),
+                resp: Out::new(o),
+            },
+        )
+        .decl_at_reset(),
     ];
     v.extend(units::tm_unit_decls(&cfg.tm_spec()));
     // The chip's global units as the chip instantiates them (one source: the
