@@ -341,10 +341,120 @@ macro_rules! unit {
     };
 }
 
+/// The registers whose value in cycle `cycle` (of the unit's clock) is not
+/// their declared reset (`unit.name: holds now vs reset`, Verilog literals):
+/// none for a unit as constructed or just reset, so this shows a constructor
+/// that changes a register after building it, or a state whose `reset` does
+/// not return to what it was built as.
+pub fn reset_mismatches(u: &dyn Unit, cycle: u64) -> Vec<String> {
+    let d = u.decl_at_reset();
+    let mut now = Samples::default();
+    u.sample_state(cycle, &mut now);
+    let now = now.vals.into_iter().take(now.n);
+    let mut bad = Vec::new();
+    for (s, v) in d.state.iter().filter(|s| s.traced()).zip(now) {
+        if v != s.reset {
+            let held = super::decl::StateDecl {
+                reset: v,
+                ..s.clone()
+            };
+            bad.push(format!(
+                "{}.{}: holds {} vs reset {}",
+                d.module,
+                s.name,
+                held.reset_literal(),
+                s.reset_literal()
+            ));
+        }
+    }
+    bad
+}
+
 /// Downcast helper for testbenches that inspect a unit between steps.
 pub fn downcast_ref<U: Unit>(u: &dyn Unit) -> Option<&U> {
     (u as &dyn Any).downcast_ref::<U>()
 }
 pub fn downcast_mut<U: Unit>(u: &mut dyn Unit) -> Option<&mut U> {
     (u as &mut dyn Any).downcast_mut::<U>()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rtl::decl::{StateDecl, StateList};
+    use crate::rtl::model::{Behavioural, Model};
+    use crate::rtl::{LinkId, Out, Reg};
+
+    /// A behavioural state whose `reset` may disagree with how it was built.
+    #[derive(Clone, Default)]
+    pub struct Level {
+        v: u8,
+        reset_to: u8,
+    }
+    impl Behavioural for Level {
+        fn declare(&self, out: &mut StateList) {
+            out.items.push(StateDecl::reg("level", 8));
+        }
+        fn sample(&self, out: &mut Samples) {
+            out.slot().push(self.v as u64, 8);
+        }
+        fn reset(&mut self) {
+            self.v = self.reset_to;
+        }
+    }
+
+    crate::unit! {
+        /// A register and a behavioural state behind one port.
+        pub struct Probe : "probe" {
+            new(level: Level; ports: ProbePorts) {}
+            params { }
+            inputs { }
+            outputs { out: u8 }
+            state { count: Reg<u8> = 3, level: Model<Level> = level }
+            extra { }
+        }
+    }
+    impl Logic for Probe {
+        fn eval(&mut self, _ctx: &mut Ctx) -> Next {
+            Next::Idle
+        }
+    }
+
+    fn probe(level: Level) -> Probe {
+        Probe::new(
+            level,
+            ProbePorts {
+                out: Out::new(LinkId(0)),
+            },
+        )
+    }
+
+    #[test]
+    fn the_declaration_gives_each_reset_and_the_check_catches_a_mismatch() {
+        let good = Level { v: 0, reset_to: 0 };
+        let mut u = probe(good.clone());
+        let d = Declared::decl_at_reset(&u);
+        assert_eq!(d.state[0].reset_literal(), "8'h03", "the declared `= 3`");
+        assert!(reset_mismatches(&u, 0).is_empty());
+        // A register changed after construction: no longer what it resets to.
+        u.count.set(5);
+        u.commit_state();
+        assert_eq!(
+            reset_mismatches(&u, 0),
+            ["probe.count: holds 8'h05 vs reset 8'h03"]
+        );
+        assert_eq!(
+            Declared::decl_at_reset(&u),
+            d,
+            "the declared reset, not the value now"
+        );
+        u.reset_state();
+        assert!(reset_mismatches(&u, 0).is_empty());
+        // A behavioural state built otherwise than its `reset` leaves it.
+        let u = probe(Level { v: 0, reset_to: 9 });
+        assert_eq!(
+            reset_mismatches(&u, 0),
+            ["probe.level: holds '0 vs reset 8'h09"]
+        );
+    }
 }

@@ -21,10 +21,11 @@ pub mod tri_pipe;
 pub type Tag = u16;
 
 use crate::rtl::link::LinkId;
-use crate::rtl::{Declared, In, Out, UnitDecl};
+use crate::rtl::{In, Out, Unit};
 
-/// Declarations of the TM's own units: tp, l1, staging_buffer, tm_xbar.
-pub fn tm_unit_decls(cfg: &tm::TmSpec) -> Vec<UnitDecl> {
+/// The TM's own units (tp, l1, staging_buffer, tm_xbar) as constructed, on
+/// placeholder links: their declarations are the catalog's.
+pub fn tm_units(cfg: &tm::TmSpec) -> Vec<Box<dyn Unit>> {
     let n = cfg.tm.tps as usize;
     let np = cfg.tm.tri_pipes as usize;
     fn ins<T>(k: usize) -> Vec<In<T>> {
@@ -93,10 +94,5 @@ pub fn tm_unit_decls(cfg: &tm::TmSpec) -> Vec<UnitDecl> {
             tri_req: outs(np),
         },
     );
-    vec![
-        tp.decl_at_reset(),
-        l1.decl_at_reset(),
-        sb.decl_at_reset(),
-        xbar.decl_at_reset(),
-    ]
+    vec![Box::new(tp), Box::new(l1), Box::new(sb), Box::new(xbar)]
 }
