@@ -7,7 +7,7 @@ use crate::config::Config;
 use crate::geom::inverse_dir;
 use crate::rtl::PipeCfg;
 use crate::rtl::{In, Out};
-use crate::units::box_pipe::{BoxPipe, BoxReq, BoxResp, box_test};
+use crate::units::box_pipe::{BoxPipe, BoxPipePorts, BoxReq, BoxResp, box_test};
 use crate::util::rng::Rng;
 
 pub struct BoxKind;
@@ -43,7 +43,7 @@ impl PipeKind for BoxKind {
         c.box_pipe
     }
     fn build(cfg: &PipeCfg, out_delay: u32, req: In<BoxReq>, resp: Out<BoxResp>) -> BoxPipe {
-        BoxPipe::new(cfg, out_delay, req, resp)
+        BoxPipe::new(cfg, out_delay, BoxPipePorts { req, resp })
     }
     fn reference(r: &BoxReq) -> BoxResp {
         box_test(r)

@@ -6,7 +6,7 @@ use super::pipe_tb::PipeKind;
 use crate::config::Config;
 use crate::rtl::PipeCfg;
 use crate::rtl::{In, Out};
-use crate::units::divider::{DivReq, DivResp, Divider, div};
+use crate::units::divider::{DivReq, DivResp, Divider, DividerPorts, div};
 use crate::util::rng::Rng;
 
 pub struct DivKind;
@@ -20,7 +20,7 @@ impl PipeKind for DivKind {
         c.divider
     }
     fn build(cfg: &PipeCfg, out_delay: u32, req: In<DivReq>, resp: Out<DivResp>) -> Divider {
-        Divider::new(cfg, out_delay, req, resp)
+        Divider::new(cfg, out_delay, DividerPorts { req, resp })
     }
     fn reference(r: &DivReq) -> DivResp {
         div(r)

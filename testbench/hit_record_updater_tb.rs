@@ -28,8 +28,8 @@ use crate::rtl::{
     Ctx, Declared, In, Logic, Next, Out, Payload, PortDecl, PortDir, SharedBuf, Sim, Status,
     UnitDecl, UnitId, UnitStats,
 };
-use crate::units::hit_record_updater::HitRecordUpdater;
 use crate::units::hit_record_updater::HitUpdaterCfg;
+use crate::units::hit_record_updater::{HitRecordUpdater, HitRecordUpdaterPorts};
 use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::units::tp::HitUpdate;
 use crate::util::rng::Rng;
@@ -437,7 +437,15 @@ fn build(
     let dut = sim.add(
         "tb.hit_record_updater",
         clk,
-        HitRecordUpdater::new(&cfg.chip.hit_updater, HITS_BASE, hit_in, qo, ri),
+        HitRecordUpdater::new(
+            &cfg.chip.hit_updater,
+            HITS_BASE,
+            HitRecordUpdaterPorts {
+                hit: hit_in,
+                mem_req: qo,
+                mem_resp: ri,
+            },
+        ),
     );
     let mut mem = LineMem::new(
         qi,

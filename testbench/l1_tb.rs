@@ -20,7 +20,7 @@
 //! - C and D come back on consecutive cycles, long before port 0 is ready.
 
 use crate::rtl::{ClockId, LinkCfg, Sim, SimOptions, Status, TraceStats, Tracer, UnitId};
-use crate::units::l1::{L1, L1Req, L1Resp, Line};
+use crate::units::l1::{L1, L1Ports, L1Req, L1Resp, Line};
 use crate::units::tm::L1Cfg;
 
 use super::harness::{Driver, Sink};
@@ -170,7 +170,16 @@ fn fill_behind(
     let l1 = sim.add(
         "tb.l1",
         clk,
-        L1::new(&cfg, link.delay, req_i, resp_o, mq_o, mr_i),
+        L1::new(
+            &cfg,
+            link.delay,
+            L1Ports {
+                req: req_i,
+                resp: resp_o,
+                miss_req: mq_o,
+                miss_resp: mr_i,
+            },
+        ),
     );
     let drivers: Vec<UnitId> = req_o
         .into_iter()

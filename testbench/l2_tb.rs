@@ -29,7 +29,7 @@ use crate::contract::SparseMem;
 use crate::mem::StreamTag;
 use crate::rtl::{ClockId, SharedBuf, Sim, Status, UnitId};
 use crate::units::l1::Line;
-use crate::units::l2::{L2, L2Applied, L2Cfg, L2Flush};
+use crate::units::l2::{L2, L2Applied, L2Cfg, L2Flush, L2Ports};
 use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::util::rng::Rng;
 
@@ -224,7 +224,15 @@ fn build(
     }
     let flusher = sim.add("tb.flush", clk, Driver::new(fo));
     let flush_sink = sim.add("tb.flush_done", clk, Sink::new(fdi, 1.0, 0));
-    let mut unit = L2::new(&cfg.chip.l2, link.delay, req_i, resp_o, mqo, mri, fi, fdo);
+    let ports = L2Ports {
+        req: req_i,
+        resp: resp_o,
+        mem_req: mqo,
+        mem_resp: mri,
+        flush: fi,
+        flush_done: fdo,
+    };
+    let mut unit = L2::new(&cfg.chip.l2, link.delay, ports);
     unit.enable_log();
     let dut = sim.add("tb.l2", clk, unit);
     // One stand-in per lane (the faults go to lane 0's).

@@ -13,7 +13,7 @@ use crate::config::Config;
 use crate::mem::checker;
 use crate::mem::{AddrMap, Command, Loc, MemCfg, StreamTag};
 use crate::rtl::{LinkId, Sim, SimOptions, Tracer, UnitId};
-use crate::units::mem_ctrl::{MemCtrl, MemReq, MemResp};
+use crate::units::mem_ctrl::{MemCtrl, MemCtrlPorts, MemReq, MemResp};
 use crate::util::rng::Rng;
 
 use super::harness::{Driver, Sink};
@@ -46,7 +46,11 @@ impl MemTb {
         let (ro, ri) = sim.link::<MemReq>("mem.req", m.ctrl.req_link);
         let (po, pi) = sim.link::<MemResp>("mem.resp", m.ctrl.resp_link);
         let driver = sim.add("tb.driver", clk, Driver::new(ro));
-        let dut = sim.add("tb.mem_ctrl", clk, MemCtrl::new(&m, tck, 0, ri, po));
+        let dut = sim.add(
+            "tb.mem_ctrl",
+            clk,
+            MemCtrl::new(&m, tck, 0, MemCtrlPorts { req: ri, resp: po }),
+        );
         let sink = sim.add("tb.sink", clk, Sink::new(pi, ready_p, seed));
         sim.elaborate().map_err(|e| e.to_string())?;
         // After elaboration (its reset keeps the setting from then on).

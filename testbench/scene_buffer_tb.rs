@@ -28,7 +28,7 @@ use crate::rtl::{LinkId, SharedBuf, Sim, Status, UnitId, UnitStats};
 use crate::units::l1::{L1Req, L1Resp, Line};
 use crate::units::memory::MemLineResp;
 use crate::units::scene_buffer::SceneBufferCfg;
-use crate::units::scene_buffer::{SceneBuffer, SlotMap, fill_id};
+use crate::units::scene_buffer::{SceneBuffer, SceneBufferPorts, SlotMap, fill_id};
 use crate::util::rng::Rng;
 
 use super::harness::{Driver, Sink, attach_trace, counter, finish_trace};
@@ -277,10 +277,12 @@ fn build(
         SceneBuffer::new(
             &cfg.chip.scene_buffer,
             link.delay,
-            mi,
-            vec![fi],
-            reqs,
-            resps,
+            SceneBufferPorts {
+                slot_map: mi,
+                fill: vec![fi],
+                req: reqs,
+                resp: resps,
+            },
         ),
     );
     let mut sinks: Vec<UnitId> = Vec::new();

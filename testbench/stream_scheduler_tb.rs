@@ -33,7 +33,7 @@ use crate::rtl::{
 use crate::units::memory::{MemLineReq, MemLineResp};
 use crate::units::scene_buffer::SlotMap;
 use crate::units::staging_buffer::SbFill;
-use crate::units::stream_scheduler::{StreamScheduler, WaveStart};
+use crate::units::stream_scheduler::{StreamScheduler, StreamSchedulerPorts, WaveStart};
 use crate::units::tp::RayWrite;
 use crate::util::rng::Rng;
 
@@ -193,13 +193,14 @@ crate::unit! {
     /// from `cycle mod lanes`); each answer goes back on its request's lane (the
     /// memory answers in order).
     pub struct LaneMux : "tb_lane_mux" {
-        params { lanes_n: u32 => "LANES" }
+        new(; ports: LaneMuxPorts) {}
+        params { lanes_n: u32 = lane_req.len() as u32 => "LANES" }
         inputs { resp: MemLineResp }
         outputs { req: MemLineReq }
         in_arrays { lane_req: MemLineReq }
         out_arrays { lane_resp: MemLineResp }
         state { }
-        extra { order: VecDeque<usize> }
+        extra { order: VecDeque<usize> = VecDeque::new() }
     }
 }
 
@@ -436,27 +437,27 @@ fn build(
             &cfg.chip.scene_buffer,
             &prep.map,
             nseg,
-            ei,
-            si,
-            lr_i,
-            mo,
-            sco,
-            lq_o,
-            rw_in,
-            fill_out,
+            StreamSchedulerPorts {
+                emit: ei,
+                start: si,
+                mem_resp: lr_i,
+                slot_map: mo,
+                scene_req: sco,
+                mem_req: lq_o,
+                ray_write: rw_in,
+                fill: fill_out,
+            },
         ),
     );
     sim.add(
         "tb.lane_mux",
         clk,
-        LaneMux {
-            lanes_n: ray_lanes as u32,
+        LaneMux::new(LaneMuxPorts {
             resp: ri,
             req: qo,
-            lane_req: lq_i.into(),
-            lane_resp: lr_o.into(),
-            order: VecDeque::new(),
-        },
+            lane_req: lq_i,
+            lane_resp: lr_o,
+        }),
     );
     let memu = sim.add(
         "tb.mem",

@@ -6,7 +6,7 @@ use super::pipe_tb::PipeKind;
 use crate::config::Config;
 use crate::rtl::PipeCfg;
 use crate::rtl::{In, Out};
-use crate::units::tri_pipe::{TriPipe, TriReq, TriResp, tri_test};
+use crate::units::tri_pipe::{TriPipe, TriPipePorts, TriReq, TriResp, tri_test};
 use crate::util::rng::Rng;
 
 pub struct TriKind;
@@ -42,7 +42,7 @@ impl PipeKind for TriKind {
         c.tri_pipe
     }
     fn build(cfg: &PipeCfg, out_delay: u32, req: In<TriReq>, resp: Out<TriResp>) -> TriPipe {
-        TriPipe::new(cfg, out_delay, req, resp)
+        TriPipe::new(cfg, out_delay, TriPipePorts { req, resp })
     }
     fn reference(r: &TriReq) -> TriResp {
         tri_test(r)

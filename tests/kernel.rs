@@ -8,9 +8,9 @@ use dualstream::rtl::{
     TraceSpec, Tracer,
 };
 use dualstream::testbench::{Driver, Sink};
-use dualstream::units::box_pipe::{BoxPipe, BoxReq};
-use dualstream::units::divider::{DivReq, Divider};
-use dualstream::units::tri_pipe::{TriPipe, TriReq};
+use dualstream::units::box_pipe::{BoxPipe, BoxPipePorts, BoxReq};
+use dualstream::units::divider::{DivReq, Divider, DividerPorts};
+use dualstream::units::tri_pipe::{TriPipe, TriPipePorts, TriReq};
 use dualstream::util::rng::Rng;
 use glam::Vec3;
 
@@ -41,7 +41,7 @@ fn design(opts: SimOptions, seed: u64) -> Outcome {
         sim.add(
             &format!("chip.tm{tm}.box_pipe"),
             core,
-            BoxPipe::new(&cfg.box_pipe, link.delay, i, ro),
+            BoxPipe::new(&cfg.box_pipe, link.delay, BoxPipePorts { req: i, resp: ro }),
         );
         sim.add(
             &format!("chip.tm{tm}.box_sink"),
@@ -56,7 +56,7 @@ fn design(opts: SimOptions, seed: u64) -> Outcome {
             sim.add(
                 &format!("chip.tm{tm}.tri_pipe{k}"),
                 core,
-                TriPipe::new(&cfg.tri_pipe, link.delay, i, ro),
+                TriPipe::new(&cfg.tri_pipe, link.delay, TriPipePorts { req: i, resp: ro }),
             );
             sim.add(
                 &format!("chip.tm{tm}.tri_sink{k}"),
@@ -72,7 +72,7 @@ fn design(opts: SimOptions, seed: u64) -> Outcome {
         sim.add(
             &format!("chip.tm{tm}.divider"),
             core,
-            Divider::new(&cfg.divider, 2, i, ro),
+            Divider::new(&cfg.divider, 2, DividerPorts { req: i, resp: ro }),
         );
         sim.add(
             &format!("chip.tm{tm}.div_sink"),
@@ -221,11 +221,12 @@ fn order_and_sleeping_change_nothing() {
 dualstream::unit! {
     /// Pushes every cycle without looking at ready.
     pub struct Pusher : "pusher" {
+        new(change_payload: bool, drop_valid: bool; ports: PusherPorts) {}
         params { }
         inputs { }
         outputs { out: u32 }
-        state { n: Reg<u32> }
-        extra { change_payload: bool, drop_valid: bool }
+        state { n: Reg<u32> = 0 }
+        extra { change_payload: bool = change_payload, drop_valid: bool = drop_valid }
     }
 }
 
@@ -252,6 +253,7 @@ impl Logic for Pusher {
 dualstream::unit! {
     /// Never takes anything.
     pub struct Deaf : "deaf" {
+        new(; ports: DeafPorts) {}
         params { }
         inputs { inp: u32 }
         outputs { }
@@ -272,14 +274,9 @@ fn broken(change_payload: bool, drop_valid: bool) -> Result<RunEnd, SimError> {
     sim.add(
         "p",
         c,
-        Pusher {
-            out: o,
-            n: Reg::new(0),
-            change_payload,
-            drop_valid,
-        },
+        Pusher::new(change_payload, drop_valid, PusherPorts { out: o }),
     );
-    sim.add("d", c, Deaf { inp: i });
+    sim.add("d", c, Deaf::new(DeafPorts { inp: i }));
     sim.run(20_000)
 }
 
@@ -312,10 +309,11 @@ fn monitor_catches_valid_dropped_while_stalled() {
 dualstream::unit! {
     /// Counts every evaluation but claims to be idle: a sleep bug.
     pub struct Sleeper : "sleeper" {
+        new(; ports: SleeperPorts) {}
         params { }
         inputs { }
         outputs { }
-        state { count: Reg<u32> }
+        state { count: Reg<u32> = 0 }
         extra { }
     }
 }
@@ -338,7 +336,7 @@ fn shadow_evaluation_catches_a_sleep_bug() {
             auto_lanes: false,
         });
         let c = sim.clock("core", 1000).unwrap();
-        sim.add("s", c, Sleeper { count: Reg::new(0) });
+        sim.add("s", c, Sleeper::new(SleeperPorts {}));
         sim.run(50_000)
     };
     assert_eq!(
@@ -378,12 +376,7 @@ fn two_threads_change_nothing() {
 
 /// A well-behaved `Pusher` on `out`.
 fn pusher(out: Out<u32>) -> Pusher {
-    Pusher {
-        out,
-        n: Reg::new(0),
-        change_payload: false,
-        drop_valid: false,
-    }
+    Pusher::new(false, false, PusherPorts { out })
 }
 
 #[test]
@@ -392,7 +385,7 @@ fn netlist_errors_are_named() {
     let c = sim.clock("core", 1000).unwrap();
     let (o, i) = sim.link::<u32>("l", LinkCfg::default());
     let p = sim.add("p", c, pusher(o));
-    sim.add("d", c, Deaf { inp: i });
+    sim.add("d", c, Deaf::new(DeafPorts { inp: i }));
     assert!(
         sim.set_part(p, 3)
             .unwrap_err()
@@ -411,7 +404,7 @@ fn netlist_errors_are_named() {
     let c = sim.clock("core", 1000).unwrap();
     let (o, i) = sim.link::<u32>("zero", LinkCfg { depth: 1, delay: 0 });
     sim.add("p", c, pusher(o));
-    sim.add("d", c, Deaf { inp: i });
+    sim.add("d", c, Deaf::new(DeafPorts { inp: i }));
     let e = sim.run(1000).unwrap_err().to_string();
     assert!(e.contains("combinational"), "{e}");
 
@@ -421,11 +414,13 @@ fn netlist_errors_are_named() {
 dualstream::unit! {
     /// Sends its cycle number once per `every` cycles.
     pub struct Ticker : "ticker" {
+        /// `count` times.
+        new(every: u64, count: u64; ports: TickerPorts) {}
         params { }
         inputs { }
         outputs { out: u64 }
         state { }
-        extra { every: u64, left: u64 }
+        extra { every: u64 = every, left: u64 = count }
     }
 }
 impl Logic for Ticker {
@@ -450,15 +445,7 @@ fn clock_domains_share_one_time_base() {
     let dram = sim.clock("dram", 667).unwrap();
     let core = sim.clock("core", 1000).unwrap();
     let (o, i) = sim.link::<u64>("x", LinkCfg { depth: 4, delay: 2 });
-    sim.add(
-        "t",
-        dram,
-        Ticker {
-            out: o,
-            every: 3,
-            left: 5,
-        },
-    );
+    sim.add("t", dram, Ticker::new(3, 5, TickerPorts { out: o }));
     let s = sim.add("s", core, Sink::new(i, 1.0, 0));
     sim.run_to_idle(1_000_000).unwrap();
     let got = &sim.unit_ref::<Sink<u64>>(s).got;
@@ -479,7 +466,11 @@ fn stall_counters_integrate_absolute_time() {
     let (o, i) = sim.link::<BoxReq>("req", cfg.links.tm);
     let (ro, ri) = sim.link("resp", cfg.links.tm);
     let d = sim.add("drv", c, Driver::new(o));
-    let p = sim.add("box", c, BoxPipe::new(&cfg.box_pipe, 1, i, ro));
+    let p = sim.add(
+        "box",
+        c,
+        BoxPipe::new(&cfg.box_pipe, 1, BoxPipePorts { req: i, resp: ro }),
+    );
     sim.add("sink", c, Sink::new(ri, 1.0, 0));
     let r = BoxReq {
         origin: Vec3::ZERO,
@@ -510,7 +501,8 @@ fn stall_counters_integrate_absolute_time() {
 dualstream::unit! {
     /// Pushes when there is room on cycles chosen by a hash of the cycle and its seed.
     pub struct Burst : "burst" {
-        params { seed: u64 => "SEED" }
+        new(seed: u64; ports: BurstPorts) {}
+        params { seed: u64 = seed => "SEED" }
         inputs { }
         outputs { out: u32 }
         state { }
@@ -532,12 +524,13 @@ dualstream::unit! {
     /// An arbiter's view of a port array: `visible_mask` / `visible_words` against
     /// `has_input` port by port; pops a pseudo-random subset so links fill and drain.
     pub struct MaskCheck : "mask_check" {
+        new(; ports: MaskCheckPorts) {}
         params { }
         inputs { }
         outputs { }
         in_arrays { ins: u32 }
         state { }
-        extra { mismatches: u64, seen_bits: u64, widest: u32 }
+        extra { mismatches: u64 = 0, seen_bits: u64 = 0, widest: u32 = 0 }
     }
 }
 impl Logic for MaskCheck {
@@ -583,31 +576,20 @@ fn visible_masks_match_has_input() {
             sim.add(
                 &format!("b{k}"),
                 c,
-                Burst {
-                    seed: k as u64 * 77 + n as u64,
-                    out: o,
-                },
+                Burst::new(k as u64 * 77 + n as u64, BurstPorts { out: o }),
             );
             ins.push(i);
         }
         if reversed {
             ins.reverse();
         }
-        let ins: dualstream::rtl::PortArray<_> = ins.into();
-        assert_eq!(ins.consecutive_from().is_some(), !reversed || n == 1);
+        // The unit's port array, as `MaskCheck::new` makes it.
+        let arr: dualstream::rtl::PortArray<_> = ins.clone().into();
+        assert_eq!(arr.consecutive_from().is_some(), !reversed || n == 1);
         for k in 0..n {
-            assert_eq!(ins.at(k).id, ins[k].id);
+            assert_eq!(arr.at(k).id, arr[k].id);
         }
-        let id = sim.add(
-            "check",
-            c,
-            MaskCheck {
-                ins,
-                mismatches: 0,
-                seen_bits: 0,
-                widest: 0,
-            },
-        );
+        let id = sim.add("check", c, MaskCheck::new(MaskCheckPorts { ins }));
         sim.run(3_000_000).unwrap();
         let u = dualstream::rtl::unit::downcast_ref::<MaskCheck>(sim.unit(id)).unwrap();
         assert_eq!(u.mismatches, 0, "{n} ports, reversed {reversed}");
@@ -624,11 +606,12 @@ dualstream::unit! {
     /// next cycle on (`ahead`), or looking once more in the next cycle to say it
     /// waits, as a unit without `set_status_from_next` would.
     pub struct Asker : "asker" {
+        new(ahead: bool; ports: AskerPorts) {}
         params { }
         inputs { resp: u64 }
         outputs { req: u64 }
         state { }
-        extra { ahead: bool, sent: bool }
+        extra { ahead: bool = ahead, sent: bool = false }
     }
 }
 impl Logic for Asker {
@@ -659,6 +642,7 @@ impl Logic for Asker {
 dualstream::unit! {
     /// Answers every request as it arrives.
     pub struct Echo : "echo" {
+        new(; ports: EchoPorts) {}
         params { }
         inputs { inp: u64 }
         outputs { out: u64 }
@@ -699,14 +683,13 @@ fn a_status_from_the_next_cycle_counts_as_an_evaluation_then_would() {
             let a = sim.add(
                 &format!("asker{ahead}"),
                 c,
-                Asker {
-                    resp: ri,
-                    req: qo,
-                    ahead,
-                    sent: false,
-                },
+                Asker::new(ahead, AskerPorts { resp: ri, req: qo }),
             );
-            sim.add(&format!("echo{ahead}"), c, Echo { inp: qi, out: ro });
+            sim.add(
+                &format!("echo{ahead}"),
+                c,
+                Echo::new(EchoPorts { inp: qi, out: ro }),
+            );
             askers.push(a);
         }
         for cycle in 0..12u64 {

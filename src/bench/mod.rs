@@ -11,9 +11,9 @@ use glam::Vec3;
 use crate::config::Config;
 use crate::rtl::{ClockId, Sim, SimOptions, TraceSpec, Tracer};
 use crate::testbench::{LoadGen, Sink};
-use crate::units::box_pipe::{BoxPipe, BoxReq};
-use crate::units::divider::{DivReq, Divider};
-use crate::units::tri_pipe::{TriPipe, TriReq};
+use crate::units::box_pipe::{BoxPipe, BoxPipePorts, BoxReq};
+use crate::units::divider::{DivReq, Divider, DividerPorts};
+use crate::units::tri_pipe::{TriPipe, TriPipePorts, TriReq};
 use crate::util::rng::Rng;
 
 fn box_pool(rng: &mut Rng) -> Vec<BoxReq> {
@@ -80,7 +80,7 @@ pub fn build_tms(tms: u32, activity: f64, opts: SimOptions, cfg: &Config) -> (Si
         sim.add(
             &s("box_pipe"),
             clk,
-            BoxPipe::new(&cfg.box_pipe, l.delay, i, ro),
+            BoxPipe::new(&cfg.box_pipe, l.delay, BoxPipePorts { req: i, resp: ro }),
         );
         sim.add(&s("box_sink"), clk, Sink::new(ri, 1.0, 0));
         for k in 0..2 {
@@ -94,7 +94,7 @@ pub fn build_tms(tms: u32, activity: f64, opts: SimOptions, cfg: &Config) -> (Si
             sim.add(
                 &s(&format!("tri_pipe{k}")),
                 clk,
-                TriPipe::new(&cfg.tri_pipe, l.delay, i, ro),
+                TriPipe::new(&cfg.tri_pipe, l.delay, TriPipePorts { req: i, resp: ro }),
             );
             sim.add(&s(&format!("tri_sink{k}")), clk, Sink::new(ri, 1.0, 0));
         }
@@ -108,7 +108,7 @@ pub fn build_tms(tms: u32, activity: f64, opts: SimOptions, cfg: &Config) -> (Si
         sim.add(
             &s("divider"),
             clk,
-            Divider::new(&cfg.divider, l.delay, i, ro),
+            Divider::new(&cfg.divider, l.delay, DividerPorts { req: i, resp: ro }),
         );
         sim.add(&s("div_sink"), clk, Sink::new(ri, 1.0, 0));
     }

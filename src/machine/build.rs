@@ -8,15 +8,15 @@ use crate::mem::config::EnergyCfg;
 use crate::mem::energy::EnergyModel;
 use crate::mem::{AddrMap, MemReq, MemResp};
 use crate::rtl::{ClockId, In, Out, Sim, SimOptions};
-use crate::units::hit_record_updater::HitRecordUpdater;
+use crate::units::hit_record_updater::{HitRecordUpdater, HitRecordUpdaterPorts};
 use crate::units::l1::{L1Req, L1Resp};
-use crate::units::l2::{L2, L2Flush};
-use crate::units::mem_ctrl::MemCtrl;
-use crate::units::memory::{MemLineReq, MemLineResp, Memory};
-use crate::units::scene_buffer::{SceneBuffer, SlotMap};
+use crate::units::l2::{L2, L2Flush, L2Ports};
+use crate::units::mem_ctrl::{MemCtrl, MemCtrlPorts};
+use crate::units::memory::{MemLineReq, MemLineResp, Memory, MemoryPorts};
+use crate::units::scene_buffer::{SceneBuffer, SceneBufferPorts, SlotMap};
 use crate::units::shade::ShadeConsts;
 use crate::units::staging_buffer::SbFill;
-use crate::units::stream_scheduler::{StreamScheduler, WaveStart};
+use crate::units::stream_scheduler::{StreamScheduler, StreamSchedulerPorts, WaveStart};
 use crate::units::tm::{self, TmPorts, TmUnits};
 use crate::units::tp::{HitUpdate, RayWrite, ShadeRegs};
 
@@ -56,14 +56,16 @@ impl Chip {
                 &ch.scene_buffer,
                 map,
                 segments,
-                emit_i,
-                start_i,
-                mem.sched_resp,
-                map_o,
-                mem.scene_req,
-                mem.sched_req,
-                tml.ray_write,
-                tml.fill,
+                StreamSchedulerPorts {
+                    emit: emit_i,
+                    start: start_i,
+                    mem_resp: mem.sched_resp,
+                    slot_map: map_o,
+                    scene_req: mem.scene_req,
+                    mem_req: mem.sched_req,
+                    ray_write: tml.ray_write,
+                    fill: tml.fill,
+                },
             ),
         );
         let scene_buffer = sim.add(
@@ -72,10 +74,12 @@ impl Chip {
             SceneBuffer::new(
                 &ch.scene_buffer,
                 l.delay,
-                map_i,
-                mem.scene_fill,
-                tml.miss_req,
-                tml.miss_resp,
+                SceneBufferPorts {
+                    slot_map: map_i,
+                    fill: mem.scene_fill,
+                    req: tml.miss_req,
+                    resp: tml.miss_resp,
+                },
             ),
         );
         let hit_updater = sim.add(
@@ -84,9 +88,11 @@ impl Chip {
             HitRecordUpdater::new(
                 &ch.hit_updater,
                 map.hits,
-                tml.hit,
-                l2_side.hru_req,
-                l2_side.hru_resp,
+                HitRecordUpdaterPorts {
+                    hit: tml.hit,
+                    mem_req: l2_side.hru_req,
+                    mem_resp: l2_side.hru_resp,
+                },
             ),
         );
         let l2 = l2_side.unit.map(|u| sim.add("chip.l2", clock, u));
@@ -257,8 +263,12 @@ impl MemSide {
             &ch.memory,
             ch.links.delay,
             SparseMem::new(map.capacity),
-            self.req,
-            self.resp,
+            MemoryPorts {
+                req: self.req,
+                resp: self.resp,
+                ch_req: Vec::new(),
+                ch_resp: Vec::new(),
+            },
         )
     }
 }
@@ -392,7 +402,16 @@ impl L2Side {
         resps.append(&mut tml.gmem_resp);
         L2Side {
             unit: Some(L2::new(
-                &ch.l2, l.delay, reqs, resps, l2_mreq, l2_mresp, fi, fdo,
+                &ch.l2,
+                l.delay,
+                L2Ports {
+                    req: reqs,
+                    resp: resps,
+                    mem_req: l2_mreq,
+                    mem_resp: l2_mresp,
+                    flush: fi,
+                    flush_done: fdo,
+                },
             )),
             host: host.with_flush(fo, fdi),
             hru_req: ho,
@@ -427,7 +446,8 @@ fn add_dram(
     for c in 0..m.geometry.channels {
         let (qo, qi) = sim.link::<MemReq>(&format!("chip.dram_req{c}"), m.ctrl.req_link);
         let (ro, ri) = sim.link::<MemResp>(&format!("chip.dram_resp{c}"), m.ctrl.resp_link);
-        let mut u = MemCtrl::new(m, cfg.clocks.dram_ps, c, qi, ro);
+        let ports = MemCtrlPorts { req: qi, resp: ro };
+        let mut u = MemCtrl::new(m, cfg.clocks.dram_ps, c, ports);
         u.record_commands(ch.memory.check_timing);
         ctrls.push(sim.add(&format!("chip.mem_ctrl{c}"), dclk, u));
         ch_req.push(qo);

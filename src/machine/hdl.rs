@@ -14,7 +14,7 @@ use std::fmt::Write;
 use crate::config::Config;
 use crate::rtl::decl::PortDir;
 use crate::rtl::link::LinkId;
-use crate::rtl::{Declared, In, Out, SimOptions, UnitDecl, UnitId};
+use crate::rtl::{In, Out, SimOptions, Unit, UnitDecl, UnitId};
 use crate::units;
 
 use super::Chip;
@@ -480,18 +480,58 @@ pub fn catalog(cfg: &Config) -> Vec<UnitDecl> {
     catalog_checked(cfg).expect("a valid configuration")
 }
 
-/// [`catalog`], with an error naming what is wrong in `cfg`.
-pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
+/// The units the catalog declares as constructed on their own (the chip's
+/// global units come from the elaborated chip): the pipelines, a channel
+/// controller and the TM's units. Link ids are placeholders.
+fn standalone_units(cfg: &Config) -> Vec<Box<dyn Unit>> {
+    use units::{box_pipe, divider, mem_ctrl, tri_pipe};
     let d = cfg.links.tm.delay;
     let (i, o) = (LinkId(0), LinkId(1));
-    let mut v: Vec<UnitDecl> = vec![
-        units::box_pipe::BoxPipe::new(&cfg.box_pipe, d, In::new(i), Out::new(o)).decl_at_reset(),
-        units::tri_pipe::TriPipe::new(&cfg.tri_pipe, d, In::new(i), Out::new(o)).decl_at_reset(),
-        units::divider::Divider::new(&cfg.divider, d, In::new(i), Out::new(o)).decl_at_reset(),
-        units::mem_ctrl::MemCtrl::new(&cfg.mem, cfg.clocks.dram_ps, 0, In::new(i), Out::new(o))
-            .decl_at_reset(),
+    let mut v: Vec<Box<dyn Unit>> = vec![
+        Box::new(box_pipe::BoxPipe::new(
+            &cfg.box_pipe,
+            d,
+            box_pipe::BoxPipePorts {
+                req: In::new(i),
+                resp: Out::new(o),
+            },
+        )),
+        Box::new(tri_pipe::TriPipe::new(
+            &cfg.tri_pipe,
+            d,
+            tri_pipe::TriPipePorts {
+                req: In::new(i),
+                resp: Out::new(o),
+            },
+        )),
+        Box::new(divider::Divider::new(
+            &cfg.divider,
+            d,
+            divider::DividerPorts {
+                req: In::new(i),
+                resp: Out::new(o),
+            },
+        )),
+        Box::new(mem_ctrl::MemCtrl::new(
+            &cfg.mem,
+            cfg.clocks.dram_ps,
+            0,
+            mem_ctrl::MemCtrlPorts {
+                req: In::new(i),
+                resp: Out::new(o),
+            },
+        )),
     ];
-    v.extend(units::tm_unit_decls(&cfg.tm_spec()));
+    v.extend(units::tm_units(&cfg.tm_spec()));
+    v
+}
+
+/// [`catalog`], with an error naming what is wrong in `cfg`.
+pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
+    let mut v: Vec<UnitDecl> = standalone_units(cfg)
+        .iter()
+        .map(|u| u.decl_at_reset())
+        .collect();
     // The chip's global units as the chip instantiates them (one source: the
     // elaborated chip, so `hdl/chip.v` and these modules agree).
     for g in global_decls(cfg)? {
@@ -599,5 +639,43 @@ mod tests {
         let mut bad = cfg.clone();
         bad.chip.tms = 0;
         assert!(emit_chip(&bad).unwrap_err().contains("chip.tms"));
+    }
+
+    /// Every unit, as constructed for the catalog and as elaborated into the
+    /// chip (which resets it), holds the reset its declaration gives (the
+    /// Verilog's): with the L2 and GDDR5 channels, and without.
+    #[test]
+    fn every_unit_holds_its_declared_reset() {
+        let mut plain = Config::default();
+        plain.chip.l2.enabled = false;
+        plain.chip.memory.model = crate::units::memory::MemoryModel::Fixed;
+        let mut modules = std::collections::BTreeSet::new();
+        for cfg in [Config::default(), plain] {
+            let own = standalone_units(&cfg);
+            let chip = elaborate(&cfg).unwrap();
+            let in_chip = (0..chip.sim.unit_count()).map(|i| chip.sim.unit(UnitId(i as u32)));
+            for u in own.iter().map(|u| &**u).chain(in_chip) {
+                let bad = crate::rtl::unit::reset_mismatches(u, 0);
+                assert!(bad.is_empty(), "{bad:?}");
+                modules.insert(u.decl().module);
+            }
+        }
+        for m in [
+            "box_pipe",
+            "tri_pipe",
+            "divider",
+            "mem_ctrl",
+            "tp",
+            "l1",
+            "staging_buffer",
+            "tm_xbar",
+            "stream_scheduler",
+            "scene_buffer",
+            "hit_record_updater",
+            "l2",
+            "memory",
+        ] {
+            assert!(modules.contains(m), "{m} not checked");
+        }
     }
 }

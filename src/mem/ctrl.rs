@@ -568,6 +568,10 @@ impl ChannelCtrl {
 /// queue occupancies, modes, the command issued this cycle, and the queue and
 /// open-row memories (not traced).
 impl State for ChannelCtrl {
+    type Init = Self;
+    fn from_init(init: Self) -> Self {
+        init
+    }
     fn declare(&self, _name: &str, out: &mut StateList) {
         let (rb, wb, pb) = self.queue_bits();
         out.items.push(StateDecl::reg("rd_count", rb));
@@ -620,6 +624,10 @@ impl State for ChannelCtrl {
             .push(c.map_or(0, |c| c.row) as u64, self.row_bits);
         out.slot()
             .push(c.map_or(0, |c| c.column) as u64, self.col_bits);
+    }
+    /// Idle, as built (what `reset` rebuilds).
+    fn sample_reset(&self, out: &mut Samples) {
+        ChannelCtrl::new(&self.cfg, self.tck_ps, self.channel).sample(0, out);
     }
     fn commit(&mut self) {
         self.dirty = false;

@@ -45,12 +45,23 @@ impl<T: Behavioural> Model<T> {
     }
 }
 
-impl<T: Behavioural> State for Model<T> {
+/// A behavioural state is declared with its value as built
+/// (`st: Model<HruState> = HruState::default()`).
+impl<T: Behavioural + Clone> State for Model<T> {
+    type Init = T;
+    fn from_init(init: T) -> Self {
+        Model::new(init)
+    }
     fn declare(&self, _name: &str, out: &mut StateList) {
         self.v.declare(out);
     }
     fn sample(&self, _cycle: u64, out: &mut Samples) {
         self.v.sample(out);
+    }
+    fn sample_reset(&self, out: &mut Samples) {
+        let mut r = self.v.clone();
+        r.reset();
+        r.sample(out);
     }
     fn commit(&mut self) {
         self.dirty = false;

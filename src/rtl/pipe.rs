@@ -383,6 +383,10 @@ impl<T> LocalLink<T> {
 }
 
 impl<T: Payload> State for LocalLink<T> {
+    type Init = Self;
+    fn from_init(init: Self) -> Self {
+        init
+    }
     fn declare(&self, name: &str, out: &mut StateList) {
         out.items.push(StateDecl::reg(
             format!("{name}_count"),
@@ -408,6 +412,14 @@ impl<T: Payload> State for LocalLink<T> {
             None => d.clear(),
         }
     }
+    /// Empty, as built.
+    fn sample_reset(&self, out: &mut Samples) {
+        let cfg = LinkCfg {
+            depth: self.depth,
+            delay: self.delay as u32,
+        };
+        LocalLink::<T>::new(cfg).sample(0, out);
+    }
     fn commit(&mut self) {
         if self.popped {
             self.q.pop_front();
@@ -428,6 +440,10 @@ impl<T: Payload> State for LocalLink<T> {
 }
 
 impl<T: Payload> State for FixedPipe<T> {
+    type Init = Self;
+    fn from_init(init: Self) -> Self {
+        init
+    }
     /// Its registers mark nothing: the pipeline is committed at every edge.
     fn number(&mut self, _bit: u64) {
         self.frozen.number(0);
@@ -469,6 +485,10 @@ impl<T: Payload> State for FixedPipe<T> {
             (local - l).min(self.interval as u64)
         });
         out.slot().push(since, self.ii_bits());
+    }
+    /// Empty, as built (its interval counter saturated: ready to accept).
+    fn sample_reset(&self, out: &mut Samples) {
+        FixedPipe::<T>::new(self.stages, self.interval).sample(0, out);
     }
     fn commit(&mut self) {
         if self.pending_exit {

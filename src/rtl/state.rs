@@ -25,11 +25,21 @@ pub fn take_written() -> u64 {
 
 /// Behaviour shared by every piece of declared unit state.
 pub trait State {
+    /// What a `unit!` declaration writes after a field's `=`: a register's
+    /// reset value (`ray_index: Reg<u32> = 0`); any other state, the state as
+    /// built (`stack: Ram<StackEntry> = Ram::new(..)`).
+    type Init;
+    fn from_init(init: Self::Init) -> Self
+    where
+        Self: Sized;
     /// Adds this state's declarations, named after the field.
     fn declare(&self, name: &str, out: &mut StateList);
     /// Packs the traced signals, in the order `declare` listed them, as they are
     /// during the current cycle `cycle` (of the unit's clock).
     fn sample(&self, cycle: u64, out: &mut Samples);
+    /// [`State::sample`] as the state stands at reset (what [`State::reset`]
+    /// returns to): the values the Verilog's reset block gives.
+    fn sample_reset(&self, out: &mut Samples);
     /// Clock edge.
     fn commit(&mut self);
     /// Back to the reset value.
@@ -95,6 +105,10 @@ impl<T: Payload + Copy> Reg<T> {
 }
 
 impl<T: Payload> State for Reg<T> {
+    type Init = T;
+    fn from_init(init: T) -> Self {
+        Reg::new(init)
+    }
     fn declare(&self, name: &str, out: &mut StateList) {
         let mut d = StateDecl::reg(name, T::BITS);
         d.enum_names = T::enum_names();
@@ -102,6 +116,9 @@ impl<T: Payload> State for Reg<T> {
     }
     fn sample(&self, _cycle: u64, out: &mut Samples) {
         self.cur.pack(out.slot());
+    }
+    fn sample_reset(&self, out: &mut Samples) {
+        self.init.pack(out.slot());
     }
     #[inline]
     fn commit(&mut self) {
@@ -170,12 +187,17 @@ impl<T: Payload> Ram<T> {
 }
 
 impl<T: Payload> State for Ram<T> {
+    type Init = Self;
+    fn from_init(init: Self) -> Self {
+        init
+    }
     fn declare(&self, name: &str, out: &mut StateList) {
         let mut d = StateDecl::array(name, T::BITS, self.depth());
         d.reset = super::bits::packed(&self.init);
         out.items.push(d);
     }
     fn sample(&self, _cycle: u64, _out: &mut Samples) {}
+    fn sample_reset(&self, _out: &mut Samples) {}
     fn commit(&mut self) {
         for (a, v) in self.writes.drain(..) {
             self.data[a as usize] = v;

@@ -14,7 +14,7 @@ use glam::Vec3;
 use super::Tag;
 use crate::geom::{Aabb, ray_box};
 use crate::rtl::PipeCfg;
-use crate::rtl::{Ctx, FixedPipe, In, Logic, Next, Out};
+use crate::rtl::{Ctx, FixedPipe, Logic, Next};
 
 crate::payload_struct! {
     /// A box test request.
@@ -60,24 +60,16 @@ pub fn box_test(r: &BoxReq) -> BoxResp {
 crate::unit! {
     /// Ray-box intersection pipeline (one box per issue, slab test with inverse direction).
     pub struct BoxPipe : "box_pipe" {
-        params { latency: u32 => "LATENCY", interval: u32 => "II" }
+        /// `out_delay` is the delay of the `resp` link, which counts toward the latency.
+        new(cfg: &PipeCfg, out_delay: u32; ports: BoxPipePorts) {}
+        params {
+            latency: u32 = cfg.latency => "LATENCY",
+            interval: u32 = cfg.interval => "II"
+        }
         inputs { req: BoxReq }
         outputs { resp: BoxResp }
-        state { pipe: FixedPipe<BoxReq> }
+        state { pipe: FixedPipe<BoxReq> = FixedPipe::new(cfg.latency - out_delay, cfg.interval) }
         extra { }
-    }
-}
-
-impl BoxPipe {
-    /// `out_delay` is the delay of the `resp` link, which counts toward the latency.
-    pub fn new(cfg: &PipeCfg, out_delay: u32, req: In<BoxReq>, resp: Out<BoxResp>) -> Self {
-        BoxPipe {
-            latency: cfg.latency,
-            interval: cfg.interval,
-            req,
-            resp,
-            pipe: FixedPipe::new(cfg.latency - out_delay, cfg.interval),
-        }
     }
 }
 

@@ -7,7 +7,7 @@ use glam::Vec3;
 use super::Tag;
 use crate::geom::inverse_dir;
 use crate::rtl::PipeCfg;
-use crate::rtl::{Ctx, FixedPipe, In, Logic, Next, Out};
+use crate::rtl::{Ctx, FixedPipe, Logic, Next};
 
 crate::payload_struct! {
     /// A direction to invert.
@@ -36,24 +36,16 @@ pub fn div(r: &DivReq) -> DivResp {
 crate::unit! {
     /// Shared reciprocal unit: inverse ray direction, three divides per request.
     pub struct Divider : "divider" {
-        params { latency: u32 => "LATENCY", interval: u32 => "II" }
+        /// `out_delay` is the delay of the `resp` link, which counts toward the latency.
+        new(cfg: &PipeCfg, out_delay: u32; ports: DividerPorts) {}
+        params {
+            latency: u32 = cfg.latency => "LATENCY",
+            interval: u32 = cfg.interval => "II"
+        }
         inputs { req: DivReq }
         outputs { resp: DivResp }
-        state { pipe: FixedPipe<DivReq> }
+        state { pipe: FixedPipe<DivReq> = FixedPipe::new(cfg.latency - out_delay, cfg.interval) }
         extra { }
-    }
-}
-
-impl Divider {
-    /// `out_delay` is the delay of the `resp` link, which counts toward the latency.
-    pub fn new(cfg: &PipeCfg, out_delay: u32, req: In<DivReq>, resp: Out<DivResp>) -> Self {
-        Divider {
-            latency: cfg.latency,
-            interval: cfg.interval,
-            req,
-            resp,
-            pipe: FixedPipe::new(cfg.latency - out_delay, cfg.interval),
-        }
     }
 }
 

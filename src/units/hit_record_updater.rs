@@ -21,7 +21,7 @@ use crate::contract::{HIT_BYTES, HitRec, LINE_BYTES};
 use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
-use crate::rtl::{Ctx, In, Logic, Next, Out, Status, round_robin};
+use crate::rtl::{Ctx, Logic, Next, Status, round_robin};
 
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
@@ -104,59 +104,39 @@ impl Behavioural for HruState {
 crate::unit! {
     /// Hit record updater: merged atomic-min read-compare-writes of hit records.
     pub struct HitRecordUpdater : "hit_record_updater" {
-        params { tms: u32 => "TMS", queue_n: u32 => "QUEUE", in_flight_n: u32 => "IN_FLIGHT" }
+        /// `hits_base`: the hit-record region of the memory map.
+        new(cfg: &HitUpdaterCfg, hits_base: u64; ports: HitRecordUpdaterPorts) {
+            let tms = hit.len();
+        }
+        params {
+            tms: u32 = tms as u32 => "TMS",
+            queue_n: u32 = cfg.queue => "QUEUE",
+            in_flight_n: u32 = cfg.in_flight => "IN_FLIGHT"
+        }
         inputs { mem_resp: MemLineResp }
         outputs { mem_req: MemLineReq }
         in_arrays { hit: HitUpdate }
-        state { st: Model<HruState> }
+        state { st: Model<HruState> = HruState::default() }
         extra {
-            hits_base: u64,
-            updates: u64,
-            merged: u64,
-            reads: u64,
-            writes: u64,
-            hazard_waits: u64,
+            hits_base: u64 = hits_base,
+            updates: u64 = 0,
+            merged: u64 = 0,
+            reads: u64 = 0,
+            writes: u64 = 0,
+            hazard_waits: u64 = 0,
             // Scratch: the TMs with a visible update this cycle.
-            visible: Vec<u64>,
+            visible: Vec<u64> = Vec::new(),
             // Simulation only: the record index of each TM's head update once
             // read (`NO_HEAD` until then), forgotten when it is popped (only this
             // unit pops those links, so a head stays until then). With the queue
             // full every waiting TM's head is looked at each cycle for a merge;
             // with the index at hand that no longer loads 128 links.
-            head_index: Vec<u32>
+            head_index: Vec<u32> = vec![NO_HEAD; tms]
         }
     }
 }
 
 impl HitRecordUpdater {
-    /// `hits_base`: the hit-record region of the memory map.
-    pub fn new(
-        cfg: &HitUpdaterCfg,
-        hits_base: u64,
-        hit: Vec<In<HitUpdate>>,
-        mem_req: Out<MemLineReq>,
-        mem_resp: In<MemLineResp>,
-    ) -> Self {
-        let tms = hit.len();
-        HitRecordUpdater {
-            tms: tms as u32,
-            queue_n: cfg.queue,
-            in_flight_n: cfg.in_flight,
-            mem_resp,
-            mem_req,
-            hit: hit.into(),
-            st: Model::new(HruState::default()),
-            hits_base,
-            updates: 0,
-            merged: 0,
-            reads: 0,
-            writes: 0,
-            hazard_waits: 0,
-            visible: Vec::new(),
-            head_index: vec![NO_HEAD; tms],
-        }
-    }
-
     fn addr(&self, index: u32) -> u64 {
         self.hits_base + index as u64 * HIT_BYTES as u64
     }

@@ -12,7 +12,7 @@
 //! on `miss_resp` it is written to its slot and every waiting TP gets it at once.
 
 use crate::rtl::bits::{Bits, Payload};
-use crate::rtl::{Ctx, In, Logic, Next, Out, Ram, Status};
+use crate::rtl::{Ctx, Logic, Next, Ram, Status};
 use crate::util::{div, rem};
 
 use super::tm::L1Cfg;
@@ -91,26 +91,37 @@ crate::payload_struct! {
 crate::unit! {
     /// Per-TM L1: direct mapped, banked, DRAM-address tags, bounded miss registers.
     pub struct L1 : "l1" {
+        /// `out_delay`: the delay of the `resp` links (part of `hit_latency`).
+        new(cfg: &L1Cfg, out_delay: u32; ports: L1Ports) {
+            let lines = cfg.bytes / cfg.line_bytes;
+            let n = req.len() as u32;
+        }
         params {
-            bytes: u32 => "BYTES",
-            banks: u32 => "BANKS",
-            line_bytes: u32 => "LINE_BYTES",
-            hit_latency: u32 => "HIT_LATENCY",
-            mshr_count: u32 => "MSHRS"
+            bytes: u32 = cfg.bytes => "BYTES",
+            banks: u32 = cfg.banks => "BANKS",
+            line_bytes: u32 = cfg.line_bytes => "LINE_BYTES",
+            hit_latency: u32 = cfg.hit_latency => "HIT_LATENCY",
+            mshr_count: u32 = cfg.mshrs => "MSHRS"
         }
         inputs { miss_resp: L1Resp }
         outputs { miss_req: L1Req }
         in_arrays { req: L1Req }
         out_arrays { resp: L1Resp }
         state {
-            tags: Ram<u64>,
-            data: Ram<Line>,
-            mshr: Ram<Mshr>,
-            pending: Ram<Pending>,
-            pending_line: Ram<Line>,
-            next_seq: crate::rtl::Reg<u32>
+            // Tag = line address + 1; 0 is an invalid slot.
+            tags: Ram<u64> = Ram::new(lines, 1, 0),
+            data: Ram<Line> = Ram::new(lines, 1, Line::default()),
+            mshr: Ram<Mshr> = Ram::new(cfg.mshrs, cfg.mshrs, Mshr::default()),
+            pending: Ram<Pending> = Ram::new(n, n, Pending::default()),
+            pending_line: Ram<Line> = Ram::new(n, n, Line::default()),
+            next_seq: crate::rtl::Reg<u32> = 0
         }
-        extra { out_delay: u32, stats: L1Stats, log: Option<Vec<(u16, u64)>>, scratch: L1Scratch }
+        extra {
+            out_delay: u32 = out_delay,
+            stats: L1Stats = L1Stats::default(),
+            log: Option<Vec<(u16, u64)>> = None,
+            scratch: L1Scratch = L1Scratch::default()
+        }
     }
 }
 
@@ -155,40 +166,6 @@ pub struct L1Stats {
 }
 
 impl L1 {
-    pub fn new(
-        cfg: &L1Cfg,
-        out_delay: u32,
-        req: Vec<In<L1Req>>,
-        resp: Vec<Out<L1Resp>>,
-        miss_req: Out<L1Req>,
-        miss_resp: In<L1Resp>,
-    ) -> Self {
-        let lines = cfg.bytes / cfg.line_bytes;
-        let n = req.len() as u32;
-        L1 {
-            bytes: cfg.bytes,
-            banks: cfg.banks,
-            line_bytes: cfg.line_bytes,
-            hit_latency: cfg.hit_latency,
-            mshr_count: cfg.mshrs,
-            miss_resp,
-            miss_req,
-            req: req.into(),
-            resp: resp.into(),
-            // Tag = line address + 1; 0 is an invalid slot.
-            tags: Ram::new(lines, 1, 0),
-            data: Ram::new(lines, 1, Line::default()),
-            mshr: Ram::new(cfg.mshrs, cfg.mshrs, Mshr::default()),
-            pending: Ram::new(n, n, Pending::default()),
-            pending_line: Ram::new(n, n, Line::default()),
-            next_seq: crate::rtl::Reg::new(0),
-            out_delay,
-            stats: L1Stats::default(),
-            log: None,
-            scratch: L1Scratch::default(),
-        }
-    }
-
     /// Records every accepted request as (port, address) (tests read the order).
     pub fn enable_log(&mut self) {
         self.log = Some(Vec::new());

@@ -49,7 +49,7 @@ use std::collections::VecDeque;
 
 use crate::mem::StreamTag;
 use crate::rtl::model::Model;
-use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
+use crate::rtl::{Ctx, Logic, Next, Status};
 use crate::util::{div, rem};
 
 use super::l1::Line;
@@ -103,31 +103,56 @@ pub struct L2Stats {
 crate::unit! {
     /// L2: banked set-associative write-back cache between line clients and the memory unit.
     pub struct L2 : "l2" {
+        /// `req[k]`/`resp[k]`: client k; `mem_req[j]`/`mem_resp[j]`: memory lane j
+        /// (`cfg.mem_lines_per_cycle` of them); `out_delay`: the response links' delay
+        /// (part of `hit_latency`).
+        new(cfg: &L2Cfg, out_delay: u32; ports: L2Ports) {
+            assert_eq!(req.len(), resp.len(), "one response port per client");
+            assert_eq!(
+                mem_req.len(),
+                cfg.mem_lines_per_cycle as usize,
+                "one memory request port per lane (chip.l2.mem_lines_per_cycle)"
+            );
+            assert_eq!(mem_req.len(), mem_resp.len(), "one answer port per lane");
+            let lines = (cfg.bytes / cfg.line_bytes) as usize;
+            let n = req.len();
+        }
         params {
-            bytes: u32 => "BYTES",
-            banks: u32 => "BANKS",
-            ways: u32 => "WAYS",
-            line_bytes: u32 => "LINE_BYTES",
-            hit_latency: u32 => "HIT_LATENCY",
-            mshr_count: u32 => "MSHRS",
-            targets: u32 => "TARGETS",
-            writebacks: u32 => "WRITEBACKS",
-            port_queue: u32 => "PORT_QUEUE",
-            mem_lanes: u32 => "MEM_LANES",
-            bank_hash: u32 => "BANK_HASH",
-            combine_reads: u32 => "COMBINE_READS"
+            bytes: u32 = cfg.bytes => "BYTES",
+            banks: u32 = cfg.banks => "BANKS",
+            ways: u32 = cfg.ways => "WAYS",
+            line_bytes: u32 = cfg.line_bytes => "LINE_BYTES",
+            hit_latency: u32 = cfg.hit_latency => "HIT_LATENCY",
+            mshr_count: u32 = cfg.mshrs => "MSHRS",
+            targets: u32 = cfg.targets => "TARGETS",
+            writebacks: u32 = cfg.writebacks => "WRITEBACKS",
+            port_queue: u32 = cfg.port_queue => "PORT_QUEUE",
+            mem_lanes: u32 = cfg.mem_lines_per_cycle => "MEM_LANES",
+            bank_hash: u32 = cfg.bank_hash as u32 => "BANK_HASH",
+            combine_reads: u32 = cfg.combine_reads as u32 => "COMBINE_READS"
         }
         inputs { flush: L2Flush }
         outputs { flush_done: L2Flush }
         in_arrays { req: MemLineReq, mem_resp: MemLineResp }
         out_arrays { resp: MemLineResp, mem_req: MemLineReq }
-        state { st: Model<L2State> }
+        state {
+            st: Model<L2State> = L2State {
+                tags: vec![L2Tag::default(); lines],
+                data: vec![Line::default(); lines],
+                mshrs: vec![None; cfg.mshrs as usize],
+                mshr_free: free_bits(cfg.mshrs as usize),
+                resp_q: vec![VecDeque::new(); n],
+                answering: vec![0; n.div_ceil(64)],
+                outstanding: vec![0; n],
+                ..L2State::default()
+            }
+        }
         extra {
-            out_delay: u32,
-            stats: L2Stats,
-            log: Option<Vec<L2Applied>>,
-            bank_use: Vec<u64>,
-            visible: Vec<u64>
+            out_delay: u32 = out_delay,
+            stats: L2Stats = L2Stats::default(),
+            log: Option<Vec<L2Applied>> = None,
+            bank_use: Vec<u64> = Vec::new(),
+            visible: Vec<u64> = Vec::new()
         }
     }
 }
@@ -183,66 +208,6 @@ fn merge(line: &mut Line, r: &MemLineReq) {
 }
 
 impl L2 {
-    /// `req[k]`/`resp[k]`: client k; `mem_req[j]`/`mem_resp[j]`: memory lane j
-    /// (`cfg.mem_lines_per_cycle` of them); `out_delay`: the response links' delay
-    /// (part of `hit_latency`).
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        cfg: &L2Cfg,
-        out_delay: u32,
-        req: Vec<In<MemLineReq>>,
-        resp: Vec<Out<MemLineResp>>,
-        mem_req: Vec<Out<MemLineReq>>,
-        mem_resp: Vec<In<MemLineResp>>,
-        flush: In<L2Flush>,
-        flush_done: Out<L2Flush>,
-    ) -> Self {
-        assert_eq!(req.len(), resp.len(), "one response port per client");
-        assert_eq!(
-            mem_req.len(),
-            cfg.mem_lines_per_cycle as usize,
-            "one memory request port per lane (chip.l2.mem_lines_per_cycle)"
-        );
-        assert_eq!(mem_req.len(), mem_resp.len(), "one answer port per lane");
-        let lines = (cfg.bytes / cfg.line_bytes) as usize;
-        let n = req.len();
-        L2 {
-            bytes: cfg.bytes,
-            banks: cfg.banks,
-            ways: cfg.ways,
-            line_bytes: cfg.line_bytes,
-            hit_latency: cfg.hit_latency,
-            mshr_count: cfg.mshrs,
-            targets: cfg.targets,
-            writebacks: cfg.writebacks,
-            port_queue: cfg.port_queue,
-            mem_lanes: cfg.mem_lines_per_cycle,
-            bank_hash: cfg.bank_hash as u32,
-            combine_reads: cfg.combine_reads as u32,
-            mem_resp: mem_resp.into(),
-            flush,
-            mem_req: mem_req.into(),
-            flush_done,
-            req: req.into(),
-            resp: resp.into(),
-            st: Model::new(L2State {
-                tags: vec![L2Tag::default(); lines],
-                data: vec![Line::default(); lines],
-                mshrs: vec![None; cfg.mshrs as usize],
-                mshr_free: free_bits(cfg.mshrs as usize),
-                resp_q: vec![VecDeque::new(); n],
-                answering: vec![0; n.div_ceil(64)],
-                outstanding: vec![0; n],
-                ..L2State::default()
-            }),
-            out_delay,
-            stats: L2Stats::default(),
-            log: None,
-            bank_use: Vec::new(),
-            visible: Vec::new(),
-        }
-    }
-
     /// Records every access as applied (tests replay the order).
     pub fn enable_log(&mut self) {
         self.log = Some(Vec::new());

@@ -16,21 +16,28 @@ pub use crate::mem::{MemReq, MemResp, StreamTag};
 
 use crate::mem::config::CtrlPolicy;
 use crate::mem::{ChannelCtrl, MemCfg};
-use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
+use crate::rtl::{Ctx, Logic, Next, Status};
 
 crate::unit! {
     /// GDDR5 channel controller: FR-FCFS, open page, write drain, refresh.
     pub struct MemCtrl : "mem_ctrl" {
+        /// Controller of channel `channel` of `cfg` (validated), DRAM clock `tck_ps`;
+        /// `resp` must have the delay `cfg.ctrl.resp_link.delay`.
+        new(cfg: &MemCfg, tck_ps: u64, channel: u32; ports: MemCtrlPorts) {}
         params {
-            channel: u32 => "CHANNEL",
-            banks: u32 => "BANKS",
-            read_queue: u32 => "READ_QUEUE",
-            write_queue: u32 => "WRITE_QUEUE"
+            channel: u32 = channel => "CHANNEL",
+            banks: u32 = cfg.geometry.banks() => "BANKS",
+            read_queue: u32 = cfg.ctrl.read_queue => "READ_QUEUE",
+            write_queue: u32 = cfg.ctrl.write_queue => "WRITE_QUEUE"
         }
         inputs { req: MemReq }
         outputs { resp: MemResp }
-        state { ctrl: ChannelCtrl }
-        extra { resp_delay: u64, stall_poll: u64 }
+        state { ctrl: ChannelCtrl = ChannelCtrl::new(cfg, tck_ps, channel) }
+        extra {
+            resp_delay: u64 = cfg.ctrl.resp_link.delay as u64,
+            // CL + one burst: a read's latency.
+            stall_poll: u64 = (cfg.timing.cl + cfg.geometry.burst_cycles()).max(1) as u64
+        }
     }
 }
 
@@ -44,29 +51,6 @@ impl MemCtrl {
                 "mem.ctrl.policy = \"dramsim3\" (DRAMsim3's controller) runs only in trace replay (`dualstream dram`); the mem_ctrl unit schedules FR-FCFS: set mem.ctrl.policy = \"frfcfs\""
                     .into(),
             ),
-        }
-    }
-
-    /// Controller of channel `channel` of `cfg` (validated), DRAM clock `tck_ps`;
-    /// `resp` must have the delay `cfg.ctrl.resp_link.delay`.
-    pub fn new(
-        cfg: &MemCfg,
-        tck_ps: u64,
-        channel: u32,
-        req: In<MemReq>,
-        resp: Out<MemResp>,
-    ) -> Self {
-        MemCtrl {
-            channel,
-            banks: cfg.geometry.banks(),
-            read_queue: cfg.ctrl.read_queue,
-            write_queue: cfg.ctrl.write_queue,
-            req,
-            resp,
-            ctrl: ChannelCtrl::new(cfg, tck_ps, channel),
-            resp_delay: cfg.ctrl.resp_link.delay as u64,
-            // CL + one burst: a read's latency.
-            stall_poll: (cfg.timing.cl + cfg.geometry.burst_cycles()).max(1) as u64,
         }
     }
 }

@@ -190,62 +190,42 @@ impl Behavioural for MemPipe {
 crate::unit! {
     /// Memory unit: the DRAM image behind line request ports (fixed latency and bandwidth, or routed to the GDDR5 channel controllers).
     pub struct Memory : "memory" {
+        /// With the fixed timing model; `with_channels` routes it to the GDDR5
+        /// channel controllers (`ch_req`, `ch_resp`: empty until then).
+        new(cfg: &MemoryUnitCfg, out_delay: u32, image: SparseMem; ports: MemoryPorts) {
+            assert_eq!(req.len(), resp.len(), "one response port per request port");
+            let n = req.len();
+        }
         params {
-            ports_n: u32 => "PORTS",
-            latency: u32 => "LATENCY",
-            lines_per_cycle: u32 => "LINES_PER_CYCLE",
-            channels: u32 => "CHANNELS"
+            ports_n: u32 = n as u32 => "PORTS",
+            latency: u32 = cfg.latency => "LATENCY",
+            lines_per_cycle: u32 =
+                (cfg.bytes_per_cycle / LINE_BYTES as u32).max(1) => "LINES_PER_CYCLE",
+            channels: u32 = 0 => "CHANNELS"
         }
         inputs { }
         outputs { }
         in_arrays { req: MemLineReq, ch_resp: MemResp }
         out_arrays { resp: MemLineResp, ch_req: MemReq }
-        state { pipe: Model<MemPipe> }
+        state {
+            pipe: Model<MemPipe> = MemPipe {
+                ports: vec![VecDeque::new(); n],
+                ..MemPipe::default()
+            }
+        }
         extra {
-            out_delay: u32,
-            map: Option<AddrMap>,
-            image: SparseMem,
-            lines_read: [u64; StreamTag::COUNT],
-            lines_written: [u64; StreamTag::COUNT],
-            requests: u64,
-            responses: u64
+            out_delay: u32 = out_delay,
+            map: Option<AddrMap> = None,
+            image: SparseMem = image,
+            lines_read: [u64; StreamTag::COUNT] = [0; StreamTag::COUNT],
+            lines_written: [u64; StreamTag::COUNT] = [0; StreamTag::COUNT],
+            requests: u64 = 0,
+            responses: u64 = 0
         }
     }
 }
 
 impl Memory {
-    pub fn new(
-        cfg: &MemoryUnitCfg,
-        out_delay: u32,
-        image: SparseMem,
-        req: Vec<In<MemLineReq>>,
-        resp: Vec<Out<MemLineResp>>,
-    ) -> Self {
-        assert_eq!(req.len(), resp.len(), "one response port per request port");
-        let n = req.len();
-        Memory {
-            ports_n: n as u32,
-            latency: cfg.latency,
-            lines_per_cycle: (cfg.bytes_per_cycle / LINE_BYTES as u32).max(1),
-            channels: 0,
-            req: req.into(),
-            resp: resp.into(),
-            ch_resp: Vec::new().into(),
-            ch_req: Vec::new().into(),
-            pipe: Model::new(MemPipe {
-                ports: vec![VecDeque::new(); n],
-                ..MemPipe::default()
-            }),
-            out_delay,
-            map: None,
-            image,
-            lines_read: [0; StreamTag::COUNT],
-            lines_written: [0; StreamTag::COUNT],
-            requests: 0,
-            responses: 0,
-        }
-    }
-
     /// Timing model `gddr5`: route to the channel controllers through
     /// `ch_req[c]`/`ch_resp[c]` (channel `c` of `map`).
     pub fn with_channels(

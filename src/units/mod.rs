@@ -21,10 +21,11 @@ pub mod tri_pipe;
 pub type Tag = u16;
 
 use crate::rtl::link::LinkId;
-use crate::rtl::{Declared, In, Out, UnitDecl};
+use crate::rtl::{In, Out, Unit};
 
-/// Declarations of the TM's own units: tp, l1, staging_buffer, tm_xbar.
-pub fn tm_unit_decls(cfg: &tm::TmSpec) -> Vec<UnitDecl> {
+/// The TM's own units (tp, l1, staging_buffer, tm_xbar) as constructed, on
+/// placeholder links: their declarations are the catalog's.
+pub fn tm_units(cfg: &tm::TmSpec) -> Vec<Box<dyn Unit>> {
     let n = cfg.tm.tps as usize;
     let np = cfg.tm.tri_pipes as usize;
     fn ins<T>(k: usize) -> Vec<In<T>> {
@@ -37,7 +38,7 @@ pub fn tm_unit_decls(cfg: &tm::TmSpec) -> Vec<UnitDecl> {
     let tp = tp::Tp::new(
         cfg,
         0,
-        tp::TpLinks {
+        tp::TpPorts {
             ray: In::new(i),
             div_req: Out::new(o),
             div_resp: In::new(i),
@@ -56,46 +57,42 @@ pub fn tm_unit_decls(cfg: &tm::TmSpec) -> Vec<UnitDecl> {
     let l1 = l1::L1::new(
         &cfg.tm.l1,
         cfg.link.delay,
-        ins(n),
-        outs(n),
-        Out::new(o),
-        In::new(i),
+        l1::L1Ports {
+            req: ins(n),
+            resp: outs(n),
+            miss_req: Out::new(o),
+            miss_resp: In::new(i),
+        },
     );
-    let sb = staging_buffer::StagingBuffer::new(&cfg.tm, In::new(i), outs(n));
-    let (box_req_q, box_pipe, box_resp_q) = tm_xbar::box_path(cfg);
-    let xbar = tm_xbar::TmXbar {
-        tps: n as u32,
-        tri_pipes: np as u32,
-        box_latency: cfg.box_pipe.latency,
-        box_interval: cfg.box_pipe.interval,
-        div_resp: In::new(i),
-        div_req: Out::new(o),
-        ray_write: Out::new(o),
-        hit: Out::new(o),
-        gmem_resp: In::new(i),
-        gmem_req: Out::new(o),
-        tp_div_req: ins(n).into(),
-        tp_box_req: ins(n).into(),
-        tp_tri_req: ins(n).into(),
-        tp_ray_write: ins(n).into(),
-        tp_hit: ins(n).into(),
-        tp_gmem_req: ins(n).into(),
-        tri_resp: ins(np).into(),
-        tp_div_resp: outs(n).into(),
-        tp_box_resp: outs(n).into(),
-        tp_tri_resp: outs(n).into(),
-        tp_gmem_resp: outs(n).into(),
-        tri_req: outs(np).into(),
-        tri_outstanding: crate::rtl::Ram::new(np as u32, np as u32, 0),
-        box_req_q,
-        box_pipe,
-        box_resp_q,
-        stats: Default::default(),
-    };
-    vec![
-        tp.decl_at_reset(),
-        l1.decl_at_reset(),
-        sb.decl_at_reset(),
-        xbar.decl_at_reset(),
-    ]
+    let sb = staging_buffer::StagingBuffer::new(
+        &cfg.tm,
+        staging_buffer::StagingBufferPorts {
+            fill: In::new(i),
+            ray: outs(n),
+        },
+    );
+    let xbar = tm_xbar::TmXbar::new(
+        cfg,
+        tm_xbar::TmXbarPorts {
+            div_resp: In::new(i),
+            div_req: Out::new(o),
+            ray_write: Out::new(o),
+            hit: Out::new(o),
+            gmem_resp: In::new(i),
+            gmem_req: Out::new(o),
+            tp_div_req: ins(n),
+            tp_box_req: ins(n),
+            tp_tri_req: ins(n),
+            tp_ray_write: ins(n),
+            tp_hit: ins(n),
+            tp_gmem_req: ins(n),
+            tri_resp: ins(np),
+            tp_div_resp: outs(n),
+            tp_box_resp: outs(n),
+            tp_tri_resp: outs(n),
+            tp_gmem_resp: outs(n),
+            tri_req: outs(np),
+        },
+    );
+    vec![Box::new(tp), Box::new(l1), Box::new(sb), Box::new(xbar)]
 }

@@ -22,7 +22,7 @@ use std::collections::VecDeque;
 use crate::contract::LINE_BYTES;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
-use crate::rtl::{Ctx, In, Logic, Next, Out, Payload, Status};
+use crate::rtl::{Ctx, Logic, Next, Payload, Status};
 
 use super::l1::{L1Req, L1Resp, Line};
 use super::memory::MemLineResp;
@@ -128,73 +128,48 @@ impl Behavioural for SceneBufferState {
 crate::unit! {
     /// Scene buffer: segment slots streamed in by the scheduler, read by the L1s.
     pub struct SceneBuffer : "scene_buffer" {
+        new(cfg: &SceneBufferCfg, out_delay: u32; ports: SceneBufferPorts) {
+            let n = req.len();
+            let slot_lines = cfg.slot_bytes / LINE_BYTES as u32;
+            let slots = (0..cfg.slots())
+                .map(|_| Slot {
+                    valid: vec![false; slot_lines as usize],
+                    data: vec![Line::default(); slot_lines as usize],
+                    ..Slot::default()
+                })
+                .collect();
+        }
         params {
-            slots_n: u32 => "SLOTS",
-            slot_lines: u32 => "SLOT_LINES",
-            banks: u32 => "BANKS",
-            latency: u32 => "LATENCY",
-            tms: u32 => "TMS"
+            slots_n: u32 = cfg.slots() => "SLOTS",
+            slot_lines: u32 = slot_lines => "SLOT_LINES",
+            banks: u32 = cfg.banks => "BANKS",
+            latency: u32 = cfg.latency => "LATENCY",
+            tms: u32 = n as u32 => "TMS"
         }
         inputs { slot_map: SlotMap }
         outputs { }
         in_arrays { req: L1Req, fill: MemLineResp }
         out_arrays { resp: L1Resp }
-        state { st: Model<SceneBufferState> }
+        state {
+            st: Model<SceneBufferState> = SceneBufferState {
+                slots,
+                out: vec![VecDeque::new(); n],
+                wait_since: vec![None; n],
+            }
+        }
         extra {
-            out_delay: u32,
-            reads: u64,
-            fills: u64,
-            stale_fills: u64,
-            stalls: u64,
-            stall_cycles: u64,
-            bank_conflicts: u64
+            out_delay: u32 = out_delay,
+            reads: u64 = 0,
+            fills: u64 = 0,
+            stale_fills: u64 = 0,
+            stalls: u64 = 0,
+            stall_cycles: u64 = 0,
+            bank_conflicts: u64 = 0
         }
     }
 }
 
 impl SceneBuffer {
-    pub fn new(
-        cfg: &SceneBufferCfg,
-        out_delay: u32,
-        slot_map: In<SlotMap>,
-        fill: Vec<In<MemLineResp>>,
-        req: Vec<In<L1Req>>,
-        resp: Vec<Out<L1Resp>>,
-    ) -> Self {
-        let n = req.len();
-        let slot_lines = cfg.slot_bytes / LINE_BYTES as u32;
-        let slots = (0..cfg.slots())
-            .map(|_| Slot {
-                valid: vec![false; slot_lines as usize],
-                data: vec![Line::default(); slot_lines as usize],
-                ..Slot::default()
-            })
-            .collect();
-        SceneBuffer {
-            slots_n: cfg.slots(),
-            slot_lines,
-            banks: cfg.banks,
-            latency: cfg.latency,
-            tms: n as u32,
-            slot_map,
-            fill: fill.into(),
-            req: req.into(),
-            resp: resp.into(),
-            st: Model::new(SceneBufferState {
-                slots,
-                out: vec![VecDeque::new(); n],
-                wait_since: vec![None; n],
-            }),
-            out_delay,
-            reads: 0,
-            fills: 0,
-            stale_fills: 0,
-            stalls: 0,
-            stall_cycles: 0,
-            bank_conflicts: 0,
-        }
-    }
-
     /// (slot, line) holding `addr`, if mapped.
     fn find(&self, addr: u64) -> Option<(usize, u32)> {
         self.st.r().slots.iter().enumerate().find_map(|(k, s)| {

@@ -6,7 +6,7 @@
 //! one-entry ray link has room (so every free TP holds its next ray).
 
 use crate::contract::RayRec;
-use crate::rtl::{Ctx, In, Logic, Next, Out, Ram, Reg, Status};
+use crate::rtl::{Ctx, Logic, Next, Ram, Reg, Status};
 
 use super::tm::TmCfg;
 
@@ -43,22 +43,25 @@ crate::payload_struct! {
 crate::unit! {
     /// Double-buffered ray staging buffer: one half drains to the TPs while the other fills.
     pub struct StagingBuffer : "staging_buffer" {
-        params { half_rays: u32 => "HALF_RAYS", tps: u32 => "TPS" }
+        new(cfg: &TmCfg; ports: StagingBufferPorts) {
+            let half = cfg.half_rays();
+        }
+        params { half_rays: u32 = half => "HALF_RAYS", tps: u32 = ray.len() as u32 => "TPS" }
         inputs { fill: SbFill }
         outputs { }
         out_arrays { ray: SbRay }
         state {
-            rays: Ram<RayRec>,
-            drain_half: Reg<bool>,
-            count0: Reg<u16>,
-            count1: Reg<u16>,
-            sealed0: Reg<bool>,
-            sealed1: Reg<bool>,
-            hdr0: Reg<SbHeader>,
-            hdr1: Reg<SbHeader>,
-            read_idx: Reg<u16>
+            rays: Ram<RayRec> = Ram::new(2 * half, 1, NO_RAY),
+            drain_half: Reg<bool> = false,
+            count0: Reg<u16> = 0,
+            count1: Reg<u16> = 0,
+            sealed0: Reg<bool> = false,
+            sealed1: Reg<bool> = false,
+            hdr0: Reg<SbHeader> = SbHeader::default(),
+            hdr1: Reg<SbHeader> = SbHeader::default(),
+            read_idx: Reg<u16> = 0
         }
-        extra { rays_in: u64, rays_out: u64, swaps: u64 }
+        extra { rays_in: u64 = 0, rays_out: u64 = 0, swaps: u64 = 0 }
     }
 }
 
@@ -70,28 +73,6 @@ const NO_RAY: RayRec = RayRec {
 };
 
 impl StagingBuffer {
-    pub fn new(cfg: &TmCfg, fill: In<SbFill>, ray: Vec<Out<SbRay>>) -> Self {
-        let half = cfg.half_rays();
-        StagingBuffer {
-            half_rays: half,
-            tps: ray.len() as u32,
-            fill,
-            ray: ray.into(),
-            rays: Ram::new(2 * half, 1, NO_RAY),
-            drain_half: Reg::new(false),
-            count0: Reg::new(0),
-            count1: Reg::new(0),
-            sealed0: Reg::new(false),
-            sealed1: Reg::new(false),
-            hdr0: Reg::new(SbHeader::default()),
-            hdr1: Reg::new(SbHeader::default()),
-            read_idx: Reg::new(0),
-            rays_in: 0,
-            rays_out: 0,
-            swaps: 0,
-        }
-    }
-
     fn count(&self, h: bool) -> u16 {
         if h {
             self.count1.val()

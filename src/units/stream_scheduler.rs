@@ -92,7 +92,7 @@ use std::collections::BTreeMap;
 use super::scene_buffer::SceneBufferCfg;
 use crate::contract::{BUCKET_HEADER_BYTES, MemoryMap, RAY_BYTES, RayRec};
 use crate::rtl::model::Model;
-use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
+use crate::rtl::{Ctx, Logic, Next, Status};
 use serde::{Deserialize, Serialize};
 
 use super::memory::{MemLineReq, MemLineResp};
@@ -180,44 +180,68 @@ const K_QREC: u32 = 5;
 crate::unit! {
     /// Stream scheduler: working set, segment streams, ray queues, bucket distribution.
     pub struct StreamScheduler : "stream_scheduler" {
+        /// For `segments` segments of the scene laid out by `map`.
+        new(
+            cfg: &SchedulerCfg,
+            sb: &SceneBufferCfg,
+            map: &MemoryMap,
+            segments: usize;
+            ports: StreamSchedulerPorts
+        ) {
+            assert_eq!(
+                mem_req.len(),
+                mem_resp.len(),
+                "one memory response lane per request lane"
+            );
+            let per_chunk = map.row_bytes / map.bucket_bytes;
+            let chunks = map.bucket_count / per_chunk;
+            let tms = fill.len();
+        }
         params {
-            tms_n: u32 => "TMS",
-            streams_n: u32 => "STREAMS",
-            slots_n: u32 => "SLOTS",
-            dest_entries: u32 => "DEST_ENTRIES",
-            writes_per_cycle: u32 => "WRITES_PER_CYCLE",
-            bucket_buffers: u32 => "BUCKET_BUFFERS",
-            mem_queue: u32 => "MEM_QUEUE",
-            ray_lanes: u32 => "RAY_LINES_PER_CYCLE",
-            scene_lanes: u32 => "SCENE_LINES_PER_CYCLE"
+            tms_n: u32 = tms as u32 => "TMS",
+            streams_n: u32 = cfg.streams => "STREAMS",
+            slots_n: u32 = sb.slots() => "SLOTS",
+            dest_entries: u32 = cfg.dest_entries => "DEST_ENTRIES",
+            writes_per_cycle: u32 = cfg.ray_writes_per_cycle => "WRITES_PER_CYCLE",
+            bucket_buffers: u32 = cfg.bucket_buffers => "BUCKET_BUFFERS",
+            mem_queue: u32 = cfg.mem_queue => "MEM_QUEUE",
+            ray_lanes: u32 = mem_req.len() as u32 => "RAY_LINES_PER_CYCLE",
+            scene_lanes: u32 = scene_req.len() as u32 => "SCENE_LINES_PER_CYCLE"
         }
         inputs { emit: RayWrite, start: WaveStart }
         outputs { slot_map: SlotMap }
         in_arrays { ray_write: RayWrite, mem_resp: MemLineResp }
         out_arrays { fill: SbFill, mem_req: MemLineReq, scene_req: MemLineReq }
-        state { st: Model<SchedState> }
+        state {
+            st: Model<SchedState> = SchedState {
+                cap_dest: cfg.dest_entries,
+                cap_streams: cfg.streams,
+                ..SchedState::fresh(chunks, sb.slots() as usize, tms, cfg.bucket_reads as usize)
+            }
+        }
         extra {
-            map: MemoryMap,
-            rays_per_bucket: u32,
-            per_chunk: u64,
+            map: MemoryMap = map.clone(),
+            rays_per_bucket: u32 =
+                ((map.bucket_bytes - BUCKET_HEADER_BYTES as u64) / RAY_BYTES as u64) as u32,
+            per_chunk: u64 = per_chunk,
 
-            pub_enqueued: Vec<u64>,
-            pub_done: Vec<u64>,
-            last_shade_end: u64,
+            pub_enqueued: Vec<u64> = vec![0; segments],
+            pub_done: Vec<u64> = vec![0; segments],
+            last_shade_end: u64 = 0,
             // First pixel of the next shading pass (0 but in a sampling window,
             // `Chip::trace_window`): simulation control, not hardware.
-            shade_first: u32,
+            shade_first: u32 = 0,
             // Cycle the last end marker (a ray's or a shading item's) arrived:
             // the chip's last finished work, for the drain figure.
-            last_marker: u64,
-            root_log: Option<Vec<RayRec>>,
+            last_marker: u64 = 0,
+            root_log: Option<Vec<RayRec>> = None,
             // Admission and retirement of every segment pass (`--pass-log`): a
             // probe, not hardware. Admission cycles of the working set by segment.
-            pass_log: Option<(BTreeMap<u32, u64>, Vec<PassEvent>)>,
-            tm_rays: Vec<u64>,
-            stats: SchedStats,
+            pass_log: Option<(BTreeMap<u32, u64>, Vec<PassEvent>)> = None,
+            tm_rays: Vec<u64> = vec![0; tms],
+            stats: SchedStats = SchedStats::default(),
             // Scratch: the TMs with a visible ray write this cycle.
-            visible: Vec<u64>
+            visible: Vec<u64> = Vec::new()
         }
     }
 }
@@ -256,69 +280,6 @@ pub struct SchedStats {
 }
 
 impl StreamScheduler {
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        cfg: &SchedulerCfg,
-        sb: &SceneBufferCfg,
-        map: &MemoryMap,
-        segments: usize,
-        emit: In<RayWrite>,
-        start: In<WaveStart>,
-        mem_resp: Vec<In<MemLineResp>>,
-        slot_map: Out<SlotMap>,
-        scene_req: Vec<Out<MemLineReq>>,
-        mem_req: Vec<Out<MemLineReq>>,
-        ray_write: Vec<In<RayWrite>>,
-        fill: Vec<Out<SbFill>>,
-    ) -> Self {
-        assert_eq!(
-            mem_req.len(),
-            mem_resp.len(),
-            "one memory response lane per request lane"
-        );
-        let per_chunk = map.row_bytes / map.bucket_bytes;
-        let chunks = map.bucket_count / per_chunk;
-        let tms = fill.len();
-        StreamScheduler {
-            tms_n: tms as u32,
-            streams_n: cfg.streams,
-            slots_n: sb.slots(),
-            dest_entries: cfg.dest_entries,
-            writes_per_cycle: cfg.ray_writes_per_cycle,
-            bucket_buffers: cfg.bucket_buffers,
-            mem_queue: cfg.mem_queue,
-            ray_lanes: mem_req.len() as u32,
-            scene_lanes: scene_req.len() as u32,
-            emit,
-            start,
-            mem_resp: mem_resp.into(),
-            slot_map,
-            scene_req: scene_req.into(),
-            mem_req: mem_req.into(),
-            ray_write: ray_write.into(),
-            fill: fill.into(),
-            st: Model::new(SchedState {
-                cap_dest: cfg.dest_entries,
-                cap_streams: cfg.streams,
-                ..SchedState::fresh(chunks, sb.slots() as usize, tms, cfg.bucket_reads as usize)
-            }),
-            map: map.clone(),
-            rays_per_bucket: ((map.bucket_bytes - BUCKET_HEADER_BYTES as u64) / RAY_BYTES as u64)
-                as u32,
-            per_chunk,
-            pub_enqueued: vec![0; segments],
-            pub_done: vec![0; segments],
-            last_shade_end: 0,
-            shade_first: 0,
-            last_marker: 0,
-            root_log: None,
-            pass_log: None,
-            tm_rays: vec![0; tms],
-            stats: SchedStats::default(),
-            visible: Vec::new(),
-        }
-    }
-
     /// Nothing left to do (wavefront finished, every request answered).
     pub fn idle(&self) -> bool {
         let s = self.st.r();

@@ -21,13 +21,13 @@ use crate::rtl::PipeCfg;
 use crate::rtl::bits::{Bits, Field, Payload, field_path};
 use crate::rtl::{ClockId, In, LinkCfg, Out, Sim, UnitId};
 
-use super::divider::Divider;
-use super::l1::{L1, L1Req, L1Resp};
+use super::divider::{Divider, DividerPorts};
+use super::l1::{L1, L1Ports, L1Req, L1Resp};
 use super::memory::{MemLineReq, MemLineResp};
-use super::staging_buffer::{SbFill, StagingBuffer};
-use super::tm_xbar::TmXbar;
-use super::tp::{HitUpdate, RayWrite, Tp};
-use super::tri_pipe::TriPipe;
+use super::staging_buffer::{SbFill, StagingBuffer, StagingBufferPorts};
+use super::tm_xbar::{TmXbar, TmXbarPorts};
+use super::tp::{HitUpdate, RayWrite, Tp, TpPorts};
+use super::tri_pipe::{TriPipe, TriPipePorts};
 
 /// Everything a TM is built from: its own configuration and the timing of the
 /// pipelines it holds and of its internal links (the model configuration's
@@ -491,7 +491,7 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &TmSpec, path: &str, ports: TmP
         let tp = Tp::new(
             cfg,
             k as u16,
-            super::tp::TpLinks {
+            TpPorts {
                 ray: sb_i[k],
                 div_req: div_q_o[k],
                 div_resp: div_r_i[k],
@@ -512,7 +512,13 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &TmSpec, path: &str, ports: TmP
     let staging_buffer = sim.add(
         &p("staging_buffer"),
         clock,
-        StagingBuffer::new(&cfg.tm, ports.fill, sb_o),
+        StagingBuffer::new(
+            &cfg.tm,
+            StagingBufferPorts {
+                fill: ports.fill,
+                ray: sb_o,
+            },
+        ),
     );
     let l1 = sim.add(
         &p("l1"),
@@ -520,58 +526,60 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &TmSpec, path: &str, ports: TmP
         L1::new(
             &cfg.tm.l1,
             l.delay,
-            mem_q_i,
-            mem_r_o,
-            ports.miss_req,
-            ports.miss_resp,
+            L1Ports {
+                req: mem_q_i,
+                resp: mem_r_o,
+                miss_req: ports.miss_req,
+                miss_resp: ports.miss_resp,
+            },
         ),
     );
-    let (box_req_q, box_pipe, box_resp_q) = super::tm_xbar::box_path(cfg);
     let xbar = sim.add(
         &p("xbar"),
         clock,
-        TmXbar {
-            tps: n as u32,
-            tri_pipes: np as u32,
-            box_latency: cfg.box_pipe.latency,
-            box_interval: cfg.box_pipe.interval,
-            div_resp: dr_i,
-            div_req: dq_o,
-            ray_write: ports.ray_write,
-            hit: ports.hit,
-            gmem_req: ports.gmem_req,
-            gmem_resp: ports.gmem_resp,
-            tp_div_req: div_q_i.into(),
-            tp_box_req: box_q_i.into(),
-            tp_tri_req: tri_q_i.into(),
-            tp_ray_write: rw_i.into(),
-            tp_hit: hit_i.into(),
-            tp_gmem_req: gq_i.into(),
-            tri_resp: pr_i.into(),
-            tp_div_resp: div_r_o.into(),
-            tp_box_resp: box_r_o.into(),
-            tp_tri_resp: tri_r_o.into(),
-            tp_gmem_resp: gr_o.into(),
-            tri_req: pq_o.into(),
-            tri_outstanding: crate::rtl::Ram::new(np as u32, np as u32, 0u16),
-            box_req_q,
-            box_pipe,
-            box_resp_q,
-            stats: Default::default(),
-        },
+        TmXbar::new(
+            cfg,
+            TmXbarPorts {
+                div_resp: dr_i,
+                div_req: dq_o,
+                ray_write: ports.ray_write,
+                hit: ports.hit,
+                gmem_req: ports.gmem_req,
+                gmem_resp: ports.gmem_resp,
+                tp_div_req: div_q_i,
+                tp_box_req: box_q_i,
+                tp_tri_req: tri_q_i,
+                tp_ray_write: rw_i,
+                tp_hit: hit_i,
+                tp_gmem_req: gq_i,
+                tri_resp: pr_i,
+                tp_div_resp: div_r_o,
+                tp_box_resp: box_r_o,
+                tp_tri_resp: tri_r_o,
+                tp_gmem_resp: gr_o,
+                tri_req: pq_o,
+            },
+        ),
     );
     let mut tri_pipes = Vec::new();
-    for (k, (qi, ro)) in pq_i.into_iter().zip(pr_o).enumerate() {
+    for (k, (req, resp)) in pq_i.into_iter().zip(pr_o).enumerate() {
         tri_pipes.push(sim.add(
             &p(&format!("tri_pipe{k}")),
             clock,
-            TriPipe::new(&cfg.tri_pipe, l.delay, qi, ro),
+            TriPipe::new(&cfg.tri_pipe, l.delay, TriPipePorts { req, resp }),
         ));
     }
     let divider = sim.add(
         &p("divider"),
         clock,
-        Divider::new(&cfg.divider, l.delay, dq_i, dr_o),
+        Divider::new(
+            &cfg.divider,
+            l.delay,
+            DividerPorts {
+                req: dq_i,
+                resp: dr_o,
+            },
+        ),
     );
     TmUnits {
         tps,

@@ -26,11 +26,19 @@ use crate::rtl::{
 crate::unit! {
     /// TM crossbar: round-robin arbitration of the TPs onto the shared units and outputs.
     pub struct TmXbar : "tm_xbar" {
+        /// The ray-box pipeline it holds is built from `cfg`: its request FIFO,
+        /// the pipeline and its result FIFO (both FIFOs with the TM's link
+        /// timing). The pipeline's latency counts its result FIFO's delay, as a
+        /// separate unit's counts its output link's, so a test takes
+        /// `box_pipe.latency` from grant to routing.
+        new(cfg: &super::tm::TmSpec; ports: TmXbarPorts) {
+            let (l, np) = (cfg.link, tri_req.len() as u32);
+        }
         params {
-            tps: u32 => "TPS",
-            tri_pipes: u32 => "TRI_PIPES",
-            box_latency: u32 => "BOX_LATENCY",
-            box_interval: u32 => "BOX_II"
+            tps: u32 = tp_div_req.len() as u32 => "TPS",
+            tri_pipes: u32 = np => "TRI_PIPES",
+            box_latency: u32 = cfg.box_pipe.latency => "BOX_LATENCY",
+            box_interval: u32 = cfg.box_pipe.interval => "BOX_II"
         }
         inputs { div_resp: DivResp, gmem_resp: MemLineResp }
         outputs {
@@ -56,28 +64,14 @@ crate::unit! {
             tri_req: TriReq
         }
         state {
-            tri_outstanding: Ram<u16>,
-            box_req_q: LocalLink<BoxReq>,
-            box_pipe: FixedPipe<BoxReq>,
-            box_resp_q: LocalLink<BoxResp>
+            tri_outstanding: Ram<u16> = Ram::new(np, np, 0),
+            box_req_q: LocalLink<BoxReq> = LocalLink::new(l),
+            box_pipe: FixedPipe<BoxReq> =
+                FixedPipe::new(cfg.box_pipe.latency - l.delay, cfg.box_pipe.interval),
+            box_resp_q: LocalLink<BoxResp> = LocalLink::new(l)
         }
-        extra { stats: XbarStats }
+        extra { stats: XbarStats = XbarStats::default() }
     }
-}
-
-/// The ray-box pipeline the crossbar holds, built from `cfg`: its request FIFO,
-/// the pipeline and its result FIFO (both FIFOs with the TM's link timing). The
-/// pipeline's latency counts its result FIFO's delay, as a separate unit's counts
-/// its output link's, so a test takes `box_pipe.latency` from grant to routing.
-pub fn box_path(
-    cfg: &super::tm::TmSpec,
-) -> (LocalLink<BoxReq>, FixedPipe<BoxReq>, LocalLink<BoxResp>) {
-    let l = cfg.link;
-    (
-        LocalLink::new(l),
-        FixedPipe::new(cfg.box_pipe.latency - l.delay, cfg.box_pipe.interval),
-        LocalLink::new(l),
-    )
 }
 
 /// Grants and losses per class: divider, box, triangle, ray write, hit, global

@@ -27,7 +27,7 @@ use super::tm::{COST_NAMES, COSTS, TpCosts, round_trip};
 pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::contract::{HitRec, RayRec};
-use crate::rtl::{Ctx, Declared, In, Logic, Next, Out, Ram, Reg, Status};
+use crate::rtl::{Ctx, Declared, Logic, Next, Ram, Reg, Status};
 
 crate::payload_struct! {
     /// A duplicate: the ray, with its entry into the child segment `seg`; or, with
@@ -85,27 +85,23 @@ impl Default for SbRay {
     }
 }
 
-/// The links of one TP.
-pub struct TpLinks {
-    pub ray: In<SbRay>,
-    pub div_req: Out<DivReq>,
-    pub div_resp: In<DivResp>,
-    pub box_req: Out<BoxReq>,
-    pub box_resp: In<BoxResp>,
-    pub tri_req: Out<TriReq>,
-    pub tri_resp: In<TriResp>,
-    pub mem_req: Out<L1Req>,
-    pub mem_resp: In<L1Resp>,
-    pub ray_write: Out<RayWrite>,
-    pub hit: Out<HitUpdate>,
-    pub gmem_req: Out<MemLineReq>,
-    pub gmem_resp: In<MemLineResp>,
-}
+/// An empty stack entry (the scratchpad's reset contents).
+const NO_ENTRY: StackEntry = StackEntry {
+    r: 0,
+    seg: 0,
+    t: 0.0,
+};
 
 crate::unit! {
     /// Thread processor: the segment traversal kernel as an FSM with per-state costs.
     pub struct Tp : "tp" {
-        params { index: u16 => "INDEX", stack_entries: u32 => "STACK_ENTRIES" }
+        new(cfg: &super::tm::TmSpec, index: u16; ports: TpPorts) {
+            let entries = cfg.tm.stack_entries();
+        }
+        params {
+            index: u16 = index => "INDEX",
+            stack_entries: u32 = entries => "STACK_ENTRIES"
+        }
         inputs {
             ray: SbRay,
             div_resp: DivResp,
@@ -124,45 +120,52 @@ crate::unit! {
             gmem_req: MemLineReq
         }
         state {
-            state: Reg<TpState>,
-            ray_index: Reg<u32>,
-            node_addr: Reg<u64>,
-            stack_depth: Reg<u16>,
-            act_at: Reg<u64>,
-            req_at: Reg<u64>,
-            cur: Reg<SbRay>,
-            inv_dir: Reg<Vec3>,
-            best: Reg<HitRec>,
-            entry: Reg<StackEntry>,
-            line0: Reg<Line>,
-            line1: Reg<Line>,
-            box0: Reg<Option<f32>>,
-            box1: Reg<Option<f32>>,
-            box_got: Reg<bool>,
-            tri_k: Reg<u32>,
-            tri_end: Reg<u32>,
-            tri_hit: Reg<Option<HitRec>>,
-            done_sent: Reg<bool>,
-            sh_step: Reg<u32>,
-            sh_addr: Reg<u64>,
-            sh_tri_addr: Reg<u64>,
-            sh_tri0: Reg<Line>,
-            sh_tri1: Reg<Line>,
-            sh_albedo: Reg<Vec3>,
-            sh_shadow: Reg<Option<RayRec>>,
-            sh_bounce: Reg<Option<RayRec>>,
-            sh_emitted: Reg<u32>,
-            sh_acks: Reg<u32>,
-            stack: Ram<StackEntry>
+            state: Reg<TpState> = TpState::Idle,
+            ray_index: Reg<u32> = 0,
+            node_addr: Reg<u64> = 0,
+            stack_depth: Reg<u16> = 0,
+            act_at: Reg<u64> = 0,
+            req_at: Reg<u64> = 0,
+            cur: Reg<SbRay> = SbRay::default(),
+            inv_dir: Reg<Vec3> = Vec3::ZERO,
+            best: Reg<HitRec> = HitRec::NONE,
+            entry: Reg<StackEntry> = NO_ENTRY,
+            line0: Reg<Line> = Line::default(),
+            line1: Reg<Line> = Line::default(),
+            box0: Reg<Option<f32>> = None,
+            box1: Reg<Option<f32>> = None,
+            box_got: Reg<bool> = false,
+            tri_k: Reg<u32> = 0,
+            tri_end: Reg<u32> = 0,
+            tri_hit: Reg<Option<HitRec>> = None,
+            done_sent: Reg<bool> = false,
+            sh_step: Reg<u32> = 0,
+            sh_addr: Reg<u64> = 0,
+            sh_tri_addr: Reg<u64> = 0,
+            sh_tri0: Reg<Line> = Line::default(),
+            sh_tri1: Reg<Line> = Line::default(),
+            sh_albedo: Reg<Vec3> = Vec3::ZERO,
+            sh_shadow: Reg<Option<RayRec>> = None,
+            sh_bounce: Reg<Option<RayRec>> = None,
+            sh_emitted: Reg<u32> = 0,
+            sh_acks: Reg<u32> = 0,
+            // Two write ports: a node pushes both children in one action.
+            stack: Ram<StackEntry> = Ram::new(entries, 2, NO_ENTRY)
         }
         extra {
-            costs: TpCosts,
-            rt: [u64; 3],
-            stats: TpStats,
-            log: Option<Vec<u64>>,
-            shading: Option<ShadeRegs>,
-            blocked_since: Option<u64>,
-            cost_cycles: [u32; COSTS]
+            costs: TpCosts = cfg.tm.costs.clone(),
+            rt: [u64; 3] = [
+                round_trip(&cfg.divider, &cfg.link),
+                round_trip(&cfg.box_pipe, &cfg.link),
+                round_trip(&cfg.tri_pipe, &cfg.link),
+            ],
+            stats: TpStats = TpStats::default(),
+            log: Option<Vec<u64>> = None,
+            shading: Option<ShadeRegs> = None,
+            blocked_since: Option<u64> = None,
+            // `costs.all()` builds its table on every call; the TP needs the
+            // cycles on every state change.
+            cost_cycles: [u32; COSTS] = cfg.tm.costs.all().map(|(_, k)| k.cycles)
         }
     }
 }
@@ -266,84 +269,6 @@ impl TpStats {
 }
 
 impl Tp {
-    pub fn new(cfg: &super::tm::TmSpec, index: u16, l: TpLinks) -> Self {
-        let entries = cfg.tm.stack_entries();
-        let d = &cfg.link;
-        Tp {
-            index,
-            stack_entries: entries,
-            ray: l.ray,
-            div_resp: l.div_resp,
-            box_resp: l.box_resp,
-            tri_resp: l.tri_resp,
-            mem_resp: l.mem_resp,
-            div_req: l.div_req,
-            box_req: l.box_req,
-            tri_req: l.tri_req,
-            mem_req: l.mem_req,
-            ray_write: l.ray_write,
-            hit: l.hit,
-            gmem_req: l.gmem_req,
-            gmem_resp: l.gmem_resp,
-            state: Reg::new(TpState::Idle),
-            ray_index: Reg::new(0),
-            node_addr: Reg::new(0),
-            stack_depth: Reg::new(0),
-            act_at: Reg::new(0),
-            req_at: Reg::new(0),
-            cur: Reg::new(SbRay::default()),
-            inv_dir: Reg::new(Vec3::ZERO),
-            best: Reg::new(HitRec::NONE),
-            entry: Reg::new(StackEntry {
-                r: 0,
-                seg: 0,
-                t: 0.0,
-            }),
-            line0: Reg::new(Line::default()),
-            line1: Reg::new(Line::default()),
-            box0: Reg::new(None),
-            box1: Reg::new(None),
-            box_got: Reg::new(false),
-            tri_k: Reg::new(0),
-            tri_end: Reg::new(0),
-            tri_hit: Reg::new(None),
-            done_sent: Reg::new(false),
-            sh_step: Reg::new(0),
-            sh_addr: Reg::new(0),
-            sh_tri_addr: Reg::new(0),
-            sh_tri0: Reg::new(Line::default()),
-            sh_tri1: Reg::new(Line::default()),
-            sh_albedo: Reg::new(Vec3::ZERO),
-            sh_shadow: Reg::new(None),
-            sh_bounce: Reg::new(None),
-            sh_emitted: Reg::new(0),
-            sh_acks: Reg::new(0),
-            // Two write ports: a node pushes both children in one action.
-            stack: Ram::new(
-                entries,
-                2,
-                StackEntry {
-                    r: 0,
-                    seg: 0,
-                    t: 0.0,
-                },
-            ),
-            costs: cfg.tm.costs.clone(),
-            // `costs.all()` builds its table on every call; the TP needs the cycles
-            // on every state change.
-            cost_cycles: cfg.tm.costs.all().map(|(_, k)| k.cycles),
-            rt: [
-                round_trip(&cfg.divider, d),
-                round_trip(&cfg.box_pipe, d),
-                round_trip(&cfg.tri_pipe, d),
-            ],
-            stats: TpStats::default(),
-            log: None,
-            shading: None,
-            blocked_since: None,
-        }
-    }
-
     /// Records the address of every L1 load (tests compare the visit order).
     pub fn enable_log(&mut self) {
         self.log = Some(Vec::new());

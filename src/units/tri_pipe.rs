@@ -7,7 +7,7 @@ use glam::Vec3;
 use super::Tag;
 use crate::geom::{Triangle, ray_triangle};
 use crate::rtl::PipeCfg;
-use crate::rtl::{Ctx, FixedPipe, In, Logic, Next, Out};
+use crate::rtl::{Ctx, FixedPipe, Logic, Next};
 
 crate::payload_struct! {
     /// A triangle test request.
@@ -66,24 +66,16 @@ pub fn tri_test(r: &TriReq) -> TriResp {
 crate::unit! {
     /// Ray-triangle intersection pipeline (Plücker test, division deferred to a hit).
     pub struct TriPipe : "tri_pipe" {
-        params { latency: u32 => "LATENCY", interval: u32 => "II" }
+        /// `out_delay` is the delay of the `resp` link, which counts toward the latency.
+        new(cfg: &PipeCfg, out_delay: u32; ports: TriPipePorts) {}
+        params {
+            latency: u32 = cfg.latency => "LATENCY",
+            interval: u32 = cfg.interval => "II"
+        }
         inputs { req: TriReq }
         outputs { resp: TriResp }
-        state { pipe: FixedPipe<TriReq> }
+        state { pipe: FixedPipe<TriReq> = FixedPipe::new(cfg.latency - out_delay, cfg.interval) }
         extra { }
-    }
-}
-
-impl TriPipe {
-    /// `out_delay` is the delay of the `resp` link, which counts toward the latency.
-    pub fn new(cfg: &PipeCfg, out_delay: u32, req: In<TriReq>, resp: Out<TriResp>) -> Self {
-        TriPipe {
-            latency: cfg.latency,
-            interval: cfg.interval,
-            req,
-            resp,
-            pipe: FixedPipe::new(cfg.latency - out_delay, cfg.interval),
-        }
     }
 }
 

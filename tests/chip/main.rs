@@ -189,6 +189,29 @@ fn run_tiny_chip_with(cfg: Config, opts: SimOptions, trace: &str) -> Outcome {
     run_tiny_chip_traced(cfg, opts, Some(trace)).0
 }
 
+/// A chip for `cornell` 8x8 with 8 KB segments, the scene prepared for it and
+/// the rays of its first treelet (their hit records reset).
+fn tiny_chip(
+    mut cfg: Config,
+    opts: SimOptions,
+) -> (
+    Chip,
+    dualstream::render::Prepared,
+    Vec<dualstream::contract::RayRec>,
+) {
+    let s = scene("cornell", 8, 8, 1);
+    let rc = rcfg(8, None);
+    let mut p = dualstream::render::prepare(&s, &rc).unwrap();
+    let rays = dualstream::testbench::tm_tb::treelet_rays(&p, &s, 0).swap_remove(0);
+    for r in &rays {
+        HitRec::NONE.write(&mut p.mem, p.map.hit_addr(r.hit_index()));
+    }
+    cfg.accel = rc.accel.clone();
+    let consts = dualstream::render::shade_consts(&s, &p);
+    let chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), &consts, opts).unwrap();
+    (chip, p, rays)
+}
+
 /// Also returns the steps evaluated on two threads. `trace: None`: no waveform
 /// (two threads are used only without one).
 fn run_tiny_chip_traced(cfg: Config, opts: SimOptions, trace: Option<&str>) -> (Outcome, u64) {
@@ -199,22 +222,13 @@ fn run_tiny_chip_traced(cfg: Config, opts: SimOptions, trace: Option<&str>) -> (
 /// `moving`: two threads move a TM between them every 8 parallel steps (asserted
 /// to happen).
 fn run_tiny_chip_balanced(
-    mut cfg: Config,
+    cfg: Config,
     opts: SimOptions,
     trace: Option<&str>,
     moving: bool,
 ) -> (Outcome, u64, u64) {
-    let s = scene("cornell", 8, 8, 1);
-    let rc = rcfg(8, None);
-    let mut p = dualstream::render::prepare(&s, &rc).unwrap();
-    let rays = dualstream::testbench::tm_tb::treelet_rays(&p, &s, 0).swap_remove(0);
-    for r in &rays {
-        HitRec::NONE.write(&mut p.mem, p.map.hit_addr(r.hit_index()));
-    }
-    cfg.accel = rc.accel.clone();
-    let consts = dualstream::render::shade_consts(&s, &p);
     let auto = opts.auto_lanes;
-    let mut chip = Chip::new(&cfg, &p.map, p.seg.segments.len(), &consts, opts).unwrap();
+    let (mut chip, mut p, rays) = tiny_chip(cfg, opts);
     if moving {
         chip.sim.set_balance(8, true);
     }
