@@ -252,9 +252,9 @@ impl WaveCycles {
 }
 
 impl Chip {
-    /// Every TP's counters added up, in one pass over the TPs (a snapshot needs
-    /// a dozen of them; looking each up by name built every TP's counter list a
-    /// dozen times, 8% of a small frame's instructions).
+    /// Every TP's counters added up, in one pass over the TPs: a snapshot needs
+    /// a dozen of them, and looking each up by name would build every TP's
+    /// counter list a dozen times (docs/results/2026-11-27-kernel-internal-states-run-through-and-the-l2-under-a-miss-storm.md).
     fn tp_totals(&self) -> TpStats {
         let mut t = TpStats::default();
         for u in self.tps() {

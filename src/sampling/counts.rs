@@ -182,11 +182,9 @@ pub(super) fn wave_counts(
 /// [`BORROW_ALIKE`]: a pass alike a window costs what it does per ray,
 /// so it takes their ratio, as in the Dragon Box's bounce wavefronts). Its
 /// cycles and DRAM energy are then interpolated on the line through the two:
-/// measured on the Dragon at 1024x1024 (reference pass log, wavefronts 1 and 5
-/// at 767,169 and 6,115 rays), the line puts the roots of wavefronts 2-4 at
-/// -4.6%, -11.8% and -11.3% (-0.2% of the frame's cycles), where the ratio of
-/// wavefront 1 would put them at -7% to -22%: a smaller root pass costs more
-/// per ray, as its start-up and drain weigh more.
+/// a smaller root pass costs more per ray, as its start-up and drain weigh
+/// more, and the line follows that where one neighbour's ratio does not
+/// (docs/results/2026-11-26-speed-error-root-passes-on-a-line.md).
 pub fn root_between(rays: f64, before: f64, after: f64) -> Option<f64> {
     let (lo, hi) = (before.min(after), before.max(after));
     let alike = |m: f64| (rays - m).abs() <= BORROW_ALIKE * m;

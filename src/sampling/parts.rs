@@ -246,8 +246,7 @@ impl<'a> Parts<'a> {
     /// A root pass's cost goes with its rays (a root window is scaled by them):
     /// its proxy for the cycles and the DRAM energy, where the first-order bound
     /// follows the box tests and misjudges the root from one wavefront to the
-    /// next (Dragon Box 256x256: 1.35-1.43 cycles per ray in every bounce
-    /// wavefront, the bound's ratio off by up to 20%).
+    /// next (docs/speed-error.md, "Time sampling": borrowed wavefronts).
     fn root_proxy(&self, wave: usize) -> Counts {
         let mut p = self.proxies[wave][0];
         let rays = self.rec.segs[wave][0].rays as f64;
@@ -597,8 +596,8 @@ impl<'a> Parts<'a> {
 
     /// A borrowed root pass: by the rays, as the nearest root windows before and
     /// after (a root pass's cost per ray is about the same in every wavefront
-    /// after the first whose rays are alike: 1.30-1.39 cycles per ray at the
-    /// paper's size in the Dragon Box), the first's only if no other has one.
+    /// after the first whose rays are alike: docs/speed-error.md, "Time
+    /// sampling": borrowed wavefronts), the first's only if no other has one.
     /// Between two root windows whose rays differ (an open scene's wavefronts
     /// shrink), the cycles and DRAM energy lie on the line through them: a
     /// smaller root pass costs more per ray (its start-up and drain weigh
