@@ -184,18 +184,49 @@ pub struct Activity {
     pub local_store_accesses: u64,
 }
 
+/// Actions of the TPs' shading states, each named as its cost in `tm.costs`
+/// (`WaveCycles::shade_uses`), for the energy model.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct ShadeUses {
+    pub shade_load: u64,
+    pub shade: u64,
+    pub shade_emit: u64,
+    pub shade_store: u64,
+}
+
+impl ShadeUses {
+    /// Each state's actions from `uses_of(its name in tm.costs)`.
+    pub fn of(uses_of: impl Fn(&str) -> u64) -> ShadeUses {
+        ShadeUses {
+            shade_load: uses_of("shade_load"),
+            shade: uses_of("shade"),
+            shade_emit: uses_of("shade_emit"),
+            shade_store: uses_of("shade_store"),
+        }
+    }
+
+    /// The actions between two snapshots (`self` the later).
+    pub fn since(&self, b: &ShadeUses) -> ShadeUses {
+        ShadeUses {
+            shade_load: self.shade_load - b.shade_load,
+            shade: self.shade - b.shade,
+            shade_emit: self.shade_emit - b.shade_emit,
+            shade_store: self.shade_store - b.shade_store,
+        }
+    }
+}
+
 /// The TP instructions of the shading pass on the chip: each shading state's
-/// instruction mix (`tm.costs`) times its actions (`WaveCycles::shade_uses`:
-/// shade_load, shade, shade_emit, shade_store).
-pub fn shading_instructions(costs: &crate::units::tm::TpCosts, uses: [u64; 4]) -> Instructions {
+/// instruction mix (`tm.costs`) times its actions.
+pub fn shading_instructions(costs: &crate::units::tm::TpCosts, uses: ShadeUses) -> Instructions {
     let mut i = Instructions::default();
     let states = [
-        &costs.shade_load,
-        &costs.shade,
-        &costs.shade_emit,
-        &costs.shade_store,
+        (&costs.shade_load, uses.shade_load),
+        (&costs.shade, uses.shade),
+        (&costs.shade_emit, uses.shade_emit),
+        (&costs.shade_store, uses.shade_store),
     ];
-    for (c, n) in states.into_iter().zip(uses) {
+    for (c, n) in states {
         i.add_state(c, n);
     }
     i

@@ -81,8 +81,8 @@ fn run(cli: Cli) -> Result<(), String> {
 /// Restarts the program with glibc's heap on transparent huge pages when the
 /// kernel gives them only on request (`madvise` mode) and the user set no glibc
 /// tunables: the chip's per-cycle working set spans megabytes of small heap
-/// objects, and 2 MB pages save most of its TLB misses (Dragon Box 160x160, one
-/// thread: 5-10% less wall time, measured in alternating runs). No `unsafe`: the
+/// objects, and 2 MB pages save most of its TLB misses (docs/kernel.md, "Chip
+/// simulation speed": huge pages). No `unsafe`: the
 /// allocator does the `madvise`. `DUALSTREAM_HUGEPAGES=0` turns it off.
 #[cfg(target_os = "linux")]
 fn with_huge_pages() {

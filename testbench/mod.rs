@@ -15,7 +15,9 @@ pub mod hit_record_updater_tb;
 pub mod l1_tb;
 pub mod l2_tb;
 pub mod mem_ctrl_tb;
+pub mod memory_tb;
 pub mod scene_buffer_tb;
+pub mod staging_buffer_tb;
 pub mod stream_scheduler_tb;
 pub mod tm_tb;
 pub mod tri_pipe_tb;
@@ -42,6 +44,10 @@ pub struct Bench {
     pub aliases: &'static [&'static str],
     /// What the bench checks, in a line.
     pub checks: &'static str,
+    /// The units it runs, by their `unit!` module names (a bench may run a
+    /// composite of several): `tests/testbenches.rs` checks every unit under
+    /// `src/units/` is named by a bench or has a test in its own file.
+    pub units: &'static [&'static str],
     pub runner: Runner,
 }
 
@@ -51,60 +57,91 @@ pub const BENCHES: &[Bench] = &[
         name: "box_pipe",
         aliases: &[],
         checks: "ray-box pipeline: results against the reference test, exact latency and interval",
+        units: &["box_pipe"],
         runner: Runner::Unit(pipe_tb::run_random::<box_pipe_tb::BoxKind>),
     },
     Bench {
         name: "tri_pipe",
         aliases: &[],
         checks: "ray-triangle pipeline: results against the reference test, exact latency and interval",
+        units: &["tri_pipe"],
         runner: Runner::Unit(pipe_tb::run_random::<tri_pipe_tb::TriKind>),
     },
     Bench {
         name: "divider",
         aliases: &[],
         checks: "TM-shared divider: reciprocals against the reference, exact latency and interval",
+        units: &["divider"],
         runner: Runner::Unit(pipe_tb::run_random::<divider_tb::DivKind>),
     },
     Bench {
         name: "l1",
         aliases: &[],
         checks: "L1 (directed): a line behind a blocked fill is answered the next cycle",
+        units: &["l1"],
         runner: Runner::Unit(l1_tb::run),
     },
     Bench {
         name: "mem_ctrl",
         aliases: &["dram"],
         checks: "one GDDR5 channel: one response per request, the command stream passes the independent timing checker",
+        units: &["mem_ctrl"],
         runner: Runner::Unit(mem_ctrl_tb::run_random),
+    },
+    Bench {
+        name: "memory",
+        aliases: &[],
+        checks: "memory unit (fixed model, directed): answers at its latency, one line per cycle round-robin, masked writes",
+        units: &["memory"],
+        runner: Runner::Unit(memory_tb::run),
+    },
+    Bench {
+        name: "staging_buffer",
+        aliases: &[],
+        checks: "staging buffer (directed): every ray to a TP once with its bucket's header, in fill order, one swap per bucket",
+        units: &["staging_buffer"],
+        runner: Runner::Unit(staging_buffer_tb::run),
     },
     Bench {
         name: "hit_record_updater",
         aliases: &["hru"],
         checks: "hit record updater: each record equals the atomic-min of its updates, bit for bit; merges counted",
+        units: &["hit_record_updater"],
         runner: Runner::Unit(hit_record_updater_tb::run),
     },
     Bench {
         name: "scene_buffer",
         aliases: &[],
         checks: "scene buffer: every line answered with the DRAM image's bytes, slots reused while late lines of retired segments are dropped",
+        units: &["scene_buffer"],
         runner: Runner::Unit(scene_buffer_tb::run),
     },
     Bench {
         name: "l2",
         aliases: &[],
         checks: "L2: every read equals a replay of the access log (hits, MSHR merges, dirty evictions, flushes)",
+        units: &["l2"],
         runner: Runner::Unit(l2_tb::run),
     },
     Bench {
         name: "stream_scheduler",
         aliases: &[],
         checks: "stream scheduler on a real scene: every ray reaches every segment it is sent to, once, skipped subtrees stay skipped",
+        units: &["stream_scheduler"],
         runner: Runner::Unit(stream_scheduler_tb::run),
     },
     Bench {
         name: "tm",
         aliases: &[],
         checks: "a whole TM on a treelet: every ray's hit against the functional traversal",
+        units: &[
+            "tp",
+            "tm_xbar",
+            "staging_buffer",
+            "l1",
+            "divider",
+            "tri_pipe",
+        ],
         runner: Runner::Treelet,
     },
 ];

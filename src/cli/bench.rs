@@ -172,8 +172,8 @@ pub struct WindowArgs {
     window_waves: u64,
     /// Segment passes the chip runs before a window's measurement,
     /// unmeasured, to fill its buffers, caches and queues and stagger its 64
-    /// scene-buffer slots (docs/speed-error.md: 64 leaves every window 12-19%
-    /// fast at the paper's size, 96 does not).
+    /// scene-buffer slots (docs/speed-error.md: too short a warm-up leaves
+    /// every window fast).
     #[arg(long, default_value_t = sampling::default_windows().warm)]
     window_warm: u64,
     /// Segment passes measured per window.

@@ -430,25 +430,37 @@ impl PathRec {
 }
 
 impl SegEntry {
+    pub fn encode(&self) -> [u8; SEG_ENTRY_BYTES as usize] {
+        let mut b = [0u8; SEG_ENTRY_BYTES as usize];
+        b[0..8].copy_from_slice(&self.base.to_le_bytes());
+        put_u32(&mut b, 8, self.bytes);
+        put_u32(&mut b, 12, self.nodes);
+        put_u32(&mut b, 16, self.tris);
+        put_u32(&mut b, 20, self.parent);
+        put_u32(&mut b, 24, self.first_child);
+        put_u32(&mut b, 28, self.child_count);
+        b
+    }
+    /// The entry in its first `SEG_ENTRY_BYTES` bytes `b`: the one decoder, for
+    /// the DRAM image (`read`) and for the line the stream scheduler fetched.
+    pub fn decode(b: &[u8]) -> SegEntry {
+        SegEntry {
+            base: u64::from_le_bytes(b[0..8].try_into().expect("8 bytes")),
+            bytes: u32_at(b, 8),
+            nodes: u32_at(b, 12),
+            tris: u32_at(b, 16),
+            parent: u32_at(b, 20),
+            first_child: u32_at(b, 24),
+            child_count: u32_at(b, 28),
+        }
+    }
     pub fn write(&self, m: &mut SparseMem, a: u64) {
-        m.write_u64(a, self.base);
-        m.write_u32(a + 8, self.bytes);
-        m.write_u32(a + 12, self.nodes);
-        m.write_u32(a + 16, self.tris);
-        m.write_u32(a + 20, self.parent);
-        m.write_u32(a + 24, self.first_child);
-        m.write_u32(a + 28, self.child_count);
+        m.write(a, &self.encode());
     }
     pub fn read(m: &SparseMem, a: u64) -> SegEntry {
-        SegEntry {
-            base: m.read_u64(a),
-            bytes: m.read_u32(a + 8),
-            nodes: m.read_u32(a + 12),
-            tris: m.read_u32(a + 16),
-            parent: m.read_u32(a + 20),
-            first_child: m.read_u32(a + 24),
-            child_count: m.read_u32(a + 28),
-        }
+        let mut b = [0u8; SEG_ENTRY_BYTES as usize];
+        m.read(a, &mut b);
+        SegEntry::decode(&b)
     }
 }
 
@@ -560,6 +572,25 @@ mod tests {
             assert_eq!(m.read_u32(a + 4), 77, "tri_id at byte 4");
             assert_eq!(m.read_f32(a + 12), 0.5, "v at byte 12");
         }
+        let e = SegEntry {
+            base: 0x1_2345_6780,
+            bytes: 4096,
+            nodes: 31,
+            tris: 40,
+            parent: SEG_SAME,
+            first_child: 9,
+            child_count: 3,
+        };
+        e.write(&mut m, 16384 + 32);
+        assert_eq!(SegEntry::read(&m, 16384 + 32), e);
+        assert_eq!(m.read_u64(16384 + 32), 0x1_2345_6780, "base at byte 0");
+        assert_eq!(m.read_u32(16384 + 32 + 24), 9, "first_child at byte 24");
+        assert_eq!(m.read_u32(16384 + 32 + 28), 3, "child_count at byte 28");
+        // From the 64 B line that holds it, as the stream scheduler reads it.
+        let mut line = [0u8; LINE_BYTES as usize];
+        m.read(16384, &mut line);
+        let e1 = &line[32..32 + SEG_ENTRY_BYTES as usize];
+        assert_eq!(SegEntry::decode(e1), e);
     }
 
     #[test]

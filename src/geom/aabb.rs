@@ -176,7 +176,7 @@ pub fn ray_box(origin: Vec3, inv_dir: Vec3, t_min: f32, t_max: f32, b: &Aabb) ->
 /// same operations in the same order, so the same result; a NaN `t_max` needs no
 /// screen (`far` stays NaN and `near <= far` fails, as the screen's `None`). The
 /// functional traversal screens a ray once per segment and the boxes once per
-/// segment load: the screen was an eighth of its time.
+/// segment load, not on every test (docs/results/2026-11-27-speed-error-the-functional-traversal-s-box-screen-and-the-dragon-box-aga.md).
 #[inline(always)]
 pub fn ray_box_screened(
     o: Vec3,

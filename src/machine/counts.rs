@@ -1,6 +1,7 @@
 //! The chip's counts: what one wavefront (or a sampling window's stretch) did,
 //! read from the units' probes as snapshots and differenced.
 
+use crate::energy::ShadeUses;
 use crate::mem::StreamTag;
 use crate::mem::energy::energy_of;
 use crate::mem::stats::ChannelStats;
@@ -122,9 +123,8 @@ pub struct WaveCycles {
     /// the pass's drain (hit record writes, retirement, answers in flight),
     /// without the end-of-run L2 flush (`l2.flush_cycles`).
     pub drain_cycles: u64,
-    /// Actions of the TPs' shading states (`tm.costs` shade_load, shade,
-    /// shade_emit, shade_store), for the energy model.
-    pub shade_uses: [u64; 4],
+    /// Actions of the TPs' shading states, for the energy model.
+    pub shade_uses: ShadeUses,
     /// The L2 (zero without): client accesses, hits, misses (merges included),
     /// misses merged into a live MSHR, bank-conflict stall cycles, lines filled
     /// and dirty lines written back (the end-of-run flush included).
@@ -227,7 +227,7 @@ impl WaveCycles {
             shade_occluded: d(self.shade_occluded, b.shade_occluded),
             shade_cycles: 0,
             drain_cycles: 0,
-            shade_uses: std::array::from_fn(|k| d(self.shade_uses[k], b.shade_uses[k])),
+            shade_uses: self.shade_uses.since(&b.shade_uses),
             l2: self.l2.sub(&b.l2),
             tm_rays_max: 0,
             tm_rays_min: 0,
@@ -252,9 +252,9 @@ impl WaveCycles {
 }
 
 impl Chip {
-    /// Every TP's counters added up, in one pass over the TPs (a snapshot needs
-    /// a dozen of them; looking each up by name built every TP's counter list a
-    /// dozen times, 8% of a small frame's instructions).
+    /// Every TP's counters added up, in one pass over the TPs: a snapshot needs
+    /// a dozen of them, and looking each up by name would build every TP's
+    /// counter list a dozen times (docs/results/2026-11-27-kernel-internal-states-run-through-and-the-l2-under-a-miss-storm.md).
     fn tp_totals(&self) -> TpStats {
         let mut t = TpStats::default();
         for u in self.tps() {
@@ -350,7 +350,7 @@ impl Chip {
             // The cycle the last shading pass ended (see `run_wave`).
             shade_cycles: sched.last_shade_end,
             drain_cycles: 0,
-            shade_uses: ["shade_load", "shade", "shade_emit", "shade_store"].map(|n| tp.uses_of(n)),
+            shade_uses: ShadeUses::of(|n| tp.uses_of(n)),
             l2: self.l2_unit().map_or(L2Wave::default(), |u| {
                 let st = u.probe().stats;
                 L2Wave {
@@ -400,7 +400,7 @@ impl WaveCycles {
             shade_shadow_rays: after.shade_shadow_rays - before.shade_shadow_rays,
             shade_hits: after.shade_hits - before.shade_hits,
             shade_occluded: after.shade_occluded - before.shade_occluded,
-            shade_uses: std::array::from_fn(|k| after.shade_uses[k] - before.shade_uses[k]),
+            shade_uses: after.shade_uses.since(&before.shade_uses),
             shade_cycles: if shade_pixels > 0 {
                 after.shade_cycles - before.cycles
             } else {

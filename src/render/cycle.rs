@@ -30,14 +30,14 @@ pub struct ChipTrace {
 }
 
 /// Core cycles per pixel and hit point of a cycle-mode frame on the paper's
-/// 128 TMs: 7.7-8.1 measured on the Dragon Box, Dabrovic Sponza and Cornell
-/// with 5 hit points (the Dragon, mostly sky: 2.9). Scales with 128 / TMs.
+/// 128 TMs, from the measured frames (docs/table2.md, "What a cycle-mode frame
+/// costs"); a scene that is mostly sky costs less. Scales with 128 / TMs.
 const CYCLES_PER_PIXEL_HIT: f64 = 8.0;
 
-/// Wall seconds per pixel and hit point of a cycle-mode frame on a 2-core
-/// machine of 2026: 0.17 (Cornell 64x64) to 0.45 ms (the Dragon Box at
-/// 1024x1024, 39 minutes), about the same for any number of TMs (cycles
-/// scale with 128 / TMs and the work of a cycle with TMs).
+/// Wall seconds per pixel and hit point of a cycle-mode frame on the
+/// project's 2-core machine, the cheapest and the dearest frame measured
+/// (docs/table2.md, "What a cycle-mode frame costs"); about the same for any
+/// number of TMs (cycles scale with 128 / TMs and the work of a cycle with TMs).
 pub const WALL_S_PER_PIXEL_HIT: (f64, f64) = (0.17e-3, 0.45e-3);
 
 /// Before a cycle-mode frame of more than five minutes: how long it takes,

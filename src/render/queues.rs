@@ -420,11 +420,10 @@ impl Thinning {
     /// [`SAMPLE_RUN`]), hashed, hit records in place. Through all of a
     /// wavefront's passes the hit records' spread over DRAM rows and banks
     /// sets the row conflicts: packed into one k-th of the rows, a sample's
-    /// rows stay open (Dabrovic Sponza: 0.17-0.20 activates per line against
-    /// 0.47-0.52 in whole wavefronts, its DRAM energy 8-18% low); left in
-    /// place in runs of 8 rays, a row is opened for a few lines (2-23% high);
-    /// runs of 1024 keep the rows' fill (-2% to +2%). A fixed stride would
-    /// keep the same columns of every few image rows.
+    /// rows stay open (its DRAM energy low); left in place in short runs, a
+    /// row is opened for a few lines (high); long runs keep the rows' fill.
+    /// A fixed stride would keep the same columns of every few image rows
+    /// (docs/results/2026-11-26-speed-error-short-wavefronts-over-a-sample.md).
     pub fn wave(every: u64, run: u64) -> Thinning {
         Thinning {
             every,
@@ -441,9 +440,9 @@ pub const COMPACT_RUN: u64 = 8;
 
 /// Rays in a run of a wavefront sample ([`Thinning::wave`]), at
 /// most. A DRAM row holds the hit records of 256 pixels, and a bounce
-/// wavefront's queue has about 1.7 rays a pixel, not in strict pixel order:
-/// on Dabrovic Sponza, runs of 256 rays read 1-7% too much DRAM energy per
-/// line, 512 2-5%, 1024 within 2% (docs/speed-error.md).
+/// wavefront's queue has about 1.7 rays a pixel, not in strict pixel order,
+/// so shorter runs open rows for fewer lines and read too much DRAM energy
+/// (docs/results/2026-11-26-speed-error-short-wavefronts-over-a-sample.md).
 pub const SAMPLE_RUN: u64 = 1024;
 
 /// Whether run `j` of `runs` is kept when one run in `every` is: the first of

@@ -165,8 +165,8 @@ fn traverse_in<const SCREENED: bool>(
                 let n = &seg.nodes[i as usize];
                 let lim = cull(best.t.min(t_ray));
                 counts.box_tests += 2;
-                // Two plain calls rather than an array map: the map's closure
-                // was not inlined, and it was a quarter of the functional frame.
+                // Two plain calls rather than an array map, whose closure was not
+                // inlined in this hot loop (docs/results/2026-11-27-speed-error-the-functional-traversal-s-box-screen-and-the-dragon-box-aga.md).
                 let side = |k: usize| Aabb {
                     min: n.bmin[k],
                     max: n.bmax[k],

@@ -97,8 +97,8 @@ impl<T> PortEnd for Out<T> {
 /// `unit!`: one per TP, say). When their links are consecutive, as `Sim::link`
 /// creates a port array's links, port `k` is the first link plus `k`: `at` and
 /// the arbiters' masks (`Ctx::visible_mask`) then need not load the ports from
-/// their heap vector, a cache miss per array and evaluation that was a fifth of
-/// the TM crossbar's time at the paper's size (`perf annotate`).
+/// their heap vector, a cache miss per array and evaluation
+/// (docs/results/2026-11-26-kernel-port-arrays-that-know-their-links.md).
 #[derive(Clone, Debug)]
 pub struct PortArray<P> {
     ports: Vec<P>,

@@ -136,33 +136,68 @@ pub(super) fn line_write_j(c: &Config) -> Result<[f64; 2], String> {
     Ok([j("paper")?, j("physical")?])
 }
 
-/// A frame's figures by part, for the ratio estimator: cycles (given: simulated or
-/// estimated); DRAM lines of the ray stream, the scene stream, the hit records and
-/// the shading pass; compute + on-chip energy; DRAM energy.
-pub(super) fn parts(c: &Config, f: &Frame, cycles: f64) -> Result<[f64; 7], String> {
+/// A frame's figures by part, for the ratio estimator ([`parts`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct FrameParts {
+    /// Simulated or estimated.
+    pub cycles: f64,
+    /// DRAM lines of the ray stream, the scene stream, the hit records and the
+    /// shading pass.
+    pub ray_lines: f64,
+    pub scene_lines: f64,
+    pub hit_lines: f64,
+    pub shading_lines: f64,
+    /// Compute + on-chip energy.
+    pub onchip_j: f64,
+    /// DRAM energy (`paper` preset).
+    pub dram_j: f64,
+}
+
+impl FrameParts {
+    /// Cycles, DRAM lines and energy.
+    pub(super) fn combine(&self) -> [f64; 3] {
+        [
+            self.cycles,
+            self.ray_lines + self.scene_lines + self.hit_lines + self.shading_lines,
+            self.onchip_j + self.dram_j,
+        ]
+    }
+
+    /// Each part `f(self's, a's, b's)`.
+    pub(super) fn zip3(&self, a: &Self, b: &Self, f: impl Fn(f64, f64, f64) -> f64) -> Self {
+        FrameParts {
+            cycles: f(self.cycles, a.cycles, b.cycles),
+            ray_lines: f(self.ray_lines, a.ray_lines, b.ray_lines),
+            scene_lines: f(self.scene_lines, a.scene_lines, b.scene_lines),
+            hit_lines: f(self.hit_lines, a.hit_lines, b.hit_lines),
+            shading_lines: f(self.shading_lines, a.shading_lines, b.shading_lines),
+            onchip_j: f(self.onchip_j, a.onchip_j, b.onchip_j),
+            dram_j: f(self.dram_j, a.dram_j, b.dram_j),
+        }
+    }
+}
+
+/// A frame's figures by part, `cycles` given (simulated or estimated), the DRAM
+/// energy simulated or else estimated from the lines.
+pub(super) fn parts(c: &Config, f: &Frame, cycles: f64) -> Result<FrameParts, String> {
     let t = &f.total;
     let e = crate::render::energy::frame_energy(c, f);
     let dram = match f.chip.as_ref().and_then(|ch| ch.dram) {
         Some(d) => d.energy_paper_j,
         None => dram_energy_estimate(c, f, cycles)?,
     };
-    Ok([
+    Ok(FrameParts {
         cycles,
-        t.ray_lines() as f64,
-        t.scene_lines as f64,
-        t.hit_lines() as f64,
-        t.shading_lines as f64,
-        e.compute_j + e.onchip_j,
-        dram,
-    ])
-}
-
-/// Cycles, DRAM lines and energy from [`parts`].
-pub(super) fn combine(p: &[f64; 7]) -> [f64; 3] {
-    [p[0], p[1] + p[2] + p[3] + p[4], p[5] + p[6]]
+        ray_lines: t.ray_lines() as f64,
+        scene_lines: t.scene_lines as f64,
+        hit_lines: t.hit_lines() as f64,
+        shading_lines: t.shading_lines as f64,
+        onchip_j: e.compute_j + e.onchip_j,
+        dram_j: dram,
+    })
 }
 
 /// A frame's cycles (given: simulated or estimated), DRAM lines and energy.
 pub(super) fn figures(c: &Config, f: &Frame, cycles: f64) -> Result<[f64; 3], String> {
-    Ok(combine(&parts(c, f, cycles)?))
+    Ok(parts(c, f, cycles)?.combine())
 }

@@ -3,9 +3,10 @@
 
 use serde::Serialize;
 
-use super::analytic::{combine, line_write_j};
-use super::counts::DRAM_J;
-use super::parts::{Counts, Parts};
+use super::analytic::{FrameParts, line_write_j};
+use super::counts::Count::*;
+use super::counts::Counts;
+use super::parts::Parts;
 use super::{KindTime, WindowPlan, WindowRecord, render_cfg, render_windows};
 use crate::config::Config;
 use crate::render::{self, Frame, RenderCfg};
@@ -63,30 +64,30 @@ fn windowed_parts(c: &Config, f: &Frame, rec: &WindowRecord) -> Result<Windowed,
     // any timing: `tests/chip.rs` checks every wavefront's counts), so they are
     // taken from it rather than estimated. The hit records and the shading
     // pass go through the L2, whose filtering the windows measure.
-    total[1] = f.total.ray_lines() as f64;
-    total[2] = f.total.scene_lines as f64;
+    total[RayLines] = f.total.ray_lines() as f64;
+    total[SceneLines] = f.total.scene_lines as f64;
     let e = onchip_energy(c, f, &total);
-    let p = [
-        total[0],
-        total[1],
-        total[2],
-        total[3],
-        total[4],
-        e.compute_j + e.onchip_j,
-        total[5],
-    ];
-    let f3 = combine(&p);
+    let p = FrameParts {
+        cycles: total[Cycles],
+        ray_lines: total[RayLines],
+        scene_lines: total[SceneLines],
+        hit_lines: total[HitLines],
+        shading_lines: total[ShadingLines],
+        onchip_j: e.compute_j + e.onchip_j,
+        dram_j: total[DramPaperJ],
+    };
+    let f3 = p.combine();
     let se = se_known.then(|| std::array::from_fn(|k| var[k].sqrt() / f3[k].max(1e-30)));
     Ok(Windowed {
         breakdown: parts,
         estimate: WindowEstimate {
-            cycles: total[0],
-            ray_lines: total[1],
-            scene_lines: total[2],
-            hit_lines: total[3],
-            shading_lines: total[4],
-            dram_paper_j: total[DRAM_J[0]],
-            dram_physical_j: total[DRAM_J[1]],
+            cycles: total[Cycles],
+            ray_lines: total[RayLines],
+            scene_lines: total[SceneLines],
+            hit_lines: total[HitLines],
+            shading_lines: total[ShadingLines],
+            dram_paper_j: total[DramPaperJ],
+            dram_physical_j: total[DramPhysicalJ],
             onchip_j: e.onchip_j,
             compute_j: e.compute_j,
             rel_se: se,
@@ -104,17 +105,22 @@ fn windowed_parts(c: &Config, f: &Frame, rec: &WindowRecord) -> Result<Windowed,
 fn onchip_energy(c: &Config, f: &Frame, total: &Counts) -> crate::energy::Energy {
     let mut g = f.clone();
     let mut w = crate::machine::WaveCycles {
-        scene_buffer_reads: total[6].round() as u64,
-        shade_uses: std::array::from_fn(|k| total[8 + k].round() as u64),
+        scene_buffer_reads: total[SceneBufferReads].round() as u64,
+        shade_uses: crate::energy::ShadeUses {
+            shade_load: total[ShadeLoad].round() as u64,
+            shade: total[Shade].round() as u64,
+            shade_emit: total[ShadeEmit].round() as u64,
+            shade_store: total[ShadeStore].round() as u64,
+        },
         ..Default::default()
     };
-    w.l2.accesses = total[7].round() as u64;
+    w.l2.accesses = total[L2Accesses].round() as u64;
     g.chip = Some(render::ChipFrame {
         shading_on_tps: true,
         tms: c.chip.tms,
         tps_per_tm: c.tm.tps,
         waves: vec![w],
-        total_cycles: total[0].round() as u64,
+        total_cycles: total[Cycles].round() as u64,
         sim_wall_s: 0.0,
         cycles_per_s: 0.0,
         memory_model: "gddr5".into(),

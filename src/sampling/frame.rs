@@ -257,9 +257,8 @@ impl Run {
         // from the sampled ones from the third on
         // (`windowed_parts`), so only right after
         // one: the first bounce's rays (from the primary hits)
-        // cost more per visit than the later ones' (Dabrovic
-        // Sponza at 1024x1024: 1.01 cycles a visit, then
-        // 0.92-0.96).
+        // cost more per visit than the later ones'
+        // (docs/results/2026-11-28-speed-error-sampled-wavefronts-that-borrow.md).
         let measured = if sampled {
             plan.wave_every <= 1
                 || wave <= SAMPLE_BORROW_FROM
@@ -290,9 +289,8 @@ impl Run {
         // through them (`root_between`: a smaller
         // root pass costs more per ray). A small one
         // (`WindowPlan::root_whole`) is simulated whole: cheap,
-        // and so latency-bound that neither holds (Cornell box
-        // 64x64: borrowed roots 18-34% high; the spheres
-        // without their room at 16x16: 55% low on the line).
+        // and so latency-bound that neither holds (docs/speed-error.md,
+        // "Time sampling": borrowed wavefronts; docs/results/2026-11-26-speed-error-root-passes-on-a-line.md).
         let root = measured && (plan.measures_root(wave, last) || rays <= plan.root_whole());
         if measured {
             self.traced_rays = Some(rays);

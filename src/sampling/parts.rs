@@ -3,24 +3,51 @@
 //! borrowed), or the whole of one traced over a sample; per pass its shading;
 //! the ray generation.
 
-use super::counts::{DRAM_J, WCOUNTS, add, seg_proxies, wave_counts, wave_window, window_counts};
+use super::counts::Count::{self, Cycles, SceneLines};
+use super::counts::{Counts, seg_proxies, wave_counts, wave_window, window_counts};
 use super::{SAMPLE_BORROW_FROM, SampleKind, SegWork, WindowPart, WindowRecord, root_between};
 use crate::config::Config;
 
-/// Counts of [`WCOUNTS`] kinds (see there).
-pub(super) type Counts = [f64; WCOUNTS];
 /// Measured counts and their functional proxies.
 type Pair = (Counts, Counts);
-/// A measured wavefront and its parts (see [`Measured`]).
-type Lent = (usize, [Pair; 5]);
 
 /// The trace parts one measured wavefront lends ([`Measured`]): root, head,
 /// rest, tail, and the whole of one traced over a sample.
-const ROOT: usize = 0;
-const HEAD: usize = 1;
-const REST: usize = 2;
-const TAIL: usize = 3;
-const WAVE: usize = 4;
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Part {
+    Root,
+    Head,
+    Rest,
+    Tail,
+    Wave,
+}
+
+impl Part {
+    const COUNT: usize = 5;
+
+    /// The part's name in the breakdown ([`WindowPart::part`]).
+    fn name(self) -> &'static str {
+        match self {
+            Part::Root => "root",
+            Part::Head => "head",
+            Part::Rest => "rest",
+            Part::Tail => "tail",
+            Part::Wave => "wave",
+        }
+    }
+}
+
+/// A measured wavefront and each of its parts (see [`Measured`]).
+struct Lent {
+    wave: usize,
+    parts: [Pair; Part::COUNT],
+}
+
+impl Lent {
+    fn part(&self, k: Part) -> &Pair {
+        &self.parts[k as usize]
+    }
+}
 
 /// Per measured wavefront, per trace part, the measured counts and their
 /// proxies, for the wavefronts (or root passes) that borrow them, and pooled
@@ -30,55 +57,52 @@ struct Measured(Vec<Lent>);
 
 impl Measured {
     /// Adds counts `x` with proxies `px` to part `k` of wavefront `wave`.
-    fn add(&mut self, k: usize, wave: usize, x: &Counts, px: &Counts) {
+    fn add(&mut self, k: Part, wave: usize, x: &Counts, px: &Counts) {
         let m = &mut self.0;
-        if m.last().is_none_or(|m| m.0 != wave) {
-            m.push((wave, [([0.0; WCOUNTS], [0.0; WCOUNTS]); 5]));
+        if m.last().is_none_or(|m| m.wave != wave) {
+            m.push(Lent {
+                wave,
+                parts: Default::default(),
+            });
         }
-        let m = &mut m.last_mut().expect("pushed").1[k];
-        add(&mut m.0, x, 1.0);
-        add(&mut m.1, px, 1.0);
+        let m = &mut m.last_mut().expect("pushed").parts[k as usize];
+        m.0.add(x, 1.0);
+        m.1.add(px, 1.0);
     }
 
     /// The nearest measured wavefronts before and after `wave` that have part
     /// `k` and pass `ok`.
     fn neighbours(
         &self,
-        k: usize,
+        k: Part,
         wave: usize,
         ok: &dyn Fn(usize) -> bool,
     ) -> (Option<&Lent>, Option<&Lent>) {
-        let has = |m: &&Lent| m.1[k].1[0] > 0.0 && ok(m.0);
+        let has = |m: &&Lent| m.part(k).1[Cycles] > 0.0 && ok(m.wave);
         (
-            self.0.iter().rev().filter(|m| m.0 < wave).find(has),
-            self.0.iter().filter(|m| m.0 > wave).find(has),
+            self.0.iter().rev().filter(|m| m.wave < wave).find(has),
+            self.0.iter().filter(|m| m.wave > wave).find(has),
         )
     }
 
     /// Part `k` summed over the measured wavefronts that have it and pass
     /// `ok`: the nearest before and after `wave` (`all`: every one).
-    fn nearest(
-        &self,
-        k: usize,
-        wave: usize,
-        all: bool,
-        ok: &dyn Fn(usize) -> bool,
-    ) -> Option<Pair> {
+    fn nearest(&self, k: Part, wave: usize, all: bool, ok: &dyn Fn(usize) -> bool) -> Option<Pair> {
         let picked: Vec<&Lent> = if all {
             self.0
                 .iter()
-                .filter(|m| m.1[k].1[0] > 0.0 && ok(m.0))
+                .filter(|m| m.part(k).1[Cycles] > 0.0 && ok(m.wave))
                 .collect()
         } else {
             let (before, after) = self.neighbours(k, wave, ok);
             before.into_iter().chain(after).collect()
         };
-        let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+        let (mut x, mut px) = (Counts::default(), Counts::default());
         for m in picked {
-            add(&mut x, &m.1[k].0, 1.0);
-            add(&mut px, &m.1[k].1, 1.0);
+            x.add(&m.part(k).0, 1.0);
+            px.add(&m.part(k).1, 1.0);
         }
-        (px[0] > 0.0).then_some((x, px))
+        (px[Cycles] > 0.0).then_some((x, px))
     }
 }
 
@@ -126,9 +150,9 @@ fn part(wave: usize, part: &'static str, first: u64, end: u64, t: &Counts) -> Wi
         part,
         first,
         end,
-        cycles: t[0],
-        lines: t[1] + t[2] + t[3] + t[4],
-        dram_j: t[5],
+        cycles: t[Cycles],
+        lines: t.lines(),
+        dram_j: t[Count::DramPaperJ],
         borrowed: false,
     }
 }
@@ -142,9 +166,9 @@ fn borrowed(wave: usize, name: &'static str, first: u64, end: u64, t: &Counts) -
 }
 
 fn sum(r: &[Counts]) -> Counts {
-    let mut t = [0.0; WCOUNTS];
+    let mut t = Counts::default();
     for x in r {
-        add(&mut t, x, 1.0);
+        t.add(x, 1.0);
     }
     t
 }
@@ -153,8 +177,8 @@ fn sum(r: &[Counts]) -> Counts {
 /// proxies `px`: each by its own proxy, the cycles' where the windows saw
 /// none of it.
 fn scale(rest: &Counts, x: &Counts, px: &Counts) -> Counts {
-    std::array::from_fn::<f64, WCOUNTS, _>(|i| {
-        let j = if px[i] > 0.0 { i } else { 0 };
+    Counts::from_fn(|i| {
+        let j = if px[i] > 0.0 { i } else { Cycles };
         x[i] * rest[j] / px[j]
     })
 }
@@ -163,7 +187,11 @@ fn scale(rest: &Counts, x: &Counts, px: &Counts) -> Counts {
 /// records and the shading pass only, as the frame's ray and scene streams
 /// are the functional model's counts (`estimate`).
 fn figs(t: &Counts) -> [f64; 3] {
-    [t[0], t[3] + t[4], t[5]]
+    [
+        t[Cycles],
+        t[Count::HitLines] + t[Count::ShadingLines],
+        t[Count::DramPaperJ],
+    ]
 }
 
 impl<'a> Parts<'a> {
@@ -179,13 +207,13 @@ impl<'a> Parts<'a> {
             rec,
             wb_j,
             proxies,
-            total: [0.0; WCOUNTS],
+            total: Counts::default(),
             parts: Vec::new(),
             measured: Measured::default(),
             per_wave: Vec::new(),
             sampled: Vec::new(),
-            whole_sum: [0.0; WCOUNTS],
-            thin_sum: [0.0; WCOUNTS],
+            whole_sum: Counts::default(),
+            thin_sum: Counts::default(),
             borrowers: Vec::new(),
             root_borrowers: Vec::new(),
             var: [0.0; 3],
@@ -218,14 +246,12 @@ impl<'a> Parts<'a> {
     /// A root pass's cost goes with its rays (a root window is scaled by them):
     /// its proxy for the cycles and the DRAM energy, where the first-order bound
     /// follows the box tests and misjudges the root from one wavefront to the
-    /// next (Dragon Box 256x256: 1.35-1.43 cycles per ray in every bounce
-    /// wavefront, the bound's ratio off by up to 20%).
+    /// next (docs/speed-error.md, "Time sampling": borrowed wavefronts).
     fn root_proxy(&self, wave: usize) -> Counts {
         let mut p = self.proxies[wave][0];
         let rays = self.rec.segs[wave][0].rays as f64;
-        p[0] = rays;
-        for j in DRAM_J {
-            p[j] = rays;
+        for k in Count::TIMED {
+            p[k] = rays;
         }
         p
     }
@@ -233,7 +259,7 @@ impl<'a> Parts<'a> {
     /// A sampled wavefront's counts by the ratio whole / sample of those
     /// simulated both ways (none: as sampled).
     fn correct(&self, t: &Counts) -> Counts {
-        std::array::from_fn(|i| {
+        Counts::from_fn(|i| {
             if self.thin_sum[i] > 0.0 {
                 t[i] * self.whole_sum[i] / self.thin_sum[i]
             } else {
@@ -267,14 +293,14 @@ impl<'a> Parts<'a> {
         {
             // Lent whole to those that borrow (`SAMPLE_BORROW_FROM`).
             let whole = sum(&self.proxies[wave]);
-            self.measured.add(WAVE, wave, &t, &whole);
+            self.measured.add(Part::Wave, wave, &t, &whole);
             self.sampled.push((wave, t));
             return;
         }
         // The head: the root pass (its window on one run of rays in k of the
         // queue, see `WindowPlan::root_rays`), then the window from the next
         // segment on, if any (measured whole).
-        let mut head = [0.0; WCOUNTS];
+        let mut head = Counts::default();
         let mut head_end = self.root_windows(wave, segs, &mut head);
         if head_end == 0 && !segs.is_empty() {
             // No root window here: the root pass is borrowed, the rest is
@@ -284,13 +310,13 @@ impl<'a> Parts<'a> {
         }
         let tail_start = self.tail_windows(wave, segs, head_end);
         let (x, px, ratios) = self.trace_windows(wave, segs, &index, &mut head, &mut head_end);
-        add(&mut self.total, &head, 1.0);
+        self.total.add(&head, 1.0);
         if let Some(t) = thin
             && calibrates
         {
             // Simulated whole after its root window: all of it is the head.
-            add(&mut self.whole_sum, &head, 1.0);
-            add(&mut self.thin_sum, &t, 1.0);
+            self.whole_sum.add(&head, 1.0);
+            self.thin_sum.add(&t, 1.0);
         }
         let proxy = &self.proxies[wave];
         let rest = sum(&proxy[head_end.min(tail_start)..tail_start]);
@@ -302,7 +328,7 @@ impl<'a> Parts<'a> {
             px,
             ratios,
         });
-        self.measured.add(REST, wave, &x, &px);
+        self.measured.add(Part::Rest, wave, &x, &px);
     }
 
     /// The root windows of wavefront `wave`, added to its `head`; the
@@ -324,8 +350,8 @@ impl<'a> Parts<'a> {
             }
             let plain = |w| wave_counts(w, &[0; crate::mem::StreamTag::COUNT], wb_j);
             let mut root = window_counts(r, wb_j);
-            add(&mut root, &plain(&r.warm), 1.0);
-            add(&mut root, &plain(&r.after), 1.0);
+            root.add(&plain(&r.warm), 1.0);
+            root.add(&plain(&r.after), 1.0);
             // The rays it left out: as many cycles and joules each as in its
             // steady stretch (the DRAM's energy goes with time as well as
             // lines, and with the rows the lines fall in); the rest by the
@@ -335,20 +361,19 @@ impl<'a> Parts<'a> {
             let kept = segs.first().map_or(0, |s| s.rays) as f64 - left;
             let k = left / kept.max(1.0);
             let steady = plain(&r.counts);
-            let timed =
-                [0, DRAM_J[0], DRAM_J[1]].map(|i| root[i] + left * steady[i] / r.marks as f64);
-            let scene = root[2];
-            for x in root.iter_mut() {
-                *x *= 1.0 + k;
+            let timed = Count::TIMED.map(|i| root[i] + left * steady[i] / r.marks as f64);
+            let scene = root[SceneLines];
+            root = root.map(|x| x * (1.0 + k));
+            root[SceneLines] -= k * scene;
+            for (i, t) in Count::TIMED.into_iter().zip(timed) {
+                root[i] = t;
             }
-            root[2] -= k * scene;
-            (root[0], root[DRAM_J[0]], root[DRAM_J[1]]) = (timed[0], timed[1], timed[2]);
-            add(head, &root, 1.0);
+            head.add(&root, 1.0);
             if !segs.is_empty() {
                 let p = self.root_proxy(wave);
-                self.measured.add(ROOT, wave, &root, &p);
+                self.measured.add(Part::Root, wave, &root, &p);
             }
-            self.parts.push(part(wave, "root", 0, 1, &root));
+            self.parts.push(part(wave, Part::Root.name(), 0, 1, &root));
         }
         head_end
     }
@@ -364,12 +389,13 @@ impl<'a> Parts<'a> {
             .filter(|s| s.wave == wave && s.kind == SampleKind::Tail)
         {
             let t = window_counts(&smp.run, self.wb_j);
-            add(&mut self.total, &t, 1.0);
+            self.total.add(&t, 1.0);
             tail_start = (smp.first as usize).clamp(head_end.min(segs.len()), segs.len());
             let p = sum(&self.proxies[wave][tail_start..]);
-            self.measured.add(TAIL, wave, &t, &p);
+            self.measured.add(Part::Tail, wave, &t, &p);
+            let n = segs.len() as u64;
             self.parts
-                .push(part(wave, "tail", tail_start as u64, segs.len() as u64, &t));
+                .push(part(wave, Part::Tail.name(), tail_start as u64, n, &t));
         }
         tail_start
     }
@@ -386,7 +412,7 @@ impl<'a> Parts<'a> {
         head_end: &mut usize,
     ) -> (Counts, Counts, Vec<Pair>) {
         let rec = self.rec;
-        let (mut x, mut px) = ([0.0; WCOUNTS], [0.0; WCOUNTS]);
+        let (mut x, mut px) = (Counts::default(), Counts::default());
         let mut ratios = Vec::new();
         for smp in rec
             .samples
@@ -399,11 +425,12 @@ impl<'a> Parts<'a> {
             let wc = window_counts(&smp.run, self.wb_j);
             if a == 1 && *head_end == 1 {
                 // Right after the root pass, with no warm-up: the head's rest.
-                add(head, &wc, 1.0);
+                head.add(&wc, 1.0);
                 *head_end = b;
                 let p = sum(&proxy[a..b]);
-                self.measured.add(HEAD, wave, &wc, &p);
-                self.parts.push(part(wave, "head", a as u64, b as u64, &wc));
+                self.measured.add(Part::Head, wave, &wc, &p);
+                let name = Part::Head.name();
+                self.parts.push(part(wave, name, a as u64, b as u64, &wc));
                 continue;
             }
             // The work the stretch did: each segment's proxy by the share of
@@ -413,19 +440,19 @@ impl<'a> Parts<'a> {
             let p = if smp.run.done.is_empty() {
                 sum(&proxy[a..b])
             } else {
-                let mut t = [0.0; WCOUNTS];
+                let mut t = Counts::default();
                 for &(sg, d) in &smp.run.done {
                     if let Some(&i) = index.get(&sg)
                         && segs[i].rays > 0
                     {
-                        add(&mut t, &proxy[i], d as f64 / segs[i].rays as f64);
+                        t.add(&proxy[i], d as f64 / segs[i].rays as f64);
                     }
                 }
                 t
             };
-            add(&mut x, &wc, 1.0);
-            add(&mut px, &p, 1.0);
-            if p[0] > 0.0 {
+            x.add(&wc, 1.0);
+            px.add(&p, 1.0);
+            if p[Cycles] > 0.0 {
                 ratios.push((wc, p));
             }
         }
@@ -436,9 +463,9 @@ impl<'a> Parts<'a> {
     fn sampled_waves(&mut self) {
         for (wave, t) in std::mem::take(&mut self.sampled) {
             let c = self.correct(&t);
-            add(&mut self.total, &c, 1.0);
+            self.total.add(&c, 1.0);
             let n = self.rec.segs[wave].len() as u64;
-            self.parts.push(part(wave, "wave", 0, n, &c));
+            self.parts.push(part(wave, Part::Wave.name(), 0, n, &c));
         }
     }
 
@@ -448,30 +475,30 @@ impl<'a> Parts<'a> {
     fn rests(&mut self) -> Result<(), String> {
         let (pool_x, pool_p) = self
             .measured
-            .nearest(REST, 0, true, &|_| true)
+            .nearest(Part::Rest, 0, true, &|_| true)
             .unwrap_or_default();
         // The spread is the rest windows'; with none (every wavefront simulated
         // whole) there is nothing to spread.
-        self.se_known = self.per_wave.iter().any(|w| w.proxy[0] > 0.0);
+        self.se_known = self.per_wave.iter().any(|w| w.proxy[Cycles] > 0.0);
         for w in &self.per_wave {
             let (rest, x, px) = (&w.proxy, &w.x, &w.px);
-            if rest[0] == 0.0 {
+            if rest[Cycles] == 0.0 {
                 continue;
             }
-            let (x, px) = if px[0] > 0.0 {
+            let (x, px) = if px[Cycles] > 0.0 {
                 (x, px)
             } else {
                 (&pool_x, &pool_p)
             };
-            if px[0] == 0.0 {
+            if px[Cycles] == 0.0 {
                 return Err(
                     "time sampling measured no window after the head; lower --window-every".into(),
                 );
             }
             let r = scale(rest, x, px);
-            add(&mut self.total, &r, 1.0);
+            self.total.add(&r, 1.0);
             let (a, b) = (w.passes.start as u64, w.passes.end as u64);
-            self.parts.push(part(w.wave, "rest", a, b, &r));
+            self.parts.push(part(w.wave, Part::Rest.name(), a, b, &r));
             // Variance of the rest from the spread of what each window alone would
             // say of it.
             let n = w.ratios.len();
@@ -511,14 +538,17 @@ impl<'a> Parts<'a> {
         // others), one part, its root pass in it as in theirs.
         let from = SAMPLE_BORROW_FROM;
         let m = &self.measured;
-        if whole && m.neighbours(WAVE, wave, &|v| v >= from).0.is_some() {
+        if whole && m.neighbours(Part::Wave, wave, &|v| v >= from).0.is_some() {
             let (x, px) = m
-                .nearest(WAVE, wave, false, &|v| v >= from && v < rec.final_wave)
-                .or_else(|| m.nearest(WAVE, wave, false, &|v| v >= from))
+                .nearest(Part::Wave, wave, false, &|v| {
+                    v >= from && v < rec.final_wave
+                })
+                .or_else(|| m.nearest(Part::Wave, wave, false, &|v| v >= from))
                 .expect("a sampled wavefront before it");
             let t = self.correct(&scale(&sum(&self.proxies[wave]), &x, &px));
-            add(&mut self.total, &t, 1.0);
-            self.parts.push(borrowed(wave, "wave", 0, n as u64, &t));
+            self.total.add(&t, 1.0);
+            let name = Part::Wave.name();
+            self.parts.push(borrowed(wave, name, 0, n as u64, &t));
             return Ok(());
         }
         let head_end = if whole {
@@ -532,19 +562,19 @@ impl<'a> Parts<'a> {
             self.root_borrowers.push(wave);
         }
         let ranges = [
-            (HEAD, "head", n.min(1)..head_end),
-            (REST, "rest", head_end..tail_start),
-            (TAIL, "tail", tail_start..n),
+            (Part::Head, n.min(1)..head_end),
+            (Part::Rest, head_end..tail_start),
+            (Part::Tail, tail_start..n),
         ];
-        for (k, name, r) in ranges {
+        for (k, r) in ranges {
             let p = sum(&self.proxies[wave][r.clone()]);
-            if p[0] == 0.0 {
+            if p[Cycles] == 0.0 {
                 continue;
             }
             // The measured wavefronts' part, else (never measured: a tail no
             // measured wavefront had, a head of one admission) their rest,
             // else their head (all of a wavefront simulated whole).
-            let Some((x, px)) = [k, REST, HEAD]
+            let Some((x, px)) = [k, Part::Rest, Part::Head]
                 .into_iter()
                 .flat_map(|j| [(j, true), (j, false)])
                 .find_map(|(j, mid)| {
@@ -557,17 +587,17 @@ impl<'a> Parts<'a> {
                 ));
             };
             let t = scale(&p, &x, &px);
-            add(&mut self.total, &t, 1.0);
-            self.parts
-                .push(borrowed(wave, name, r.start as u64, r.end as u64, &t));
+            self.total.add(&t, 1.0);
+            let (a, b) = (r.start as u64, r.end as u64);
+            self.parts.push(borrowed(wave, k.name(), a, b, &t));
         }
         Ok(())
     }
 
     /// A borrowed root pass: by the rays, as the nearest root windows before and
     /// after (a root pass's cost per ray is about the same in every wavefront
-    /// after the first whose rays are alike: 1.30-1.39 cycles per ray at the
-    /// paper's size in the Dragon Box), the first's only if no other has one.
+    /// after the first whose rays are alike: docs/speed-error.md, "Time
+    /// sampling": borrowed wavefronts), the first's only if no other has one.
     /// Between two root windows whose rays differ (an open scene's wavefronts
     /// shrink), the cycles and DRAM energy lie on the line through them: a
     /// smaller root pass costs more per ray (its start-up and drain weigh
@@ -575,24 +605,24 @@ impl<'a> Parts<'a> {
     fn borrowed_root(&mut self, wave: usize) -> Result<(), String> {
         let m = &self.measured;
         let (x, px) = m
-            .nearest(ROOT, wave, false, &|v| v > 0)
-            .or_else(|| m.nearest(ROOT, wave, false, &|_| true))
+            .nearest(Part::Root, wave, false, &|v| v > 0)
+            .or_else(|| m.nearest(Part::Root, wave, false, &|_| true))
             .ok_or_else(|| {
                 format!("time sampling: wavefront {wave} borrows its root pass, but no wavefront took a root window")
             })?;
         let mut t = scale(&self.root_proxy(wave), &x, &px);
         // Each neighbour's root window: its rays (the proxy's cycles) and counts.
-        if let (Some(b), Some(a)) = m.neighbours(ROOT, wave, &|v| v > 0) {
-            let ((bx, bp), (ax, ap)) = (&b.1[ROOT], &a.1[ROOT]);
+        if let (Some(b), Some(a)) = m.neighbours(Part::Root, wave, &|v| v > 0) {
+            let ((bx, bp), (ax, ap)) = (b.part(Part::Root), a.part(Part::Root));
             let rays = self.rec.segs[wave][0].rays as f64;
-            if let Some(f) = root_between(rays, bp[0], ap[0]) {
-                for i in [0, DRAM_J[0], DRAM_J[1]] {
+            if let Some(f) = root_between(rays, bp[Cycles], ap[Cycles]) {
+                for i in Count::TIMED {
                     t[i] = bx[i] + f * (ax[i] - bx[i]);
                 }
             }
         }
-        add(&mut self.total, &t, 1.0);
-        self.parts.push(borrowed(wave, "root", 0, 1, &t));
+        self.total.add(&t, 1.0);
+        self.parts.push(borrowed(wave, Part::Root.name(), 0, 1, &t));
         Ok(())
     }
 
@@ -624,28 +654,28 @@ impl<'a> Parts<'a> {
                 }
             };
             let mut left = work(0, rec.pixels as u64);
-            let mut pass = [0.0; WCOUNTS];
+            let mut pass = Counts::default();
             for smp in rec
                 .samples
                 .iter()
                 .filter(|s| s.wave == wave && s.kind == SampleKind::ShadeHead)
             {
-                add(&mut pass, &window_counts(&smp.run, wb_j), 1.0);
+                pass.add(&window_counts(&smp.run, wb_j), 1.0);
                 left -= work(smp.first, smp.run.marks);
             }
-            let (mut x, mut n) = ([0.0; WCOUNTS], 0.0);
+            let (mut x, mut n) = (Counts::default(), 0.0);
             for smp in rec
                 .samples
                 .iter()
                 .filter(|s| s.wave == wave && s.kind == SampleKind::Shade)
             {
-                add(&mut x, &window_counts(&smp.run, wb_j), 1.0);
+                x.add(&window_counts(&smp.run, wb_j), 1.0);
                 n += work(smp.first, smp.run.marks);
             }
             if n > 0.0 && left > 0.0 {
-                add(&mut pass, &x, left / n);
+                pass.add(&x, left / n);
             }
-            add(&mut self.total, &pass, 1.0);
+            self.total.add(&pass, 1.0);
             self.parts.push(part(wave, "shade", 0, 0, &pass));
         }
     }
@@ -659,10 +689,10 @@ impl<'a> Parts<'a> {
             if smp.run.marks > 0 {
                 let k = rec.pixels as f64 / smp.run.marks as f64;
                 let mut e = window_counts(&smp.run, self.wb_j).map(|x| x * k);
-                e[1] = 0.0;
-                e[3] += rec.pixels as f64;
-                e[4] += rec.pixels as f64;
-                add(&mut self.total, &e, 1.0);
+                e[Count::RayLines] = 0.0;
+                e[Count::HitLines] += rec.pixels as f64;
+                e[Count::ShadingLines] += rec.pixels as f64;
+                self.total.add(&e, 1.0);
                 self.parts.push(part(0, "emit", 0, 0, &e));
             }
         }

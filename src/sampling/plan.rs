@@ -23,13 +23,10 @@ pub struct WindowPlan {
     /// k times its lines and other counts but for its segment's load.
     pub root_rays: u64,
     /// The same for the later wavefronts' root windows. Half of `root_rays`
-    /// by default: the primary rays' root pass needs a longer sample, as it
-    /// takes 77-81 cycles a bucket for its first 65 K cycles and 123-138
-    /// after (the Dragon Box at 1024x1024; a fresh chip's time, not the
-    /// rays': a sample of 32 K rays ends within them and reads -13.5%
-    /// against -5.5% with 64 K), while the later root passes read the same
-    /// with half the rays (Dragon -1.4% and -0.3%; Dragon Box +7.0% and
-    /// +6.6%, +0.9% and +1.6%) at half the cost (docs/speed-error.md).
+    /// by default: a fresh chip runs the primary rays' root pass fast at
+    /// first, so a shorter sample of it ends in that start and reads low,
+    /// while the later root passes read the same with half the rays at half
+    /// the cost (docs/results/2026-11-27-speed-error-root-windows-of-the-later-wavefronts-and-shorter-tails.md).
     pub bounce_root_rays: u64,
     /// Rays of a short wavefront's sample (one with too few passes for a
     /// window, see [`WindowPlan::first_window_start`]): such a wavefront of
@@ -50,26 +47,21 @@ pub struct WindowPlan {
     /// passes its rays' hit records through the passes k times faster than
     /// the wavefront does, so a whole L2 still holds them when a ray comes
     /// back in a later pass and the sample's hit-record lines read low; one
-    /// k-th of it loses the reuse between neighbouring rays in a pass. On
-    /// Dabrovic Sponza (k 16-28, runs of 1024 rays), a wavefront simulated
-    /// whole over its sample is 0.97-1.02 in cycles, 0.97-1.03 in lines and
-    /// 0.98-1.02 in DRAM energy with a quarter of the L2; with half, runs of
-    /// 512, lines read 1.01-1.08. Against the cycle reference's runs, a
-    /// quarter put the bounce wavefronts' hit-record lines 5-6% low (the
-    /// frame's -4.0%), an eighth within 1% (docs/speed-error.md). The choice
-    /// is measured, not derived.
+    /// k-th of it loses the reuse between neighbouring rays in a pass. The
+    /// share between is measured, not derived (on Dabrovic Sponza:
+    /// docs/results/2026-11-26-speed-error-short-wavefronts-over-a-sample.md
+    /// for a quarter, docs/results/2026-11-27-speed-error-root-windows-of-the-later-wavefronts-and-shorter-tails.md
+    /// for an eighth).
     pub wave_l2_share: u32,
     /// A short wavefront is traced over a sample only if the sample's ray
     /// stream per pass (its rays times the visits a ray makes, guessed from
     /// the last wavefront, else one, over the passes) comes to at least this
     /// share of a segment's lines; else it is simulated whole. Below that the
     /// sample's passes are bound by loading their segments, not by their rays,
-    /// and its cycles per visit say nothing of the whole wavefront's: the
-    /// Dragon at 1024x1024 with `--window-every 2048` (so every wavefront is
-    /// short), 33 rays a pass in a sample of 64 K over 1963 passes, comes to
-    /// 0.02-0.09 of a segment and its samples read +82% to +260% in cycles;
-    /// Dabrovic Sponza's, measured good, come to 0.28-0.9. 0.15 sits about
-    /// halfway (by ratio) between.
+    /// and its cycles per visit say nothing of the whole wavefront's. The
+    /// default sits between the shares of samples measured bad and good
+    /// (docs/results/2026-11-27-speed-error-middle-root-passes-and-shading-windows.md,
+    /// "A guard on wavefront samples").
     pub wave_ray_share: f64,
     /// Of the sampled short wavefronts, those from the second to this one
     /// are also simulated whole (root window, then the rest whole): the ratio
@@ -91,9 +83,8 @@ pub struct WindowPlan {
     pub shade_warm: u64,
     pub shade_measure: u64,
     /// And at least this many cycles of warm-up: a shading pass's rate
-    /// settles over time, not items (the Dragon at 256x256, a pass of done
-    /// paths: 0.50 cycles per item for its first 24 K items, 0.40 after, the
-    /// same with a 4x larger L2).
+    /// settles over time, not items, and not by the L2 (docs/speed-error.md,
+    /// "Why the Dragon's later shading passes read high").
     pub shade_warm_cycles: u64,
     /// Items of each shading pass simulated from its start, as is.
     pub shade_head: u64,
@@ -132,7 +123,7 @@ pub const SAMPLE_BORROW_FROM: usize = 2;
 /// Time sampling borrows for a wavefront (its trace or its root pass) only if
 /// its rays are within this fraction of the last measured one's: the ratios it
 /// borrows were measured at that load, and a wavefront with fewer rays is more
-/// latency-bound (Dragon Box: every bounce wavefront within 3% of the next).
+/// latency-bound (docs/speed-error.md, "Time sampling": borrowed wavefronts).
 pub const BORROW_ALIKE: f64 = 0.1;
 
 impl WindowPlan {
@@ -192,11 +183,10 @@ impl WindowPlan {
 
     /// A root pass of at most this many rays between the second wavefront and
     /// the last is simulated whole, not borrowed: a quarter of such a
-    /// wavefront's root window (`bounce_root_rays`).
-    /// Such a pass is so latency-bound that borrowing misses it (Cornell box
-    /// 64x64: 18-34% high), and it is cheap. One up to a whole root window
-    /// is not cheap: the Dragon's fifth wavefront (32,747 rays) cost 12.9 M
-    /// unit evaluations, as many as a root window, for 0.4% of the frame.
+    /// wavefront's root window (`bounce_root_rays`). Such a pass is so
+    /// latency-bound that borrowing misses it, and it is cheap; one up to a
+    /// whole root window costs as much as a root window
+    /// (docs/results/2026-11-27-speed-error-middle-root-passes-and-shading-windows.md).
     pub fn root_whole(&self) -> u64 {
         self.bounce_root_rays / 4
     }

@@ -391,15 +391,14 @@ fn sample_config(cfg: &crate::config::Config, l2_share: u32) -> crate::config::C
 /// Where the `n` shading windows of wavefront `wave`'s pass start: one at a
 /// hashed place in each of `n` equal strata of the pixels after the head,
 /// leaving `span` items (warm-up and measurement) in its stratum where there
-/// is room. Not at a fixed place in each: the pass's row activations swing 4x
-/// with a period of about 62 K items (the path-state, hit-record and ray-bucket
-/// streams drift through the DRAM banks against each other), and strata of
-/// 64 K or 516 K items put every window at the same phase of it: Sponza's
-/// shading read 17% low in DRAM energy and 5% in cycles. In a stratum of at
-/// least 16 spans the last window starts in its first seven eighths: a warm-up
-/// that also waits for cycles takes more items than `span` says (7-34 K for
-/// 16 K cycles on the paper scenes, under an eighth of their strata), and one
-/// that runs out of items measures nothing, leaving its stratum unsampled.
+/// is room. Not at a fixed place in each: the pass's row activations swing
+/// with a period of tens of thousands of items (the path-state, hit-record
+/// and ray-bucket streams drift through the DRAM banks against each other),
+/// and equal strata put every window at the same phase of it. In a stratum of
+/// at least 16 spans the last window starts in its first seven eighths: a
+/// warm-up that also waits for cycles takes more items than `span` says, and
+/// one that runs out of items measures nothing, leaving its stratum unsampled
+/// (docs/results/2026-11-26-speed-error-shading-windows-at-hashed-places.md).
 pub(super) fn shade_window_starts(
     head: u32,
     pixels: u32,

@@ -206,10 +206,10 @@ pub struct TpStats {
     /// Triangle tests that hit.
     pub tri_hits: u64,
     pub l1_loads: u64,
-    /// Cycles from a request to its response, per unit: divider, box, triangle, L1.
-    pub wait: [u64; 4],
-    /// The part of `wait` beyond the idle round trip (contention), for div/box/tri.
-    pub stall: [u64; 3],
+    /// Cycles from a request to its response, per unit.
+    pub wait: TpWaits,
+    /// The part of `wait` beyond the idle round trip (contention).
+    pub stall: TpStalls,
     /// Cycles a finished action waited for a full output link (a wait in progress
     /// is added when it ends).
     pub blocked: u64,
@@ -230,6 +230,24 @@ pub struct TpStats {
     pub gmem_wait: u64,
 }
 
+/// A TP's cycles from a request to its response, per unit it waits for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TpWaits {
+    pub divider: u64,
+    pub box_pipe: u64,
+    pub tri_pipe: u64,
+    pub l1: u64,
+}
+
+/// The part of a TP's waits beyond the idle round trip (contention), per
+/// pipelined unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TpStalls {
+    pub divider: u64,
+    pub box_pipe: u64,
+    pub tri_pipe: u64,
+}
+
 impl TpStats {
     /// Adds another TP's additive counters (all but `max_stack`, `first_ray` and
     /// `last_finish`) to these.
@@ -237,12 +255,13 @@ impl TpStats {
         for (a, b) in self.uses.iter_mut().zip(o.uses) {
             *a += b;
         }
-        for (a, b) in self.wait.iter_mut().zip(o.wait) {
-            *a += b;
-        }
-        for (a, b) in self.stall.iter_mut().zip(o.stall) {
-            *a += b;
-        }
+        self.wait.divider += o.wait.divider;
+        self.wait.box_pipe += o.wait.box_pipe;
+        self.wait.tri_pipe += o.wait.tri_pipe;
+        self.wait.l1 += o.wait.l1;
+        self.stall.divider += o.stall.divider;
+        self.stall.box_pipe += o.stall.box_pipe;
+        self.stall.tri_pipe += o.stall.tri_pipe;
         self.rays += o.rays;
         self.box_tests += o.box_tests;
         self.tri_tests += o.tri_tests;
@@ -392,13 +411,13 @@ impl Logic for Tp {
             ("hits", s.hits),
             ("tri_hits", s.tri_hits),
             ("l1_loads", s.l1_loads),
-            ("wait_div", s.wait[0]),
-            ("wait_box", s.wait[1]),
-            ("wait_tri", s.wait[2]),
-            ("wait_l1", s.wait[3]),
-            ("stall_div", s.stall[0]),
-            ("stall_box", s.stall[1]),
-            ("stall_tri", s.stall[2]),
+            ("wait_div", s.wait.divider),
+            ("wait_box", s.wait.box_pipe),
+            ("wait_tri", s.wait.tri_pipe),
+            ("wait_l1", s.wait.l1),
+            ("stall_div", s.stall.divider),
+            ("stall_box", s.stall.box_pipe),
+            ("stall_tri", s.stall.tri_pipe),
             ("blocked", s.blocked),
             ("max_stack", s.max_stack),
             ("shade_items", s.shade_items),

@@ -22,8 +22,7 @@ pub(super) struct LaneOut {
     /// Protocol violations found at the edges of the thread's own links.
     pub(super) violations: Vec<Violation>,
     /// The last (time, period, cycle) a `Ctx` was made for: consecutive units
-    /// share their clock, and a 64-bit division per evaluation showed in the
-    /// profile (7% of the crossbar's time).
+    /// share their clock, so they share one 64-bit division (docs/results/2026-11-26-kernel-committing-where-the-state-is-and-the-cycle-once-per-clock.md).
     clock: (Time, Time, u64),
 }
 
@@ -73,7 +72,8 @@ impl<'a> Ctx<'a> {
     /// Where a round-robin arbiter over `n` requesters starts this cycle:
     /// `cycle mod n` (0 for none), a function of absolute time, so it does not
     /// depend on when the unit was evaluated. A mask when `n` is a power of two
-    /// (the TPs of a TM): the crossbar's 64-bit division was 1% of the paper frame.
+    /// (the TPs of a TM), to spare the crossbar a 64-bit division per evaluation
+    /// (docs/results/2026-11-26-kernel-the-paper-frame-s-profile-and-what-did-not-help.md).
     #[inline]
     pub fn round_robin_start(&self, n: usize) -> usize {
         let (c, n) = (self.cycle(), n as u64);

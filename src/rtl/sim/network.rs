@@ -21,7 +21,8 @@ pub(super) struct Net {
     /// One byte per link: whether its FIFO holds an entry (`heads` is not
     /// `Time::MAX`), written with `heads`. A byte, not a bit: links of one word
     /// may have consumers on both threads, and a bit would need an atomic
-    /// read-modify-write (a fence that stalls this memory-bound loop, measured).
+    /// read-modify-write, a fence in this memory-bound loop
+    /// (docs/results/2026-11-25-kernel-where-a-cycle-goes-and-two-small-gains.md).
     nonempty: *mut u8,
     pub(super) len: usize,
 }
@@ -66,11 +67,11 @@ impl Net {
         let mut b = 0u64;
         for w in 0..words {
             // Eight 0/1 bytes to eight bits in one multiply: byte i lands on bit
-            // 56 + i and every other product on a distinct lower or dropped bit (an
-            // arbiter's scan of 16 ports was a loop of 16 loads, shifts and ors).
+            // 56 + i and every other product on a distinct lower or dropped bit, in
+            // place of a load, shift and or per port (docs/results/2026-11-26-kernel-the-paper-frame-s-profile-and-what-did-not-help.md).
             // SAFETY: bytes `8w..8w + 8` of `bytes` (in bounds: `w < n / 8`), read
-            // unaligned; a plain load instead of `chunks_exact` and `try_into`, which
-            // were a tenth of the crossbar's instructions (callgrind).
+            // unaligned; one plain load, as `chunks_exact` and `try_into` cost
+            // instructions here (docs/results/2026-11-27-kernel-internal-states-run-through-and-the-l2-under-a-miss-storm.md).
             let x =
                 u64::from_le(unsafe { bytes.as_ptr().add(8 * w).cast::<u64>().read_unaligned() });
             b |= (x.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (8 * w);

@@ -8,7 +8,7 @@ use super::{ModeResult, PartCheck, Reference, RunPasses, SpeedErrorOpts, check_p
 use super::{render_pixels, total_energy};
 use crate::config::Config;
 use crate::render::{self, Frame, Mode};
-use crate::sampling::analytic::{combine, figures, parts};
+use crate::sampling::analytic::{FrameParts, figures, parts};
 use crate::sampling::{
     SampleKind, TimeSampled, WindowPart, WindowRecord, estimate, render_cfg, time_sampled,
 };
@@ -175,7 +175,7 @@ impl<'a> Study<'a> {
 
     /// The functional frame and its estimate, as a row (`row`) and for the
     /// sampled modes: its wall time and figures by part.
-    pub(super) fn functional(&mut self, row: bool) -> Result<(f64, [f64; 7]), String> {
+    pub(super) fn functional(&mut self, row: bool) -> Result<(f64, FrameParts), String> {
         let f = render_pixels(
             self.scene,
             Mode::Functional,
@@ -186,7 +186,7 @@ impl<'a> Study<'a> {
         self.same_rays(&f)?;
         let est = estimate(&self.gddr5, &f).cycles;
         let full_parts = parts(&self.gddr5, &f, est)?;
-        let fig = combine(&full_parts);
+        let fig = full_parts.combine();
         if row {
             let same = self.same_image(&f, None);
             self.push(
@@ -281,7 +281,7 @@ impl<'a> Study<'a> {
     /// functional frame's wall time and figures by part (`functional`).
     pub(super) fn sampled(
         &mut self,
-        (func_wall, full_parts): (f64, [f64; 7]),
+        (func_wall, full_parts): (f64, FrameParts),
         samples: &[Vec<u32>],
     ) -> Result<(), String> {
         let (scene, o, t) = (self.scene, self.o, self.o.threads);
@@ -310,12 +310,12 @@ impl<'a> Study<'a> {
             let est = estimate(gddr5, &ff).cycles;
             let pf = parts(gddr5, &ff, est)?;
             // A part the functional sample lacks contributes the whole frame's own.
-            let by_part: [f64; 7] = std::array::from_fn(|i| {
-                let r = if pf[i] > 0.0 { pc[i] / pf[i] } else { 1.0 };
-                full_parts[i] * r
+            let by_part = full_parts.zip3(&pc, &pf, |full, pc, pf| {
+                let r = if pf > 0.0 { pc / pf } else { 1.0 };
+                full * r
             });
-            ratio.push(combine(&by_part));
-            scaled.push(combine(&pc).map(|x| x / frac));
+            ratio.push(by_part.combine());
+            scaled.push(pc.combine().map(|x| x / frac));
         }
         let m = samples.len();
         let note = format!(

@@ -42,14 +42,12 @@ pub struct L2Cfg {
     pub mem_lines_per_cycle: u32,
     /// Bank index = XOR of the line index's bank-wide bit fields (true) or the
     /// line index modulo the banks (false). Assumption: hashed, as banked GPU L2s
-    /// do, so strided line sequences spread over the banks (cornell 128x128 on
-    /// 128 x 16 with GDDR5: 476,011 cycles with modulo, 467,173 hashed).
+    /// do, so strided line sequences spread over the banks (docs/chip.md, "L2").
     pub bank_hash: bool,
     /// A bank serving a read of a line serves other clients' reads of the same
     /// line in that cycle too (one array read, the data multicast). Assumption:
-    /// on; shading's clients read the same triangles and materials, and about
-    /// two thirds of the bank conflicts were such same-line reads (cornell
-    /// 128x128).
+    /// on; shading's clients read the same triangles and materials, so many
+    /// bank conflicts are same-line reads (docs/chip.md, "L2").
     pub combine_reads: bool,
 }
 

@@ -9,7 +9,6 @@ use crate::contract::{
 use crate::mem::StreamTag;
 use crate::rtl::{Ctx, Status};
 
-use super::super::l1::Line;
 use super::super::memory::{MemLineReq, MemLineResp};
 use super::super::scene_buffer::SlotMap;
 use super::{
@@ -217,7 +216,7 @@ impl StreamScheduler {
         let st = self.st.m();
         let f = st.fetch.as_mut().expect("fetch in progress");
         let off = (self.map.seg_entry_addr(f.seg) % LINE_BYTES) as usize;
-        let e = seg_entry_from_line(&r.data, off);
+        let e = SegEntry::decode(&r.data.0[off..off + SEG_ENTRY_BYTES as usize]);
         let a = self.map.child_list + e.first_child as u64 * 4;
         let n = lines_touched(a, e.child_count as u64 * 4);
         f.entry = Some(e);
@@ -254,18 +253,5 @@ impl StreamScheduler {
                 .collect();
             f.children = Some(kids);
         }
-    }
-}
-
-fn seg_entry_from_line(l: &Line, off: usize) -> SegEntry {
-    let u64_at = |o: usize| u64::from_le_bytes(l.0[o..o + 8].try_into().expect("8 bytes"));
-    SegEntry {
-        base: u64_at(off),
-        bytes: l.u32_at(off + 8),
-        nodes: l.u32_at(off + 12),
-        tris: l.u32_at(off + 16),
-        parent: l.u32_at(off + 20),
-        first_child: l.u32_at(off + 24),
-        child_count: l.u32_at(off + 28),
     }
 }

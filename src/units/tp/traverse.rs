@@ -307,8 +307,8 @@ impl Tp {
             Some(r) => {
                 self.inv_dir.set(r.inv_dir);
                 let w = c - self.req_at.val();
-                self.stats.wait[0] += w;
-                self.stats.stall[0] += w.saturating_sub(self.rt[0]);
+                self.stats.wait.divider += w;
+                self.stats.stall.divider += w.saturating_sub(self.rt[0]);
                 ctx.set_status(Status::Busy);
                 self.go(TpState::Init, c)
             }
@@ -321,7 +321,7 @@ impl Tp {
         match ctx.pop(&self.mem_resp) {
             Some(r) => {
                 self.line0.set(r.line);
-                self.stats.wait[3] += c - self.req_at.val();
+                self.stats.wait.l1 += c - self.req_at.val();
                 ctx.set_status(Status::Busy);
                 self.go(TpState::BoxIssue, c)
             }
@@ -342,8 +342,8 @@ impl Tp {
                 ctx.set_status(Status::Busy);
                 if self.box_got.val() {
                     let w = c - self.req_at.val();
-                    self.stats.wait[1] += w;
-                    self.stats.stall[1] += w.saturating_sub(self.rt[1]);
+                    self.stats.wait.box_pipe += w;
+                    self.stats.stall.box_pipe += w.saturating_sub(self.rt[1]);
                     self.go(TpState::NodePush, c)
                 } else {
                     self.box_got.set(true);
@@ -359,7 +359,7 @@ impl Tp {
     pub(super) fn tri_mem_wait(&mut self, ctx: &mut Ctx, c: u64) -> Next {
         match ctx.pop(&self.mem_resp) {
             Some(r) => {
-                self.stats.wait[3] += c - self.req_at.val();
+                self.stats.wait.l1 += c - self.req_at.val();
                 ctx.set_status(Status::Busy);
                 let a = self.tri_addr(self.tri_k.val());
                 let last = (a + TRI_BYTES as u64 - 1) & !63;
@@ -393,8 +393,8 @@ impl Tp {
                     v: r.v,
                 }));
                 let w = c - self.req_at.val();
-                self.stats.wait[2] += w;
-                self.stats.stall[2] += w.saturating_sub(self.rt[2]);
+                self.stats.wait.tri_pipe += w;
+                self.stats.stall.tri_pipe += w.saturating_sub(self.rt[2]);
                 ctx.set_status(Status::Busy);
                 self.go(TpState::TriResult, c)
             }
