@@ -16,7 +16,7 @@ use crate::mem::StreamTag;
 use crate::rtl::{LinkCfg, Sim, SimOptions, Status, TraceStats, Tracer};
 use crate::units::l1::Line;
 use crate::units::memory::{
-    MemLineReq, MemLineResp, Memory, MemoryModel, MemoryProbe, MemoryUnitCfg,
+    MemLineReq, MemLineResp, Memory, MemoryModel, MemoryPorts, MemoryProbe, MemoryUnitCfg,
 };
 
 use super::harness::{Driver, Sink};
@@ -69,7 +69,17 @@ pub fn script(
     let mem = sim.add(
         "tb.memory",
         clk,
-        Memory::new(&cfg, link.delay, image, req_i, resp_o),
+        Memory::new(
+            &cfg,
+            link.delay,
+            image,
+            MemoryPorts {
+                req: req_i,
+                resp: resp_o,
+                ch_req: Vec::new(),
+                ch_resp: Vec::new(),
+            },
+        ),
     );
     let drivers: Vec<_> = req_o
         .into_iter()

@@ -11,7 +11,7 @@ use glam::Vec3;
 
 use crate::contract::{RAY_BYTES, RayRec};
 use crate::rtl::{LinkCfg, Sim, SimOptions, Status, TraceStats, Tracer};
-use crate::units::staging_buffer::{SbFill, SbHeader, SbRay, StagingBuffer};
+use crate::units::staging_buffer::{SbFill, SbHeader, SbRay, StagingBuffer, StagingBufferPorts};
 use crate::units::tm::TmCfg;
 
 use super::harness::{Driver, Sink, counter};
@@ -76,7 +76,13 @@ pub fn script(
     let sb = sim.add(
         "tb.staging_buffer",
         clk,
-        StagingBuffer::new(&cfg, fill_i, ray_o),
+        StagingBuffer::new(
+            &cfg,
+            StagingBufferPorts {
+                fill: fill_i,
+                ray: ray_o,
+            },
+        ),
     );
     let drv = sim.add("tb.fill_driver", clk, Driver::new(fill_o));
     let sinks: Vec<_> = ray_i
