@@ -3,6 +3,7 @@
 //! `threads`: the lane counts of `--threads` against each other.
 
 pub mod threads;
+pub mod trace;
 
 use std::time::Instant;
 
@@ -146,6 +147,7 @@ pub fn measure(label: &str, tms: u32, activity: f64, cycles: u64, trace: Option<
             from: 0,
             to: u64::MAX,
             max_bytes: 0,
+            every_edge: false,
         };
         sim.attach_tracer(Tracer::to_file(&path, spec).expect("temp file"))
             .expect("filter matches");

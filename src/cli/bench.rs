@@ -23,6 +23,9 @@ pub enum BenchCmd {
     SpeedError(Box<SpeedErrorArgs>),
     /// One lane, one per core and auto, idle and beside a busy process, on --scene.
     Threads(ThreadsArgs),
+    /// What a waveform costs: a cycle frame untraced, then traced whole and
+    /// as scheduler,tm0 over a window, as VCD and FST.
+    Trace(TraceArgs),
     /// The competing process of `bench threads` (spins until killed).
     #[command(hide = true)]
     Busy,
@@ -55,6 +58,24 @@ pub struct ThreadsArgs {
     /// The cases, comma-separated (cycle64, cycle256, windows1024). Default: all.
     #[arg(long)]
     modes: Option<String>,
+    /// Write the runs as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct TraceArgs {
+    /// The scene (builtin name, .toml or .obj; default: the render default).
+    #[arg(long, default_value = dualstream::scene::DEFAULT_SCENE)]
+    scene: String,
+    /// Resolution WxH.
+    #[arg(long, default_value = "32x32")]
+    res: String,
+    /// First and last core cycle traced.
+    #[arg(long, default_value_t = 20000)]
+    from: u64,
+    #[arg(long, default_value_t = 40000)]
+    to: u64,
     /// Write the runs as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -234,10 +255,11 @@ pub fn bench(config: Config, threads: Threads, cmd: BenchCmd) -> Result<(), Stri
         BenchCmd::Dram(s) => print!("{}", dualstream::mem::bench::report(s.checked()?)?),
         BenchCmd::SpeedError(a) => speed_error(&config, threads, *a)?,
         BenchCmd::Threads(a) => threads_bench(&config, a)?,
+        BenchCmd::Trace(a) => trace_bench(&config, a)?,
         BenchCmd::Busy => dualstream::bench::threads::busy(),
         BenchCmd::Unknown(args) => {
             return Err(format!(
-                "unknown benchmark '{}'; available: kernel, dram, speed-error, threads",
+                "unknown benchmark '{}'; available: kernel, dram, speed-error, threads, trace",
                 args.first().map_or("", String::as_str)
             ));
         }
@@ -260,6 +282,33 @@ fn threads_bench(config: &Config, a: ThreadsArgs) -> Result<(), String> {
         config.tm.tps,
         config.chip.memory.model.name(),
         std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
+    print!("{}", bt::table(&runs));
+    if let Some(p) = a.json {
+        let text = serde_json::to_string_pretty(&runs).map_err(|e| e.to_string())?;
+        write_file(&p, text)?;
+    }
+    Ok(())
+}
+
+/// `dualstream bench trace`: the tracer's cost on a cycle frame.
+fn trace_bench(config: &Config, a: TraceArgs) -> Result<(), String> {
+    use dualstream::bench::trace as bt;
+    if a.to <= a.from {
+        return Err(format!(
+            "--to ({}) must be after --from ({}): give the window's first and last core cycle",
+            a.to, a.from
+        ));
+    }
+    let mut sc = dualstream::scene::load(&a.scene)?;
+    (sc.settings.width, sc.settings.height) = parse_res(&a.res)?;
+    sc.settings.validate()?;
+    let runs = bt::run(&sc, config, a.from, a.to, &mut |what| {
+        eprintln!("bench trace: {what}")
+    })?;
+    println!(
+        "bench trace: {} {} on {} TMs, core cycles {}..{} traced; ratio: wall time over the untraced frame's; changes/s: over the tracing's own time (traced minus untraced)",
+        a.scene, a.res, config.chip.tms, a.from, a.to
     );
     print!("{}", bt::table(&runs));
     if let Some(p) = a.json {

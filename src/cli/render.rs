@@ -73,6 +73,10 @@ pub struct RenderArgs {
     /// there, and its file removed.
     #[arg(long, default_value = "1G")]
     trace_max_bytes: String,
+    /// Sample every traced unit at every edge, not only those that ran or
+    /// whose links moved: the same waveform, slower (a check of the tracer).
+    #[arg(long, hide = true)]
+    trace_every_edge: bool,
 }
 
 /// `dualstream render`: checks every option and output before the frame (it
@@ -100,6 +104,7 @@ pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), Str
             from,
             to,
             max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
+            every_edge: a.trace_every_edge,
         });
     }
     if mode == Mode::Cycle

@@ -43,6 +43,10 @@ pub struct TbArgs {
     /// limit): a larger one is refused or stopped, and its file removed.
     #[arg(long, default_value = "1G")]
     trace_max_bytes: String,
+    /// Sample every traced unit at every edge, not only those that ran or
+    /// whose links moved: the same waveform, slower (a check of the tracer).
+    #[arg(long, hide = true)]
+    trace_every_edge: bool,
     /// Evaluate every unit every cycle (no sleeping): slower, same results.
     #[arg(long)]
     no_sleep: bool,
@@ -94,6 +98,7 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
         from: a.trace_from.saturating_mul(p),
         to: a.trace_to.map_or(u64::MAX, |c| c.saturating_mul(p)),
         max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
+        every_edge: a.trace_every_edge,
     };
     spec.validate().map_err(|e| {
         e.replace(" (", " (ps ")

@@ -158,6 +158,7 @@ pub fn spec(
     TraceSpec {
         filter,
         max_bytes,
+        every_edge: false,
         from: from.saturating_mul(core_ps),
         // The last cycle's edge and everything before the next one (DRAM edges).
         to: to.map_or(Time::MAX, |c| {

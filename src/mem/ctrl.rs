@@ -640,4 +640,9 @@ impl State for ChannelCtrl {
     fn pending_change(&self) -> bool {
         self.dirty
     }
+    /// The last command shows in its own cycle only: the view moves until
+    /// that cycle has passed.
+    fn moves(&self, cycle: u64) -> bool {
+        self.last_cmd.is_some_and(|x| x.cycle >= cycle)
+    }
 }

@@ -27,6 +27,8 @@ pub struct ChipTrace {
     pub to: Option<u64>,
     /// The size guard (`--trace-max-bytes`; 0: no limit).
     pub max_bytes: u64,
+    /// Sample every unit at every edge (`TraceSpec::every_edge`).
+    pub every_edge: bool,
 }
 
 /// Core cycles per pixel and hit point of a cycle-mode frame on the paper's
@@ -201,13 +203,16 @@ impl FrameChip {
                 .collect();
             let paths: Vec<&str> = paths.iter().map(String::as_str).collect();
             let filter = crate::machine::trace::resolve(&t.units, &paths)?;
-            let spec = crate::machine::trace::spec(
-                filter,
-                t.from,
-                t.to,
-                chip_cfg.clocks.core_ps,
-                t.max_bytes,
-            );
+            let spec = crate::rtl::TraceSpec {
+                every_edge: t.every_edge,
+                ..crate::machine::trace::spec(
+                    filter,
+                    t.from,
+                    t.to,
+                    chip_cfg.clocks.core_ps,
+                    t.max_bytes,
+                )
+            };
             let mut tracer = crate::rtl::Tracer::to_file(&t.path, spec)?;
             // Twice the frame's estimated cycles: the guard projects the bytes
             // written to the window's end.

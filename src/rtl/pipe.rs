@@ -437,6 +437,10 @@ impl<T: Payload> State for LocalLink<T> {
     fn pending_change(&self) -> bool {
         self.popped || self.pending.is_some()
     }
+    /// A head not yet visible becomes so with time.
+    fn moves(&self, cycle: u64) -> bool {
+        self.q.front().is_some_and(|e| e.0 > cycle)
+    }
 }
 
 impl<T: Payload> State for FixedPipe<T> {
@@ -489,6 +493,16 @@ impl<T: Payload> State for FixedPipe<T> {
     /// Empty, as built (its interval counter saturated: ready to accept).
     fn sample_reset(&self, out: &mut Samples) {
         FixedPipe::<T>::new(self.stages, self.interval).sample(0, out);
+    }
+    /// Requests advance through the stages, and the interval counter counts
+    /// up to saturation, with time alone.
+    fn moves(&self, cycle: u64) -> bool {
+        let local = self.local(cycle);
+        !self.ring.is_empty()
+            || self
+                .last_accept
+                .val()
+                .is_some_and(|l| local - l < self.interval as u64)
     }
     fn commit(&mut self) {
         if self.pending_exit {

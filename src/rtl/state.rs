@@ -46,6 +46,14 @@ pub trait State {
     fn reset(&mut self);
     /// Whether the pending edge would change anything (used by shadow evaluation).
     fn pending_change(&self) -> bool;
+    /// Whether [`State::sample`] at a later cycle may differ from the one at
+    /// `cycle` with no evaluation and no edge in between: state whose view
+    /// advances with time alone (a pipeline's stages, a delayed FIFO's head).
+    /// The tracer samples a unit that neither ran nor saw its links move only
+    /// while this holds.
+    fn moves(&self, _cycle: u64) -> bool {
+        false
+    }
     /// Whether [`State::commit`] may be skipped when the unit's written mask
     /// lacks this state's bit: true for a register, which marks its bit when
     /// set; anything else (RAMs, pipelines, behavioural models) is committed at

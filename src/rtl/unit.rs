@@ -83,6 +83,12 @@ pub trait Declared {
     fn number_state(&mut self) {}
     fn reset_state(&mut self);
     fn state_pending(&self) -> bool;
+    /// Whether the sampled state may change after `cycle` with no evaluation
+    /// or edge ([`crate::rtl::State::moves`]). A hand-written declaration
+    /// says yes: the tracer then samples it at every edge.
+    fn state_moves(&self, _cycle: u64) -> bool {
+        true
+    }
 }
 
 /// Written by hand for each unit: what it does in one cycle.
@@ -114,6 +120,7 @@ pub trait Unit: Any + Send {
     fn number_state(&mut self);
     fn reset(&mut self);
     fn state_pending(&self) -> bool;
+    fn state_moves(&self, cycle: u64) -> bool;
     fn counters(&self) -> Vec<(&'static str, u64)>;
 }
 
@@ -151,6 +158,9 @@ impl<U: Declared + Logic + Send + 'static> Unit for U {
     }
     fn state_pending(&self) -> bool {
         Declared::state_pending(self)
+    }
+    fn state_moves(&self, cycle: u64) -> bool {
+        Declared::state_moves(self, cycle)
     }
     fn counters(&self) -> Vec<(&'static str, u64)> {
         Logic::counters(self)
@@ -336,6 +346,10 @@ macro_rules! unit {
             }
             fn state_pending(&self) -> bool {
                 false $(|| $crate::rtl::State::pending_change(&self.$s))*
+            }
+            #[allow(unused_variables)]
+            fn state_moves(&self, cycle: u64) -> bool {
+                false $(|| $crate::rtl::State::moves(&self.$s, cycle))*
             }
         }
     };

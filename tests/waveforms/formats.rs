@@ -113,3 +113,80 @@ fn fsm_states_are_named_and_registers_are_regs() {
     }
     assert!(states >= 1);
 }
+
+/// The tracer samples a unit only when it ran, a link of its moved, a head
+/// became visible to it or its state moves on its own; sampling every unit at
+/// every edge (`--trace-every-edge`) must write the very same file. On a chip
+/// window across both clock domains (TPs, the L1, crossbar and pipelines of a
+/// TM, the scheduler, the L2 and a GDDR5 channel) and on unit benches.
+#[test]
+fn sampling_on_activity_writes_what_sampling_every_edge_writes() {
+    let d = Scratch::new("wave-activity");
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/chip-8tms.toml");
+    let read = |p: &std::path::Path| std::fs::read(p).unwrap();
+    for every in [false, true] {
+        let p = d.join(format!("c{every}.vcd"));
+        let mut args = vec![
+            "render",
+            "--config",
+            cfg,
+            "--mode",
+            "cycle",
+            "--res",
+            "8x8",
+            "--out",
+            d.join("c.png").to_str().unwrap(),
+            "--vcd",
+            p.to_str().unwrap(),
+            "--trace-units",
+            "chip.tm0,scheduler,l2,mem_ctrl0",
+            "--trace-window",
+            "11000..14000",
+        ]
+        .into_iter()
+        .map(String::from)
+        .collect::<Vec<_>>();
+        if every {
+            args.push("--trace-every-edge".into());
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        dualstream(&args);
+        for (unit, extra) in [
+            ("mem_ctrl", "--cycles=400"),
+            ("hit_record_updater", "--cycles=400"),
+            ("box_pipe", "--cycles=400"),
+        ] {
+            let p = d.join(format!("{unit}{every}.vcd"));
+            let mut a = vec![
+                "tb",
+                unit,
+                extra,
+                "--seed",
+                "2",
+                "--vcd",
+                p.to_str().unwrap(),
+            ];
+            if every {
+                a.push("--trace-every-edge");
+            }
+            dualstream(&a);
+        }
+    }
+    let chip = read(&d.join("cfalse.vcd"));
+    assert!(
+        chip.len() > 1_000_000,
+        "a busy window: {} bytes",
+        chip.len()
+    );
+    assert!(
+        chip == read(&d.join("ctrue.vcd")),
+        "chip window: the two samplings differ"
+    );
+    for unit in ["mem_ctrl", "hit_record_updater", "box_pipe"] {
+        let a = read(&d.join(format!("{unit}false.vcd")));
+        assert!(
+            a == read(&d.join(format!("{unit}true.vcd"))),
+            "tb {unit}: the two samplings differ"
+        );
+    }
+}

@@ -9,6 +9,7 @@ use super::context::{eval_commit_slot, eval_slot};
 use super::lanes::Crew;
 use super::network::Net;
 use super::{ClockId, RunEnd, Sim, SimError, Time};
+use crate::rtl::trace::Activity;
 
 impl Sim {
     /// Runs until time `limit` (ps), which becomes the current time even if every
@@ -185,7 +186,12 @@ impl Sim {
             // The waveform samples every register before the edge.
             let slots = &self.slots;
             if let Some(tr) = &mut self.tracer {
-                tr.sample(t, &|i| &*slots[i].unit, &self.links);
+                let activity = Activity {
+                    due: &due,
+                    touched: &self.out.touched,
+                    heads: &self.heads,
+                };
+                tr.sample(t, &|i| &*slots[i].unit, &self.links, activity);
                 if let Some(why) = tr.stopped() {
                     return Err(SimError::Trace(why.to_string()));
                 }

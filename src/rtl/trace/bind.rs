@@ -6,10 +6,10 @@
 
 use super::super::decl::SignalDecl;
 use super::super::link::LinkDyn;
-use super::super::sim::Clock;
+use super::super::sim::{Clock, Time};
 use super::super::unit::Unit;
 use super::sink::{ScopeKind, VarDef, VarKind};
-use super::{ClockSig, Derive, Derived, Sig, TracedUnit, Tracer};
+use super::{ClockSig, Derive, Derived, NONE, Sig, TracedUnit, Tracer};
 use crate::rtl::bits::FieldKind;
 
 impl Tracer {
@@ -34,6 +34,18 @@ impl Tracer {
                 names.join(", ")
             ));
         }
+        self.traced_of = vec![NONE; units.len()];
+        for (k, c) in chosen.iter().enumerate() {
+            self.traced_of[c.0] = k as u32;
+        }
+        let of = |u: Option<crate::rtl::UnitId>| u.map_or(NONE, |u| self.traced_of[u.0 as usize]);
+        self.link_ends = links
+            .iter()
+            .map(|l| {
+                let (p, c) = l.ends();
+                (of(p), of(c))
+            })
+            .collect();
         let root = chosen[0].1.split('.').next().unwrap_or("top");
         self.sink.begin_scope(root, ScopeKind::Module);
         let mut open: Vec<&str> = vec![root];
@@ -125,7 +137,7 @@ impl Tracer {
             decl.module, decl.source, clk.name, clk.period_ps
         ));
         let signals = decl.signals();
-        let (mut sigs, mut derived) = (Vec::new(), Vec::new());
+        let (mut sigs, mut derived, mut port_derived) = (Vec::new(), Vec::new(), Vec::new());
         self.view.begin_unit(path);
         // Ports' valid, ready and data come first (`UnitDecl::signals`):
         // wires. A register is never taken for a port because its name starts
@@ -135,6 +147,7 @@ impl Tracer {
                 let h = self.declare(&s.name, VarKind::Wire, s.width, None);
                 sigs.push(Sig::new(h, s.width));
             }
+            let first = derived.len();
             let fire = format!("{}_fire", p.name);
             let h = self.declare(&fire, VarKind::Wire, 1, None);
             derived.push(Derived {
@@ -159,6 +172,7 @@ impl Tracer {
             );
             let fields = links[p.link.0 as usize].fields();
             if fields.is_empty() {
+                port_derived.push((first, derived.len()));
                 continue;
             }
             self.view.begin(&format!("{} fields", p.name), false);
@@ -183,7 +197,7 @@ impl Tracer {
                 };
                 let h = self.declare(leaf, kind, f.width, e);
                 let full = format!("{path}.{}.{}", p.name, f.name);
-                let fsm_name = format!("{}_{}", decl.module, leaf);
+                let fsm_name = e.map_or(String::new(), |_| format!("{}_{leaf}", decl.module));
                 self.view
                     .sig(&full, f.width, kind == VarKind::Real, e, &fsm_name);
                 derived.push(Derived {
@@ -199,6 +213,7 @@ impl Tracer {
                 self.sink.end_scope();
             }
             self.view.end();
+            port_derived.push((first, derived.len()));
         }
         for SignalDecl {
             name,
@@ -216,7 +231,7 @@ impl Tracer {
                     .comment(&format!("{path}.{name} states: {}", enc.join(" ")));
             }
             let h = self.declare(&name, VarKind::Reg, width, enum_names);
-            let fsm_name = format!("{}_{name}", decl.module);
+            let fsm_name = enum_names.map_or(String::new(), |_| format!("{}_{name}", decl.module));
             self.view.sig(
                 &format!("{path}.{name}"),
                 width,
@@ -240,9 +255,13 @@ impl Tracer {
         TracedUnit {
             index,
             period: clk.period_ps,
+            busy_until: Time::MAX,
+            wake_at: Time::MAX,
+            moving: true,
             ports,
             sigs,
             derived,
+            port_derived,
         }
     }
 }

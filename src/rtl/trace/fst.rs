@@ -64,6 +64,9 @@ impl FstSink {
             bytes: bytes.clone(),
         })
         .timescale_exponent(-12)
+        // LZ4 per signal chain, as GTKWave's own writer can: without a
+        // codec (the crate's default here) a chip trace is as big as its VCD.
+        .chain_compression(wavefst::ChainCompression::Lz4)
         .build()
         .map_err(io_err)?;
         Ok(FstSink {

@@ -30,6 +30,7 @@ mod sink;
 mod vcd;
 
 pub use fst::WriteSeek;
+pub(crate) use sample::Activity;
 use sink::Sink;
 
 /// Counts of what a trace wrote.
@@ -45,7 +46,13 @@ pub struct TraceStats {
 struct Sig {
     h: u32,
     width: u32,
-    last: Option<Bits>,
+    /// Whether a value was written (nothing is before the first).
+    written: bool,
+    /// The last value of a signal of at most 64 bits, kept here: most are,
+    /// and comparing in place spares a cache miss per signal and sample.
+    small: u64,
+    /// The last value of a wider signal.
+    last: Bits,
 }
 
 impl Sig {
@@ -53,8 +60,29 @@ impl Sig {
         Sig {
             h,
             width,
-            last: None,
+            written: false,
+            small: 0,
+            last: Bits::new(),
         }
+    }
+
+    /// Whether `v` differs from the last value written; if so it becomes it.
+    #[inline]
+    fn update(&mut self, v: &Bits) -> bool {
+        if self.width <= 64 {
+            let x = v.words().first().copied().unwrap_or(0);
+            if self.written && x == self.small {
+                return false;
+            }
+            self.small = x;
+        } else {
+            if self.written && self.last == *v {
+                return false;
+            }
+            self.last.clone_from(v);
+        }
+        self.written = true;
+        true
     }
 }
 
@@ -74,11 +102,26 @@ struct Derived {
 struct TracedUnit {
     index: usize,
     period: Time,
+    /// Sampled at every edge up to this time: it ran, or a link of its was
+    /// pushed or popped, within a period before (`Time::MAX`: not yet).
+    busy_until: Time,
+    /// Sampled at its first edge at or after this time: a head becomes
+    /// visible to it then (`Time::MAX`: none known).
+    wake_at: Time,
+    /// Whether its state's view moved on with time alone at its last sample
+    /// (`Unit::state_moves`), or it has not been sampled yet.
+    moving: bool,
     ports: Vec<(LinkId, PortDir)>,
     /// One per sampled signal, in `UnitDecl::signals` order.
     sigs: Vec<Sig>,
+    /// In port order: each port's fire, then its fields.
     derived: Vec<Derived>,
+    /// Per port, its range in `derived` (fire first).
+    port_derived: Vec<(usize, usize)>,
 }
+
+/// Not a traced unit.
+const NONE: u32 = u32::MAX;
 
 /// A clock domain's waveform: its level and when it next toggles.
 struct ClockSig {
@@ -101,6 +144,10 @@ pub struct TraceSpec {
     /// The size guard: the most bytes the trace may take (0: no limit;
     /// `DEFAULT_MAX_BYTES` unless told).
     pub max_bytes: u64,
+    /// Sample every traced unit at every edge of its clock, not only the
+    /// units that ran or whose links moved: the same waveform, slower (the
+    /// check that activity-driven sampling misses nothing).
+    pub every_edge: bool,
 }
 
 impl TraceSpec {
@@ -110,6 +157,7 @@ impl TraceSpec {
             from: 0,
             to: Time::MAX,
             max_bytes: DEFAULT_MAX_BYTES,
+            every_edge: false,
         }
     }
     pub fn validate(&self) -> Result<(), String> {
@@ -174,6 +222,13 @@ pub struct Tracer {
     clock_t: Option<Time>,
     /// What the GTKWave save file shows.
     view: gtkw::View,
+    /// Per link, the traced units at its ends (producer, consumer; `NONE`:
+    /// not traced).
+    link_ends: Vec<(u32, u32)>,
+    /// Links touched at the last step, whose heads are known after its edge.
+    pending: Vec<u32>,
+    /// Per simulator unit, its index in `units` (`NONE`: not traced).
+    traced_of: Vec<u32>,
     changes: u64,
     error: Option<io::Error>,
     /// The size guard: the most bytes the trace may take, the time the run is
@@ -250,6 +305,9 @@ impl Tracer {
             rst: None,
             clock_t: None,
             view: gtkw::View::default(),
+            link_ends: Vec::new(),
+            pending: Vec::new(),
+            traced_of: Vec::new(),
             changes: 0,
             error: None,
             max_bytes,

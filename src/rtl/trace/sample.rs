@@ -5,9 +5,22 @@
 use super::super::bits::Bits;
 use super::super::decl::PortDir;
 use super::super::link::LinkDyn;
+use super::super::link::LinkId;
 use super::super::sim::Time;
 use super::super::unit::Unit;
-use super::{Derive, Sig, Tracer};
+use super::{Derive, NONE, Tracer};
+
+/// What the simulator did at a step, for the tracer to sample only what
+/// may have changed.
+#[derive(Clone, Copy)]
+pub(crate) struct Activity<'a> {
+    /// The units evaluated (simulator indices, and whether they were due).
+    pub due: &'a [(u32, bool)],
+    /// The links pushed or popped.
+    pub touched: &'a [LinkId],
+    /// When each link's head is visible (`Time::MAX`: none).
+    pub heads: &'a [Time],
+}
 
 impl Tracer {
     /// The first traced edge at or after `after`, inside the window.
@@ -17,12 +30,18 @@ impl Tracer {
         (t <= self.spec.to).then_some(t)
     }
 
+    /// Samples at time `t`, after the evaluations of `due` (simulator unit
+    /// indices) and before the edge; `touched` lists the links they pushed or
+    /// popped, `heads` is when each link's head is visible. Called at every
+    /// step of the run, so the activity outside the window is seen too.
     pub(crate) fn sample<'u>(
         &mut self,
         t: Time,
         unit_at: &dyn Fn(usize) -> &'u dyn Unit,
         links: &[Box<dyn LinkDyn>],
+        activity: Activity,
     ) {
+        self.note_activity(t, activity);
         if t < self.spec.from || t > self.spec.to || self.error.is_some() || self.stopped.is_some()
         {
             return;
@@ -33,16 +52,64 @@ impl Tracer {
         }
         for ui in 0..self.units.len() {
             let (period, index) = (self.units[ui].period, self.units[ui].index);
+            let u = &self.units[ui];
             if !t.is_multiple_of(period) {
                 continue;
             }
-            self.sample_unit(ui, t, unit_at(index), links);
+            // Sample only what may differ from the last sample: see `note_activity`.
+            let due = self.spec.every_edge
+                || u.moving
+                || (u.busy_until != Time::MAX && t <= u.busy_until)
+                || t >= u.wake_at;
+            if !due {
+                continue;
+            }
+            self.units[ui].wake_at = Time::MAX;
+            let unit = unit_at(index);
+            self.sample_unit(ui, t, unit, links);
+            self.units[ui].moving = unit.state_moves(t / period);
             if let Err(e) = self.write_unit(ui, t) {
                 self.error = Some(e);
                 return;
             }
         }
         self.guard(t);
+    }
+
+    /// Marks the traced units whose signals may change from what the
+    /// activity at `t` did: a unit that ran (its ports now, its registers
+    /// after the edge) and the units at both ends of a link pushed or popped
+    /// (by the other end, maybe in another clock domain) are sampled for a
+    /// period; a link's head, known after the edge, wakes its consumer when
+    /// it becomes visible. Anything else is the same as at the unit's last
+    /// sample, unless its state moves on its own (`Unit::state_moves`).
+    fn note_activity(&mut self, t: Time, a: Activity) {
+        for l in std::mem::take(&mut self.pending) {
+            let c = self.link_ends[l as usize].1;
+            let h = a.heads[l as usize];
+            if c != NONE && h != Time::MAX {
+                let u = &mut self.units[c as usize];
+                u.wake_at = u.wake_at.min(h);
+            }
+        }
+        let mut busy = |k: u32| {
+            if k != NONE {
+                let u = &mut self.units[k as usize];
+                let until = t + u.period;
+                if u.busy_until == Time::MAX || u.busy_until < until {
+                    u.busy_until = until;
+                }
+            }
+        };
+        for &l in a.touched {
+            let (p, c) = self.link_ends[l.0 as usize];
+            busy(p);
+            busy(c);
+        }
+        for &(u, _) in a.due {
+            busy(self.traced_of.get(u as usize).copied().unwrap_or(NONE));
+        }
+        self.pending.extend(a.touched.iter().map(|l| l.0));
     }
 
     fn sample_unit(&mut self, ui: usize, t: Time, unit: &dyn Unit, links: &[Box<dyn LinkDyn>]) {
@@ -76,44 +143,54 @@ impl Tracer {
         let moved = &mut self.moved;
         moved.clear();
         for (k, sig) in unit.sigs.iter_mut().enumerate() {
-            let v = &self.samples.vals[k];
+            let v = &mut self.samples.vals[k];
             // An empty sample holds the last value.
-            let m = !v.is_empty() && changed(sig, v);
+            let m = !v.is_empty() && sig.update(v);
             if m {
                 self.sink.bits(t, sig.h, v, sig.width)?;
                 self.changes += 1;
             }
             moved.push(m);
         }
-        // A derived signal can only change with what it is derived from.
-        for d in &mut unit.derived {
-            let s = &mut self.scratch;
-            let float = match d.how {
-                Derive::Fire { port } => {
-                    if !moved[3 * port] && !moved[3 * port + 1] {
-                        continue;
-                    }
-                    let v = &self.samples.vals;
-                    s.clear();
-                    s.push((v[3 * port].bit(0) && v[3 * port + 1].bit(0)) as u64, 1);
-                    false
-                }
-                Derive::Field { of, offset, float } => {
-                    if !moved[of] {
-                        continue;
-                    }
-                    self.samples.vals[of].slice_into(offset, d.sig.width, s);
-                    float
-                }
+        // A derived signal can only change with what it is derived from: per
+        // port, fire with valid or ready, the fields with the data.
+        for (k, &(start, end)) in unit.port_derived.iter().enumerate() {
+            let (fire, fields) = (moved[3 * k] || moved[3 * k + 1], moved[3 * k + 2]);
+            let range = match (fire, fields) {
+                (false, false) => continue,
+                (true, false) => start..start + 1,
+                (false, true) => start + 1..end,
+                (true, true) => start..end,
             };
-            if changed(&mut d.sig, s) {
-                if float {
-                    let x = f32::from_bits(s.get(0, 32) as u32);
-                    self.sink.real(t, d.sig.h, x as f64)?;
-                } else {
-                    self.sink.bits(t, d.sig.h, s, d.sig.width)?;
+            for d in &mut unit.derived[range] {
+                let s = &mut self.scratch;
+                let float = match d.how {
+                    Derive::Fire { port } => {
+                        let v = &unit.sigs;
+                        s.clear();
+                        s.push(v[3 * port].small & v[3 * port + 1].small & 1, 1);
+                        false
+                    }
+                    Derive::Field { of, offset, float } => {
+                        let src = &unit.sigs[of];
+                        if src.width <= 64 {
+                            s.clear();
+                            s.push(src.small >> offset, d.sig.width);
+                        } else {
+                            src.last.slice_into(offset, d.sig.width, s);
+                        }
+                        float
+                    }
+                };
+                if d.sig.update(s) {
+                    if float {
+                        let x = f32::from_bits(s.get(0, 32) as u32);
+                        self.sink.real(t, d.sig.h, x as f64)?;
+                    } else {
+                        self.sink.bits(t, d.sig.h, s, d.sig.width)?;
+                    }
+                    self.changes += 1;
                 }
-                self.changes += 1;
             }
         }
         Ok(())
@@ -160,16 +237,4 @@ fn bit(b: bool) -> Bits {
     let mut v = Bits::new();
     v.push(b as u64, 1);
     v
-}
-
-/// Whether `v` differs from what `sig` last wrote (and remembers it).
-fn changed(sig: &mut Sig, v: &Bits) -> bool {
-    if sig.last.as_ref() == Some(v) {
-        return false;
-    }
-    match &mut sig.last {
-        Some(l) => l.clone_from(v),
-        None => sig.last = Some(v.clone()),
-    }
-    true
 }

@@ -1,6 +1,7 @@
 //! The VCD writer: a text header of scopes and variables, then `#time` lines
 //! and one line per value change, formatted directly into a reused buffer.
 
+use std::fmt::Write as _;
 use std::io::{self, BufWriter, Write};
 
 use super::super::bits::Bits;
@@ -71,13 +72,13 @@ impl Sink for VcdSink {
             ScopeKind::Module => "module",
             ScopeKind::Struct => "begin",
         };
-        self.header.push_str(&format!("$scope {k} {name} $end\n"));
+        let _ = writeln!(self.header, "$scope {k} {name} $end");
     }
     fn end_scope(&mut self) {
         self.header.push_str("$upscope $end\n");
     }
     fn comment(&mut self, text: &str) {
-        self.header.push_str(&format!("$comment {text} $end\n"));
+        let _ = writeln!(self.header, "$comment {text} $end");
     }
     fn var(&mut self, v: &VarDef) -> u32 {
         let id = vcd_id(self.ids.len() as u64);
@@ -87,19 +88,19 @@ impl Sink for VcdSink {
             VarKind::Real => "real",
         };
         let name = v.name;
-        if v.kind == VarKind::Real {
-            self.header
-                .push_str(&format!("$var real 64 {id} {name} $end\n"));
+        // Formatted in place: a full chip declares hundreds of thousands.
+        let _ = if v.kind == VarKind::Real {
+            writeln!(self.header, "$var real 64 {id} {name} $end")
         } else if v.width == 1 {
-            self.header
-                .push_str(&format!("$var {kind} 1 {id} {name} $end\n"));
+            writeln!(self.header, "$var {kind} 1 {id} {name} $end")
         } else {
-            self.header.push_str(&format!(
-                "$var {kind} {} {id} {name} [{}:0] $end\n",
+            writeln!(
+                self.header,
+                "$var {kind} {} {id} {name} [{}:0] $end",
                 v.width,
                 v.width - 1
-            ));
-        }
+            )
+        };
         self.ids.push(id);
         (self.ids.len() - 1) as u32
     }
@@ -124,8 +125,7 @@ impl Sink for VcdSink {
         // `{:?}` prints the shortest text that reads back as the same f64
         // (and `NaN`/`inf`, which GTKWave reads).
         self.line.push(b'r');
-        self.line.extend_from_slice(format!("{v:?}").as_bytes());
-        self.line.push(b' ');
+        let _ = io::Write::write_fmt(&mut self.line, format_args!("{v:?} "));
         self.line.extend_from_slice(self.ids[h as usize].as_bytes());
         self.line.push(b'\n');
         self.out.write_all(&self.line)
