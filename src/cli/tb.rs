@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use dualstream::config::Config;
-use dualstream::rtl::{SimOptions, TraceSpec};
+use dualstream::rtl::{SimOptions, TraceError, TraceSpec};
 use dualstream::testbench::{self, TbOptions};
 
 use super::{parse_res, parse_size};
@@ -94,9 +94,12 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
         to: a.trace_to.map_or(u64::MAX, |c| c.saturating_mul(p)),
         max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
     };
-    spec.validate().map_err(|e| {
-        e.replace(" (", " (ps ")
-            .replace("trace window", "--trace-from/--trace-to: trace window")
+    spec.validate().map_err(|e| match e {
+        // The window in the flags' terms (they are cycles, the spec's ps).
+        TraceError::Window { from, to } => format!(
+            "--trace-from/--trace-to: trace window ends (ps {to}) before it starts (ps {from}); give an end at or after the start"
+        ),
+        e => e.to_string(),
     })?;
     let opts = TbOptions {
         cycles: a.cycles,

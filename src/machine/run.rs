@@ -103,7 +103,7 @@ impl Chip {
                 .run_to_idle(limit)
                 .map(|_| true)
                 .or_else(|e| match e {
-                    crate::rtl::SimError::Elaboration(m) if m.contains("still busy") => Ok(false),
+                    crate::rtl::SimError::Busy { .. } => Ok(false),
                     e => Err(e.to_string()),
                 })?;
             if let Some(e) = self.sched().error() {

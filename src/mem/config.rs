@@ -431,7 +431,8 @@ impl CtrlCfg {
             ));
         }
         self.req_link.validate("mem.ctrl.req_link")?;
-        self.resp_link.validate("mem.ctrl.resp_link")
+        self.resp_link.validate("mem.ctrl.resp_link")?;
+        Ok(())
     }
 }
 

@@ -22,6 +22,52 @@ use super::decl::{PortDir, Samples, SignalDecl};
 use super::link::{LinkDyn, LinkId};
 use super::sim::{Clock, Time};
 use super::unit::Unit;
+use crate::util::FileError;
+
+/// Why a waveform could not be traced.
+#[derive(Debug)]
+pub enum TraceError {
+    /// The window ends before it starts.
+    Window { from: Time, to: Time },
+    /// The filter matches no unit.
+    NoUnit { filter: String, units: Vec<String> },
+    /// The size guard refused the waveform, before it started or while it was
+    /// written (its file removed): what it would take and how to narrow it.
+    Oversized(String),
+    /// The VCD file could not be created.
+    File(FileError),
+    /// The VCD header could not be written.
+    Header(io::Error),
+}
+
+impl std::fmt::Display for TraceError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TraceError::Window { from, to } => write!(
+                f,
+                "trace window ends ({to}) before it starts ({from}); give an end at or after the start"
+            ),
+            TraceError::NoUnit { filter, units } => write!(
+                f,
+                "no unit matches the trace filter '{filter}'; units are: {}",
+                units.join(", ")
+            ),
+            TraceError::Oversized(advice) => f.write_str(advice),
+            TraceError::File(e) => write!(f, "{e}"),
+            TraceError::Header(e) => write!(f, "cannot write the VCD header: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for TraceError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            TraceError::File(e) => Some(e),
+            TraceError::Header(e) => Some(e),
+            _ => None,
+        }
+    }
+}
 
 /// Counts of what a trace wrote.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -85,12 +131,12 @@ impl TraceSpec {
             max_bytes: DEFAULT_MAX_BYTES,
         }
     }
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), TraceError> {
         if self.to < self.from {
-            return Err(format!(
-                "trace window ends ({}) before it starts ({}); give an end at or after the start",
-                self.to, self.from
-            ));
+            return Err(TraceError::Window {
+                from: self.from,
+                to: self.to,
+            });
         }
         Ok(())
     }
@@ -179,7 +225,7 @@ fn gb(b: f64) -> String {
 }
 
 impl Tracer {
-    pub fn new(out: Box<dyn Write>, spec: TraceSpec) -> Result<Self, String> {
+    pub fn new(out: Box<dyn Write>, spec: TraceSpec) -> Result<Self, TraceError> {
         spec.validate()?;
         let max_bytes = if spec.max_bytes == 0 {
             u64::MAX
@@ -248,14 +294,14 @@ impl Tracer {
     }
 
     /// Refuses a trace whose estimate is over the limit.
-    pub(crate) fn check_estimate(&self) -> Result<(), String> {
+    pub(crate) fn check_estimate(&self) -> Result<(), TraceError> {
         match self.estimate() {
             Some((bytes, w)) if bytes > self.max_bytes => {
                 let cycles = self.periods.iter().min().map_or(0, |p| w / p);
-                Err(self.advice(&format!(
+                Err(TraceError::Oversized(self.advice(&format!(
                     "would take about {} over {cycles} cycles (estimated before it started)",
                     gb(bytes as f64)
-                )))
+                ))))
             }
             _ => Ok(()),
         }
@@ -301,12 +347,13 @@ impl Tracer {
     }
 
     /// A tracer writing to a file; the error names the path and what to do.
-    pub fn to_file(path: &Path, spec: TraceSpec) -> Result<Self, String> {
+    pub fn to_file(path: &Path, spec: TraceSpec) -> Result<Self, TraceError> {
         let f = File::create(path).map_err(|e| {
-            format!(
+            let msg = format!(
                 "cannot write the VCD file '{}': {e}; choose a writable path with --vcd",
                 path.display()
-            )
+            );
+            TraceError::File(FileError::new(path, e, msg))
         })?;
         let mut t = Tracer::new(Box::new(f), spec)?;
         t.path = Some(path.to_path_buf());
@@ -319,7 +366,7 @@ impl Tracer {
     }
 
     /// Selects the units to trace and writes the header.
-    pub(crate) fn bind(&mut self, units: &[(&str, &dyn Unit, &Clock)]) -> Result<(), String> {
+    pub(crate) fn bind(&mut self, units: &[(&str, &dyn Unit, &Clock)]) -> Result<(), TraceError> {
         let mut chosen = Vec::new();
         for (i, (path, u, clk)) in units.iter().enumerate() {
             if self.spec.matches(path) {
@@ -327,12 +374,10 @@ impl Tracer {
             }
         }
         if chosen.is_empty() {
-            let names: Vec<&str> = units.iter().map(|u| u.0).collect();
-            return Err(format!(
-                "no unit matches the trace filter '{}'; units are: {}",
-                self.spec.filter,
-                names.join(", ")
-            ));
+            return Err(TraceError::NoUnit {
+                filter: self.spec.filter.clone(),
+                units: units.iter().map(|u| u.0.to_string()).collect(),
+            });
         }
         let mut header = String::new();
         header.push_str("$version dualstream ");
@@ -422,7 +467,7 @@ impl Tracer {
         self.header_bytes = header.len() as u64;
         self.out
             .write_all(header.as_bytes())
-            .map_err(|e| format!("cannot write the VCD header: {e}"))?;
+            .map_err(TraceError::Header)?;
         Ok(())
     }
 
@@ -603,7 +648,8 @@ mod tests {
         }
         .validate()
         .unwrap_err();
-        assert!(e.contains("before it starts"), "{e}");
+        assert!(matches!(e, TraceError::Window { from: 10, to: 5 }), "{e:?}");
+        assert!(e.to_string().contains("before it starts"), "{e}");
     }
 
     #[test]
