@@ -430,14 +430,14 @@ fn bad_configs_and_traces_are_named() {
     let mut d3 = MemCfg::paper();
     d3.ctrl.policy = CtrlPolicy::Dramsim3;
     d3.ctrl.write_high = d3.ctrl.write_queue;
-    let e = d3.validate().unwrap_err();
+    let e = d3.validate().unwrap_err().to_string();
     assert!(
         e.contains("one burst per request") && e.contains("line_bytes = 32"),
         "{e}"
     );
     let mut d3 = MemCfg::dramsim3_gddr5();
     d3.ctrl.write_high = 16;
-    let e = d3.validate().unwrap_err();
+    let e = d3.validate().unwrap_err().to_string();
     assert!(
         e.contains("write_high = 16 must equal write_queue = 32"),
         "{e}"
@@ -471,7 +471,11 @@ fn bad_configs_and_traces_are_named() {
     let e = replay(&m, 500, &bad, &ReplayOptions::default())
         .err()
         .unwrap();
-    assert!(e.contains("beyond the configured capacity"), "{e}");
+    assert!(matches!(e, dualstream::mem::MemError::Address(_)), "{e:?}");
+    assert!(
+        e.to_string().contains("beyond the configured capacity"),
+        "{e}"
+    );
 }
 
 /// The `dramsim3-gddr5` preset follows DRAMsim3's rules (`mem::dramsim3`); each
