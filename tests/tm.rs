@@ -536,7 +536,9 @@ fn bad_input_is_a_clear_error() {
         e.contains("stack entries") && e.contains("raise tm.scratchpad_bytes"),
         "{e}"
     );
-    let e = Config::from_toml("[tm.costs.pop]\ncycles = 2\nint = 5\n").unwrap_err();
+    let e = Config::from_toml("[tm.costs.pop]\ncycles = 2\nint = 5\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("single-issue"), "{e}");
 }
 

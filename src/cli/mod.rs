@@ -79,7 +79,7 @@ pub fn render_cfg(config: &Config, threads: Threads) -> dualstream::render::Rend
 
 pub fn load_config(path: &Option<PathBuf>) -> Result<Config, String> {
     match path {
-        Some(p) => Config::load(p),
+        Some(p) => Ok(Config::load(p)?),
         None => Ok(Config::default()),
     }
 }
