@@ -242,10 +242,10 @@ impl FrameChip {
         first: bool,
     ) -> Result<crate::machine::WaveCycles, String> {
         if self.tp_shading && !first {
-            self.chip.shade_and_trace(mem, pixels)
+            Ok(self.chip.shade_and_trace(mem, pixels)?)
         } else {
             let rays = q.take_diverted();
-            self.chip.trace_wave(mem, &rays)
+            Ok(self.chip.trace_wave(mem, &rays)?)
         }
     }
 
