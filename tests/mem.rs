@@ -181,6 +181,14 @@ mod unit {
             .err()
             .unwrap();
         assert!(
+            matches!(
+                e,
+                dualstream::testbench::TbError::Unit(dualstream::units::UnitError::Unsupported(_))
+            ),
+            "{e:?}"
+        );
+        let e = e.to_string();
+        assert!(
             e.contains("policy = \"dramsim3\"") && e.contains("frfcfs"),
             "{e}"
         );
