@@ -106,13 +106,6 @@ impl std::fmt::Display for EnergyError {
 
 impl std::error::Error for EnergyError {}
 
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<EnergyError> for String {
-    fn from(e: EnergyError) -> String {
-        e.to_string()
-    }
-}
-
 impl EnergyCfg {
     pub fn validate(&self) -> Result<(), EnergyError> {
         let all = [

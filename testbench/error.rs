@@ -91,10 +91,3 @@ macro_rules! wraps {
 }
 wraps!(ConfigError => Config, SceneError => Scene, RenderError => Render, MemError => Mem,
        UnitError => Unit, SimError => Sim, TraceError => Trace);
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<TbError> for String {
-    fn from(e: TbError) -> String {
-        e.to_string()
-    }
-}

@@ -69,10 +69,3 @@ impl std::fmt::Display for AccelError {
 }
 
 impl std::error::Error for AccelError {}
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<AccelError> for String {
-    fn from(e: AccelError) -> String {
-        e.to_string()
-    }
-}

@@ -268,10 +268,3 @@ impl From<SamplingError> for BenchError {
         BenchError::Sampling(e)
     }
 }
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<BenchError> for String {
-    fn from(e: BenchError) -> String {
-        e.to_string()
-    }
-}

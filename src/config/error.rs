@@ -16,9 +16,13 @@ use crate::util::FileError;
 #[derive(Debug)]
 pub enum ConfigError {
     /// A key no section has (a typo, or a key of another section).
-    UnknownKey { key: String, toml: toml::de::Error },
-    /// TOML that does not parse, or a value of the wrong type or an unknown name.
-    Toml(toml::de::Error),
+    UnknownKey {
+        key: String,
+        toml: Box<toml::de::Error>,
+    },
+    /// TOML that does not parse, or a value of the wrong type or an unknown name
+    /// (boxed: toml's error is large, and every layer above carries this one).
+    Toml(Box<toml::de::Error>),
     /// A value (or a combination) the model cannot run, the key and the fix named.
     Impossible(String),
     /// A link of `links.*` or `chip.links`.
@@ -52,8 +56,11 @@ impl ConfigError {
             .and_then(|r| r.split('`').next())
             .map(str::to_string);
         match key {
-            Some(key) => ConfigError::UnknownKey { key, toml: e },
-            None => ConfigError::Toml(e),
+            Some(key) => ConfigError::UnknownKey {
+                key,
+                toml: Box::new(e),
+            },
+            None => ConfigError::Toml(Box::new(e)),
         }
     }
 
@@ -88,7 +95,7 @@ impl fmt::Display for ConfigError {
 impl std::error::Error for ConfigError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            ConfigError::UnknownKey { toml, .. } | ConfigError::Toml(toml) => Some(toml),
+            ConfigError::UnknownKey { toml, .. } | ConfigError::Toml(toml) => Some(toml.as_ref()),
             ConfigError::Impossible(_) => None,
             ConfigError::Link(e) => Some(e),
             ConfigError::Map(e) => Some(e),
@@ -113,10 +120,3 @@ macro_rules! wraps {
 }
 wraps!(SimError => Link, MapError => Map, AccelError => Accel, MemError => Mem,
        UnitError => Unit, EnergyError => Energy);
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<ConfigError> for String {
-    fn from(e: ConfigError) -> String {
-        e.to_string()
-    }
-}

@@ -49,13 +49,6 @@ impl std::fmt::Display for MapError {
 
 impl std::error::Error for MapError {}
 
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<MapError> for String {
-    fn from(e: MapError) -> String {
-        e.to_string()
-    }
-}
-
 impl MemoryMapCfg {
     pub fn validate(&self) -> Result<(), MapError> {
         if self.row_bytes == 0 || !self.row_bytes.is_power_of_two() {

@@ -122,10 +122,3 @@ impl From<MapError> for ChipError {
         ChipError::Map(e)
     }
 }
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<ChipError> for String {
-    fn from(e: ChipError) -> String {
-        e.to_string()
-    }
-}

@@ -52,10 +52,3 @@ impl From<SimError> for MemError {
         MemError::Link(e)
     }
 }
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<MemError> for String {
-    fn from(e: MemError) -> String {
-        e.to_string()
-    }
-}

@@ -95,10 +95,3 @@ macro_rules! wraps {
 }
 wraps!(SceneError => Scene, AccelError => Accel, MapError => Map, ChipError => Chip,
        SimError => Sim, TraceError => Trace);
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<RenderError> for String {
-    fn from(e: RenderError) -> String {
-        e.to_string()
-    }
-}

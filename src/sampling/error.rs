@@ -85,10 +85,3 @@ impl From<MemError> for SamplingError {
 pub(super) fn hook(e: SamplingError) -> RenderError {
     RenderError::Hook(Box::new(e))
 }
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<SamplingError> for String {
-    fn from(e: SamplingError) -> String {
-        e.to_string()
-    }
-}

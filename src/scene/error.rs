@@ -71,10 +71,3 @@ impl std::error::Error for SceneError {
         }
     }
 }
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<SceneError> for String {
-    fn from(e: SceneError) -> String {
-        e.to_string()
-    }
-}

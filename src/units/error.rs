@@ -26,10 +26,3 @@ impl fmt::Display for UnitError {
 }
 
 impl std::error::Error for UnitError {}
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<UnitError> for String {
-    fn from(e: UnitError) -> String {
-        e.to_string()
-    }
-}

@@ -160,15 +160,3 @@ impl std::error::Error for SimError {
         }
     }
 }
-
-// Transitional: lets the layers above, still on `String`, use `?` (removed once they have their own errors).
-impl From<SimError> for String {
-    fn from(e: SimError) -> String {
-        e.to_string()
-    }
-}
-impl From<TraceError> for String {
-    fn from(e: TraceError) -> String {
-        e.to_string()
-    }
-}
