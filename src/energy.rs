@@ -90,8 +90,24 @@ impl Default for EnergyCfg {
     }
 }
 
+/// An `energy.*` constant that is negative or not a number.
+#[derive(Debug)]
+pub struct EnergyError {
+    pub key: &'static str,
+    pub value: f64,
+}
+
+impl std::fmt::Display for EnergyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (k, v) = (self.key, self.value);
+        write!(f, "energy.{k} = {v} must be a non-negative number")
+    }
+}
+
+impl std::error::Error for EnergyError {}
+
 impl EnergyCfg {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), EnergyError> {
         let all = [
             ("fp_add_pj", self.fp_add_pj),
             ("fp_mul_pj", self.fp_mul_pj),
@@ -118,7 +134,7 @@ impl EnergyCfg {
         ];
         for (k, v) in all {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("energy.{k} = {v} must be a non-negative number"));
+                return Err(EnergyError { key: k, value: v });
             }
         }
         Ok(())
@@ -376,6 +392,8 @@ mod tests {
             l1_nj: -1.0,
             ..EnergyCfg::default()
         };
-        assert!(c.validate().unwrap_err().contains("energy.l1_nj"));
+        let e = c.validate().unwrap_err();
+        assert_eq!((e.key, e.value), ("l1_nj", -1.0));
+        assert!(e.to_string().contains("energy.l1_nj"));
     }
 }

@@ -60,7 +60,7 @@ enum Cmd {
     Config(cli::config::ConfigArgs),
 }
 
-fn run(cli: Cli) -> Result<(), String> {
+fn run(cli: Cli) -> Result<(), cli::CliError> {
     let mut config = cli::load_config(&cli.config)?;
     if let Some(m) = &cli.memory {
         config.chip.memory.model = dualstream::units::memory::MemoryModel::parse(m)?;

@@ -1,6 +1,7 @@
 //! Testbench components: a scripted driver and a back-pressuring sink. They are not
 //! hardware, so they implement `Declared` by hand (ports only, no Verilog).
 
+use crate::testbench::TbError;
 use std::collections::VecDeque;
 
 use crate::rtl::decl::{Samples, StateList};
@@ -259,21 +260,24 @@ pub fn attach_trace(
     sim: &mut Sim,
     opts: &TbOptions,
     buf: Option<&SharedBuf>,
-) -> Result<(), String> {
+) -> Result<(), TbError> {
     if let Some(buf) = buf {
         let t = Tracer::new(Box::new(buf.clone()), opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+        sim.attach_tracer(t)?;
     } else if let Some(path) = &opts.vcd {
         let t = Tracer::to_file(path, opts.trace.clone())?;
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+        sim.attach_tracer(t)?;
     }
     Ok(())
 }
 
 /// Closes the waveform, if any, and records its size in `rep`.
-pub fn finish_trace(sim: &mut Sim, mut rep: TbReport) -> Result<TbReport, String> {
+pub fn finish_trace(sim: &mut Sim, mut rep: TbReport) -> Result<TbReport, TbError> {
     if let Some(r) = sim.finish_trace() {
-        let s = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
+        let s = r.map_err(|source| TbError::Vcd {
+            what: "writing the VCD failed",
+            source,
+        })?;
         rep.vcd_changes = s.changes;
         rep.vcd_bytes = s.bytes;
     }

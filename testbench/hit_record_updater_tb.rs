@@ -19,6 +19,7 @@
 //! - queue-full back-pressure reaches the TM side: the unit's `resource_busy`
 //!   cycles and the drivers' blocked cycles are reported (the tests require both).
 
+use crate::testbench::TbError;
 use std::collections::{BTreeMap, VecDeque};
 
 use crate::contract::{HIT_BYTES, HitRec, LINE_BYTES, SparseMem};
@@ -346,7 +347,7 @@ fn bits(h: &HitRec) -> [u32; 4] {
 }
 
 /// `dualstream tb hit_record_updater` with the default bench knobs.
-pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     run_with(opts, &HruTbCfg::default())
 }
 
@@ -361,7 +362,7 @@ struct Bench {
     memu: UnitId,
 }
 
-pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
+pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, TbError> {
     check_knobs(opts, b)?;
     let cfg = &unit_config(&opts.config, b);
     let mut rng = Rng::new(opts.seed);
@@ -370,24 +371,24 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, String> {
     attach_trace(&mut bench.sim, opts, b.trace_buf.as_ref())?;
     let sent = drive(&mut bench, opts, b, &mut rng, &mut expect);
     let p = cfg.clocks.core_ps;
-    let end = bench
-        .sim
-        .run_to_idle((sent * 100 + 100_000) * p)
-        .map_err(|e| e.to_string())?
-        / p;
+    let end = bench.sim.run_to_idle((sent * 100 + 100_000) * p)? / p;
     let st = bench.sim.unit_stats(bench.dut);
     let errors = check(&bench, b, &st, &expect, sent);
     let rep = report(&bench, b, &st, sent, end, errors);
     finish_trace(&mut bench.sim, rep)
 }
 
-fn check_knobs(opts: &TbOptions, b: &HruTbCfg) -> Result<(), String> {
+fn check_knobs(opts: &TbOptions, b: &HruTbCfg) -> Result<(), TbError> {
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) || !prob(opts.load) {
-        return Err("--ready and --load are probabilities in (0, 1]".into());
+        return Err(TbError::Invalid(
+            "--ready and --load are probabilities in (0, 1]".into(),
+        ));
     }
     if b.tms == 0 || b.indices == 0 || b.mem_latency < 2 {
-        return Err("the bench needs TMs, indices and a memory latency >= 2".into());
+        return Err(TbError::Invalid(
+            "the bench needs TMs, indices and a memory latency >= 2".into(),
+        ));
     }
     Ok(())
 }
@@ -415,12 +416,10 @@ fn build(
     b: &HruTbCfg,
     cfg: &crate::config::Config,
     image: SparseMem,
-) -> Result<Bench, String> {
+) -> Result<Bench, TbError> {
     let link = cfg.chip.links;
     let mut sim = Sim::new(opts.sim.clone());
-    let clk = sim
-        .clock("core", cfg.clocks.core_ps)
-        .map_err(|e| e.to_string())?;
+    let clk = sim.clock("core", cfg.clocks.core_ps)?;
     let mut drivers: Vec<UnitId> = Vec::new();
     let mut hit_in = Vec::new();
     let mut outs = Vec::new();
@@ -459,7 +458,7 @@ fn build(
     );
     mem.faults = b.faults.clone();
     let memu = sim.add("tb.mem", clk, mem);
-    sim.elaborate().map_err(|e| e.to_string())?;
+    sim.elaborate()?;
     Ok(Bench {
         sim,
         drivers,

@@ -20,6 +20,7 @@
 //! - C and D come back on consecutive cycles, long before port 0 is ready.
 
 use crate::rtl::{ClockId, LinkCfg, Sim, SimOptions, Status, TraceStats, Tracer, UnitId};
+use crate::testbench::TbError;
 use crate::units::l1::{L1, L1Ports, L1Req, L1Resp, Line};
 use crate::units::tm::L1Cfg;
 
@@ -82,7 +83,7 @@ pub fn line_of(addr: u64) -> Line {
 pub fn fill_behind_blocked_fill(
     sim_opts: SimOptions,
     b: FillBehindCfg,
-) -> Result<FillBehindRun, String> {
+) -> Result<FillBehindRun, TbError> {
     fill_behind(sim_opts, b, None).map(|(run, _, _)| run)
 }
 
@@ -90,7 +91,7 @@ pub fn fill_behind_blocked_fill(
 /// checked against the timing the L1 owes it (the report's errors say what
 /// came late or twice). The stimulus is directed: `--cycles`, `--load` and
 /// `--ready` do not apply.
-pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     let b = FillBehindCfg::default();
     let tracer = match &opts.vcd {
         Some(path) => Some(Tracer::to_file(path, opts.trace.clone())?),
@@ -156,9 +157,9 @@ fn fill_behind(
     sim_opts: SimOptions,
     b: FillBehindCfg,
     tracer: Option<Tracer>,
-) -> Result<(FillBehindRun, [u64; 4], Option<TraceStats>), String> {
+) -> Result<(FillBehindRun, [u64; 4], Option<TraceStats>), TbError> {
     let mut sim = Sim::new(sim_opts);
-    let clk: ClockId = sim.clock("core", 1000).map_err(|e| e.to_string())?;
+    let clk: ClockId = sim.clock("core", 1000)?;
     let link = LinkCfg { depth: 2, delay: 1 };
     // One entry deep: a single unread answer fills port 0's response link.
     let resp_link = LinkCfg { depth: 1, delay: 1 };
@@ -200,9 +201,9 @@ fn fill_behind(
         .collect();
     let lines = sim.add("tb.lines", clk, Driver::new(mr_o));
     let miss_sink = sim.add("tb.miss_sink", clk, Sink::new(mq_i, 1.0, 0));
-    sim.elaborate().map_err(|e| e.to_string())?;
+    sim.elaborate()?;
     if let Some(t) = tracer {
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+        sim.attach_tracer(t)?;
     }
     let req = |a: u64| L1Req { addr: a };
     let resp = |a: u64| L1Resp {
@@ -222,7 +223,7 @@ fn fill_behind(
     for &u in drivers.iter().chain([&lines]) {
         sim.wake(u);
     }
-    let end = sim.run_to_idle(1_000_000).map_err(|e| e.to_string())?;
+    let end = sim.run_to_idle(1_000_000)?;
     let got = |s: UnitId| -> Vec<(u64, u64, Line)> {
         sim.unit_ref::<Sink<L1Resp>>(s)
             .got
@@ -252,7 +253,10 @@ fn fill_behind(
         end: end / 1000,
     };
     let trace = match sim.finish_trace() {
-        Some(r) => Some(r.map_err(|e| format!("writing the VCD failed: {e}"))?),
+        Some(r) => Some(r.map_err(|source| TbError::Vcd {
+            what: "writing the VCD failed",
+            source,
+        })?),
         None => None,
     };
     Ok((run, status_cycles, trace))

@@ -23,6 +23,7 @@
 //! - counters: accesses = requests, hits + misses = accesses, fills = memory
 //!   reads, writebacks = memory writes, two flushes answered.
 
+use crate::testbench::TbError;
 use std::collections::BTreeMap;
 
 use crate::contract::SparseMem;
@@ -88,7 +89,7 @@ pub fn unit_config(base: &crate::config::Config, b: &L2TbCfg) -> crate::config::
 const BASE: u64 = 0x4_0000;
 
 /// `dualstream tb l2` with the default bench knobs.
-pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     run_with(opts, &L2TbCfg::default())
 }
 
@@ -115,7 +116,7 @@ struct Bench {
     memus: Vec<UnitId>,
 }
 
-pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
+pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, TbError> {
     check_knobs(opts, b)?;
     let cfg = &unit_config(&opts.config, b);
     cfg.chip.l2.validate(cfg.chip.links.delay)?;
@@ -150,13 +151,17 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, String> {
     finish_trace(&mut bench.sim, rep)
 }
 
-fn check_knobs(opts: &TbOptions, b: &L2TbCfg) -> Result<(), String> {
+fn check_knobs(opts: &TbOptions, b: &L2TbCfg) -> Result<(), TbError> {
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) || !prob(opts.load) {
-        return Err("--ready and --load are probabilities in (0, 1]".into());
+        return Err(TbError::Invalid(
+            "--ready and --load are probabilities in (0, 1]".into(),
+        ));
     }
     if b.clients < 2 || b.lines == 0 || b.mem_latency < 2 {
-        return Err("the bench needs at least 2 clients, lines and a memory latency >= 2".into());
+        return Err(TbError::Invalid(
+            "the bench needs at least 2 clients, lines and a memory latency >= 2".into(),
+        ));
     }
     Ok(())
 }
@@ -183,13 +188,11 @@ fn build(
     b: &L2TbCfg,
     cfg: &crate::config::Config,
     images: Vec<SparseMem>,
-) -> Result<Bench, String> {
+) -> Result<Bench, TbError> {
     let link = cfg.chip.links;
     let lanes = images.len();
     let mut sim = Sim::new(opts.sim.clone());
-    let clk = sim
-        .clock("core", cfg.clocks.core_ps)
-        .map_err(|e| e.to_string())?;
+    let clk = sim.clock("core", cfg.clocks.core_ps)?;
     let n = b.clients as usize;
     let (mut req_i, mut resp_o) = (Vec::new(), Vec::new());
     let (mut drivers, mut sinks): (Vec<UnitId>, Vec<UnitId>) = (Vec::new(), Vec::new());
@@ -253,7 +256,7 @@ fn build(
         }
         memus.push(sim.add(&format!("tb.mem{j}"), clk, mem));
     }
-    sim.elaborate().map_err(|e| e.to_string())?;
+    sim.elaborate()?;
     Ok(Bench {
         sim,
         clk,
@@ -277,7 +280,7 @@ fn drive(
     b: &L2TbCfg,
     cfg: &crate::config::Config,
     rng: &mut Rng,
-) -> Result<(u64, u64), String> {
+) -> Result<(u64, u64), TbError> {
     let sim = &mut bench.sim;
     let hot = (b.lines / 4).max(1) as u64;
     let mut sent = 0u64;
@@ -322,15 +325,12 @@ fn drive(
     sim.wake(bench.flusher);
     let p = cfg.clocks.core_ps;
     let limit = (sent * 200 + 100_000) * p;
-    sim.run_to_idle(limit).map_err(|e| e.to_string())?;
+    sim.run_to_idle(limit)?;
     let now = sim.cycle(bench.clk);
     sim.unit_mut::<Driver<L2Flush>>(bench.flusher)
         .send(now, L2Flush { invalidate: false });
     sim.wake(bench.flusher);
-    let end = sim
-        .run_to_idle(sim.now() + limit)
-        .map_err(|e| e.to_string())?
-        / p;
+    let end = sim.run_to_idle(sim.now() + limit)? / p;
     Ok((sent, end))
 }
 

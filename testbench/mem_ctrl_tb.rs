@@ -7,6 +7,7 @@
 //! (open-row hit, row conflict, tFAW, refresh) are in `tests/mem.rs` and use
 //! `MemTb` directly.
 
+use crate::testbench::TbError;
 use std::collections::HashMap;
 
 use crate::config::Config;
@@ -34,7 +35,7 @@ pub struct MemTb {
 
 impl MemTb {
     /// Channel 0 of `cfg.mem`; the sink is ready with probability `ready_p`.
-    pub fn new(cfg: &Config, opts: SimOptions, ready_p: f64, seed: u64) -> Result<MemTb, String> {
+    pub fn new(cfg: &Config, opts: SimOptions, ready_p: f64, seed: u64) -> Result<MemTb, TbError> {
         // Only the memory system and its clock are used (a device preset may be
         // swapped in without a matching DRAM image, `memory`).
         cfg.mem.validate()?;
@@ -42,7 +43,7 @@ impl MemTb {
         let m = cfg.mem.clone();
         let tck = cfg.clocks.dram_ps;
         let mut sim = Sim::new(opts);
-        let clk = sim.clock("dram", tck).map_err(|e| e.to_string())?;
+        let clk = sim.clock("dram", tck)?;
         let (ro, ri) = sim.link::<MemReq>("mem.req", m.ctrl.req_link);
         let (po, pi) = sim.link::<MemResp>("mem.resp", m.ctrl.resp_link);
         let driver = sim.add("tb.driver", clk, Driver::new(ro));
@@ -52,7 +53,7 @@ impl MemTb {
             MemCtrl::new(&m, tck, 0, MemCtrlPorts { req: ri, resp: po }),
         );
         let sink = sim.add("tb.sink", clk, Sink::new(pi, ready_p, seed));
-        sim.elaborate().map_err(|e| e.to_string())?;
+        sim.elaborate()?;
         // After elaboration (its reset keeps the setting from then on).
         sim.unit_mut::<MemCtrl>(dut).ctrl.record_commands(true);
         sim.log_link(ro.id, true);
@@ -95,11 +96,8 @@ impl MemTb {
         self.sim.wake(self.driver);
     }
 
-    pub fn run_to_idle(&mut self, limit_cycles: u64) -> Result<u64, String> {
-        let t = self
-            .sim
-            .run_to_idle(limit_cycles * self.tck_ps)
-            .map_err(|e| e.to_string())?;
+    pub fn run_to_idle(&mut self, limit_cycles: u64) -> Result<u64, TbError> {
+        let t = self.sim.run_to_idle(limit_cycles * self.tck_ps)?;
         Ok(t / self.tck_ps)
     }
 
@@ -127,18 +125,22 @@ impl MemTb {
 }
 
 /// Random reads and writes to channel 0 with back-pressure (`dualstream tb mem_ctrl`).
-pub fn run_random(opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run_random(opts: &TbOptions) -> Result<TbReport, TbError> {
     if opts.cycles == 0 {
-        return Err("--cycles 0 runs nothing; give at least 1 cycle".into());
+        return Err(TbError::Invalid(
+            "--cycles 0 runs nothing; give at least 1 cycle".into(),
+        ));
     }
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) || !prob(opts.load) {
-        return Err("--ready and --load are probabilities in (0, 1]".into());
+        return Err(TbError::Invalid(
+            "--ready and --load are probabilities in (0, 1]".into(),
+        ));
     }
     let mut tb = MemTb::new(&opts.config, opts.sim.clone(), opts.ready_p, opts.seed)?;
     if let Some(path) = &opts.vcd {
         let tracer = Tracer::to_file(path, opts.trace.clone())?;
-        tb.sim.attach_tracer(tracer).map_err(|e| e.to_string())?;
+        tb.sim.attach_tracer(tracer)?;
     }
     let g = tb.cfg.geometry.clone();
     let mut rng = Rng::new(opts.seed);
@@ -230,7 +232,10 @@ pub fn run_random(opts: &TbOptions) -> Result<TbReport, String> {
     if opts.vcd.is_some()
         && let Some(r) = tb.sim.finish_trace()
     {
-        let st = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
+        let st = r.map_err(|source| TbError::Vcd {
+            what: "writing the VCD failed",
+            source,
+        })?;
         rep.vcd_changes = st.changes;
         rep.vcd_bytes = st.bytes;
     }

@@ -20,7 +20,7 @@ use crate::units::memory::{
 };
 
 use super::harness::{Driver, Sink};
-use super::{TbOptions, TbReport};
+use super::{TbError, TbOptions, TbReport};
 
 /// The written line and the line only read.
 pub const LINE_W: u64 = 0x1000;
@@ -51,9 +51,9 @@ pub fn script(
     sim_opts: SimOptions,
     latency: u32,
     tracer: Option<Tracer>,
-) -> Result<MemoryRun, String> {
+) -> Result<MemoryRun, TbError> {
     let mut sim = Sim::new(sim_opts);
-    let clk = sim.clock("core", 1000).map_err(|e| e.to_string())?;
+    let clk = sim.clock("core", 1000)?;
     let link = LinkCfg { depth: 2, delay: 1 };
     let (req_o, req_i) = sim.links::<MemLineReq>(2, |p| format!("tb.req{p}"), link);
     let (resp_o, resp_i) = sim.links::<MemLineResp>(2, |p| format!("tb.resp{p}"), link);
@@ -91,9 +91,9 @@ pub fn script(
         .enumerate()
         .map(|(p, i)| sim.add(&format!("tb.sink{p}"), clk, Sink::new(i, 1.0, 0)))
         .collect();
-    sim.elaborate().map_err(|e| e.to_string())?;
+    sim.elaborate()?;
     if let Some(t) = tracer {
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+        sim.attach_tracer(t)?;
     }
     let mask = MASKED.iter().fold(0u64, |m, &k| m | 1 << k);
     let write = MemLineReq {
@@ -112,13 +112,16 @@ pub fn script(
     for &d in &drivers {
         sim.wake(d);
     }
-    let end = sim.run_to_idle(1_000_000).map_err(|e| e.to_string())?;
+    let end = sim.run_to_idle(1_000_000)?;
     let got = |s| sim.unit_ref::<Sink<MemLineResp>>(s).got.clone();
     let (port0, port1) = (got(sinks[0]), got(sinks[1]));
     let probe = sim.unit_ref::<Memory>(mem).probe();
     let status_cycles = sim.unit_stats(mem).status_cycles;
     let trace = match sim.finish_trace() {
-        Some(r) => Some(r.map_err(|e| format!("writing the VCD failed: {e}"))?),
+        Some(r) => Some(r.map_err(|source| TbError::Vcd {
+            what: "writing the VCD failed",
+            source,
+        })?),
         None => None,
     };
     Ok(MemoryRun {
@@ -191,7 +194,7 @@ pub fn check(r: &MemoryRun, latency: u32) -> Vec<String> {
 /// `dualstream tb memory`: the script at each latency of [`LATENCIES`] under
 /// `opts.sim`, the first with a waveform if asked. The stimulus is directed:
 /// `--cycles`, `--load` and `--ready` do not apply.
-pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     let mut rep = TbReport {
         unit: "memory",
         requests: 0,

@@ -6,6 +6,7 @@
 //! Drivers and sinks are units like any other, so the unit under test is exercised
 //! through real registered links with their protocol monitors.
 
+mod error;
 pub mod harness;
 pub mod pipe_tb;
 
@@ -22,6 +23,7 @@ pub mod stream_scheduler_tb;
 pub mod tm_tb;
 pub mod tri_pipe_tb;
 
+pub use error::TbError;
 pub use harness::{Driver, LoadGen, Sink};
 pub use pipe_tb::{PipeKind, PipeTb, TbOptions, TbReport};
 
@@ -29,7 +31,7 @@ pub use pipe_tb::{PipeKind, PipeTb, TbOptions, TbReport};
 #[derive(Clone, Copy)]
 pub enum Runner {
     /// From [`TbOptions`] (cycles, seed, back-pressure, load, waveform).
-    Unit(fn(&TbOptions) -> Result<TbReport, String>),
+    Unit(fn(&TbOptions) -> Result<TbReport, TbError>),
     /// The TM bench: a scene's treelet through one TM ([`tm_tb::run`], its own
     /// options: scene, treelet, memory latency).
     Treelet,
@@ -147,15 +149,12 @@ pub const BENCHES: &[Bench] = &[
 ];
 
 /// The bench named `name` (or one of its aliases), or an error listing them all.
-pub fn find(name: &str) -> Result<&'static Bench, String> {
+pub fn find(name: &str) -> Result<&'static Bench, TbError> {
     BENCHES
         .iter()
         .find(|b| b.name == name || b.aliases.contains(&name))
-        .ok_or_else(|| {
-            format!(
-                "unknown unit '{name}'; testbenches exist for: {}",
-                bench_names()
-            )
+        .ok_or_else(|| TbError::UnknownUnit {
+            name: name.to_string(),
         })
 }
 
@@ -173,12 +172,12 @@ pub fn bench_names() -> String {
 
 /// Runs a unit testbench by name (the CLI's `tb` command; `tm` has its own
 /// options: [`tm_tb::run`]).
-pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run_by_name(name: &str, opts: &TbOptions) -> Result<TbReport, TbError> {
     match find(name)?.runner {
         Runner::Unit(run) => run(opts),
-        Runner::Treelet => Err(format!(
+        Runner::Treelet => Err(TbError::Invalid(format!(
             "'{name}' runs on a scene's treelet: use `dualstream tb {name}` or testbench::tm_tb::run"
-        )),
+        ))),
     }
 }
 

@@ -10,6 +10,7 @@
 //!   exactly `latency` when the sink is always ready;
 //! - no link protocol violation, nothing lost or duplicated.
 
+use crate::testbench::TbError;
 use std::path::PathBuf;
 
 use crate::config::Config;
@@ -165,14 +166,12 @@ impl<K: PipeKind> PipeTb<K> {
         sim_opts: SimOptions,
         ready_p: f64,
         seed: u64,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, TbError> {
         config.validate()?;
         let cfg = K::cfg(config);
         let link = config.links.tm;
         let mut sim = Sim::new(sim_opts);
-        let clk = sim
-            .clock("core", config.clocks.core_ps)
-            .map_err(|e| e.to_string())?;
+        let clk = sim.clock("core", config.clocks.core_ps)?;
         let (req_out, req_in) = sim.link::<K::Req>("req", link);
         let (resp_out, resp_in) = sim.link::<K::Resp>("resp", link);
         let driver = sim.add("tb.driver", clk, Driver::new(req_out));
@@ -184,7 +183,7 @@ impl<K: PipeKind> PipeTb<K> {
         let sink = sim.add("tb.sink", clk, Sink::new(resp_in, ready_p, seed ^ 0x5eed));
         sim.log_link(req_in.id, true);
         sim.log_link(resp_in.id, true);
-        sim.elaborate().map_err(|e| e.to_string())?;
+        sim.elaborate()?;
         Ok(PipeTb {
             sim,
             driver,
@@ -213,11 +212,8 @@ impl<K: PipeKind> PipeTb<K> {
     }
 
     /// Steps until everything sent has come out (or `limit` cycles).
-    pub fn run_to_idle(&mut self, limit_cycles: u64) -> Result<u64, String> {
-        let t = self
-            .sim
-            .run_to_idle(limit_cycles * self.period)
-            .map_err(|e| e.to_string())?;
+    pub fn run_to_idle(&mut self, limit_cycles: u64) -> Result<u64, TbError> {
+        let t = self.sim.run_to_idle(limit_cycles * self.period)?;
         Ok(t / self.period)
     }
 
@@ -366,18 +362,22 @@ impl<K: PipeKind> PipeTb<K> {
 /// The CLI testbench: directed cases first, then seeded random requests arriving
 /// with probability `load` per cycle, a sink that is ready with probability
 /// `ready_p`, run for `cycles` cycles of stimulus and then drained.
-pub fn run_random<K: PipeKind>(opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run_random<K: PipeKind>(opts: &TbOptions) -> Result<TbReport, TbError> {
     if opts.cycles == 0 {
-        return Err("--cycles 0 runs nothing; give at least 1 cycle".into());
+        return Err(TbError::Invalid(
+            "--cycles 0 runs nothing; give at least 1 cycle".into(),
+        ));
     }
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) || !prob(opts.load) {
-        return Err("--ready and --load are probabilities in (0, 1]".into());
+        return Err(TbError::Invalid(
+            "--ready and --load are probabilities in (0, 1]".into(),
+        ));
     }
     let mut tb = PipeTb::<K>::new(&opts.config, opts.sim.clone(), opts.ready_p, opts.seed)?;
     if let Some(path) = &opts.vcd {
         let tracer = Tracer::to_file(path, opts.trace.clone())?;
-        tb.sim.attach_tracer(tracer).map_err(|e| e.to_string())?;
+        tb.sim.attach_tracer(tracer)?;
     }
     let mut rng = Rng::new(opts.seed);
     let mut sent = Vec::new();
@@ -401,7 +401,10 @@ pub fn run_random<K: PipeKind>(opts: &TbOptions) -> Result<TbReport, String> {
     if opts.vcd.is_some()
         && let Some(r) = tb.sim.finish_trace()
     {
-        let st = r.map_err(|e| format!("writing the VCD failed: {e}"))?;
+        let st = r.map_err(|source| TbError::Vcd {
+            what: "writing the VCD failed",
+            source,
+        })?;
         rep.vcd_changes = st.changes;
         rep.vcd_bytes = st.bytes;
     }

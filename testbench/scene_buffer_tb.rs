@@ -25,6 +25,7 @@ use crate::contract::{LINE_BYTES, SparseMem};
 use crate::mem::StreamTag;
 use crate::rtl::link::LinkEvent;
 use crate::rtl::{LinkId, SharedBuf, Sim, Status, UnitId, UnitStats};
+use crate::testbench::TbError;
 use crate::units::l1::{L1Req, L1Resp, Line};
 use crate::units::memory::MemLineResp;
 use crate::units::scene_buffer::SceneBufferCfg;
@@ -102,7 +103,7 @@ pub fn unit_config(base: &crate::config::Config, b: &SceneBufferTbCfg) -> crate:
     c
 }
 
-pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     run_with(opts, &SceneBufferTbCfg::default())
 }
 
@@ -151,7 +152,7 @@ struct Score {
     max_l: u64,
 }
 
-pub fn run_with(opts: &TbOptions, b: &SceneBufferTbCfg) -> Result<TbReport, String> {
+pub fn run_with(opts: &TbOptions, b: &SceneBufferTbCfg) -> Result<TbReport, TbError> {
     check_knobs(opts, b)?;
     let cfg = &unit_config(&opts.config, b);
     let p = cfg.clocks.core_ps;
@@ -187,11 +188,7 @@ pub fn run_with(opts: &TbOptions, b: &SceneBufferTbCfg) -> Result<TbReport, Stri
         }
         bench.sim.wake(bench.map_drv);
         bench.sim.wake(bench.fill_drv);
-        end = bench
-            .sim
-            .run_to_idle((end + 1_000_000) * p)
-            .map_err(|e| e.to_string())?
-            / p;
+        end = bench.sim.run_to_idle((end + 1_000_000) * p)? / p;
     }
     let st = bench.sim.unit_stats(bench.dut);
     let score = check(&bench, b, image, &sent, &st, p);
@@ -199,15 +196,19 @@ pub fn run_with(opts: &TbOptions, b: &SceneBufferTbCfg) -> Result<TbReport, Stri
     finish_trace(&mut bench.sim, rep)
 }
 
-fn check_knobs(opts: &TbOptions, b: &SceneBufferTbCfg) -> Result<(), String> {
+fn check_knobs(opts: &TbOptions, b: &SceneBufferTbCfg) -> Result<(), TbError> {
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) {
-        return Err("--ready is a probability in (0, 1]".into());
+        return Err(TbError::Invalid(
+            "--ready is a probability in (0, 1]".into(),
+        ));
     }
     let slots = b.sb.slots();
     let slot_lines = b.sb.slot_bytes / LINE_BYTES as u32;
     if b.tms == 0 || slots < 2 || slot_lines < 8 || b.sb.banks == 0 || b.sb.latency < 2 {
-        return Err("the bench needs TMs, >= 2 slots of >= 8 lines, banks and latency >= 2".into());
+        return Err(TbError::Invalid(
+            "the bench needs TMs, >= 2 slots of >= 8 lines, banks and latency >= 2".into(),
+        ));
     }
     Ok(())
 }
@@ -242,12 +243,10 @@ fn build(
     opts: &TbOptions,
     b: &SceneBufferTbCfg,
     cfg: &crate::config::Config,
-) -> Result<Bench, String> {
+) -> Result<Bench, TbError> {
     let link = cfg.chip.links;
     let mut sim = Sim::new(opts.sim.clone());
-    let clk = sim
-        .clock("core", cfg.clocks.core_ps)
-        .map_err(|e| e.to_string())?;
+    let clk = sim.clock("core", cfg.clocks.core_ps)?;
     let (mo, mi) = sim.link::<SlotMap>("sb.slot_map", link);
     let (fo, fi) = sim.link::<MemLineResp>("sb.fill", link);
     let mut reqs = Vec::new();
@@ -293,7 +292,7 @@ fn build(
             Sink::new(i, opts.ready_p, opts.seed.wrapping_mul(31) + k as u64),
         ));
     }
-    sim.elaborate().map_err(|e| e.to_string())?;
+    sim.elaborate()?;
     sim.log_link(fill_link, true);
     for &l in &req_links {
         sim.log_link(l, true);

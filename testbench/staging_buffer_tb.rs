@@ -15,7 +15,7 @@ use crate::units::staging_buffer::{SbFill, SbHeader, SbRay, StagingBuffer, Stagi
 use crate::units::tm::TmCfg;
 
 use super::harness::{Driver, Sink, counter};
-use super::{TbOptions, TbReport};
+use super::{TbError, TbOptions, TbReport};
 
 /// The buckets: (segment, rays).
 pub const BUCKETS: [(u32, u32); 3] = [(11, 4), (12, 2), (13, 3)];
@@ -60,9 +60,9 @@ pub fn script(
     ready_p: f64,
     seed: u64,
     tracer: Option<Tracer>,
-) -> Result<StagingRun, String> {
+) -> Result<StagingRun, TbError> {
     let mut sim = Sim::new(sim_opts);
-    let clk = sim.clock("core", 1000).map_err(|e| e.to_string())?;
+    let clk = sim.clock("core", 1000)?;
     let link = LinkCfg { depth: 2, delay: 1 };
     // A TP's ray link holds one ray (its next), as in the TM.
     let ray_link = LinkCfg { depth: 1, delay: 1 };
@@ -93,9 +93,9 @@ pub fn script(
             sim.add(&format!("tb.tp{p}"), clk, s)
         })
         .collect();
-    sim.elaborate().map_err(|e| e.to_string())?;
+    sim.elaborate()?;
     if let Some(t) = tracer {
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+        sim.attach_tracer(t)?;
     }
     let mut id = 0u32;
     for (seg, n) in BUCKETS {
@@ -116,7 +116,7 @@ pub fn script(
         }
     }
     sim.wake(drv);
-    let end = sim.run_to_idle(10_000_000).map_err(|e| e.to_string())?;
+    let end = sim.run_to_idle(10_000_000)?;
     let st = sim.unit_stats(sb);
     let c = |n: &str| counter(&st, n);
     let tps = sinks
@@ -124,7 +124,10 @@ pub fn script(
         .map(|&s| sim.unit_ref::<Sink<SbRay>>(s).got.clone())
         .collect();
     let trace = match sim.finish_trace() {
-        Some(r) => Some(r.map_err(|e| format!("writing the VCD failed: {e}"))?),
+        Some(r) => Some(r.map_err(|source| TbError::Vcd {
+            what: "writing the VCD failed",
+            source,
+        })?),
         None => None,
     };
     Ok(StagingRun {
@@ -179,7 +182,7 @@ pub fn check(r: &StagingRun) -> Vec<String> {
 /// `dualstream tb staging_buffer`: the script under `opts.sim` with the TPs
 /// ready with probability `--ready` (seeded by `--seed`); `--cycles` and
 /// `--load` do not apply.
-pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     let tracer = match &opts.vcd {
         Some(path) => Some(Tracer::to_file(path, opts.trace.clone())?),
         None => None,

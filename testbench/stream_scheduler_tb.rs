@@ -20,6 +20,7 @@
 //! - every admitted segment's lines are streamed exactly once;
 //! - every bucket is freed: written = read = forwarded buckets, no live bucket.
 
+use crate::testbench::TbError;
 use std::collections::VecDeque;
 
 use crate::contract::{RayRec, SegEntry};
@@ -303,7 +304,7 @@ pub fn unit_config(base: &crate::config::Config, b: &SchedTbCfg) -> crate::confi
     cfg
 }
 
-pub fn run(opts: &TbOptions) -> Result<TbReport, String> {
+pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     run_with(opts, &SchedTbCfg::default())
 }
 
@@ -330,7 +331,7 @@ struct Bench {
     p: u64,
 }
 
-pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
+pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, TbError> {
     check_knobs(opts, b)?;
     let cfg = &unit_config(&opts.config, b);
     cfg.validate()?;
@@ -357,13 +358,17 @@ pub fn run_with(opts: &TbOptions, b: &SchedTbCfg) -> Result<TbReport, String> {
     finish_trace(&mut bench.sim, rep)
 }
 
-fn check_knobs(opts: &TbOptions, b: &SchedTbCfg) -> Result<(), String> {
+fn check_knobs(opts: &TbOptions, b: &SchedTbCfg) -> Result<(), TbError> {
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) {
-        return Err("--ready is a probability in (0, 1]".into());
+        return Err(TbError::Invalid(
+            "--ready is a probability in (0, 1]".into(),
+        ));
     }
     if b.tms == 0 || b.rays == 0 || b.mem_latency < 2 {
-        return Err("the bench needs TMs, rays and a memory latency >= 2".into());
+        return Err(TbError::Invalid(
+            "the bench needs TMs, rays and a memory latency >= 2".into(),
+        ));
     }
     Ok(())
 }
@@ -396,12 +401,12 @@ fn build(
     cfg: &crate::config::Config,
     prep: Prepared,
     tree: &SegTree,
-) -> Result<Bench, String> {
+) -> Result<Bench, TbError> {
     let nseg = tree.entries.len();
     let link = cfg.chip.links;
     let p = cfg.clocks.core_ps;
     let mut sim = Sim::new(opts.sim.clone());
-    let clk = sim.clock("core", p).map_err(|e| e.to_string())?;
+    let clk = sim.clock("core", p)?;
     let (eo, ei) = sim.link::<RayWrite>("sched.emit", link);
     let (so, si) = sim.link::<WaveStart>("sched.start", link);
     let ray_lanes = cfg.chip.scheduler.ray_lines_per_cycle as usize;
@@ -500,7 +505,7 @@ fn build(
             },
         ));
     }
-    sim.elaborate().map_err(|e| e.to_string())?;
+    sim.elaborate()?;
     Ok(Bench {
         sim,
         host,
@@ -519,7 +524,7 @@ fn drive(
     bench: &mut Bench,
     opts: &TbOptions,
     b: &SchedTbCfg,
-) -> Result<(Vec<RayRec>, u64), String> {
+) -> Result<(Vec<RayRec>, u64), TbError> {
     let (sim, p) = (&mut bench.sim, bench.p);
     let mut rng = Rng::new(opts.seed);
     let rays: Vec<RayRec> = (0..b.rays)
@@ -532,10 +537,7 @@ fn drive(
         .collect();
     sim.unit_mut::<Host>(bench.host).load(rays.clone(), 0, 0);
     sim.wake(bench.host);
-    let end = sim
-        .run_to_idle((b.rays as u64 * 2000 + 1_000_000) * p)
-        .map_err(|e| e.to_string())?
-        / p;
+    let end = sim.run_to_idle((b.rays as u64 * 2000 + 1_000_000) * p)? / p;
     Ok((rays, end))
 }
 

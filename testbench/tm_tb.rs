@@ -9,6 +9,7 @@
 //! updates (hit index, hit record bits) equals what `traverse_segment` produces for
 //! the same rays on the same segment, and the box and triangle test counts match.
 
+use crate::testbench::TbError;
 use std::collections::{HashMap, VecDeque};
 use std::time::Instant;
 
@@ -298,13 +299,11 @@ pub fn run_job(
     job: &TmJob,
     opts: &RunOptions,
     tracer: Option<Tracer>,
-) -> Result<TmRun, String> {
+) -> Result<TmRun, TbError> {
     cfg.validate()?;
     let t0 = Instant::now();
     let mut sim = Sim::new(opts.sim.clone());
-    let clk = sim
-        .clock("core", cfg.clocks.core_ps)
-        .map_err(|e| e.to_string())?;
+    let clk = sim.clock("core", cfg.clocks.core_ps)?;
     let l = cfg.links.tm;
     let (fill_o, fill_i) = sim.link::<SbFill>("tb.fill", l);
     let (mq_o, mq_i) = sim.link::<L1Req>("tb.miss_req", l);
@@ -313,10 +312,10 @@ pub fn run_job(
     let (hit_o, hit_i) = sim.link::<HitUpdate>("tb.hit", l);
     let feeder = sim.add("tb.feeder", clk, Driver::new(fill_o));
     if opts.mem_latency < l.delay {
-        return Err(format!(
+        return Err(TbError::Invalid(format!(
             "--mem-latency {} is shorter than the response link delay ({}); give at least {}",
             opts.mem_latency, l.delay, l.delay
-        ));
+        )));
     }
     let mem = sim.add(
         "tb.memory",
@@ -360,9 +359,9 @@ pub fn run_job(
         sim.unit_mut::<L1>(units.l1).enable_log();
     }
     if let Some(t) = tracer {
-        sim.attach_tracer(t).map_err(|e| e.to_string())?;
+        sim.attach_tracer(t)?;
     } else {
-        sim.elaborate().map_err(|e| e.to_string())?;
+        sim.elaborate()?;
     }
     // The feeder: one ray per cycle, buckets of `rays_per_bucket`, `last` closing each.
     let per_bucket = cfg.memory.rays_per_bucket().min(cfg.tm.half_rays()) as usize;
@@ -386,18 +385,21 @@ pub fn run_job(
         }
     }
     sim.wake(feeder);
-    sim.run_to_idle(u64::MAX / 2).map_err(|e| e.to_string())?;
+    sim.run_to_idle(u64::MAX / 2)?;
     if let Some(r) = sim.finish_trace() {
-        r.map_err(|e| format!("cannot write the VCD: {e}"))?;
+        r.map_err(|source| TbError::Vcd {
+            what: "cannot write the VCD",
+            source,
+        })?;
     }
     let wall_s = t0.elapsed().as_secs_f64();
     for (k, &t) in units.tps.iter().enumerate() {
         if sim.unit_ref::<Tp>(t).overflowed() {
-            return Err(format!(
+            return Err(TbError::StackOverflow(format!(
                 "TP {k} overflowed its stack ({} entries in tm.scratchpad_bytes = {}); the segment is deeper than the scratchpad allows: raise tm.scratchpad_bytes",
                 cfg.tm.stack_entries(),
                 cfg.tm.scratchpad_bytes
-            ));
+            )));
         }
     }
     let tps: Vec<&Tp> = units.tps.iter().map(|&t| sim.unit_ref::<Tp>(t)).collect();
@@ -597,7 +599,7 @@ impl std::fmt::Display for TmReport {
 }
 
 /// Loads the scene, picks the treelet's rays and runs the scoreboarded bench.
-pub fn run(opts: &TmTbOptions) -> Result<TmReport, String> {
+pub fn run(opts: &TmTbOptions) -> Result<TmReport, TbError> {
     let name = opts.scene.strip_prefix("builtin:").unwrap_or(&opts.scene);
     let mut scene = crate::scene::load(name)?;
     if let Some((w, h)) = opts.res {
@@ -614,12 +616,12 @@ pub fn run(opts: &TmTbOptions) -> Result<TmReport, String> {
     let p = prepare(&scene, &rcfg)?;
     let nseg = p.seg.segments.len() as u32;
     if opts.treelet >= nseg {
-        return Err(format!(
+        return Err(TbError::Invalid(format!(
             "treelet {} does not exist: scene '{}' has {nseg} segments (0..{})",
             opts.treelet,
             scene.name,
             nseg - 1
-        ));
+        )));
     }
     let mut rays = treelet_rays(&p, &scene, opts.treelet).swap_remove(opts.treelet as usize);
     if let Some(n) = opts.max_rays {
@@ -628,13 +630,13 @@ pub fn run(opts: &TmTbOptions) -> Result<TmReport, String> {
     let view = load_view(&p, opts.treelet);
     let (_, _, want) = expected(&view, &rays);
     if want.max_stack > cfg.tm.stack_entries() as u64 {
-        return Err(format!(
+        return Err(TbError::Invalid(format!(
             "treelet {} needs {} stack entries but tm.scratchpad_bytes = {} holds {}: raise tm.scratchpad_bytes",
             opts.treelet,
             want.max_stack,
             cfg.tm.scratchpad_bytes,
             cfg.tm.stack_entries()
-        ));
+        )));
     }
     let job = TmJob {
         mem: &p.mem,

@@ -2,7 +2,9 @@
 
 use std::collections::HashSet;
 
-use dualstream::accel::{AccelCfg, Bvh, BvhBuilder, BvhCfg, Child, SceneImage, Segmentation};
+use dualstream::accel::{
+    AccelCfg, AccelError, Bvh, BvhBuilder, BvhCfg, Child, SceneImage, Segmentation,
+};
 use dualstream::contract::{
     MemoryMap, MemoryMapCfg, NODE_BYTES, NodeRec, Ref, SEG_SAME, SEGMENT_HEADER_BYTES,
     SEGMENT_MAGIC, SegEntry, SparseMem, TRI_BYTES, TriRec,
@@ -193,21 +195,30 @@ fn bad_sizes_are_named() {
     let tris = spheres(1, 3);
     let bvh = Bvh::build(&tris, &BvhCfg::default()).unwrap();
     let e = Segmentation::build(&bvh, 100).unwrap_err();
-    assert!(e.contains("cannot hold"), "{e}");
+    assert!(
+        matches!(e, AccelError::SegmentTooSmall { budget: 100, .. }),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("cannot hold"), "{e}");
     let e = AccelCfg {
         segment_bytes: 10_000,
         ..AccelCfg::default()
     }
     .validate(8192)
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("multiple of the DRAM row"), "{e}");
-    assert!(Bvh::build(&[], &BvhCfg::default()).is_err());
+    assert!(matches!(
+        Bvh::build(&[], &BvhCfg::default()),
+        Err(AccelError::NoTriangles)
+    ));
     let e = BvhCfg {
         max_prims_per_leaf: 0,
         ..BvhCfg::default()
     }
     .validate()
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("max_prims_per_leaf"));
 }
 

@@ -354,21 +354,26 @@ fn l2_rejects_a_bad_geometry_with_the_fix() {
         bytes: 1000,
         ..Default::default()
     };
-    let e = c.validate(1).unwrap_err();
+    let e = c.validate(1).unwrap_err().to_string();
     assert!(
         e.contains("chip.l2.bytes") && e.contains("banks x ways x line_bytes"),
         "{e}"
     );
     c.bytes = 512 << 10;
     c.hit_latency = 1;
-    assert!(c.validate(1).unwrap_err().contains("chip.l2.hit_latency"));
+    assert!(
+        c.validate(1)
+            .unwrap_err()
+            .to_string()
+            .contains("chip.l2.hit_latency")
+    );
     c.hit_latency = 10;
     c.line_bytes = 128;
-    assert!(c.validate(1).unwrap_err().contains("give 64"));
+    assert!(c.validate(1).unwrap_err().to_string().contains("give 64"));
     c.line_bytes = 64;
     for lanes in [0, 17] {
         c.mem_lines_per_cycle = lanes;
-        let e = c.validate(1).unwrap_err();
+        let e = c.validate(1).unwrap_err().to_string();
         assert!(
             e.contains("chip.l2.mem_lines_per_cycle") && e.contains("1 to 16"),
             "{e}"

@@ -339,9 +339,8 @@ fn shadow_evaluation_catches_a_sleep_bug() {
         sim.add("s", c, Sleeper::new(SleeperPorts {}));
         sim.run(50_000)
     };
-    assert_eq!(
-        run(false),
-        Ok(RunEnd::Limit),
+    assert!(
+        matches!(run(false), Ok(RunEnd::Limit)),
         "without shadow the bug goes unnoticed"
     );
     match run(true) {
@@ -409,6 +408,49 @@ fn netlist_errors_are_named() {
     assert!(e.contains("combinational"), "{e}");
 
     assert!(Sim::default().clock("bad", 0).is_err());
+}
+
+/// The waveform's refusals are told apart by variant: a filter that matches no
+/// unit (a netlist error, the units listed) and a trace over its size limit.
+#[test]
+fn trace_refusals_are_variants() {
+    use dualstream::rtl::TraceError;
+    let traced = |spec: TraceSpec| {
+        let mut sim = Sim::default();
+        let c = sim.clock("core", 1000).unwrap();
+        let (o, i) = sim.link::<u32>("l", LinkCfg::default());
+        sim.add("p", c, pusher(o));
+        sim.add("d", c, Deaf { inp: i });
+        sim.attach_tracer(Tracer::new(Box::new(std::io::sink()), spec).unwrap())
+    };
+    let e = traced(TraceSpec {
+        filter: "nosuch".into(),
+        ..TraceSpec::all()
+    })
+    .unwrap_err();
+    match &e {
+        SimError::TraceBind(TraceError::NoUnit { filter, units }) => {
+            assert_eq!(filter, "nosuch");
+            assert_eq!(units, &["p", "d"]);
+        }
+        e => panic!("expected no unit matching, got {e:?}"),
+    }
+    assert!(
+        e.to_string().starts_with("netlist error: no unit matches"),
+        "{e}"
+    );
+    let e = traced(TraceSpec {
+        to: 1_000_000_000,
+        max_bytes: 1,
+        ..TraceSpec::all()
+    })
+    .unwrap_err();
+    assert!(
+        matches!(e, SimError::Trace(TraceError::Oversized(_))),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("over the limit of"), "{e}");
+    assert!(traced(TraceSpec::all()).is_ok());
 }
 
 dualstream::unit! {

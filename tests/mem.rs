@@ -181,6 +181,14 @@ mod unit {
             .err()
             .unwrap();
         assert!(
+            matches!(
+                e,
+                dualstream::testbench::TbError::Unit(dualstream::units::UnitError::Unsupported(_))
+            ),
+            "{e:?}"
+        );
+        let e = e.to_string();
+        assert!(
             e.contains("policy = \"dramsim3\"") && e.contains("frfcfs"),
             "{e}"
         );
@@ -412,32 +420,46 @@ mod unit {
 #[test]
 fn bad_configs_and_traces_are_named() {
     use dualstream::config::Config;
-    let e = Config::from_toml("[mem.timing]\ntRC = 50\n").unwrap_err();
+    let e = Config::from_toml("[mem.timing]\ntRC = 50\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("tRC = 50 < tRAS + tRP"), "{e}");
-    let e = Config::from_toml("[mem.geometry]\nchannels = 0\n").unwrap_err();
+    let e = Config::from_toml("[mem.geometry]\nchannels = 0\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("channels = 0"), "{e}");
-    let e = Config::from_toml("[mem.geometry]\nrows = 1000\n").unwrap_err();
+    let e = Config::from_toml("[mem.geometry]\nrows = 1000\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("power of two"), "{e}");
-    let e = Config::from_toml("[mem]\nmapping = \"row:bank:chan:column\"\n").unwrap_err();
+    let e = Config::from_toml("[mem]\nmapping = \"row:bank:chan:column\"\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("'chan'"), "{e}");
-    let e = Config::from_toml("[mem.ctrl]\nwrite_low = 50\n").unwrap_err();
+    let e = Config::from_toml("[mem.ctrl]\nwrite_low = 50\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("watermarks"), "{e}");
-    let e = Config::from_toml("[mem.timing]\ntCL = 3\n").unwrap_err();
+    let e = Config::from_toml("[mem.timing]\ntCL = 3\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("tCL"), "{e}");
-    let e = Config::from_toml("[mem.ctrl]\npolicy = \"fifo\"\n").unwrap_err();
+    let e = Config::from_toml("[mem.ctrl]\npolicy = \"fifo\"\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("fifo") && e.contains("dramsim3"), "{e}");
     // DRAMsim3's rules: one burst per request, and a drain at a full buffer.
     let mut d3 = MemCfg::paper();
     d3.ctrl.policy = CtrlPolicy::Dramsim3;
     d3.ctrl.write_high = d3.ctrl.write_queue;
-    let e = d3.validate().unwrap_err();
+    let e = d3.validate().unwrap_err().to_string();
     assert!(
         e.contains("one burst per request") && e.contains("line_bytes = 32"),
         "{e}"
     );
     let mut d3 = MemCfg::dramsim3_gddr5();
     d3.ctrl.write_high = 16;
-    let e = d3.validate().unwrap_err();
+    let e = d3.validate().unwrap_err().to_string();
     assert!(
         e.contains("write_high = 16 must equal write_queue = 32"),
         "{e}"
@@ -446,12 +468,16 @@ fn bad_configs_and_traces_are_named() {
     let d = Config::default();
     assert_eq!(d.memory.row_bytes, d.mem.geometry.row_bytes());
     assert_eq!(d.memory.capacity_bytes, d.mem.geometry.capacity());
-    let e = Config::from_toml("[mem.geometry]\ncolumns = 128\n").unwrap_err();
+    let e = Config::from_toml("[mem.geometry]\ncolumns = 128\n")
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("memory.row_bytes = 8192") && e.contains("mem.geometry.columns"),
         "{e}"
     );
-    let e = Config::from_toml("[mem.geometry]\nrows = 8192\n").unwrap_err();
+    let e = Config::from_toml("[mem.geometry]\nrows = 8192\n")
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("memory.capacity_bytes") && e.contains("mem.geometry"),
         "{e}"
@@ -471,7 +497,11 @@ fn bad_configs_and_traces_are_named() {
     let e = replay(&m, 500, &bad, &ReplayOptions::default())
         .err()
         .unwrap();
-    assert!(e.contains("beyond the configured capacity"), "{e}");
+    assert!(matches!(e, dualstream::mem::MemError::Address(_)), "{e:?}");
+    assert!(
+        e.to_string().contains("beyond the configured capacity"),
+        "{e}"
+    );
 }
 
 /// The `dramsim3-gddr5` preset follows DRAMsim3's rules (`mem::dramsim3`); each

@@ -150,6 +150,7 @@ fn bad_input_is_named() {
     assert!(
         render(&s, Mode::Functional, &cfg(8), &mut |_| {})
             .unwrap_err()
+            .to_string()
             .contains("width")
     );
     let mut s = small("tiny", 8);
@@ -157,10 +158,13 @@ fn bad_input_is_named() {
     assert!(
         render(&s, Mode::Functional, &cfg(8), &mut |_| {})
             .unwrap_err()
+            .to_string()
             .contains("bounces")
     );
     let s = small("tiny", 8);
-    let e = render(&s, Mode::Functional, &cfg(3), &mut |_| {}).unwrap_err();
+    let e = render(&s, Mode::Functional, &cfg(3), &mut |_| {})
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("multiple of the DRAM row"), "{e}");
     // A pool of one row runs dry: a clear error, not a hang or a crash.
     let rc = RenderCfg {
@@ -171,7 +175,9 @@ fn bad_input_is_named() {
         ..cfg(8)
     };
     let s = small("cornell", 32);
-    let e = render(&s, Mode::Functional, &rc, &mut |_| {}).unwrap_err();
+    let e = render(&s, Mode::Functional, &rc, &mut |_| {})
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("ran dry") && e.contains("bucket_pool_bytes"),
         "{e}"
@@ -184,7 +190,9 @@ fn bad_input_is_named() {
         },
         ..cfg(8)
     };
-    let e = render(&s, Mode::Functional, &rc, &mut |_| {}).unwrap_err();
+    let e = render(&s, Mode::Functional, &rc, &mut |_| {})
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("more than the configured DRAM"), "{e}");
     let _ = Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
 }

@@ -26,6 +26,11 @@ fn every_registered_bench_runs_briefly_and_passes() {
     }
     assert!(ran.contains(&"l1") && ran.len() >= 9, "{ran:?}");
     let e = testbench::find("nope").err().unwrap();
+    assert!(
+        matches!(&e, testbench::TbError::UnknownUnit { name } if name == "nope"),
+        "{e:?}"
+    );
+    let e = e.to_string();
     for b in testbench::BENCHES {
         assert!(e.contains(b.name), "{e}");
     }

@@ -520,24 +520,28 @@ fn bad_input_is_a_clear_error() {
         vcd: None,
         config,
     };
-    let e = tm_tb::run(&opts(5, Config::default())).unwrap_err();
+    let e = tm_tb::run(&opts(5, Config::default()))
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("treelet 5 does not exist"), "{e}");
     let mut c = Config::default();
     c.tm.tps = 0;
-    let e = tm_tb::run(&opts(0, c)).unwrap_err();
+    let e = tm_tb::run(&opts(0, c)).unwrap_err().to_string();
     assert!(e.contains("tm.tps = 0"), "{e}");
     let mut c = Config::default();
     c.tm.scratchpad_bytes = 12;
-    let e = tm_tb::run(&opts(0, c)).unwrap_err();
+    let e = tm_tb::run(&opts(0, c)).unwrap_err().to_string();
     assert!(e.contains("tm.scratchpad_bytes"), "{e}");
     let mut c = Config::default();
     c.tm.scratchpad_bytes = 24;
-    let e = tm_tb::run(&opts(0, c)).unwrap_err();
+    let e = tm_tb::run(&opts(0, c)).unwrap_err().to_string();
     assert!(
         e.contains("stack entries") && e.contains("raise tm.scratchpad_bytes"),
         "{e}"
     );
-    let e = Config::from_toml("[tm.costs.pop]\ncycles = 2\nint = 5\n").unwrap_err();
+    let e = Config::from_toml("[tm.costs.pop]\ncycles = 2\nint = 5\n")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("single-issue"), "{e}");
 }
 

@@ -45,12 +45,12 @@ impl Default for BvhCfg {
 }
 
 impl BvhCfg {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), super::AccelError> {
         if !(1..=128).contains(&self.max_prims_per_leaf) {
-            return Err(format!(
+            return Err(super::AccelError::Invalid(format!(
                 "bvh.max_prims_per_leaf = {} is outside 1..=128 (a leaf reference holds up to 128 triangles)",
                 self.max_prims_per_leaf
-            ));
+            )));
         }
         Ok(())
     }
@@ -145,10 +145,10 @@ fn sah_fallback(
 
 impl Bvh {
     /// Builds the BVH of `tris` (which must be non-empty and valid).
-    pub fn build(tris: &[Triangle], cfg: &BvhCfg) -> Result<Bvh, String> {
+    pub fn build(tris: &[Triangle], cfg: &BvhCfg) -> Result<Bvh, super::AccelError> {
         cfg.validate()?;
         if tris.is_empty() {
-            return Err("cannot build a BVH of zero triangles; the scene has no geometry".into());
+            return Err(super::AccelError::NoTriangles);
         }
         let start = Instant::now();
         let aabbs: Vec<obvhs::aabb::Aabb> = tris

@@ -30,14 +30,42 @@ impl Default for AccelCfg {
 }
 
 impl AccelCfg {
-    pub fn validate(&self, row_bytes: u64) -> Result<(), String> {
+    pub fn validate(&self, row_bytes: u64) -> Result<(), AccelError> {
         self.bvh.validate()?;
         if !(self.segment_bytes as u64).is_multiple_of(row_bytes) || self.segment_bytes == 0 {
-            return Err(format!(
+            return Err(AccelError::Invalid(format!(
                 "accel.segment_bytes = {} is not a multiple of the DRAM row ({row_bytes} B); segments must stream as whole rows",
                 self.segment_bytes
-            ));
+            )));
         }
         Ok(())
     }
 }
+
+/// Why a BVH or its segmentation cannot be built.
+#[derive(Debug)]
+pub enum AccelError {
+    /// A configuration value out of range (`accel.*`, `bvh.*`).
+    Invalid(String),
+    /// There are no triangles to build over.
+    NoTriangles,
+    /// The segment size cannot hold a header, one node and one leaf.
+    SegmentTooSmall { budget: u32, min: u32 },
+}
+
+impl std::fmt::Display for AccelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AccelError::Invalid(m) => f.write_str(m),
+            AccelError::NoTriangles => {
+                f.write_str("cannot build a BVH of zero triangles; the scene has no geometry")
+            }
+            AccelError::SegmentTooSmall { budget, min } => write!(
+                f,
+                "segment size {budget} B cannot hold a header, one node and one leaf ({min} B); raise accel.segment_bytes"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for AccelError {}

@@ -202,7 +202,7 @@ impl Segmentation {
     }
 
     /// Partitions `bvh` into segments of at most `budget` bytes.
-    pub fn build(bvh: &Bvh, budget: u32) -> Result<Segmentation, String> {
+    pub fn build(bvh: &Bvh, budget: u32) -> Result<Segmentation, super::AccelError> {
         let max_leaf = bvh
             .nodes
             .iter()
@@ -219,9 +219,7 @@ impl Segmentation {
             .unwrap_or(1);
         let min = SEGMENT_HEADER_BYTES + NODE_BYTES + TRI_BYTES * max_leaf;
         if budget < min {
-            return Err(format!(
-                "segment size {budget} B cannot hold a header, one node and one leaf ({min} B); raise accel.segment_bytes"
-            ));
+            return Err(super::AccelError::SegmentTooSmall { budget, min });
         }
         // Subtree sizes, bottom-up (nodes are parent-before-child).
         let mut sub = vec![0u32; bvh.nodes.len()];

@@ -8,8 +8,11 @@ use std::process::{Child, Command, Stdio};
 use std::time::Instant;
 
 use crate::config::Config;
+use crate::render::RenderError;
 use crate::render::{self, Mode, RenderCfg};
 use crate::rtl::Threads;
+use crate::sampling::SamplingError;
+use crate::scene::SceneError;
 
 /// One frame the benchmark times.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -44,7 +47,7 @@ pub const CASES: [Case; 3] = [
 ];
 
 /// The cases named in `list` (comma-separated), or all.
-pub fn cases(list: Option<&str>) -> Result<Vec<Case>, String> {
+pub fn cases(list: Option<&str>) -> Result<Vec<Case>, BenchError> {
     let Some(list) = list else {
         return Ok(CASES.to_vec());
     };
@@ -54,12 +57,8 @@ pub fn cases(list: Option<&str>) -> Result<Vec<Case>, String> {
                 .iter()
                 .find(|c| c.name == n.trim())
                 .cloned()
-                .ok_or_else(|| {
-                    format!(
-                        "unknown case '{}' for bench threads; the cases are {}",
-                        n.trim(),
-                        CASES.map(|c| c.name).join(", ")
-                    )
+                .ok_or_else(|| BenchError::UnknownCase {
+                    name: n.trim().to_string(),
                 })
         })
         .collect()
@@ -83,7 +82,7 @@ fn time_one(
     config: &Config,
     case: &Case,
     threads: Threads,
-) -> Result<(f64, Vec<u64>), String> {
+) -> Result<(f64, Vec<u64>), BenchError> {
     let mut sc = crate::scene::load(scene)?;
     (sc.settings.width, sc.settings.height) = (case.width, case.height);
     sc.settings.validate()?;
@@ -99,15 +98,21 @@ fn time_one(
 }
 
 /// The competing process: this program's hidden `bench busy`, which spins.
-fn start_busy() -> Result<Child, String> {
-    let exe = std::env::current_exe().map_err(|e| format!("cannot find this program: {e}"))?;
+fn start_busy() -> Result<Child, BenchError> {
+    let exe = std::env::current_exe().map_err(|source| BenchError::Process {
+        what: "cannot find this program",
+        source,
+    })?;
     Command::new(exe)
         .args(["bench", "busy"])
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
-        .map_err(|e| format!("cannot start the competing process: {e}"))
+        .map_err(|source| BenchError::Process {
+            what: "cannot start the competing process",
+            source,
+        })
 }
 
 /// Spins forever (the competing process of `bench threads`).
@@ -125,7 +130,7 @@ pub fn run(
     config: &Config,
     cases: &[Case],
     progress: &mut dyn FnMut(&str),
-) -> Result<Vec<Run>, String> {
+) -> Result<Vec<Run>, BenchError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let choices = [
         Threads::fixed(1),
@@ -201,4 +206,65 @@ pub fn table(runs: &[Run]) -> String {
         );
     }
     s
+}
+
+/// Why `bench threads` cannot run.
+#[derive(Debug)]
+pub enum BenchError {
+    /// `--cases` names a case that does not exist (the cases listed).
+    UnknownCase {
+        name: String,
+    },
+    Scene(SceneError),
+    Render(RenderError),
+    Sampling(SamplingError),
+    /// The competing process could not be started.
+    Process {
+        what: &'static str,
+        source: std::io::Error,
+    },
+}
+
+impl std::fmt::Display for BenchError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BenchError::UnknownCase { name } => write!(
+                f,
+                "unknown case '{name}' for bench threads; the cases are {}",
+                CASES.map(|c| c.name).join(", ")
+            ),
+            BenchError::Scene(e) => write!(f, "{e}"),
+            BenchError::Render(e) => write!(f, "{e}"),
+            BenchError::Sampling(e) => write!(f, "{e}"),
+            BenchError::Process { what, source } => write!(f, "{what}: {source}"),
+        }
+    }
+}
+
+impl std::error::Error for BenchError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            BenchError::UnknownCase { .. } => None,
+            BenchError::Scene(e) => Some(e),
+            BenchError::Render(e) => Some(e),
+            BenchError::Sampling(e) => Some(e),
+            BenchError::Process { source, .. } => Some(source),
+        }
+    }
+}
+
+impl From<SceneError> for BenchError {
+    fn from(e: SceneError) -> BenchError {
+        BenchError::Scene(e)
+    }
+}
+impl From<RenderError> for BenchError {
+    fn from(e: RenderError) -> BenchError {
+        BenchError::Render(e)
+    }
+}
+impl From<SamplingError> for BenchError {
+    fn from(e: SamplingError) -> BenchError {
+        BenchError::Sampling(e)
+    }
 }

@@ -10,7 +10,7 @@ use dualstream::config::Config;
 use dualstream::rtl::Threads;
 use dualstream::sampling::{self, WindowPlan, speed_error};
 
-use super::{parse_res, write_file};
+use super::{CliError, parse_res, write_file};
 
 #[derive(Subcommand)]
 pub enum BenchCmd {
@@ -42,9 +42,9 @@ pub struct ScaleArgs {
 }
 
 impl ScaleArgs {
-    fn checked(&self) -> Result<f64, String> {
+    fn checked(&self) -> Result<f64, CliError> {
         if self.scale.is_nan() || self.scale <= 0.0 {
-            return Err("--scale must be positive".into());
+            return Err(CliError::Usage("--scale must be positive".into()));
         }
         Ok(self.scale)
     }
@@ -249,7 +249,7 @@ impl WindowArgs {
     }
 }
 
-pub fn bench(config: Config, threads: Threads, cmd: BenchCmd) -> Result<(), String> {
+pub fn bench(config: Config, threads: Threads, cmd: BenchCmd) -> Result<(), CliError> {
     match cmd {
         BenchCmd::Kernel(s) => print!("{}", dualstream::bench::kernel_report(s.checked()?)),
         BenchCmd::Dram(s) => print!("{}", dualstream::mem::bench::report(s.checked()?)?),
@@ -258,10 +258,10 @@ pub fn bench(config: Config, threads: Threads, cmd: BenchCmd) -> Result<(), Stri
         BenchCmd::Trace(a) => trace_bench(&config, a)?,
         BenchCmd::Busy => dualstream::bench::threads::busy(),
         BenchCmd::Unknown(args) => {
-            return Err(format!(
+            return Err(CliError::Usage(format!(
                 "unknown benchmark '{}'; available: kernel, dram, speed-error, threads, trace",
                 args.first().map_or("", String::as_str)
-            ));
+            )));
         }
     }
     Ok(())
@@ -269,7 +269,7 @@ pub fn bench(config: Config, threads: Threads, cmd: BenchCmd) -> Result<(), Stri
 
 /// `dualstream bench threads`: every case on one lane, on one per core and on
 /// auto, idle and beside a busy process.
-fn threads_bench(config: &Config, a: ThreadsArgs) -> Result<(), String> {
+fn threads_bench(config: &Config, a: ThreadsArgs) -> Result<(), CliError> {
     use dualstream::bench::threads as bt;
     let cases = bt::cases(a.modes.as_deref())?;
     let runs = bt::run(&a.scene, config, &cases, &mut |what| {
@@ -285,20 +285,21 @@ fn threads_bench(config: &Config, a: ThreadsArgs) -> Result<(), String> {
     );
     print!("{}", bt::table(&runs));
     if let Some(p) = a.json {
-        let text = serde_json::to_string_pretty(&runs).map_err(|e| e.to_string())?;
+        let text =
+            serde_json::to_string_pretty(&runs).map_err(|e| CliError::Failed(e.to_string()))?;
         write_file(&p, text)?;
     }
     Ok(())
 }
 
 /// `dualstream bench trace`: the tracer's cost on a cycle frame.
-fn trace_bench(config: &Config, a: TraceArgs) -> Result<(), String> {
+fn trace_bench(config: &Config, a: TraceArgs) -> Result<(), CliError> {
     use dualstream::bench::trace as bt;
     if a.to <= a.from {
-        return Err(format!(
+        return Err(CliError::Usage(format!(
             "--to ({}) must be after --from ({}): give the window's first and last core cycle",
             a.to, a.from
-        ));
+        )));
     }
     let mut sc = dualstream::scene::load(&a.scene)?;
     (sc.settings.width, sc.settings.height) = parse_res(&a.res)?;
@@ -312,7 +313,8 @@ fn trace_bench(config: &Config, a: TraceArgs) -> Result<(), String> {
     );
     print!("{}", bt::table(&runs));
     if let Some(p) = a.json {
-        let text = serde_json::to_string_pretty(&runs).map_err(|e| e.to_string())?;
+        let text =
+            serde_json::to_string_pretty(&runs).map_err(|e| CliError::Failed(e.to_string()))?;
         write_file(&p, text)?;
     }
     Ok(())
@@ -320,7 +322,7 @@ fn trace_bench(config: &Config, a: TraceArgs) -> Result<(), String> {
 
 /// `dualstream bench speed-error`: the faster modes against the cycle model
 /// (rendered here, or a finished one given with --reference).
-fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(), String> {
+fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(), CliError> {
     let mut sc = dualstream::scene::load(&a.scene)?;
     (sc.settings.width, sc.settings.height) = parse_res(&a.res)?;
     sc.settings.validate()?;
@@ -357,7 +359,8 @@ fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(
         print!("{}", speed_error::part_table(&r.by_part));
     }
     if let Some(p) = a.json {
-        let text = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+        let text =
+            serde_json::to_string_pretty(&rows).map_err(|e| CliError::Failed(e.to_string()))?;
         write_file(&p, text)?;
     }
     if let Some(p) = a.plot {

@@ -2,6 +2,7 @@
 
 use clap::Args;
 
+use super::CliError;
 use dualstream::config::Config;
 
 #[derive(Args)]
@@ -11,7 +12,7 @@ pub struct ConfigArgs {
     print_default: bool,
 }
 
-pub fn config(config: &Config, a: ConfigArgs) -> Result<(), String> {
+pub fn config(config: &Config, a: ConfigArgs) -> Result<(), CliError> {
     if a.print_default {
         print!("{}", Config::default().to_toml());
     } else {

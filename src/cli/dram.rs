@@ -5,7 +5,9 @@ use std::path::PathBuf;
 
 use clap::Args;
 
+use super::{CliError, unwritable};
 use dualstream::config::Config;
+use dualstream::util::FileError;
 
 #[derive(Args)]
 pub struct DramArgs {
@@ -43,7 +45,7 @@ pub struct DramArgs {
 }
 
 /// `dualstream dram`: generate and/or replay a trace on the memory model.
-pub fn dram(mut config: Config, a: DramArgs) -> Result<(), String> {
+pub fn dram(mut config: Config, a: DramArgs) -> Result<(), CliError> {
     use dualstream::mem::{MemCfg, config::EnergyCfg, replay, trace};
     // The config as given must hold together (the DRAM image fits its device);
     // a preset then replaces the device for this replay only (the image is unused).
@@ -64,31 +66,34 @@ pub fn dram(mut config: Config, a: DramArgs) -> Result<(), String> {
     let m = &config.mem;
     let reqs = match (&a.trace, &a.generate) {
         (Some(_), Some(_)) => {
-            return Err("give either --trace FILE or --generate KIND, not both".into());
+            return Err(CliError::Usage(
+                "give either --trace FILE or --generate KIND, not both".into(),
+            ));
         }
         (None, None) => {
-            return Err(
+            return Err(CliError::Usage(
                 "nothing to do: give --trace FILE to replay, or --generate random|stream|mixed"
                     .into(),
-            );
+            ));
         }
         (Some(t), None) => trace::read_file(t, m.geometry.capacity())?,
         (None, Some(kind)) => {
             if a.requests == 0 {
-                return Err("--requests 0 generates nothing; give at least 1".into());
+                return Err(CliError::Usage(
+                    "--requests 0 generates nothing; give at least 1".into(),
+                ));
             }
             let g = trace::generate(kind, a.requests, a.seed, m, a.interval, a.write_fraction)?;
             if let Some(out) = &a.out {
-                let f = std::fs::File::create(out).map_err(|e| {
-                    format!(
-                        "cannot write '{}': {e}; choose a writable --out",
-                        out.display()
-                    )
-                })?;
+                let f = std::fs::File::create(out)
+                    .map_err(|e| unwritable(out, e, "; choose a writable --out"))?;
                 let mut w = std::io::BufWriter::new(f);
                 trace::write(&g, &mut w)
                     .and_then(|_| std::io::Write::flush(&mut w))
-                    .map_err(|e| format!("writing '{}' failed: {e}", out.display()))?;
+                    .map_err(|e| {
+                        let msg = format!("writing '{}' failed: {e}", out.display());
+                        CliError::File(FileError::new(out, e, msg))
+                    })?;
                 println!("wrote {} requests to {}", g.len(), out.display());
                 return Ok(());
             }
@@ -111,7 +116,10 @@ pub fn dram(mut config: Config, a: DramArgs) -> Result<(), String> {
     if let Some(v) = &r.report.violations
         && !v.is_empty()
     {
-        return Err(format!("the timing checker found {} violations", v.len()));
+        return Err(CliError::Failed(format!(
+            "the timing checker found {} violations",
+            v.len()
+        )));
     }
     Ok(())
 }

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
+use super::CliError;
 use dualstream::config::Config;
 
 #[derive(Args)]
@@ -12,7 +13,7 @@ pub struct HdlArgs {
     out: PathBuf,
 }
 
-pub fn hdl(config: &Config, a: HdlArgs) -> Result<(), String> {
+pub fn hdl(config: &Config, a: HdlArgs) -> Result<(), CliError> {
     for p in dualstream::machine::hdl::write_hdl(config, &a.out)? {
         println!("wrote {}", p.display());
     }

@@ -10,11 +10,14 @@ use dualstream::rtl::Threads;
 pub mod bench;
 pub mod config;
 pub mod dram;
+mod error;
 pub mod hdl;
 pub mod render;
 pub mod report;
 pub mod scene;
 pub mod tb;
+
+pub use error::{CliError, unwritable};
 
 /// Says that the BVH came from the fallback builder, and why.
 pub fn bvh_fallback_warning(why: &str) -> String {
@@ -25,8 +28,8 @@ pub fn bvh_fallback_warning(why: &str) -> String {
     )
 }
 
-pub fn parse_res(s: &str) -> Result<(u32, u32), String> {
-    let bad = || format!("--res '{s}' is not WIDTHxHEIGHT (e.g. 256x256)");
+pub fn parse_res(s: &str) -> Result<(u32, u32), CliError> {
+    let bad = || CliError::Usage(format!("--res '{s}' is not WIDTHxHEIGHT (e.g. 256x256)"));
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     Ok((
         w.trim().parse().map_err(|_| bad())?,
@@ -35,7 +38,7 @@ pub fn parse_res(s: &str) -> Result<(u32, u32), String> {
 }
 
 /// A size in bytes with an optional K, M or G (powers of 1024).
-pub fn parse_size(s: &str, flag: &str) -> Result<u64, String> {
+pub fn parse_size(s: &str, flag: &str) -> Result<u64, CliError> {
     let t = s.trim();
     let (num, mul) = match t.char_indices().last() {
         Some((i, c)) if c.is_ascii_alphabetic() => (
@@ -53,23 +56,27 @@ pub fn parse_size(s: &str, flag: &str) -> Result<u64, String> {
         Ok(n) if mul > 0 => n.checked_mul(mul).ok_or(()),
         _ => Err(()),
     }
-    .map_err(|()| format!("{flag} {s}: give a size in bytes, e.g. 500M or 2G (0: no limit)"))
+    .map_err(|()| {
+        CliError::Usage(format!(
+            "{flag} {s}: give a size in bytes, e.g. 500M or 2G (0: no limit)"
+        ))
+    })
 }
 
 /// `--threads`, checked.
-pub fn sim_threads(threads: &str) -> Result<Threads, String> {
+pub fn sim_threads(threads: &str) -> Result<Threads, CliError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     if threads == "auto" {
         return Ok(Threads::auto());
     }
     match threads.parse::<usize>() {
         Ok(n) if (1..=cores).contains(&n) => Ok(Threads::fixed(n)),
-        Ok(n) => Err(format!(
+        Ok(n) => Err(CliError::Usage(format!(
             "--threads {n}: this machine has {cores} core(s); give --threads auto or a number from 1 to {cores}"
-        )),
-        Err(_) => Err(format!(
+        ))),
+        Err(_) => Err(CliError::Usage(format!(
             "--threads {threads}: not a number; give --threads auto or a number from 1 to {cores}"
-        )),
+        ))),
     }
 }
 
@@ -77,14 +84,14 @@ pub fn render_cfg(config: &Config, threads: Threads) -> dualstream::render::Rend
     dualstream::render::RenderCfg::for_chip(config, threads.sim())
 }
 
-pub fn load_config(path: &Option<PathBuf>) -> Result<Config, String> {
+pub fn load_config(path: &Option<PathBuf>) -> Result<Config, CliError> {
     match path {
-        Some(p) => Config::load(p),
+        Some(p) => Ok(Config::load(p)?),
         None => Ok(Config::default()),
     }
 }
 
 /// Writes `text` to `p`, naming the file when it cannot.
-pub fn write_file(p: &std::path::Path, text: impl AsRef<[u8]>) -> Result<(), String> {
-    std::fs::write(p, text).map_err(|e| format!("cannot write '{}': {e}", p.display()))
+pub fn write_file(p: &std::path::Path, text: impl AsRef<[u8]>) -> Result<(), CliError> {
+    std::fs::write(p, text).map_err(|e| unwritable(p, e, ""))
 }

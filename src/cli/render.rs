@@ -10,7 +10,7 @@ use dualstream::render::{self, Frame, Mode, RenderCfg, output};
 use dualstream::rtl::Threads;
 use dualstream::scene::Scene;
 
-use super::{bvh_fallback_warning, parse_res, parse_size, render_cfg};
+use super::{CliError, bvh_fallback_warning, parse_res, parse_size, render_cfg, unwritable};
 use dualstream::sampling::{self, WindowEstimate};
 
 #[derive(Args)]
@@ -81,16 +81,16 @@ pub struct RenderArgs {
 
 /// `dualstream render`: checks every option and output before the frame (it
 /// may take minutes), renders it and writes what was asked for.
-pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), String> {
+pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), CliError> {
     let sampled = a.mode == "windows";
     let mode = match a.mode.as_str() {
         "functional" | "windows" => Mode::Functional,
         "reference" => Mode::Reference,
         "cycle" => Mode::Cycle,
         m => {
-            return Err(format!(
+            return Err(CliError::Usage(format!(
                 "unknown --mode '{m}'; use functional, reference, cycle or windows"
-            ));
+            )));
         }
     };
     let sc = load_scene(&a)?;
@@ -115,9 +115,9 @@ pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), Str
     rc.verify = a.verify;
     rc.dump_rays = a.dump_rays.clone();
     if a.pass_log.is_some() && mode != Mode::Cycle {
-        return Err(
+        return Err(CliError::Usage(
             "--pass-log records the chip's segment passes; use it with --mode cycle".into(),
-        );
+        ));
     }
     rc.pass_log = a.pass_log.is_some();
     let (mut frame, estimate) = run_frame(&sc, &config, mode, sampled, rc)?;
@@ -130,7 +130,7 @@ pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), Str
 }
 
 /// The scene with the command line's resolution, bounces and seed, checked.
-fn load_scene(a: &RenderArgs) -> Result<Scene, String> {
+fn load_scene(a: &RenderArgs) -> Result<Scene, CliError> {
     let mut sc = dualstream::scene::load(&a.scene)?;
     for w in &sc.warnings {
         eprintln!("warning: {w}");
@@ -150,18 +150,20 @@ fn load_scene(a: &RenderArgs) -> Result<Scene, String> {
 
 /// The core cycles to trace, `from` and the last one (if any), once the trace
 /// options are checked to go with `--vcd` and `--mode cycle`.
-fn trace_window(a: &RenderArgs, mode: Mode) -> Result<(u64, Option<u64>), String> {
+fn trace_window(a: &RenderArgs, mode: Mode) -> Result<(u64, Option<u64>), CliError> {
     let traced = !a.trace_units.is_empty()
         || a.trace_window.is_some()
         || a.trace_from.is_some()
         || a.trace_to.is_some();
     if traced && a.vcd.is_none() {
-        return Err(
+        return Err(CliError::Usage(
             "--trace-units/--trace-window choose what goes into a waveform: add --vcd FILE".into(),
-        );
+        ));
     }
     if a.vcd.is_some() && mode != Mode::Cycle {
-        return Err("--vcd traces the chip: add --mode cycle".into());
+        return Err(CliError::Usage(
+            "--vcd traces the chip: add --mode cycle".into(),
+        ));
     }
     let (from, to) = match &a.trace_window {
         Some(w) => dualstream::machine::trace::parse_window(w)?,
@@ -170,15 +172,15 @@ fn trace_window(a: &RenderArgs, mode: Mode) -> Result<(u64, Option<u64>), String
     if let Some(t) = to
         && t < from
     {
-        return Err(format!(
+        return Err(CliError::Usage(format!(
             "--trace-from {from} --trace-to {t}: the trace window ends before it starts"
-        ));
+        )));
     }
     Ok((from, to))
 }
 
 /// Fail on an unwritable output before spending minutes on the frame.
-fn check_writable(a: &RenderArgs) -> Result<(), String> {
+fn check_writable(a: &RenderArgs) -> Result<(), CliError> {
     for (p, what) in [
         (Some(&a.out), "--out"),
         (a.stats.as_ref(), "--stats"),
@@ -189,12 +191,7 @@ fn check_writable(a: &RenderArgs) -> Result<(), String> {
                 .create(true)
                 .append(true)
                 .open(p)
-                .map_err(|e| {
-                    format!(
-                        "cannot write '{}': {e}; choose a writable {what}",
-                        p.display()
-                    )
-                })?;
+                .map_err(|e| unwritable(p, e, &format!("; choose a writable {what}")))?;
         }
     }
     Ok(())
@@ -207,7 +204,7 @@ fn run_frame(
     mode: Mode,
     sampled: bool,
     rc: RenderCfg,
-) -> Result<(Frame, Option<WindowEstimate>), String> {
+) -> Result<(Frame, Option<WindowEstimate>), CliError> {
     let bar = indicatif::ProgressBar::new((sc.settings.bounces as u64 + 1) * 1000);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {msg} (ETA {eta})")
@@ -238,7 +235,7 @@ fn write_outputs(
     a: &RenderArgs,
     frame: &Frame,
     estimate: Option<&WindowEstimate>,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     output::write_png(frame, &a.out)?;
     if let Some(path) = &a.pass_log {
         output::write_pass_log(frame, path)?;

@@ -10,8 +10,9 @@ use dualstream::render::Mode;
 use dualstream::report::paper;
 use dualstream::rtl::Threads;
 use dualstream::units::memory::MemoryModel;
+use dualstream::util::FileError;
 
-use super::{parse_res, render_cfg};
+use super::{CliError, parse_res, render_cfg, unwritable};
 use dualstream::sampling;
 
 #[derive(Args)]
@@ -41,27 +42,33 @@ pub struct ReportArgs {
 
 /// `dualstream report paper`: renders the three paper scenes and prints the
 /// comparison table.
-pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), String> {
+pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), CliError> {
     let sampled = a.mode == "windows";
     let mode = match a.mode.as_str() {
         "functional" | "windows" => Mode::Functional,
         "cycle" => Mode::Cycle,
         m => {
-            return Err(format!(
+            return Err(CliError::Usage(format!(
                 "unknown report mode '{m}'; use --mode functional, cycle or windows"
-            ));
+            )));
         }
     };
     if a.what != "paper" {
-        return Err(format!("unknown report '{}'; available: paper", a.what));
+        return Err(CliError::Usage(format!(
+            "unknown report '{}'; available: paper",
+            a.what
+        )));
     }
     let (w, h) = parse_res(&a.res)?;
     let mut rows = Vec::new();
     for row in paper::TABLE2.iter() {
         let path = a.scenes_dir.join(row.scene_file);
-        let spec = path.to_str().ok_or("scene path is not UTF-8")?;
-        let mut sc = dualstream::scene::load(spec).map_err(|e| {
-            format!("{e}\n(the paper scenes need the meshes in ../shared/scenes; run from the repository root or pass --scenes-dir)")
+        let spec = path
+            .to_str()
+            .ok_or_else(|| CliError::Usage("scene path is not UTF-8".into()))?;
+        let mut sc = dualstream::scene::load(spec).map_err(|e| CliError::Hinted {
+            error: Box::new(e.into()),
+            hint: "(the paper scenes need the meshes in ../shared/scenes; run from the repository root or pass --scenes-dir)",
         })?;
         sc.settings.width = w;
         sc.settings.height = h;
@@ -108,27 +115,23 @@ fn write_outputs(
     rows: &[paper::Compared],
     json: Option<PathBuf>,
     plots: Option<PathBuf>,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     if let Some(p) = json {
         let text = serde_json::to_string_pretty(rows).expect("rows serialise");
-        std::fs::write(&p, text).map_err(|e| {
-            format!(
-                "cannot write '{}': {e}; choose a writable --json",
-                p.display()
-            )
-        })?;
+        std::fs::write(&p, text).map_err(|e| unwritable(&p, e, "; choose a writable --json"))?;
         println!("comparison: {}", p.display());
     }
     if let Some(dir) = plots {
         std::fs::create_dir_all(&dir).map_err(|e| {
-            format!(
+            let msg = format!(
                 "cannot create '{}': {e}; choose a writable --plots directory",
                 dir.display()
-            )
+            );
+            CliError::File(FileError::new(&dir, e, msg))
         })?;
         for (name, svg) in paper::figures(rows) {
             let p = dir.join(name);
-            std::fs::write(&p, svg).map_err(|e| format!("cannot write '{}': {e}", p.display()))?;
+            std::fs::write(&p, svg).map_err(|e| unwritable(&p, e, ""))?;
             println!("figure: {}", p.display());
         }
     }

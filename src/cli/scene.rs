@@ -5,7 +5,7 @@ use clap::Subcommand;
 use dualstream::config::Config;
 use dualstream::rtl::Threads;
 
-use super::{bvh_fallback_warning, render_cfg};
+use super::{CliError, bvh_fallback_warning, render_cfg};
 
 #[derive(Subcommand)]
 pub enum SceneCmd {
@@ -16,14 +16,14 @@ pub enum SceneCmd {
     },
 }
 
-pub fn scene(config: &Config, threads: Threads, cmd: SceneCmd) -> Result<(), String> {
+pub fn scene(config: &Config, threads: Threads, cmd: SceneCmd) -> Result<(), CliError> {
     match cmd {
         SceneCmd::Info { scene } => info(config, threads, &scene),
     }
 }
 
 /// `dualstream scene info SCENE`: the BVH and segments the chip would get.
-fn info(config: &Config, threads: Threads, scene: &str) -> Result<(), String> {
+fn info(config: &Config, threads: Threads, scene: &str) -> Result<(), CliError> {
     let sc = dualstream::scene::load(scene)?;
     for w in &sc.warnings {
         eprintln!("warning: {w}");

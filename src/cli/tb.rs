@@ -6,10 +6,10 @@ use std::path::PathBuf;
 use clap::Args;
 
 use dualstream::config::Config;
-use dualstream::rtl::{SimOptions, TraceSpec};
+use dualstream::rtl::{SimOptions, TraceError, TraceSpec};
 use dualstream::testbench::{self, TbOptions};
 
-use super::{parse_res, parse_size};
+use super::{CliError, parse_res, parse_size};
 
 #[derive(Args)]
 pub struct TbArgs {
@@ -90,7 +90,7 @@ fn unit_long_help() -> String {
 
 /// `dualstream tb UNIT`: runs the bench, prints its report and fails if the
 /// scoreboard found errors.
-pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
+pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
     let bench = testbench::find(&a.unit)?;
     let p = config.clocks.core_ps;
     let spec = TraceSpec {
@@ -100,9 +100,12 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
         max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
         every_edge: a.trace_every_edge,
     };
-    spec.validate().map_err(|e| {
-        e.replace(" (", " (ps ")
-            .replace("trace window", "--trace-from/--trace-to: trace window")
+    spec.validate().map_err(|e| match e {
+        // The window in the flags' terms (they are cycles, the spec's ps).
+        TraceError::Window { from, to } => CliError::Usage(format!(
+            "--trace-from/--trace-to: trace window ends (ps {to}) before it starts (ps {from}); give an end at or after the start"
+        )),
+        e => e.into(),
     })?;
     let opts = TbOptions {
         cycles: a.cycles,
@@ -143,7 +146,7 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
         return if rep.passed() {
             Ok(())
         } else {
-            Err("the TM testbench failed".into())
+            Err(CliError::Failed("the TM testbench failed".into()))
         };
     }
     let rep = testbench::run_by_name(&a.unit, &opts)?;
@@ -151,11 +154,11 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), String> {
     println!("  wall time {:.3} s", start.elapsed().as_secs_f64());
     print_waveform(&a.vcd);
     if !rep.passed() {
-        return Err(format!(
+        return Err(CliError::Failed(format!(
             "testbench {} failed with {} errors",
             a.unit,
             rep.errors.len()
-        ));
+        )));
     }
     Ok(())
 }

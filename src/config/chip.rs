@@ -60,51 +60,51 @@ impl Default for ChipCfg {
 
 impl ChipCfg {
     /// Checks the chip against itself and the segment size `segment_bytes`.
-    pub fn validate(&self, segment_bytes: u32) -> Result<(), String> {
+    pub fn validate(&self, segment_bytes: u32) -> Result<(), super::ConfigError> {
         if self.tms == 0 || self.tms > 4096 {
-            return Err(format!(
+            return Err(super::ConfigError::Impossible(format!(
                 "chip.tms = {}: give 1 to 4096 thread multiprocessors",
                 self.tms
-            ));
+            )));
         }
         self.links.validate("chip.links")?;
         let d = self.links.delay;
         if self.memory.latency <= d {
-            return Err(format!(
+            return Err(super::ConfigError::Impossible(format!(
                 "chip.memory.latency = {} must exceed the response link delay ({d}, chip.links.delay), which is part of it",
                 self.memory.latency
-            ));
+            )));
         }
         if self.memory.bytes_per_cycle < 64 {
-            return Err(format!(
+            return Err(super::ConfigError::Impossible(format!(
                 "chip.memory.bytes_per_cycle = {}: at least one 64 B line per cycle",
                 self.memory.bytes_per_cycle
-            ));
+            )));
         }
         let sb = &self.scene_buffer;
         if sb.slot_bytes < segment_bytes {
-            return Err(format!(
+            return Err(super::ConfigError::Impossible(format!(
                 "chip.scene_buffer.slot_bytes = {} is smaller than one segment (accel.segment_bytes = {segment_bytes}); a slot must hold a whole segment",
                 sb.slot_bytes
-            ));
+            )));
         }
         if !sb.slot_bytes.is_multiple_of(64) || sb.slots() == 0 {
-            return Err(format!(
+            return Err(super::ConfigError::Impossible(format!(
                 "chip.scene_buffer: {} B of {} B slots hold no slot; the buffer must hold at least one whole-line slot",
                 sb.bytes, sb.slot_bytes
-            ));
+            )));
         }
         if sb.banks == 0 || !sb.banks.is_power_of_two() {
-            return Err(format!(
+            return Err(super::ConfigError::Impossible(format!(
                 "chip.scene_buffer.banks = {} must be a power of two",
                 sb.banks
-            ));
+            )));
         }
         if sb.latency <= d {
-            return Err(format!(
+            return Err(super::ConfigError::Impossible(format!(
                 "chip.scene_buffer.latency = {} must exceed the response link delay ({d}, chip.links.delay)",
                 sb.latency
-            ));
+            )));
         }
         let s = &self.scheduler;
         for (name, v) in [
@@ -117,7 +117,9 @@ impl ChipCfg {
             ("scene_lines_per_cycle", s.scene_lines_per_cycle),
         ] {
             if v == 0 {
-                return Err(format!("chip.scheduler.{name} = 0: give at least 1"));
+                return Err(super::ConfigError::Impossible(format!(
+                    "chip.scheduler.{name} = 0: give at least 1"
+                )));
             }
         }
         for (name, v) in [
@@ -125,23 +127,27 @@ impl ChipCfg {
             ("scene_lines_per_cycle", s.scene_lines_per_cycle),
         ] {
             if v > MAX_STREAM_LANES {
-                return Err(format!(
+                return Err(super::ConfigError::Impossible(format!(
                     "chip.scheduler.{name} = {v}: at most {MAX_STREAM_LANES} lines per cycle (one memory port each; 8 lines per cycle is already the 512 GB/s GDDR5 peak)"
-                ));
+                )));
             }
         }
         if s.mem_queue < 4 {
-            return Err(format!(
+            return Err(super::ConfigError::Impossible(format!(
                 "chip.scheduler.mem_queue = {}: at least 4 (one ray write may need a line, a header and a next line)",
                 s.mem_queue
-            ));
+            )));
         }
         if self.hit_updater.queue == 0 || self.hit_updater.in_flight == 0 {
-            return Err("chip.hit_updater.queue and in_flight must be at least 1".into());
+            return Err(super::ConfigError::Impossible(
+                "chip.hit_updater.queue and in_flight must be at least 1".into(),
+            ));
         }
         self.l2.validate(d)?;
         if self.watchdog_cycles == 0 {
-            return Err("chip.watchdog_cycles = 0: give a positive number of cycles".into());
+            return Err(super::ConfigError::Impossible(
+                "chip.watchdog_cycles = 0: give a positive number of cycles".into(),
+            ));
         }
         Ok(())
     }

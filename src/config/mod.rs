@@ -3,8 +3,10 @@
 //! default names its source. Loaded from TOML; unknown keys are errors.
 
 mod chip;
+mod error;
 
 pub use chip::{ChipCfg, Shading};
+pub use error::ConfigError;
 
 use serde::{Deserialize, Serialize};
 
@@ -120,20 +122,24 @@ impl Config {
     }
 
     /// Parses TOML; missing keys take their defaults, unknown keys are errors.
-    pub fn from_toml(text: &str) -> Result<Config, String> {
-        let c: Config = toml::from_str(text).map_err(|e| format!("config: {e}"))?;
+    pub fn from_toml(text: &str) -> Result<Config, ConfigError> {
+        let c: Config = toml::from_str(text).map_err(ConfigError::of_toml)?;
         c.validate()?;
         Ok(c)
     }
 
-    pub fn load(path: &std::path::Path) -> Result<Config, String> {
+    pub fn load(path: &std::path::Path) -> Result<Config, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|e| {
-            format!(
+            let msg = format!(
                 "cannot read config '{}': {e}; check the path given to --config",
                 path.display()
-            )
+            );
+            ConfigError::File(crate::util::FileError::new(path, e, msg))
         })?;
-        Config::from_toml(&text).map_err(|e| format!("{} ({})", e, path.display()))
+        Config::from_toml(&text).map_err(|e| ConfigError::InFile {
+            path: path.to_path_buf(),
+            inner: Box::new(e),
+        })
     }
 
     pub fn to_toml(&self) -> String {
@@ -141,9 +147,9 @@ impl Config {
     }
 
     /// Rejects impossible configurations with a message naming the key and the fix.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ConfigError> {
         if self.clocks.core_ps == 0 || self.clocks.dram_ps == 0 {
-            return Err("clocks: a clock period of 0 ps is impossible; give a positive period (core_ps = 1000 is 1 GHz)".into());
+            return Err(ConfigError::Impossible("clocks: a clock period of 0 ps is impossible; give a positive period (core_ps = 1000 is 1 GHz)".into()));
         }
         self.links.tm.validate("links.tm")?;
         for (name, p) in [
@@ -161,17 +167,17 @@ impl Config {
         // trace replay only, after this check.)
         let g = &self.mem.geometry;
         if self.memory.row_bytes != g.row_bytes() {
-            return Err(format!(
+            return Err(ConfigError::Impossible(format!(
                 "memory.row_bytes = {} differs from the device's row, mem.geometry.columns x burst = {} x {} B = {} B; set memory.row_bytes = {} or change mem.geometry",
                 self.memory.row_bytes,
                 g.columns,
                 g.burst_bytes(),
                 g.row_bytes(),
                 g.row_bytes()
-            ));
+            )));
         }
         if self.memory.capacity_bytes != g.capacity() {
-            return Err(format!(
+            return Err(ConfigError::Impossible(format!(
                 "memory.capacity_bytes = {} differs from the device's capacity, mem.geometry channels x banks x rows x row = {} x {} x {} x {} B = {} B; set memory.capacity_bytes = {} or change mem.geometry",
                 self.memory.capacity_bytes,
                 g.channels,
@@ -180,7 +186,7 @@ impl Config {
                 g.row_bytes(),
                 g.capacity(),
                 g.capacity()
-            ));
+            )));
         }
         self.tm.validate(&self.links.tm)?;
         self.energy.validate()?;
@@ -189,25 +195,25 @@ impl Config {
     }
 }
 
-fn validate_pipe(name: &str, p: &PipeCfg, out_link: &LinkCfg) -> Result<(), String> {
+fn validate_pipe(name: &str, p: &PipeCfg, out_link: &LinkCfg) -> Result<(), ConfigError> {
     if p.latency == 0 {
-        return Err(format!(
+        return Err(ConfigError::Impossible(format!(
             "{name}.latency = 0 is impossible: a registered unit needs at least one cycle; set latency >= {}",
             out_link.delay + 1
-        ));
+        )));
     }
     if p.latency <= out_link.delay {
-        return Err(format!(
+        return Err(ConfigError::Impossible(format!(
             "{name}.latency = {} does not exceed the output link delay ({}, links.tm.delay), which is part of it; set latency >= {}",
             p.latency,
             out_link.delay,
             out_link.delay + 1
-        ));
+        )));
     }
     if p.interval == 0 {
-        return Err(format!(
+        return Err(ConfigError::Impossible(format!(
             "{name}.interval = 0 is impossible: at most one request per cycle; set interval >= 1"
-        ));
+        )));
     }
     Ok(())
 }
@@ -228,14 +234,23 @@ mod tests {
     #[test]
     fn impossible_configs_are_named() {
         let e = Config::from_toml("[box_pipe]\nlatency = 0\ninterval = 1\n").unwrap_err();
-        assert!(e.contains("box_pipe.latency = 0"), "{e}");
+        assert!(matches!(e, ConfigError::Impossible(_)), "{e:?}");
+        assert!(e.to_string().contains("box_pipe.latency = 0"), "{e}");
         let e = Config::from_toml("[tri_pipe]\nlatency = 31\ninterval = 0\n").unwrap_err();
-        assert!(e.contains("tri_pipe.interval = 0"), "{e}");
+        assert!(e.to_string().contains("tri_pipe.interval = 0"), "{e}");
         let e = Config::from_toml("[links.tm]\ndepth = 2\ndelay = 0\n").unwrap_err();
-        assert!(e.contains("combinational"), "{e}");
+        assert!(
+            matches!(&e, ConfigError::Link(crate::rtl::SimError::LinkCfg { what, .. }) if what == "links.tm"),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("combinational"), "{e}");
         let e = Config::from_toml("[clocks]\ncore_ps = 0\n").unwrap_err();
-        assert!(e.contains("period of 0"), "{e}");
+        assert!(e.to_string().contains("period of 0"), "{e}");
         let e = Config::from_toml("[box_pipe]\nlatncy = 3\ninterval = 1\n").unwrap_err();
-        assert!(e.contains("latncy"), "{e}");
+        assert!(
+            matches!(&e, ConfigError::UnknownKey { key, .. } if key == "latncy"),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("latncy"), "{e}");
     }
 }

@@ -30,22 +30,43 @@ impl Default for MemoryMapCfg {
     }
 }
 
+/// Why the DRAM image cannot be laid out.
+#[derive(Debug)]
+pub enum MapError {
+    /// A `memory.*` value out of range.
+    Invalid(String),
+    /// The image needs more than the configured DRAM (sizes and the fix named).
+    OverCapacity(String),
+}
+
+impl std::fmt::Display for MapError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MapError::Invalid(m) | MapError::OverCapacity(m) => f.write_str(m),
+        }
+    }
+}
+
+impl std::error::Error for MapError {}
+
 impl MemoryMapCfg {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MapError> {
         if self.row_bytes == 0 || !self.row_bytes.is_power_of_two() {
-            return Err(format!(
+            return Err(MapError::Invalid(format!(
                 "memory.row_bytes = {} must be a power of two",
                 self.row_bytes
-            ));
+            )));
         }
         if self.bucket_bytes < 64 || !self.row_bytes.is_multiple_of(self.bucket_bytes) {
-            return Err(format!(
+            return Err(MapError::Invalid(format!(
                 "memory.bucket_bytes = {} must be at least 64 and divide the row ({} B) so buckets share rows",
                 self.bucket_bytes, self.row_bytes
-            ));
+            )));
         }
         if self.bucket_pool_bytes < self.row_bytes {
-            return Err("memory.bucket_pool_bytes must hold at least one row of buckets".into());
+            return Err(MapError::Invalid(
+                "memory.bucket_pool_bytes must hold at least one row of buckets".into(),
+            ));
         }
         Ok(())
     }
@@ -98,7 +119,7 @@ impl MemoryMap {
         triangles: u64,
         materials: u64,
         pixels: u64,
-    ) -> Result<MemoryMap, String> {
+    ) -> Result<MemoryMap, MapError> {
         cfg.validate()?;
         let row = cfg.row_bytes;
         let seg_table = 0;
@@ -117,13 +138,13 @@ impl MemoryMap {
             row,
         );
         if end > cfg.capacity_bytes {
-            return Err(format!(
+            return Err(MapError::OverCapacity(format!(
                 "the scene ({} MB of segments), the ray-bucket pool ({} MB) and {pixels} pixels of hit records and path state need {} MB, more than the configured DRAM ({} MB); raise memory.capacity_bytes or lower memory.bucket_pool_bytes or the resolution",
                 scene_bytes >> 20,
                 cfg.bucket_pool_bytes >> 20,
                 end >> 20,
                 cfg.capacity_bytes >> 20
-            ));
+            )));
         }
         Ok(MemoryMap {
             row_bytes: row,
@@ -193,6 +214,10 @@ mod tests {
             ..MemoryMapCfg::default()
         };
         let e = MemoryMap::new(&cfg, &[65536], 0, 1, 1, 16).unwrap_err();
-        assert!(e.contains("more than the configured DRAM"), "{e}");
+        assert!(matches!(e, MapError::OverCapacity(_)), "{e:?}");
+        assert!(
+            e.to_string().contains("more than the configured DRAM"),
+            "{e}"
+        );
     }
 }

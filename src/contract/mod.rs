@@ -5,7 +5,7 @@
 pub mod memmap;
 pub mod sparse;
 
-pub use memmap::{MemoryMap, MemoryMapCfg};
+pub use memmap::{MapError, MemoryMap, MemoryMapCfg};
 pub use sparse::SparseMem;
 
 use glam::Vec3;

@@ -21,7 +21,7 @@ use crate::units::tm::{self, TmPorts, TmUnits};
 use crate::units::tp::{HitUpdate, RayWrite, ShadeRegs};
 
 use super::host::Host;
-use super::{Chip, Dram, PORT_HITS, PORT_SCENE, PORT_SCHED};
+use super::{Chip, ChipError, Dram, PORT_HITS, PORT_SCENE, PORT_SCHED};
 
 impl Chip {
     /// Builds the chip for a scene laid out by `map` with `segments` segments.
@@ -33,13 +33,11 @@ impl Chip {
         segments: usize,
         shade: &ShadeConsts,
         opts: SimOptions,
-    ) -> Result<Chip, String> {
+    ) -> Result<Chip, ChipError> {
         cfg.validate()?;
         let ch = &cfg.chip;
         let mut sim = Sim::new(opts);
-        let clock = sim
-            .clock("core", cfg.clocks.core_ps)
-            .map_err(|e| e.to_string())?;
+        let clock = sim.clock("core", cfg.clocks.core_ps)?;
         let l = ch.links;
         let mut mem = MemPorts::link(&mut sim, ch);
         let (emit_o, emit_i) = sim.link::<RayWrite>("chip.emit", l);
@@ -115,7 +113,7 @@ impl Chip {
                 vec![hit_updater, scene_buffer],
             );
         }
-        sim.elaborate().map_err(|e| e.to_string())?;
+        sim.elaborate()?;
         let mut chip = Chip {
             sim,
             clock,
@@ -429,16 +427,14 @@ fn add_dram(
     sim: &mut Sim,
     cfg: &Config,
     memory_unit: Memory,
-) -> Result<(Memory, Option<Dram>), String> {
+) -> Result<(Memory, Option<Dram>), ChipError> {
     let ch = &cfg.chip;
     if ch.memory.model != crate::units::memory::MemoryModel::Gddr5 {
         return Ok((memory_unit, None));
     }
     let m = &cfg.mem;
     MemCtrl::supports(m)?;
-    let dclk = sim
-        .clock("dram", cfg.clocks.dram_ps)
-        .map_err(|e| e.to_string())?;
+    let dclk = sim.clock("dram", cfg.clocks.dram_ps)?;
     let amap = AddrMap::new(&m.geometry, &m.mapping)?;
     let mut ch_req = Vec::new();
     let mut ch_resp = Vec::new();
@@ -455,7 +451,7 @@ fn add_dram(
     }
     let memory_unit = memory_unit.with_channels(amap, ch_req, ch_resp);
     let g = &m.geometry;
-    let em = |name: &str| -> Result<EnergyModel, String> {
+    let em = |name: &str| -> Result<EnergyModel, ChipError> {
         Ok(EnergyModel::new(
             &EnergyCfg::by_name(name, g)?,
             &m.timing,

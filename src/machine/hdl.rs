@@ -17,11 +17,12 @@ use crate::rtl::link::LinkId;
 use crate::rtl::{In, Out, SimOptions, Unit, UnitDecl, UnitId};
 use crate::units;
 
-use super::Chip;
+use super::{Chip, ChipError};
+use crate::util::FileError;
 
 /// A chip elaborated for emission: the default-sized scene map (interfaces do not
 /// depend on the scene).
-fn elaborate(cfg: &Config) -> Result<Chip, String> {
+fn elaborate(cfg: &Config) -> Result<Chip, ChipError> {
     let map = crate::contract::MemoryMap::new(
         &crate::contract::MemoryMapCfg {
             bucket_pool_bytes: 1 << 20,
@@ -46,7 +47,7 @@ fn elaborate(cfg: &Config) -> Result<Chip, String> {
 /// The declarations of the chip's own units (not the TMs' insides, not the host),
 /// one per module, as the chip instantiates them (e.g. the memory unit with a
 /// port per requester).
-pub fn global_decls(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
+pub fn global_decls(cfg: &Config) -> Result<Vec<UnitDecl>, ChipError> {
     let chip = elaborate(cfg)?;
     let mut v: Vec<UnitDecl> = Vec::new();
     for i in 0..chip.sim.unit_count() {
@@ -160,7 +161,7 @@ fn count_name(base: &str) -> String {
 }
 
 impl Top {
-    fn of(chip: &Chip) -> Result<Top, String> {
+    fn of(chip: &Chip) -> Result<Top, ChipError> {
         let sim = &chip.sim;
         let link_names: Vec<String> = sim.link_stats().into_iter().map(|(n, _)| n).collect();
         let clock_names: Vec<String> = sim.clocks().iter().map(|c| c.name.clone()).collect();
@@ -199,10 +200,10 @@ impl Top {
         let mut nets = Vec::new();
         for (id, e) in &ends {
             let [Some(p), Some(c)] = e else {
-                return Err(format!(
+                return Err(ChipError::Hdl(format!(
                     "link '{}' has an open end",
                     link_names[*id as usize]
-                ));
+                )));
             };
             if p.top == c.top {
                 continue; // inside a structural instance (a TM)
@@ -222,7 +223,9 @@ impl Top {
             for &k in ks.iter() {
                 let m = &insts[&format!("{base}{k}")];
                 if m.module != first.module || m.ports != first.ports || m.clock != first.clock {
-                    return Err(format!("{base}{k} differs from {base}0 in module or ports"));
+                    return Err(ChipError::Hdl(format!(
+                        "{base}{k} differs from {base}0 in module or ports"
+                    )));
                 }
             }
         }
@@ -263,7 +266,7 @@ impl Top {
     }
 
     /// Chip ports (the host's links), wires, and each instance's connections.
-    fn wiring(&self) -> Result<Wiring, String> {
+    fn wiring(&self) -> Result<Wiring, ChipError> {
         let insts = &self.insts;
         let mut ports = vec!["input  wire rst".to_string()];
         let mut clocks: Vec<String> = insts
@@ -292,10 +295,10 @@ impl Top {
             let pf = self.in_family(&p.top);
             let cf = self.in_family(&c.top);
             if pf && cf {
-                return Err(format!(
+                return Err(ChipError::Hdl(format!(
                     "link '{}' joins two families; not supported by the emitter",
                     self.link_names[*id as usize]
-                ));
+                )));
             }
             let (ps, cs) = (self.signal(p, *id), self.signal(c, *id));
             if p.top == "host" || c.top == "host" {
@@ -329,7 +332,7 @@ impl Top {
 
     /// An instance's parameter list: its values, or for a family's members
     /// (`members`: base name and count) one value for all or the member's index.
-    fn params_of(&self, inst: &Inst, members: Option<(&str, usize)>) -> Result<String, String> {
+    fn params_of(&self, inst: &Inst, members: Option<(&str, usize)>) -> Result<String, ChipError> {
         if inst.params.is_empty() {
             return Ok(String::new());
         }
@@ -346,9 +349,9 @@ impl Top {
                     } else if vals.iter().enumerate().all(|(k, &x)| x == k as u64) {
                         "k".to_string()
                     } else {
-                        return Err(format!(
+                        return Err(ChipError::Hdl(format!(
                             "{base}: parameter {name} varies between members in a way the emitter cannot express"
-                        ));
+                        )));
                     }
                 }
             };
@@ -358,7 +361,7 @@ impl Top {
     }
 
     /// The instances that are not family members, one instantiation each.
-    fn write_instances(&self, v: &mut String, conn: &Wiring) -> Result<(), String> {
+    fn write_instances(&self, v: &mut String, conn: &Wiring) -> Result<(), ChipError> {
         let connections = |top: &str, inst: &Inst| -> Vec<String> {
             let mut cs = vec![format!(".clk({})", inst.clock), ".rst(rst)".to_string()];
             for &(port, _, _) in &inst.ports {
@@ -385,7 +388,7 @@ impl Top {
     }
 
     /// Each family as a generate loop over its members.
-    fn write_families(&self, v: &mut String) -> Result<(), String> {
+    fn write_families(&self, v: &mut String) -> Result<(), ChipError> {
         for (base, ks) in &self.families {
             let key = format!("{base}0");
             let inst = &self.insts[&key];
@@ -425,7 +428,7 @@ impl Top {
 }
 
 /// The Verilog text of the chip top for `cfg`.
-pub fn emit_chip(cfg: &Config) -> Result<String, String> {
+pub fn emit_chip(cfg: &Config) -> Result<String, ChipError> {
     let chip = elaborate(cfg)?;
     let top = Top::of(&chip)?;
     let w = top.wiring()?;
@@ -527,7 +530,7 @@ fn standalone_units(cfg: &Config) -> Vec<Box<dyn Unit>> {
 }
 
 /// [`catalog`], with an error naming what is wrong in `cfg`.
-pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
+pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, ChipError> {
     let mut v: Vec<UnitDecl> = standalone_units(cfg)
         .iter()
         .map(|u| u.decl_at_reset())
@@ -543,41 +546,37 @@ pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, String> {
 }
 
 /// Writes one `<module>.v` per unit into `dir` (created if missing); returns the paths.
-pub fn write_hdl(cfg: &Config, dir: &std::path::Path) -> Result<Vec<std::path::PathBuf>, String> {
+pub fn write_hdl(
+    cfg: &Config,
+    dir: &std::path::Path,
+) -> Result<Vec<std::path::PathBuf>, ChipError> {
     std::fs::create_dir_all(dir).map_err(|e| {
-        format!(
+        let msg = format!(
             "cannot create the HDL directory '{}': {e}; choose a writable --out",
             dir.display()
-        )
+        );
+        ChipError::File(FileError::new(dir, e, msg))
     })?;
+    let unwritable = |p: &std::path::Path, e: std::io::Error| {
+        let msg = format!(
+            "cannot write '{}': {e}; choose a writable --out",
+            p.display()
+        );
+        ChipError::File(FileError::new(p, e, msg))
+    };
     let mut out = Vec::new();
     for d in catalog_checked(cfg)? {
         let p = dir.join(format!("{}.v", d.module));
-        std::fs::write(&p, crate::rtl::verilog::emit_module(&d)).map_err(|e| {
-            format!(
-                "cannot write '{}': {e}; choose a writable --out",
-                p.display()
-            )
-        })?;
+        std::fs::write(&p, crate::rtl::verilog::emit_module(&d)).map_err(|e| unwritable(&p, e))?;
         out.push(p);
     }
     // The TM is structural: instances of the units above, wired as simulated.
     let p = dir.join("tm.v");
-    std::fs::write(&p, units::tm::emit_verilog(&cfg.tm_spec())).map_err(|e| {
-        format!(
-            "cannot write '{}': {e}; choose a writable --out",
-            p.display()
-        )
-    })?;
+    std::fs::write(&p, units::tm::emit_verilog(&cfg.tm_spec())).map_err(|e| unwritable(&p, e))?;
     out.push(p);
     // The chip top: every unit instantiated and wired as simulated.
     let p = dir.join("chip.v");
-    std::fs::write(&p, emit_chip(cfg)?).map_err(|e| {
-        format!(
-            "cannot write '{}': {e}; choose a writable --out",
-            p.display()
-        )
-    })?;
+    std::fs::write(&p, emit_chip(cfg)?).map_err(|e| unwritable(&p, e))?;
     out.push(p);
     Ok(out)
 }
@@ -638,7 +637,9 @@ mod tests {
         }
         let mut bad = cfg.clone();
         bad.chip.tms = 0;
-        assert!(emit_chip(&bad).unwrap_err().contains("chip.tms"));
+        let e = emit_chip(&bad).unwrap_err();
+        assert!(matches!(e, ChipError::Config(_)), "{e:?}");
+        assert!(e.to_string().contains("chip.tms"));
     }
 
     /// Every unit, as constructed for the catalog and as elaborated into the

@@ -39,11 +39,13 @@ pub mod trace;
 
 mod build;
 mod counts;
+mod error;
 mod run;
 mod watchdog;
 mod window;
 
 pub use counts::{DramWave, L2Wave, WaveCycles};
+pub use error::ChipError;
 pub use window::{WindowKind, WindowRun};
 
 use crate::mem::MemCfg;

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use crate::contract::{RayRec, SparseMem};
 
-use super::{Chip, WaveCycles};
+use super::{Chip, ChipError, WaveCycles};
 
 impl Chip {
     /// Records every segment pass's admission and retirement (see
@@ -33,7 +33,7 @@ impl Chip {
         &mut self,
         mem: &mut SparseMem,
         rays: &[RayRec],
-    ) -> Result<WaveCycles, String> {
+    ) -> Result<WaveCycles, ChipError> {
         self.run_wave(mem, rays, 0)
     }
 
@@ -43,7 +43,7 @@ impl Chip {
         &mut self,
         mem: &mut SparseMem,
         pixels: u32,
-    ) -> Result<WaveCycles, String> {
+    ) -> Result<WaveCycles, ChipError> {
         self.run_wave(mem, &[], pixels)
     }
 
@@ -52,7 +52,7 @@ impl Chip {
         mem: &mut SparseMem,
         rays: &[RayRec],
         shade_pixels: u32,
-    ) -> Result<WaveCycles, String> {
+    ) -> Result<WaveCycles, ChipError> {
         let t0 = Instant::now();
         self.memory_unit_mut().swap_image(mem);
         let before = self.snapshot();
@@ -93,7 +93,7 @@ impl Chip {
     }
 
     /// Runs in watchdog windows until every unit sleeps with nothing scheduled.
-    fn run_until_idle(&mut self) -> Result<(), String> {
+    fn run_until_idle(&mut self) -> Result<(), ChipError> {
         let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
         let mut last_progress = self.progress();
         loop {
@@ -103,21 +103,24 @@ impl Chip {
                 .run_to_idle(limit)
                 .map(|_| true)
                 .or_else(|e| match e {
-                    crate::rtl::SimError::Elaboration(m) if m.contains("still busy") => Ok(false),
-                    e => Err(e.to_string()),
+                    crate::rtl::SimError::Busy { .. } => Ok(false),
+                    e => Err(e),
                 })?;
             if let Some(e) = self.sched().error() {
-                return Err(e.to_string());
+                return Err(ChipError::Scheduler(e.to_string()));
             }
             if end {
                 return Ok(());
             }
             let p = self.progress();
             if p == last_progress {
-                return Err(self.stuck(&format!(
-                    "no progress for {} cycles (chip.watchdog_cycles)",
-                    self.watchdog
-                )));
+                return Err(self.stuck(
+                    &format!(
+                        "no progress for {} cycles (chip.watchdog_cycles)",
+                        self.watchdog
+                    ),
+                    ChipError::Watchdog,
+                ));
             }
             last_progress = p;
         }

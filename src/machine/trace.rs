@@ -3,6 +3,7 @@
 //! kernel's [`TraceSpec`] (instance patterns, picoseconds). docs/chip.md has the
 //! how-to.
 
+use super::ChipError;
 use crate::rtl::{Time, TraceSpec};
 
 /// Names that stand for one global unit or a family of units, with the instance
@@ -82,14 +83,14 @@ pub fn valid_names(paths: &[&str]) -> String {
 /// `units`, checked against the chip's instance `paths`: an unknown name or one
 /// that matches no instance (`mem_ctrl` with the fixed memory, `tm9` on 8 TMs)
 /// is an error listing the valid names. Empty `units`: every unit.
-pub fn resolve(units: &str, paths: &[&str]) -> Result<String, String> {
+pub fn resolve(units: &str, paths: &[&str]) -> Result<String, ChipError> {
     let mut pats = Vec::new();
     for name in units.split(',').map(str::trim).filter(|n| !n.is_empty()) {
         let Some(p) = pattern_of(name) else {
-            return Err(format!(
-                "--trace-units: unknown unit '{name}'; valid names: {}",
-                valid_names(paths)
-            ));
+            return Err(ChipError::UnknownUnit {
+                name: name.to_string(),
+                valid: valid_names(paths),
+            });
         };
         let spec = TraceSpec {
             filter: p.clone(),
@@ -103,10 +104,11 @@ pub fn resolve(units: &str, paths: &[&str]) -> Result<String, String> {
             } else {
                 ""
             };
-            return Err(format!(
-                "--trace-units: '{name}' matches no unit of this chip{hint}; valid names: {}",
-                valid_names(paths)
-            ));
+            return Err(ChipError::NoSuchUnit {
+                name: name.to_string(),
+                hint,
+                valid: valid_names(paths),
+            });
         }
         pats.push(p);
     }
@@ -115,9 +117,11 @@ pub fn resolve(units: &str, paths: &[&str]) -> Result<String, String> {
 
 /// A window of core cycles: `A..B` (B excluded), `A..=B` (B included) or `A..`
 /// (to the end). Returns the first and the last cycle (`None`: open).
-pub fn parse_window(s: &str) -> Result<(u64, Option<u64>), String> {
+pub fn parse_window(s: &str) -> Result<(u64, Option<u64>), ChipError> {
     let bad = |why: &str| {
-        format!("--trace-window '{s}' {why}; give core cycles as A..B (B excluded), A..=B or A..")
+        ChipError::BadWindow(format!(
+            "--trace-window '{s}' {why}; give core cycles as A..B (B excluded), A..=B or A.."
+        ))
     };
     let (a, b) = s.split_once("..").ok_or_else(|| bad("has no '..'"))?;
     let num = |t: &str| {
@@ -228,30 +232,41 @@ mod tests {
     #[test]
     fn unknown_or_absent_names_list_the_valid_ones() {
         let e = resolve("scheduler,tm_0", &paths()).unwrap_err();
+        assert!(
+            matches!(&e, ChipError::UnknownUnit { name, .. } if name == "tm_0"),
+            "{e:?}"
+        );
+        let e = e.to_string();
         assert!(e.contains("unknown unit 'tm_0'"), "{e}");
         assert!(e.contains("scheduler") && e.contains("tm0..tm10"), "{e}");
         assert!(e.contains("mem_ctrl0..mem_ctrl1"), "{e}");
         let e = resolve("tm11", &paths()).unwrap_err();
-        assert!(e.contains("matches no unit"), "{e}");
-        let e = resolve("l2", &paths()).unwrap_err();
+        assert!(
+            matches!(&e, ChipError::NoSuchUnit { name, .. } if name == "tm11"),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("matches no unit"), "{e}");
+        let e = resolve("l2", &paths()).unwrap_err().to_string();
         assert!(e.contains("'l2' matches no unit"), "{e}");
         assert!(!e.contains("l2 ("), "l2 is not listed without one: {e}");
         let fixed: Vec<&str> = paths()
             .into_iter()
             .filter(|p| !p.contains("mem_ctrl"))
             .collect();
-        let e = resolve("mem_ctrl", &fixed).unwrap_err();
+        let e = resolve("mem_ctrl", &fixed).unwrap_err().to_string();
         assert!(e.contains("gddr5"), "{e}");
     }
 
     #[test]
     fn windows() {
-        assert_eq!(parse_window("10000..20000"), Ok((10000, Some(19999))));
-        assert_eq!(parse_window("5..=5"), Ok((5, Some(5))));
-        assert_eq!(parse_window(" 7 .."), Ok((7, None)));
-        assert_eq!(parse_window("1_000..2_000"), Ok((1000, Some(1999))));
+        assert_eq!(parse_window("10000..20000").unwrap(), (10000, Some(19999)));
+        assert_eq!(parse_window("5..=5").unwrap(), (5, Some(5)));
+        assert_eq!(parse_window(" 7 ..").unwrap(), (7, None));
+        assert_eq!(parse_window("1_000..2_000").unwrap(), (1000, Some(1999)));
         for bad in ["10", "a..b", "20..10", "5..5", "0..0", "..5x"] {
             let e = parse_window(bad).unwrap_err();
+            assert!(matches!(e, ChipError::BadWindow(_)), "{e:?}");
+            let e = e.to_string();
             assert!(e.contains("--trace-window") && e.contains("A..B"), "{e}");
         }
         let s = spec(String::new(), 10, Some(19), 1000, 0);

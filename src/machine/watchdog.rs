@@ -1,7 +1,7 @@
 //! What the chip reports when a run goes wrong: the units holding work, the
 //! cause of a stuck chip, and the end-of-wavefront drain check.
 
-use super::Chip;
+use super::{Chip, ChipError};
 
 impl Chip {
     /// Units holding work, and what they wait for (the watchdog's report).
@@ -44,7 +44,9 @@ impl Chip {
         v
     }
 
-    pub(super) fn stuck(&self, why: &str) -> String {
+    /// The error of a stuck chip: the overflowed stack when a TP's did (the
+    /// cause), else `kind` of `why` and the units holding work.
+    pub(super) fn stuck(&self, why: &str, kind: fn(String) -> ChipError) -> ChipError {
         // A TP whose stack overflowed stops for good; the chip then starves.
         // That is the cause to report, not the starvation.
         let overflowed: Vec<String> = self
@@ -68,14 +70,14 @@ impl Chip {
                 ),
                 None => String::new(),
             };
-            return format!(
+            return ChipError::StackOverflow(format!(
                 "the traversal stack of {first} overflowed at cycle {} ({} TPs overflowed): \
                  tm.scratchpad_bytes = {pad} holds {} entries of tm.stack_entry_bytes = {entry}; \
                  raise tm.scratchpad_bytes{need}",
                 self.sim.cycle(self.clock),
                 overflowed.len(),
                 pad / entry.max(1),
-            );
+            ));
         }
         let mut msg = format!(
             "the chip is stuck at cycle {}: {why}",
@@ -93,40 +95,43 @@ impl Chip {
             msg.push_str("\n  ");
             msg.push_str(&h);
         }
-        msg
+        kind(msg)
     }
 
     /// Nothing is lost: asserted after every wavefront.
-    pub(super) fn check_drained(&self) -> Result<(), String> {
+    pub(super) fn check_drained(&self) -> Result<(), ChipError> {
         let s = &self.sim;
         let sch = self.sched();
         let held = self.holding();
         if !held.is_empty() {
-            return Err(self.stuck("every unit sleeps but work is left (a deadlock)"));
+            return Err(self.stuck(
+                "every unit sleeps but work is left (a deadlock)",
+                ChipError::Deadlock,
+            ));
         }
         for seg in 0..self.segments {
             let (enq, done) = (sch.enqueued_by_segment()[seg], sch.done_by_segment()[seg]);
             if enq != done {
-                return Err(format!(
+                return Err(ChipError::Lost(format!(
                     "segment {seg}: {enq} rays enqueued but {done} processed in this wavefront"
-                ));
+                )));
             }
         }
         if sch.live_buckets() != 0 {
-            return Err(format!(
+            return Err(ChipError::Lost(format!(
                 "{} ray buckets were not freed at the end of the wavefront",
                 sch.live_buckets()
-            ));
+            )));
         }
         let m = self.memory_unit().probe();
         if m.requests != m.responses {
-            return Err("a memory request was not answered".into());
+            return Err(ChipError::Lost("a memory request was not answered".into()));
         }
         for (i, (name, _)) in s.link_stats().into_iter().enumerate() {
             if s.link_occupancy(crate::rtl::LinkId(i as u32)) > 0 {
-                return Err(format!(
+                return Err(ChipError::Lost(format!(
                     "link '{name}' still holds data at the end of the wavefront"
-                ));
+                )));
             }
         }
         Ok(())
@@ -134,15 +139,15 @@ impl Chip {
 
     /// With `chip.memory.check_timing`: the channels' command logs obey the
     /// DRAM timing (checked after every wavefront).
-    pub(super) fn check_dram_timing(&self) -> Result<(), String> {
+    pub(super) fn check_dram_timing(&self) -> Result<(), ChipError> {
         if self.dram.as_ref().is_some_and(|d| d.check) {
             let v = self.dram_violations();
             if !v.is_empty() {
-                return Err(format!(
+                return Err(ChipError::DramTiming(format!(
                     "{} DRAM timing violations (chip.memory.check_timing), first: {}",
                     v.len(),
                     v[0]
-                ));
+                )));
             }
         }
         Ok(())

@@ -4,7 +4,7 @@
 use crate::contract::{RayRec, SparseMem};
 use crate::mem::StreamTag;
 
-use super::{Chip, WaveCycles};
+use super::{Chip, ChipError, WaveCycles};
 
 /// Cycles between two looks at a sampling window's marks: the resolution of its
 /// start and end (a window spans tens of thousands of cycles).
@@ -94,7 +94,7 @@ impl Chip {
         kind: WindowKind,
         warm: (u64, u64),
         measure: u64,
-    ) -> Result<Option<WindowRun>, String> {
+    ) -> Result<Option<WindowRun>, ChipError> {
         self.window_inner(mem, kind, warm, measure)
     }
 
@@ -104,7 +104,7 @@ impl Chip {
         kind: WindowKind,
         (warm, warm_cycles): (u64, u64),
         measure: u64,
-    ) -> Result<Option<WindowRun>, String> {
+    ) -> Result<Option<WindowRun>, ChipError> {
         self.load_window(mem, &kind);
         // What is counted, and when the stretch is over without the wavefront's
         // end: all rays emitted, or all items of a shading pass done (the chip
@@ -248,7 +248,11 @@ impl Chip {
     /// segment) every `step`, and measures the stretch between the looks at
     /// `tenths` of the visits it did in all (the total is known only at the
     /// end). Its L2 started empty, so all it leaves dirty is owed.
-    fn wave_window(&mut self, tenths: (u64, u64), step: u64) -> Result<Option<WindowRun>, String> {
+    fn wave_window(
+        &mut self,
+        tenths: (u64, u64),
+        step: u64,
+    ) -> Result<Option<WindowRun>, ChipError> {
         let visits = |c: &Chip| -> u64 { c.sched().done_by_segment().iter().sum() };
         let start = self.snapshot();
         let done0 = self.sched().done_by_segment().to_vec();
@@ -298,24 +302,24 @@ impl Chip {
 
     /// Runs a sampling window for [`WINDOW_STEP`] cycles: how the run ended,
     /// or the scheduler's error.
-    fn window_step(&mut self) -> Result<crate::rtl::RunEnd, String> {
+    fn window_step(&mut self) -> Result<crate::rtl::RunEnd, ChipError> {
         let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
-        let end = self
-            .sim
-            .run_until(self.sim.now() + WINDOW_STEP * period)
-            .map_err(|e| e.to_string())?;
+        let end = self.sim.run_until(self.sim.now() + WINDOW_STEP * period)?;
         match self.sched().error() {
-            Some(e) => Err(e.to_string()),
+            Some(e) => Err(ChipError::Scheduler(e.to_string())),
             None => Ok(end),
         }
     }
 
     /// A window's cycles without progress after one more step, or an error
     /// once they pass 64 watchdog periods.
-    fn window_watchdog(&self, idle_run: u64) -> Result<u64, String> {
+    fn window_watchdog(&self, idle_run: u64) -> Result<u64, ChipError> {
         let idle_run = idle_run + WINDOW_STEP;
         if idle_run > self.watchdog.max(WINDOW_STEP) * 64 {
-            return Err(self.stuck("a sampling window did not reach its marks"));
+            return Err(self.stuck(
+                "a sampling window did not reach its marks",
+                ChipError::Watchdog,
+            ));
         }
         Ok(idle_run)
     }

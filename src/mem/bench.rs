@@ -4,6 +4,7 @@
 
 use std::time::Instant;
 
+use super::MemError;
 use super::config::{EnergyCfg, MemCfg};
 use super::replay::{ReplayOptions, replay};
 use super::trace::generate;
@@ -19,7 +20,7 @@ pub struct BenchRow {
     pub nj_per_line: Vec<(String, f64)>,
 }
 
-pub fn run(scale: f64) -> Result<Vec<BenchRow>, String> {
+pub fn run(scale: f64) -> Result<Vec<BenchRow>, MemError> {
     let n = ((1_000_000.0 * scale) as u64).max(1000);
     let mut rows = Vec::new();
     for preset in ["dramsim3-gddr5", "paper"] {
@@ -59,7 +60,7 @@ pub fn run(scale: f64) -> Result<Vec<BenchRow>, String> {
     Ok(rows)
 }
 
-pub fn report(scale: f64) -> Result<String, String> {
+pub fn report(scale: f64) -> Result<String, MemError> {
     use std::fmt::Write;
     let rows = run(scale)?;
     let mut s = String::new();

@@ -11,6 +11,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::MemError;
 use crate::rtl::LinkCfg;
 
 /// Banks, rows and the data bus of one channel, and the number of channels.
@@ -88,7 +89,7 @@ impl GeometryCfg {
         (self.bus_bits / 8 * self.transfers_per_ck) as f64
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MemError> {
         let pow2 = [
             ("channels", self.channels),
             ("bank_groups", self.bank_groups),
@@ -99,58 +100,60 @@ impl GeometryCfg {
         ];
         for (k, v) in pow2 {
             if v == 0 {
-                return Err(format!(
+                return Err(MemError::Config(format!(
                     "mem.geometry.{k} = 0: a memory needs at least one; set {k} >= 1"
-                ));
+                )));
             }
             if !v.is_power_of_two() {
-                return Err(format!(
+                return Err(MemError::Config(format!(
                     "mem.geometry.{k} = {v} is not a power of two, which the address mapping needs (each field is a bit slice); use {}",
                     v.next_power_of_two()
-                ));
+                )));
             }
         }
         if self.bus_bits == 0 || !self.bus_bits.is_multiple_of(8) {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.geometry.bus_bits = {} must be a positive multiple of 8 (32 for a GDDR5 x32 channel)",
                 self.bus_bits
-            ));
+            )));
         }
         if self.transfers_per_ck == 0 || self.burst_length == 0 {
-            return Err("mem.geometry: burst_length and transfers_per_ck must be >= 1 (GDDR5: BL 8, 4 transfers per CK)".into());
+            return Err(MemError::Config("mem.geometry: burst_length and transfers_per_ck must be >= 1 (GDDR5: BL 8, 4 transfers per CK)".into()));
         }
         if !self.burst_length.is_multiple_of(self.transfers_per_ck) {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.geometry.burst_length = {} is not a whole number of command cycles at {} transfers per CK; use a multiple of transfers_per_ck",
                 self.burst_length, self.transfers_per_ck
-            ));
+            )));
         }
         let b = self.burst_bytes();
         if !b.is_power_of_two() {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.geometry: a burst of {b} B (bus_bits / 8 x burst_length) is not a power of two; the address mapping needs one"
-            ));
+            )));
         }
         if self.line_bytes < b || !self.line_bytes.is_multiple_of(b) {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.geometry.line_bytes = {} is not a whole number of {b} B bursts; set line_bytes to a multiple of {b}",
                 self.line_bytes
-            ));
+            )));
         }
         if self.row_bytes() < self.line_bytes as u64 {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.geometry: a row of {} B (columns x burst) is smaller than a {} B line; raise columns",
                 self.row_bytes(),
                 self.line_bytes
-            ));
+            )));
         }
         if self.bursts_per_line() > 255 {
-            return Err(
+            return Err(MemError::Config(
                 "mem.geometry.line_bytes: more than 255 bursts per line; lower line_bytes".into(),
-            );
+            ));
         }
         if self.capacity().checked_mul(1).is_none() || self.capacity() > 1 << 48 {
-            return Err("mem.geometry: capacity above 256 TB; check rows and columns".into());
+            return Err(MemError::Config(
+                "mem.geometry: capacity above 256 TB; check rows and columns".into(),
+            ));
         }
         Ok(())
     }
@@ -260,7 +263,7 @@ impl Default for TimingCfg {
 }
 
 impl TimingCfg {
-    pub fn validate(&self, g: &GeometryCfg) -> Result<(), String> {
+    pub fn validate(&self, g: &GeometryCfg) -> Result<(), MemError> {
         let pos = [
             ("CL", self.cl),
             ("CWL", self.cwl),
@@ -278,56 +281,56 @@ impl TimingCfg {
         ];
         for (k, v) in pos {
             if v == 0 {
-                return Err(format!(
+                return Err(MemError::Config(format!(
                     "mem.timing.{k} = 0: every DRAM command takes at least one cycle; give the datasheet value in DRAM clock cycles"
-                ));
+                )));
             }
         }
         if self.rc < self.ras + self.rp {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.timing: tRC = {} < tRAS + tRP = {} + {} = {}; a bank cannot be activated again before it is precharged, so set tRC >= {}",
                 self.rc,
                 self.ras,
                 self.rp,
                 self.ras + self.rp,
                 self.ras + self.rp
-            ));
+            )));
         }
         if self.ccd_l < self.ccd_s {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.timing: tCCD_L = {} < tCCD_S = {}; the same bank group is never faster than another, so set tCCD_L >= tCCD_S",
                 self.ccd_l, self.ccd_s
-            ));
+            )));
         }
         if self.rrd_l < self.rrd_s {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.timing: tRRD_L = {} < tRRD_S = {}; set tRRD_L >= tRRD_S",
                 self.rrd_l, self.rrd_s
-            ));
+            )));
         }
         if self.wtr_l < self.wtr_s {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.timing: tWTR_L = {} < tWTR_S = {}; set tWTR_L >= tWTR_S",
                 self.wtr_l, self.wtr_s
-            ));
+            )));
         }
         if self.faw != 0 && self.faw < self.rrd_s {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.timing: tFAW = {} < tRRD_S = {}; four activates cannot fit in less than one activate gap; set tFAW >= tRRD_S",
                 self.faw, self.rrd_s
-            ));
+            )));
         }
         if self.refi <= self.rfc {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.timing: tREFI = {} <= tRFC = {}; the DRAM would refresh all the time; tREFI must exceed tRFC",
                 self.refi, self.rfc
-            ));
+            )));
         }
         if self.cl + g.burst_cycles() + self.rtrs < self.cwl {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.timing: CWL = {} exceeds CL + burst + tRTRS; check the write latency",
                 self.cwl
-            ));
+            )));
         }
         Ok(())
     }
@@ -397,41 +400,42 @@ impl Default for CtrlCfg {
 }
 
 impl CtrlCfg {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MemError> {
         if self.read_queue == 0 || self.write_queue == 0 || self.resp_buffer == 0 {
-            return Err(
+            return Err(MemError::Config(
                 "mem.ctrl: read_queue, write_queue and resp_buffer must hold at least one entry"
                     .into(),
-            );
+            ));
         }
         if self.read_queue > 4096 || self.write_queue > 4096 || self.resp_buffer > 4096 {
-            return Err(
+            return Err(MemError::Config(
                 "mem.ctrl: queues above 4096 entries are not a buildable FR-FCFS CAM; lower them"
                     .into(),
-            );
+            ));
         }
         if self.policy == CtrlPolicy::Dramsim3 {
             if self.cmd_queue == 0 || self.cmd_queue > 4096 {
-                return Err(format!(
+                return Err(MemError::Config(format!(
                     "mem.ctrl.cmd_queue = {}: a bank's command queue needs 1 to 4096 entries (DRAMsim3: 8)",
                     self.cmd_queue
-                ));
+                )));
             }
             if self.write_high != self.write_queue {
-                return Err(format!(
+                return Err(MemError::Config(format!(
                     "mem.ctrl: policy dramsim3 drains writes when the write buffer is full, so write_high = {} must equal write_queue = {}",
                     self.write_high, self.write_queue
-                ));
+                )));
             }
         }
         if self.write_low >= self.write_high || self.write_high > self.write_queue {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.ctrl: write watermarks need write_low < write_high <= write_queue (now {} / {} / {}); e.g. 20 / 40 / 96",
                 self.write_low, self.write_high, self.write_queue
-            ));
+            )));
         }
         self.req_link.validate("mem.ctrl.req_link")?;
-        self.resp_link.validate("mem.ctrl.resp_link")
+        self.resp_link.validate("mem.ctrl.resp_link")?;
+        Ok(())
     }
 }
 
@@ -507,18 +511,18 @@ impl EnergyCfg {
         }
     }
     pub const PRESETS: &'static [&'static str] = &["paper", "physical", "dramsim3"];
-    pub fn by_name(name: &str, g: &GeometryCfg) -> Result<Self, String> {
+    pub fn by_name(name: &str, g: &GeometryCfg) -> Result<Self, MemError> {
         match name {
             "paper" => Ok(EnergyCfg::paper()),
             "physical" => Ok(EnergyCfg::physical(g)),
             "dramsim3" => Ok(EnergyCfg::dramsim3(g)),
-            _ => Err(format!(
+            _ => Err(MemError::Unknown(format!(
                 "unknown energy preset '{name}'; available: {}",
                 EnergyCfg::PRESETS.join(", ")
-            )),
+            ))),
         }
     }
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MemError> {
         let v = [
             ("vdd", self.vdd),
             ("idd0", self.idd0),
@@ -532,13 +536,13 @@ impl EnergyCfg {
         ];
         for (k, x) in v {
             if !x.is_finite() || x < 0.0 {
-                return Err(format!(
+                return Err(MemError::Config(format!(
                     "mem.energy.{k} = {x} must be a finite, non-negative number"
-                ));
+                )));
             }
         }
         if self.idd4r < self.idd3n || self.idd4w < self.idd3n || self.idd5 < self.idd3n {
-            return Err("mem.energy: IDD4R, IDD4W and IDD5 must be at least IDD3N (they are measured on top of active standby)".into());
+            return Err(MemError::Config("mem.energy: IDD4R, IDD4W and IDD5 must be at least IDD3N (they are measured on top of active standby)".into()));
         }
         Ok(())
     }
@@ -655,43 +659,43 @@ impl MemCfg {
     }
 
     /// Returns the preset and its DRAM clock period in ps.
-    pub fn preset(name: &str) -> Result<(MemCfg, u64), String> {
+    pub fn preset(name: &str) -> Result<(MemCfg, u64), MemError> {
         match name {
             "paper" => Ok((MemCfg::paper(), 500)),
             "dramsim3-gddr5" => Ok((MemCfg::dramsim3_gddr5(), DRAMSIM3_TCK_PS)),
-            _ => Err(format!(
+            _ => Err(MemError::Unknown(format!(
                 "unknown memory preset '{name}'; available: {}",
                 PRESETS.join(", ")
-            )),
+            ))),
         }
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MemError> {
         self.geometry.validate()?;
         self.timing.validate(&self.geometry)?;
         self.ctrl.validate()?;
         self.energy.validate()?;
         super::map::AddrMap::new(&self.geometry, &self.mapping)?;
         if self.ctrl.resp_link.delay > self.timing.cwl {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.ctrl.resp_link.delay = {} exceeds CWL = {}; the response register would be loaded before the data ends, so use a delay <= CWL",
                 self.ctrl.resp_link.delay, self.timing.cwl
-            ));
+            )));
         }
         if self.ctrl.policy == CtrlPolicy::Dramsim3 && self.geometry.bursts_per_line() != 1 {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.ctrl.policy = \"dramsim3\": DRAMsim3 moves one burst per request, but a {} B line is {} bursts of {} B; set mem.geometry.line_bytes = {} or use policy \"frfcfs\"",
                 self.geometry.line_bytes,
                 self.geometry.bursts_per_line(),
                 self.geometry.burst_bytes(),
                 self.geometry.burst_bytes()
-            ));
+            )));
         }
         if self.geometry.banks() > 64 {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.geometry: {} banks per channel; at most 64 are supported (bank masks)",
                 self.geometry.banks()
-            ));
+            )));
         }
         Ok(())
     }

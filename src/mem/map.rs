@@ -2,6 +2,7 @@
 //! column). Fields are bit slices above the line offset, ordered by the config's
 //! `mapping` string from most to least significant.
 
+use super::MemError;
 use super::config::GeometryCfg;
 
 /// Where a line lives.
@@ -45,10 +46,12 @@ pub struct AddrMap {
 }
 
 impl AddrMap {
-    pub fn new(g: &GeometryCfg, mapping: &str) -> Result<AddrMap, String> {
+    pub fn new(g: &GeometryCfg, mapping: &str) -> Result<AddrMap, MemError> {
         let names = ["row", "bank", "bankgroup", "channel", "column"];
         if mapping.trim().is_empty() {
-            return Err("mem.mapping is empty; e.g. row:bank:channel:column:bankgroup".into());
+            return Err(MemError::Config(
+                "mem.mapping is empty; e.g. row:bank:channel:column:bankgroup".into(),
+            ));
         }
         let mut seen = Vec::new();
         for tok in mapping.split(':') {
@@ -59,26 +62,26 @@ impl AddrMap {
                 "channel" => Field::Channel,
                 "column" => Field::Column,
                 other => {
-                    return Err(format!(
+                    return Err(MemError::Config(format!(
                         "mem.mapping = '{mapping}': unknown field '{other}'; use each of {} once, separated by ':'",
                         names.join(", ")
-                    ));
+                    )));
                 }
             };
             if seen.contains(&f) {
-                return Err(format!(
+                return Err(MemError::Config(format!(
                     "mem.mapping = '{mapping}': field '{}' appears twice; use each field once",
                     tok.trim()
-                ));
+                )));
             }
             seen.push(f);
         }
         let flat_bank = !seen.contains(&Field::BankGroup);
         let required = [Field::Row, Field::Bank, Field::Channel, Field::Column];
         if required.iter().any(|f| !seen.contains(f)) {
-            return Err(format!(
+            return Err(MemError::Config(format!(
                 "mem.mapping = '{mapping}': needs row, bank, channel and column (bankgroup is optional), e.g. row:bank:channel:column:bankgroup"
-            ));
+            )));
         }
         let bits = |f: Field| -> u32 {
             let n = match f {
@@ -113,12 +116,12 @@ impl AddrMap {
     }
 
     /// Decodes an address; errors name the address and the capacity.
-    pub fn decode(&self, addr: u64) -> Result<Loc, String> {
+    pub fn decode(&self, addr: u64) -> Result<Loc, MemError> {
         if addr >= self.capacity {
-            return Err(format!(
+            return Err(MemError::Address(format!(
                 "address {addr:#x} is beyond the configured capacity of {} bytes ({:#x}); use a smaller address or a larger mem.geometry",
                 self.capacity, self.capacity
-            ));
+            )));
         }
         Ok(self.decode_unchecked(addr))
     }
@@ -190,7 +193,9 @@ mod tests {
         for a in [0u64, 64, 12345 * 64, g.capacity() - 64] {
             assert_eq!(m.encode(&m.decode(a).unwrap()), a);
         }
-        assert!(m.decode(g.capacity()).unwrap_err().contains("beyond"));
+        let e = m.decode(g.capacity()).unwrap_err();
+        assert!(matches!(e, MemError::Address(_)), "{e:?}");
+        assert!(e.to_string().contains("beyond"));
     }
 
     #[test]
@@ -215,16 +220,19 @@ mod tests {
         assert!(
             AddrMap::new(&g, "row:bank:channel")
                 .unwrap_err()
+                .to_string()
                 .contains("needs row")
         );
         assert!(
             AddrMap::new(&g, "row:row:bank:channel:column")
                 .unwrap_err()
+                .to_string()
                 .contains("twice")
         );
         assert!(
             AddrMap::new(&g, "row:bnk:channel:column:bankgroup")
                 .unwrap_err()
+                .to_string()
                 .contains("'bnk'")
         );
     }

@@ -20,6 +20,7 @@ pub mod config;
 pub mod ctrl;
 pub mod dramsim3;
 pub mod energy;
+mod error;
 pub mod map;
 pub mod replay;
 pub mod stats;
@@ -28,6 +29,7 @@ pub mod trace;
 
 pub use config::MemCfg;
 pub use ctrl::ChannelCtrl;
+pub use error::MemError;
 pub use map::{AddrMap, Loc};
 pub use stats::MemReport;
 pub use timing::{Command, DramCmd};

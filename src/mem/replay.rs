@@ -6,6 +6,7 @@
 //! the same order (deliver responses, schedule, accept). With `mem.ctrl.policy =
 //! "dramsim3"` the channels are `Dramsim3Ctrl`s instead.
 
+use super::MemError;
 use super::checker;
 use super::config::{CtrlPolicy, MemCfg};
 use super::ctrl::ChannelCtrl;
@@ -104,7 +105,7 @@ pub fn replay(
     tck_ps: u64,
     reqs: &[TraceReq],
     opts: &ReplayOptions,
-) -> Result<Replayed, String> {
+) -> Result<Replayed, MemError> {
     cfg.validate()?;
     match cfg.ctrl.policy {
         CtrlPolicy::Frfcfs => run::<ChannelCtrl>(cfg, tck_ps, reqs, opts),
@@ -117,7 +118,7 @@ fn run<C: Channel>(
     tck_ps: u64,
     reqs: &[TraceReq],
     opts: &ReplayOptions,
-) -> Result<Replayed, String> {
+) -> Result<Replayed, MemError> {
     let map = AddrMap::new(&cfg.geometry, &cfg.mapping)?;
     let n = cfg.geometry.channels;
     let mut chans: Vec<C> = (0..n).map(|c| C::create(cfg, tck_ps, c, opts)).collect();
@@ -126,7 +127,7 @@ fn run<C: Channel>(
     for (i, r) in reqs.iter().enumerate() {
         let l = map
             .decode(r.addr)
-            .map_err(|e| format!("request {} of the trace: {e}", i + 1))?;
+            .map_err(|e| MemError::Address(format!("request {} of the trace: {e}", i + 1)))?;
         chan_of.push(l.channel as usize);
     }
     let mut c = 0u64;

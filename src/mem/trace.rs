@@ -7,6 +7,7 @@
 
 use std::io::Write;
 
+use super::MemError;
 use super::config::MemCfg;
 use crate::util::rng::Rng;
 
@@ -18,46 +19,50 @@ pub struct TraceReq {
 }
 
 /// Parses one line (`lineno` counts from 1, for the message).
-pub fn parse_line(line: &str, lineno: usize) -> Result<Option<TraceReq>, String> {
+pub fn parse_line(line: &str, lineno: usize) -> Result<Option<TraceReq>, MemError> {
     let mut f = line.split_whitespace();
     let Some(a) = f.next() else {
         return Ok(None);
     };
     let (Some(op), Some(cy)) = (f.next(), f.next()) else {
-        return Err(format!(
+        return Err(MemError::Trace(format!(
             "trace line {lineno}: '{line}' has fewer than 3 fields; expected '<hex address> <READ|WRITE> <cycle>', e.g. '0x2000D5C0 READ 30'"
-        ));
+        )));
     };
     if let Some(x) = f.next() {
-        return Err(format!(
+        return Err(MemError::Trace(format!(
             "trace line {lineno}: unexpected 4th field '{x}'; expected '<hex address> <op> <cycle>'"
-        ));
+        )));
     }
     let hex = a
         .strip_prefix("0x")
         .or_else(|| a.strip_prefix("0X"))
         .unwrap_or(a);
     let addr = u64::from_str_radix(hex, 16).map_err(|e| {
-        format!("trace line {lineno}: address '{a}' is not a hexadecimal number ({e})")
+        MemError::Trace(format!(
+            "trace line {lineno}: address '{a}' is not a hexadecimal number ({e})"
+        ))
     })?;
     let cycle = cy.parse::<u64>().map_err(|e| {
-        format!("trace line {lineno}: cycle '{cy}' is not a non-negative decimal integer ({e})")
+        MemError::Trace(format!(
+            "trace line {lineno}: cycle '{cy}' is not a non-negative decimal integer ({e})"
+        ))
     })?;
     let write = matches!(op, "WRITE" | "write" | "P_MEM_WR" | "BOFF");
     Ok(Some(TraceReq { addr, write, cycle }))
 }
 
 /// Parses a whole trace and checks every address against `capacity`.
-pub fn parse(text: &str, capacity: u64) -> Result<Vec<TraceReq>, String> {
+pub fn parse(text: &str, capacity: u64) -> Result<Vec<TraceReq>, MemError> {
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate() {
         if let Some(r) = parse_line(line, i + 1)? {
             if r.addr >= capacity {
-                return Err(format!(
+                return Err(MemError::Trace(format!(
                     "trace line {}: address {:#x} is beyond the configured capacity of {capacity} bytes ({capacity:#x}); use a config with a larger mem.geometry or fix the trace",
                     i + 1,
                     r.addr
-                ));
+                )));
             }
             out.push(r);
         }
@@ -65,10 +70,12 @@ pub fn parse(text: &str, capacity: u64) -> Result<Vec<TraceReq>, String> {
     Ok(out)
 }
 
-pub fn read_file(path: &std::path::Path, capacity: u64) -> Result<Vec<TraceReq>, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read trace '{}': {e}", path.display()))?;
-    parse(&text, capacity).map_err(|e| format!("{} ({})", e, path.display()))
+pub fn read_file(path: &std::path::Path, capacity: u64) -> Result<Vec<TraceReq>, MemError> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        let msg = format!("cannot read trace '{}': {e}", path.display());
+        MemError::File(crate::util::FileError::new(path, e, msg))
+    })?;
+    parse(&text, capacity).map_err(|e| MemError::Trace(format!("{} ({})", e, path.display())))
 }
 
 /// Writes requests in DRAMsim3's format.
@@ -102,11 +109,11 @@ pub fn generate(
     cfg: &MemCfg,
     interval: u64,
     write_fraction: f64,
-) -> Result<Vec<TraceReq>, String> {
+) -> Result<Vec<TraceReq>, MemError> {
     if !(0.0..=1.0).contains(&write_fraction) {
-        return Err(format!(
+        return Err(MemError::Trace(format!(
             "--write-fraction {write_fraction} is not a probability in [0, 1]"
-        ));
+        )));
     }
     let line = cfg.geometry.line_bytes as u64;
     let lines = cfg.geometry.capacity() / line;
@@ -170,10 +177,10 @@ pub fn generate(
             }
         }
         _ => {
-            return Err(format!(
+            return Err(MemError::Unknown(format!(
                 "unknown trace generator '{kind}'; available: {}",
                 GENERATORS.join(", ")
-            ));
+            )));
         }
     }
     Ok(out)
@@ -197,13 +204,17 @@ mod tests {
             }
         );
         assert!(r[1].write && r[2].write && r[3].write && !r[4].write);
-        let e = parse("0x10 READ 1\nzz READ 2\n", 1 << 32).unwrap_err();
+        let e = parse("0x10 READ 1\nzz READ 2\n", 1 << 32)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("hexadecimal"), "{e}");
-        let e = parse("0x10 READ\n", 1 << 32).unwrap_err();
+        let e = parse("0x10 READ\n", 1 << 32).unwrap_err().to_string();
         assert!(e.contains("line 1") && e.contains("fewer than 3"), "{e}");
-        let e = parse("0x10 READ -4\n", 1 << 32).unwrap_err();
+        let e = parse("0x10 READ -4\n", 1 << 32).unwrap_err().to_string();
         assert!(e.contains("cycle '-4'"), "{e}");
-        let e = parse("0x10 READ 1\n0x100000000 READ 2\n", 1 << 32).unwrap_err();
+        let e = parse("0x10 READ 1\n0x100000000 READ 2\n", 1 << 32)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("beyond"), "{e}");
     }
 

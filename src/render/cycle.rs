@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use super::queues::{RayQueues, queue_lines_written};
-use super::{Prepared, RenderCfg, WaveStats, shade_consts};
+use super::{Prepared, RenderCfg, RenderError, WaveStats, shade_consts};
 
 /// How to build and run the chip in cycle mode.
 #[derive(Clone, Debug, Default)]
@@ -188,7 +188,7 @@ impl FrameChip {
         cfg: &RenderCfg,
         p: &Prepared,
         pixels: u32,
-    ) -> Result<FrameChip, String> {
+    ) -> Result<FrameChip, RenderError> {
         let run = cfg.chip.as_deref().cloned().unwrap_or_default();
         let mut chip_cfg = run.config;
         chip_cfg.accel = cfg.accel.clone();
@@ -219,7 +219,7 @@ impl FrameChip {
             let cycles =
                 estimated_frame_cycles(pixels as u64, scene.settings.bounces, chip_cfg.chip.tms);
             tracer.expect_end(2 * cycles * chip_cfg.clocks.core_ps);
-            c.sim.attach_tracer(tracer).map_err(|e| e.to_string())?;
+            c.sim.attach_tracer(tracer)?;
         }
         if cfg.verify || cfg.dump_rays.is_some() {
             c.enable_root_log();
@@ -245,21 +245,21 @@ impl FrameChip {
         mem: &mut crate::contract::SparseMem,
         pixels: u32,
         first: bool,
-    ) -> Result<crate::machine::WaveCycles, String> {
+    ) -> Result<crate::machine::WaveCycles, RenderError> {
         if self.tp_shading && !first {
-            self.chip.shade_and_trace(mem, pixels)
+            Ok(self.chip.shade_and_trace(mem, pixels)?)
         } else {
             let rays = q.take_diverted();
-            self.chip.trace_wave(mem, &rays)
+            Ok(self.chip.trace_wave(mem, &rays)?)
         }
     }
 
     /// Closes the waveform, if one is written.
-    pub(super) fn finish_trace(&mut self) -> Result<Option<VcdInfo>, String> {
+    pub(super) fn finish_trace(&mut self) -> Result<Option<VcdInfo>, RenderError> {
         let Some(r) = self.chip.sim.finish_trace() else {
             return Ok(None);
         };
-        let t = r.map_err(|e| format!("writing the VCD file failed: {e}"))?;
+        let t = r.map_err(RenderError::Vcd)?;
         Ok(Some(VcdInfo {
             units: t.units,
             signals: t.signals,

@@ -12,6 +12,7 @@
 
 mod cycle;
 pub mod energy;
+mod error;
 mod frame;
 pub mod output;
 mod prepare;
@@ -23,6 +24,7 @@ pub use cycle::{
     ChipFrame, ChipRun, ChipTrace, VcdInfo, WALL_S_PER_PIXEL_HIT, estimated_frame_cycles,
     long_frame_note,
 };
+pub use error::RenderError;
 pub use frame::{AccelInfo, Frame, Progress, WaveStats};
 pub use prepare::{Prepared, prepare};
 pub use trace::trace_rays;
@@ -104,7 +106,7 @@ pub fn render(
     mode: Mode,
     cfg: &RenderCfg,
     progress: &mut dyn FnMut(&Progress),
-) -> Result<Frame, String> {
+) -> Result<Frame, RenderError> {
     render_hooked(scene, mode, cfg, progress, None)
 }
 
@@ -113,10 +115,11 @@ pub fn render(
 /// method may fail the frame with its error.
 pub trait FunctionalHooks {
     /// The frame is laid out (`p`) and its `pixels` chosen; no ray yet.
-    fn begin(&mut self, scene: &Scene, p: &Prepared, pixels: u32) -> Result<(), String>;
+    fn begin(&mut self, scene: &Scene, p: &Prepared, pixels: u32) -> Result<(), RenderError>;
     /// Ray generation is done: the primary rays of the pixels `sample`
     /// (raster indices; ray and path `i` is `sample[i]`) are in the root queue.
-    fn generated(&mut self, scene: &Scene, p: &Prepared, sample: &[u32]) -> Result<(), String>;
+    fn generated(&mut self, scene: &Scene, p: &Prepared, sample: &[u32])
+    -> Result<(), RenderError>;
     /// Before each segment pass of wavefront `wave` that holds rays (segment
     /// `s`, admitted in depth-first order), and once after its last
     /// (`u32::MAX`).
@@ -127,14 +130,14 @@ pub trait FunctionalHooks {
         p: &mut Prepared,
         q: &RayQueues,
         st: &WaveStats,
-    ) -> Result<(), String>;
+    ) -> Result<(), RenderError>;
     /// Wavefront `wave` is traced; its shading pass comes next.
-    fn traced(&mut self, wave: usize, p: &Prepared, q: &RayQueues) -> Result<(), String>;
+    fn traced(&mut self, wave: usize, p: &Prepared, q: &RayQueues) -> Result<(), RenderError>;
     /// A shading pass is done: the shading lines it moved for each pixel
     /// (at most 255).
     fn shaded(&mut self, lines: Vec<u8>);
     /// The frame is traced and shaded.
-    fn end(&mut self) -> Result<(), String>;
+    fn end(&mut self) -> Result<(), RenderError>;
 }
 
 /// [`render`] in functional mode with `hooks` called at its take-over points.
@@ -143,7 +146,7 @@ pub fn render_with_hooks(
     cfg: &RenderCfg,
     progress: &mut dyn FnMut(&Progress),
     hooks: &mut dyn FunctionalHooks,
-) -> Result<Frame, String> {
+) -> Result<Frame, RenderError> {
     render_hooked(scene, Mode::Functional, cfg, progress, Some(hooks))
 }
 
@@ -155,7 +158,7 @@ fn render_hooked(
     cfg: &RenderCfg,
     progress: &mut dyn FnMut(&Progress),
     mut hooks: Option<&mut dyn FunctionalHooks>,
-) -> Result<Frame, String> {
+) -> Result<Frame, RenderError> {
     scene.settings.validate()?;
     let start = Instant::now();
     let mut f = FrameRun::new(scene, mode, cfg)?;
@@ -164,10 +167,11 @@ fn render_hooked(
     }
     if let Some(dir) = &cfg.dump_rays {
         std::fs::create_dir_all(dir).map_err(|e| {
-            format!(
+            let msg = format!(
                 "cannot create '{}': {e}; choose a writable --dump-rays directory",
                 dir.display()
-            )
+            );
+            RenderError::File(crate::util::FileError::new(dir, e, msg))
         })?;
     }
     f.generate()?;
@@ -214,7 +218,7 @@ struct FrameRun<'a> {
 impl<'a> FrameRun<'a> {
     /// Lays the scene out, checks the pixel sample and, in cycle mode, builds
     /// the chip.
-    fn new(scene: &'a Scene, mode: Mode, cfg: &'a RenderCfg) -> Result<FrameRun<'a>, String> {
+    fn new(scene: &'a Scene, mode: Mode, cfg: &'a RenderCfg) -> Result<FrameRun<'a>, RenderError> {
         let p = prepare(scene, cfg)?;
         let sample = pixel_sample(cfg, scene.settings.width, scene.settings.height)?;
         let pixels = sample.len() as u32;
@@ -253,7 +257,7 @@ impl<'a> FrameRun<'a> {
     }
 
     /// Ray generation: path state and primary rays into the root segment's queue.
-    fn generate(&mut self) -> Result<(), String> {
+    fn generate(&mut self) -> Result<(), RenderError> {
         let (scene, p) = (self.scene, &mut self.p);
         let (w, h) = (scene.settings.width, scene.settings.height);
         let root_entry = p.image.root_entry.encode();
@@ -288,7 +292,7 @@ impl<'a> FrameRun<'a> {
         &mut self,
         progress: &mut dyn FnMut(&Progress),
         mut hooks: Option<&mut (dyn FunctionalHooks + 'h)>,
-    ) -> Result<bool, String> {
+    ) -> Result<bool, RenderError> {
         let mut prog = Progress {
             wave: self.waves.len(),
             waves_max: self.scene.settings.bounces as usize + 1,
@@ -330,7 +334,7 @@ impl<'a> FrameRun<'a> {
         prog: &mut Progress,
         progress: &mut dyn FnMut(&Progress),
         mut hooks: Option<&mut (dyn FunctionalHooks + 'h)>,
-    ) -> Result<(), String> {
+    ) -> Result<(), RenderError> {
         let wave = self.waves.len();
         let mut hook =
             |s: u32, p: &mut Prepared, q: &RayQueues, st: &WaveStats| match hooks.as_deref_mut() {
@@ -357,7 +361,7 @@ impl<'a> FrameRun<'a> {
     /// Cycle mode: one chip run (the last wavefront's shading on the TPs, if
     /// there, then this wavefront's trace) and its counts; `true` if it was
     /// the last (its shading emitted nothing).
-    fn trace_on_chip(&mut self) -> Result<bool, String> {
+    fn trace_on_chip(&mut self) -> Result<bool, RenderError> {
         let chip = self.chip.as_mut().expect("built for cycle mode");
         let first = self.waves.is_empty();
         let w = chip.run(&mut self.q, &mut self.p.mem, self.pixels, first)?;
@@ -383,7 +387,7 @@ impl<'a> FrameRun<'a> {
 
     /// Checks this wavefront's rays against the reference (`--verify`) and
     /// dumps them (`--dump-rays`).
-    fn check_wave(&mut self) -> Result<(), String> {
+    fn check_wave(&mut self) -> Result<(), RenderError> {
         if self.cfg.verify {
             self.verified += verify(&self.p, self.scene, &self.rays_this_wave)?;
         }
@@ -401,7 +405,7 @@ impl<'a> FrameRun<'a> {
         &mut self,
         (r0, w0): (u64, u64),
         hooks: Option<&mut (dyn FunctionalHooks + 'h)>,
-    ) -> Result<(), String> {
+    ) -> Result<(), RenderError> {
         let mut next_work = Vec::new();
         let mut next = WaveStats::default();
         // Time sampling scales a shading pass's windows by its lines per pixel.
@@ -444,7 +448,7 @@ impl<'a> FrameRun<'a> {
     }
 
     /// The frame: its totals, its image and, in cycle mode, the chip's figures.
-    fn finish(mut self, start: Instant) -> Result<Frame, String> {
+    fn finish(mut self, start: Instant) -> Result<Frame, RenderError> {
         let mut total = WaveStats::default();
         for wv in &self.waves {
             total.add(wv);
@@ -483,26 +487,28 @@ impl<'a> FrameRun<'a> {
 
 /// The pixels a frame renders (ray and path `i` is the `i`-th): all of them,
 /// or `cfg.pixels` once checked.
-fn pixel_sample(cfg: &RenderCfg, w: u32, h: u32) -> Result<Vec<u32>, String> {
+fn pixel_sample(cfg: &RenderCfg, w: u32, h: u32) -> Result<Vec<u32>, RenderError> {
     let Some(v) = &cfg.pixels else {
         return Ok((0..w * h).collect());
     };
     if v.is_empty() {
-        return Err("the pixel sample is empty; keep at least one pixel".into());
+        return Err(RenderError::Invalid(
+            "the pixel sample is empty; keep at least one pixel".into(),
+        ));
     }
     if let Some(k) = v.windows(2).position(|x| x[0] >= x[1]) {
-        return Err(format!(
+        return Err(RenderError::Invalid(format!(
             "the pixel sample is not increasing at entry {} ({} then {}); list each pixel once, in raster order",
             k + 1,
             v[k],
             v[k + 1]
-        ));
+        )));
     }
     if v[v.len() - 1] >= w * h {
-        return Err(format!(
+        return Err(RenderError::Invalid(format!(
             "the pixel sample lists pixel {}, outside the {w}x{h} frame",
             v[v.len() - 1]
-        ));
+        )));
     }
     Ok(v.clone())
 }
@@ -519,7 +525,7 @@ fn shade_pixel(
     keep: bool,
     list: &mut Vec<RayRec>,
     next_work: &mut Vec<u32>,
-) -> Result<(), String> {
+) -> Result<(), RenderError> {
     let pa = p.map.path_addr(pix as u64);
     let path = PathRec::read(&p.mem, pa);
     st.shading_lines += 1;

@@ -2,7 +2,8 @@
 
 use std::path::Path;
 
-use super::Frame;
+use super::{Frame, RenderError};
+use crate::util::FileError;
 
 /// Display transform: clamp to [0, 1] and encode with the sRGB curve.
 fn encode(x: f32) -> u8 {
@@ -24,7 +25,7 @@ pub fn rgb8(c: glam::Vec3) -> [u8; 3] {
     [encode(c.x), encode(c.y), encode(c.z)]
 }
 
-pub fn write_png(frame: &Frame, path: &Path) -> Result<(), String> {
+pub fn write_png(frame: &Frame, path: &Path) -> Result<(), RenderError> {
     let mut buf = Vec::with_capacity(frame.radiance.len() * 3);
     for c in &frame.radiance {
         buf.extend_from_slice(&rgb8(*c));
@@ -36,11 +37,9 @@ pub fn write_png(frame: &Frame, path: &Path) -> Result<(), String> {
         frame.height,
         image::ColorType::Rgb8,
     )
-    .map_err(|e| {
-        format!(
-            "cannot write the image '{}': {e}; choose a writable --out",
-            path.display()
-        )
+    .map_err(|source| RenderError::Png {
+        path: path.to_path_buf(),
+        source,
     })
 }
 
@@ -48,7 +47,7 @@ pub fn write_png(frame: &Frame, path: &Path) -> Result<(), String> {
 /// row per pass in retirement order: the chip run (run k > 0 shades wavefront
 /// k - 1, then traces wavefront k), the segment, its rays, and the core cycles
 /// it was admitted (took a scene-buffer slot) and retired.
-pub fn write_pass_log(frame: &Frame, path: &Path) -> Result<(), String> {
+pub fn write_pass_log(frame: &Frame, path: &Path) -> Result<(), RenderError> {
     use std::fmt::Write;
     let mut s = String::from("run,segment,rays,admit,retire\n");
     for (run, passes) in frame.passes.iter().enumerate() {
@@ -57,25 +56,27 @@ pub fn write_pass_log(frame: &Frame, path: &Path) -> Result<(), String> {
         }
     }
     std::fs::write(path, s).map_err(|e| {
-        format!(
+        let msg = format!(
             "cannot write the pass log '{}': {e}; choose a writable --pass-log",
             path.display()
-        )
+        );
+        RenderError::File(FileError::new(path, e, msg))
     })
 }
 
-pub fn write_json(frame: &Frame, path: &Path) -> Result<(), String> {
+pub fn write_json(frame: &Frame, path: &Path) -> Result<(), RenderError> {
     write_stats(frame, path)
 }
 
 /// Writes `stats` as pretty JSON to `path` (`--stats`).
-pub fn write_stats(stats: &impl serde::Serialize, path: &Path) -> Result<(), String> {
+pub fn write_stats(stats: &impl serde::Serialize, path: &Path) -> Result<(), RenderError> {
     let text = serde_json::to_string_pretty(stats).expect("stats serialise");
     std::fs::write(path, text).map_err(|e| {
-        format!(
+        let msg = format!(
             "cannot write the statistics '{}': {e}; choose a writable --stats",
             path.display()
-        )
+        );
+        RenderError::File(FileError::new(path, e, msg))
     })
 }
 

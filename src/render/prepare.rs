@@ -2,7 +2,7 @@
 
 use std::time::Instant;
 
-use super::{AccelInfo, RenderCfg};
+use super::{AccelInfo, RenderCfg, RenderError};
 use crate::accel::{Bvh, SceneImage, Segmentation};
 use crate::contract::{MemoryMap, SparseMem};
 use crate::scene::Scene;
@@ -18,7 +18,7 @@ pub struct Prepared {
 }
 
 /// Builds the BVH and the segments and writes the scene stream into a fresh image.
-pub fn prepare(scene: &Scene, cfg: &RenderCfg) -> Result<Prepared, String> {
+pub fn prepare(scene: &Scene, cfg: &RenderCfg) -> Result<Prepared, RenderError> {
     cfg.memory.validate()?;
     cfg.accel.validate(cfg.memory.row_bytes)?;
     let bvh = Bvh::build(&scene.triangles, &cfg.accel.bvh)?;

@@ -10,6 +10,7 @@
 //! 32 B rays per 64 B line; the header costs one line write; reading a bucket reads
 //! the lines of its header and its rays.
 
+use super::RenderError;
 use crate::contract::{
     BUCKET_HEADER_BYTES, Boundary, BucketHeader, HIT_BYTES, MemoryMap, QueueRec, RAY_BYTES, RayRec,
     SHADOW_BIT, SparseMem, lines_touched,
@@ -100,14 +101,14 @@ impl RayQueues {
         self.len(seg) == 0
     }
 
-    fn new_bucket(&mut self, seg: u32) -> Result<u64, String> {
+    fn new_bucket(&mut self, seg: u32) -> Result<u64, RenderError> {
         let q = &mut self.queues[seg as usize];
         if q.chunk_left.is_empty() {
             let Some(c) = self.free_chunks.pop() else {
-                return Err(format!(
+                return Err(RenderError::BucketPool(format!(
                     "the ray-bucket pool ran dry ({} live buckets) while queueing rays for segment {seg}; raise memory.bucket_pool_bytes",
                     self.live_buckets
-                ));
+                )));
             };
             self.chunk_live[c as usize] = self.per_chunk as u8;
             q.chunk_left = (0..self.per_chunk)
@@ -157,7 +158,7 @@ impl RayQueues {
         map: &MemoryMap,
         seg: u32,
         ray: &RayRec,
-    ) -> Result<(), String> {
+    ) -> Result<(), RenderError> {
         if let Some(d) = &mut self.diverted {
             debug_assert_eq!(seg, 0, "the host emits into the root queue only");
             d.push(*ray);

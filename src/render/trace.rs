@@ -4,7 +4,7 @@
 
 use super::queues::RayQueues;
 use super::traverse::{self, SegmentView, reference_trace, traverse_segment};
-use super::{Mode, Prepared, RenderCfg, WaveStats, prepare};
+use super::{Mode, Prepared, RenderCfg, RenderError, WaveStats, prepare};
 use crate::contract::{HitRec, MemoryMap, RayRec, SHADOW_BIT, SegEntry, SparseMem, lines_touched};
 use crate::scene::Scene;
 use glam::Vec3;
@@ -34,7 +34,7 @@ pub(super) fn emit(
     ray: &RayRec,
     keep: bool,
     list: &mut Vec<RayRec>,
-) -> Result<(), String> {
+) -> Result<(), RenderError> {
     q.push(&mut p.mem, &p.map, 0, ray)?;
     HitRec::NONE.write(&mut p.mem, p.map.hit_addr(ray.hit_index()));
     st.hit_lines_written += 1;
@@ -62,7 +62,7 @@ pub(super) fn trace_functional(
     st: &mut WaveStats,
     progress: &mut dyn FnMut(u64, u64),
     hook: &mut SegHook,
-) -> Result<(), String> {
+) -> Result<(), RenderError> {
     let mut done = 0u64;
     let mut rays = Vec::new();
     let mut stack = Vec::new();
@@ -110,7 +110,7 @@ pub(super) fn trace_functional(
 }
 
 pub(super) type SegHook<'a> =
-    dyn FnMut(u32, &mut Prepared, &RayQueues, &WaveStats) -> Result<(), String> + 'a;
+    dyn FnMut(u32, &mut Prepared, &RayQueues, &WaveStats) -> Result<(), RenderError> + 'a;
 
 /// The reference: every ray of the root queue traced through the whole BVH.
 pub(super) fn trace_reference(
@@ -138,7 +138,7 @@ pub(super) fn trace_reference(
 
 /// Compares every hit record of the wavefront with the reference traversal:
 /// the closest (t, id) for bounce rays, occluded or not for shadow rays.
-pub(super) fn verify(p: &Prepared, scene: &Scene, rays: &[RayRec]) -> Result<u64, String> {
+pub(super) fn verify(p: &Prepared, scene: &Scene, rays: &[RayRec]) -> Result<u64, RenderError> {
     for ray in rays {
         let got = HitRec::read(&p.mem, p.map.hit_addr(ray.hit_index()));
         let want = reference_trace(
@@ -154,10 +154,10 @@ pub(super) fn verify(p: &Prepared, scene: &Scene, rays: &[RayRec]) -> Result<u64
             got.tri_id == want.tri_id && got.t.to_bits() == want.t.to_bits()
         };
         if !same {
-            return Err(format!(
+            return Err(RenderError::Mismatch(format!(
                 "ray {:#x} (origin {:?}, dir {:?}): traced {:?}, reference {:?}",
                 ray.ray_id, ray.origin, ray.dir, got, want
-            ));
+            )));
         }
     }
     Ok(rays.len() as u64)
@@ -172,7 +172,7 @@ pub fn trace_rays(
     cfg: &RenderCfg,
     mode: Mode,
     rays: &[(Vec3, Vec3, bool)],
-) -> Result<(Vec<HitRec>, WaveStats), String> {
+) -> Result<(Vec<HitRec>, WaveStats), RenderError> {
     let mut sc = scene.clone();
     // Room for one hit-record pair per ray.
     sc.settings.width = rays.len().max(1) as u32;
@@ -206,10 +206,10 @@ pub fn trace_rays(
         )?,
         Mode::Reference => trace_reference(&mut p, &mut q, &sc, &mut st),
         Mode::Cycle => {
-            return Err(
+            return Err(RenderError::Invalid(
                 "trace_rays runs functional or reference mode; render a frame for cycle mode"
                     .into(),
-            );
+            ));
         }
     }
     Ok((
@@ -227,7 +227,7 @@ pub(super) fn dump(
     wave: usize,
     p: &Prepared,
     rays: &[RayRec],
-) -> Result<(), String> {
+) -> Result<(), RenderError> {
     let mut rb = Vec::with_capacity(rays.len() * 32);
     let mut hb = Vec::with_capacity(rays.len() * 16);
     for r in rays {
@@ -249,8 +249,10 @@ pub(super) fn dump(
         (format!("wave{wave}_hits.bin"), hb),
     ] {
         let path = dir.join(name);
-        std::fs::write(&path, bytes)
-            .map_err(|e| format!("cannot write '{}': {e}", path.display()))?;
+        std::fs::write(&path, bytes).map_err(|e| {
+            let msg = format!("cannot write '{}': {e}", path.display());
+            RenderError::File(crate::util::FileError::new(&path, e, msg))
+        })?;
     }
     Ok(())
 }

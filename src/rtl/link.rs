@@ -168,16 +168,18 @@ impl Default for LinkCfg {
 }
 
 impl LinkCfg {
-    pub fn validate(&self, what: &str) -> Result<(), String> {
+    pub fn validate(&self, what: &str) -> Result<(), super::SimError> {
+        let bad = |why| super::SimError::LinkCfg {
+            what: what.to_string(),
+            why,
+        };
         if self.delay == 0 {
-            return Err(format!(
-                "{what}: link delay 0 would be a combinational path between units; set delay >= 1"
+            return Err(bad(
+                "link delay 0 would be a combinational path between units; set delay >= 1",
             ));
         }
         if self.depth == 0 {
-            return Err(format!(
-                "{what}: link depth 0 can hold nothing; set depth >= 1"
-            ));
+            return Err(bad("link depth 0 can hold nothing; set depth >= 1"));
         }
         Ok(())
     }

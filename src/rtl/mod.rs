@@ -22,5 +22,5 @@ pub use sim::{
     round_robin,
 };
 pub use state::{Ram, Reg, State};
-pub use trace::{SharedBuf, TraceSpec, TraceStats, Tracer};
+pub use trace::{SharedBuf, TraceError, TraceSpec, TraceStats, Tracer};
 pub use unit::{Declared, Logic, Next, Status, Unit};

@@ -4,6 +4,7 @@
 
 use crate::config::Config;
 use crate::render::Frame;
+use crate::sampling::SamplingError;
 
 /// A first-order timing estimate of a functional frame: per wavefront the largest
 /// of its resource bounds (DRAM bandwidth, the ray and scene streams' lines per
@@ -81,7 +82,7 @@ pub fn estimate(c: &Config, f: &Frame) -> Estimate {
 
 /// The `paper` preset's DRAM energy model, the bursts per line and the lines
 /// per DRAM row.
-fn paper_dram(c: &Config) -> Result<(crate::mem::energy::EnergyModel, f64, f64), String> {
+fn paper_dram(c: &Config) -> Result<(crate::mem::energy::EnergyModel, f64, f64), SamplingError> {
     preset_dram(c, "paper")
 }
 
@@ -89,7 +90,7 @@ fn paper_dram(c: &Config) -> Result<(crate::mem::energy::EnergyModel, f64, f64),
 fn preset_dram(
     c: &Config,
     preset: &str,
-) -> Result<(crate::mem::energy::EnergyModel, f64, f64), String> {
+) -> Result<(crate::mem::energy::EnergyModel, f64, f64), SamplingError> {
     let g = &c.mem.geometry;
     let m = crate::mem::energy::EnergyModel::new(
         &crate::mem::config::EnergyCfg::by_name(preset, g)?,
@@ -105,7 +106,7 @@ fn preset_dram(
 /// DRAM energy (J, `paper` preset) of `lines` line transfers over `cycles` core
 /// cycles when no DRAM timing was simulated: the bursts of every line, one activate
 /// per row of lines, refresh and active standby for the whole time on every channel.
-pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
+pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, SamplingError> {
     let g = &c.mem.geometry;
     let (m, bursts_per_line, lines_per_row) = paper_dram(c)?;
     let t = &f.total;
@@ -128,8 +129,8 @@ pub fn dram_energy_estimate(c: &Config, f: &Frame, cycles: f64) -> Result<f64, S
 /// DRAM energy (J) of writing one line, `paper` and `physical` preset: its
 /// bursts and a share of an activate (lines written back in address order share
 /// rows).
-pub(super) fn line_write_j(c: &Config) -> Result<[f64; 2], String> {
-    let j = |preset| -> Result<f64, String> {
+pub(super) fn line_write_j(c: &Config) -> Result<[f64; 2], SamplingError> {
+    let j = |preset| -> Result<f64, SamplingError> {
         let (m, bursts_per_line, lines_per_row) = preset_dram(c, preset)?;
         Ok((bursts_per_line * m.wr_burst_pj + m.act_pre_pj / lines_per_row) * 1e-12)
     };
@@ -179,7 +180,7 @@ impl FrameParts {
 
 /// A frame's figures by part, `cycles` given (simulated or estimated), the DRAM
 /// energy simulated or else estimated from the lines.
-pub(super) fn parts(c: &Config, f: &Frame, cycles: f64) -> Result<FrameParts, String> {
+pub(super) fn parts(c: &Config, f: &Frame, cycles: f64) -> Result<FrameParts, SamplingError> {
     let t = &f.total;
     let e = crate::render::energy::frame_energy(c, f);
     let dram = match f.chip.as_ref().and_then(|ch| ch.dram) {
@@ -198,6 +199,6 @@ pub(super) fn parts(c: &Config, f: &Frame, cycles: f64) -> Result<FrameParts, St
 }
 
 /// A frame's cycles (given: simulated or estimated), DRAM lines and energy.
-pub(super) fn figures(c: &Config, f: &Frame, cycles: f64) -> Result<[f64; 3], String> {
+pub(super) fn figures(c: &Config, f: &Frame, cycles: f64) -> Result<[f64; 3], SamplingError> {
     Ok(parts(c, f, cycles)?.combine())
 }

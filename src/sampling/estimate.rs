@@ -1,6 +1,7 @@
 //! Time sampling's estimate of a frame's chip figures from its windows and
 //! the functional model's counts.
 
+use crate::sampling::SamplingError;
 use serde::Serialize;
 
 use super::analytic::{FrameParts, line_write_j};
@@ -50,7 +51,7 @@ struct Windowed {
 /// scaled by the items left over the measured items. Also the relative
 /// standard error of the rest's cycles, lines and DRAM energy from the
 /// windows' spread (`None` where a wavefront had fewer than two windows).
-fn windowed_parts(c: &Config, f: &Frame, rec: &WindowRecord) -> Result<Windowed, String> {
+fn windowed_parts(c: &Config, f: &Frame, rec: &WindowRecord) -> Result<Windowed, SamplingError> {
     let wb_j = line_write_j(c)?;
     let Parts {
         mut total,
@@ -212,7 +213,7 @@ pub fn time_sampled(
     config: &Config,
     threads: impl Into<Threads>,
     plan: &WindowPlan,
-) -> Result<TimeSampled, String> {
+) -> Result<TimeSampled, SamplingError> {
     time_sampled_with(
         scene,
         config,
@@ -229,7 +230,7 @@ pub fn time_sampled_with(
     config: &Config,
     mut rc: RenderCfg,
     plan: &WindowPlan,
-) -> Result<TimeSampled, String> {
+) -> Result<TimeSampled, SamplingError> {
     plan.validate()?;
     let mut gddr5 = config.clone();
     gddr5.chip.memory.model = MemoryModel::Gddr5;

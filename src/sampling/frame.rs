@@ -4,6 +4,7 @@
 //! borrowed from its neighbours, or over a sample of its rays); at the later
 //! segment boundaries they hand the chip its windows (`windows.rs`).
 
+use super::error::hook;
 use super::record::WorkSoFar;
 use super::windows::{WindowSpec, Windows};
 use super::{
@@ -12,7 +13,8 @@ use super::{
 };
 use crate::contract::RayRec;
 use crate::render::queues::{self, RayQueues};
-use crate::render::{self, Frame, FunctionalHooks, Prepared, RenderCfg, WaveStats};
+use crate::render::{self, Frame, FunctionalHooks, Prepared, RenderCfg, RenderError, WaveStats};
+use crate::sampling::SamplingError;
 use crate::scene::Scene;
 use crate::units::shade::{next_f32, pixel_seed};
 
@@ -22,7 +24,7 @@ pub fn render_windows(
     scene: &Scene,
     rc: &RenderCfg,
     plan: &WindowPlan,
-) -> Result<(Frame, WindowRecord), String> {
+) -> Result<(Frame, WindowRecord), SamplingError> {
     let mut hooks = Sampling {
         plan,
         rc,
@@ -30,9 +32,9 @@ pub fn render_windows(
         record: None,
     };
     let frame = render::render_with_hooks(scene, rc, &mut |_| {}, &mut hooks)?;
-    let record = hooks
-        .record
-        .ok_or("the functional frame ended before its time sampling did")?;
+    let record = hooks.record.ok_or_else(|| {
+        SamplingError::Uncovered("the functional frame ended before its time sampling did".into())
+    })?;
     Ok((frame, record))
 }
 
@@ -91,16 +93,69 @@ impl Default for Wave {
 }
 
 impl FunctionalHooks for Sampling<'_> {
-    fn begin(&mut self, scene: &Scene, p: &Prepared, pixels: u32) -> Result<(), String> {
+    fn begin(&mut self, scene: &Scene, p: &Prepared, pixels: u32) -> Result<(), RenderError> {
+        self.start(scene, p, pixels).map_err(hook)
+    }
+
+    fn generated(
+        &mut self,
+        scene: &Scene,
+        p: &Prepared,
+        sample: &[u32],
+    ) -> Result<(), RenderError> {
+        match self.run.as_mut() {
+            Some(r) => r.emit_window(scene, p, sample).map_err(hook),
+            None => Ok(()),
+        }
+    }
+
+    fn segment(
+        &mut self,
+        wave: usize,
+        s: u32,
+        p: &mut Prepared,
+        q: &RayQueues,
+        st: &WaveStats,
+    ) -> Result<(), RenderError> {
+        match self.run.as_mut() {
+            Some(r) => r.segment(wave, s, p, q, st).map_err(hook),
+            None => Ok(()),
+        }
+    }
+
+    fn traced(&mut self, wave: usize, p: &Prepared, q: &RayQueues) -> Result<(), RenderError> {
+        match self.run.as_mut() {
+            Some(r) => r.traced(wave, p, q).map_err(hook),
+            None => Ok(()),
+        }
+    }
+
+    fn shaded(&mut self, lines: Vec<u8>) {
+        if let Some(r) = self.run.as_mut() {
+            r.windows.rec.shade_lines.push(lines);
+        }
+    }
+
+    fn end(&mut self) -> Result<(), RenderError> {
+        if let Some(r) = self.run.take() {
+            self.record = Some(r.windows.finish().map_err(hook)?);
+        }
+        Ok(())
+    }
+}
+
+impl Sampling<'_> {
+    /// The frame is laid out: checks the plan and builds the windows' chip.
+    fn start(&mut self, scene: &Scene, p: &Prepared, pixels: u32) -> Result<(), SamplingError> {
         self.plan.validate()?;
         let run = self.rc.chip.as_deref().cloned().unwrap_or_default();
         let mut c = run.config;
         c.accel = self.rc.accel.clone();
         c.memory = self.rc.memory.clone();
         if c.chip.shading != crate::config::Shading::Tps {
-            return Err(
+            return Err(SamplingError::Invalid(
                 "time sampling needs the shading pass on the TPs (chip.shading = \"tps\")".into(),
-            );
+            ));
         }
         let mut w = Windows::new(
             self.plan.clone(),
@@ -123,53 +178,17 @@ impl FunctionalHooks for Sampling<'_> {
         });
         Ok(())
     }
-
-    fn generated(&mut self, scene: &Scene, p: &Prepared, sample: &[u32]) -> Result<(), String> {
-        match self.run.as_mut() {
-            Some(r) => r.emit_window(scene, p, sample),
-            None => Ok(()),
-        }
-    }
-
-    fn segment(
-        &mut self,
-        wave: usize,
-        s: u32,
-        p: &mut Prepared,
-        q: &RayQueues,
-        st: &WaveStats,
-    ) -> Result<(), String> {
-        match self.run.as_mut() {
-            Some(r) => r.segment(wave, s, p, q, st),
-            None => Ok(()),
-        }
-    }
-
-    fn traced(&mut self, wave: usize, p: &Prepared, q: &RayQueues) -> Result<(), String> {
-        match self.run.as_mut() {
-            Some(r) => r.traced(wave, p, q),
-            None => Ok(()),
-        }
-    }
-
-    fn shaded(&mut self, lines: Vec<u8>) {
-        if let Some(r) = self.run.as_mut() {
-            r.windows.rec.shade_lines.push(lines);
-        }
-    }
-
-    fn end(&mut self) -> Result<(), String> {
-        if let Some(r) = self.run.take() {
-            self.record = Some(r.windows.finish()?);
-        }
-        Ok(())
-    }
 }
 
 impl Run {
     /// The host emitting the primary rays: a window over the first pixels of
     /// `sample`, with the camera rays they have in the frame.
-    fn emit_window(&mut self, scene: &Scene, p: &Prepared, sample: &[u32]) -> Result<(), String> {
+    fn emit_window(
+        &mut self,
+        scene: &Scene,
+        p: &Prepared,
+        sample: &[u32],
+    ) -> Result<(), SamplingError> {
         let (w, h) = (scene.settings.width, scene.settings.height);
         let root_entry = p.image.root_entry.encode();
         let n = (self.plan.shade_warm.saturating_add(self.plan.shade_measure))
@@ -201,7 +220,7 @@ impl Run {
         p: &mut Prepared,
         q: &RayQueues,
         st: &WaveStats,
-    ) -> Result<(), String> {
+    ) -> Result<(), SamplingError> {
         let now = WorkSoFar::of(st, q);
         if let Some((seg, rays, b)) = self.wave.prev.take() {
             self.wave.segs.push(now.since(&b, seg, rays));
@@ -227,7 +246,7 @@ impl Run {
         s: u32,
         p: &mut Prepared,
         q: &RayQueues,
-    ) -> Result<(), String> {
+    ) -> Result<(), SamplingError> {
         let plan = &self.plan;
         let last = self.last;
         // Borrowing needs neighbours alike: a wavefront whose rays
@@ -310,7 +329,7 @@ impl Run {
         rays: u64,
         p: &Prepared,
         q: &RayQueues,
-    ) -> Result<(), String> {
+    ) -> Result<(), SamplingError> {
         let plan = &self.plan;
         let every = rays.div_ceil(plan.wave_rays);
         let (b, kept) = q.boundary_compact(
@@ -345,7 +364,7 @@ impl Run {
         s: u32,
         p: &Prepared,
         q: &RayQueues,
-    ) -> Result<(), String> {
+    ) -> Result<(), SamplingError> {
         let n = q.len(s);
         let every = n.div_ceil(self.plan.root_window_rays(wave));
         let (b, kept) =
@@ -370,7 +389,7 @@ impl Run {
         k: u64,
         p: &Prepared,
         q: &RayQueues,
-    ) -> Result<(), String> {
+    ) -> Result<(), SamplingError> {
         if self.wave.tail_started {
             return Ok(());
         }
@@ -417,7 +436,7 @@ impl Run {
 
     /// After wavefront `wave`'s trace: its record, then the windows of the
     /// shading pass that follows, with the bucket pool as the trace left it.
-    fn traced(&mut self, wave: usize, p: &Prepared, q: &RayQueues) -> Result<(), String> {
+    fn traced(&mut self, wave: usize, p: &Prepared, q: &RayQueues) -> Result<(), SamplingError> {
         let Wave {
             segs,
             tail_from,

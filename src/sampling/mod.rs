@@ -25,6 +25,7 @@
 
 mod analytic;
 mod counts;
+mod error;
 mod estimate;
 mod frame;
 mod output;
@@ -36,6 +37,7 @@ mod windows;
 
 pub use analytic::{Estimate, dram_energy_estimate, estimate};
 pub use counts::root_between;
+pub use error::SamplingError;
 pub use estimate::{TimeSampled, WindowEstimate, WindowPart, time_sampled, time_sampled_with};
 pub use frame::render_windows;
 pub use output::{window_summary, write_json_estimated};

@@ -1,6 +1,7 @@
 //! What `render --mode windows` gives the user besides the functional frame's
 //! output: the estimate's summary and JSON.
 
+use crate::sampling::SamplingError;
 use std::path::Path;
 
 use super::{WindowEstimate, kind_times_text};
@@ -13,14 +14,14 @@ pub fn write_json_estimated(
     frame: &Frame,
     estimate: &WindowEstimate,
     path: &Path,
-) -> Result<(), String> {
+) -> Result<(), SamplingError> {
     #[derive(serde::Serialize)]
     struct Estimated<'a> {
         #[serde(flatten)]
         frame: &'a Frame,
         estimate: &'a WindowEstimate,
     }
-    write_stats(&Estimated { frame, estimate }, path)
+    Ok(write_stats(&Estimated { frame, estimate }, path)?)
 }
 
 /// The chip's figures as time sampling estimates them (`render --mode windows`).

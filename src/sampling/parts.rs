@@ -7,6 +7,7 @@ use super::counts::Count::{self, Cycles, SceneLines};
 use super::counts::{Counts, seg_proxies, wave_counts, wave_window, window_counts};
 use super::{SAMPLE_BORROW_FROM, SampleKind, SegWork, WindowPart, WindowRecord, root_between};
 use crate::config::Config;
+use crate::sampling::SamplingError;
 
 /// Measured counts and their functional proxies.
 type Pair = (Counts, Counts);
@@ -197,7 +198,11 @@ fn figs(t: &Counts) -> [f64; 3] {
 impl<'a> Parts<'a> {
     /// Every part of the frame that recorded `rec`, on `c`'s chip; `wb_j`:
     /// the DRAM energy of a line written back.
-    pub(super) fn of(c: &Config, rec: &'a WindowRecord, wb_j: [f64; 2]) -> Result<Self, String> {
+    pub(super) fn of(
+        c: &Config,
+        rec: &'a WindowRecord,
+        wb_j: [f64; 2],
+    ) -> Result<Self, SamplingError> {
         let proxies = rec
             .segs
             .iter()
@@ -472,7 +477,7 @@ impl<'a> Parts<'a> {
     /// Each measured wavefront's rest, scaled from its windows (pooled over
     /// the frame for a wavefront too short to hold one), and the variance of
     /// the rests from the windows' spread.
-    fn rests(&mut self) -> Result<(), String> {
+    fn rests(&mut self) -> Result<(), SamplingError> {
         let (pool_x, pool_p) = self
             .measured
             .nearest(Part::Rest, 0, true, &|_| true)
@@ -491,9 +496,9 @@ impl<'a> Parts<'a> {
                 (&pool_x, &pool_p)
             };
             if px[Cycles] == 0.0 {
-                return Err(
+                return Err(SamplingError::Uncovered(
                     "time sampling measured no window after the head; lower --window-every".into(),
-                );
+                ));
             }
             let r = scale(rest, x, px);
             self.total.add(&r, 1.0);
@@ -524,7 +529,7 @@ impl<'a> Parts<'a> {
     /// of the nearest measured wavefronts before and after it among those that
     /// carry both bounce and shadow rays (neither the first nor the last, if
     /// there are such; else any).
-    fn borrowed_wave(&mut self, wave: usize) -> Result<(), String> {
+    fn borrowed_wave(&mut self, wave: usize) -> Result<(), SamplingError> {
         let rec = self.rec;
         let middle = |v: usize| v > 0 && v < rec.final_wave;
         let segs = &rec.segs[wave];
@@ -582,9 +587,9 @@ impl<'a> Parts<'a> {
                         .nearest(j, wave, false, if mid { &middle } else { &|_| true })
                 })
             else {
-                return Err(format!(
+                return Err(SamplingError::Uncovered(format!(
                     "time sampling: wavefront {wave} borrows the measured wavefronts' ratios, but none was measured; lower --window-waves"
-                ));
+                )));
             };
             let t = scale(&p, &x, &px);
             self.total.add(&t, 1.0);
@@ -602,13 +607,13 @@ impl<'a> Parts<'a> {
     /// shrink), the cycles and DRAM energy lie on the line through them: a
     /// smaller root pass costs more per ray (its start-up and drain weigh
     /// more), see [`root_between`].
-    fn borrowed_root(&mut self, wave: usize) -> Result<(), String> {
+    fn borrowed_root(&mut self, wave: usize) -> Result<(), SamplingError> {
         let m = &self.measured;
         let (x, px) = m
             .nearest(Part::Root, wave, false, &|v| v > 0)
             .or_else(|| m.nearest(Part::Root, wave, false, &|_| true))
             .ok_or_else(|| {
-                format!("time sampling: wavefront {wave} borrows its root pass, but no wavefront took a root window")
+                SamplingError::Uncovered(format!("time sampling: wavefront {wave} borrows its root pass, but no wavefront took a root window"))
             })?;
         let mut t = scale(&self.root_proxy(wave), &x, &px);
         // Each neighbour's root window: its rays (the proxy's cycles) and counts.

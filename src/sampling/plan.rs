@@ -2,6 +2,7 @@
 
 use super::SegWork;
 use crate::render::queues;
+use crate::sampling::SamplingError;
 
 /// Time sampling (`bench speed-error --modes windows`): while the functional model
 /// traces a wavefront segment by segment, the chip takes it over at some segment
@@ -203,45 +204,45 @@ impl WindowPlan {
 }
 
 impl WindowPlan {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SamplingError> {
         if self.head == 0 || self.measure == 0 || self.every == 0 {
-            return Err(format!(
+            return Err(SamplingError::Invalid(format!(
                 "time sampling needs a head, a measured stretch and a period of at least one segment admission (head {}, --window-measure {}, --window-every {}); raise the zero one",
                 self.head, self.measure, self.every
-            ));
+            )));
         }
         if self.wave_every == 0 {
-            return Err(
+            return Err(SamplingError::Invalid(
                 "--window-waves 0 has no period: use 1 to trace every wavefront in windows, N to trace the first, the last and every N-th from the second".into(),
-            );
+            ));
         }
         for (flag, rays) in [
             ("--window-root-rays", self.root_rays),
             ("--window-bounce-root-rays", self.bounce_root_rays),
         ] {
             if rays < 4 {
-                return Err(format!(
+                return Err(SamplingError::Invalid(format!(
                     "{flag} {rays}: the root window needs at least 4 rays (a warm-up and a measured stretch); raise it"
-                ));
+                )));
             }
         }
         if self.measure > self.every {
-            return Err(format!(
+            return Err(SamplingError::Invalid(format!(
                 "windows overlap: --window-measure {} admissions every --window-every {}; measure at most every",
                 self.measure, self.every
-            ));
+            )));
         }
         if !(self.wave_ray_share.is_finite() && self.wave_ray_share >= 0.0) {
-            return Err(format!(
+            return Err(SamplingError::Invalid(format!(
                 "--window-wave-ray-share {}: give a share of a segment's lines, 0 or more (0: sample every short wavefront of many rays)",
                 self.wave_ray_share
-            ));
+            )));
         }
         if self.shade_windows == 0 || self.shade_measure == 0 {
-            return Err(format!(
+            return Err(SamplingError::Invalid(format!(
                 "--shade-windows {} of {} measured items: the shading passes would go unmeasured; use at least one window of one item",
                 self.shade_windows, self.shade_measure
-            ));
+            )));
         }
         Ok(())
     }

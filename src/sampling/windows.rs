@@ -5,6 +5,7 @@
 //! snapshot, and its samples are put back in the order the windows were taken, so
 //! the record is the same as with one thread.
 
+use crate::sampling::SamplingError;
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, sync_channel};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -49,11 +50,11 @@ struct WindowJob {
     spec: WindowSpec,
 }
 
-type Done = (usize, Result<Option<WindowSample>, String>);
+type Done = (usize, Result<Option<WindowSample>, SamplingError>);
 
 impl WindowChip {
     /// Runs one window on a fresh chip; `None` when it measured nothing.
-    fn run(&self, job: WindowJob) -> Result<Option<WindowSample>, String> {
+    fn run(&self, job: WindowJob) -> Result<Option<WindowSample>, SamplingError> {
         let t = Instant::now();
         let shared;
         let cfg = if let WindowKind::Wave { l2_share, .. } = job.spec.what
@@ -101,7 +102,7 @@ struct Pool {
 }
 
 impl Pool {
-    fn new(chip: &Arc<WindowChip>, workers: usize) -> Result<Pool, String> {
+    fn new(chip: &Arc<WindowChip>, workers: usize) -> Result<Pool, SamplingError> {
         let (jobs, rx) = sync_channel::<WindowJob>(workers);
         let rx = Arc::new(Mutex::new(rx));
         let (tx, done) = std::sync::mpsc::channel::<Done>();
@@ -124,9 +125,13 @@ impl Pool {
                             }
                         }
                     })
-                    .map_err(|e| format!("cannot start a time-sampling worker thread: {e}"))
+                    .map_err(|e| {
+                        SamplingError::Worker(format!(
+                            "cannot start a time-sampling worker thread: {e}"
+                        ))
+                    })
             })
-            .collect::<Result<Vec<_>, String>>()?;
+            .collect::<Result<Vec<_>, SamplingError>>()?;
         Ok(Pool {
             jobs: Some(jobs),
             done,
@@ -179,18 +184,18 @@ impl Windows {
         segments: usize,
         sim: crate::rtl::SimOptions,
         pixels: u32,
-    ) -> Result<Windows, String> {
+    ) -> Result<Windows, SamplingError> {
         let share = plan.wave_l2_share;
         if plan.wave_rays > 0 && cfg.chip.l2.enabled {
             let l2 = sample_config(&cfg, share.max(1)).chip.l2;
             if share == 0 || l2.bytes * share != cfg.chip.l2.bytes {
-                return Err(format!(
+                return Err(SamplingError::Invalid(format!(
                     "--window-wave-l2 {share}: a wavefront sample's L2 is chip.l2.bytes ({}) divided by it; give a divisor of it",
                     cfg.chip.l2.bytes
-                ));
+                )));
             }
             l2.validate(cfg.chip.links.delay).map_err(|e| {
-                format!("--window-wave-l2 {share} leaves the sample an impossible L2 ({e}); give a smaller share")
+                SamplingError::Invalid(format!("--window-wave-l2 {share} leaves the sample an impossible L2 ({e}); give a smaller share"))
             })?;
         }
         let workers = sim.threads;
@@ -225,7 +230,7 @@ impl Windows {
 
     /// Takes window `spec` on a snapshot of the image now and records what it
     /// measures.
-    pub(super) fn run(&mut self, p: &Prepared, spec: WindowSpec) -> Result<(), String> {
+    pub(super) fn run(&mut self, p: &Prepared, spec: WindowSpec) -> Result<(), SamplingError> {
         let job = WindowJob {
             order: self.sent,
             mem: p.mem.clone(),
@@ -250,8 +255,8 @@ impl Windows {
     fn keep(
         &mut self,
         order: usize,
-        r: Result<Option<WindowSample>, String>,
-    ) -> Result<(), String> {
+        r: Result<Option<WindowSample>, SamplingError>,
+    ) -> Result<(), SamplingError> {
         self.answered += 1;
         if let Some(s) = r? {
             self.rec.chip_s += s.wall_s;
@@ -261,7 +266,7 @@ impl Windows {
     }
 
     /// Takes in the results that are there (`wait`: all that are owed).
-    fn collect(&mut self, wait: bool) -> Result<(), String> {
+    fn collect(&mut self, wait: bool) -> Result<(), SamplingError> {
         while self.answered < self.sent {
             let pool = self.pool.as_ref().expect("only with workers");
             let (order, r) = if wait {
@@ -282,17 +287,17 @@ impl Windows {
     }
 
     /// A worker died (a panic): close the pool, which raises it here.
-    fn worker_lost(&mut self) -> String {
+    fn worker_lost(&mut self) -> SamplingError {
         if let Some(p) = self.pool.as_mut() {
             p.stop(true);
         }
-        "a time-sampling worker thread stopped without a result".into()
+        SamplingError::Worker("a time-sampling worker thread stopped without a result".into())
     }
 
     /// Waits for every window and returns the record, its samples in the order
     /// the windows were taken. `chip_s` is the windows' summed wall time (more
     /// than the frame's when they ran side by side).
-    pub(super) fn finish(mut self) -> Result<WindowRecord, String> {
+    pub(super) fn finish(mut self) -> Result<WindowRecord, SamplingError> {
         if let Some(p) = self.pool.as_mut() {
             p.jobs = None;
             self.collect(true)?;
@@ -307,7 +312,11 @@ impl Windows {
 
     /// The host emitting the primary rays: its first `rays`, measured after the
     /// shading windows' warm-up (emission is the same for every ray).
-    pub(super) fn emit_window(&mut self, p: &Prepared, rays: Vec<RayRec>) -> Result<(), String> {
+    pub(super) fn emit_window(
+        &mut self,
+        p: &Prepared,
+        rays: Vec<RayRec>,
+    ) -> Result<(), SamplingError> {
         let (mut warm, measure) = (self.plan.shade_warm, self.plan.shade_measure);
         if (rays.len() as u64) < warm.saturating_add(measure) {
             // A frame smaller than the window: all of it, measured.
@@ -334,7 +343,7 @@ impl Windows {
         wave: usize,
         pixels: u32,
         pool: &Boundary,
-    ) -> Result<(), String> {
+    ) -> Result<(), SamplingError> {
         // The pass's start as is (its first `shade_head` items: the caches and
         // the memory's queues fill), then windows over the other pixels.
         let head = self.plan.shade_head.min(pixels as u64) as u32;

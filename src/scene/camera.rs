@@ -41,59 +41,61 @@ fn cross(a: Vec3, b: Vec3) -> Vec3 {
 
 impl Camera {
     /// Checks that the camera defines a view. The messages say what to change.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), super::SceneError> {
         for (name, v) in [
             ("eye", self.eye),
             ("look_at", self.look_at),
             ("up", self.up),
         ] {
             if !finite(v) {
-                return Err(format!(
+                return Err(super::SceneError::Invalid(format!(
                     "camera {name} {v:?} is not finite; give three finite numbers"
-                ));
+                )));
             }
         }
         for (name, v) in [("eye", self.eye), ("look_at", self.look_at)] {
             if beyond(v, MAX_VIEW_COORD) {
-                return Err(format!(
+                return Err(super::SceneError::Invalid(format!(
                     "camera {name} [{:?}, {:?}, {:?}] is beyond ±{MAX_VIEW_COORD:e}, the f32 datapath's limit \
                      for the camera and light (ray arithmetic would overflow); move it closer, \
                      or scale and recentre the scene",
                     v.x, v.y, v.z
-                ));
+                )));
             }
         }
         if !(self.vfov_deg > 0.0 && self.vfov_deg < 180.0) {
-            return Err(format!(
+            return Err(super::SceneError::Invalid(format!(
                 "camera vfov {} degrees is outside (0, 180); use e.g. 45",
                 self.vfov_deg
-            ));
+            )));
         }
         let w = unit(self.look_at - self.eye);
         if self.eye == self.look_at || !finite(w) {
-            return Err(format!(
+            return Err(super::SceneError::Invalid(format!(
                 "camera eye and look_at are the same point {:?}; move one of them",
                 self.eye
-            ));
+            )));
         }
         if self.up == Vec3::ZERO {
-            return Err("camera up is the zero vector; use e.g. [0, 1, 0]".to_string());
+            return Err(super::SceneError::Invalid(
+                "camera up is the zero vector; use e.g. [0, 1, 0]".to_string(),
+            ));
         }
         let up = unit(self.up);
         if !finite(up) {
-            return Err(format!(
+            return Err(super::SceneError::Invalid(format!(
                 "camera up {:?} cannot be normalised in f32 (its squared length over- or \
                  underflows); give a vector of ordinary length, e.g. [0, 1, 0]",
                 self.up
-            ));
+            )));
         }
         // sin of the angle between up and the view direction.
         if cross(w, up).length() < 1e-6 {
-            return Err(format!(
+            return Err(super::SceneError::Invalid(format!(
                 "camera up {:?} is parallel to the view direction {:?}; pick an up \
                  vector across the view, e.g. [0, 1, 0] or [0, 0, 1]",
                 self.up, w
-            ));
+            )));
         }
         Ok(())
     }
@@ -260,7 +262,7 @@ mod tests {
             "vfov",
         ];
         for (c, w) in bad.iter().zip(want) {
-            let e = c.validate().unwrap_err();
+            let e = c.validate().unwrap_err().to_string();
             assert!(e.contains(w), "{e}");
             // Never panics, even on invalid cameras.
             let _ = c.ray(0, 0, 0, 0, (0.5, 0.5));

@@ -8,8 +8,12 @@ use glam::Vec3;
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::{Builder, Camera, DEFAULT_SKY, PointLight, RenderSettings, Scene, Xform, line_of, obj};
+use super::{
+    Builder, Camera, DEFAULT_SKY, PointLight, RenderSettings, Scene, SceneError, Xform, line_of,
+    obj,
+};
 use crate::geom::shapes::{box_mesh, quad, uv_sphere};
+use crate::util::FileError;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -83,24 +87,26 @@ fn finite(a: &[f32]) -> bool {
     a.iter().all(|x| x.is_finite())
 }
 
-pub(crate) fn load(path: &Path) -> Result<Scene, String> {
+pub(crate) fn load(path: &Path) -> Result<Scene, SceneError> {
     let shown = path.display().to_string();
-    let src = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read scene file '{shown}' ({e}); check the path"))?;
+    let src = std::fs::read_to_string(path).map_err(|e| {
+        let msg = format!("cannot read scene file '{shown}' ({e}); check the path");
+        SceneError::File(FileError::new(path, e, msg))
+    })?;
     parse(&src, &shown, path.parent().unwrap_or(Path::new("")))
 }
 
 /// Parses scene text; `shown` names it in errors, mesh paths are relative to `dir`.
-pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, String> {
+pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, SceneError> {
     let d: Desc = toml::from_str(src).map_err(|e| {
         // toml's message does not name the key; quote the line it points at.
         match e.span() {
             Some(s) => {
                 let n = line_of(src, s.start);
                 let text = src.lines().nth(n - 1).unwrap_or("").trim();
-                format!("{shown}:{n}: {} (in `{text}`)", e.message().trim())
+                SceneError::BadDesc(format!("{shown}:{n}: {} (in `{text}`)", e.message().trim()))
             }
-            None => format!("{shown}: {}", e.message().trim()),
+            None => SceneError::BadDesc(format!("{shown}: {}", e.message().trim())),
         }
     })?;
     let at = |start: usize| format!("{shown}:{}", line_of(src, start));
@@ -127,9 +133,7 @@ pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, String>
                     ..s
                 },
             };
-            probe
-                .validate()
-                .map_err(|e| format!("{}: {e}", at(v.span().start)))?;
+            probe.validate().map_err(|e| e.at(at(v.span().start)))?;
             s = probe;
         }
     }
@@ -139,25 +143,25 @@ pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, String>
 
     let mut b = Builder::default();
     if d.mesh.is_empty() {
-        return Err(format!(
+        return Err(SceneError::Empty(format!(
             "{shown}: scene has no triangles (no [[mesh]] entries); add one, e.g. [[mesh]] path = \"model.obj\""
-        ));
+        )));
     }
     for (k, m) in d.mesh.iter().enumerate() {
         let here = format!("{}: mesh {}", at(m.span().start), k + 1);
         add_mesh(&mut b, m.get_ref(), dir, &here)?;
     }
     if b.triangles.is_empty() {
-        return Err(format!(
+        return Err(SceneError::Empty(format!(
             "{shown}: scene has no triangles (all were degenerate)"
-        ));
+        )));
     }
 
     let aspect = s.width as f32 / s.height as f32;
     // The copyable snippet is reported only for what is missing.
     let (auto_cam, auto_light) = b
         .auto_view(aspect, d.camera.is_none(), d.light.is_none())
-        .map_err(|e| format!("{shown}: {e}"))?;
+        .map_err(|e| e.at(shown))?;
     let camera = match &d.camera {
         Some(c) => {
             let cd = c.get_ref();
@@ -167,8 +171,7 @@ pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, String>
                 up: v3(cd.up),
                 vfov_deg: cd.vfov,
             };
-            cam.validate()
-                .map_err(|e| format!("{}: {e}", at(c.span().start)))?;
+            cam.validate().map_err(|e| e.at(at(c.span().start)))?;
             cam
         }
         None => auto_cam,
@@ -180,15 +183,14 @@ pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, String>
                 || !finite(&ld.intensity)
                 || ld.intensity.iter().any(|&x| x < 0.0)
             {
-                return Err(format!(
+                return Err(SceneError::BadDesc(format!(
                     "{}: light position {:?} and intensity {:?} must be finite, intensity >= 0",
                     at(l.span().start),
                     ld.position,
                     ld.intensity
-                ));
+                )));
             }
-            super::light_in_range(v3(ld.position))
-                .map_err(|e| format!("{}: {e}", at(l.span().start)))?;
+            super::light_in_range(v3(ld.position)).map_err(|e| e.at(at(l.span().start)))?;
             PointLight {
                 position: v3(ld.position),
                 intensity: v3(ld.intensity),
@@ -200,10 +202,10 @@ pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, String>
         Some(v) => {
             let a = *v.get_ref();
             if !finite(&a) || a.iter().any(|&x| x < 0.0) {
-                return Err(format!(
+                return Err(SceneError::BadDesc(format!(
                     "{}: sky {a:?} must be finite and >= 0",
                     at(v.span().start)
-                ));
+                )));
             }
             v3(a)
         }
@@ -228,12 +230,12 @@ pub(crate) fn parse(src: &str, shown: &str, dir: &Path) -> Result<Scene, String>
     })
 }
 
-fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(), String> {
+fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(), SceneError> {
     let albedo = match m.albedo {
         Some(a) if !(finite(&a) && a.iter().all(|&x| (0.0..=1.0).contains(&x))) => {
-            return Err(format!(
+            return Err(SceneError::BadDesc(format!(
                 "{here}: albedo {a:?} must be three numbers in [0, 1]"
-            ));
+            )));
         }
         a => a.map(v3),
     };
@@ -247,9 +249,9 @@ fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(),
         && xf.rotate_y_deg.is_finite()
         && xf.translate.is_finite();
     if !ok {
-        return Err(format!(
+        return Err(SceneError::BadDesc(format!(
             "{here}: scale must be finite and > 0, rotate_y and translate finite"
-        ));
+        )));
     }
     let kind = match (&m.path, &m.builtin) {
         (Some(p), None) => {
@@ -263,28 +265,30 @@ fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(),
                 ("corners", m.corners.is_some()),
             ];
             if let Some((k, _)) = unused.iter().find(|u| u.1) {
-                return Err(format!(
+                return Err(SceneError::BadDesc(format!(
                     "{here}: `{k}` applies only to builtin meshes; remove it"
-                ));
+                )));
             }
             let full = dir.join(p);
             if !full.is_file() {
-                return Err(format!(
+                return Err(SceneError::BadDesc(format!(
                     "{here}: mesh file '{}' not found (path = \"{p}\" is relative to the scene file); fix the path",
                     full.display()
-                ));
+                )));
             }
-            obj::load_into(b, &full, &xf, albedo).map_err(|e| format!("{here}: {e}"))?;
+            obj::load_into(b, &full, &xf, albedo).map_err(|e| e.at(here))?;
             return Ok(());
         }
         (None, Some(k)) => k.as_str(),
         (Some(_), Some(_)) => {
-            return Err(format!("{here}: give either `path` or `builtin`, not both"));
+            return Err(SceneError::BadDesc(format!(
+                "{here}: give either `path` or `builtin`, not both"
+            )));
         }
         (None, None) => {
-            return Err(format!(
+            return Err(SceneError::BadDesc(format!(
                 "{here}: a mesh needs `path = \"file.obj\"` or `builtin = \"sphere\" | \"box\" | \"quad\"`"
-            ));
+            )));
         }
     };
     let allowed: &[&str] = match kind {
@@ -292,9 +296,9 @@ fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(),
         "box" => &["min", "max"],
         "quad" => &["corners"],
         _ => {
-            return Err(format!(
+            return Err(SceneError::BadDesc(format!(
                 "{here}: unknown builtin mesh '{kind}'; use \"sphere\", \"box\" or \"quad\""
-            ));
+            )));
         }
     };
     let given = [
@@ -307,11 +311,11 @@ fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(),
         ("corners", m.corners.is_some()),
     ];
     if let Some((k, _)) = given.iter().find(|(k, g)| *g && !allowed.contains(k)) {
-        return Err(format!(
+        return Err(SceneError::BadDesc(format!(
             "{here}: `{k}` does not apply to builtin \"{kind}\" (it takes {allowed:?})"
-        ));
+        )));
     }
-    let need = |k: &str| format!("{here}: builtin \"{kind}\" needs `{k}`");
+    let need = |k: &str| SceneError::BadDesc(format!("{here}: builtin \"{kind}\" needs `{k}`"));
     let tris = match kind {
         "sphere" => {
             let c = m.center.ok_or_else(|| need("center"))?;
@@ -323,9 +327,9 @@ fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(),
                 && (2..=1024).contains(&st)
                 && (3..=2048).contains(&sl);
             if !ok {
-                return Err(format!(
+                return Err(SceneError::BadDesc(format!(
                     "{here}: sphere needs a finite center, radius > 0, stacks in 2..=1024, slices in 3..=2048"
-                ));
+                )));
             }
             uv_sphere(v3(c), r, st, sl)
         }
@@ -335,16 +339,18 @@ fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(),
                 m.max.ok_or_else(|| need("max"))?,
             );
             if !finite(&lo) || !finite(&hi) || (0..3).any(|i| lo[i] >= hi[i]) {
-                return Err(format!(
+                return Err(SceneError::BadDesc(format!(
                     "{here}: box needs finite min < max on every axis, got {lo:?}..{hi:?}"
-                ));
+                )));
             }
             box_mesh(v3(lo), v3(hi))
         }
         _ => {
             let c = m.corners.ok_or_else(|| need("corners"))?;
             if !c.iter().all(|p| finite(p)) {
-                return Err(format!("{here}: quad corners must be finite"));
+                return Err(SceneError::BadDesc(format!(
+                    "{here}: quad corners must be finite"
+                )));
             }
             quad(v3(c[0]), v3(c[1]), v3(c[2]), v3(c[3])).to_vec()
         }
@@ -355,16 +361,16 @@ fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(),
         .iter()
         .any(|t| !(t.v0.is_finite() && t.v1.is_finite() && t.v2.is_finite()))
     {
-        return Err(format!(
+        return Err(SceneError::BadVertex(format!(
             "{here}: coordinates overflow after the transform; use a smaller scale"
-        ));
+        )));
     }
     if let Some((i, v)) = super::first_beyond(&tris) {
-        return Err(format!(
+        return Err(SceneError::BadVertex(format!(
             "{here}: builtin \"{kind}\" triangle {} has a vertex {}",
             i + 1,
             super::too_far(v)
-        ));
+        )));
     }
     b.add_mesh(
         here,

@@ -10,6 +10,7 @@
 mod builtin;
 mod camera;
 mod desc;
+mod error;
 mod obj;
 
 use glam::Vec3;
@@ -18,6 +19,7 @@ use crate::geom::shapes::sin_cos;
 use crate::geom::{Aabb, MAX_COORD, MAX_VIEW_COORD, Triangle, beyond};
 
 pub use camera::Camera;
+pub use error::SceneError;
 
 /// Lambertian (diffuse) material.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,20 +67,20 @@ impl Default for RenderSettings {
 }
 
 impl RenderSettings {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SceneError> {
         for (name, v) in [("width", self.width), ("height", self.height)] {
             if !(1..=MAX_IMAGE_SIZE).contains(&v) {
-                return Err(format!(
+                return Err(SceneError::Invalid(format!(
                     "render {name} = {v} is outside 1..={MAX_IMAGE_SIZE}; choose a size in that range"
-                ));
+                )));
             }
         }
         if !(1..=MAX_BOUNCES).contains(&self.bounces) {
-            return Err(format!(
+            return Err(SceneError::Invalid(format!(
                 "render bounces = {} is outside 1..={MAX_BOUNCES} (hit points per path); \
                  use e.g. 5 as in the paper",
                 self.bounces
-            ));
+            )));
         }
         Ok(())
     }
@@ -116,60 +118,67 @@ impl Scene {
     }
 
     /// Checks the invariants consumers rely on.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SceneError> {
         if self.triangles.is_empty() {
-            return Err("scene has no triangles; add a mesh".to_string());
+            return Err(SceneError::Empty(
+                "scene has no triangles; add a mesh".to_string(),
+            ));
         }
         if self.triangles.len() > u32::MAX as usize {
-            return Err("scene has more than 2^32 triangles; use a smaller mesh".to_string());
+            return Err(SceneError::Invalid(
+                "scene has more than 2^32 triangles; use a smaller mesh".to_string(),
+            ));
         }
         if self.tri_material.len() != self.triangles.len() {
-            return Err(format!(
+            return Err(SceneError::Invalid(format!(
                 "scene has {} triangles but {} material indices; give one per triangle",
                 self.triangles.len(),
                 self.tri_material.len()
-            ));
+            )));
         }
         if let Some((i, v)) = first_beyond(&self.triangles) {
-            return Err(format!("triangle {i} has a vertex {}", too_far(v)));
+            return Err(SceneError::BadVertex(format!(
+                "triangle {i} has a vertex {}",
+                too_far(v)
+            )));
         }
         if let Some(i) = self.triangles.iter().position(|t| t.is_degenerate()) {
-            return Err(format!(
+            return Err(SceneError::Invalid(format!(
                 "triangle {i} is degenerate or not finite; drop it before building the scene"
-            ));
+            )));
         }
         if let Some(i) = self
             .tri_material
             .iter()
             .position(|&m| m as usize >= self.materials.len())
         {
-            return Err(format!(
+            return Err(SceneError::Invalid(format!(
                 "triangle {i} uses material {} but there are {} materials",
                 self.tri_material[i],
                 self.materials.len()
-            ));
+            )));
         }
         for (i, m) in self.materials.iter().enumerate() {
             let a = m.albedo;
             if !(non_negative(a) && a.x <= 1.0 && a.y <= 1.0 && a.z <= 1.0) {
-                return Err(format!(
+                return Err(SceneError::Invalid(format!(
                     "material {i} albedo {a:?} is outside [0, 1]; an albedo above 1 creates energy"
-                ));
+                )));
             }
         }
         self.camera.validate()?;
         if !finite(self.light.position) || !non_negative(self.light.intensity) {
-            return Err(format!(
+            return Err(SceneError::Invalid(format!(
                 "light {:?} needs a finite position and a finite, non-negative intensity",
                 self.light
-            ));
+            )));
         }
         light_in_range(self.light.position)?;
         if !non_negative(self.sky) {
-            return Err(format!(
+            return Err(SceneError::Invalid(format!(
                 "sky {:?} must be finite and non-negative",
                 self.sky
-            ));
+            )));
         }
         self.settings.validate()
     }
@@ -181,7 +190,7 @@ pub const DEFAULT_SCENE: &str = "cornell";
 
 /// `spec` is a builtin name, a path to a scene description (.toml) or a path to
 /// a Wavefront .obj.
-pub fn load(spec: &str) -> Result<Scene, String> {
+pub fn load(spec: &str) -> Result<Scene, SceneError> {
     if let Some(s) = builtin::build(spec) {
         return Ok(s);
     }
@@ -194,13 +203,12 @@ pub fn load(spec: &str) -> Result<Scene, String> {
         Some("toml") => desc::load(path)?,
         Some("obj") => obj::load_bare(path)?,
         _ => {
-            return Err(format!(
-                "unknown scene '{spec}': give a builtin ({}) or a path ending in .toml or .obj",
-                BUILTINS.join(", ")
-            ));
+            return Err(SceneError::Unknown {
+                spec: spec.to_string(),
+            });
         }
     };
-    scene.validate().map_err(|e| format!("{spec}: {e}"))?;
+    scene.validate().map_err(|e| e.at(spec))?;
     Ok(scene)
 }
 
@@ -320,16 +328,16 @@ impl Builder {
         aspect: f32,
         need_camera: bool,
         need_light: bool,
-    ) -> Result<(Camera, PointLight), String> {
+    ) -> Result<(Camera, PointLight), SceneError> {
         let b = self.bounds();
         let cam = Camera::frame(&b, 45.0, aspect);
         if need_camera && beyond(cam.eye, MAX_VIEW_COORD) {
-            return Err(format!(
+            return Err(SceneError::Invalid(format!(
                 "framing the meshes automatically puts the camera eye at {}, beyond \
                  ±{MAX_VIEW_COORD:e}, the f32 datapath's limit for the camera and light; give a \
                  [camera] or scale the meshes down",
                 arr(cam.eye)
-            ));
+            )));
         }
         let r = (b.extent().length() * 0.5).max(1e-6);
         let c = b.centroid();
@@ -343,12 +351,12 @@ impl Builder {
             intensity: Vec3::splat(i),
         };
         if need_light && beyond(light.position, MAX_VIEW_COORD) {
-            return Err(format!(
+            return Err(SceneError::Invalid(format!(
                 "framing the meshes automatically puts the light at {}, beyond \
                  ±{MAX_VIEW_COORD:e}, the f32 datapath's limit for the camera and light; give a \
                  [light] or scale the meshes down",
                 arr(light.position)
-            ));
+            )));
         }
         let mut toml = String::new();
         if need_camera {
@@ -399,14 +407,14 @@ pub(crate) fn too_far(v: Vec3) -> String {
 }
 
 /// A light position within [`MAX_VIEW_COORD`].
-pub(crate) fn light_in_range(p: Vec3) -> Result<(), String> {
+pub(crate) fn light_in_range(p: Vec3) -> Result<(), SceneError> {
     if beyond(p, MAX_VIEW_COORD) {
-        return Err(format!(
+        return Err(SceneError::Invalid(format!(
             "light position {} is beyond ±{MAX_VIEW_COORD:e}, the f32 datapath's limit for the \
              camera and light (shadow rays run from the surfaces to the light unnormalised); \
              move the light closer, or scale and recentre the scene",
             arr(p)
-        ));
+        )));
     }
     Ok(())
 }

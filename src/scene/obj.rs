@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
-use super::{Builder, DEFAULT_ALBEDO, DEFAULT_SKY, RenderSettings, Scene, Xform};
+use super::{Builder, DEFAULT_ALBEDO, DEFAULT_SKY, RenderSettings, Scene, SceneError, Xform};
 use crate::geom::Triangle;
+use crate::util::FileError;
 
 const OPTIONS: tobj::LoadOptions = tobj::LoadOptions {
     triangulate: true,
@@ -27,7 +28,7 @@ pub(crate) fn load_into(
     path: &Path,
     xform: &Xform,
     albedo: Option<Vec3>,
-) -> Result<usize, String> {
+) -> Result<usize, SceneError> {
     let geometry = read_geometry(path)?;
     let (models, mats) = parse(b, path, &geometry)?;
     let mat_ids = scene_materials(b, path, &mats, albedo)?;
@@ -38,16 +39,17 @@ pub(crate) fn load_into(
 }
 
 /// The file as text with its `vt`/`vn` lines blanked.
-fn read_geometry(path: &Path) -> Result<String, String> {
+fn read_geometry(path: &Path) -> Result<String, SceneError> {
     let shown = path.display();
     let bytes = std::fs::read(path).map_err(|e| {
-        format!("cannot open OBJ file '{shown}' ({e}); check the path (paths in a scene file are relative to that file)")
+        let msg = format!("cannot open OBJ file '{shown}' ({e}); check the path (paths in a scene file are relative to that file)");
+        SceneError::File(FileError::new(path, e, msg))
     })?;
     let text = String::from_utf8(bytes).map_err(|e| {
-        format!(
+        SceneError::MalformedObj(format!(
             "{shown}: not UTF-8 text (bad byte at offset {}); save it as ASCII/UTF-8",
             e.utf8_error().valid_up_to()
-        )
+        ))
     })?;
     // tobj indexes texture coordinates and normals without overflow checks (a
     // bad `vt`/`vn` index panics in debug builds) and the model uses neither,
@@ -68,7 +70,7 @@ fn parse(
     b: &mut Builder,
     path: &Path,
     geometry: &str,
-) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), String> {
+) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), SceneError> {
     let shown = path.display();
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     // Which material libraries the file asked for, whether they loaded, and
@@ -96,9 +98,9 @@ fn parse(
         r.map_err(|e| e.0)
     });
     if let Some(msg) = bad_mtl.into_inner() {
-        return Err(msg);
+        return Err(SceneError::MalformedObj(msg));
     }
-    let (models, mats) = loaded.map_err(|e| diagnose(path, &e))?;
+    let (models, mats) = loaded.map_err(|e| SceneError::MalformedObj(diagnose(path, &e)))?;
     // tobj returns the readable libraries' materials, numbered in file order.
     let mats = mats.unwrap_or_default();
     for (lib, err) in libs.into_inner() {
@@ -119,7 +121,7 @@ fn scene_materials(
     path: &Path,
     mats: &[tobj::Material],
     albedo: Option<Vec3>,
-) -> Result<Vec<u32>, String> {
+) -> Result<Vec<u32>, SceneError> {
     let shown = path.display();
     // Materials are created on first use (Builder::material deduplicates).
     let grey = Vec3::splat(DEFAULT_ALBEDO);
@@ -130,10 +132,10 @@ fn scene_materials(
             (None, Some(kd)) => {
                 let kd = Vec3::from_array(kd);
                 if !(kd.is_finite() && kd.min_element() >= 0.0) {
-                    return Err(format!(
+                    return Err(SceneError::MalformedObj(format!(
                         "{shown}: material '{}' has Kd {kd:?}; give three numbers in [0, 1]",
                         m.name
-                    ));
+                    )));
                 }
                 if kd.max_element() > 1.0 {
                     b.warnings.push(format!(
@@ -172,7 +174,7 @@ fn triangles(
     models: &[tobj::Model],
     mat_ids: &[u32],
     albedo: Option<Vec3>,
-) -> Result<Vec<(Triangle, u32)>, String> {
+) -> Result<Vec<(Triangle, u32)>, SceneError> {
     let shown = path.display();
     let fallback = albedo.unwrap_or(Vec3::splat(DEFAULT_ALBEDO));
     let mut tris = Vec::new();
@@ -180,7 +182,7 @@ fn triangles(
     for model in models {
         let mesh = &model.mesh;
         if mesh.positions.iter().any(|c| !c.is_finite()) {
-            return Err(non_finite_vertex(path));
+            return Err(SceneError::BadVertex(non_finite_vertex(path)));
         }
         let m = match mesh.material_id.and_then(|i| mat_ids.get(i)) {
             Some(&m) => m,
@@ -195,7 +197,9 @@ fn triangles(
                 .get(i..i + 3)
                 .map(|s| Vec3::new(s[0], s[1], s[2]))
                 .ok_or_else(|| {
-                    format!("{shown}: tobj returned an index out of range; report this file")
+                    SceneError::MalformedObj(format!(
+                        "{shown}: tobj returned an index out of range; report this file"
+                    ))
                 })
         };
         for f in mesh.indices.chunks_exact(3) {
@@ -209,9 +213,9 @@ fn triangles(
         ));
     }
     if tris.is_empty() {
-        return Err(format!(
+        return Err(SceneError::Empty(format!(
             "{shown}: scene has no triangles (the file has no `f` faces with 3 or more vertices); check that it is a mesh OBJ"
-        ));
+        )));
     }
     Ok(tris)
 }
@@ -223,7 +227,7 @@ fn place(
     path: &Path,
     xform: &Xform,
     tris: Vec<(Triangle, u32)>,
-) -> Result<(), String> {
+) -> Result<(), SceneError> {
     let shown = path.display();
     let mut only: Vec<Triangle> = tris.iter().map(|t| t.0).collect();
     xform.apply(&mut only);
@@ -231,12 +235,12 @@ fn place(
         .iter()
         .any(|t| !(t.v0.is_finite() && t.v1.is_finite() && t.v2.is_finite()))
     {
-        return Err(format!(
+        return Err(SceneError::BadVertex(format!(
             "{shown}: coordinates overflow after scale/translate {xform:?}; use a smaller scale"
-        ));
+        )));
     }
     if let Some((_, v)) = super::first_beyond(&only) {
-        return Err(vertex_beyond(path, xform, v));
+        return Err(SceneError::BadVertex(vertex_beyond(path, xform, v)));
     }
     b.add(
         &shown.to_string(),
@@ -246,19 +250,19 @@ fn place(
 }
 
 /// A bare .obj: the mesh plus a camera and light that frame it.
-pub(crate) fn load_bare(path: &Path) -> Result<Scene, String> {
+pub(crate) fn load_bare(path: &Path) -> Result<Scene, SceneError> {
     let mut b = Builder::default();
     load_into(&mut b, path, &Xform::IDENTITY, None)?;
     if b.triangles.is_empty() {
-        return Err(format!(
+        return Err(SceneError::Empty(format!(
             "{}: scene has no triangles (all were degenerate)",
             path.display()
-        ));
+        )));
     }
     let settings = RenderSettings::default();
     let (camera, light) = b
         .auto_view(settings.width as f32 / settings.height as f32, true, true)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+        .map_err(|e| e.at(path.display().to_string()))?;
     Ok(Scene {
         name: path
             .file_stem()
@@ -276,7 +280,8 @@ pub(crate) fn load_bare(path: &Path) -> Result<Scene, String> {
 }
 
 /// tobj panics on `Ka`/`Kd`/`Ks`/`Ke`/`Tf` lines with fewer than three values;
-/// find them first and say where.
+/// find them first and say where (a `String`: tobj's material callback carries
+/// it, and `parse` wraps it as `SceneError::MalformedObj`).
 fn check_mtl(path: &Path, src: &str) -> Result<(), String> {
     for (n, line) in src.lines().enumerate() {
         let mut w = line.split_whitespace();

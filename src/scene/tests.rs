@@ -184,11 +184,28 @@ fn loading_is_deterministic() {
 #[test]
 fn unknown_spec_is_a_clear_error() {
     let e = load("nosuch").unwrap_err();
+    assert!(
+        matches!(&e, SceneError::Unknown { spec } if spec == "nosuch"),
+        "{e:?}"
+    );
+    let e = e.to_string();
     assert!(e.contains("cornell") && e.contains(".toml"), "{e}");
-    let e = load("/nonexistent/dir/x.obj").unwrap_err();
-    assert!(e.contains("/nonexistent/dir/x.obj"), "{e}");
-    let e = load("/nonexistent/dir/x.toml").unwrap_err();
-    assert!(e.contains("/nonexistent/dir/x.toml"), "{e}");
+    for p in ["/nonexistent/dir/x.obj", "/nonexistent/dir/x.toml"] {
+        let e = load(p).unwrap_err();
+        match &e {
+            SceneError::File(f) => {
+                assert_eq!(f.path, Path::new(p));
+                assert_eq!(f.kind(), std::io::ErrorKind::NotFound);
+            }
+            e => panic!("expected an unreadable file, got {e:?}"),
+        }
+        // The I/O error stays reachable as the source.
+        let io = std::error::Error::source(&e)
+            .and_then(|s| s.source())
+            .and_then(|s| s.downcast_ref::<std::io::Error>());
+        assert_eq!(io.map(|e| e.kind()), Some(std::io::ErrorKind::NotFound));
+        assert!(e.to_string().contains(p), "{e}");
+    }
 }
 
 #[test]
@@ -235,7 +252,7 @@ fn manifest(rel: &str) -> String {
     format!("{}/{rel}", env!("CARGO_MANIFEST_DIR"))
 }
 
-fn parse(src: &str) -> Result<Scene, String> {
+fn parse(src: &str) -> Result<Scene, SceneError> {
     let s = desc::parse(src, "t.toml", Path::new("."))?;
     s.validate()?;
     Ok(s)
@@ -308,7 +325,7 @@ fn toml_good_file() {
 /// Replaces the first occurrence of `from` in GOOD and returns the error.
 fn bad(from: &str, to: &str) -> String {
     assert!(GOOD.contains(from), "{from}");
-    parse(&GOOD.replacen(from, to, 1)).unwrap_err()
+    parse(&GOOD.replacen(from, to, 1)).unwrap_err().to_string()
 }
 
 #[test]
@@ -383,7 +400,8 @@ fn toml_errors_name_line_and_fix() {
         assert!(e.contains(at) && e.contains(what), "{to}: {e}");
     }
     let e = parse("name = \"x\"\n").unwrap_err();
-    assert!(e.contains("no triangles"), "{e}");
+    assert!(matches!(e.root(), SceneError::Empty(_)), "{e:?}");
+    assert!(e.to_string().contains("no triangles"), "{e}");
 }
 
 #[test]
@@ -416,7 +434,7 @@ fn temp(name: &str, files: &[(&str, &str)]) -> PathBuf {
     d
 }
 
-fn load_obj(name: &str, files: &[(&str, &str)]) -> Result<Scene, String> {
+fn load_obj(name: &str, files: &[(&str, &str)]) -> Result<Scene, SceneError> {
     let d = temp(name, files);
     let r = load(d.join(files[0].0).to_str().unwrap());
     let _ = std::fs::remove_dir_all(&d);
@@ -452,6 +470,8 @@ fn obj_nan_vertex_is_an_error_naming_file_line_and_vertex() {
     for bad in ["nan", "inf", "-inf", "1e39"] {
         let text = format!("v 0 0 0\nv 1 {bad} 0\nv 0 1 0\nf 1 2 3\n");
         let e = load_obj("nan", &[("n.obj", &text)]).unwrap_err();
+        assert!(matches!(e.root(), SceneError::BadVertex(_)), "{e:?}");
+        let e = e.to_string();
         assert!(
             e.contains("n.obj:2:") && e.contains("vertex 2"),
             "{bad}: {e}"
@@ -486,6 +506,8 @@ fn obj_index_errors_name_the_line() {
     ];
     for (text, at, what) in cases {
         let e = load_obj("idx", &[("i.obj", text)]).unwrap_err();
+        assert!(matches!(e, SceneError::MalformedObj(_)), "{e:?}");
+        let e = e.to_string();
         assert!(
             e.contains(&format!("i.obj{at}")) && e.contains(what),
             "{text}: {e}"
@@ -515,10 +537,13 @@ fn obj_index_errors_name_the_line() {
 fn obj_without_triangles_is_an_error() {
     for text in ["", "v 0 0 0\nv 1 0 0\n", "v 0 0 0\nv 1 0 0\nl 1 2\np 1\n"] {
         let e = load_obj("zero", &[("z.obj", text)]).unwrap_err();
+        assert!(matches!(e, SceneError::Empty(_)), "{e:?}");
+        let e = e.to_string();
         assert!(e.contains("no triangles") && e.contains("z.obj"), "{e}");
     }
     let e = load_obj("alldeg", &[("d.obj", "v 0 0 0\nv 1 0 0\nf 1 2 1\n")]).unwrap_err();
-    assert!(e.contains("no triangles"), "{e}");
+    assert!(matches!(e, SceneError::Empty(_)), "{e:?}");
+    assert!(e.to_string().contains("no triangles"), "{e}");
 }
 
 #[test]
@@ -599,14 +624,16 @@ fn obj_materials_from_mtl_and_missing_mtl_warns() {
         "shortkd",
         &[("m.obj", &obj), ("m.mtl", "newmtl red\nKa 1 1 1\nKd 0.5\n")],
     )
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("m.mtl:3:") && e.contains("Kd"), "{e}");
     // Kd NaN in the .mtl is an error naming the material.
     let e = load_obj(
         "nanmtl",
         &[("m.obj", &obj), ("m.mtl", "newmtl red\nKd nan 0 0\n")],
     )
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("red") && e.contains("Kd"), "{e}");
 }
 
@@ -617,9 +644,13 @@ fn toml_mesh_paths_are_relative_to_the_scene_file() {
     std::fs::create_dir_all(d.join("sub")).unwrap();
     std::fs::write(d.join("sub/q.obj"), format!("mtllib none.mtl\n{QUAD}")).unwrap();
     let s = load(d.join("s.toml").to_str().unwrap());
-    let e = load(d.join("missing.toml").to_str().unwrap()).unwrap_err();
+    let e = load(d.join("missing.toml").to_str().unwrap())
+        .unwrap_err()
+        .to_string();
     std::fs::write(d.join("bad.toml"), "[[mesh]]\npath = \"sub/nope.obj\"\n").unwrap();
-    let e2 = load(d.join("bad.toml").to_str().unwrap()).unwrap_err();
+    let e2 = load(d.join("bad.toml").to_str().unwrap())
+        .unwrap_err()
+        .to_string();
     let _ = std::fs::remove_dir_all(&d);
     let s = s.unwrap();
     assert_eq!(s.name, "s");
@@ -655,7 +686,9 @@ fn obj_beyond_the_coordinate_range_names_the_vertex_and_the_fix() {
     // Near 1e38 every cross product overflows: the triangles used to be dropped
     // as zero-area and the file refused as "all degenerate".
     let huge = "v 1e38 0 0\nv 0 1e38 0\nv 0 0 1e38\nv 1e38 1e38 0\nf 1 2 3\nf 1 2 4\n";
-    let e = load_obj("huge", &[("h.obj", huge)]).unwrap_err();
+    let e = load_obj("huge", &[("h.obj", huge)])
+        .unwrap_err()
+        .to_string();
     names_the_range(&e, "1e6");
     assert!(
         e.contains("h.obj:1:") && e.contains("vertex 1") && e.contains("scale or recentre"),
@@ -664,12 +697,14 @@ fn obj_beyond_the_coordinate_range_names_the_vertex_and_the_fix() {
     // One small triangle far out: the automatic framing used to overflow and
     // blame the camera's up vector.
     let far = "v 1e38 0 0\nv 1e38 1 0\nv 1e38 0 1\nf 1 2 3\n";
-    let e = load_obj("far", &[("f.obj", far)]).unwrap_err();
+    let e = load_obj("far", &[("f.obj", far)]).unwrap_err().to_string();
     names_the_range(&e, "1e6");
     assert!(e.contains("f.obj:1:") && e.contains("vertex 1"), "{e}");
     // The vertex named is the first one out of range, just past the limit.
     let past = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1000001 0 0\nf 1 2 3\nf 2 4 3\n";
-    let e = load_obj("past", &[("p.obj", past)]).unwrap_err();
+    let e = load_obj("past", &[("p.obj", past)])
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("p.obj:4:") && e.contains("vertex 4"), "{e}");
     // At the limit is fine.
     let at = "v 0 0 0\nv 1000000 0 0\nv 0 -1000000 0\nf 1 2 3\n";
@@ -734,7 +769,7 @@ fn automatic_framing_out_of_range_is_named() {
     // stand beyond the view limit.
     let src = "[render]\nwidth = 1\nheight = 1000\n[[mesh]]\nbuiltin = \"box\"\n\
                min = [-1e6, -1e6, -1e6]\nmax = [1e6, 1e6, 1e6]\n";
-    let e = parse(src).unwrap_err();
+    let e = parse(src).unwrap_err().to_string();
     assert!(e.contains("framing") && e.contains("[camera]"), "{e}");
     names_the_range(&e, "1e7");
     // The same mesh through a square image frames within range.
@@ -747,12 +782,12 @@ fn automatic_framing_out_of_range_is_named() {
 fn scene_validation_checks_the_range_too() {
     let mut s = load("cornell").unwrap();
     s.triangles[5].v1.y = 1e38;
-    let e = s.validate().unwrap_err();
+    let e = s.validate().unwrap_err().to_string();
     assert!(e.contains("triangle 5"), "{e}");
     names_the_range(&e, "1e6");
     let mut s = load("cornell").unwrap();
     s.light.position.x = -2e7;
-    let e = s.validate().unwrap_err();
+    let e = s.validate().unwrap_err().to_string();
     assert!(e.contains("light position"), "{e}");
     names_the_range(&e, "1e7");
 }

@@ -44,13 +44,13 @@ crate::unit! {
 impl MemCtrl {
     /// The unit schedules FR-FCFS (`mem::ctrl`); DRAMsim3's controller rules
     /// (`mem::dramsim3`) run in the trace replay only.
-    pub fn supports(cfg: &MemCfg) -> Result<(), String> {
+    pub fn supports(cfg: &MemCfg) -> Result<(), super::UnitError> {
         match cfg.ctrl.policy {
             CtrlPolicy::Frfcfs => Ok(()),
-            CtrlPolicy::Dramsim3 => Err(
+            CtrlPolicy::Dramsim3 => Err(super::UnitError::Unsupported(
                 "mem.ctrl.policy = \"dramsim3\" (DRAMsim3's controller) runs only in trace replay (`dualstream dram`); the mem_ctrl unit schedules FR-FCFS: set mem.ctrl.policy = \"frfcfs\""
                     .into(),
-            ),
+            )),
         }
     }
 }

@@ -77,13 +77,13 @@ pub struct MemoryUnitCfg {
 
 impl MemoryModel {
     /// The model by its configuration name (`fixed`, `gddr5`), e.g. from `--memory`.
-    pub fn parse(s: &str) -> Result<MemoryModel, String> {
+    pub fn parse(s: &str) -> Result<MemoryModel, super::UnitError> {
         match s {
             "fixed" => Ok(MemoryModel::Fixed),
             "gddr5" => Ok(MemoryModel::Gddr5),
-            _ => Err(format!(
-                "unknown memory model '{s}'; give gddr5 (the paper's GDDR5, the default) or fixed (a fixed latency)"
-            )),
+            _ => Err(super::UnitError::UnknownMemoryModel {
+                given: s.to_string(),
+            }),
         }
     }
     pub fn name(self) -> &'static str {

@@ -1,6 +1,7 @@
 //! Hardware units, one per file. Each is declared once with `unit!`.
 pub mod box_pipe;
 pub mod divider;
+mod error;
 pub mod hit_record_updater;
 pub mod l1;
 pub mod l2;
@@ -19,6 +20,8 @@ pub mod tri_pipe;
 /// Identifies the requester (thread processor and slot) so a shared unit's result
 /// can be routed back. 16 bits cover 16 TPs with room for per-TP sub-ids.
 pub type Tag = u16;
+
+pub use error::UnitError;
 
 use crate::rtl::link::LinkId;
 use crate::rtl::{In, Out, Unit};

@@ -335,76 +335,81 @@ impl TmCfg {
         self.staging_half_bytes / crate::contract::RAY_BYTES
     }
 
-    pub fn validate(&self, links: &LinkCfg) -> Result<(), String> {
+    pub fn validate(&self, links: &LinkCfg) -> Result<(), super::UnitError> {
         if self.tps == 0 || self.tps > 32 {
-            return Err(format!(
+            return Err(super::UnitError::Invalid(format!(
                 "tm.tps = {} is impossible: a TM needs 1 to 32 thread processors (L1 waiter masks are 32 bits)",
                 self.tps
-            ));
+            )));
         }
         if self.tri_pipes == 0 || self.tri_pipes > 8 {
-            return Err(format!(
+            return Err(super::UnitError::Invalid(format!(
                 "tm.tri_pipes = {}: give 1 to 8 ray-triangle pipelines",
                 self.tri_pipes
-            ));
+            )));
         }
         if self.stack_entry_bytes < 12 {
-            return Err(format!(
+            return Err(super::UnitError::Invalid(format!(
                 "tm.stack_entry_bytes = {} cannot hold a reference, a segment word and a distance (12 B)",
                 self.stack_entry_bytes
-            ));
+            )));
         }
         if self.stack_entries() < 2 {
-            return Err(format!(
+            return Err(super::UnitError::Invalid(format!(
                 "tm.scratchpad_bytes = {} holds {} stack entries; a traversal needs at least 2 (a node pushes two children)",
                 self.scratchpad_bytes,
                 self.stack_entries()
-            ));
+            )));
         }
         if self.half_rays() == 0 || self.half_rays() > 1024 {
-            return Err(format!(
+            return Err(super::UnitError::Invalid(format!(
                 "tm.staging_half_bytes = {} must hold 1 to 1024 rays of 32 B",
                 self.staging_half_bytes
-            ));
+            )));
         }
         let l1 = &self.l1;
         if l1.line_bytes != crate::contract::LINE_BYTES as u32 {
-            return Err(format!(
+            return Err(super::UnitError::Invalid(format!(
                 "tm.l1.line_bytes = {}: only 64 B lines are modelled (the data contract's line)",
                 l1.line_bytes
-            ));
+            )));
         }
         if l1.banks == 0 || !l1.banks.is_power_of_two() {
-            return Err(format!("tm.l1.banks = {} must be a power of two", l1.banks));
+            return Err(super::UnitError::Invalid(format!(
+                "tm.l1.banks = {} must be a power of two",
+                l1.banks
+            )));
         }
         let lines = l1.bytes / l1.line_bytes;
         if l1.bytes == 0 || !lines.is_power_of_two() || lines < l1.banks {
-            return Err(format!(
+            return Err(super::UnitError::Invalid(format!(
                 "tm.l1.bytes = {} must be a power-of-two number of lines, at least one per bank",
                 l1.bytes
-            ));
+            )));
         }
         if l1.hit_latency < links.delay {
-            return Err(format!(
+            return Err(super::UnitError::Invalid(format!(
                 "tm.l1.hit_latency = {} is shorter than the response link delay ({}, links.tm.delay), which is part of it",
                 l1.hit_latency, links.delay
-            ));
+            )));
         }
         if l1.mshrs == 0 {
-            return Err("tm.l1.mshrs = 0: a cache needs at least one miss register".into());
+            return Err(super::UnitError::Invalid(
+                "tm.l1.mshrs = 0: a cache needs at least one miss register".into(),
+            ));
         }
         for (name, c) in self.costs.all() {
             if c.cycles == 0 {
-                return Err(format!(
+                return Err(super::UnitError::Invalid(format!(
                     "tm.costs.{name}.cycles = 0: every TP state takes at least one cycle"
-                ));
+                )));
             }
             if c.instructions() > c.cycles {
-                return Err(format!(
+                return Err(super::UnitError::Invalid(format!(
                     "tm.costs.{name}: {} instructions cannot issue in {} cycles on a single-issue TP",
                     c.instructions(),
                     c.cycles
-                ));
+                )));
             }
         }
         Ok(())

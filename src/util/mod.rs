@@ -1,5 +1,8 @@
 //! Small helpers shared by the whole crate.
+pub mod error;
 pub mod rng;
+
+pub use error::FileError;
 
 /// FNV-1a 64-bit hash: a stable fingerprint of bytes (waveforms, images) for tests.
 pub fn fnv1a(bytes: &[u8]) -> u64 {

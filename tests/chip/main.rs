@@ -321,7 +321,10 @@ fn variants() -> [(&'static str, SimOptions); 3] {
 }
 
 /// A cycle-mode frame with 8 KB segments on the given chip.
-fn cycle_frame(s: &dualstream::scene::Scene, cfg: Config) -> Result<Frame, String> {
+fn cycle_frame(
+    s: &dualstream::scene::Scene,
+    cfg: Config,
+) -> Result<Frame, dualstream::render::RenderError> {
     render(
         s,
         Mode::Cycle,

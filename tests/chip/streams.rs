@@ -34,7 +34,9 @@ fn stream_lanes_carry_several_lines_per_cycle() {
 #[test]
 fn bad_stream_lanes_are_named() {
     for (key, v) in [("ray_lines_per_cycle", 0), ("scene_lines_per_cycle", 17)] {
-        let e = Config::from_toml(&format!("[chip.scheduler]\n{key} = {v}\n")).unwrap_err();
+        let e = Config::from_toml(&format!("[chip.scheduler]\n{key} = {v}\n"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(&format!("chip.scheduler.{key} = {v}")), "{e}");
     }
 }

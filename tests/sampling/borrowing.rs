@@ -28,7 +28,7 @@ fn a_borrowed_wavefront_is_estimated_from_its_measured_neighbours() {
     let bad = dir.join("bad.csv");
     std::fs::write(&bad, "run,segment,rays,admit,retire\n0,1,2,three,4\n").unwrap();
     let mut r = Reference::load(&j, None, &s, &c).unwrap();
-    let e = r.read_passes(&bad).unwrap_err();
+    let e = r.read_passes(&bad).unwrap_err().to_string();
     assert!(e.contains("line 2") && e.contains("--pass-log"), "{e}");
     let (all, va) = estimate(1);
     let (some, vs) = estimate(2);

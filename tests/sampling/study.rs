@@ -1,8 +1,8 @@
 //! `bench speed-error`'s modes against the cycle model, and its references.
 
 use super::*;
-use dualstream::sampling::estimate;
 use dualstream::sampling::speed_error::{plot, table, tile_sample};
+use dualstream::sampling::{SamplingError, estimate};
 
 #[test]
 fn every_mode_against_the_cycle_model() {
@@ -94,7 +94,8 @@ fn an_impossible_small_chip_is_named() {
             ..SpeedErrorOpts::default()
         },
     )
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("--small-tms 4") && e.contains("chip.tms"), "{e}");
 }
 
@@ -162,8 +163,9 @@ fn a_pixel_sample_renders_its_pixels_as_the_whole_frame_does() {
     assert_eq!(all, (0..256).collect::<Vec<u32>>());
     // A bad sample is named.
     for bad in [vec![], vec![3, 3], vec![5, 2], vec![256]] {
-        let e =
-            dualstream::render::render(&s, mode, &rc(Some(bad.clone())), &mut |_| {}).unwrap_err();
+        let e = dualstream::render::render(&s, mode, &rc(Some(bad.clone())), &mut |_| {})
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("pixel sample"), "{bad:?}: {e}");
     }
 }
@@ -203,17 +205,26 @@ fn bad_speed_error_options_are_named() {
         f(&mut o);
         run(&s, &c, &o).unwrap_err()
     };
-    assert!(with(&|o| o.sample_every = 0).contains("--sample-every 0"));
-    assert!(with(&|o| o.tile = 0).contains("--tile 0"));
-    assert!(with(&|o| o.tile = 17).contains("--tile 17"));
-    assert!(with(&|o| o.subsets = 5).contains("--subsets 5"));
-    assert!(with(&|o| o.modes = Some(vec!["warp".into()])).contains("unknown mode 'warp'"));
+    let says = |f: &dyn Fn(&mut SpeedErrorOpts), what: &str| {
+        let e = with(f);
+        assert!(matches!(e, SamplingError::Invalid(_)), "{e:?}");
+        assert!(e.to_string().contains(what), "{e}");
+    };
+    says(&|o| o.sample_every = 0, "--sample-every 0");
+    says(&|o| o.tile = 0, "--tile 0");
+    says(&|o| o.tile = 17, "--tile 17");
+    says(&|o| o.subsets = 5, "--subsets 5");
+    says(
+        &|o| o.modes = Some(vec!["warp".into()]),
+        "unknown mode 'warp'",
+    );
     assert!(
         with(&|o| {
             o.tile = 16;
             o.sample_every = 4;
             o.subsets = 4
         })
+        .to_string()
         .contains("too few")
     );
     // A wavefront sample's L2 share must leave whole sets.
@@ -221,7 +232,8 @@ fn bad_speed_error_options_are_named() {
         let e = with(&|o| {
             o.modes = Some(vec!["windows".into()]);
             o.windows.wave_l2_share = share;
-        });
+        })
+        .to_string();
         assert!(e.contains(&format!("--window-wave-l2 {share}")), "{e}");
     }
     // A share of a segment's lines: finite, not negative.
@@ -229,7 +241,8 @@ fn bad_speed_error_options_are_named() {
         let e = with(&|o| {
             o.modes = Some(vec!["windows".into()]);
             o.windows.wave_ray_share = share;
-        });
+        })
+        .to_string();
         assert!(
             e.contains(&format!("--window-wave-ray-share {share}")),
             "{e}"
@@ -303,7 +316,9 @@ fn a_reference_of_another_frame_is_refused() {
     // Another resolution is named from the file alone.
     let mut wide = s.clone();
     wide.settings.width = 32;
-    let e = Reference::load(&j, Some(&p), &wide, &c).unwrap_err();
+    let e = Reference::load(&j, Some(&p), &wide, &c)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("16x16, not 32x16"), "{e}");
     // Another bounce count is the same size on paper: the traced rays tell.
     let mut deeper = s.clone();
@@ -318,13 +333,14 @@ fn a_reference_of_another_frame_is_refused() {
             ..SpeedErrorOpts::default()
         },
     )
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("rays") && e.contains("re-render"), "{e}");
     // A functional-mode file is not a reference.
     let text = std::fs::read_to_string(&j)
         .unwrap()
         .replace("\"cycle\"", "\"functional\"");
     std::fs::write(&j, text).unwrap();
-    let e = Reference::load(&j, None, &s, &c).unwrap_err();
+    let e = Reference::load(&j, None, &s, &c).unwrap_err().to_string();
     assert!(e.contains("not cycle"), "{e}");
 }

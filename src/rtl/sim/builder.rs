@@ -126,7 +126,7 @@ impl Sim {
         for (l, (p, c)) in self.links.iter_mut().zip(&ends) {
             l.cfg()
                 .validate(&format!("link '{}'", l.name()))
-                .map_err(SimError::Elaboration)?;
+                .map_err(|e| SimError::Elaboration(e.to_string()))?;
             let (Some(p), Some(_)) = (p, c) else {
                 return Err(SimError::Elaboration(format!(
                     "link '{}' has no {}; connect it to a unit (a testbench driver or sink if nothing else)",

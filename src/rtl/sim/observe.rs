@@ -145,7 +145,7 @@ impl Sim {
             .collect();
         if let Err(e) = tracer.bind(&units, &self.links, &self.clocks) {
             tracer.discard();
-            return Err(SimError::Elaboration(e));
+            return Err(SimError::TraceBind(e));
         }
         if let Err(e) = tracer.check_estimate() {
             tracer.discard();

@@ -7,6 +7,7 @@ use std::fmt;
 
 use super::Time;
 use crate::rtl::link::Violation;
+use crate::rtl::trace::TraceError;
 
 /// How to run.
 #[derive(Clone, Debug)]
@@ -101,7 +102,7 @@ pub enum RunEnd {
     Limit,
 }
 
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Debug)]
 pub enum SimError {
     /// A link monitor saw a protocol violation (a bug in a unit).
     Protocol(Vec<Violation>),
@@ -113,8 +114,15 @@ pub enum SimError {
     },
     /// The netlist is not well formed.
     Elaboration(String),
+    /// `run_to_idle` reached its limit with work left.
+    Busy { limit: Time },
+    /// A link's configuration is impossible (`what` names its config key).
+    LinkCfg { what: String, why: &'static str },
+    /// The waveform could not be attached: no unit matches its filter, or its
+    /// header could not be written.
+    TraceBind(TraceError),
     /// The waveform's size guard refused or stopped the trace (its file removed).
-    Trace(String),
+    Trace(TraceError),
 }
 
 impl fmt::Display for SimError {
@@ -134,8 +142,21 @@ impl fmt::Display for SimError {
                 )
             }
             SimError::Elaboration(s) => write!(f, "netlist error: {s}"),
-            SimError::Trace(s) => write!(f, "{s}"),
+            SimError::Busy { limit } => write!(
+                f,
+                "netlist error: the design was still busy after {limit} ps; raise the limit or look for a unit that never sleeps"
+            ),
+            SimError::LinkCfg { what, why } => write!(f, "{what}: {why}"),
+            SimError::TraceBind(e) => write!(f, "netlist error: {e}"),
+            SimError::Trace(e) => write!(f, "{e}"),
         }
     }
 }
-impl std::error::Error for SimError {}
+impl std::error::Error for SimError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            SimError::TraceBind(e) | SimError::Trace(e) => Some(e),
+            _ => None,
+        }
+    }
+}

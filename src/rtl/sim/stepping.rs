@@ -10,6 +10,7 @@ use super::lanes::Crew;
 use super::network::Net;
 use super::{ClockId, RunEnd, Sim, SimError, Time};
 use crate::rtl::trace::Activity;
+use crate::rtl::trace::TraceError;
 
 impl Sim {
     /// Runs until time `limit` (ps), which becomes the current time even if every
@@ -115,9 +116,7 @@ impl Sim {
     pub fn run_to_idle(&mut self, limit: Time) -> Result<Time, SimError> {
         match self.run_inner(limit, true)? {
             RunEnd::Idle => Ok(self.now),
-            RunEnd::Limit => Err(SimError::Elaboration(format!(
-                "the design was still busy after {limit} ps; raise the limit or look for a unit that never sleeps"
-            ))),
+            RunEnd::Limit => Err(SimError::Busy { limit }),
         }
     }
 
@@ -193,7 +192,7 @@ impl Sim {
                 };
                 tr.sample(t, &|i| &*slots[i].unit, &self.links, activity);
                 if let Some(why) = tr.stopped() {
-                    return Err(SimError::Trace(why.to_string()));
+                    return Err(SimError::Trace(TraceError::Oversized(why.to_string())));
                 }
             }
             // Clock edge.

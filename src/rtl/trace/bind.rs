@@ -9,7 +9,7 @@ use super::super::link::LinkDyn;
 use super::super::sim::{Clock, Time};
 use super::super::unit::Unit;
 use super::sink::{ScopeKind, VarDef, VarKind};
-use super::{ClockSig, Derive, Derived, NONE, Sig, TracedUnit, Tracer};
+use super::{ClockSig, Derive, Derived, NONE, Sig, TraceError, TracedUnit, Tracer};
 use crate::rtl::bits::FieldKind;
 
 impl Tracer {
@@ -19,7 +19,7 @@ impl Tracer {
         units: &[(&str, &dyn Unit, &Clock)],
         links: &[Box<dyn LinkDyn>],
         clocks: &[Clock],
-    ) -> Result<(), String> {
+    ) -> Result<(), TraceError> {
         let mut chosen = Vec::new();
         for (i, (path, u, clk)) in units.iter().enumerate() {
             if self.spec.matches(path) {
@@ -27,12 +27,10 @@ impl Tracer {
             }
         }
         if chosen.is_empty() {
-            let names: Vec<&str> = units.iter().map(|u| u.0).collect();
-            return Err(format!(
-                "no unit matches the trace filter '{}'; units are: {}",
-                self.spec.filter,
-                names.join(", ")
-            ));
+            return Err(TraceError::NoUnit {
+                filter: self.spec.filter.clone(),
+                units: units.iter().map(|u| u.0.to_string()).collect(),
+            });
         }
         self.traced_of = vec![NONE; units.len()];
         for (k, c) in chosen.iter().enumerate() {
@@ -71,7 +69,7 @@ impl Tracer {
         self.header_bytes = self
             .sink
             .end_header()
-            .map_err(|e| format!("cannot write the {format} header: {e}"))?;
+            .map_err(|source| TraceError::Header { format, source })?;
         Ok(())
     }
 

@@ -29,9 +29,60 @@ mod sample;
 mod sink;
 mod vcd;
 
+use crate::util::FileError;
 pub use fst::WriteSeek;
 pub(crate) use sample::Activity;
 use sink::Sink;
+
+/// Why a waveform could not be traced.
+#[derive(Debug)]
+pub enum TraceError {
+    /// The window ends before it starts.
+    Window { from: Time, to: Time },
+    /// The filter matches no unit.
+    NoUnit { filter: String, units: Vec<String> },
+    /// The size guard refused the waveform, before it started or while it was
+    /// written (its file removed): what it would take and how to narrow it.
+    Oversized(String),
+    /// The waveform file could not be created.
+    File(FileError),
+    /// The header could not be written (`format`: VCD or FST).
+    Header {
+        format: &'static str,
+        source: io::Error,
+    },
+}
+
+impl std::fmt::Display for TraceError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TraceError::Window { from, to } => write!(
+                f,
+                "trace window ends ({to}) before it starts ({from}); give an end at or after the start"
+            ),
+            TraceError::NoUnit { filter, units } => write!(
+                f,
+                "no unit matches the trace filter '{filter}'; units are: {}",
+                units.join(", ")
+            ),
+            TraceError::Oversized(advice) => f.write_str(advice),
+            TraceError::File(e) => write!(f, "{e}"),
+            TraceError::Header { format, source } => {
+                write!(f, "cannot write the {format} header: {source}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for TraceError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            TraceError::File(e) => Some(e),
+            TraceError::Header { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
 
 /// Counts of what a trace wrote.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -160,12 +211,12 @@ impl TraceSpec {
             every_edge: false,
         }
     }
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), TraceError> {
         if self.to < self.from {
-            return Err(format!(
-                "trace window ends ({}) before it starts ({}); give an end at or after the start",
-                self.to, self.from
-            ));
+            return Err(TraceError::Window {
+                from: self.from,
+                to: self.to,
+            });
         }
         Ok(())
     }
@@ -271,13 +322,16 @@ fn gb(b: f64) -> String {
 
 impl Tracer {
     /// A VCD tracer writing to `out`.
-    pub fn new(out: Box<dyn Write>, spec: TraceSpec) -> Result<Self, String> {
+    pub fn new(out: Box<dyn Write>, spec: TraceSpec) -> Result<Self, TraceError> {
         Self::with_sink(Box::new(vcd::VcdSink::new(out)), "VCD", spec)
     }
 
     /// An FST tracer writing to `out`.
-    pub fn new_fst(out: Box<dyn WriteSeek>, spec: TraceSpec) -> Result<Self, String> {
-        let sink = fst::FstSink::new(out).map_err(|e| format!("cannot start the FST file: {e}"))?;
+    pub fn new_fst(out: Box<dyn WriteSeek>, spec: TraceSpec) -> Result<Self, TraceError> {
+        let sink = fst::FstSink::new(out).map_err(|source| TraceError::Header {
+            format: "FST",
+            source,
+        })?;
         Self::with_sink(Box::new(sink), "FST", spec)
     }
 
@@ -285,7 +339,7 @@ impl Tracer {
         sink: Box<dyn Sink>,
         format: &'static str,
         spec: TraceSpec,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, TraceError> {
         spec.validate()?;
         let max_bytes = if spec.max_bytes == 0 {
             u64::MAX
@@ -359,14 +413,14 @@ impl Tracer {
     }
 
     /// Refuses a trace whose estimate is over the limit.
-    pub(crate) fn check_estimate(&self) -> Result<(), String> {
+    pub(crate) fn check_estimate(&self) -> Result<(), TraceError> {
         match self.estimate() {
             Some((bytes, w)) if bytes > self.max_bytes => {
                 let cycles = self.periods.iter().min().map_or(0, |p| w / p);
-                Err(self.advice(&format!(
+                Err(TraceError::Oversized(self.advice(&format!(
                     "would take about {} over {cycles} cycles (estimated before it started)",
                     gb(bytes as f64)
-                )))
+                ))))
             }
             _ => Ok(()),
         }
@@ -413,14 +467,15 @@ impl Tracer {
 
     /// A tracer writing to a file: FST for a `.fst` path, VCD otherwise. The
     /// error names the path and what to do.
-    pub fn to_file(path: &Path, spec: TraceSpec) -> Result<Self, String> {
+    pub fn to_file(path: &Path, spec: TraceSpec) -> Result<Self, TraceError> {
         let fst = is_fst(path);
         let f = File::create(path).map_err(|e| {
-            format!(
+            let msg = format!(
                 "cannot write the {} file '{}': {e}; choose a writable path with --vcd",
                 if fst { "FST" } else { "VCD" },
                 path.display()
-            )
+            );
+            TraceError::File(FileError::new(path, e, msg))
         })?;
         let mut t = if fst {
             Tracer::new_fst(Box::new(f), spec)?
@@ -511,7 +566,8 @@ mod tests {
         }
         .validate()
         .unwrap_err();
-        assert!(e.contains("before it starts"), "{e}");
+        assert!(matches!(e, TraceError::Window { from: 10, to: 5 }), "{e:?}");
+        assert!(e.to_string().contains("before it starts"), "{e}");
     }
 }
 

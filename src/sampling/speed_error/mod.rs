@@ -38,6 +38,7 @@ pub use tiles::tile_sample;
 use crate::config::Config;
 use crate::render::{self, Frame, Mode};
 use crate::rtl::Threads;
+use crate::sampling::SamplingError;
 use crate::scene::Scene;
 
 use super::analytic::figures;
@@ -68,7 +69,7 @@ pub struct ModeResult {
     pub by_part: Vec<PartCheck>,
 }
 
-fn total_energy(c: &Config, f: &Frame, cycles: f64) -> Result<f64, String> {
+fn total_energy(c: &Config, f: &Frame, cycles: f64) -> Result<f64, SamplingError> {
     Ok(figures(c, f, cycles)?[2])
 }
 
@@ -78,9 +79,9 @@ fn render_pixels(
     c: &Config,
     pixels: Option<Vec<u32>>,
     threads: Threads,
-) -> Result<Frame, String> {
+) -> Result<Frame, SamplingError> {
     let rc = render_cfg(c, pixels, threads);
-    render::render(scene, mode, &rc, &mut |_| {})
+    Ok(render::render(scene, mode, &rc, &mut |_| {})?)
 }
 
 /// The modes besides the reference (`--modes`; `sampled` gives two rows).
@@ -137,14 +138,18 @@ impl Default for SpeedErrorOpts {
 
 /// Runs the reference and the chosen modes on `scene` with `config` (its memory
 /// model is set per mode).
-pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<ModeResult>, String> {
+pub fn run(
+    scene: &Scene,
+    config: &Config,
+    o: &SpeedErrorOpts,
+) -> Result<Vec<ModeResult>, SamplingError> {
     if let Some(m) = &o.modes {
         for x in m {
             if !MODES.contains(&x.as_str()) {
-                return Err(format!(
+                return Err(SamplingError::Invalid(format!(
                     "--modes: unknown mode '{x}'; choose from {}",
                     MODES.join(", ")
-                ));
+                )));
             }
         }
     }
@@ -156,11 +161,11 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
     if (want("small-chip") || want("small-chips-fit"))
         && (o.small_tms == 0 || o.small_tms >= config.chip.tms)
     {
-        return Err(format!(
+        return Err(SamplingError::Invalid(format!(
             "--small-tms {} must be between 1 and chip.tms - 1 ({}); choose a smaller chip",
             o.small_tms,
             config.chip.tms.saturating_sub(1)
-        ));
+        )));
     }
     let samples = if want("sampled") {
         tile_samples(scene, o)?
@@ -195,15 +200,17 @@ pub fn run(scene: &Scene, config: &Config, o: &SpeedErrorOpts) -> Result<Vec<Mod
 
 /// The `sampled` mode's disjoint tile samples (`--subsets` of one tile in
 /// `--sample-every`).
-fn tile_samples(scene: &Scene, o: &SpeedErrorOpts) -> Result<Vec<Vec<u32>>, String> {
+fn tile_samples(scene: &Scene, o: &SpeedErrorOpts) -> Result<Vec<Vec<u32>>, SamplingError> {
     if o.sample_every == 0 {
-        return Err("--sample-every 0 keeps nothing; give 1 (every tile) or more".into());
+        return Err(SamplingError::Invalid(
+            "--sample-every 0 keeps nothing; give 1 (every tile) or more".into(),
+        ));
     }
     if o.subsets == 0 || o.subsets > o.sample_every {
-        return Err(format!(
+        return Err(SamplingError::Invalid(format!(
             "--subsets {} must be between 1 and --sample-every ({}): the samples are disjoint",
             o.subsets, o.sample_every
-        ));
+        )));
     }
     let (w, h) = (scene.settings.width, scene.settings.height);
     (0..o.subsets)

@@ -3,6 +3,8 @@
 
 use serde::Serialize;
 
+use crate::sampling::SamplingError;
+
 use super::reference::rel;
 use super::{ModeResult, PartCheck, Reference, RunPasses, SpeedErrorOpts, check_parts, mean_se};
 use super::{render_pixels, total_energy};
@@ -39,7 +41,7 @@ impl<'a> Study<'a> {
         scene: &'a Scene,
         config: &'a Config,
         o: &'a SpeedErrorOpts,
-    ) -> Result<Study<'a>, String> {
+    ) -> Result<Study<'a>, SamplingError> {
         let mut gddr5 = config.clone();
         gddr5.chip.memory.model = MemoryModel::Gddr5;
         let (rendered, r) = match &o.reference {
@@ -116,12 +118,12 @@ impl<'a> Study<'a> {
     /// A mode that traces the whole frame traces exactly the reference's rays; if not,
     /// the reference is another frame (seed, bounces, scene file) and no error means
     /// anything.
-    fn same_rays(&self, f: &Frame) -> Result<(), String> {
+    fn same_rays(&self, f: &Frame) -> Result<(), SamplingError> {
         if f.total.rays != self.r.rays {
-            return Err(format!(
+            return Err(SamplingError::Reference(format!(
                 "this frame traces {} rays, the reference {}: the reference was rendered with another scene, seed, bounce count or config; re-render it with this one",
                 f.total.rays, self.r.rays
-            ));
+            )));
         }
         Ok(())
     }
@@ -155,7 +157,7 @@ impl<'a> Study<'a> {
     }
 
     /// `cycle-fixed`: the chip with the fixed-latency memory.
-    pub(super) fn cycle_fixed(&mut self) -> Result<(), String> {
+    pub(super) fn cycle_fixed(&mut self) -> Result<(), SamplingError> {
         let mut fixed = self.config.clone();
         fixed.chip.memory.model = MemoryModel::Fixed;
         let f = render_pixels(self.scene, Mode::Cycle, &fixed, None, self.o.threads)?;
@@ -175,7 +177,7 @@ impl<'a> Study<'a> {
 
     /// The functional frame and its estimate, as a row (`row`) and for the
     /// sampled modes: its wall time and figures by part.
-    pub(super) fn functional(&mut self, row: bool) -> Result<(f64, FrameParts), String> {
+    pub(super) fn functional(&mut self, row: bool) -> Result<(f64, FrameParts), SamplingError> {
         let f = render_pixels(
             self.scene,
             Mode::Functional,
@@ -203,7 +205,7 @@ impl<'a> Study<'a> {
 
     /// `small-chip` (`one`): a chip of `--small-tms` TMs, cycles scaled;
     /// `small-chips-fit` (`fit`): that and one of twice the TMs, fitted.
-    pub(super) fn small_chips(&mut self, one: bool, fit: bool) -> Result<(), String> {
+    pub(super) fn small_chips(&mut self, one: bool, fit: bool) -> Result<(), SamplingError> {
         let (o, config, t) = (self.o, self.config, self.o.threads);
         let mut small = self.gddr5.clone();
         small.chip.tms = o.small_tms;
@@ -250,7 +252,7 @@ impl<'a> Study<'a> {
     }
 
     /// `quarter-pixels`: a frame of half the width and height, scaled.
-    pub(super) fn quarter_pixels(&mut self) -> Result<(), String> {
+    pub(super) fn quarter_pixels(&mut self) -> Result<(), SamplingError> {
         let (w, h) = (self.scene.settings.width, self.scene.settings.height);
         let mut quarter = self.scene.clone();
         quarter.settings.width = (w / 2).max(1);
@@ -283,7 +285,7 @@ impl<'a> Study<'a> {
         &mut self,
         (func_wall, full_parts): (f64, FrameParts),
         samples: &[Vec<u32>],
-    ) -> Result<(), String> {
+    ) -> Result<(), SamplingError> {
         let (scene, o, t) = (self.scene, self.o, self.o.threads);
         let gddr5 = &self.gddr5;
         let (w, h) = (scene.settings.width, scene.settings.height);
@@ -347,7 +349,7 @@ impl<'a> Study<'a> {
 
     /// `windows`: time sampling, with its check by part against a reference
     /// with a pass log and its window log (`--window-log`).
-    pub(super) fn windows(&mut self) -> Result<(), String> {
+    pub(super) fn windows(&mut self) -> Result<(), SamplingError> {
         let o = self.o;
         let TimeSampled {
             frame: f,
@@ -387,7 +389,7 @@ fn write_window_log(
     parts: &[WindowPart],
     checks: &[PartCheck],
     record: &WindowRecord,
-) -> Result<(), String> {
+) -> Result<(), SamplingError> {
     #[derive(Serialize)]
     struct Log<'a> {
         parts: &'a [WindowPart],
@@ -401,10 +403,11 @@ fn write_window_log(
     };
     let text = serde_json::to_string(&log).expect("window log serialises");
     std::fs::write(path, text).map_err(|e| {
-        format!(
+        let msg = format!(
             "cannot write the window log '{}': {e}; choose a writable --window-log",
             path.display()
-        )
+        );
+        SamplingError::File(crate::util::FileError::new(path, e, msg))
     })
 }
 

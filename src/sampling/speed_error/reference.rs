@@ -7,8 +7,10 @@ use serde::Serialize;
 
 use crate::config::Config;
 use crate::render::Frame;
+use crate::sampling::SamplingError;
 use crate::sampling::WindowPart;
 use crate::scene::Scene;
+use crate::util::FileError;
 
 /// A cycle-mode reference read back from a finished run (`render --mode cycle
 /// --stats f.json --out f.png` with GDDR5), so that a paper-size comparison need not
@@ -152,18 +154,20 @@ impl Reference {
         png: Option<&Path>,
         scene: &Scene,
         c: &Config,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, SamplingError> {
         let name = stats.display();
-        let text = std::fs::read_to_string(stats)
-            .map_err(|e| format!("cannot read the reference '{name}': {e}"))?;
-        let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
-            format!(
-                "the reference '{name}' is not JSON ({e}); give the file `render --stats` wrote"
-            )
+        let text = std::fs::read_to_string(stats).map_err(|e| {
+            let msg = format!("cannot read the reference '{name}': {e}");
+            SamplingError::File(FileError::new(stats, e, msg))
         })?;
-        let num = |path: &str| -> Result<f64, String> {
+        let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+            SamplingError::Reference(format!(
+                "the reference '{name}' is not JSON ({e}); give the file `render --stats` wrote"
+            ))
+        })?;
+        let num = |path: &str| -> Result<f64, SamplingError> {
             v.pointer(path).and_then(|x| x.as_f64()).ok_or_else(|| {
-                format!("the reference '{name}' has no number at {path}; give the --stats file of a `render --mode cycle` run")
+                SamplingError::Reference(format!("the reference '{name}' has no number at {path}; give the --stats file of a `render --mode cycle` run"))
             })
         };
         let text_at = |path: &str| v.pointer(path).and_then(|x| x.as_str()).unwrap_or("");
@@ -197,10 +201,10 @@ impl Reference {
             ));
         }
         if !wrong.is_empty() {
-            return Err(format!(
+            return Err(SamplingError::Reference(format!(
                 "the reference '{name}' does not match this comparison ({}); render it with `render --mode cycle` (GDDR5, the default memory) on the same scene, --res and config",
                 wrong.join(", ")
-            ));
+            )));
         }
         let lines = [
             "ray_lines_read",
@@ -212,20 +216,25 @@ impl Reference {
         ]
         .iter()
         .map(|k| num(&format!("/total/{k}")))
-        .sum::<Result<f64, String>>()?;
+        .sum::<Result<f64, SamplingError>>()?;
         let rgb8 = match png {
             None => None,
             Some(p) => {
                 let img = image::open(p)
-                    .map_err(|e| format!("cannot read the reference image '{}': {e}", p.display()))?
+                    .map_err(|e| {
+                        SamplingError::Reference(format!(
+                            "cannot read the reference image '{}': {e}",
+                            p.display()
+                        ))
+                    })?
                     .to_rgb8();
                 if img.dimensions() != (w, h) {
-                    return Err(format!(
+                    return Err(SamplingError::Reference(format!(
                         "the reference image '{}' is {}x{}, not {w}x{h}; give the PNG of the same run",
                         p.display(),
                         img.width(),
                         img.height()
-                    ));
+                    )));
                 }
                 Some(img.into_raw())
             }
@@ -254,10 +263,12 @@ impl Reference {
 
     /// Reads the reference's pass log (`render --mode cycle --pass-log`), for
     /// the `windows` mode's check by part.
-    pub fn read_passes(&mut self, csv: &Path) -> Result<(), String> {
+    pub fn read_passes(&mut self, csv: &Path) -> Result<(), SamplingError> {
         let name = csv.display();
-        let text = std::fs::read_to_string(csv)
-            .map_err(|e| format!("cannot read the reference's pass log '{name}': {e}"))?;
+        let text = std::fs::read_to_string(csv).map_err(|e| {
+            let msg = format!("cannot read the reference's pass log '{name}': {e}");
+            SamplingError::File(FileError::new(csv, e, msg))
+        })?;
         let mut runs: Vec<RunPasses> = Vec::new();
         for (i, line) in text.lines().enumerate().skip(1) {
             let f: Vec<u64> = line
@@ -265,14 +276,14 @@ impl Reference {
                 .map(|x| x.trim().parse::<u64>())
                 .collect::<Result<_, _>>()
                 .map_err(|_| {
-                    format!("the pass log '{name}', line {}: '{line}' is not run,segment,rays,admit,retire; give the file `render --pass-log` wrote", i + 1)
+                    SamplingError::Reference(format!("the pass log '{name}', line {}: '{line}' is not run,segment,rays,admit,retire; give the file `render --pass-log` wrote", i + 1))
                 })?;
             let [run, _, _, admit, retire] = f[..] else {
-                return Err(format!(
+                return Err(SamplingError::Reference(format!(
                     "the pass log '{name}', line {}: {} fields, not 5 (run,segment,rays,admit,retire)",
                     i + 1,
                     f.len()
-                ));
+                )));
             };
             let run = run as usize;
             if runs.len() <= run {
@@ -282,9 +293,9 @@ impl Reference {
             runs[run].end = runs[run].end.max(retire);
         }
         if runs.is_empty() {
-            return Err(format!(
+            return Err(SamplingError::Reference(format!(
                 "the pass log '{name}' holds no segment pass; give the file `render --mode cycle --pass-log` wrote"
-            ));
+            )));
         }
         for r in &mut runs {
             r.admits.sort_unstable();

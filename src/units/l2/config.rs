@@ -73,28 +73,30 @@ impl Default for L2Cfg {
 
 impl L2Cfg {
     /// Checks the cache's geometry and sizes; `link_delay` is part of `hit_latency`.
-    pub fn validate(&self, link_delay: u32) -> Result<(), String> {
+    pub fn validate(&self, link_delay: u32) -> Result<(), crate::units::UnitError> {
         if self.line_bytes != 64 {
-            return Err(format!(
+            return Err(crate::units::UnitError::Invalid(format!(
                 "chip.l2.line_bytes = {}: the data contract's DRAM line is 64 B; give 64",
                 self.line_bytes
-            ));
+            )));
         }
         if self.banks == 0 || self.ways == 0 {
-            return Err("chip.l2.banks and chip.l2.ways must be at least 1".into());
+            return Err(crate::units::UnitError::Invalid(
+                "chip.l2.banks and chip.l2.ways must be at least 1".into(),
+            ));
         }
         let unit = self.banks as u64 * self.ways as u64 * self.line_bytes as u64;
         if self.bytes == 0 || !(self.bytes as u64).is_multiple_of(unit) {
-            return Err(format!(
+            return Err(crate::units::UnitError::Invalid(format!(
                 "chip.l2.bytes = {} is not a positive multiple of banks x ways x line_bytes = {} x {} x {} = {unit}; every bank needs whole sets",
                 self.bytes, self.banks, self.ways, self.line_bytes
-            ));
+            )));
         }
         if self.hit_latency <= link_delay {
-            return Err(format!(
+            return Err(crate::units::UnitError::Invalid(format!(
                 "chip.l2.hit_latency = {} must exceed the response link delay ({link_delay}, chip.links.delay), which is part of it",
                 self.hit_latency
-            ));
+            )));
         }
         for (name, v) in [
             ("mshrs", self.mshrs),
@@ -103,14 +105,16 @@ impl L2Cfg {
             ("port_queue", self.port_queue),
         ] {
             if v == 0 {
-                return Err(format!("chip.l2.{name} = 0: give at least 1"));
+                return Err(crate::units::UnitError::Invalid(format!(
+                    "chip.l2.{name} = 0: give at least 1"
+                )));
             }
         }
         if self.mem_lines_per_cycle == 0 || self.mem_lines_per_cycle > MAX_STREAM_LANES {
-            return Err(format!(
+            return Err(crate::units::UnitError::Invalid(format!(
                 "chip.l2.mem_lines_per_cycle = {}: give 1 to {MAX_STREAM_LANES} lines per cycle (one memory port each; 8 lines per cycle is already the 512 GB/s GDDR5 peak)",
                 self.mem_lines_per_cycle
-            ));
+            )));
         }
         Ok(())
     }
