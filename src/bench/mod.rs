@@ -148,6 +148,7 @@ pub fn measure(label: &str, tms: u32, activity: f64, cycles: u64, trace: Option<
             to: u64::MAX,
             max_bytes: 0,
             every_edge: false,
+            show: Default::default(),
         };
         sim.attach_tracer(Tracer::to_file(&path, spec).expect("temp file"))
             .expect("filter matches");

@@ -81,6 +81,7 @@ pub fn run(
                 to: Some(to.saturating_sub(1)),
                 max_bytes: 0,
                 every_edge: false,
+                show: Default::default(),
             };
             let r = frame(scene, config, Some(trace));
             let _ = std::fs::remove_file(&path);

@@ -73,6 +73,13 @@ pub struct RenderArgs {
     /// there, and its file removed.
     #[arg(long, default_value = "1G")]
     trace_max_bytes: String,
+    /// Which signals of each traced unit: comma-separated ports (valid,
+    /// ready, fire), data, fields, fsm, regs, or all.
+    #[arg(long, default_value = "all")]
+    trace_signals: String,
+    /// Leave out signals wider than this many bits (0: any width).
+    #[arg(long, default_value_t = 0)]
+    trace_max_width: u32,
     /// Sample every traced unit at every edge, not only those that ran or
     /// whose links moved: the same waveform, slower (a check of the tracer).
     #[arg(long, hide = true)]
@@ -105,6 +112,7 @@ pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), Cli
             to,
             max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
             every_edge: a.trace_every_edge,
+            show: dualstream::rtl::trace::Show::parse(&a.trace_signals, a.trace_max_width)?,
         });
     }
     if mode == Mode::Cycle

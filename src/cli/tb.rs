@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use dualstream::config::Config;
+use dualstream::rtl::trace::Show;
 use dualstream::rtl::{SimOptions, TraceError, TraceSpec};
 use dualstream::testbench::{self, TbOptions};
 
@@ -43,6 +44,13 @@ pub struct TbArgs {
     /// limit): a larger one is refused or stopped, and its file removed.
     #[arg(long, default_value = "1G")]
     trace_max_bytes: String,
+    /// Which signals of each traced unit: comma-separated ports (valid,
+    /// ready, fire), data, fields, fsm, regs, or all.
+    #[arg(long, default_value = "all")]
+    trace_signals: String,
+    /// Leave out signals wider than this many bits (0: any width).
+    #[arg(long, default_value_t = 0)]
+    trace_max_width: u32,
     /// Sample every traced unit at every edge, not only those that ran or
     /// whose links moved: the same waveform, slower (a check of the tracer).
     #[arg(long, hide = true)]
@@ -99,6 +107,7 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
         to: a.trace_to.map_or(u64::MAX, |c| c.saturating_mul(p)),
         max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
         every_edge: a.trace_every_edge,
+        show: Show::parse(&a.trace_signals, a.trace_max_width)?,
     };
     spec.validate().map_err(|e| match e {
         // The window in the flags' terms (they are cycles, the spec's ps).

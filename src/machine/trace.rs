@@ -163,6 +163,7 @@ pub fn spec(
         filter,
         max_bytes,
         every_edge: false,
+        show: crate::rtl::trace::Show::default(),
         from: from.saturating_mul(core_ps),
         // The last cycle's edge and everything before the next one (DRAM edges).
         to: to.map_or(Time::MAX, |c| {

@@ -29,6 +29,8 @@ pub struct ChipTrace {
     pub max_bytes: u64,
     /// Sample every unit at every edge (`TraceSpec::every_edge`).
     pub every_edge: bool,
+    /// Which signals the file holds (`TraceSpec::show`).
+    pub show: crate::rtl::trace::Show,
 }
 
 /// Core cycles per pixel and hit point of a cycle-mode frame on the paper's
@@ -205,6 +207,7 @@ impl FrameChip {
             let filter = crate::machine::trace::resolve(&t.units, &paths)?;
             let spec = crate::rtl::TraceSpec {
                 every_edge: t.every_edge,
+                show: t.show,
                 ..crate::machine::trace::spec(
                     filter,
                     t.from,

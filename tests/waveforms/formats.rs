@@ -190,3 +190,66 @@ fn sampling_on_activity_writes_what_sampling_every_edge_writes() {
         );
     }
 }
+
+/// `--trace-signals` and `--trace-max-width` trim what the file holds (as
+/// Verilator's --trace-depth and --trace-max-width do) and nothing else: the
+/// signals kept carry the same changes as in the whole trace.
+#[test]
+fn trace_signals_and_max_width_trim_the_file() {
+    let d = Scratch::new("wave-trim");
+    let (all, trim) = (d.join("all.vcd"), d.join("trim.vcd"));
+    let t = |p: &std::path::Path, extra: &[&str]| {
+        let mut a = vec![
+            "tb",
+            "mem_ctrl",
+            "--cycles",
+            "300",
+            "--seed",
+            "4",
+            "--vcd",
+            p.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        dualstream(&a);
+    };
+    t(&all, &[]);
+    t(
+        &trim,
+        &["--trace-signals", "ports,fsm", "--trace-max-width", "8"],
+    );
+    let (a, b) = (read::vcd(&all), read::vcd(&trim));
+    assert!(
+        b.vars.len() < a.vars.len() / 2,
+        "{} of {} signals",
+        b.vars.len(),
+        a.vars.len()
+    );
+    for (p, v) in &b.vars {
+        assert!(v.width <= 8, "{p} is {} bits", v.width);
+        assert!(!p.ends_with("_data"), "{p}: data left out");
+        assert_eq!(a.vars.get(p), Some(v), "{p} as in the whole trace");
+        assert_eq!(a.changes.get(p), b.changes.get(p), "{p}: the same changes");
+    }
+    assert!(
+        b.vars.keys().any(|p| p.ends_with("tb.mem_ctrl.cmd")),
+        "the DRAM command FSM is kept"
+    );
+    assert!(b.vars.keys().any(|p| p.ends_with("tb.mem_ctrl.req_fire")));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_dualstream"))
+        .args([
+            "tb",
+            "box_pipe",
+            "--vcd",
+            d.join("x.vcd").to_str().unwrap(),
+            "--trace-signals",
+            "ports,wires",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("'wires'") && err.contains("fsm, regs"),
+        "{err}"
+    );
+    assert!(!d.join("x.vcd").exists(), "no file for a refused trace");
+}

@@ -141,76 +141,42 @@ impl Tracer {
         // wires. A register is never taken for a port because its name starts
         // with one (`ray_index` beside port `ray`).
         for (k, p) in decl.ports.iter().enumerate() {
-            for s in &signals[3 * k..3 * k + 3] {
-                let h = self.declare(&s.name, VarKind::Wire, s.width, None);
-                sigs.push(Sig::new(h, s.width));
-            }
+            // Every port signal is sampled (fire and the fields come from
+            // them); `show` picks what the file holds. The view lists valid,
+            // ready, fire, then the data and its fields.
+            let show = self.spec.show;
             let first = derived.len();
-            let fire = format!("{}_fire", p.name);
-            let h = self.declare(&fire, VarKind::Wire, 1, None);
-            derived.push(Derived {
-                sig: Sig::new(h, 1),
-                how: Derive::Fire { port: k },
-            });
-            // The view: valid, ready, fire, then the packed data and its fields.
-            for (n, w) in [
-                (&signals[3 * k].name, 1),
-                (&signals[3 * k + 1].name, 1),
-                (&fire, 1),
-            ] {
-                self.view.sig(&format!("{path}.{n}"), w, false, None, "");
+            for (j, s) in signals[3 * k..3 * k + 3].iter().enumerate() {
+                let kind = if j < 2 { show.handshakes } else { show.data };
+                if j == 2 && show.keeps(show.handshakes, 1) {
+                    let fire = format!("{}_fire", p.name);
+                    let h = self.declare(&fire, VarKind::Wire, 1, None);
+                    self.view.sig(&format!("{path}.{fire}"), 1, false, None, "");
+                    derived.push(Derived {
+                        sig: Sig::new(h, 1),
+                        how: Derive::Fire { port: k },
+                    });
+                }
+                sigs.push(if show.keeps(kind, s.width) {
+                    let h = self.declare(&s.name, VarKind::Wire, s.width, None);
+                    self.view
+                        .sig(&format!("{path}.{}", s.name), s.width, false, None, "");
+                    Sig::new(h, s.width)
+                } else {
+                    Sig::hidden(s.width)
+                });
             }
-            let data = &signals[3 * k + 2];
-            self.view.sig(
-                &format!("{path}.{}", data.name),
-                data.width,
-                false,
-                None,
-                "",
-            );
-            let fields = links[p.link.0 as usize].fields();
+            let fields: Vec<_> = links[p.link.0 as usize]
+                .fields()
+                .into_iter()
+                .filter(|f| show.keeps(show.fields, f.width))
+                .collect();
             if fields.is_empty() {
                 port_derived.push((first, derived.len()));
                 continue;
             }
-            self.view.begin(&format!("{} fields", p.name), false);
-            self.sink.begin_scope(p.name, ScopeKind::Struct);
-            let mut open: Vec<String> = Vec::new();
-            for f in fields {
-                let parts: Vec<&str> = f.name.split('.').collect();
-                let (leaf, scopes) = parts.split_last().expect("a field has a name");
-                let common = open.iter().zip(scopes).take_while(|(a, b)| a == *b).count();
-                for _ in common..open.len() {
-                    self.sink.end_scope();
-                }
-                open.truncate(common);
-                for s in &scopes[common..] {
-                    self.sink.begin_scope(s, ScopeKind::Struct);
-                    open.push(s.to_string());
-                }
-                let (kind, e) = match f.kind {
-                    FieldKind::Float => (VarKind::Real, None),
-                    FieldKind::Enum(names) => (VarKind::Wire, Some(names)),
-                    FieldKind::Bits => (VarKind::Wire, None),
-                };
-                let h = self.declare(leaf, kind, f.width, e);
-                let full = format!("{path}.{}.{}", p.name, f.name);
-                let fsm_name = e.map_or(String::new(), |_| format!("{}_{leaf}", decl.module));
-                self.view
-                    .sig(&full, f.width, kind == VarKind::Real, e, &fsm_name);
-                derived.push(Derived {
-                    sig: Sig::new(h, f.width),
-                    how: Derive::Field {
-                        of: 3 * k + 2,
-                        offset: f.offset,
-                        float: f.kind == FieldKind::Float,
-                    },
-                });
-            }
-            for _ in 0..open.len() + 1 {
-                self.sink.end_scope();
-            }
-            self.view.end();
+            let port = (path, p.name, 3 * k + 2, decl.module);
+            self.declare_fields(port, fields, &mut derived);
             port_derived.push((first, derived.len()));
         }
         for SignalDecl {
@@ -228,6 +194,16 @@ impl Tracer {
                 self.sink
                     .comment(&format!("{path}.{name} states: {}", enc.join(" ")));
             }
+            let show = self.spec.show;
+            let kind = if enum_names.is_some() {
+                show.fsm
+            } else {
+                show.regs
+            };
+            if !show.keeps(kind, width) {
+                sigs.push(Sig::hidden(width));
+                continue;
+            }
             let h = self.declare(&name, VarKind::Reg, width, enum_names);
             let fsm_name = enum_names.map_or(String::new(), |_| format!("{}_{name}", decl.module));
             self.view.sig(
@@ -244,6 +220,7 @@ impl Tracer {
         self.full_bytes_per_ps += sigs
             .iter()
             .chain(derived.iter().map(|d| &d.sig))
+            .filter(|s| s.shown)
             .map(|s| (s.width + self.sink.id_len(s.h) as u32 + 3) as f64)
             .sum::<f64>()
             / clk.period_ps as f64;
@@ -261,5 +238,61 @@ impl Tracer {
             derived,
             port_derived,
         }
+    }
+
+    /// A port's payload fields: a struct scope named after the port (nested
+    /// as the payload nests), one variable per leaf field, derived from the
+    /// packed data (sampled signal `of`).
+    fn declare_fields(
+        &mut self,
+        (path, port, of, module): (&str, &str, usize, &str),
+        fields: Vec<crate::rtl::bits::Field>,
+        derived: &mut Vec<Derived>,
+    ) {
+        self.view.begin(&format!("{port} fields"), false);
+        self.sink.begin_scope(port, ScopeKind::Struct);
+        let mut open: Vec<String> = Vec::new();
+        for f in fields {
+            let parts: Vec<&str> = f.name.split('.').collect();
+            let (leaf, scopes) = parts.split_last().expect("a field has a name");
+            let common = open.iter().zip(scopes).take_while(|(a, b)| a == *b).count();
+            // Nested structs are scopes in the trace and groups in the view
+            // (GTKWave shows a signal's last name only: origin.x and dir.x
+            // would both read `x`).
+            for _ in common..open.len() {
+                self.sink.end_scope();
+                self.view.end();
+            }
+            open.truncate(common);
+            for s in &scopes[common..] {
+                self.sink.begin_scope(s, ScopeKind::Struct);
+                self.view.begin(s, false);
+                open.push(s.to_string());
+            }
+            let (kind, e) = match f.kind {
+                FieldKind::Float => (VarKind::Real, None),
+                FieldKind::Enum(names) => (VarKind::Wire, Some(names)),
+                FieldKind::Bits => (VarKind::Wire, None),
+            };
+            let h = self.declare(leaf, kind, f.width, e);
+            let full = format!("{path}.{port}.{}", f.name);
+            let fsm_name = e.map_or(String::new(), |_| format!("{module}_{leaf}"));
+            self.view
+                .sig(&full, f.width, kind == VarKind::Real, e, &fsm_name);
+            derived.push(Derived {
+                sig: Sig::new(h, f.width),
+                how: Derive::Field {
+                    of,
+                    offset: f.offset,
+                    float: f.kind == FieldKind::Float,
+                },
+            });
+        }
+        for _ in 0..open.len() {
+            self.sink.end_scope();
+            self.view.end();
+        }
+        self.sink.end_scope();
+        self.view.end();
     }
 }

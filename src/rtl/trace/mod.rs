@@ -46,6 +46,8 @@ pub enum TraceError {
     Oversized(String),
     /// The waveform file could not be created.
     File(FileError),
+    /// `--trace-signals` names no kind of signal the tracer knows.
+    Signals(String),
     /// The header could not be written (`format`: VCD or FST).
     Header {
         format: &'static str,
@@ -66,6 +68,11 @@ impl std::fmt::Display for TraceError {
                 units.join(", ")
             ),
             TraceError::Oversized(advice) => f.write_str(advice),
+            TraceError::Signals(k) => write!(
+                f,
+                "unknown kind of signal '{k}' in --trace-signals; the kinds are {}",
+                Show::KINDS
+            ),
             TraceError::File(e) => write!(f, "{e}"),
             TraceError::Header { format, source } => {
                 write!(f, "cannot write the {format} header: {source}")
@@ -104,6 +111,9 @@ struct Sig {
     small: u64,
     /// The last value of a wider signal.
     last: Bits,
+    /// Whether the file holds it (a sampled signal `Show` leaves out is still
+    /// followed: fire and the fields are derived from it).
+    shown: bool,
 }
 
 impl Sig {
@@ -114,6 +124,15 @@ impl Sig {
             written: false,
             small: 0,
             last: Bits::new(),
+            shown: true,
+        }
+    }
+
+    /// A sampled signal the file does not hold.
+    fn hidden(width: u32) -> Self {
+        Sig {
+            shown: false,
+            ..Sig::new(u32::MAX, width)
         }
     }
 
@@ -199,6 +218,78 @@ pub struct TraceSpec {
     /// units that ran or whose links moved: the same waveform, slower (the
     /// check that activity-driven sampling misses nothing).
     pub every_edge: bool,
+    /// Which signals of a traced unit the file holds.
+    pub show: Show,
+}
+
+/// Which kinds of signal a trace holds, and how wide they may be (as
+/// Verilator's `--trace-depth` and `--trace-max-width` trim a trace).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Show {
+    /// Ports' valid, ready and fire.
+    pub handshakes: bool,
+    /// Ports' packed data vectors.
+    pub data: bool,
+    /// Ports' payload fields.
+    pub fields: bool,
+    /// Registers that are FSM states.
+    pub fsm: bool,
+    /// Every other register.
+    pub regs: bool,
+    /// Leave out signals wider than this (0: any width).
+    pub max_width: u32,
+}
+
+impl Default for Show {
+    fn default() -> Self {
+        Show {
+            handshakes: true,
+            data: true,
+            fields: true,
+            fsm: true,
+            regs: true,
+            max_width: 0,
+        }
+    }
+}
+
+impl Show {
+    /// The kinds that `--trace-signals` names.
+    pub const KINDS: &'static str = "ports (valid, ready, fire), data, fields, fsm, regs, all";
+
+    /// Parses a comma-separated list of kinds (`ports,fsm`); `max_width` as given.
+    pub fn parse(list: &str, max_width: u32) -> Result<Show, TraceError> {
+        let mut s = Show {
+            handshakes: false,
+            data: false,
+            fields: false,
+            fsm: false,
+            regs: false,
+            max_width,
+        };
+        for k in list.split(',').map(str::trim).filter(|k| !k.is_empty()) {
+            match k {
+                "ports" => s.handshakes = true,
+                "data" => s.data = true,
+                "fields" => s.fields = true,
+                "fsm" => s.fsm = true,
+                "regs" => s.regs = true,
+                "all" => {
+                    s = Show {
+                        max_width,
+                        ..Show::default()
+                    }
+                }
+                _ => return Err(TraceError::Signals(k.to_string())),
+            }
+        }
+        Ok(s)
+    }
+
+    /// Whether a signal of this kind and width goes in the file.
+    pub(crate) fn keeps(&self, kind_shown: bool, width: u32) -> bool {
+        kind_shown && (self.max_width == 0 || width <= self.max_width)
+    }
 }
 
 impl TraceSpec {
@@ -209,6 +300,7 @@ impl TraceSpec {
             to: Time::MAX,
             max_bytes: DEFAULT_MAX_BYTES,
             every_edge: false,
+            show: Show::default(),
         }
     }
     pub fn validate(&self) -> Result<(), TraceError> {
@@ -515,7 +607,7 @@ impl Tracer {
             signals: self
                 .units
                 .iter()
-                .map(|u| (u.sigs.len() + u.derived.len()) as u64)
+                .map(|u| (u.sigs.iter().filter(|s| s.shown).count() + u.derived.len()) as u64)
                 .sum::<u64>()
                 + self.clocks.len() as u64
                 + self.rst.is_some() as u64,

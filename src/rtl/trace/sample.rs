@@ -146,7 +146,7 @@ impl Tracer {
             let v = &mut self.samples.vals[k];
             // An empty sample holds the last value.
             let m = !v.is_empty() && sig.update(v);
-            if m {
+            if m && sig.shown {
                 self.sink.bits(t, sig.h, v, sig.width)?;
                 self.changes += 1;
             }
