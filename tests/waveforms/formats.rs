@@ -189,6 +189,41 @@ fn sampling_on_activity_writes_what_sampling_every_edge_writes() {
             "tb {unit}: the two samplings differ"
         );
     }
+    // Links of delay 3: a head becomes visible two cycles after anything
+    // moved (the rule that wakes a unit's sampling when it does).
+    let cfg = d.join("delay3.toml");
+    std::fs::write(
+        &cfg,
+        "[links.tm]\ndepth = 4\ndelay = 3\n[tm.l1]\nhit_latency = 4\n",
+    )
+    .unwrap();
+    for unit in ["box_pipe", "divider"] {
+        let files: Vec<Vec<u8>> = [false, true]
+            .into_iter()
+            .map(|every| {
+                let p = d.join(format!("{unit}-d3-{every}.vcd"));
+                let mut a = vec![
+                    "--config",
+                    cfg.to_str().unwrap(),
+                    "tb",
+                    unit,
+                    "--cycles=400",
+                    "--seed",
+                    "2",
+                ];
+                a.extend(["--vcd", p.to_str().unwrap()]);
+                if every {
+                    a.push("--trace-every-edge");
+                }
+                dualstream(&a);
+                read(&p)
+            })
+            .collect();
+        assert!(
+            files[0] == files[1],
+            "tb {unit} on delay-3 links: the two samplings differ"
+        );
+    }
 }
 
 /// `--trace-signals` and `--trace-max-width` trim what the file holds (as
