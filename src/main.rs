@@ -48,7 +48,7 @@ enum Cmd {
     },
     /// Write the Verilog skeleton of every unit.
     Hdl(cli::hdl::HdlArgs),
-    /// Measure the simulator: kernel, dram, speed-error or threads.
+    /// Measure the simulator: kernel, dram, speed-error, threads or trace.
     Bench {
         #[command(subcommand)]
         cmd: cli::bench::BenchCmd,

@@ -123,7 +123,7 @@ impl std::fmt::Display for TbReport {
         if self.vcd_bytes > 0 {
             writeln!(
                 f,
-                "  vcd: {} changes, {} bytes",
+                "  waveform: {} changes, {} bytes",
                 self.vcd_changes, self.vcd_bytes
             )?;
         }

@@ -71,9 +71,10 @@ pub struct TraceArgs {
     /// Resolution WxH.
     #[arg(long, default_value = "32x32")]
     res: String,
-    /// First and last core cycle traced.
+    /// First core cycle traced.
     #[arg(long, default_value_t = 20000)]
     from: u64,
+    /// The core cycle the window ends before.
     #[arg(long, default_value_t = 40000)]
     to: u64,
     /// Write the runs as JSON here.

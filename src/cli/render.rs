@@ -87,8 +87,27 @@ pub struct RenderArgs {
 }
 
 /// `dualstream render`: checks every option and output before the frame (it
-/// may take minutes), renders it and writes what was asked for.
+/// may take minutes), renders it and writes what was asked for. On an error
+/// the outputs the check created are removed: no empty file is left.
 pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), CliError> {
+    let outputs: Vec<PathBuf> = [Some(&a.out), a.stats.as_ref(), a.vcd.as_ref()]
+        .into_iter()
+        .flatten()
+        .filter(|p| !p.exists())
+        .cloned()
+        .collect();
+    let r = render_checked(config, threads, a);
+    if r.is_err() {
+        for p in outputs {
+            if std::fs::metadata(&p).is_ok_and(|m| m.len() == 0) {
+                let _ = std::fs::remove_file(&p);
+            }
+        }
+    }
+    r
+}
+
+fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(), CliError> {
     let sampled = a.mode == "windows";
     let mode = match a.mode.as_str() {
         "functional" | "windows" => Mode::Functional,

@@ -288,3 +288,74 @@ fn trace_signals_and_max_width_trim_the_file() {
     );
     assert!(!d.join("x.vcd").exists(), "no file for a refused trace");
 }
+
+/// Mistakes a user makes get an error and leave no file: a trace of FSMs
+/// alone works (no port signals at all), a window after the run's end is
+/// refused, and a render refused for an unknown unit leaves neither its
+/// image nor its trace behind.
+#[test]
+fn trimmed_late_and_refused_traces_leave_no_wrong_file() {
+    let d = Scratch::new("wave-mistakes");
+    let fsm = d.join("fsm.vcd");
+    dualstream(&[
+        "tb",
+        "mem_ctrl",
+        "--cycles",
+        "200",
+        "--vcd",
+        fsm.to_str().unwrap(),
+        "--trace-signals",
+        "fsm",
+    ]);
+    let w = read::vcd(&fsm);
+    assert!(w.vars.keys().any(|p| p.ends_with("tb.mem_ctrl.cmd")));
+    assert!(
+        w.vars
+            .keys()
+            .all(|p| !p.contains("_valid") && !p.contains("_fire")),
+        "{:?}",
+        w.vars.keys()
+    );
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_dualstream"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let late = d.join("late.fst");
+    let o = run(&[
+        "tb",
+        "box_pipe",
+        "--cycles",
+        "100",
+        "--vcd",
+        late.to_str().unwrap(),
+        "--trace-from",
+        "100000",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("before the trace window starts"),
+        "{err}"
+    );
+    assert!(!late.exists(), "no empty FST");
+    let (png, vcd) = (d.join("r.png"), d.join("r.vcd"));
+    let o = run(&[
+        "render",
+        "--mode",
+        "cycle",
+        "--res",
+        "8x8",
+        "--out",
+        png.to_str().unwrap(),
+        "--vcd",
+        vcd.to_str().unwrap(),
+        "--trace-units",
+        "tm999",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        !png.exists() && !vcd.exists(),
+        "a refused render leaves no empty outputs"
+    );
+}

@@ -166,18 +166,19 @@ impl Tracer {
                     Sig::hidden(s.width)
                 });
             }
+            let fields_start = derived.len();
             let fields: Vec<_> = links[p.link.0 as usize]
                 .fields()
                 .into_iter()
                 .filter(|f| show.keeps(show.fields, f.width))
                 .collect();
             if fields.is_empty() {
-                port_derived.push((first, derived.len()));
+                port_derived.push((first, fields_start, derived.len()));
                 continue;
             }
             let port = (path, p.name, 3 * k + 2, decl.module);
             self.declare_fields(port, fields, &mut derived);
-            port_derived.push((first, derived.len()));
+            port_derived.push((first, fields_start, derived.len()));
         }
         for SignalDecl {
             name,

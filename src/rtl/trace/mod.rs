@@ -186,8 +186,10 @@ struct TracedUnit {
     sigs: Vec<Sig>,
     /// In port order: each port's fire, then its fields.
     derived: Vec<Derived>,
-    /// Per port, its range in `derived` (fire first).
-    port_derived: Vec<(usize, usize)>,
+    /// Per port, where its signals are in `derived`: fire at the first
+    /// index if the range up to the second is not empty (`Show` may leave
+    /// it out), its fields from the second to the third.
+    port_derived: Vec<(usize, usize, usize)>,
 }
 
 /// Not a traced unit.
@@ -593,9 +595,16 @@ impl Tracer {
             return Err(e);
         }
         let end = now.min(self.spec.to);
-        if self.clock_t.is_some() {
-            self.clocks_until(end)?;
+        if self.clock_t.is_none() {
+            // Nothing was sampled: a file with no values is no waveform
+            // (GTKWave cannot open such an FST).
+            self.discard();
+            return Err(io::Error::other(format!(
+                "the run ended at {now} ps, before the trace window starts ({} ps): nothing was traced; choose a window within the run",
+                self.spec.from
+            )));
         }
+        self.clocks_until(end)?;
         self.sink.finish(end)?;
         if let Some(p) = &self.path {
             self.view

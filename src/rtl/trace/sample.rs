@@ -154,13 +154,13 @@ impl Tracer {
         }
         // A derived signal can only change with what it is derived from: per
         // port, fire with valid or ready, the fields with the data.
-        for (k, &(start, end)) in unit.port_derived.iter().enumerate() {
-            let (fire, fields) = (moved[3 * k] || moved[3 * k + 1], moved[3 * k + 2]);
-            let range = match (fire, fields) {
+        for (k, &(fire, fields, end)) in unit.port_derived.iter().enumerate() {
+            let (handshake, data) = (moved[3 * k] || moved[3 * k + 1], moved[3 * k + 2]);
+            let range = match (handshake, data) {
                 (false, false) => continue,
-                (true, false) => start..start + 1,
-                (false, true) => start + 1..end,
-                (true, true) => start..end,
+                (true, false) => fire..fields,
+                (false, true) => fields..end,
+                (true, true) => fire..end,
             };
             for d in &mut unit.derived[range] {
                 let s = &mut self.scratch;
