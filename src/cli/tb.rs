@@ -100,6 +100,17 @@ fn unit_long_help() -> String {
 /// scoreboard found errors.
 pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
     let bench = testbench::find(&a.unit)?;
+    // Trace options without a waveform file would be ignored: say so.
+    let traced = !a.trace.is_empty()
+        || a.trace_from != 0
+        || a.trace_to.is_some()
+        || a.trace_signals != "all"
+        || a.trace_max_width != 0;
+    if traced && a.vcd.is_none() {
+        return Err(CliError::Usage(
+            "--trace, --trace-from/--trace-to, --trace-signals and --trace-max-width choose what a waveform holds; give --vcd FILE (.vcd or .fst) to write one".into(),
+        ));
+    }
     let p = config.clocks.core_ps;
     let spec = TraceSpec {
         filter: a.trace,

@@ -154,3 +154,13 @@ fn tb_tm_runs_a_treelet_and_writes_a_vcd() {
         &["treelet 3 does not exist", "1 segments"],
     );
 }
+
+/// Trace options without `--vcd` would be ignored: refused, naming the fix.
+#[test]
+fn tb_trace_options_without_a_waveform_are_refused() {
+    fails_with(&["tb", "box_pipe", "--trace", "box_pipe"], &["--vcd FILE"]);
+    fails_with(
+        &["tb", "box_pipe", "--trace-signals", "fsm"],
+        &["--vcd FILE"],
+    );
+}
