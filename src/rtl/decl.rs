@@ -38,6 +38,9 @@ pub struct StateDecl {
     /// holds before its first edge, so the Verilog's reset agrees with the model
     /// and the waveform (`Declared::decl_at_reset` fills it in for registers).
     pub reset: super::bits::Bits,
+    /// A register's payload fields (`Payload::field_list`; empty for a leaf),
+    /// which the waveform shows beside the packed value.
+    pub fields: Vec<super::bits::Field>,
 }
 
 impl StateDecl {
@@ -48,6 +51,7 @@ impl StateDecl {
             depth: None,
             enum_names: None,
             reset: super::bits::Bits::new(),
+            fields: Vec::new(),
         }
     }
     pub fn array(name: impl Into<String>, width: u32, depth: u32) -> Self {
@@ -57,6 +61,7 @@ impl StateDecl {
             depth: Some(depth),
             enum_names: None,
             reset: super::bits::Bits::new(),
+            fields: Vec::new(),
         }
     }
     pub fn bits(&self) -> u64 {

@@ -120,6 +120,7 @@ impl<T: Payload> State for Reg<T> {
     fn declare(&self, name: &str, out: &mut StateList) {
         let mut d = StateDecl::reg(name, T::BITS);
         d.enum_names = T::enum_names();
+        d.fields = T::field_list();
         out.items.push(d);
     }
     fn sample(&self, _cycle: u64, out: &mut Samples) {

@@ -66,8 +66,10 @@ fn times(w: &Wave, paths: &[&String]) -> BTreeSet<u64> {
 
 fn check_fields(w: &Wave) -> usize {
     let mut checked = 0;
-    for data in w.order.iter().filter(|p| p.ends_with("_data")) {
-        let port = data.trim_end_matches("_data");
+    // A port's packed vector is `x_data` with fields `x.*`; a struct
+    // register's is `r` with fields `r.*`.
+    for data in &w.order {
+        let port = data.strip_suffix("_data").unwrap_or(data);
         let fields: Vec<&String> = w
             .order
             .iter()
@@ -170,8 +172,11 @@ fn fields_clocks_and_fire_mean_what_they_say() {
             check_fire(&w) >= 13 + 2,
             "every port of the TP and the L1 has fire"
         );
-        // Floats are numbers, as Verilator's --trace-structs shows them.
+        // Floats are numbers, as Verilator's --trace-structs shows them;
+        // struct registers have fields too.
         assert_eq!(w.vars["chip.tm0.tp0.ray.ray.origin.x"].kind, "real");
+        assert_eq!(w.vars["chip.tm0.tp0.best.t"].kind, "real");
+        assert_eq!(w.vars["chip.tm0.tp0.cur.ray.ray_id"].width, 32);
         assert_eq!(w.vars["chip.tm0.tp0.ray.ray.ray_id"].width, 32);
     }
 }

@@ -136,6 +136,7 @@ impl Tracer {
         ));
         let signals = decl.signals();
         let (mut sigs, mut derived, mut port_derived) = (Vec::new(), Vec::new(), Vec::new());
+        let mut reg_derived = Vec::new();
         self.view.begin_unit(path);
         // Ports' valid, ready and data come first (`UnitDecl::signals`):
         // wires. A register is never taken for a port because its name starts
@@ -180,11 +181,18 @@ impl Tracer {
             self.declare_fields(port, fields, &mut derived);
             port_derived.push((first, fields_start, derived.len()));
         }
-        for SignalDecl {
-            name,
-            width,
-            enum_names,
-        } in signals.into_iter().skip(3 * decl.ports.len())
+        let traced_state = decl.state.iter().filter(|s| s.traced());
+        for (
+            SignalDecl {
+                name,
+                width,
+                enum_names,
+            },
+            state,
+        ) in signals
+            .into_iter()
+            .skip(3 * decl.ports.len())
+            .zip(traced_state)
         {
             if let Some(names) = enum_names {
                 let enc: Vec<String> = names
@@ -215,6 +223,20 @@ impl Tracer {
                 &fsm_name,
             );
             sigs.push(Sig::new(h, width));
+            // A struct register's fields, as a port's (Verilator's
+            // --trace-structs): from the packed value, sampled at `of`.
+            let of = sigs.len() - 1;
+            let fields: Vec<_> = state
+                .fields
+                .iter()
+                .filter(|f| show.keeps(show.fields, f.width))
+                .cloned()
+                .collect();
+            if !fields.is_empty() {
+                let start = derived.len();
+                self.declare_fields((path, &name, of, decl.module), fields, &mut derived);
+                reg_derived.push((of, start, derived.len()));
+            }
         }
         self.view.end();
         let ports = decl.ports.iter().map(|p| (p.link, p.dir)).collect();
@@ -238,6 +260,7 @@ impl Tracer {
             sigs,
             derived,
             port_derived,
+            reg_derived,
         }
     }
 

@@ -190,6 +190,9 @@ struct TracedUnit {
     /// index if the range up to the second is not empty (`Show` may leave
     /// it out), its fields from the second to the third.
     port_derived: Vec<(usize, usize, usize)>,
+    /// Per struct register: its sampled signal and its fields' range in
+    /// `derived`.
+    reg_derived: Vec<(usize, usize, usize)>,
 }
 
 /// Not a traced unit.
@@ -361,6 +364,8 @@ pub struct Tracer {
     scratch: Bits,
     /// Which of a unit's sampled signals changed in this sample.
     moved: Vec<bool>,
+    /// The ranges of a unit's derived signals to recompute.
+    ranges: Vec<std::ops::Range<usize>>,
     clocks: Vec<ClockSig>,
     rst: Option<u32>,
     /// The time up to which the clocks are written.
@@ -449,6 +454,7 @@ impl Tracer {
             samples: Samples::default(),
             scratch: Bits::new(),
             moved: Vec::new(),
+            ranges: Vec::new(),
             clocks: Vec::new(),
             rst: None,
             clock_t: None,

@@ -154,14 +154,24 @@ impl Tracer {
         }
         // A derived signal can only change with what it is derived from: per
         // port, fire with valid or ready, the fields with the data.
+        let ranges = &mut self.ranges;
+        ranges.clear();
         for (k, &(fire, fields, end)) in unit.port_derived.iter().enumerate() {
             let (handshake, data) = (moved[3 * k] || moved[3 * k + 1], moved[3 * k + 2]);
-            let range = match (handshake, data) {
+            ranges.push(match (handshake, data) {
                 (false, false) => continue,
                 (true, false) => fire..fields,
                 (false, true) => fields..end,
                 (true, true) => fire..end,
-            };
+            });
+        }
+        // A struct register's fields, with the register.
+        for &(of, start, end) in &unit.reg_derived {
+            if moved[of] {
+                ranges.push(start..end);
+            }
+        }
+        for range in ranges.drain(..) {
             for d in &mut unit.derived[range] {
                 let s = &mut self.scratch;
                 let float = match d.how {
