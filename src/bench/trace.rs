@@ -24,7 +24,9 @@ pub struct TraceRun {
     pub units: u64,
     pub signals: u64,
     pub changes: u64,
-    pub changes_per_s: f64,
+    /// Over the tracing's own time (traced minus untraced wall time); `None`
+    /// when that is within the noise (under 5% of the untraced frame).
+    pub changes_per_s: Option<f64>,
     pub bytes: u64,
 }
 
@@ -64,7 +66,7 @@ pub fn run(
         units: 0,
         signals: 0,
         changes: 0,
-        changes_per_s: 0.0,
+        changes_per_s: None,
         bytes: 0,
     }];
     for (filter, name) in CASES {
@@ -97,7 +99,7 @@ pub fn run(
                 units: v.units,
                 signals: v.signals,
                 changes: v.changes,
-                changes_per_s: v.changes as f64 / (wall_s - base).max(1e-9),
+                changes_per_s: (wall_s > 1.05 * base).then(|| v.changes as f64 / (wall_s - base)),
                 bytes: v.bytes,
             });
         }
@@ -112,17 +114,12 @@ pub fn table(runs: &[TraceRun]) -> String {
         "case", "format", "wall s", "ratio", "units", "signals", "changes", "changes/s", "bytes"
     );
     for r in runs {
+        let rate = r
+            .changes_per_s
+            .map_or("-".to_string(), |x| format!("{x:.0}"));
         s += &format!(
-            "{:<16} {:>6} {:>8.2} {:>6.2} {:>7} {:>9} {:>11} {:>12.0} {:>12}\n",
-            r.case,
-            r.format,
-            r.wall_s,
-            r.ratio,
-            r.units,
-            r.signals,
-            r.changes,
-            r.changes_per_s,
-            r.bytes
+            "{:<16} {:>6} {:>8.2} {:>6.2} {:>7} {:>9} {:>11} {:>12} {:>12}\n",
+            r.case, r.format, r.wall_s, r.ratio, r.units, r.signals, r.changes, rate, r.bytes
         );
     }
     s
