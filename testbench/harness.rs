@@ -273,15 +273,21 @@ pub fn attach_trace(
 
 /// Closes the waveform, if any, and records its size in `rep`.
 pub fn finish_trace(sim: &mut Sim, mut rep: TbReport) -> Result<TbReport, TbError> {
-    if let Some(r) = sim.finish_trace() {
-        let s = r.map_err(|source| TbError::Vcd {
-            what: "writing the VCD failed",
-            source,
-        })?;
+    if let Some(s) = close_trace(sim)? {
         rep.vcd_changes = s.changes;
         rep.vcd_bytes = s.bytes;
     }
     Ok(rep)
+}
+
+/// Closes the waveform, if any: what it wrote.
+pub fn close_trace(sim: &mut Sim) -> Result<Option<crate::rtl::TraceStats>, TbError> {
+    sim.finish_trace()
+        .transpose()
+        .map_err(|source| TbError::Vcd {
+            what: "writing the VCD failed",
+            source,
+        })
 }
 
 /// A unit's counter by name (0 if it has none of that name).

@@ -252,12 +252,6 @@ fn fill_behind(
         accesses: counter("accesses"),
         end: end / 1000,
     };
-    let trace = match sim.finish_trace() {
-        Some(r) => Some(r.map_err(|source| TbError::Vcd {
-            what: "writing the VCD failed",
-            source,
-        })?),
-        None => None,
-    };
+    let trace = super::harness::close_trace(&mut sim)?;
     Ok((run, status_cycles, trace))
 }

@@ -117,13 +117,7 @@ pub fn script(
     let (port0, port1) = (got(sinks[0]), got(sinks[1]));
     let probe = sim.unit_ref::<Memory>(mem).probe();
     let status_cycles = sim.unit_stats(mem).status_cycles;
-    let trace = match sim.finish_trace() {
-        Some(r) => Some(r.map_err(|source| TbError::Vcd {
-            what: "writing the VCD failed",
-            source,
-        })?),
-        None => None,
-    };
+    let trace = super::harness::close_trace(&mut sim)?;
     Ok(MemoryRun {
         port0,
         port1,

@@ -123,13 +123,7 @@ pub fn script(
         .iter()
         .map(|&s| sim.unit_ref::<Sink<SbRay>>(s).got.clone())
         .collect();
-    let trace = match sim.finish_trace() {
-        Some(r) => Some(r.map_err(|source| TbError::Vcd {
-            what: "writing the VCD failed",
-            source,
-        })?),
-        None => None,
-    };
+    let trace = super::harness::close_trace(&mut sim)?;
     Ok(StagingRun {
         tps,
         counts: (c("rays_in"), c("rays_out"), c("swaps")),

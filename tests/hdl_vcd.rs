@@ -13,7 +13,7 @@ use dualstream::rtl::TraceSpec;
 use dualstream::testbench::{self, TbOptions};
 
 mod common;
-use common::Scratch;
+use common::{Scratch, have};
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -21,23 +21,6 @@ fn repo() -> PathBuf {
 
 fn tmpdir(name: &str) -> Scratch {
     Scratch::new(&format!("test-{name}"))
-}
-
-/// In CI the external tools are installed by `.ci/run` and must be there; on a
-/// developer machine without them the check is reported and skipped.
-fn have(tool: &str) -> bool {
-    let ok = Command::new("which")
-        .arg(tool)
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !ok {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "{tool} is required in CI (.ci/run installs it)"
-        );
-        eprintln!("note: {tool} not installed; skipping its check (CI runs it)");
-    }
-    ok
 }
 
 #[test]

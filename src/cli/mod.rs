@@ -19,6 +19,33 @@ pub mod tb;
 
 pub use error::{CliError, unwritable};
 
+/// What a waveform holds, for every command that traces (render, tb).
+#[derive(clap::Args)]
+pub struct WaveArgs {
+    /// Which signals of each traced unit: comma-separated ports (valid,
+    /// ready, fire), data, fields, fsm, regs, or all.
+    #[arg(long, default_value = "all")]
+    trace_signals: String,
+    /// Leave out signals wider than this many bits (0: any width).
+    #[arg(long, default_value_t = 0)]
+    trace_max_width: u32,
+    /// Sample every traced unit at every edge, not only those that ran or
+    /// whose links moved: the same waveform, slower (a check of the tracer).
+    #[arg(long, hide = true)]
+    trace_every_edge: bool,
+}
+
+impl WaveArgs {
+    pub fn show(&self) -> Result<dualstream::rtl::trace::Show, dualstream::rtl::TraceError> {
+        dualstream::rtl::trace::Show::parse(&self.trace_signals, self.trace_max_width)
+    }
+
+    /// Whether the flags trim the signals (what needs a waveform to act on).
+    pub fn trims(&self) -> bool {
+        self.trace_signals != "all" || self.trace_max_width != 0
+    }
+}
+
 /// Says that the BVH came from the fallback builder, and why.
 pub fn bvh_fallback_warning(why: &str) -> String {
     format!(

@@ -10,7 +10,9 @@ use dualstream::render::{self, Frame, Mode, RenderCfg, output};
 use dualstream::rtl::Threads;
 use dualstream::scene::Scene;
 
-use super::{CliError, bvh_fallback_warning, parse_res, parse_size, render_cfg, unwritable};
+use super::{
+    CliError, WaveArgs, bvh_fallback_warning, parse_res, parse_size, render_cfg, unwritable,
+};
 use dualstream::sampling::{self, WindowEstimate};
 
 #[derive(Args)]
@@ -73,17 +75,8 @@ pub struct RenderArgs {
     /// there, and its file removed.
     #[arg(long, default_value = "1G")]
     trace_max_bytes: String,
-    /// Which signals of each traced unit: comma-separated ports (valid,
-    /// ready, fire), data, fields, fsm, regs, or all.
-    #[arg(long, default_value = "all")]
-    trace_signals: String,
-    /// Leave out signals wider than this many bits (0: any width).
-    #[arg(long, default_value_t = 0)]
-    trace_max_width: u32,
-    /// Sample every traced unit at every edge, not only those that ran or
-    /// whose links moved: the same waveform, slower (a check of the tracer).
-    #[arg(long, hide = true)]
-    trace_every_edge: bool,
+    #[command(flatten)]
+    wave: WaveArgs,
 }
 
 /// `dualstream render`: checks every option and output before the frame (it
@@ -130,8 +123,8 @@ fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(),
             from,
             to,
             max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
-            every_edge: a.trace_every_edge,
-            show: dualstream::rtl::trace::Show::parse(&a.trace_signals, a.trace_max_width)?,
+            every_edge: a.wave.trace_every_edge,
+            show: a.wave.show()?,
         });
     }
     if mode == Mode::Cycle

@@ -6,11 +6,10 @@ use std::path::PathBuf;
 use clap::Args;
 
 use dualstream::config::Config;
-use dualstream::rtl::trace::Show;
 use dualstream::rtl::{SimOptions, TraceError, TraceSpec};
 use dualstream::testbench::{self, TbOptions};
 
-use super::{CliError, parse_res, parse_size};
+use super::{CliError, WaveArgs, parse_res, parse_size};
 
 #[derive(Args)]
 pub struct TbArgs {
@@ -44,17 +43,8 @@ pub struct TbArgs {
     /// limit): a larger one is refused or stopped, and its file removed.
     #[arg(long, default_value = "1G")]
     trace_max_bytes: String,
-    /// Which signals of each traced unit: comma-separated ports (valid,
-    /// ready, fire), data, fields, fsm, regs, or all.
-    #[arg(long, default_value = "all")]
-    trace_signals: String,
-    /// Leave out signals wider than this many bits (0: any width).
-    #[arg(long, default_value_t = 0)]
-    trace_max_width: u32,
-    /// Sample every traced unit at every edge, not only those that ran or
-    /// whose links moved: the same waveform, slower (a check of the tracer).
-    #[arg(long, hide = true)]
-    trace_every_edge: bool,
+    #[command(flatten)]
+    wave: WaveArgs,
     /// Evaluate every unit every cycle (no sleeping): slower, same results.
     #[arg(long)]
     no_sleep: bool,
@@ -101,11 +91,7 @@ fn unit_long_help() -> String {
 pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
     let bench = testbench::find(&a.unit)?;
     // Trace options without a waveform file would be ignored: say so.
-    let traced = !a.trace.is_empty()
-        || a.trace_from != 0
-        || a.trace_to.is_some()
-        || a.trace_signals != "all"
-        || a.trace_max_width != 0;
+    let traced = !a.trace.is_empty() || a.trace_from != 0 || a.trace_to.is_some() || a.wave.trims();
     if traced && a.vcd.is_none() {
         return Err(CliError::Usage(
             "--trace, --trace-from/--trace-to, --trace-signals and --trace-max-width choose what a waveform holds; give --vcd FILE (.vcd or .fst) to write one".into(),
@@ -117,8 +103,8 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
         from: a.trace_from.saturating_mul(p),
         to: a.trace_to.map_or(u64::MAX, |c| c.saturating_mul(p)),
         max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
-        every_edge: a.trace_every_edge,
-        show: Show::parse(&a.trace_signals, a.trace_max_width)?,
+        every_edge: a.wave.trace_every_edge,
+        show: a.wave.show()?,
     };
     spec.validate().map_err(|e| match e {
         // The window in the flags' terms (they are cycles, the spec's ps).

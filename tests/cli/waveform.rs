@@ -4,25 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::common::Scratch;
+use crate::common::{Scratch, have};
 use crate::{fails_with, run};
-
-/// In CI the external tools must be there (`.ci/run` installs them); elsewhere a
-/// missing one is reported and its check skipped.
-fn have(tool: &str) -> bool {
-    let ok = Command::new("which")
-        .arg(tool)
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !ok {
-        assert!(
-            std::env::var("CI").map_or(true, |v| v != "true"),
-            "{tool} is required in CI (.ci/run installs it)"
-        );
-        eprintln!("note: {tool} not installed; skipping its check (CI runs it)");
-    }
-    ok
-}
 
 /// Unit scopes (dotted paths of the module scopes holding variables, below
 /// the root that holds the clocks; a port's fields are a `begin` scope inside

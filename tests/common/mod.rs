@@ -37,3 +37,22 @@ impl AsRef<Path> for Scratch {
         &self.0
     }
 }
+
+/// Whether an external tool (verilator, gtkwave, xvfb-run, ...) is installed.
+/// In CI `.ci/run` installs them and they must be there; on a developer
+/// machine without one its check is reported and skipped.
+#[allow(dead_code)] // not every test binary runs external tools
+pub fn have(tool: &str) -> bool {
+    let ok = std::process::Command::new("which")
+        .arg(tool)
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        assert!(
+            std::env::var("CI").map_or(true, |v| v != "true"),
+            "{tool} is required in CI (.ci/run installs it)"
+        );
+        eprintln!("note: {tool} not installed; skipping its check (CI runs it)");
+    }
+    ok
+}

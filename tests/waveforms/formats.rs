@@ -1,7 +1,7 @@
 //! FST and VCD: one trace, two formats, the same values.
 
 use crate::common::Scratch;
-use crate::{dualstream, have, read};
+use crate::{chip_trace, dualstream, have, read};
 
 /// A box-pipe testbench and a small chip window, traced once as VCD and once
 /// as FST: every variable and every change agree.
@@ -56,26 +56,9 @@ fn fsm_states_are_named_and_registers_are_regs() {
         return;
     }
     let d = Scratch::new("wave-enums");
-    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/chip-8tms.toml");
     for ext in ["vcd", "fst"] {
         let p = d.join(format!("c.{ext}"));
-        dualstream(&[
-            "render",
-            "--config",
-            cfg,
-            "--mode",
-            "cycle",
-            "--res",
-            "8x8",
-            "--out",
-            d.join("c.png").to_str().unwrap(),
-            "--vcd",
-            p.to_str().unwrap(),
-            "--trace-units",
-            "chip.tm0.tp0,mem_ctrl0",
-            "--trace-window",
-            "1000..1400",
-        ]);
+        chip_trace(&p, "chip.tm0.tp0,mem_ctrl0", "1000..1400", &[]);
     }
     let v = read::vcd(&d.join("c.vcd"));
     let (f, ext) = read::fst(&d.join("c.fst"));
@@ -122,35 +105,11 @@ fn fsm_states_are_named_and_registers_are_regs() {
 #[test]
 fn sampling_on_activity_writes_what_sampling_every_edge_writes() {
     let d = Scratch::new("wave-activity");
-    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/chip-8tms.toml");
     let read = |p: &std::path::Path| std::fs::read(p).unwrap();
     for every in [false, true] {
         let p = d.join(format!("c{every}.vcd"));
-        let mut args = vec![
-            "render",
-            "--config",
-            cfg,
-            "--mode",
-            "cycle",
-            "--res",
-            "8x8",
-            "--out",
-            d.join("c.png").to_str().unwrap(),
-            "--vcd",
-            p.to_str().unwrap(),
-            "--trace-units",
-            "chip.tm0,scheduler,l2,mem_ctrl0",
-            "--trace-window",
-            "11000..14000",
-        ]
-        .into_iter()
-        .map(String::from)
-        .collect::<Vec<_>>();
-        if every {
-            args.push("--trace-every-edge".into());
-        }
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        dualstream(&args);
+        let extra: &[&str] = if every { &["--trace-every-edge"] } else { &[] };
+        chip_trace(&p, "chip.tm0,scheduler,l2,mem_ctrl0", "11000..14000", extra);
         for (unit, extra) in [
             ("mem_ctrl", "--cycles=400"),
             ("hit_record_updater", "--cycles=400"),

@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::Command;
 
 use crate::common::Scratch;
-use crate::{dualstream, have, read};
+use crate::{chip_trace, have, read};
 
 /// Runs GTKWave on `trace` with `save` and a Tcl script that reports what it
 /// shows, then quits; returns the report lines (`KEY value`).
@@ -57,26 +57,14 @@ fn gtkwave_opens_the_save_file_on_named_states_fields_and_the_window() {
         return;
     }
     let d = Scratch::new("wave-gtkw");
-    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/chip-8tms.toml");
     for ext in ["vcd", "fst"] {
         let trace = d.join(format!("c.{ext}"));
-        dualstream(&[
-            "render",
-            "--config",
-            cfg,
-            "--mode",
-            "cycle",
-            "--res",
-            "8x8",
-            "--out",
-            d.join("c.png").to_str().unwrap(),
-            "--vcd",
-            trace.to_str().unwrap(),
-            "--trace-units",
+        chip_trace(
+            &trace,
             "chip.tm0.tp0,chip.tm0.l1,mem_ctrl0",
-            "--trace-window",
             "12000..12600",
-        ]);
+            &[],
+        );
         let save = d.join("c.gtkw");
         let text = std::fs::read_to_string(&save).unwrap();
         // Signal lines: everything that is not a directive, flag, group or filter.

@@ -11,6 +11,8 @@ mod common;
 mod formats;
 mod gtkwave;
 mod read;
+
+pub use common::have;
 mod signals;
 
 /// Runs the command line and insists that it succeeds.
@@ -26,19 +28,29 @@ pub fn dualstream(args: &[&str]) {
     );
 }
 
-/// In CI the external tools are installed by `.ci/run` and must be there; on a
-/// developer machine without them the check is reported and skipped.
-pub fn have(tool: &str) -> bool {
-    let ok = Command::new("which")
-        .arg(tool)
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !ok {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "{tool} is required in CI (.ci/run installs it)"
-        );
-        eprintln!("note: {tool} not installed; skipping its check (CI runs it)");
-    }
-    ok
+/// Traces a window of an 8x8 cycle frame on the 8-TM chip into `trace` (its
+/// image beside it): `units` as `--trace-units`, `window` as
+/// `--trace-window`, then any `extra` flags.
+pub fn chip_trace(trace: &std::path::Path, units: &str, window: &str, extra: &[&str]) {
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/chip-8tms.toml");
+    let png = trace.with_extension("png");
+    let mut args = vec![
+        "render",
+        "--config",
+        cfg,
+        "--mode",
+        "cycle",
+        "--res",
+        "8x8",
+        "--out",
+        png.to_str().unwrap(),
+        "--vcd",
+        trace.to_str().unwrap(),
+        "--trace-units",
+        units,
+        "--trace-window",
+        window,
+    ];
+    args.extend_from_slice(extra);
+    dualstream(&args);
 }

@@ -5,35 +5,23 @@ use std::collections::BTreeSet;
 
 use crate::common::Scratch;
 use crate::read::Wave;
-use crate::{dualstream, have, read};
+use crate::{chip_trace, have, read};
 
 /// A window of the 8-TM chip (a TP and a GDDR5 channel: both clock domains)
 /// as VCD, and as FST when fst2vcd is there.
 fn chip_waves(d: &Scratch) -> Vec<Wave> {
-    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/chip-8tms.toml");
     let mut waves = Vec::new();
     for ext in ["vcd", "fst"] {
         if ext == "fst" && !have("fst2vcd") {
             continue;
         }
         let p = d.join(format!("c.{ext}"));
-        dualstream(&[
-            "render",
-            "--config",
-            cfg,
-            "--mode",
-            "cycle",
-            "--res",
-            "8x8",
-            "--out",
-            d.join("c.png").to_str().unwrap(),
-            "--vcd",
-            p.to_str().unwrap(),
-            "--trace-units",
+        chip_trace(
+            &p,
             "chip.tm0.tp0,chip.tm0.l1,mem_ctrl0",
-            "--trace-window",
             "12000..12600",
-        ]);
+            &[],
+        );
         waves.push(if ext == "vcd" {
             read::vcd(&p)
         } else {

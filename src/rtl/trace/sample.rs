@@ -215,11 +215,11 @@ impl Tracer {
                 let phase = t % p;
                 c.level = phase < half;
                 c.next = t - phase + if c.level { half } else { p };
-                self.sink.bits(t, c.h, &bit(c.level), 1)?;
+                self.sink.bits(t, c.h, bit(c.level), 1)?;
                 self.changes += 1;
             }
             if let Some(h) = self.rst {
-                self.sink.bits(t, h, &bit(false), 1)?;
+                self.sink.bits(t, h, bit(false), 1)?;
                 self.changes += 1;
             }
             self.clock_t = Some(t);
@@ -236,15 +236,23 @@ impl Tracer {
                 c.level = !c.level;
                 let half = c.period / 2;
                 c.next = tn + if c.level { half } else { c.period - half };
-                self.sink.bits(tn, c.h, &bit(c.level), 1)?;
+                self.sink.bits(tn, c.h, bit(c.level), 1)?;
                 self.changes += 1;
             }
         }
     }
 }
 
-fn bit(b: bool) -> Bits {
-    let mut v = Bits::new();
-    v.push(b as u64, 1);
-    v
+/// A one-bit value, packed (the clocks toggle every half period: no
+/// allocation per edge).
+fn bit(b: bool) -> &'static Bits {
+    static LEVELS: std::sync::OnceLock<[Bits; 2]> = std::sync::OnceLock::new();
+    let l = LEVELS.get_or_init(|| {
+        [false, true].map(|b| {
+            let mut v = Bits::new();
+            v.push(b as u64, 1);
+            v
+        })
+    });
+    &l[b as usize]
 }
