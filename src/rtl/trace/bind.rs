@@ -4,7 +4,7 @@
 //! the payload's fields in a struct scope named after the port, then every
 //! register. The first scope holds one clock per domain and the reset.
 
-use super::super::decl::SignalDecl;
+use super::super::decl::{PortDir, SignalDecl};
 use super::super::link::LinkDyn;
 use super::super::sim::{Clock, Time};
 use super::super::unit::Unit;
@@ -41,7 +41,7 @@ impl Tracer {
             .iter()
             .map(|l| {
                 let (p, c) = l.ends();
-                (of(p), of(c))
+                [of(p), NONE, of(c), NONE]
             })
             .collect();
         let root = chosen[0].1.split('.').next().unwrap_or("top");
@@ -60,10 +60,21 @@ impl Tracer {
                 open.push(s);
             }
             let unit = self.declare_unit(index, path, u, clk, links);
+            // Every unit is sampled at its first edge in the window.
+            self.active.push(self.units.len() as u32);
             self.units.push(unit);
         }
         for _ in 0..open.len() {
             self.sink.end_scope();
+        }
+        for (ui, u) in self.units.iter().enumerate() {
+            for (k, &(l, dir)) in u.ports.iter().enumerate() {
+                let e = &mut self.link_ends[l.0 as usize];
+                let end = if dir == PortDir::Out { 0 } else { 2 };
+                if e[end] == ui as u32 {
+                    e[end + 1] = k as u32;
+                }
+            }
         }
         let format = self.format;
         self.header_bytes = self
@@ -254,8 +265,13 @@ impl Tracer {
             index,
             period: clk.period_ps,
             busy_until: Time::MAX,
-            wake_at: Time::MAX,
             moving: true,
+            queued: true,
+            fresh: true,
+            port_busy: vec![Time::MAX; decl.ports.len()],
+            port_wake: vec![Time::MAX; decl.ports.len()],
+            ran_at: Time::MAX,
+            regs_at: Time::MAX,
             ports,
             sigs,
             derived,

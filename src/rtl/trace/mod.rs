@@ -175,12 +175,23 @@ struct TracedUnit {
     /// Sampled at every edge up to this time: it ran, or a link of its was
     /// pushed or popped, within a period before (`Time::MAX`: not yet).
     busy_until: Time,
-    /// Sampled at its first edge at or after this time: a head becomes
-    /// visible to it then (`Time::MAX`: none known).
-    wake_at: Time,
     /// Whether its state's view moved on with time alone at its last sample
     /// (`Unit::state_moves`), or it has not been sampled yet.
     moving: bool,
+    /// Whether it is in `Tracer::active`.
+    queued: bool,
+    /// Whether it has not been sampled yet (everything is, the first time).
+    fresh: bool,
+    /// Per port (as `ports`): sampled at every edge up to this time (its
+    /// link was pushed or popped within a period before; `Time::MAX`: not
+    /// yet), and at the first edge at or after the time in `port_wake` (its
+    /// link's head becomes visible then).
+    port_busy: Vec<Time>,
+    port_wake: Vec<Time>,
+    /// When it last ran, and when its registers were last sampled
+    /// (`Time::MAX`: not yet): they change only at the edge after it runs.
+    ran_at: Time,
+    regs_at: Time,
     ports: Vec<(LinkId, PortDir)>,
     /// One per sampled signal, in `UnitDecl::signals` order.
     sigs: Vec<Sig>,
@@ -362,7 +373,11 @@ pub struct Tracer {
     periods: Vec<Time>,
     samples: Samples,
     scratch: Bits,
-    /// Which of a unit's sampled signals changed in this sample.
+    /// The ports of a unit sampled at this edge, and whether its registers
+    /// were.
+    sampled: Vec<u32>,
+    regs_sampled: bool,
+    /// Which of a unit's registers changed in this sample.
     moved: Vec<bool>,
     /// The ranges of a unit's derived signals to recompute.
     ranges: Vec<std::ops::Range<usize>>,
@@ -372,13 +387,21 @@ pub struct Tracer {
     clock_t: Option<Time>,
     /// What the GTKWave save file shows.
     view: gtkw::View,
-    /// Per link, the traced units at its ends (producer, consumer; `NONE`:
-    /// not traced).
-    link_ends: Vec<(u32, u32)>,
+    /// Per link, the traced units at its ends and the port of each (producer,
+    /// its port, consumer, its port; `NONE`: not traced).
+    link_ends: Vec<[u32; 4]>,
     /// Links touched at the last step, whose heads are known after its edge.
     pending: Vec<u32>,
     /// Per simulator unit, its index in `units` (`NONE`: not traced).
     traced_of: Vec<u32>,
+    /// The traced units to sample at their next edges: busy or moving (a
+    /// full chip has thousands of units, a few dozen of them active).
+    active: Vec<u32>,
+    /// Units to sample at an edge of theirs, as (edge, unit): a link's head
+    /// becomes visible to them then.
+    wakes: std::collections::BinaryHeap<std::cmp::Reverse<(Time, u32)>>,
+    /// The units sampled at this step, in unit order (the file's order).
+    due: Vec<u32>,
     changes: u64,
     error: Option<io::Error>,
     /// The size guard: the most bytes the trace may take, the time the run is
@@ -453,6 +476,8 @@ impl Tracer {
             periods: Vec::new(),
             samples: Samples::default(),
             scratch: Bits::new(),
+            sampled: Vec::new(),
+            regs_sampled: false,
             moved: Vec::new(),
             ranges: Vec::new(),
             clocks: Vec::new(),
@@ -462,6 +487,9 @@ impl Tracer {
             link_ends: Vec::new(),
             pending: Vec::new(),
             traced_of: Vec::new(),
+            active: Vec::new(),
+            wakes: std::collections::BinaryHeap::new(),
+            due: Vec::new(),
             changes: 0,
             error: None,
             max_bytes,

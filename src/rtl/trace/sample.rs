@@ -8,7 +8,7 @@ use super::super::link::LinkDyn;
 use super::super::link::LinkId;
 use super::super::sim::Time;
 use super::super::unit::Unit;
-use super::{Derive, NONE, Tracer};
+use super::{Derive, NONE, TracedUnit, Tracer};
 
 /// What the simulator did at a step, for the tracer to sample only what
 /// may have changed.
@@ -23,10 +23,30 @@ pub(crate) struct Activity<'a> {
 }
 
 impl Tracer {
-    /// The first traced edge at or after `after`, inside the window.
+    /// The first time at or after `after`, inside the window, at which a
+    /// traced unit is to be sampled: an edge of an active unit's clock or a
+    /// wake-up (every edge of every traced clock with `every_edge`).
     pub(crate) fn next_sample_time(&self, after: Time) -> Option<Time> {
         let after = after.max(self.spec.from);
-        let t = self.periods.iter().map(|p| after.div_ceil(*p) * p).min()?;
+        let edge = |p: Time| after.div_ceil(p) * p;
+        let t = if self.spec.every_edge {
+            self.periods.iter().map(|p| edge(*p)).min()?
+        } else {
+            let mut t = Time::MAX;
+            for p in &self.periods {
+                if self
+                    .active
+                    .iter()
+                    .any(|&u| self.units[u as usize].period == *p)
+                {
+                    t = t.min(edge(*p));
+                }
+            }
+            if let Some(std::cmp::Reverse((e, _))) = self.wakes.peek() {
+                t = t.min((*e).max(after));
+            }
+            t
+        };
         (t <= self.spec.to).then_some(t)
     }
 
@@ -50,125 +70,207 @@ impl Tracer {
             self.error = Some(e);
             return;
         }
-        for ui in 0..self.units.len() {
+        let mut due = std::mem::take(&mut self.due);
+        self.due_at(t, &mut due);
+        for &ui in &due {
+            let ui = ui as usize;
             let (period, index) = (self.units[ui].period, self.units[ui].index);
-            let u = &self.units[ui];
-            if !t.is_multiple_of(period) {
-                continue;
-            }
-            // Sample only what may differ from the last sample: see `note_activity`.
-            let due = self.spec.every_edge
-                || u.moving
-                || (u.busy_until != Time::MAX && t <= u.busy_until)
-                || t >= u.wake_at;
-            if !due {
-                continue;
-            }
-            self.units[ui].wake_at = Time::MAX;
             let unit = unit_at(index);
             self.sample_unit(ui, t, unit, links);
             self.units[ui].moving = unit.state_moves(t / period);
             if let Err(e) = self.write_unit(ui, t) {
                 self.error = Some(e);
-                return;
+                break;
             }
         }
-        self.guard(t);
+        self.due = due;
+        // An active unit stays while it moves on its own or is busy past `t`.
+        let units = &mut self.units;
+        let every = self.spec.every_edge;
+        self.active.retain(|&u| {
+            let u = &mut units[u as usize];
+            u.queued = every || u.moving || (u.busy_until != Time::MAX && u.busy_until > t);
+            u.queued
+        });
+        if self.error.is_none() {
+            self.guard(t);
+        }
     }
 
-    /// Marks the traced units whose signals may change from what the
-    /// activity at `t` did: a unit that ran (its ports now, its registers
-    /// after the edge) and the units at both ends of a link pushed or popped
-    /// (by the other end, maybe in another clock domain) are sampled for a
-    /// period; a link's head, known after the edge, wakes its consumer when
-    /// it becomes visible. Anything else is the same as at the unit's last
-    /// sample, unless its state moves on its own (`Unit::state_moves`).
+    /// The traced units to sample at `t`, in unit order: the active ones
+    /// whose clock has an edge at `t`, and those woken for `t`.
+    fn due_at(&mut self, t: Time, due: &mut Vec<u32>) {
+        due.clear();
+        while let Some(&std::cmp::Reverse((e, u))) = self.wakes.peek() {
+            if e > t {
+                break;
+            }
+            self.wakes.pop();
+            let p = self.units[u as usize].period;
+            if t.is_multiple_of(p) {
+                due.push(u);
+            } else {
+                // Not an edge of its clock (a wake-up from before the
+                // window): its next one.
+                self.wakes.push(std::cmp::Reverse((t.div_ceil(p) * p, u)));
+            }
+        }
+        for &u in &self.active {
+            if t.is_multiple_of(self.units[u as usize].period) {
+                due.push(u);
+            }
+        }
+        due.sort_unstable();
+        due.dedup();
+    }
+
+    /// Marks what of the traced units may change from what the activity at
+    /// `t` did. A port whose link was pushed or popped (by either end, maybe
+    /// in another clock domain) is sampled for a period; a link's head, known
+    /// after the edge, wakes its consumer's port when it becomes visible. A
+    /// unit that ran has its registers sampled after the edge. Anything else
+    /// is the same as at the last sample, unless the unit's state moves on
+    /// its own (`Unit::state_moves`).
     fn note_activity(&mut self, t: Time, a: Activity) {
+        let (from, to) = (self.spec.from, self.spec.to);
         for l in std::mem::take(&mut self.pending) {
-            let c = self.link_ends[l as usize].1;
+            let [_, _, c, cp] = self.link_ends[l as usize];
             let h = a.heads[l as usize];
             if c != NONE && h != Time::MAX {
                 let u = &mut self.units[c as usize];
-                u.wake_at = u.wake_at.min(h);
+                let e = h.div_ceil(u.period) * u.period;
+                // Before the window every unit is sampled at its first edge.
+                if e >= from && e <= to {
+                    let w = &mut u.port_wake[cp as usize];
+                    *w = (*w).min(e);
+                    self.wakes.push(std::cmp::Reverse((e, c)));
+                }
             }
         }
-        let mut busy = |k: u32| {
-            if k != NONE {
-                let u = &mut self.units[k as usize];
-                let until = t + u.period;
-                if u.busy_until == Time::MAX || u.busy_until < until {
-                    u.busy_until = until;
-                }
+        let (units, active) = (&mut self.units, &mut self.active);
+        let mut queue = |u: &mut TracedUnit, k: u32| {
+            let until = t + u.period;
+            if u.busy_until == Time::MAX || u.busy_until < until {
+                u.busy_until = until;
+            }
+            if !u.queued {
+                u.queued = true;
+                active.push(k);
             }
         };
         for &l in a.touched {
-            let (p, c) = self.link_ends[l.0 as usize];
-            busy(p);
-            busy(c);
+            let [p, pp, c, cp] = self.link_ends[l.0 as usize];
+            for (k, port) in [(p, pp), (c, cp)] {
+                if k != NONE {
+                    let u = &mut units[k as usize];
+                    u.port_busy[port as usize] = t + u.period;
+                    queue(u, k);
+                }
+            }
         }
-        for &(u, _) in a.due {
-            busy(self.traced_of.get(u as usize).copied().unwrap_or(NONE));
+        for &(s, _) in a.due {
+            let k = self.traced_of.get(s as usize).copied().unwrap_or(NONE);
+            if k != NONE {
+                let u = &mut units[k as usize];
+                u.ran_at = t;
+                queue(u, k);
+            }
         }
         self.pending.extend(a.touched.iter().map(|l| l.0));
     }
 
+    /// Samples what of unit `ui` may have changed (see `note_activity`): the
+    /// ports in `sampled`, and the registers if `regs_sampled`.
     fn sample_unit(&mut self, ui: usize, t: Time, unit: &dyn Unit, links: &[Box<dyn LinkDyn>]) {
-        self.samples.begin();
-        for k in 0..self.units[ui].ports.len() {
-            let (l, dir) = self.units[ui].ports[k];
-            let link = &links[l.0 as usize];
-            let base = self.samples.n;
-            self.samples.slot();
-            self.samples.slot();
-            self.samples.slot();
-            let [a, b, c] = <&mut [Bits; 3]>::try_from(&mut self.samples.vals[base..base + 3])
+        let every = self.spec.every_edge;
+        let u = &mut self.units[ui];
+        let all = every || u.fresh;
+        u.fresh = false;
+        let nsigs = u.sigs.len();
+        let samples = &mut self.samples;
+        self.sampled.clear();
+        if samples.vals.len() < nsigs {
+            samples.vals.resize_with(nsigs, Bits::new);
+        }
+        for k in 0..u.ports.len() {
+            let (l, dir) = u.ports[k];
+            let base = 3 * k;
+            let [a, b, c] = <&mut [Bits; 3]>::try_from(&mut samples.vals[base..base + 3])
                 .expect("three slots")
                 .each_mut();
+            let woken = u.port_wake[k] <= t;
+            let busy = u.port_busy[k] != Time::MAX && t <= u.port_busy[k];
+            if woken {
+                u.port_wake[k] = Time::MAX;
+            }
+            if !(all || woken || busy) {
+                continue;
+            }
+            self.sampled.push(k as u32);
+            a.clear();
+            b.clear();
+            c.clear();
+            let link = &links[l.0 as usize];
             match dir {
                 PortDir::In => link.sample_consumer(t, [a, b, c]),
                 PortDir::Out => link.sample_producer([a, b, c]),
             }
         }
-        unit.sample_state(t / self.units[ui].period, &mut self.samples);
-        debug_assert_eq!(
-            self.samples.n,
-            self.units[ui].sigs.len(),
-            "sampled signals match the declaration"
-        );
+        let regs = 3 * u.ports.len();
+        // Registers change only at the edge after the unit ran.
+        let ran = u.ran_at != Time::MAX && (u.regs_at == Time::MAX || u.ran_at >= u.regs_at);
+        self.regs_sampled = all || u.moving || ran;
+        if self.regs_sampled {
+            u.regs_at = t;
+            samples.n = regs;
+            unit.sample_state(t / u.period, samples);
+            debug_assert_eq!(samples.n, nsigs, "sampled signals match the declaration");
+        }
     }
 
     /// Writes what changed of unit `ui`'s sampled and derived signals.
     fn write_unit(&mut self, ui: usize, t: Time) -> std::io::Result<()> {
         let unit = &mut self.units[ui];
-        let moved = &mut self.moved;
-        moved.clear();
-        for (k, sig) in unit.sigs.iter_mut().enumerate() {
-            let v = &mut self.samples.vals[k];
-            // An empty sample holds the last value.
-            let m = !v.is_empty() && sig.update(v);
-            if m && sig.shown {
-                self.sink.bits(t, sig.h, v, sig.width)?;
-                self.changes += 1;
-            }
-            moved.push(m);
-        }
-        // A derived signal can only change with what it is derived from: per
-        // port, fire with valid or ready, the fields with the data.
-        let ranges = &mut self.ranges;
+        let (moved, ranges) = (&mut self.moved, &mut self.ranges);
         ranges.clear();
-        for (k, &(fire, fields, end)) in unit.port_derived.iter().enumerate() {
-            let (handshake, data) = (moved[3 * k] || moved[3 * k + 1], moved[3 * k + 2]);
-            ranges.push(match (handshake, data) {
+        // An empty sample holds the last value.
+        for &k in &self.sampled {
+            let k = k as usize;
+            let mut m = [false; 3];
+            for (j, m) in m.iter_mut().enumerate() {
+                let (sig, v) = (&mut unit.sigs[3 * k + j], &self.samples.vals[3 * k + j]);
+                *m = !v.is_empty() && sig.update(v);
+                if *m && sig.shown {
+                    self.sink.bits(t, sig.h, v, sig.width)?;
+                    self.changes += 1;
+                }
+            }
+            // A derived signal can only change with what it is derived from:
+            // fire with valid or ready, the fields with the data.
+            let (fire, fields, end) = unit.port_derived[k];
+            ranges.push(match (m[0] || m[1], m[2]) {
                 (false, false) => continue,
                 (true, false) => fire..fields,
                 (false, true) => fields..end,
                 (true, true) => fire..end,
             });
         }
-        // A struct register's fields, with the register.
-        for &(of, start, end) in &unit.reg_derived {
-            if moved[of] {
-                ranges.push(start..end);
+        if self.regs_sampled {
+            let regs = 3 * unit.ports.len();
+            moved.clear();
+            for (sig, v) in unit.sigs[regs..].iter_mut().zip(&self.samples.vals[regs..]) {
+                let m = !v.is_empty() && sig.update(v);
+                if m && sig.shown {
+                    self.sink.bits(t, sig.h, v, sig.width)?;
+                    self.changes += 1;
+                }
+                moved.push(m);
+            }
+            // A struct register's fields, with the register.
+            for &(of, start, end) in &unit.reg_derived {
+                if moved[of - regs] {
+                    ranges.push(start..end);
+                }
             }
         }
         for range in ranges.drain(..) {
