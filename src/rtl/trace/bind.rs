@@ -100,7 +100,8 @@ impl Tracer {
                 width: 1,
                 enum_names: None,
             });
-            self.view.sig(&format!("{root}.{name}"), 1, false, None, "");
+            self.view
+                .sig(format_args!("{root}.{name}"), 1, false, None, "");
             self.clocks.push(ClockSig {
                 h,
                 period: c.period_ps,
@@ -114,7 +115,8 @@ impl Tracer {
             width: 1,
             enum_names: None,
         }));
-        self.view.sig(&format!("{root}.rst"), 1, false, None, "");
+        self.view
+            .sig(format_args!("{root}.rst"), 1, false, None, "");
     }
 
     fn declare(
@@ -163,7 +165,8 @@ impl Tracer {
                 if j == 2 && show.keeps(show.handshakes, 1) {
                     let fire = format!("{}_fire", p.name);
                     let h = self.declare(&fire, VarKind::Wire, 1, None);
-                    self.view.sig(&format!("{path}.{fire}"), 1, false, None, "");
+                    self.view
+                        .sig(format_args!("{path}.{fire}"), 1, false, None, "");
                     derived.push(Derived {
                         sig: Sig::new(h, 1),
                         how: Derive::Fire { port: k },
@@ -172,7 +175,7 @@ impl Tracer {
                 sigs.push(if show.keeps(kind, s.width) {
                     let h = self.declare(&s.name, VarKind::Wire, s.width, None);
                     self.view
-                        .sig(&format!("{path}.{}", s.name), s.width, false, None, "");
+                        .sig(format_args!("{path}.{}", s.name), s.width, false, None, "");
                     Sig::new(h, s.width)
                 } else {
                     Sig::hidden(s.width)
@@ -227,7 +230,7 @@ impl Tracer {
             let h = self.declare(&name, VarKind::Reg, width, enum_names);
             let fsm_name = enum_names.map_or(String::new(), |_| format!("{}_{name}", decl.module));
             self.view.sig(
-                &format!("{path}.{name}"),
+                format_args!("{path}.{name}"),
                 width,
                 false,
                 enum_names,
@@ -315,10 +318,14 @@ impl Tracer {
                 FieldKind::Bits => (VarKind::Wire, None),
             };
             let h = self.declare(leaf, kind, f.width, e);
-            let full = format!("{path}.{port}.{}", f.name);
             let fsm_name = e.map_or(String::new(), |_| format!("{module}_{leaf}"));
-            self.view
-                .sig(&full, f.width, kind == VarKind::Real, e, &fsm_name);
+            self.view.sig(
+                format_args!("{path}.{port}.{}", f.name),
+                f.width,
+                kind == VarKind::Real,
+                e,
+                &fsm_name,
+            );
             derived.push(Derived {
                 sig: Sig::new(h, f.width),
                 how: Derive::Field {

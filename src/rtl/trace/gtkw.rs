@@ -31,6 +31,11 @@ mod flag {
 /// Unit groups shown open; the rest start closed (a full chip has thousands).
 const OPEN_UNITS: usize = 4;
 
+/// Unit instances the view lists, in trace order: GTKWave takes minutes to
+/// load a view of a whole chip's 800,000 signals, and nobody reads them
+/// all at once; the rest are in its signal tree.
+pub(crate) const VIEW_UNITS: usize = 64;
+
 /// One line of the view.
 pub(crate) enum Entry {
     Begin {
@@ -51,8 +56,11 @@ pub(crate) enum Entry {
 #[derive(Default)]
 pub(crate) struct View {
     pub entries: Vec<Entry>,
-    /// Units seen so far (the first `OPEN_UNITS` groups are open).
+    /// Units seen so far (the first `OPEN_UNITS` groups are open, the first
+    /// `VIEW_UNITS` listed).
     pub units: usize,
+    /// Whether the unit being declared is beyond `VIEW_UNITS`.
+    skipping: bool,
     /// Each FSM's state names and the file stem of its filter.
     pub fsms: Vec<(&'static [&'static str], String)>,
 }
@@ -61,12 +69,15 @@ impl View {
     /// A signal as GTKWave names it: vectors carry their range.
     pub fn sig(
         &mut self,
-        path: &str,
+        path: std::fmt::Arguments,
         width: u32,
         real: bool,
         fsm: Option<&'static [&'static str]>,
         fsm_name: &str,
     ) {
+        if self.skipping {
+            return;
+        }
         let name = if width > 1 && !real {
             format!("{path}[{}:0]", width - 1)
         } else {
@@ -115,6 +126,13 @@ impl View {
             "[*] written by dualstream {} beside the trace",
             env!("CARGO_PKG_VERSION")
         );
+        if self.units > VIEW_UNITS {
+            let _ = writeln!(
+                s,
+                "[*] the first {VIEW_UNITS} of {} unit instances; the rest are in the signal tree",
+                self.units
+            );
+        }
         let _ = writeln!(s, "[dumpfile] \"{}\"", trace.display());
         let _ = writeln!(s, "[timestart] {from}");
         let _ = writeln!(s, "[size] 1600 900");
@@ -178,10 +196,14 @@ impl View {
     pub fn begin_unit(&mut self, path: &str) {
         let closed = self.units >= OPEN_UNITS;
         self.units += 1;
+        self.skipping = self.units > VIEW_UNITS;
         self.begin(path, closed);
     }
 
     pub fn begin(&mut self, name: &str, closed: bool) {
+        if self.skipping {
+            return;
+        }
         self.entries.push(Entry::Begin {
             name: name.to_string(),
             closed,
@@ -189,6 +211,9 @@ impl View {
     }
 
     pub fn end(&mut self) {
+        if self.skipping {
+            return;
+        }
         self.entries.push(Entry::End);
     }
 }
