@@ -668,7 +668,7 @@ module tm (
     wire div_resp_valid;
     wire div_resp_ready;
     wire [111:0] div_resp_data;
-    tp #(.INDEX(0), .STACK_ENTRIES(42)) u_tp0 (
+    tp #(.INDEX(0), .STACK_ENTRIES(42)) tp0 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray0_valid),
@@ -711,7 +711,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req0_ready),
         .gmem_req_data(tp_gmem_req0_data)
     );
-    tp #(.INDEX(1), .STACK_ENTRIES(42)) u_tp1 (
+    tp #(.INDEX(1), .STACK_ENTRIES(42)) tp1 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray1_valid),
@@ -754,7 +754,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req1_ready),
         .gmem_req_data(tp_gmem_req1_data)
     );
-    tp #(.INDEX(2), .STACK_ENTRIES(42)) u_tp2 (
+    tp #(.INDEX(2), .STACK_ENTRIES(42)) tp2 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray2_valid),
@@ -797,7 +797,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req2_ready),
         .gmem_req_data(tp_gmem_req2_data)
     );
-    tp #(.INDEX(3), .STACK_ENTRIES(42)) u_tp3 (
+    tp #(.INDEX(3), .STACK_ENTRIES(42)) tp3 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray3_valid),
@@ -840,7 +840,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req3_ready),
         .gmem_req_data(tp_gmem_req3_data)
     );
-    tp #(.INDEX(4), .STACK_ENTRIES(42)) u_tp4 (
+    tp #(.INDEX(4), .STACK_ENTRIES(42)) tp4 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray4_valid),
@@ -883,7 +883,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req4_ready),
         .gmem_req_data(tp_gmem_req4_data)
     );
-    tp #(.INDEX(5), .STACK_ENTRIES(42)) u_tp5 (
+    tp #(.INDEX(5), .STACK_ENTRIES(42)) tp5 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray5_valid),
@@ -926,7 +926,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req5_ready),
         .gmem_req_data(tp_gmem_req5_data)
     );
-    tp #(.INDEX(6), .STACK_ENTRIES(42)) u_tp6 (
+    tp #(.INDEX(6), .STACK_ENTRIES(42)) tp6 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray6_valid),
@@ -969,7 +969,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req6_ready),
         .gmem_req_data(tp_gmem_req6_data)
     );
-    tp #(.INDEX(7), .STACK_ENTRIES(42)) u_tp7 (
+    tp #(.INDEX(7), .STACK_ENTRIES(42)) tp7 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray7_valid),
@@ -1012,7 +1012,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req7_ready),
         .gmem_req_data(tp_gmem_req7_data)
     );
-    tp #(.INDEX(8), .STACK_ENTRIES(42)) u_tp8 (
+    tp #(.INDEX(8), .STACK_ENTRIES(42)) tp8 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray8_valid),
@@ -1055,7 +1055,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req8_ready),
         .gmem_req_data(tp_gmem_req8_data)
     );
-    tp #(.INDEX(9), .STACK_ENTRIES(42)) u_tp9 (
+    tp #(.INDEX(9), .STACK_ENTRIES(42)) tp9 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray9_valid),
@@ -1098,7 +1098,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req9_ready),
         .gmem_req_data(tp_gmem_req9_data)
     );
-    tp #(.INDEX(10), .STACK_ENTRIES(42)) u_tp10 (
+    tp #(.INDEX(10), .STACK_ENTRIES(42)) tp10 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray10_valid),
@@ -1141,7 +1141,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req10_ready),
         .gmem_req_data(tp_gmem_req10_data)
     );
-    tp #(.INDEX(11), .STACK_ENTRIES(42)) u_tp11 (
+    tp #(.INDEX(11), .STACK_ENTRIES(42)) tp11 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray11_valid),
@@ -1184,7 +1184,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req11_ready),
         .gmem_req_data(tp_gmem_req11_data)
     );
-    tp #(.INDEX(12), .STACK_ENTRIES(42)) u_tp12 (
+    tp #(.INDEX(12), .STACK_ENTRIES(42)) tp12 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray12_valid),
@@ -1227,7 +1227,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req12_ready),
         .gmem_req_data(tp_gmem_req12_data)
     );
-    tp #(.INDEX(13), .STACK_ENTRIES(42)) u_tp13 (
+    tp #(.INDEX(13), .STACK_ENTRIES(42)) tp13 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray13_valid),
@@ -1270,7 +1270,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req13_ready),
         .gmem_req_data(tp_gmem_req13_data)
     );
-    tp #(.INDEX(14), .STACK_ENTRIES(42)) u_tp14 (
+    tp #(.INDEX(14), .STACK_ENTRIES(42)) tp14 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray14_valid),
@@ -1313,7 +1313,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req14_ready),
         .gmem_req_data(tp_gmem_req14_data)
     );
-    tp #(.INDEX(15), .STACK_ENTRIES(42)) u_tp15 (
+    tp #(.INDEX(15), .STACK_ENTRIES(42)) tp15 (
         .clk(clk),
         .rst(rst),
         .ray_valid(ray15_valid),
@@ -1356,7 +1356,7 @@ module tm (
         .gmem_req_ready(tp_gmem_req15_ready),
         .gmem_req_data(tp_gmem_req15_data)
     );
-    staging_buffer #(.HALF_RAYS(64), .TPS(16)) u_staging_buffer (
+    staging_buffer #(.HALF_RAYS(64), .TPS(16)) staging_buffer (
         .clk(clk),
         .rst(rst),
         .fill_valid(fill_valid),
@@ -1411,7 +1411,7 @@ module tm (
         .ray_15_ready(ray15_ready),
         .ray_15_data(ray15_data)
     );
-    l1 #(.BYTES(16384), .BANKS(8), .LINE_BYTES(64), .HIT_LATENCY(1), .MSHRS(8)) u_l1 (
+    l1 #(.BYTES(16384), .BANKS(8), .LINE_BYTES(64), .HIT_LATENCY(1), .MSHRS(8)) l1 (
         .clk(clk),
         .rst(rst),
         .miss_resp_valid(miss_resp_valid),
@@ -1517,7 +1517,7 @@ module tm (
         .resp_15_ready(tp_mem_resp15_ready),
         .resp_15_data(tp_mem_resp15_data)
     );
-    tm_xbar #(.TPS(16), .TRI_PIPES(2), .BOX_LATENCY(8), .BOX_II(1)) u_xbar (
+    tm_xbar #(.TPS(16), .TRI_PIPES(2), .BOX_LATENCY(8), .BOX_II(1)) xbar (
         .clk(clk),
         .rst(rst),
         .div_resp_valid(div_resp_valid),
@@ -2031,7 +2031,7 @@ module tm (
         .tri_req_1_ready(tri_req1_ready),
         .tri_req_1_data(tri_req1_data)
     );
-    tri_pipe #(.LATENCY(31), .II(18)) u_tri_pipe0 (
+    tri_pipe #(.LATENCY(31), .II(18)) tri_pipe0 (
         .clk(clk),
         .rst(rst),
         .req_valid(tri_req0_valid),
@@ -2041,7 +2041,7 @@ module tm (
         .resp_ready(tri_resp0_ready),
         .resp_data(tri_resp0_data)
     );
-    tri_pipe #(.LATENCY(31), .II(18)) u_tri_pipe1 (
+    tri_pipe #(.LATENCY(31), .II(18)) tri_pipe1 (
         .clk(clk),
         .rst(rst),
         .req_valid(tri_req1_valid),
@@ -2051,7 +2051,7 @@ module tm (
         .resp_ready(tri_resp1_ready),
         .resp_data(tri_resp1_data)
     );
-    divider #(.LATENCY(18), .II(3)) u_divider (
+    divider #(.LATENCY(18), .II(3)) divider (
         .clk(clk),
         .rst(rst),
         .req_valid(div_req_valid),

@@ -279,8 +279,8 @@ fn verilog_passes_verilator_iverilog_and_yosys() {
     }
 }
 
-/// The chip top: every global unit and a generate loop of TMs (and of channel
-/// controllers with GDDR5), wired as the chip is simulated; the memory module
+/// The chip top: every global unit, every TM (and with GDDR5 every channel
+/// controller), named as the model's units and wired as the chip is simulated; the memory module
 /// has a port per requester the chip gives it; a 2-TM top passes verilator,
 /// iverilog and yosys (the committed 128-TM one is the same code, bigger).
 #[test]
@@ -289,18 +289,21 @@ fn chip_top_wires_every_unit_and_lints() {
     let cfg = Config::default();
     assert!(committed.contains(&format!("localparam integer TMS = {};", cfg.chip.tms)));
     assert!(committed.contains(&format!("localparam integer TPS = {};", cfg.tm.tps)));
-    assert!(committed.contains("for (genvar k = 0; k < TMS; k++) begin : g_tm"));
+    // One instance per TM, named as the model's unit (no generate loop).
+    assert!(!committed.contains("genvar"));
+    for k in [0, cfg.chip.tms - 1] {
+        assert!(committed.contains(&format!("\n    tm tm{k} (\n")), "tm{k}");
+    }
     for inst in [
         "stream_scheduler #(",
-        "u_scheduler (",
-        "u_scene_buffer (",
-        "u_hit_updater (",
-        "u_memory (",
-        "        tm u_tm (",
+        ") scheduler (",
+        ") scene_buffer (",
+        ") hit_updater (",
+        ") memory (",
     ] {
         assert!(committed.contains(inst), "chip.v lacks {inst}");
     }
-    assert!(!committed.contains("u_host"), "the host is not hardware");
+    assert!(!committed.contains(" host ("), "the host is not hardware");
     // The memory unit as instantiated (memory.v is emitted from the same chip):
     // the scheduler, scene and L2 ports (the L2 serves the hit record updater and
     // the TMs' global-memory ports; without the L2, the hit port and one
@@ -311,7 +314,7 @@ fn chip_top_wires_every_unit_and_lints() {
         cfg.chip.scheduler.ray_lines_per_cycle - 1 + cfg.chip.scheduler.scene_lines_per_cycle - 1;
     let ports = lanes
         + if cfg.chip.l2.enabled {
-            assert!(committed.contains("u_l2 ("), "chip.v lacks the L2");
+            assert!(committed.contains(") l2 ("), "chip.v lacks the L2");
             let l2 = std::fs::read_to_string(repo().join("hdl/l2.v")).unwrap();
             let l2_lanes = cfg.chip.l2.mem_lines_per_cycle;
             assert!(l2.contains(&format!("parameter integer MEM_LANES = {l2_lanes}")));
@@ -349,11 +352,13 @@ fn chip_top_wires_every_unit_and_lints() {
         assert!(text.contains("localparam integer TMS = 2;"));
         if name == "gddr5" {
             assert!(text.contains("input  wire clk_dram"));
-            assert!(text.contains("begin : g_mem_ctrl"));
-            assert!(
-                text.contains("mem_ctrl #(.CHANNEL(k),"),
-                "one channel per member"
-            );
+            for c in [0, cfg.mem.geometry.channels - 1] {
+                assert!(
+                    text.contains(&format!("mem_ctrl #(.CHANNEL({c}),")),
+                    "one instance per channel"
+                );
+                assert!(text.contains(&format!(") mem_ctrl{c} (")));
+            }
             assert!(text.contains(".clk(clk_dram)"));
         } else {
             assert!(!text.contains("mem_ctrl"));

@@ -505,7 +505,7 @@ fn vcd_has_a_scope_per_tp_matching_its_verilog() {
     }
     let tm_v = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/hdl/tm.v")).unwrap();
     assert!(
-        tm_v.contains(") u_tp15 (") && tm_v.contains("l1 #(") && tm_v.contains("staging_buffer #(")
+        tm_v.contains(") tp15 (") && tm_v.contains("l1 #(") && tm_v.contains("staging_buffer #(")
     );
 }
 

@@ -1,8 +1,12 @@
 //! `hdl/chip.v`: the chip top as structural Verilog, emitted from a chip elaborated
 //! by [`Chip::new`] (the same code and links the simulation runs), so the netlist
-//! cannot drift from the model. Each top-level instance is a global unit (its
-//! module, parameters from its declaration) or a numbered family (`chip.tm<k>`,
-//! `chip.mem_ctrl<c>`) built in a `generate` loop; a family whose members hold
+//! cannot drift from the model. Every instance is named as the model's unit
+//! (`scheduler`, `l2`, `tm3`, `mem_ctrl2`; inside `hdl/tm.v`, `tp5`, `l1`, ...), so
+//! an RTL simulation's trace has the model waveform's scopes (`chip.tm3.tp5`), and
+//! the clocks are the waveform's (`clk_core`, `clk_dram`). Each top-level instance
+//! is a global unit (its module, parameters from its declaration) or a member of a
+//! numbered family (`tm<k>`, `mem_ctrl<c>`), one instance each (not a `generate`
+//! loop, whose instances would be `g_tm[3].u_tm`); a family whose members hold
 //! units (a TM) instantiates its structural module (`hdl/tm.v`), whose ports are
 //! named after the inner units' ports as there. The host is not hardware: its
 //! links become the chip's ports. One valid/ready/data triple per link; a
@@ -85,7 +89,7 @@ fn family(top: &str) -> (&str, Option<usize>) {
     }
 }
 
-/// Numbered instances `<base>0..<base>n-1` form a family (a generate loop);
+/// Numbered instances `<base>0..<base>n-1` form a family (their links are vectors indexed by the member);
 /// a lone number that does not start at 0 is part of a name (`l2`).
 fn families<'a>(tops: impl IntoIterator<Item = &'a str>) -> BTreeMap<String, Vec<usize>> {
     let mut f: BTreeMap<String, Vec<usize>> = BTreeMap::new();
@@ -132,7 +136,7 @@ struct Top {
     insts: BTreeMap<String, Inst>,
     /// (link, producer end, consumer end).
     nets: Vec<(u32, End, End)>,
-    /// Numbered instances built in a generate loop (see [`families`]).
+    /// Numbered instances whose links are vectors (see [`families`]).
     families: BTreeMap<String, Vec<usize>>,
     link_names: Vec<String>,
 }
@@ -146,13 +150,10 @@ struct Wiring {
     conn: BTreeMap<(String, &'static str), [String; 3]>,
 }
 
-/// The clock net of a clock domain.
+/// The clock net of a clock domain, named as the waveform's (`clk_core`,
+/// `clk_dram`).
 fn clk(name: &str) -> String {
-    if name == "core" {
-        "clk".to_string()
-    } else {
-        format!("clk_{name}")
-    }
+    format!("clk_{name}")
 }
 
 /// The `localparam` holding a family's member count (`tm` -> `TMS`).
@@ -216,7 +217,7 @@ impl Top {
             }
             nets.push((*id, p.clone(), c.clone()));
         }
-        // Families: members with the same module and ports become a generate loop.
+        // Families: members with the same module and ports share vector nets.
         let families = families(insts.keys().map(String::as_str));
         for (base, ks) in &families {
             let first = &insts[&format!("{base}0")];
@@ -308,6 +309,12 @@ impl Top {
                 } else {
                     (c, p, ("output", "input "))
                 };
+                if self.in_family(&other.top) {
+                    return Err(ChipError::Hdl(format!(
+                        "link '{}' joins the host to a family member; not supported by the emitter",
+                        self.link_names[*id as usize]
+                    )));
+                }
                 ports.push(format!("{} wire {}_valid", dir.0, h.port));
                 ports.push(format!("{} wire {}_ready", dir.1, h.port));
                 ports.push(format!("{} wire {}{}_data", dir.0, range(h.width), h.port));
@@ -330,39 +337,25 @@ impl Top {
         Ok(Wiring { ports, wires, conn })
     }
 
-    /// An instance's parameter list: its values, or for a family's members
-    /// (`members`: base name and count) one value for all or the member's index.
-    fn params_of(&self, inst: &Inst, members: Option<(&str, usize)>) -> Result<String, ChipError> {
+    /// An instance's parameter list, its declared values.
+    fn params_of(inst: &Inst) -> String {
         if inst.params.is_empty() {
-            return Ok(String::new());
+            return String::new();
         }
-        let mut ps = Vec::new();
-        for (i, (name, val)) in inst.params.iter().enumerate() {
-            let expr = match members {
-                None => val.to_string(),
-                Some((base, n)) => {
-                    let vals: Vec<u64> = (0..n)
-                        .map(|k| self.insts[&format!("{base}{k}")].params[i].1)
-                        .collect();
-                    if vals.iter().all(|x| x == val) {
-                        val.to_string()
-                    } else if vals.iter().enumerate().all(|(k, &x)| x == k as u64) {
-                        "k".to_string()
-                    } else {
-                        return Err(ChipError::Hdl(format!(
-                            "{base}: parameter {name} varies between members in a way the emitter cannot express"
-                        )));
-                    }
-                }
-            };
-            ps.push(format!(".{name}({expr})"));
-        }
-        Ok(format!(" #({})", ps.join(", ")))
+        let ps: Vec<String> = inst
+            .params
+            .iter()
+            .map(|(name, val)| format!(".{name}({val})"))
+            .collect();
+        format!(" #({})", ps.join(", "))
     }
 
-    /// The instances that are not family members, one instantiation each.
-    fn write_instances(&self, v: &mut String, conn: &Wiring) -> Result<(), ChipError> {
-        let connections = |top: &str, inst: &Inst| -> Vec<String> {
+    /// One instantiation per instance, named as the model's unit (`scheduler`,
+    /// `tm3`, `mem_ctrl2`): the other instances, then each family's members
+    /// in order.
+    fn write_instances(&self, v: &mut String, conn: &Wiring) {
+        let write = |v: &mut String, top: &str| {
+            let inst = &self.insts[top];
             let mut cs = vec![format!(".clk({})", inst.clock), ".rst(rst)".to_string()];
             for &(port, _, _) in &inst.ports {
                 let s = &conn.conn[&(top.to_string(), port)];
@@ -370,60 +363,24 @@ impl Top {
                     cs.push(format!(".{port}_{suf}({})", s[k]));
                 }
             }
-            cs
+            let _ = writeln!(
+                v,
+                "    {}{} {top} (\n        {}\n    );",
+                inst.module,
+                Self::params_of(inst),
+                cs.join(",\n        ")
+            );
         };
-        for (top, inst) in &self.insts {
-            if top == "host" || self.in_family(top) {
-                continue;
+        for top in self.insts.keys() {
+            if top != "host" && !self.in_family(top) {
+                write(v, top);
             }
-            let _ = writeln!(
-                v,
-                "    {}{} u_{top} (\n        {}\n    );",
-                inst.module,
-                self.params_of(inst, None)?,
-                connections(top, inst).join(",\n        ")
-            );
         }
-        Ok(())
-    }
-
-    /// Each family as a generate loop over its members.
-    fn write_families(&self, v: &mut String) -> Result<(), ChipError> {
         for (base, ks) in &self.families {
-            let key = format!("{base}0");
-            let inst = &self.insts[&key];
-            let n = count_name(base);
-            // Vector slices of member k, written with the genvar.
-            let cs: Vec<String> = inst
-                .ports
-                .iter()
-                .flat_map(|&(port, _, w)| {
-                    let s = format!("{base}_{port}");
-                    let data = if w == 1 {
-                        format!("{s}_data[k]")
-                    } else {
-                        format!("{s}_data[k*{w} +: {w}]")
-                    };
-                    [
-                        format!(".{port}_valid({s}_valid[k])"),
-                        format!(".{port}_ready({s}_ready[k])"),
-                        format!(".{port}_data({data})"),
-                    ]
-                })
-                .collect();
-            let _ = writeln!(
-                v,
-                "    for (genvar k = 0; k < {n}; k++) begin : g_{base}\n        {}{} u_{base} (\n            {}\n        );\n    end",
-                inst.module,
-                self.params_of(inst, Some((base, ks.len())))?,
-                [format!(".clk({})", inst.clock), ".rst(rst)".to_string()]
-                    .into_iter()
-                    .chain(cs)
-                    .collect::<Vec<_>>()
-                    .join(",\n            ")
-            );
+            for k in ks {
+                write(v, &format!("{base}{k}"));
+            }
         }
-        Ok(())
     }
 }
 
@@ -468,8 +425,7 @@ pub fn emit_chip(cfg: &Config) -> Result<String, ChipError> {
     for l in &w.wires {
         let _ = writeln!(v, "{l}");
     }
-    top.write_instances(&mut v, &w)?;
-    top.write_families(&mut v)?;
+    top.write_instances(&mut v, &w);
     let _ = writeln!(v, "    wire _unused_ok = &{{1'b0, TPS[0], 1'b0}};");
     let _ = writeln!(v, "endmodule");
     Ok(v)
@@ -603,10 +559,15 @@ mod tests {
         let v = emit_chip(&cfg).unwrap();
         assert!(v.contains("localparam integer TMS = 3;"));
         assert!(v.contains("localparam integer TPS = 2;"));
-        assert_eq!(v.matches("        tm u_tm (").count(), 1, "one loop");
-        for u in ["u_scheduler", "u_scene_buffer", "u_hit_updater", "u_memory"] {
-            assert_eq!(v.matches(&format!("{u} (")).count(), 1, "{u}");
+        // One instance per TM, named as the model's unit; no generate loop.
+        for k in 0..3 {
+            assert_eq!(v.matches(&format!("    tm tm{k} (")).count(), 1, "tm{k}");
         }
+        assert!(!v.contains("genvar") && !v.contains(" u_"), "{v}");
+        for u in ["scheduler", "scene_buffer", "hit_updater", "memory"] {
+            assert_eq!(v.matches(&format!(" {u} (")).count(), 1, "{u}");
+        }
+        assert!(v.contains("    input  wire clk_core,") && v.contains(".clk(clk_core)"));
         // Each TM's seven links, on both ends.
         for p in [
             "fill",
@@ -617,7 +578,12 @@ mod tests {
             "gmem_req",
             "gmem_resp",
         ] {
-            assert!(v.contains(&format!(".{p}_valid(tm_{p}_valid[k])")), "{p}");
+            for k in 0..3 {
+                assert!(
+                    v.contains(&format!(".{p}_valid(tm_{p}_valid[{k}])")),
+                    "{p} {k}"
+                );
+            }
         }
         assert!(v.contains(".fill_2_valid(tm_fill_valid[2])"));
         // TM 2's other ends are wired to some global unit's port.
@@ -631,8 +597,8 @@ mod tests {
         ] {
             assert_eq!(
                 v.matches(&format!("_valid(tm_{p}_valid[2])")).count(),
-                1,
-                "{p}"
+                2,
+                "{p}: TM 2's port and the other end"
             );
         }
         let mut bad = cfg.clone();

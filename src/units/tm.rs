@@ -596,9 +596,11 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &TmSpec, path: &str, ports: TmP
     }
 }
 
-/// The structural Verilog of the TM: one instance per unit, one valid/ready/data
-/// wire triple per internal link, and the outside links as module ports. Built from
-/// a TM elaborated in a scratch simulator, so it is exactly the simulated netlist.
+/// The structural Verilog of the TM: one instance per unit, named as the unit's
+/// instance in the model (`tp5`, `l1`, `xbar`: a waveform's `chip.tm3.tp5` is the
+/// netlist's `chip.tm3.tp5`), one valid/ready/data wire triple per internal link,
+/// and the outside links as module ports. Built from a TM elaborated in a scratch
+/// simulator, so it is exactly the simulated netlist.
 pub fn emit_verilog(cfg: &TmSpec) -> String {
     use crate::rtl::decl::PortDir;
     use std::collections::BTreeMap;
@@ -713,7 +715,11 @@ pub fn emit_verilog(cfg: &TmSpec) -> String {
                 cs.push(format!(".{}_{suf}({s}_{suf})", p.name));
             }
         }
-        let _ = writeln!(v, " u_{inst} (\n        {}\n    );", cs.join(",\n        "));
+        debug_assert!(
+            !inst.contains('.'),
+            "a TM's units sit directly in it: {inst}"
+        );
+        let _ = writeln!(v, " {inst} (\n        {}\n    );", cs.join(",\n        "));
     }
     let _ = writeln!(v, "endmodule");
     v

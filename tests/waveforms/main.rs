@@ -10,6 +10,7 @@ mod common;
 
 mod formats;
 mod gtkwave;
+mod names;
 mod read;
 
 pub use common::have;

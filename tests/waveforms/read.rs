@@ -22,6 +22,11 @@ pub struct Wave {
     pub changes: BTreeMap<String, Vec<(u64, String)>>,
     /// The last timestamp.
     pub end: u64,
+    /// The paths of the module scopes (unit instances and the structural
+    /// ones above them; not the fields' struct scopes).
+    pub modules: std::collections::BTreeSet<String>,
+    /// The header's comments, in order.
+    pub comments: Vec<String>,
 }
 
 /// The value with leading zeros dropped (`b0101` and `b101` are one value).
@@ -52,7 +57,13 @@ pub fn vcd(path: &Path) -> Wave {
             }
         };
         match cmd.unwrap_or_else(|e| panic!("{}: not valid VCD: {e}", path.display())) {
-            vcd::Command::ScopeDef(_, name) => stack.push(name),
+            vcd::Command::ScopeDef(t, name) => {
+                stack.push(name);
+                if t == vcd::ScopeType::Module {
+                    w.modules.insert(stack.join("."));
+                }
+            }
+            vcd::Command::Comment(c) => w.comments.push(c.trim().to_string()),
             vcd::Command::Upscope => {
                 stack.pop();
             }

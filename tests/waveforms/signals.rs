@@ -181,6 +181,7 @@ fn the_signal_checks_catch_faults() {
             order: w.order.clone(),
             changes: w.changes.clone(),
             end: w.end,
+            ..Wave::default()
         };
         f(&mut bad);
         std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
