@@ -13,7 +13,7 @@ use dualstream::rtl::TraceSpec;
 use dualstream::testbench::{self, TbOptions};
 
 mod common;
-use common::{Scratch, have};
+use common::{Scratch, have, succeeds};
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -181,16 +181,9 @@ fn vcd_scopes_equal_verilog_modules_and_read_back() {
         }
         if have("vcd2fst") {
             let fst = dir.join(format!("{name}.fst"));
-            let o = Command::new("vcd2fst")
-                .arg(&vcd)
-                .arg(&fst)
-                .output()
-                .unwrap();
-            assert!(
-                o.status.success(),
-                "vcd2fst rejected {}: {}",
-                vcd.display(),
-                String::from_utf8_lossy(&o.stderr)
+            succeeds(
+                Command::new("vcd2fst").arg(&vcd).arg(&fst),
+                &format!("vcd2fst on {}", vcd.display()),
             );
             assert!(std::fs::metadata(&fst).unwrap().len() > 0);
         }
@@ -263,16 +256,7 @@ fn verilog_passes_verilator_iverilog_and_yosys() {
                 "read_verilog -sv {}; hierarchy -check -top {top}; check -assert",
                 all.join(" ")
             );
-            let o = Command::new("yosys")
-                .args(["-q", "-p", &script])
-                .output()
-                .unwrap();
-            assert!(
-                o.status.success(),
-                "yosys: {}{}",
-                String::from_utf8_lossy(&o.stdout),
-                String::from_utf8_lossy(&o.stderr)
-            );
+            succeeds(Command::new("yosys").args(["-q", "-p", &script]), "yosys");
         }
         let text = std::fs::read_to_string(f).unwrap();
         assert!(!text.contains("lint_off"), "no lint pragmas");
@@ -380,15 +364,9 @@ fn chip_top_wires_every_unit_and_lints() {
                 lib.join(" "),
                 top.display()
             );
-            let o = Command::new("yosys")
-                .args(["-q", "-p", &script])
-                .output()
-                .unwrap();
-            assert!(
-                o.status.success(),
-                "yosys ({name}): {}{}",
-                String::from_utf8_lossy(&o.stdout),
-                String::from_utf8_lossy(&o.stderr)
+            succeeds(
+                Command::new("yosys").args(["-q", "-p", &script]),
+                &format!("yosys ({name})"),
             );
         }
         assert!(!text.contains("lint_off"), "no lint pragmas");
@@ -399,29 +377,21 @@ fn chip_top_wires_every_unit_and_lints() {
 /// in `lib` (each skipped when the tool is missing; `have` requires it under CI).
 fn lint_with_library(lib: &std::path::Path, file: &std::path::Path, what: &str) {
     if have("verilator") {
-        let o = Command::new("verilator")
-            .args(["--lint-only", "-Wall", "-y"])
-            .arg(lib)
-            .arg(file)
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "verilator{what}: {}",
-            String::from_utf8_lossy(&o.stderr)
+        succeeds(
+            Command::new("verilator")
+                .args(["--lint-only", "-Wall", "-y"])
+                .arg(lib)
+                .arg(file),
+            &format!("verilator{what}"),
         );
     }
     if have("iverilog") {
-        let o = Command::new("iverilog")
-            .args(["-g2012", "-o", "/dev/null", "-y"])
-            .arg(lib)
-            .arg(file)
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "iverilog{what}: {}",
-            String::from_utf8_lossy(&o.stderr)
+        succeeds(
+            Command::new("iverilog")
+                .args(["-g2012", "-o", "/dev/null", "-y"])
+                .arg(lib)
+                .arg(file),
+            &format!("iverilog{what}"),
         );
     }
 }

@@ -22,8 +22,8 @@ pub use error::{CliError, unwritable};
 /// What a waveform holds, for every command that traces (render, tb).
 #[derive(clap::Args)]
 pub struct WaveArgs {
-    /// Which signals of each traced unit: comma-separated ports (valid,
-    /// ready, fire), data, fields, fsm, regs, or all.
+    /// Which signals of each traced unit, comma-separated kinds: ports (each
+    /// port's valid, ready and fire), data, fields, fsm, regs, or all.
     #[arg(long, default_value = "all")]
     trace_signals: String,
     /// Leave out signals wider than this many bits (0: any width).

@@ -56,3 +56,17 @@ pub fn have(tool: &str) -> bool {
     }
     ok
 }
+
+/// Runs `cmd`, insisting that it succeeds; a failure names `what` and shows
+/// the tool's output. Returns the output (stdout for the caller to read).
+#[allow(dead_code)] // not every test binary runs tools
+pub fn succeeds(cmd: &mut std::process::Command, what: &str) -> std::process::Output {
+    let o = cmd.output().unwrap();
+    assert!(
+        o.status.success(),
+        "{what} failed: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}

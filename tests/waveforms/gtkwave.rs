@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::Scratch;
+use crate::common::{Scratch, succeeds};
 use crate::{chip_trace, have, read};
 
 /// Runs GTKWave on `trace` with `save` and a Tcl script that reports what it
@@ -28,19 +28,15 @@ gtkwave::/File/Quit
 "#,
     )
     .unwrap();
-    let o = Command::new("timeout")
-        .args(["120", "xvfb-run", "-a", "gtkwave", "-S"])
-        .arg(&tcl)
-        .arg(trace)
-        .arg(&copy)
-        .output()
-        .unwrap();
-    let out = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(
-        o.status.success(),
-        "gtkwave failed: {out}\n{}",
-        String::from_utf8_lossy(&o.stderr)
+    let o = succeeds(
+        Command::new("timeout")
+            .args(["120", "xvfb-run", "-a", "gtkwave", "-S"])
+            .arg(&tcl)
+            .arg(trace)
+            .arg(&copy),
+        "gtkwave",
     );
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
     out.lines().map(str::to_string).collect()
 }
 

@@ -18,14 +18,9 @@ mod signals;
 
 /// Runs the command line and insists that it succeeds.
 pub fn dualstream(args: &[&str]) {
-    let o = Command::new(env!("CARGO_BIN_EXE_dualstream"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "dualstream {args:?} failed:\n{}",
-        String::from_utf8_lossy(&o.stderr)
+    common::succeeds(
+        Command::new(env!("CARGO_BIN_EXE_dualstream")).args(args),
+        &format!("dualstream {args:?}"),
     );
 }
 

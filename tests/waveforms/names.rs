@@ -18,7 +18,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::process::Command;
 
-use crate::common::Scratch;
+use crate::common::{Scratch, succeeds};
 use crate::{chip_trace, dualstream, have, read};
 
 const CONFIG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/chip-8tms.toml");
@@ -361,26 +361,17 @@ fn an_rtl_trace_lines_up_with_the_model_trace() {
     )
     .unwrap();
     let sim = d.join("sim");
-    let o = Command::new("iverilog")
-        .args(["-g2012", "-o"])
-        .arg(&sim)
-        .arg("-y")
-        .arg(d.join("hdl"))
-        .arg(d.join("hdl/chip.v"))
-        .arg(&dump)
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "iverilog: {}",
-        String::from_utf8_lossy(&o.stderr)
+    succeeds(
+        Command::new("iverilog")
+            .args(["-g2012", "-o"])
+            .arg(&sim)
+            .arg("-y")
+            .arg(d.join("hdl"))
+            .arg(d.join("hdl/chip.v"))
+            .arg(&dump),
+        "iverilog",
     );
-    let o = Command::new("vvp").arg("-n").arg(&sim).output().unwrap();
-    assert!(
-        o.status.success(),
-        "vvp: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    succeeds(Command::new("vvp").arg("-n").arg(&sim), "vvp");
     let model = Scopes::of_model(&model_trace(&d));
     let rtl = Scopes::of_rtl(&read::vcd(&rtl_vcd));
     assert_eq!(mismatches(&model, &rtl), Vec::<String>::new());

@@ -271,7 +271,8 @@ impl Default for Show {
 
 impl Show {
     /// The kinds that `--trace-signals` names.
-    pub const KINDS: &'static str = "ports (valid, ready, fire), data, fields, fsm, regs, all";
+    pub const KINDS: &'static str =
+        "ports (each port's valid, ready and fire), data, fields, fsm, regs, all";
 
     /// Parses a comma-separated list of kinds (`ports,fsm`); `max_width` as given.
     pub fn parse(list: &str, max_width: u32) -> Result<Show, TraceError> {
