@@ -67,16 +67,21 @@ impl Bits {
     /// Copies bits `at..at + width` into `out` (cleared first): one field of
     /// a packed payload.
     pub fn slice_into(&self, at: u32, width: u32, out: &mut Bits) {
+        Bits::slice_words(&self.words, at, width, out);
+    }
+
+    /// As `slice_into`, from a value's words (LSB first).
+    pub fn slice_words(words: &[u64], at: u32, width: u32, out: &mut Bits) {
         out.clear();
         let mut k = 0;
         while k < width {
             let w = (width - k).min(64);
             let (i, off) = (((at + k) / 64) as usize, (at + k) % 64);
-            let lo = self.words.get(i).copied().unwrap_or(0) >> off;
+            let lo = words.get(i).copied().unwrap_or(0) >> off;
             let hi = if off == 0 {
                 0
             } else {
-                self.words.get(i + 1).copied().unwrap_or(0) << (64 - off)
+                words.get(i + 1).copied().unwrap_or(0) << (64 - off)
             };
             out.push(lo | hi, w);
             k += w;

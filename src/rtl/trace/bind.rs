@@ -264,6 +264,13 @@ impl Tracer {
         if !self.periods.contains(&clk.period_ps) {
             self.periods.push(clk.period_ps);
         }
+        let spans = derived
+            .iter()
+            .map(|d| match d.how {
+                Derive::Field { offset, .. } => (offset, d.sig.width),
+                Derive::Fire { .. } => (0, 0),
+            })
+            .collect();
         TracedUnit {
             index,
             period: clk.period_ps,
@@ -278,6 +285,8 @@ impl Tracer {
             ports,
             sigs,
             derived,
+            wide: Vec::new(),
+            spans,
             port_derived,
             reg_derived,
         }

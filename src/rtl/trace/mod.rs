@@ -100,17 +100,19 @@ pub struct TraceStats {
     pub units: u64,
 }
 
-/// A written variable: its handle, width and last value written.
+/// A written variable: its handle, width and last value written. Small
+/// (24 bytes), as the tracer reads one per sampled or derived signal.
 struct Sig {
     h: u32,
     width: u32,
-    /// Whether a value was written (nothing is before the first).
-    written: bool,
     /// The last value of a signal of at most 64 bits, kept here: most are,
     /// and comparing in place spares a cache miss per signal and sample.
     small: u64,
-    /// The last value of a wider signal.
-    last: Bits,
+    /// Where a wider signal's last value starts in its unit's `wide` words
+    /// (`u32::MAX` until its first value).
+    at: u32,
+    /// Whether a value was written (nothing is before the first).
+    written: bool,
     /// Whether the file holds it (a sampled signal `Show` leaves out is still
     /// followed: fire and the fields are derived from it).
     shown: bool,
@@ -121,9 +123,9 @@ impl Sig {
         Sig {
             h,
             width,
-            written: false,
             small: 0,
-            last: Bits::new(),
+            at: u32::MAX,
+            written: false,
             shown: true,
         }
     }
@@ -136,20 +138,48 @@ impl Sig {
         }
     }
 
-    /// Whether `v` differs from the last value written; if so it becomes it.
+    /// Whether `v` differs from the last value written; if so it becomes it
+    /// (a wide one's in `wide`), and with `diff` the bits that changed go
+    /// there (old xor new per word; all ones for the first value): fields
+    /// derived from a signal need recomputing only where its bits changed.
     #[inline]
-    fn update(&mut self, v: &Bits) -> bool {
+    fn update(&mut self, v: &Bits, wide: &mut Vec<u64>, diff: Option<&mut Vec<u64>>) -> bool {
+        let new = v.words();
         if self.width <= 64 {
-            let x = v.words().first().copied().unwrap_or(0);
+            let x = new.first().copied().unwrap_or(0);
             if self.written && x == self.small {
                 return false;
             }
+            if let Some(d) = diff {
+                d.clear();
+                d.push(if self.written {
+                    x ^ self.small
+                } else {
+                    u64::MAX
+                });
+            }
             self.small = x;
         } else {
-            if self.written && self.last == *v {
+            let n = self.width.div_ceil(64) as usize;
+            if self.at == u32::MAX {
+                self.at = wide.len() as u32;
+                wide.resize(wide.len() + n, 0);
+            }
+            let old = &mut wide[self.at as usize..][..n];
+            // A sample holds the signal's width in whole words.
+            let new = &new[..n];
+            if self.written && old == new {
                 return false;
             }
-            self.last.clone_from(v);
+            if let Some(d) = diff {
+                d.clear();
+                if self.written {
+                    d.extend(old.iter().zip(new).map(|(o, n)| o ^ n));
+                } else {
+                    d.resize(n, u64::MAX);
+                }
+            }
+            old.copy_from_slice(new);
         }
         self.written = true;
         true
@@ -197,6 +227,12 @@ struct TracedUnit {
     sigs: Vec<Sig>,
     /// In port order: each port's fire, then its fields.
     derived: Vec<Derived>,
+    /// The last values of its signals wider than 64 bits (`Sig::at`).
+    wide: Vec<u64>,
+    /// Per derived signal (as `derived`), a field's bits in what it comes
+    /// from, `(offset, width)`: kept apart, dense, so finding the fields a
+    /// change touched reads 8 bytes per field, not a whole `Derived`.
+    spans: Vec<(u32, u32)>,
     /// Per port, where its signals are in `derived`: fire at the first
     /// index if the range up to the second is not empty (`Show` may leave
     /// it out), its fields from the second to the third.
@@ -378,10 +414,9 @@ pub struct Tracer {
     /// were.
     sampled: Vec<u32>,
     regs_sampled: bool,
-    /// Which of a unit's registers changed in this sample.
-    moved: Vec<bool>,
-    /// The ranges of a unit's derived signals to recompute.
-    ranges: Vec<std::ops::Range<usize>>,
+    /// The bits that changed in the signal being written (old xor new, a
+    /// word per 64 bits; all ones for a first value).
+    diff: Vec<u64>,
     clocks: Vec<ClockSig>,
     rst: Option<u32>,
     /// The time up to which the clocks are written.
@@ -479,8 +514,7 @@ impl Tracer {
             scratch: Bits::new(),
             sampled: Vec::new(),
             regs_sampled: false,
-            moved: Vec::new(),
-            ranges: Vec::new(),
+            diff: Vec::new(),
             clocks: Vec::new(),
             rst: None,
             clock_t: None,

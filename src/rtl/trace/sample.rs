@@ -8,6 +8,7 @@ use super::super::link::LinkDyn;
 use super::super::link::LinkId;
 use super::super::sim::Time;
 use super::super::unit::Unit;
+use super::sink::Sink;
 use super::{Derive, NONE, TracedUnit, Tracer};
 
 /// What the simulator did at a step, for the tracer to sample only what
@@ -231,80 +232,52 @@ impl Tracer {
     /// Writes what changed of unit `ui`'s sampled and derived signals.
     fn write_unit(&mut self, ui: usize, t: Time) -> std::io::Result<()> {
         let unit = &mut self.units[ui];
-        let (moved, ranges) = (&mut self.moved, &mut self.ranges);
-        ranges.clear();
+        let (sink, scratch, diff) = (&mut *self.sink, &mut self.scratch, &mut self.diff);
+        let mut changes = 0;
         // An empty sample holds the last value.
         for &k in &self.sampled {
             let k = k as usize;
             let mut m = [false; 3];
             for (j, m) in m.iter_mut().enumerate() {
                 let (sig, v) = (&mut unit.sigs[3 * k + j], &self.samples.vals[3 * k + j]);
-                *m = !v.is_empty() && sig.update(v);
+                *m = !v.is_empty() && sig.update(v, &mut unit.wide, (j == 2).then_some(&mut *diff));
                 if *m && sig.shown {
-                    self.sink.bits(t, sig.h, v, sig.width)?;
-                    self.changes += 1;
+                    sink.bits(t, sig.h, v, sig.width)?;
+                    changes += 1;
                 }
             }
             // A derived signal can only change with what it is derived from:
-            // fire with valid or ready, the fields with the data.
+            // fire with valid or ready, a field with its bits of the data.
             let (fire, fields, end) = unit.port_derived[k];
-            ranges.push(match (m[0] || m[1], m[2]) {
-                (false, false) => continue,
-                (true, false) => fire..fields,
-                (false, true) => fields..end,
-                (true, true) => fire..end,
-            });
+            if (m[0] || m[1]) && fire < fields {
+                changes += derive(unit, fire, t, sink, scratch)? as u64;
+            }
+            if m[2] {
+                changes += derive_changed(unit, fields..end, diff, t, sink, scratch)?;
+            }
         }
         if self.regs_sampled {
             let regs = 3 * unit.ports.len();
-            moved.clear();
-            for (sig, v) in unit.sigs[regs..].iter_mut().zip(&self.samples.vals[regs..]) {
-                let m = !v.is_empty() && sig.update(v);
+            // Struct registers (with fields) in register order.
+            let mut next_struct = 0;
+            for i in regs..unit.sigs.len() {
+                let v = &self.samples.vals[i];
+                let fields = unit.reg_derived.get(next_struct).copied();
+                let fields = fields.filter(|&(of, _, _)| of == i);
+                next_struct += fields.is_some() as usize;
+                let sig = &mut unit.sigs[i];
+                let d = fields.is_some().then_some(&mut *diff);
+                let m = !v.is_empty() && sig.update(v, &mut unit.wide, d);
                 if m && sig.shown {
-                    self.sink.bits(t, sig.h, v, sig.width)?;
-                    self.changes += 1;
+                    sink.bits(t, sig.h, v, sig.width)?;
+                    changes += 1;
                 }
-                moved.push(m);
-            }
-            // A struct register's fields, with the register.
-            for &(of, start, end) in &unit.reg_derived {
-                if moved[of - regs] {
-                    ranges.push(start..end);
+                if let (true, Some((_, start, end))) = (m, fields) {
+                    changes += derive_changed(unit, start..end, diff, t, sink, scratch)?;
                 }
             }
         }
-        for range in ranges.drain(..) {
-            for d in &mut unit.derived[range] {
-                let s = &mut self.scratch;
-                let float = match d.how {
-                    Derive::Fire { port } => {
-                        let v = &unit.sigs;
-                        s.clear();
-                        s.push(v[3 * port].small & v[3 * port + 1].small & 1, 1);
-                        false
-                    }
-                    Derive::Field { of, offset, float } => {
-                        let src = &unit.sigs[of];
-                        if src.width <= 64 {
-                            s.clear();
-                            s.push(src.small >> offset, d.sig.width);
-                        } else {
-                            src.last.slice_into(offset, d.sig.width, s);
-                        }
-                        float
-                    }
-                };
-                if d.sig.update(s) {
-                    if float {
-                        let x = f32::from_bits(s.get(0, 32) as u32);
-                        self.sink.real(t, d.sig.h, x as f64)?;
-                    } else {
-                        self.sink.bits(t, d.sig.h, s, d.sig.width)?;
-                    }
-                    self.changes += 1;
-                }
-            }
-        }
+        self.changes += changes;
         Ok(())
     }
 
@@ -343,6 +316,88 @@ impl Tracer {
             }
         }
     }
+}
+
+/// Recomputes the fields in `range` of `unit.derived` that overlap the bits
+/// set in `diff` (what changed in the signal they come from), writing those
+/// whose value changed; returns how many were written.
+fn derive_changed(
+    unit: &mut TracedUnit,
+    range: std::ops::Range<usize>,
+    diff: &[u64],
+    t: Time,
+    sink: &mut dyn Sink,
+    scratch: &mut Bits,
+) -> std::io::Result<u64> {
+    let mut n = 0;
+    for i in range {
+        let (offset, width) = unit.spans[i];
+        if touches(diff, offset, width) {
+            n += derive(unit, i, t, sink, scratch)? as u64;
+        }
+    }
+    Ok(n)
+}
+
+/// Whether any of bits `offset..offset + width` is set in `diff`.
+#[inline]
+fn touches(diff: &[u64], offset: u32, width: u32) -> bool {
+    let (first, last) = (offset / 64, (offset + width - 1) / 64);
+    (first..=last).any(|w| {
+        let Some(&d) = diff.get(w as usize) else {
+            return false;
+        };
+        let lo = if w == first { offset % 64 } else { 0 };
+        let hi = if w == last {
+            (offset + width - 1) % 64
+        } else {
+            63
+        };
+        let mask = (u64::MAX >> (63 - hi)) & (u64::MAX << lo);
+        d & mask != 0
+    })
+}
+
+/// Recomputes derived signal `i` of `unit` from its sampled source and
+/// writes it if it changed; returns whether it did.
+fn derive(
+    unit: &mut TracedUnit,
+    i: usize,
+    t: Time,
+    sink: &mut dyn Sink,
+    s: &mut Bits,
+) -> std::io::Result<bool> {
+    let d = &mut unit.derived[i];
+    let float = match d.how {
+        Derive::Fire { port } => {
+            let v = &unit.sigs;
+            s.clear();
+            s.push(v[3 * port].small & v[3 * port + 1].small & 1, 1);
+            false
+        }
+        Derive::Field { of, offset, float } => {
+            let src = &unit.sigs[of];
+            if src.width <= 64 {
+                s.clear();
+                s.push(src.small >> offset, d.sig.width);
+            } else {
+                let n = src.width.div_ceil(64) as usize;
+                Bits::slice_words(&unit.wide[src.at as usize..][..n], offset, d.sig.width, s);
+            }
+            float
+        }
+    };
+    if !d.sig.update(s, &mut unit.wide, None) {
+        return Ok(false);
+    }
+    if float {
+        // A float field is 32 bits, in the first word.
+        let x = f32::from_bits(s.words()[0] as u32);
+        sink.real(t, d.sig.h, x as f64)?;
+    } else {
+        sink.bits(t, d.sig.h, s, d.sig.width)?;
+    }
+    Ok(true)
 }
 
 /// A one-bit value, packed (the clocks toggle every half period: no
