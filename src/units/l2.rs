@@ -698,9 +698,7 @@ impl Logic for L2 {
         let Some(p) = self.req.index_of(port) else {
             return false;
         };
-        let answers = st.resp_q[p]
-            .front()
-            .is_some_and(|(d, _)| *d <= at.cycle())
+        let answers = st.resp_q[p].front().is_some_and(|(d, _)| *d <= at.cycle())
             && at.out_ready(&self.resp.at(p));
         st.flushing.is_none() && (st.outstanding[p] < self.port_queue || answers)
     }

@@ -59,7 +59,9 @@ impl Logic for MemCtrl {
     /// While the read or the write queue has room, or a command due this
     /// cycle may free one (which queue a request needs, its `write` says).
     fn can_accept(&self, _port: LinkId, at: &Ready) -> bool {
-        self.ctrl.can_accept(false) || self.ctrl.can_accept(true) || self.ctrl.next_event() <= at.cycle()
+        self.ctrl.can_accept(false)
+            || self.ctrl.can_accept(true)
+            || self.ctrl.next_event() <= at.cycle()
     }
 
     fn eval(&mut self, ctx: &mut Ctx) -> Next {

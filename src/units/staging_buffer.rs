@@ -6,7 +6,7 @@
 //! one-entry ray link has room (so every free TP holds its next ray).
 
 use crate::contract::RayRec;
-use crate::rtl::{Ctx, LinkId, Logic, Next, Ram, Reg, Ready, Status};
+use crate::rtl::{Ctx, LinkId, Logic, Next, Ram, Ready, Reg, Status};
 
 use super::tm::TmCfg;
 

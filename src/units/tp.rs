@@ -27,7 +27,7 @@ use super::tm::{COST_NAMES, COSTS, TpCosts, round_trip};
 pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::contract::{HitRec, RayRec};
-use crate::rtl::{Ctx, Declared, LinkId, Logic, Next, Ram, Reg, Ready, Status};
+use crate::rtl::{Ctx, Declared, LinkId, Logic, Next, Ram, Ready, Reg, Status};
 
 crate::payload_struct! {
     /// A duplicate: the ray, with its entry into the child segment `seg`; or, with

@@ -7,9 +7,9 @@ use dualstream::rtl::{
     Tracer,
 };
 
+use crate::chip_trace;
 use crate::common::Scratch;
 use crate::read::{self, Wave};
-use crate::chip_trace;
 
 /// (valid, ready) of input `port` at every change of either.
 fn handshakes(w: &Wave, port: &str) -> Vec<(u64, Option<String>, Option<String>)> {
@@ -21,7 +21,13 @@ fn handshakes(w: &Wave, port: &str) -> Vec<(u64, Option<String>, Option<String>)
     t.sort_unstable();
     t.dedup();
     t.into_iter()
-        .map(|t| (t, w.at(&v, t).map(str::to_string), w.at(&r, t).map(str::to_string)))
+        .map(|t| {
+            (
+                t,
+                w.at(&v, t).map(str::to_string),
+                w.at(&r, t).map(str::to_string),
+            )
+        })
         .collect()
 }
 
@@ -40,11 +46,22 @@ fn shows(w: &Wave, port: &str, v: &str, r: &str) -> bool {
 fn an_idle_input_shows_ready_without_valid() {
     let d = Scratch::new("wave-ready");
     let p = d.join("r.vcd");
-    chip_trace(&p, "chip.tm0.tp0,chip.tm0.l1,chip.tm0.xbar", "0..20000", &[]);
+    chip_trace(
+        &p,
+        "chip.tm0.tp0,chip.tm0.l1,chip.tm0.xbar",
+        "0..20000",
+        &[],
+    );
     let w = read::vcd(&p);
     let tp = "chip.tm0.tp0";
-    assert!(shows(&w, &format!("{tp}.ray"), "0", "1"), "TP idle, waiting for a ray");
-    assert!(shows(&w, &format!("{tp}.ray"), "0", "0"), "TP busy: not ready for a ray");
+    assert!(
+        shows(&w, &format!("{tp}.ray"), "0", "1"),
+        "TP idle, waiting for a ray"
+    );
+    assert!(
+        shows(&w, &format!("{tp}.ray"), "0", "0"),
+        "TP busy: not ready for a ray"
+    );
     assert!(shows(&w, &format!("{tp}.ray"), "1", "1"), "a ray taken");
     assert!(
         shows(&w, &format!("{tp}.mem_resp"), "0", "1"),
@@ -107,7 +124,11 @@ impl Logic for Slow {
             return Next::Cycle;
         }
         self.busy.set(false);
-        if ctx.holds_more(&self.inp) { Next::Cycle } else { Next::Idle }
+        if ctx.holds_more(&self.inp) {
+            Next::Cycle
+        } else {
+            Next::Idle
+        }
     }
 }
 
@@ -136,7 +157,9 @@ fn pair(lie: bool, check: bool, vcd: Option<&std::path::Path>) -> Result<Sim, Si
 fn not_ready(r: Result<Sim, SimError>) -> bool {
     match r {
         Err(SimError::Protocol(v)) => v.iter().any(|x| {
-            x.link == "l" && x.what.contains("'tb.slow' popped while it declared itself not ready")
+            x.link == "l"
+                && x.what
+                    .contains("'tb.slow' popped while it declared itself not ready")
         }),
         Err(e) => panic!("another error: {e}"),
         Ok(_) => false,
@@ -154,8 +177,14 @@ fn the_readiness_checker_catches_a_pop_without_ready() {
     pair(false, true, None).expect("honest");
     pair(false, false, Some(&p)).expect("honest, traced");
     assert!(not_ready(pair(true, true, None)), "checked");
-    assert!(not_ready(pair(true, false, Some(&d.join("liar.vcd")))), "traced");
-    assert!(pair(true, false, None).is_ok(), "unchecked, untraced: not looked at");
+    assert!(
+        not_ready(pair(true, false, Some(&d.join("liar.vcd")))),
+        "traced"
+    );
+    assert!(
+        pair(true, false, None).is_ok(),
+        "unchecked, untraced: not looked at"
+    );
     let w = read::vcd(&p);
     let port = "tb.slow.inp";
     assert!(shows(&w, port, "1", "0"), "a stall while busy");
