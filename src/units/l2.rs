@@ -685,8 +685,9 @@ impl L2 {
 impl Logic for L2 {
     /// The flush port while no flush runs; a memory lane while a line is out
     /// at the memory (a fill also needs its bank, which its address picks); a
-    /// client while no flush runs and its answer queue has room, or makes it
-    /// this cycle (bank and miss registers: its address decides).
+    /// client while no flush runs (or one may end this cycle) and its answer
+    /// queue has room, or makes it this cycle (bank and miss registers: its
+    /// address decides).
     fn can_accept(&self, port: LinkId, at: &Ready) -> bool {
         let st = self.st.r();
         if port == self.flush.id {
@@ -700,7 +701,10 @@ impl Logic for L2 {
         };
         let answers = st.resp_q[p].front().is_some_and(|(d, _)| *d <= at.cycle())
             && at.out_ready(&self.resp.at(p));
-        st.flushing.is_none() && (st.outstanding[p] < self.port_queue || answers)
+        // A flush with no dirty line left may finish this cycle (if the rest
+        // has drained by then), and requests are taken after it.
+        let flush_ends = st.dirty.is_empty() && at.out_ready(&self.flush_done);
+        (st.flushing.is_none() || flush_ends) && (st.outstanding[p] < self.port_queue || answers)
     }
 
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
