@@ -31,6 +31,7 @@ fn modes() -> Vec<SimOptions> {
             shuffle_seed: None,
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
         SimOptions {
             sleep: false,
@@ -38,6 +39,7 @@ fn modes() -> Vec<SimOptions> {
             shuffle_seed: None,
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
         SimOptions {
             sleep: true,
@@ -45,6 +47,7 @@ fn modes() -> Vec<SimOptions> {
             shuffle_seed: Some(1),
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
         SimOptions {
             sleep: false,
@@ -52,6 +55,7 @@ fn modes() -> Vec<SimOptions> {
             shuffle_seed: Some(2),
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
     ]
 }

@@ -178,6 +178,7 @@ fn order_and_sleeping_change_nothing() {
             shuffle_seed: None,
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
         SimOptions {
             sleep: false,
@@ -185,6 +186,7 @@ fn order_and_sleeping_change_nothing() {
             shuffle_seed: None,
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
         SimOptions {
             sleep: true,
@@ -192,6 +194,7 @@ fn order_and_sleeping_change_nothing() {
             shuffle_seed: Some(1),
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
         SimOptions {
             sleep: true,
@@ -199,6 +202,7 @@ fn order_and_sleeping_change_nothing() {
             shuffle_seed: Some(2),
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
         SimOptions {
             sleep: false,
@@ -206,6 +210,7 @@ fn order_and_sleeping_change_nothing() {
             shuffle_seed: Some(3),
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
     ];
     for m in modes {
@@ -334,6 +339,7 @@ fn shadow_evaluation_catches_a_sleep_bug() {
             shuffle_seed: None,
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         });
         let c = sim.clock("core", 1000).unwrap();
         sim.add("s", c, Sleeper::new(SleeperPorts {}));

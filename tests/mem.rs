@@ -320,6 +320,7 @@ mod unit {
                 shuffle_seed: None,
                 threads: 1,
                 auto_lanes: false,
+                check_ready: true,
             },
             SimOptions {
                 sleep: false,
@@ -327,6 +328,7 @@ mod unit {
                 shuffle_seed: None,
                 threads: 1,
                 auto_lanes: false,
+                check_ready: true,
             },
             SimOptions {
                 sleep: true,
@@ -334,6 +336,7 @@ mod unit {
                 shuffle_seed: Some(3),
                 threads: 1,
                 auto_lanes: false,
+                check_ready: true,
             },
         ] {
             assert!(run(opts.clone()) == base, "{opts:?} changed the outcome");

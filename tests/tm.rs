@@ -432,6 +432,7 @@ fn other_orders() -> [SimOptions; 3] {
         shuffle_seed,
         threads: 1,
         auto_lanes: false,
+        check_ready: true,
     };
     [o(false, None), o(true, Some(7)), o(false, Some(8))]
 }

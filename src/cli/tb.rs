@@ -126,6 +126,7 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
             shuffle_seed: None,
             threads: 1,
             auto_lanes: false,
+            check_ready: true,
         },
         config,
     };

@@ -142,6 +142,18 @@ impl<P: PortEnd> PortArray<P> {
             None => self.ports[k],
         }
     }
+    /// Which port of the array is on link `l`, if any (a subtraction when the
+    /// links are consecutive).
+    #[inline]
+    pub fn index_of(&self, l: LinkId) -> Option<usize> {
+        match self.first {
+            Some(f) => {
+                let k = l.0.checked_sub(f)? as usize;
+                (k < self.ports.len()).then_some(k)
+            }
+            None => self.ports.iter().position(|p| p.link() == l),
+        }
+    }
     /// The first port's link when the ports' links are consecutive.
     #[inline]
     pub fn consecutive_from(&self) -> Option<usize> {
@@ -508,7 +520,13 @@ pub(crate) trait LinkDyn: Any + Send + Sync {
     /// cycle's pop, enqueues this cycle's push, and tells the simulator what it
     /// mirrors (one virtual call per touched link and edge).
     fn edge(&mut self, violations: &mut Vec<Violation>) -> EdgeResult;
-    fn sample_consumer(&self, now: Time, out: [&mut Bits; 3]);
+    /// `valid`, `ready`, `data` of the consumer's port: `ready` is whether
+    /// it popped when the head is visible, else `ready_idle` (the consumer's
+    /// `can_accept`).
+    fn sample_consumer(&self, now: Time, ready_idle: bool, out: [&mut Bits; 3]);
+    /// Whether the FIFO had room at the start of this cycle (the producer's
+    /// registered ready).
+    fn space_at_start(&self) -> bool;
     fn sample_producer(&self, out: [&mut Bits; 3]);
     /// The payload's fields, for the waveform (`Payload::field_list`).
     fn fields(&self) -> Vec<super::bits::Field>;
@@ -580,12 +598,17 @@ impl<T: Payload> LinkDyn for Link<T> {
             space: p.can_push(),
         }
     }
-    fn sample_consumer(&self, now: Time, out: [&mut Bits; 3]) {
+    fn sample_consumer(&self, now: Time, ready_idle: bool, out: [&mut Bits; 3]) {
         let [valid, ready, data] = out;
         let c = self.cons_ref();
         let head = c.q.front().filter(|e| e.visible <= now);
         valid.push(head.is_some() as u64, 1);
-        ready.push((c.pops_now > 0) as u64, 1);
+        let r = if head.is_some() {
+            c.pops_now > 0
+        } else {
+            ready_idle
+        };
+        ready.push(r as u64, 1);
         match head {
             Some(e) => e.data.pack(data),
             None => data.clear(), // empty = hold the previous value
@@ -603,6 +626,9 @@ impl<T: Payload> LinkDyn for Link<T> {
         } else {
             data.clear();
         }
+    }
+    fn space_at_start(&self) -> bool {
+        self.prod_ref().space_at_start
     }
     fn fields(&self) -> Vec<super::bits::Field> {
         T::field_list()

@@ -23,4 +23,4 @@ pub use sim::{
 };
 pub use state::{Ram, Reg, State};
 pub use trace::{SharedBuf, TraceError, TraceSpec, TraceStats, Tracer};
-pub use unit::{Declared, Logic, Next, Status, Unit};
+pub use unit::{Declared, Logic, Next, Ready, Status, Unit};

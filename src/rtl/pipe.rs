@@ -107,6 +107,27 @@ impl<T: Payload> FixedPipe<T> {
         }
     }
 
+    /// Whether the pipeline can accept a request in cycle `c` from its state at
+    /// the start of the cycle, with `out_ready` its output's registered ready
+    /// (RTL: `!stall && ii_count == II && !full`, where a finished head and no
+    /// room out is a stall): the condition `step_on` pops under.
+    pub fn can_accept(&self, c: u64, out_ready: bool) -> bool {
+        let local = self.local(c);
+        let done = self
+            .ring
+            .front()
+            .is_some_and(|(a, _)| a + self.stages as u64 <= local);
+        if done && !out_ready {
+            return false;
+        }
+        let count = self.ring.len() as u32 - done as u32;
+        let interval_ok = self
+            .last_accept
+            .val()
+            .is_none_or(|l| local >= l + self.interval as u64);
+        interval_ok && count < self.capacity
+    }
+
     /// One cycle of the pipeline on a unit's links: emit the finished head through
     /// `f` if the output has room (else freeze), then accept a new request if the
     /// interval allows. Sets the unit's status.

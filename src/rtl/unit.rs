@@ -3,7 +3,32 @@
 use std::any::Any;
 
 use super::decl::{PortDecl, Samples, UnitDecl};
+use super::link::{LinkId, Out};
 use super::sim::Ctx;
+
+/// What a unit's readiness ([`Logic::can_accept`]) reads besides its own
+/// registers: its clock's cycle and each output's registered ready (whether
+/// the link had room at the start of the cycle), as an RTL `x_ready` may.
+pub struct Ready<'a> {
+    cycle: u64,
+    out_ready: &'a dyn Fn(LinkId) -> bool,
+}
+
+impl<'a> Ready<'a> {
+    pub fn new(cycle: u64, out_ready: &'a dyn Fn(LinkId) -> bool) -> Self {
+        Ready { cycle, out_ready }
+    }
+    /// The current cycle of the unit's clock.
+    #[inline]
+    pub fn cycle(&self) -> u64 {
+        self.cycle
+    }
+    /// Whether output `port`'s link had room at the start of this cycle.
+    #[inline]
+    pub fn out_ready<T>(&self, port: &Out<T>) -> bool {
+        (self.out_ready)(port.id)
+    }
+}
 
 /// When a unit next needs to be evaluated (in cycles of its own clock).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -97,6 +122,17 @@ pub trait Logic {
     /// Must not change anything observable when there is nothing to do: the
     /// simulator may skip it while the unit sleeps (shadow mode checks this).
     fn eval(&mut self, ctx: &mut Ctx) -> Next;
+    /// Whether the unit can accept a payload on input `port` (its link) this
+    /// cycle, from its registers at the start of the cycle (before `eval`):
+    /// an RTL `port_ready` such as `state == IDLE && !full`. The waveform
+    /// shows it as `port_ready` while nothing is valid; whenever the unit pops
+    /// `port` it must hold (the simulator checks it: a protocol violation
+    /// otherwise). It may be true when the unit then takes nothing (an arbiter
+    /// grants one input, a request the unit refuses by its contents). By
+    /// default always ready (a sink, a testbench driver).
+    fn can_accept(&self, _port: LinkId, _at: &Ready) -> bool {
+        true
+    }
     /// Unit-specific event counters (monotonic, reported in statistics).
     fn counters(&self) -> Vec<(&'static str, u64)> {
         Vec::new()
@@ -122,6 +158,8 @@ pub trait Unit: Any + Send {
     fn state_pending(&self) -> bool;
     fn state_moves(&self, cycle: u64) -> bool;
     fn counters(&self) -> Vec<(&'static str, u64)>;
+    /// See [`Logic::can_accept`].
+    fn can_accept(&self, port: LinkId, at: &Ready) -> bool;
 }
 
 impl<U: Declared + Logic + Send + 'static> Unit for U {
@@ -164,6 +202,9 @@ impl<U: Declared + Logic + Send + 'static> Unit for U {
     }
     fn counters(&self) -> Vec<(&'static str, u64)> {
         Logic::counters(self)
+    }
+    fn can_accept(&self, port: LinkId, at: &Ready) -> bool {
+        Logic::can_accept(self, port, at)
     }
 }
 

@@ -7,7 +7,7 @@ use glam::Vec3;
 use super::Tag;
 use crate::geom::inverse_dir;
 use crate::rtl::PipeCfg;
-use crate::rtl::{Ctx, FixedPipe, Logic, Next};
+use crate::rtl::{Ctx, FixedPipe, LinkId, Logic, Next, Ready};
 
 crate::payload_struct! {
     /// A direction to invert.
@@ -53,6 +53,10 @@ impl Logic for Divider {
     #[inline]
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         self.pipe.step(ctx, &self.req, &self.resp, div)
+    }
+    /// By the initiation interval, room in the stages and no stall.
+    fn can_accept(&self, _port: LinkId, at: &Ready) -> bool {
+        self.pipe.can_accept(at.cycle(), at.out_ready(&self.resp))
     }
     fn counters(&self) -> Vec<(&'static str, u64)> {
         vec![

@@ -21,7 +21,7 @@ use crate::contract::{HIT_BYTES, HitRec, LINE_BYTES};
 use crate::mem::StreamTag;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
-use crate::rtl::{Ctx, Logic, Next, Status, round_robin};
+use crate::rtl::{Ctx, LinkId, Logic, Next, Ready, Status, round_robin};
 
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
@@ -148,6 +148,13 @@ impl HitRecordUpdater {
 }
 
 impl Logic for HitRecordUpdater {
+    /// The memory port while a record is in flight. A TM's update port
+    /// always: with room in the queue it takes any update, and a full queue
+    /// still merges one for a record it holds (the update's index decides).
+    fn can_accept(&self, port: LinkId, _at: &Ready) -> bool {
+        port != self.mem_resp.id || !self.st.r().in_flight.is_empty()
+    }
+
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let n = self.tms as usize;

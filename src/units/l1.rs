@@ -12,7 +12,7 @@
 //! on `miss_resp` it is written to its slot and every waiting TP gets it at once.
 
 use crate::rtl::bits::{Bits, Payload};
-use crate::rtl::{Ctx, Logic, Next, Ram, Status};
+use crate::rtl::{Ctx, LinkId, Logic, Next, Ram, Ready, Status};
 use crate::util::{div, rem};
 
 use super::tm::L1Cfg;
@@ -417,6 +417,20 @@ impl L1 {
 }
 
 impl Logic for L1 {
+    /// A TP's port while its response slot is free or its hit leaves this
+    /// cycle (whether its bank is free and, on a miss, a miss register, its
+    /// address decides); the miss port while a miss is outstanding.
+    fn can_accept(&self, port: LinkId, at: &Ready) -> bool {
+        if port == self.miss_resp.id {
+            return (0..self.mshr_count).any(|k| self.mshr.read(k).valid);
+        }
+        let Some(p) = self.req.index_of(port) else {
+            return false;
+        };
+        let e = self.pending.read(p as u32);
+        !e.valid || (e.due <= at.cycle() && at.out_ready(&self.resp.at(p)))
+    }
+
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let mut o = Outcome::default();
         let mut s = self.begin_cycle();

@@ -49,7 +49,7 @@ use std::collections::VecDeque;
 
 use crate::mem::StreamTag;
 use crate::rtl::model::Model;
-use crate::rtl::{Ctx, Logic, Next, Status};
+use crate::rtl::{Ctx, LinkId, Logic, Next, Ready, Status};
 use crate::util::{div, rem};
 
 use super::l1::Line;
@@ -683,6 +683,30 @@ impl L2 {
 }
 
 impl Logic for L2 {
+    /// The flush port while no flush runs; a memory lane while a line is out
+    /// at the memory (a fill also needs its bank, which its address picks); a
+    /// client while no flush runs (or one may end this cycle) and its answer
+    /// queue has room, or makes it this cycle (bank and miss registers: its
+    /// address decides).
+    fn can_accept(&self, port: LinkId, at: &Ready) -> bool {
+        let st = self.st.r();
+        if port == self.flush.id {
+            return st.flushing.is_none();
+        }
+        if self.mem_resp.index_of(port).is_some() {
+            return !st.mem_busy.is_empty();
+        }
+        let Some(p) = self.req.index_of(port) else {
+            return false;
+        };
+        let answers = st.resp_q[p].front().is_some_and(|(d, _)| *d <= at.cycle())
+            && at.out_ready(&self.resp.at(p));
+        // A flush with no dirty line left may finish this cycle (if the rest
+        // has drained by then), and requests are taken after it.
+        let flush_ends = st.dirty.is_empty() && at.out_ready(&self.flush_done);
+        (st.flushing.is_none() || flush_ends) && (st.outstanding[p] < self.port_queue || answers)
+    }
+
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let mut o = Outcome::default();
         // This cycle's use of each bank: FREE, BUSY, or the line a read took it

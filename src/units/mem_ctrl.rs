@@ -16,7 +16,7 @@ pub use crate::mem::{MemReq, MemResp, StreamTag};
 
 use crate::mem::config::CtrlPolicy;
 use crate::mem::{ChannelCtrl, MemCfg};
-use crate::rtl::{Ctx, Logic, Next, Status};
+use crate::rtl::{Ctx, LinkId, Logic, Next, Ready, Status};
 
 crate::unit! {
     /// GDDR5 channel controller: FR-FCFS, open page, write drain, refresh.
@@ -56,6 +56,14 @@ impl MemCtrl {
 }
 
 impl Logic for MemCtrl {
+    /// While the read or the write queue has room, or a command due this
+    /// cycle may free one (which queue a request needs, its `write` says).
+    fn can_accept(&self, _port: LinkId, at: &Ready) -> bool {
+        self.ctrl.can_accept(false)
+            || self.ctrl.can_accept(true)
+            || self.ctrl.next_event() <= at.cycle()
+    }
+
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let d = self.resp_delay;

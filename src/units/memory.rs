@@ -33,7 +33,7 @@ use crate::contract::{LINE_BYTES, SparseMem};
 use crate::mem::{AddrMap, MemReq, MemResp, StreamTag};
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
-use crate::rtl::{Ctx, In, Logic, Next, Out, Status};
+use crate::rtl::{Ctx, In, LinkId, Logic, Next, Out, Ready, Status};
 
 use super::l1::Line;
 
@@ -368,6 +368,21 @@ impl Memory {
 }
 
 impl Logic for Memory {
+    /// With the fixed timing, a port always (the round-robin shares the
+    /// cycle's line budget among them); routed to the channels, a request
+    /// port while a channel link has room and a completion while a response
+    /// port has (which one, the address or the id decides).
+    fn can_accept(&self, port: LinkId, at: &Ready) -> bool {
+        if self.map.is_none() {
+            return true;
+        }
+        if self.req.index_of(port).is_some() {
+            self.ch_req.iter().any(|o| at.out_ready(o))
+        } else {
+            self.resp.iter().any(|o| at.out_ready(o))
+        }
+    }
+
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         if self.map.is_some() {
             return self.eval_routed(ctx);

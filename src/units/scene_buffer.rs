@@ -22,7 +22,7 @@ use std::collections::VecDeque;
 use crate::contract::LINE_BYTES;
 use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
-use crate::rtl::{Ctx, Logic, Next, Payload, Status};
+use crate::rtl::{Ctx, LinkId, Logic, Next, Payload, Ready, Status};
 
 use super::l1::{L1Req, L1Resp, Line};
 use super::memory::MemLineResp;
@@ -186,6 +186,20 @@ impl SceneBuffer {
 }
 
 impl Logic for SceneBuffer {
+    /// The mapping and fill ports always (lines are written as they come); a
+    /// TM's request port while its response queue has room, or makes it
+    /// this cycle (whether its line is there and its bank free, its address
+    /// decides).
+    fn can_accept(&self, port: LinkId, at: &Ready) -> bool {
+        let Some(k) = self.req.index_of(port) else {
+            return true;
+        };
+        let q = &self.st.r().out[k];
+        let cap = self.latency as usize + 2;
+        q.len() < cap
+            || q.front().is_some_and(|(d, _)| *d <= at.cycle()) && at.out_ready(&self.resp.at(k))
+    }
+
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let n = self.tms as usize;

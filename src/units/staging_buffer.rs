@@ -6,7 +6,7 @@
 //! one-entry ray link has room (so every free TP holds its next ray).
 
 use crate::contract::RayRec;
-use crate::rtl::{Ctx, Logic, Next, Ram, Reg, Status};
+use crate::rtl::{Ctx, LinkId, Logic, Next, Ram, Ready, Reg, Status};
 
 use super::tm::TmCfg;
 
@@ -162,6 +162,12 @@ impl Logic for StagingBuffer {
         });
         // Idle: a fill push or a TP taking its ray (a pop from a full link) wakes it.
         if worked { Next::Cycle } else { Next::Idle }
+    }
+
+    /// The fill port, while the half being filled has room and is not sealed.
+    fn can_accept(&self, _port: LinkId, _at: &Ready) -> bool {
+        let f = !self.drain_half.val();
+        !self.sealed(f) && (self.count(f) as u32) < self.half_rays
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {

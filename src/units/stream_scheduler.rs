@@ -92,7 +92,7 @@ use std::collections::BTreeMap;
 use super::scene_buffer::SceneBufferCfg;
 use crate::contract::{BUCKET_HEADER_BYTES, MemoryMap, RAY_BYTES, RayRec};
 use crate::rtl::model::Model;
-use crate::rtl::{Ctx, Logic, Next, Status};
+use crate::rtl::{Ctx, LinkId, Logic, Next, Ready, Status};
 use serde::{Deserialize, Serialize};
 
 use super::memory::{MemLineReq, MemLineResp};
@@ -408,6 +408,17 @@ impl StreamScheduler {
 }
 
 impl Logic for StreamScheduler {
+    /// Nothing after an error. The memory answers always; a wave start and
+    /// the ray writes while the memory request queue has room for what they
+    /// may queue (a write for a segment not in the destination table also
+    /// needs a free entry: its segment decides).
+    fn can_accept(&self, port: LinkId, _at: &Ready) -> bool {
+        if self.st.r().error.is_some() {
+            return false;
+        }
+        self.mem_resp.index_of(port).is_some() || self.out_room() >= 3
+    }
+
     /// One cycle, in this order (each step sees what the ones before it did).
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         if self.st.r().error.is_some() {

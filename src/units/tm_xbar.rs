@@ -20,7 +20,8 @@ use super::memory::{MemLineReq, MemLineResp};
 use super::tp::{HitUpdate, RayWrite};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::rtl::{
-    Ctx, FixedPipe, In, LocalEnds, LocalLink, Logic, Next, Out, Payload, PortArray, Ram, Status,
+    Ctx, FixedPipe, In, LinkId, LocalEnds, LocalLink, Logic, Next, Out, Payload, PortArray, Ram,
+    Ready, Status,
 };
 
 crate::unit! {
@@ -463,7 +464,39 @@ impl TmXbar {
     }
 }
 
+/// Whether any of `outs` had room at the start of the cycle.
+fn any_ready<T>(at: &Ready, outs: &PortArray<Out<T>>) -> bool {
+    outs.iter().any(|o| at.out_ready(o))
+}
+
 impl Logic for TmXbar {
+    /// A TP's request class is ready while what it is granted onto has room
+    /// (the grant goes to one of them, round-robin); a response input while
+    /// a TP link it may be routed to has room (which one, its tag says).
+    fn can_accept(&self, port: LinkId, at: &Ready) -> bool {
+        if port == self.div_resp.id {
+            any_ready(at, &self.tp_div_resp)
+        } else if port == self.gmem_resp.id {
+            any_ready(at, &self.tp_gmem_resp)
+        } else if self.tri_resp.index_of(port).is_some() {
+            any_ready(at, &self.tp_tri_resp)
+        } else if self.tp_div_req.index_of(port).is_some() {
+            at.out_ready(&self.div_req)
+        } else if self.tp_box_req.index_of(port).is_some() {
+            self.box_req_q.can_push()
+        } else if self.tp_tri_req.index_of(port).is_some() {
+            any_ready(at, &self.tri_req)
+        } else if self.tp_ray_write.index_of(port).is_some() {
+            at.out_ready(&self.ray_write)
+        } else if self.tp_hit.index_of(port).is_some() {
+            at.out_ready(&self.hit)
+        } else if self.tp_gmem_req.index_of(port).is_some() {
+            at.out_ready(&self.gmem_req)
+        } else {
+            false
+        }
+    }
+
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         let c = ctx.cycle();
         let start = ctx.round_robin_start(self.tps as usize);

@@ -27,7 +27,7 @@ use super::tm::{COST_NAMES, COSTS, TpCosts, round_trip};
 pub use super::tp_shade::{SHADE_SEG, ShadeRegs};
 use super::tri_pipe::{TriReq, TriResp};
 use crate::contract::{HitRec, RayRec};
-use crate::rtl::{Ctx, Declared, Logic, Next, Ram, Reg, Status};
+use crate::rtl::{Ctx, Declared, LinkId, Logic, Next, Ram, Ready, Reg, Status};
 
 crate::payload_struct! {
     /// A duplicate: the ray, with its entry into the child segment `seg`; or, with
@@ -399,6 +399,28 @@ impl Logic for Tp {
             self.used(s);
         }
         n
+    }
+
+    /// By FSM state: each input in the state that waits for it (the ray in
+    /// Idle, a response in its wait state).
+    fn can_accept(&self, port: LinkId, _at: &Ready) -> bool {
+        use TpState::*;
+        let s = self.state.val();
+        if port == self.ray.id {
+            s == Idle
+        } else if port == self.div_resp.id {
+            s == DivWait
+        } else if port == self.box_resp.id {
+            s == BoxWait
+        } else if port == self.tri_resp.id {
+            s == TriTestWait
+        } else if port == self.mem_resp.id {
+            matches!(s, NodeWait | TriMemWait)
+        } else if port == self.gmem_resp.id {
+            s == ShWait
+        } else {
+            false
+        }
     }
 
     fn counters(&self) -> Vec<(&'static str, u64)> {

@@ -7,7 +7,7 @@ use glam::Vec3;
 use super::Tag;
 use crate::geom::{Triangle, ray_triangle};
 use crate::rtl::PipeCfg;
-use crate::rtl::{Ctx, FixedPipe, Logic, Next};
+use crate::rtl::{Ctx, FixedPipe, LinkId, Logic, Next, Ready};
 
 crate::payload_struct! {
     /// A triangle test request.
@@ -83,6 +83,10 @@ impl Logic for TriPipe {
     #[inline]
     fn eval(&mut self, ctx: &mut Ctx) -> Next {
         self.pipe.step(ctx, &self.req, &self.resp, tri_test)
+    }
+    /// By the initiation interval, room in the stages and no stall.
+    fn can_accept(&self, _port: LinkId, at: &Ready) -> bool {
+        self.pipe.can_accept(at.cycle(), at.out_ready(&self.resp))
     }
     fn counters(&self) -> Vec<(&'static str, u64)> {
         vec![

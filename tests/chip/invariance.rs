@@ -58,6 +58,7 @@ fn any_lane_count_and_auto_change_nothing() {
     let auto = SimOptions {
         threads: 5,
         auto_lanes: true,
+        check_ready: true,
         ..SimOptions::default()
     };
     let (r, p, _) = run_tiny_chip_balanced(cfg, auto, None, true);

@@ -12,6 +12,7 @@ mod formats;
 mod gtkwave;
 mod names;
 mod read;
+mod ready;
 
 pub use common::have;
 mod signals;

@@ -71,6 +71,11 @@ impl Sim {
             status_ps: [0; 4],
             evals: 0,
             out_links: Vec::new(),
+            in_links: Vec::new(),
+            check_ready: self.opts.check_ready,
+            ready_pre: Vec::new(),
+            ready_at: Time::MAX,
+            popped: Vec::new(),
             stalled_outs: Vec::new(),
             commit_all: true,
             ahead: None,
@@ -104,6 +109,7 @@ impl Sim {
         let mut ends: Vec<(Option<UnitId>, Option<UnitId>)> = vec![(None, None); self.links.len()];
         for (i, s) in self.slots.iter_mut().enumerate() {
             s.out_links.clear();
+            s.in_links.clear();
             for p in s.unit.ports() {
                 let e = &mut ends[p.link.0 as usize];
                 let lname = self.links[p.link.0 as usize].name().to_string();
@@ -118,8 +124,9 @@ impl Sim {
                     )));
                 }
                 *slot = Some(UnitId(i as u32));
-                if p.dir == PortDir::Out {
-                    s.out_links.push(p.link);
+                match p.dir {
+                    PortDir::Out => s.out_links.push(p.link),
+                    PortDir::In => s.in_links.push(p.link),
                 }
             }
         }

@@ -55,6 +55,8 @@ pub struct Ctx<'a> {
     next_status: Option<Status>,
     link_ops: u32,
     watched: bool,
+    /// Where the links popped go when the unit's readiness is checked.
+    popped: Option<&'a mut Vec<LinkId>>,
 }
 
 impl<'a> Ctx<'a> {
@@ -209,6 +211,9 @@ impl<'a> Ctx<'a> {
         self.net.set_head(port.id.0 as usize, head);
         self.link_ops += v.is_some() as u32;
         self.mark(port.id, was || !t);
+        if let (Some(p), true) = (&mut self.popped, v.is_some()) {
+            p.push(port.id);
+        }
         v
     }
 
@@ -353,6 +358,10 @@ pub(super) fn eval_slot(
     if out.clock.0 != t || out.clock.1 != slot.period {
         out.clock = (t, slot.period, t / slot.period);
     }
+    let check = slot.check_ready && !shadow;
+    if check {
+        ready_before(slot, t, out.clock.2, net);
+    }
     let mut ctx = Ctx {
         now: t,
         cycle: out.clock.2,
@@ -366,9 +375,13 @@ pub(super) fn eval_slot(
         next_status: None,
         link_ops: 0,
         watched: slot.watched,
+        popped: check.then_some(&mut slot.popped),
     };
     let next = slot.unit.eval(&mut ctx);
     let (new_status, next_status, link_ops) = (ctx.new_status, ctx.next_status, ctx.link_ops);
+    if check {
+        popped_while_ready(slot, t, net, &mut out.violations);
+    }
     if !slot.stalled_outs.is_empty() {
         let touched = &mut out.touched;
         slot.stalled_outs.retain(|&l| {
@@ -428,6 +441,37 @@ pub(super) fn eval_slot(
         out.nexts.push((u, next, out.clock.2));
     }
     Ok(())
+}
+
+/// The unit's readiness on each input at the start of cycle `cycle` (time
+/// `t`), before its evaluation changes anything.
+fn ready_before(slot: &mut Slot, t: Time, cycle: u64, net: Net) {
+    // The unit reads only its own outputs' space (its thread is their producer).
+    let out_ready = |l: LinkId| net.link_ref(l.0 as usize).space_at_start();
+    let at = crate::rtl::Ready::new(cycle, &out_ready);
+    let unit = &*slot.unit;
+    slot.ready_pre.clear();
+    slot.ready_pre
+        .extend(slot.in_links.iter().map(|&l| unit.can_accept(l, &at)));
+    slot.ready_at = t;
+}
+
+/// A pop of an input the unit declared not ready for is a violation: its
+/// waveform's `ready` would be low while it takes the payload.
+fn popped_while_ready(slot: &mut Slot, t: Time, net: Net, violations: &mut Vec<Violation>) {
+    for l in slot.popped.drain(..) {
+        let k = slot.in_links.iter().position(|&i| i == l);
+        if k.is_some_and(|k| !slot.ready_pre[k]) {
+            violations.push(Violation {
+                link: net.link_ref(l.0 as usize).name().to_string(),
+                at: t,
+                what: format!(
+                    "'{}' popped while it declared itself not ready (can_accept was false at the start of the cycle)",
+                    slot.path
+                ),
+            });
+        }
+    }
 }
 
 #[cfg(test)]

@@ -86,6 +86,17 @@ struct Slot {
     status_ps: [Time; 4],
     path: String,
     out_links: Vec<LinkId>,
+    /// The unit's input links, in declaration order.
+    in_links: Vec<LinkId>,
+    /// Check the unit's readiness (`Logic::can_accept`) at its pops: with
+    /// `SimOptions::check_ready`, or when a tracer shows it.
+    check_ready: bool,
+    /// Readiness of each of `in_links` at the start of the cycle of the last
+    /// checked evaluation (`ready_at`), before the unit changed anything.
+    ready_pre: Vec<bool>,
+    ready_at: Time,
+    /// Links the unit popped in a checked evaluation.
+    popped: Vec<LinkId>,
 }
 
 /// The simulator.

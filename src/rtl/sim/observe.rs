@@ -153,6 +153,7 @@ impl Sim {
         }
         for i in tracer.unit_indices() {
             self.slots[i].watched = true;
+            self.slots[i].check_ready = true;
         }
         self.tracer = Some(tracer);
         Ok(())
@@ -161,8 +162,10 @@ impl Sim {
     /// Detaches the tracer, flushing its output.
     pub fn finish_trace(&mut self) -> Option<std::io::Result<TraceStats>> {
         let now = self.now;
+        let check = self.opts.check_ready;
         for s in &mut self.slots {
             s.watched = false;
+            s.check_ready = check;
         }
         self.tracer.take().map(|t| t.finish(now))
     }

@@ -30,6 +30,10 @@ pub struct SimOptions {
     /// the run's own speed (see `lanes.rs`); needs a lane plan
     /// ([`Sim::set_lane_plan`](super::Sim::set_lane_plan)). Results never depend on it.
     pub auto_lanes: bool,
+    /// Check every unit's readiness at its pops (`Logic::can_accept` must hold
+    /// whenever a unit pops an input; a protocol violation otherwise). Always
+    /// on for the units a tracer watches, whose waveform shows it.
+    pub check_ready: bool,
 }
 
 /// How many evaluation threads a run uses (the command line's `--threads`).
@@ -89,6 +93,7 @@ impl Default for SimOptions {
             shuffle_seed: None,
             threads: 1,
             auto_lanes: false,
+            check_ready: false,
         }
     }
 }

@@ -190,7 +190,12 @@ impl Sim {
                     touched: &self.out.touched,
                     heads: &self.heads,
                 };
-                tr.sample(t, &|i| &*slots[i].unit, &self.links, activity);
+                let unit_at = |i: usize| {
+                    let s = &slots[i];
+                    let pre = (s.ready_at == t).then_some(&s.ready_pre[..]);
+                    (&*s.unit, pre)
+                };
+                tr.sample(t, &unit_at, &self.links, activity);
                 if let Some(why) = tr.stopped() {
                     return Err(SimError::Trace(TraceError::Oversized(why.to_string())));
                 }

@@ -7,7 +7,7 @@ use super::super::decl::PortDir;
 use super::super::link::LinkDyn;
 use super::super::link::LinkId;
 use super::super::sim::Time;
-use super::super::unit::Unit;
+use super::super::unit::{Ready, Unit};
 use super::sink::Sink;
 use super::{Derive, NONE, TracedUnit, Tracer};
 
@@ -53,12 +53,14 @@ impl Tracer {
 
     /// Samples at time `t`, after the evaluations of `due` (simulator unit
     /// indices) and before the edge; `touched` lists the links they pushed or
-    /// popped, `heads` is when each link's head is visible. Called at every
-    /// step of the run, so the activity outside the window is seen too.
+    /// popped, `heads` is when each link's head is visible. `unit_at` gives a
+    /// unit and, if it was evaluated at `t`, its readiness on each input
+    /// from before (`Logic::can_accept`). Called at every step of the run, so
+    /// the activity outside the window is seen too.
     pub(crate) fn sample<'u>(
         &mut self,
         t: Time,
-        unit_at: &dyn Fn(usize) -> &'u dyn Unit,
+        unit_at: &dyn Fn(usize) -> (&'u dyn Unit, Option<&'u [bool]>),
         links: &[Box<dyn LinkDyn>],
         activity: Activity,
     ) {
@@ -76,8 +78,8 @@ impl Tracer {
         for &ui in &due {
             let ui = ui as usize;
             let (period, index) = (self.units[ui].period, self.units[ui].index);
-            let unit = unit_at(index);
-            self.sample_unit(ui, t, unit, links);
+            let (unit, ready) = unit_at(index);
+            self.sample_unit(ui, t, (unit, ready), links);
             self.units[ui].moving = unit.state_moves(t / period);
             if let Err(e) = self.write_unit(ui, t) {
                 self.error = Some(e);
@@ -181,8 +183,17 @@ impl Tracer {
     }
 
     /// Samples what of unit `ui` may have changed (see `note_activity`): the
-    /// ports in `sampled`, and the registers if `regs_sampled`.
-    fn sample_unit(&mut self, ui: usize, t: Time, unit: &dyn Unit, links: &[Box<dyn LinkDyn>]) {
+    /// ports in `sampled`, and the registers if `regs_sampled`. An input's
+    /// ready while nothing is valid is the unit's readiness, which changes
+    /// with its registers and its outputs' room: it is sampled on every input
+    /// at every sample of the unit (alone where the port is not otherwise).
+    fn sample_unit(
+        &mut self,
+        ui: usize,
+        t: Time,
+        (unit, ready_pre): (&dyn Unit, Option<&[bool]>),
+        links: &[Box<dyn LinkDyn>],
+    ) {
         let every = self.spec.every_edge;
         let u = &mut self.units[ui];
         let all = every || u.fresh;
@@ -193,6 +204,9 @@ impl Tracer {
         if samples.vals.len() < nsigs {
             samples.vals.resize_with(nsigs, Bits::new);
         }
+        let out_ready = |l: LinkId| links[l.0 as usize].space_at_start();
+        let at = Ready::new(t / u.period, &out_ready);
+        let mut input = 0;
         for k in 0..u.ports.len() {
             let (l, dir) = u.ports[k];
             let base = 3 * k;
@@ -204,17 +218,29 @@ impl Tracer {
             if woken {
                 u.port_wake[k] = Time::MAX;
             }
+            let link = &links[l.0 as usize];
+            let ready = (dir == PortDir::In).then(|| {
+                input += 1;
+                ready_pre.map_or_else(|| unit.can_accept(l, &at), |r| r[input - 1])
+            });
             if !(all || woken || busy) {
+                if let Some(r) = ready {
+                    // Valid and data as before (an empty sample holds).
+                    self.sampled.push(k as u32);
+                    a.clear();
+                    c.clear();
+                    b.clear();
+                    b.push((r && link.head_time() > t) as u64, 1);
+                }
                 continue;
             }
             self.sampled.push(k as u32);
             a.clear();
             b.clear();
             c.clear();
-            let link = &links[l.0 as usize];
-            match dir {
-                PortDir::In => link.sample_consumer(t, [a, b, c]),
-                PortDir::Out => link.sample_producer([a, b, c]),
+            match ready {
+                Some(r) => link.sample_consumer(t, r, [a, b, c]),
+                None => link.sample_producer([a, b, c]),
             }
         }
         let regs = 3 * u.ports.len();
