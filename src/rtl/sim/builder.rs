@@ -3,7 +3,7 @@
 //! netlist checked) and the synchronous reset that starts every run.
 
 use super::scheduling::{EdgeOf, Sched};
-use super::{Clock, ClockId, LaneOut, Sim, SimError, Slot, Time, UnitId};
+use super::{Clock, ClockId, LaneOut, NO_CHECK, Sim, SimError, Slot, Time, UnitId};
 use crate::rtl::bits::Payload;
 use crate::rtl::decl::PortDir;
 use crate::rtl::link::{In, Link, LinkCfg, LinkId, Out};
@@ -72,7 +72,11 @@ impl Sim {
             evals: 0,
             out_links: Vec::new(),
             in_links: Vec::new(),
-            check_ready: self.opts.check_ready,
+            check_ready: if self.opts.check_ready {
+                (0, Time::MAX)
+            } else {
+                NO_CHECK
+            },
             ready_pre: Vec::new(),
             ready_at: Time::MAX,
             popped: Vec::new(),

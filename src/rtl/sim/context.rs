@@ -358,7 +358,7 @@ pub(super) fn eval_slot(
     if out.clock.0 != t || out.clock.1 != slot.period {
         out.clock = (t, slot.period, t / slot.period);
     }
-    let check = slot.check_ready && !shadow;
+    let check = slot.check_ready.0 <= t && t <= slot.check_ready.1 && !shadow;
     if check {
         ready_before(slot, t, out.clock.2, net);
     }

@@ -60,6 +60,9 @@ pub struct Clock {
     pub period_ps: Time,
 }
 
+/// A slot's `check_ready` when its readiness is not checked.
+const NO_CHECK: (Time, Time) = (Time::MAX, 0);
+
 // What every evaluation reads comes first, in one cache line (`align(64)`): a
 // slot is cold when its unit is due, and its fields in Rust's own order put the
 // status two lines after the period.
@@ -89,8 +92,10 @@ struct Slot {
     /// The unit's input links, in declaration order.
     in_links: Vec<LinkId>,
     /// Check the unit's readiness (`Logic::can_accept`) at its pops: with
-    /// `SimOptions::check_ready`, or when a tracer shows it.
-    check_ready: bool,
+    /// `SimOptions::check_ready` (the whole run), or when a tracer shows it
+    /// (its window, where the waveform needs the readiness from before the
+    /// evaluation): the first and last time checked (`NO_CHECK`: none).
+    check_ready: (Time, Time),
     /// Readiness of each of `in_links` at the start of the cycle of the last
     /// checked evaluation (`ready_at`), before the unit changed anything.
     ready_pre: Vec<bool>,

@@ -2,7 +2,7 @@
 //! units and their statistics, evaluations by unit kind, link statistics and
 //! transfer logs, and the VCD tracer that samples registers during a run.
 
-use super::{Clock, ClockId, Sim, SimError, Time, UnitId};
+use super::{Clock, ClockId, NO_CHECK, Sim, SimError, Time, UnitId};
 use crate::rtl::decl::UnitDecl;
 use crate::rtl::link::{LinkEvent, LinkId, LinkStats};
 use crate::rtl::trace::{TraceStats, Tracer};
@@ -151,9 +151,13 @@ impl Sim {
             tracer.discard();
             return Err(SimError::Trace(e));
         }
+        let (from, to) = tracer.window();
         for i in tracer.unit_indices() {
-            self.slots[i].watched = true;
-            self.slots[i].check_ready = true;
+            let s = &mut self.slots[i];
+            s.watched = true;
+            if s.check_ready == NO_CHECK {
+                s.check_ready = (from, to);
+            }
         }
         self.tracer = Some(tracer);
         Ok(())
@@ -162,7 +166,11 @@ impl Sim {
     /// Detaches the tracer, flushing its output.
     pub fn finish_trace(&mut self) -> Option<std::io::Result<TraceStats>> {
         let now = self.now;
-        let check = self.opts.check_ready;
+        let check = if self.opts.check_ready {
+            (0, Time::MAX)
+        } else {
+            NO_CHECK
+        };
         for s in &mut self.slots {
             s.watched = false;
             s.check_ready = check;

@@ -650,6 +650,11 @@ impl Tracer {
     }
 
     /// The simulator's indices of the units bound (`bind`).
+    /// The first and last time traced.
+    pub(crate) fn window(&self) -> (Time, Time) {
+        (self.spec.from, self.spec.to)
+    }
+
     pub(crate) fn unit_indices(&self) -> impl Iterator<Item = usize> + '_ {
         self.units.iter().map(|u| u.index)
     }

@@ -185,8 +185,9 @@ impl Tracer {
     /// Samples what of unit `ui` may have changed (see `note_activity`): the
     /// ports in `sampled`, and the registers if `regs_sampled`. An input's
     /// ready while nothing is valid is the unit's readiness, which changes
-    /// with its registers and its outputs' room: it is sampled on every input
-    /// at every sample of the unit (alone where the port is not otherwise).
+    /// with its registers (after the unit ran, or while its state moves on
+    /// its own) and its outputs' room (after an output's link moved): then it
+    /// is sampled on every input (alone where the port is not otherwise).
     fn sample_unit(
         &mut self,
         ui: usize,
@@ -204,6 +205,13 @@ impl Tracer {
         if samples.vals.len() < nsigs {
             samples.vals.resize_with(nsigs, Bits::new);
         }
+        // Registers change only at the edge after the unit ran.
+        let ran = u.ran_at != Time::MAX && (u.regs_at == Time::MAX || u.ran_at >= u.regs_at);
+        let busy_at = |k: usize| u.port_busy[k] != Time::MAX && t <= u.port_busy[k];
+        let readiness_moved = all
+            || ran
+            || u.moving
+            || (0..u.ports.len()).any(|k| u.ports[k].1 == PortDir::Out && busy_at(k));
         let out_ready = |l: LinkId| links[l.0 as usize].space_at_start();
         let at = Ready::new(t / u.period, &out_ready);
         let mut input = 0;
@@ -219,11 +227,11 @@ impl Tracer {
                 u.port_wake[k] = Time::MAX;
             }
             let link = &links[l.0 as usize];
-            let ready = (dir == PortDir::In).then(|| {
-                input += 1;
-                ready_pre.map_or_else(|| unit.can_accept(l, &at), |r| r[input - 1])
-            });
-            if !(all || woken || busy) {
+            let sampled = all || woken || busy;
+            let ready = (dir == PortDir::In && (sampled || readiness_moved))
+                .then(|| ready_pre.map_or_else(|| unit.can_accept(l, &at), |r| r[input]));
+            input += (dir == PortDir::In) as usize;
+            if !sampled {
                 if let Some(r) = ready {
                     // Valid and data as before (an empty sample holds).
                     self.sampled.push(k as u32);
@@ -244,8 +252,6 @@ impl Tracer {
             }
         }
         let regs = 3 * u.ports.len();
-        // Registers change only at the edge after the unit ran.
-        let ran = u.ran_at != Time::MAX && (u.regs_at == Time::MAX || u.ran_at >= u.regs_at);
         self.regs_sampled = all || u.moving || ran;
         if self.regs_sampled {
             u.regs_at = t;
