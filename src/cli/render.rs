@@ -107,7 +107,9 @@ pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), Cli
     // A waveform stopped by a failed frame is no output either, nor its save
     // file and the follow log.
     let partial: Vec<PathBuf> = [
-        a.vcd.as_ref().map(|v| dualstream::rtl::trace::save_file_for(v)),
+        a.vcd
+            .as_ref()
+            .map(|v| dualstream::rtl::trace::save_file_for(v)),
         a.vcd.clone(),
         follow_out(&a),
     ]
@@ -409,7 +411,11 @@ fn parse_ray(s: &str) -> Result<(u32, u32), CliError> {
         None => id.parse(),
     }
     .map_err(|_| bad())?;
-    let shadow = if shadow { dualstream::contract::SHADOW_BIT } else { 0 };
+    let shadow = if shadow {
+        dualstream::contract::SHADOW_BIT
+    } else {
+        0
+    };
     Ok((wave, id | shadow))
 }
 

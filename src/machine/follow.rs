@@ -17,7 +17,9 @@ impl Chip {
         let f = probe(self, self.scheduler);
         self.sched_mut().follow(f);
         let f = probe(self, self.hit_updater);
-        self.sim.unit_mut::<HitRecordUpdater>(self.hit_updater).follow(f);
+        self.sim
+            .unit_mut::<HitRecordUpdater>(self.hit_updater)
+            .follow(f);
         for k in 0..self.tms.len() {
             let sb = self.tms[k].staging_buffer;
             let f = probe(self, sb);

@@ -274,17 +274,19 @@ impl FrameChip {
         }
     }
 
-    /// The followed rays' events so far; an error if none of them was
-    /// traced (a ray of a wavefront its path did not reach).
+    /// An error if none of the followed rays was ever queued (a ray of a
+    /// wavefront its path did not reach: its pixel's shading may still show).
     pub(super) fn check_followed(&self, targets: &[(u32, u32)]) -> Result<(), RenderError> {
         match (&self.follow, targets.first()) {
-            (Some(log), Some(&(wave, ray_id))) if log.is_empty() => Err(RenderError::NoSuchRay {
-                wave,
-                ray_id,
-                why: format!(
-                    "the chip never traced it: the pixel's path ended before wavefront {wave} (a path ends when its ray leaves the scene); follow an earlier wavefront or the pixel (--follow-pixel)"
-                ),
-            }),
+            (Some(log), Some(&(wave, ray_id))) if !log.any_queued() => {
+                Err(RenderError::NoSuchRay {
+                    wave,
+                    ray_id,
+                    why: format!(
+                        "the chip never traced it: the pixel's path has no such ray (paths end when a ray leaves the scene or after the last hit point; wavefront {wave} holds a bounce ray only before the last); follow an earlier wavefront, the shadow ray (an `s` suffix) or the pixel (--follow-pixel)"
+                    ),
+                })
+            }
             _ => Ok(()),
         }
     }

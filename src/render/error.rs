@@ -40,7 +40,11 @@ pub enum RenderError {
     },
     /// A followed ray (`ChipRun::follow`) that the frame does not have: its
     /// wavefront, id, and why (the valid range, or that it was never traced).
-    NoSuchRay { wave: u32, ray_id: u32, why: String },
+    NoSuchRay {
+        wave: u32,
+        ray_id: u32,
+        why: String,
+    },
     /// A hook ([`super::FunctionalHooks`]) failed the frame with its own error.
     Hook(Box<dyn std::error::Error + Send + Sync>),
 }

@@ -303,9 +303,11 @@ impl FollowLog {
         self.0.wave.store(wave, Ordering::Relaxed);
     }
 
-    /// Whether nothing was logged yet.
-    pub fn is_empty(&self) -> bool {
-        self.0.events.lock().expect("not poisoned").is_empty()
+    /// Whether any followed ray was written into a queue (so it exists).
+    pub fn any_queued(&self) -> bool {
+        let ev = self.0.events.lock().expect("not poisoned");
+        ev.iter()
+            .any(|e| matches!(e.kind, FollowKind::Queued { .. }))
     }
 
     /// Every event so far, in (cycle, unit, the unit's order) order.

@@ -136,7 +136,11 @@ impl Logic for StagingBuffer {
             let idx = f as u32 * self.half_rays + fc as u32;
             self.rays.write(idx, x.ray);
             let (seg, half, slot) = (x.hdr.seg, f as u32, fc as u32);
-            self.note(ctx.cycle(), &x.ray, seg, || FollowKind::Staged { seg, half, slot });
+            self.note(ctx.cycle(), &x.ray, seg, || FollowKind::Staged {
+                seg,
+                half,
+                slot,
+            });
             let n = fc + 1;
             self.set_half(f, n, x.last || n as u32 == self.half_rays);
             if f {

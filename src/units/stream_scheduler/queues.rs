@@ -9,10 +9,10 @@ use crate::contract::{
 use crate::mem::StreamTag;
 use crate::rtl::{Ctx, round_robin};
 
+use super::super::follow::FollowKind;
 use super::super::l1::Line;
 use super::super::memory::MemLineReq;
 use super::super::tp::RayWrite;
-use super::super::follow::FollowKind;
 use super::super::tp_shade::SHADE_SEG;
 use super::{K_WRITE, KIND_SHIFT, QueueDesc, SchedState, ShadePass, StreamScheduler};
 
