@@ -39,10 +39,11 @@ fn frame(follow: Option<Vec<(u32, u32)>>) -> Result<Frame, RenderError> {
     render::render(&scene(), Mode::Cycle, &rc, &mut |_| {})
 }
 
-/// Every ray of pixels 149 and 40, in every wavefront.
+/// Every ray of pixels 149, 40 and 126 (its shadow ray of wavefront 1 is
+/// blocked), in every wavefront.
 fn targets() -> Vec<(u32, u32)> {
     let mut t = Vec::new();
-    for pix in [149, 40] {
+    for pix in [149, 40, 126] {
         t.push((0, pix));
         for w in 1..=3 {
             t.extend([(w, pix), (w, pix | SHADOW_BIT)]);
@@ -89,7 +90,7 @@ fn a_followed_ray_ends_in_the_reference_hit_and_changes_nothing() {
     // of them and the hit record's last write, against the reference.
     let sc = scene();
     let p = render::prepare(&sc, &RenderCfg::for_chip(&config(), Default::default())).unwrap();
-    let (mut traced, mut duplicated, mut hits) = (0, 0, 0);
+    let (mut traced, mut duplicated, mut hits, mut blocked) = (0, 0, 0, 0);
     for &(w, id) in &t {
         let mine: Vec<&FollowEvent> = ev
             .iter()
@@ -154,6 +155,7 @@ fn a_followed_ray_ends_in_the_reference_hit_and_changes_nothing() {
                 want.is_hit(),
                 "shadow ray {w}:{id:#x}"
             );
+            blocked += want.is_hit() as u32;
         } else {
             let want = want.is_hit().then_some((want.t, want.tri_id));
             let bits = |h: Option<(f32, u32)>| h.map(|(t, i)| (t.to_bits(), i));
@@ -169,6 +171,7 @@ fn a_followed_ray_ends_in_the_reference_hit_and_changes_nothing() {
     assert!(traced >= 8, "{traced} rays traced");
     assert!(duplicated >= 2, "{duplicated} rays with duplicates");
     assert!(hits >= 4, "{hits} hits");
+    assert!(blocked >= 1, "{blocked} shadow rays blocked");
     // The pixels' shading passes, on the TPs.
     let shaded = ev
         .iter()
