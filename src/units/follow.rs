@@ -340,7 +340,7 @@ impl Follower {
 
     /// The followed ray whose hit record is `index` (pixel * 2 + shadow).
     pub fn wants_hit(&self, index: u32) -> Option<u32> {
-        let id = index / 2 | if index & 1 != 0 { SHADOW_BIT } else { 0 };
+        let id = (index / 2) | if index & 1 != 0 { SHADOW_BIT } else { 0 };
         self.wants(id).then_some(id)
     }
 
