@@ -75,6 +75,21 @@ pub struct RenderArgs {
     /// there, and its file removed.
     #[arg(long, default_value = "1G")]
     trace_max_bytes: String,
+    /// cycle: log every event of one ray through the chip: [WAVE:]ID, the
+    /// wavefront (default 0) and the ray id (the pixel index y * width + x,
+    /// decimal or 0x hex; an `s` suffix for the shadow ray), with its
+    /// duplicates; with --vcd the trace window defaults to its span and the
+    /// save file marks its key events. Repeat to follow several.
+    #[arg(long, value_name = "[WAVE:]ID")]
+    follow_ray: Vec<String>,
+    /// cycle: follow every ray of pixel X,Y: its primary ray and, in each
+    /// later wavefront, its bounce and shadow rays.
+    #[arg(long, value_name = "X,Y")]
+    follow_pixel: Option<String>,
+    /// Where the followed rays' log goes (`-`: stdout). Default: beside
+    /// --out, `<out>.follow.txt`.
+    #[arg(long, value_name = "FILE")]
+    follow_ray_out: Option<PathBuf>,
     #[command(flatten)]
     wave: WaveArgs,
 }
@@ -89,6 +104,19 @@ pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), Cli
         .filter(|p| !p.exists())
         .cloned()
         .collect();
+    // A waveform stopped by a failed frame is no output either, nor its save
+    // file and the follow log.
+    let partial: Vec<PathBuf> = [
+        a.vcd
+            .as_ref()
+            .map(|v| dualstream::rtl::trace::save_file_for(v)),
+        a.vcd.clone(),
+        follow_out(&a),
+    ]
+    .into_iter()
+    .flatten()
+    .filter(|p| !p.exists())
+    .collect();
     let r = render_checked(config, threads, a);
     if r.is_err() {
         for p in outputs {
@@ -96,8 +124,23 @@ pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), Cli
                 let _ = std::fs::remove_file(&p);
             }
         }
+        for p in partial {
+            let _ = std::fs::remove_file(&p);
+        }
     }
     r
+}
+
+/// Where the follow log goes: `None` for stdout or no following.
+fn follow_out(a: &RenderArgs) -> Option<PathBuf> {
+    if a.follow_ray.is_empty() && a.follow_pixel.is_none() {
+        return None;
+    }
+    match &a.follow_ray_out {
+        Some(p) if p.as_os_str() == "-" => None,
+        Some(p) => Some(p.clone()),
+        None => Some(a.out.with_extension("follow.txt")),
+    }
 }
 
 fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(), CliError> {
@@ -140,6 +183,34 @@ fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(),
         ));
     }
     rc.pass_log = a.pass_log.is_some();
+    let targets = follow_targets(&a, &sc, mode)?;
+    if let Some(run) = rc.chip.as_mut() {
+        run.follow = targets.clone();
+    }
+    let windowed = a.trace_window.is_some() || a.trace_from.is_some() || a.trace_to.is_some();
+    if targets.is_some()
+        && !windowed
+        && let Some(trace) = rc.chip.as_mut().and_then(|r| r.trace.take())
+    {
+        // The trace window defaults to the followed rays' span: a first
+        // frame without the waveform finds it (the same frame: results do
+        // not depend on tracing).
+        eprintln!("following: a first frame finds the rays' span for the trace window");
+        let (first, _) = run_frame(&sc, &config, mode, sampled, rc.clone())?;
+        let (lo, hi) = follow_span(&first).expect("a followed ray was traced");
+        eprintln!(
+            "following: tracing cycles {}..={} (the rays' events at {lo}..={hi})",
+            lo.saturating_sub(FOLLOW_MARGIN),
+            hi + FOLLOW_MARGIN
+        );
+        if let Some(run) = rc.chip.as_mut() {
+            run.trace = Some(render::ChipTrace {
+                from: lo.saturating_sub(FOLLOW_MARGIN),
+                to: Some(hi + FOLLOW_MARGIN),
+                ..trace
+            });
+        }
+    }
     let (mut frame, estimate) = run_frame(&sc, &config, mode, sampled, rc)?;
     // A time-sampled frame's energy is the estimate's (below), not the
     // functional model's TMs-only figure.
@@ -214,6 +285,13 @@ fn check_writable(a: &RenderArgs) -> Result<(), CliError> {
                 .map_err(|e| unwritable(p, e, &format!("; choose a writable {what}")))?;
         }
     }
+    if let Some(p) = follow_out(a) {
+        std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&p)
+            .map_err(|e| unwritable(&p, e, "; choose a writable --follow-ray-out"))?;
+    }
     Ok(())
 }
 
@@ -250,6 +328,114 @@ fn run_frame(
     Ok((f, None))
 }
 
+/// Core cycles traced before a followed ray's first event and after its last
+/// (the default trace window).
+const FOLLOW_MARGIN: u64 = 50;
+
+/// The first and last cycle of the followed rays' events.
+fn follow_span(f: &Frame) -> Option<(u64, u64)> {
+    let ev = f.chip.as_ref()?.follow.as_ref()?;
+    Some((ev.first()?.cycle, ev.last()?.cycle))
+}
+
+/// The rays `--follow-ray` and `--follow-pixel` name, as (wavefront, ray id),
+/// once checked to go with `--mode cycle` and to lie in the frame.
+fn follow_targets(
+    a: &RenderArgs,
+    sc: &Scene,
+    mode: Mode,
+) -> Result<Option<Vec<(u32, u32)>>, CliError> {
+    use dualstream::contract::SHADOW_BIT;
+    if a.follow_ray.is_empty() && a.follow_pixel.is_none() {
+        if a.follow_ray_out.is_some() {
+            return Err(CliError::Usage(
+                "--follow-ray-out is where a followed ray's log goes: add --follow-ray or --follow-pixel".into(),
+            ));
+        }
+        return Ok(None);
+    }
+    if mode != Mode::Cycle || a.mode != "cycle" {
+        return Err(CliError::Usage(format!(
+            "--follow-ray/--follow-pixel follow rays through the chip's units; use them with --mode cycle, not {}",
+            a.mode
+        )));
+    }
+    let mut t = Vec::new();
+    for r in &a.follow_ray {
+        t.push(parse_ray(r)?);
+    }
+    let (w, h) = (sc.settings.width, sc.settings.height);
+    if let Some(p) = &a.follow_pixel {
+        let bad = || CliError::Usage(format!("--follow-pixel '{p}' is not X,Y (e.g. 12,40)"));
+        let (x, y) = p.split_once(',').ok_or_else(bad)?;
+        let (x, y): (u32, u32) = (
+            x.trim().parse().map_err(|_| bad())?,
+            y.trim().parse().map_err(|_| bad())?,
+        );
+        if x >= w || y >= h {
+            return Err(CliError::Render(render::RenderError::NoSuchRay {
+                wave: 0,
+                ray_id: y.saturating_mul(w).saturating_add(x),
+                why: format!(
+                    "pixel ({x},{y}) is outside the {w}x{h} frame (x in 0..{w}, y in 0..{h})"
+                ),
+            }));
+        }
+        let pix = y * w + x;
+        t.push((0, pix));
+        for wave in 1..=sc.settings.bounces {
+            t.extend([(wave, pix), (wave, pix | SHADOW_BIT)]);
+        }
+    }
+    Ok(Some(t))
+}
+
+/// `[WAVE:]ID`: wavefront (default 0) and ray id (decimal or 0x hex, `s`
+/// suffix: the shadow ray).
+fn parse_ray(s: &str) -> Result<(u32, u32), CliError> {
+    let bad = || {
+        CliError::Usage(format!(
+            "--follow-ray '{s}' is not [WAVE:]ID (e.g. 2:137 for the bounce ray of pixel 137 in wavefront 2, 2:137s for its shadow ray, or 2:0x80000089)"
+        ))
+    };
+    let (wave, id) = match s.split_once(':') {
+        Some((w, id)) => (w.trim().parse().map_err(|_| bad())?, id.trim()),
+        None => (0, s.trim()),
+    };
+    let (id, shadow) = match id.strip_suffix('s') {
+        Some(i) => (i, true),
+        None => (id, false),
+    };
+    let id = match id.strip_prefix("0x") {
+        Some(h) => u32::from_str_radix(h, 16),
+        None => id.parse(),
+    }
+    .map_err(|_| bad())?;
+    let shadow = if shadow {
+        dualstream::contract::SHADOW_BIT
+    } else {
+        0
+    };
+    Ok((wave, id | shadow))
+}
+
+/// The followed rays' log: a header, then one event per line.
+fn follow_log(f: &Frame) -> String {
+    use std::fmt::Write as _;
+    let ev = f
+        .chip
+        .as_ref()
+        .and_then(|c| c.follow.as_deref())
+        .unwrap_or(&[]);
+    let mut s = String::from(
+        "# dualstream --follow-ray: cycle (core, from the frame's start), unit instance, wavefront, ray id, event\n",
+    );
+    for e in ev {
+        let _ = writeln!(s, "{e}");
+    }
+    s
+}
+
 /// The image, pass log, summary, waveform note and statistics.
 fn write_outputs(
     a: &RenderArgs,
@@ -278,6 +464,17 @@ fn write_outputs(
             p.display(),
             dualstream::rtl::trace::save_file_for(p).display()
         );
+    }
+    if !a.follow_ray.is_empty() || a.follow_pixel.is_some() {
+        let log = follow_log(frame);
+        let n = log.lines().count() - 1;
+        match follow_out(a) {
+            Some(p) => {
+                super::write_file(&p, &log)?;
+                println!("followed: {n} events: {}", p.display());
+            }
+            None => print!("{log}"),
+        }
     }
     if let Some(p) = &a.stats {
         match estimate {

@@ -130,6 +130,7 @@ impl Chip {
             watchdog: ch.watchdog_cycles,
             segments,
             wave: 0,
+            follow: None,
             stack_need: None,
             stack_cfg: (cfg.tm.scratchpad_bytes, cfg.tm.stack_entry_bytes),
             total_cycles: 0,

@@ -31,7 +31,7 @@
 //! The chip top's code, by step: `build` (elaboration and wiring), `run` (a
 //! wavefront to the end), `counts` (the figures of a run, from the units'
 //! probes), `window` (time-sampling windows), `watchdog` (stuck and drain
-//! reports).
+//! reports), `follow` (following rays, `render --follow-ray`).
 
 pub mod hdl;
 pub mod host;
@@ -40,6 +40,7 @@ pub mod trace;
 mod build;
 mod counts;
 mod error;
+mod follow;
 mod run;
 mod watchdog;
 mod window;
@@ -98,6 +99,8 @@ pub struct Chip {
     watchdog: u64,
     segments: usize,
     wave: u32,
+    /// The rays followed (`Chip::follow`), if any.
+    follow: Option<crate::units::follow::FollowLog>,
     /// Simulated cycles and wall time of the traced wavefronts.
     pub total_cycles: u64,
     pub wall_s: f64,

@@ -59,6 +59,9 @@ impl Chip {
         let tm_before = self.sched_tm_rays();
         self.sched_mut().new_wave();
         let wave = self.wave;
+        if let Some(f) = &self.follow {
+            f.set_wave(wave);
+        }
         self.host_mut().load(rays.to_vec(), wave, shade_pixels);
         self.sim.wake(self.host);
         self.wave += 1;

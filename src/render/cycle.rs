@@ -13,6 +13,9 @@ pub struct ChipRun {
     pub sim: crate::rtl::SimOptions,
     /// Write a VCD waveform of the run (`render --vcd`).
     pub trace: Option<ChipTrace>,
+    /// Follow these rays (wavefront, ray id) through the chip (`render
+    /// --follow-ray`): their events are in [`ChipFrame::follow`].
+    pub follow: Option<Vec<(u32, u32)>>,
 }
 
 /// A waveform of the chip over a window of core cycles (docs/chip.md).
@@ -111,6 +114,10 @@ pub struct ChipFrame {
     pub dram: Option<crate::machine::DramWave>,
     /// The waveform written (`ChipRun::trace`).
     pub vcd: Option<VcdInfo>,
+    /// The followed rays' events in cycle order (`ChipRun::follow`; not a
+    /// statistic).
+    #[serde(skip)]
+    pub follow: Option<Vec<crate::units::follow::FollowEvent>>,
     /// The simulator's evaluations by unit kind over the frame, most first
     /// (where its time went; they depend on the kernel, not the chip's results).
     pub evals_by_module: Vec<crate::rtl::ModuleEvals>,
@@ -180,6 +187,8 @@ pub(super) struct FrameChip {
     pub(super) tp_shading: bool,
     /// Per chip run: cycles and the chip's own counts.
     pub(super) waves: Vec<crate::machine::WaveCycles>,
+    /// The followed rays' log (`ChipRun::follow`).
+    follow: Option<crate::units::follow::FollowLog>,
 }
 
 impl FrameChip {
@@ -230,12 +239,20 @@ impl FrameChip {
         if cfg.pass_log {
             c.enable_pass_log();
         }
+        let follow = match &run.follow {
+            Some(t) => {
+                check_follow(t, scene.settings.bounces, pixels)?;
+                Some(c.follow(t.clone()))
+            }
+            None => None,
+        };
         let tp_shading = chip_cfg.chip.shading == crate::config::Shading::Tps;
         Ok(FrameChip {
             chip: c,
             cfg: chip_cfg,
             tp_shading,
             waves: Vec::new(),
+            follow,
         })
     }
 
@@ -257,8 +274,36 @@ impl FrameChip {
         }
     }
 
-    /// Closes the waveform, if one is written.
+    /// An error if none of the followed rays was ever queued (a ray of a
+    /// wavefront its path did not reach: its pixel's shading may still show).
+    pub(super) fn check_followed(&self, targets: &[(u32, u32)]) -> Result<(), RenderError> {
+        match (&self.follow, targets.first()) {
+            (Some(log), Some(&(wave, ray_id))) if !log.any_queued() => {
+                Err(RenderError::NoSuchRay {
+                    wave,
+                    ray_id,
+                    why: format!(
+                        "the chip never traced it: the pixel's path has no such ray (paths end when a ray leaves the scene or after the last hit point; wavefront {wave} holds a bounce ray only before the last); follow an earlier wavefront, the shadow ray (an `s` suffix) or the pixel (--follow-pixel)"
+                    ),
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Closes the waveform, if one is written, with named markers at the
+    /// followed rays' key events.
     pub(super) fn finish_trace(&mut self) -> Result<Option<VcdInfo>, RenderError> {
+        if let Some(log) = &self.follow {
+            let ps = self.cfg.clocks.core_ps;
+            let markers = log
+                .events()
+                .iter()
+                .filter(|e| is_key(&e.kind))
+                .map(|e| (e.cycle * ps, marker_name(e)))
+                .collect();
+            self.chip.sim.set_trace_markers(markers);
+        }
         let Some(r) = self.chip.sim.finish_trace() else {
             return Ok(None);
         };
@@ -295,8 +340,57 @@ impl FrameChip {
             ),
             waves: self.waves,
             vcd,
+            follow: self.follow.map(|l| l.events()),
             evals_by_module: c.sim.evals_by_module(),
             sim_steps_by_lanes: c.sim.steps_by_lanes().to_vec(),
         }
     }
+}
+
+/// Checks the rays to follow against the frame: wavefronts `0..=bounces`,
+/// pixels `0..pixels`, no shadow ray in wavefront 0.
+fn check_follow(targets: &[(u32, u32)], bounces: u32, pixels: u32) -> Result<(), RenderError> {
+    use crate::contract::SHADOW_BIT;
+    for &(wave, ray_id) in targets {
+        let bad = |why: String| RenderError::NoSuchRay { wave, ray_id, why };
+        if wave > bounces {
+            return Err(bad(format!(
+                "the frame has wavefronts 0..={bounces} (one per hit point after the primary rays; --bounces)"
+            )));
+        }
+        let pixel = ray_id & !SHADOW_BIT;
+        if pixel >= pixels {
+            return Err(bad(format!(
+                "ray ids are pixel indices 0..{pixels} (y * width + x), plus {SHADOW_BIT:#x} for a shadow ray"
+            )));
+        }
+        if wave == 0 && ray_id & SHADOW_BIT != 0 {
+            return Err(bad(
+                "wavefront 0 holds the primary rays only; shadow rays start in wavefront 1".into(),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The events a waveform's named markers go at: where the ray enters a
+/// queue, a TP, the hit record, and its pixel's shading.
+fn is_key(k: &crate::units::follow::FollowKind) -> bool {
+    use crate::units::follow::FollowKind::*;
+    matches!(
+        k,
+        Queued { .. } | Taken { .. } | Finish { .. } | HitCompared { .. } | ShadeTaken { .. }
+    )
+}
+
+/// A named marker's name: the ray, the event, the unit (`w1 0x89 taken seg3 chip.tm2.tp5`).
+fn marker_name(e: &crate::units::follow::FollowEvent) -> String {
+    let seg = e.kind.seg().map_or(String::new(), |s| format!(" seg{s}"));
+    format!(
+        "w{} {:#x} {}{seg} {}",
+        e.wave,
+        e.ray_id,
+        e.kind.name(),
+        e.unit
+    )
 }

@@ -38,6 +38,13 @@ pub enum RenderError {
         path: PathBuf,
         source: image::ImageError,
     },
+    /// A followed ray (`ChipRun::follow`) that the frame does not have: its
+    /// wavefront, id, and why (the valid range, or that it was never traced).
+    NoSuchRay {
+        wave: u32,
+        ray_id: u32,
+        why: String,
+    },
     /// A hook ([`super::FunctionalHooks`]) failed the frame with its own error.
     Hook(Box<dyn std::error::Error + Send + Sync>),
 }
@@ -61,6 +68,9 @@ impl fmt::Display for RenderError {
                 "cannot write the image '{}': {source}; choose a writable --out",
                 path.display()
             ),
+            RenderError::NoSuchRay { wave, ray_id, why } => {
+                write!(f, "no ray {ray_id:#x} in wavefront {wave} to follow: {why}")
+            }
             RenderError::Hook(e) => write!(f, "{e}"),
         }
     }
@@ -79,7 +89,10 @@ impl std::error::Error for RenderError {
             RenderError::File(e) => Some(e),
             RenderError::Png { source, .. } => Some(source),
             RenderError::Hook(e) => Some(e.as_ref()),
-            RenderError::Invalid(_) | RenderError::BucketPool(_) | RenderError::Mismatch(_) => None,
+            RenderError::Invalid(_)
+            | RenderError::BucketPool(_)
+            | RenderError::Mismatch(_)
+            | RenderError::NoSuchRay { .. } => None,
         }
     }
 }

@@ -93,6 +93,7 @@ impl RenderCfg {
                 config: config.clone(),
                 sim,
                 trace: None,
+                follow: None,
             })),
             pixels: None,
             pass_log: false,
@@ -222,6 +223,11 @@ impl<'a> FrameRun<'a> {
         let p = prepare(scene, cfg)?;
         let sample = pixel_sample(cfg, scene.settings.width, scene.settings.height)?;
         let pixels = sample.len() as u32;
+        if mode != Mode::Cycle && cfg.chip.as_ref().is_some_and(|r| r.follow.is_some()) {
+            return Err(RenderError::Invalid(
+                "following a ray records the chip's events: render in cycle mode".into(),
+            ));
+        }
         let mut q = RayQueues::new(&p.map, p.seg.segments.len());
         let chip = if mode == Mode::Cycle {
             let c = cycle::FrameChip::new(scene, cfg, &p, pixels)?;
@@ -452,6 +458,12 @@ impl<'a> FrameRun<'a> {
         let mut total = WaveStats::default();
         for wv in &self.waves {
             total.add(wv);
+        }
+        if let (Some(c), Some(t)) = (
+            self.chip.as_ref(),
+            self.cfg.chip.as_ref().and_then(|r| r.follow.as_ref()),
+        ) {
+            c.check_followed(t)?;
         }
         let vcd = match self.chip.as_mut() {
             Some(c) => c.finish_trace()?,

@@ -23,6 +23,7 @@ use crate::rtl::decl::{Samples, StateDecl, StateList};
 use crate::rtl::model::{Behavioural, Model};
 use crate::rtl::{Ctx, LinkId, Logic, Next, Ready, Status, round_robin};
 
+use super::follow::{FollowKind, Follower};
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
 use super::tp::HitUpdate;
@@ -131,12 +132,29 @@ crate::unit! {
             // unit pops those links, so a head stays until then). With the queue
             // full every waiting TM's head is looked at each cycle for a merge;
             // with the index at hand that no longer loads 128 links.
-            head_index: Vec<u32> = vec![NO_HEAD; tms]
+            head_index: Vec<u32> = vec![NO_HEAD; tms],
+            // `--follow-ray`: a probe, not hardware (`units/follow.rs`).
+            follow: Option<Follower> = None
         }
     }
 }
 
 impl HitRecordUpdater {
+    /// Logs the followed rays' events here (`units/follow.rs`).
+    pub fn follow(&mut self, f: Follower) {
+        self.follow = Some(f);
+    }
+
+    /// Logs `kind` if hit record `index` is a followed ray's.
+    #[inline]
+    fn note(&mut self, c: u64, index: u32, kind: impl FnOnce() -> FollowKind) {
+        if let Some(f) = &mut self.follow
+            && let Some(id) = f.wants_hit(index)
+        {
+            f.log(c, id, kind());
+        }
+    }
+
     fn addr(&self, index: u32) -> u64 {
         self.hits_base + index as u64 * HIT_BYTES as u64
     }
@@ -166,6 +184,7 @@ impl Logic for HitRecordUpdater {
             let st = self.st.m();
             if r.write {
                 st.retire(idx);
+                self.note(c, idx, || FollowKind::HitWritten);
             } else {
                 let k = st.flight_pos(idx).expect("in flight");
                 let h = st.in_flight_hit[k];
@@ -176,7 +195,8 @@ impl Logic for HitRecordUpdater {
                     u: r.data.f32_at(off + 8),
                     v: r.data.f32_at(off + 12),
                 };
-                if h.closer_than(&cur) {
+                let written = h.closer_than(&cur);
+                if written {
                     let mut data = Line::default();
                     data.0[off..off + 4].copy_from_slice(&h.t.to_le_bytes());
                     data.0[off + 4..off + 8].copy_from_slice(&h.tri_id.to_le_bytes());
@@ -193,6 +213,13 @@ impl Logic for HitRecordUpdater {
                 } else {
                     st.retire(idx);
                 }
+                self.note(c, idx, || FollowKind::HitCompared {
+                    t: h.t,
+                    tri_id: h.tri_id,
+                    old_t: cur.t,
+                    old_tri: cur.tri_id,
+                    written,
+                });
             }
             worked = true;
         }
@@ -220,6 +247,7 @@ impl Logic for HitRecordUpdater {
                     st.in_flight_hit.push(h);
                     let a = self.addr(idx);
                     ctx.push(&self.mem_req, MemLineReq::read(a, StreamTag::Hit, idx));
+                    self.note(c, idx, || FollowKind::HitRead);
                     self.reads += 1;
                     worked = true;
                 }
@@ -246,6 +274,12 @@ impl Logic for HitRecordUpdater {
                     if u.hit.closer_than(e) {
                         *e = u.hit;
                     }
+                    self.note(c, u.index, || FollowKind::HitQueued {
+                        tm: k as u32,
+                        t: u.hit.t,
+                        tri_id: u.hit.tri_id,
+                        merged: true,
+                    });
                     self.merged += 1;
                 }
                 None if self.st.r().queue.len() < self.queue_n as usize => {
@@ -254,6 +288,12 @@ impl Logic for HitRecordUpdater {
                     let st = self.st.m();
                     st.queue.push_back(u.index);
                     st.queue_hit.push_back(u.hit);
+                    self.note(c, u.index, || FollowKind::HitQueued {
+                        tm: k as u32,
+                        t: u.hit.t,
+                        tri_id: u.hit.tri_id,
+                        merged: false,
+                    });
                 }
                 None => {
                     // Queue full: this TM waits, another TM's update may still

@@ -2,6 +2,7 @@
 pub mod box_pipe;
 pub mod divider;
 mod error;
+pub mod follow;
 pub mod hit_record_updater;
 pub mod l1;
 pub mod l2;

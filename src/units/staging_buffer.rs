@@ -8,7 +8,9 @@
 use crate::contract::RayRec;
 use crate::rtl::{Ctx, LinkId, Logic, Next, Ram, Ready, Reg, Status};
 
+use super::follow::{FollowKind, Follower};
 use super::tm::TmCfg;
+use super::tp_shade::SHADE_SEG;
 
 crate::payload_struct! {
     /// Where the rays of a half traverse: the segment and what the TPs need to
@@ -61,7 +63,13 @@ crate::unit! {
             hdr1: Reg<SbHeader> = SbHeader::default(),
             read_idx: Reg<u16> = 0
         }
-        extra { rays_in: u64 = 0, rays_out: u64 = 0, swaps: u64 = 0 }
+        extra {
+            rays_in: u64 = 0,
+            rays_out: u64 = 0,
+            swaps: u64 = 0,
+            // `--follow-ray`: a probe, not hardware (`units/follow.rs`).
+            follow: Option<Follower> = None
+        }
     }
 }
 
@@ -73,6 +81,21 @@ const NO_RAY: RayRec = RayRec {
 };
 
 impl StagingBuffer {
+    /// Logs the followed rays' events here (`units/follow.rs`).
+    pub fn follow(&mut self, f: Follower) {
+        self.follow = Some(f);
+    }
+
+    /// Logs `kind` if `ray` (not a shading item) is followed.
+    fn note(&mut self, c: u64, ray: &RayRec, seg: u32, kind: impl FnOnce() -> FollowKind) {
+        if let Some(f) = &mut self.follow
+            && seg != SHADE_SEG
+            && f.wants(ray.ray_id)
+        {
+            f.log(c, ray.ray_id, kind());
+        }
+    }
+
     fn count(&self, h: bool) -> u16 {
         if h {
             self.count1.val()
@@ -112,6 +135,12 @@ impl Logic for StagingBuffer {
         {
             let idx = f as u32 * self.half_rays + fc as u32;
             self.rays.write(idx, x.ray);
+            let (seg, half, slot) = (x.hdr.seg, f as u32, fc as u32);
+            self.note(ctx.cycle(), &x.ray, seg, || FollowKind::Staged {
+                seg,
+                half,
+                slot,
+            });
             let n = fc + 1;
             self.set_half(f, n, x.last || n as u32 == self.half_rays);
             if f {
@@ -138,6 +167,8 @@ impl Logic for StagingBuffer {
                     } else {
                         self.hdr0.get().clone()
                     };
+                    let (seg, tp) = (hdr.seg, p as u32);
+                    self.note(ctx.cycle(), &ray, seg, || FollowKind::ToTp { seg, tp });
                     ctx.push(&self.ray.at(p), SbRay { ray, hdr });
                     self.read_idx.set(ri + 1);
                     self.rays_out += 1;

@@ -240,6 +240,8 @@ crate::unit! {
             pass_log: Option<(BTreeMap<u32, u64>, Vec<PassEvent>)> = None,
             tm_rays: Vec<u64> = vec![0; tms],
             stats: SchedStats = SchedStats::default(),
+            // `--follow-ray`: a probe, not hardware (`units/follow.rs`).
+            follow: Option<super::follow::Follower> = None,
             // Scratch: the TMs with a visible ray write this cycle.
             visible: Vec<u64> = Vec::new()
         }
@@ -354,6 +356,10 @@ impl StreamScheduler {
     pub fn enable_root_log(&mut self) {
         self.root_log = Some(Vec::new());
     }
+    /// Logs the followed rays' events here (`units/follow.rs`).
+    pub fn follow(&mut self, f: super::follow::Follower) {
+        self.follow = Some(f);
+    }
     /// Records every segment pass: admission, retirement, rays (a probe).
     pub fn enable_pass_log(&mut self) {
         self.pass_log = Some(Default::default());
@@ -441,7 +447,7 @@ impl Logic for StreamScheduler {
         worked |= self.stream_scene(ctx);
         worked |= self.start_bucket_read();
         worked |= self.issue_ray_stream(ctx);
-        worked |= self.hand_out();
+        worked |= self.hand_out(ctx.cycle());
         worked |= self.fill_staging_buffers(ctx);
         worked |= self.retire(ctx);
 

@@ -20,6 +20,7 @@ use glam::Vec3;
 
 use super::box_pipe::{BoxReq, BoxResp};
 use super::divider::{DivReq, DivResp};
+use super::follow::{FollowKind, Follower};
 use super::l1::{L1Req, L1Resp, Line};
 use super::memory::{MemLineReq, MemLineResp};
 use super::staging_buffer::{SbHeader, SbRay};
@@ -163,6 +164,12 @@ crate::unit! {
             log: Option<Vec<u64>> = None,
             shading: Option<ShadeRegs> = None,
             blocked_since: Option<u64> = None,
+            // `--follow-ray`: a probe, not hardware (`units/follow.rs`): the
+            // unit's probe, whether the ray it holds is followed, and the
+            // followed ray (wavefront, id) whose pixel it shades.
+            follow: Option<Follower> = None,
+            followed: bool = false,
+            followed_shade: Option<(u32, u32)> = None,
             // `costs.all()` builds its table on every call; the TP needs the
             // cycles on every state change.
             cost_cycles: [u32; COSTS] = cfg.tm.costs.all().map(|(_, k)| k.cycles)
@@ -288,6 +295,33 @@ impl TpStats {
 }
 
 impl Tp {
+    /// Logs the followed rays' events here (`units/follow.rs`).
+    pub fn follow(&mut self, f: Follower) {
+        self.follow = Some(f);
+    }
+
+    /// Logs `kind` (made from the TP's registers) if the ray held is followed.
+    #[inline]
+    pub(super) fn note(&mut self, c: u64, kind: impl FnOnce(&Self) -> FollowKind) {
+        if self.followed {
+            let (id, k) = (self.cur.get().ray.ray_id, kind(self));
+            if let Some(f) = &mut self.follow {
+                f.log(c, id, k);
+            }
+        }
+    }
+
+    /// Logs `kind` if the pixel being shaded is a followed ray's.
+    #[inline]
+    pub(super) fn note_shade(&mut self, c: u64, kind: impl FnOnce(&Self) -> FollowKind) {
+        if let Some((w, id)) = self.followed_shade {
+            let k = kind(self);
+            if let Some(f) = &mut self.follow {
+                f.log_wave(c, w, id, k);
+            }
+        }
+    }
+
     /// Records the address of every L1 load (tests compare the visit order).
     pub fn enable_log(&mut self) {
         self.log = Some(Vec::new());
@@ -531,6 +565,9 @@ impl Tp {
         match ctx.pop(&self.ray) {
             Some(r) if r.hdr.seg == SHADE_SEG => {
                 // A shading work item: the pixel in `ray_id`.
+                let pixel = r.ray.ray_id;
+                self.followed_shade = self.follow.as_ref().and_then(|f| f.wants_shade(pixel));
+                self.note_shade(c, |_| FollowKind::ShadeTaken { pixel });
                 self.ray_index.set(r.ray.ray_id);
                 self.cur.set(r);
                 self.stats.shade_items += 1;
@@ -539,6 +576,18 @@ impl Tp {
             }
             Some(r) => {
                 self.ray_index.set(r.ray.ray_id);
+                if let Some(f) = &mut self.follow {
+                    self.followed = f.wants(r.ray.ray_id);
+                    if self.followed {
+                        let kind = FollowKind::Taken {
+                            seg: r.hdr.seg,
+                            origin: r.ray.origin,
+                            dir: r.ray.dir,
+                            entry: r.ray.entry,
+                        };
+                        f.log(c, r.ray.ray_id, kind);
+                    }
+                }
                 self.cur.set(r);
                 self.stats.rays += 1;
                 self.stats.first_ray.get_or_insert(c);

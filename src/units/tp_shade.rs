@@ -23,6 +23,7 @@
 
 use glam::Vec3;
 
+use super::follow::FollowKind;
 use super::l1::Line;
 use super::memory::{MemLineReq, MemLineResp};
 use super::shade::{ShadeConsts, shade_reads, shade_step};
@@ -182,6 +183,8 @@ impl Tp {
                     tri.as_ref().map(|t| (t, albedo)),
                 );
                 self.stats.shade_hits += out.hit as u64;
+                let (hit, occluded) = (out.hit, out.occluded);
+                self.note_shade(c, |_| FollowKind::Shaded { hit, occluded });
                 self.stats.shade_occluded += out.occluded as u64;
                 self.line0.set(Line(out.path.encode()));
                 self.sh_shadow.set(out.shadow);
@@ -206,6 +209,8 @@ impl Tp {
                     return None;
                 }
                 self.stats.shade_rays += 1;
+                let ray_id = ray.ray_id;
+                self.note_shade(c, |_| FollowKind::ShadeEmit { ray_id });
                 self.stats.shade_shadow_rays += ray.is_shadow() as u64;
                 self.sh_emitted
                     .set(self.sh_emitted.val() | 1 << ray.is_shadow() as u32);
@@ -283,6 +288,8 @@ impl Tp {
                 if !ctx.offer(&self.ray_write, m) {
                     return None;
                 }
+                self.note_shade(c, |_| FollowKind::ShadeDone);
+                self.followed_shade = None;
                 self.state.set(TpState::Idle);
                 Next::Cycle
             }

@@ -47,6 +47,7 @@ fn reference_files(
             config: g.clone(),
             sim: Default::default(),
             trace: None,
+            follow: None,
         })),
         ..Default::default()
     };

@@ -163,6 +163,14 @@ impl Sim {
         Ok(())
     }
 
+    /// Named markers (time, name) for the waveform's save file, written when
+    /// the trace finishes (no tracer: nothing).
+    pub fn set_trace_markers(&mut self, markers: Vec<(Time, String)>) {
+        if let Some(t) = &mut self.tracer {
+            t.set_markers(markers);
+        }
+    }
+
     /// Detaches the tracer, flushing its output.
     pub fn finish_trace(&mut self) -> Option<std::io::Result<TraceStats>> {
         let now = self.now;

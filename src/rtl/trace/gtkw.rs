@@ -36,6 +36,9 @@ const OPEN_UNITS: usize = 4;
 /// all at once; the rest are in its signal tree.
 pub(crate) const VIEW_UNITS: usize = 64;
 
+/// Named markers a save file holds (GTKWave's A to Z).
+pub(crate) const NAMED_MARKERS: usize = 26;
+
 /// One line of the view.
 pub(crate) enum Entry {
     Begin {
@@ -109,8 +112,17 @@ impl View {
     }
 
     /// Writes `trace.gtkw` beside `trace`, and for a VCD the filters;
-    /// `from..=to` is the window shown. Returns the save file's path.
-    pub fn write(&self, trace: &Path, fst: bool, from: Time, to: Time) -> std::io::Result<PathBuf> {
+    /// `from..=to` is the window shown, `markers` (time, name; at most
+    /// `NAMED_MARKERS`) its named markers, the primary marker on the first.
+    /// Returns the save file's path.
+    pub fn write(
+        &self,
+        trace: &Path,
+        fst: bool,
+        from: Time,
+        to: Time,
+        markers: &[(Time, String)],
+    ) -> std::io::Result<PathBuf> {
         let trace = std::path::absolute(trace)?;
         // An FST carries its enum tables, which GTKWave applies itself.
         for (names, stem) in self.fsms.iter().filter(|_| !fst) {
@@ -139,7 +151,21 @@ impl View {
         // GTKWave's zoom is a power of two: this fits the window's span in
         // the wave pane of a 1600-pixel window.
         let span = (to.saturating_sub(from)).max(1) as f64;
-        let _ = writeln!(s, "*{:.6} {from} -1", 2.2 - span.log2());
+        let zoom = 2.2 - span.log2();
+        if markers.is_empty() {
+            let _ = writeln!(s, "*{zoom:.6} {from} -1");
+        } else {
+            // `*zoom primary A B ...`, then each named marker's `[markername]`
+            // (its letter, then the name), as GTKWave writes them.
+            let _ = write!(s, "*{zoom:.6} {}", markers[0].0);
+            for (t, _) in markers.iter().take(NAMED_MARKERS) {
+                let _ = write!(s, " {t}");
+            }
+            let _ = writeln!(s);
+            for (k, (_, name)) in markers.iter().take(NAMED_MARKERS).enumerate() {
+                let _ = writeln!(s, "[markername] {}{name}", (b'A' + k as u8) as char);
+            }
+        }
         let _ = writeln!(s, "[sst_width] 280");
         let _ = writeln!(s, "[signals_width] 320");
         let mut last_flags = None;

@@ -452,6 +452,8 @@ pub struct Tracer {
     /// identifier and line end, over their clock periods; FST takes less).
     full_bytes_per_ps: f64,
     header_bytes: u64,
+    /// Named markers for the save file (`set_markers`).
+    markers: Vec<(Time, String)>,
 }
 
 /// The default size guard (`--trace-max-bytes`): 1 GiB.
@@ -533,6 +535,7 @@ impl Tracer {
             stopped: None,
             full_bytes_per_ps: 0.0,
             header_bytes: 0,
+            markers: Vec::new(),
         })
     }
 
@@ -540,6 +543,13 @@ impl Tracer {
     /// an end (e.g. a whole frame).
     pub fn expect_end(&mut self, t: Time) {
         self.expect_end = Some(t);
+    }
+
+    /// Named markers (time, name) for the save file: those within the
+    /// traced window, the first `gtkw::NAMED_MARKERS` of them in time order.
+    pub fn set_markers(&mut self, mut markers: Vec<(Time, String)>) {
+        markers.sort_by_key(|m| m.0);
+        self.markers = markers;
     }
 
     /// The window's end as far as it is known.
@@ -681,8 +691,14 @@ impl Tracer {
         self.clocks_until(end)?;
         self.sink.finish(end)?;
         if let Some(p) = &self.path {
+            let from = self.spec.from.min(end);
+            let markers: Vec<(Time, String)> = std::mem::take(&mut self.markers)
+                .into_iter()
+                .filter(|m| (from..=end).contains(&m.0))
+                .take(gtkw::NAMED_MARKERS)
+                .collect();
             self.view
-                .write(p, self.format == "FST", self.spec.from.min(end), end)?;
+                .write(p, self.format == "FST", from, end, &markers)?;
         }
         Ok(TraceStats {
             changes: self.changes,

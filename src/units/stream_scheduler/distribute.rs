@@ -6,6 +6,7 @@
 use crate::contract::RayRec;
 use crate::rtl::Ctx;
 
+use super::super::follow::FollowKind;
 use super::super::staging_buffer::{SbFill, SbHeader};
 use super::super::tp_shade::SHADE_SEG;
 use super::StreamScheduler;
@@ -29,7 +30,7 @@ impl StreamScheduler {
 
     /// Hands each waiting ray bucket, else a bucket's worth of shading items,
     /// to a free TM.
-    pub(super) fn hand_out(&mut self) -> bool {
+    pub(super) fn hand_out(&mut self, c: u64) -> bool {
         let n = self.tms_n as usize;
         let mut worked = false;
         loop {
@@ -72,6 +73,14 @@ impl StreamScheduler {
                 self.stats.buckets_forwarded += 1;
                 self.tm_rays[k] += rays.len() as u64;
                 st.tms[k].outstanding += rays.len() as u32;
+                if let Some(f) = &mut self.follow {
+                    for r in &rays {
+                        if f.wants(r.ray_id) {
+                            let tm = k as u32;
+                            f.log(c, r.ray_id, FollowKind::HandedOut { seg, tm });
+                        }
+                    }
+                }
                 st.tms[k].cur = Some((seg, rays, 0));
                 st.tms[k].last_seg = Some(seg);
             }
@@ -121,6 +130,12 @@ impl StreamScheduler {
                 if last {
                     st.tms[k].cur = None;
                     w.buckets_on_chip -= 1;
+                }
+                if let Some(f) = &mut self.follow
+                    && f.wants(ray.ray_id)
+                {
+                    let (seg, tm) = (hdr.seg, k as u32);
+                    f.log(ctx.cycle(), ray.ray_id, FollowKind::Filled { seg, tm });
                 }
                 ctx.push(&self.fill.at(k), SbFill { ray, hdr, last });
                 self.stats.rays_forwarded += 1;

@@ -9,6 +9,7 @@ use crate::contract::{
 use crate::mem::StreamTag;
 use crate::rtl::{Ctx, round_robin};
 
+use super::super::follow::FollowKind;
 use super::super::l1::Line;
 use super::super::memory::MemLineReq;
 use super::super::tp::RayWrite;
@@ -101,7 +102,7 @@ impl StreamScheduler {
             if w.done {
                 self.last_marker = c;
             }
-            self.accept_write(&w, src);
+            self.accept_write(&w, src, c);
             taken += 1;
             worked = true;
         }
@@ -127,7 +128,7 @@ impl StreamScheduler {
     }
 
     /// Accepts a duplicate or a marker.
-    fn accept_write(&mut self, w: &RayWrite, tm: Option<usize>) {
+    fn accept_write(&mut self, w: &RayWrite, tm: Option<usize>, c: u64) {
         if w.done
             && let Some(k) = tm
         {
@@ -154,6 +155,11 @@ impl StreamScheduler {
                 .find(|e| e.seg == w.seg)
                 .expect("end marker of a working-set segment");
             e.rays_done += 1;
+            if let Some(f) = &mut self.follow
+                && f.wants(w.ray.ray_id)
+            {
+                f.log(c, w.ray.ray_id, FollowKind::Marker { seg: w.seg });
+            }
             return;
         }
         if w.seg == 0
@@ -167,6 +173,18 @@ impl StreamScheduler {
             st.dest.insert(w.seg, QueueDesc::default());
         }
         self.push_ray(w.seg, &w.ray);
+        if let Some(f) = &mut self.follow
+            && f.wants(w.ray.ray_id)
+            && let Some(q) = self.st.r().dest.get(&w.seg)
+        {
+            let kind = FollowKind::Queued {
+                seg: w.seg,
+                bucket: q.tail,
+                slot: q.tail_count.saturating_sub(1),
+                from: tm.map(|k| k as u32),
+            };
+            f.log(c, w.ray.ray_id, kind);
+        }
     }
 
     // ---- the bucket pool (mirrors render/queues.rs) ----

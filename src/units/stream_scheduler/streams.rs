@@ -7,6 +7,7 @@ use crate::contract::{BUCKET_HEADER_BYTES, LINE_BYTES, RAY_BYTES, RayRec, lines_
 use crate::mem::StreamTag;
 use crate::rtl::Ctx;
 
+use super::super::follow::FollowKind;
 use super::super::memory::{MemLineReq, MemLineResp};
 use super::super::scene_buffer::fill_id;
 use super::{BucketRead, K_BUCKET, K_CHILD, K_INFO, K_QREC, K_WRITE, KIND_SHIFT, StreamScheduler};
@@ -17,7 +18,7 @@ impl StreamScheduler {
         let mut worked = false;
         for j in 0..self.mem_resp.len() {
             if let Some(r) = ctx.pop(&self.mem_resp.at(j)) {
-                self.answer(r);
+                self.answer(r, ctx.cycle());
                 worked = true;
             }
         }
@@ -25,7 +26,7 @@ impl StreamScheduler {
     }
 
     /// One memory answer (ray-stream line, segment info, write done).
-    fn answer(&mut self, r: MemLineResp) {
+    fn answer(&mut self, r: MemLineResp, c: u64) {
         let kind = r.id >> KIND_SHIFT;
         let low = r.id & ((1 << KIND_SHIFT) - 1);
         match kind {
@@ -33,14 +34,14 @@ impl StreamScheduler {
             K_QREC => self.queue_record_arrived(r),
             K_INFO => self.segment_info_arrived(r),
             K_CHILD => self.child_line_arrived(low, r),
-            K_BUCKET => self.bucket_line_arrived(low, r),
+            K_BUCKET => self.bucket_line_arrived(low, r, c),
             _ => unreachable!("unknown memory id {:#x}", r.id),
         }
     }
 
     /// A line of a ray bucket being read: the header gives the count and the
     /// queue's next bucket; the last line makes the bucket ready for a TM.
-    fn bucket_line_arrived(&mut self, low: u32, r: MemLineResp) {
+    fn bucket_line_arrived(&mut self, low: u32, r: MemLineResp, c: u64) {
         let (ri, line) = ((low >> 8) as usize, low & 0xFF);
         let per_chunk = self.per_chunk;
         let map_base = self.map.buckets;
@@ -84,6 +85,13 @@ impl StreamScheduler {
             let b = (rd.addr - map_base) / bucket_bytes;
             st.live_buckets -= 1;
             Self::free_bucket(st, per_chunk, b);
+            if let Some(f) = &mut self.follow {
+                for r in &rays {
+                    if f.wants(r.ray_id) {
+                        f.log(c, r.ray_id, FollowKind::BucketRead { seg: rd.seg });
+                    }
+                }
+            }
             st.ready.push_back((rd.seg, rays));
             self.stats.buckets_read += 1;
         }

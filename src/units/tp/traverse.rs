@@ -8,6 +8,7 @@ use glam::Vec3;
 use super::super::Tag;
 use super::super::box_pipe::BoxReq;
 use super::super::divider::DivReq;
+use super::super::follow::FollowKind;
 use super::super::l1::{L1Req, Line};
 use super::super::staging_buffer::SbHeader;
 use super::super::tri_pipe::TriReq;
@@ -90,17 +91,23 @@ impl Tp {
         self.entry.set(e.clone());
         let limit = self.best.get().t.min(self.t_ray());
         if e.t > cull(limit) {
+            let (seg, t) = (self.hdr().seg, e.t);
+            self.note(c, |_| FollowKind::Cull { seg, t });
             self.go(TpState::Pop, c)
         } else if e.seg != SEG_SAME {
             self.go(TpState::Exit, c)
         } else {
             match Ref::decode(e.r) {
                 Ref::Leaf { first, count } => {
+                    let seg = self.hdr().seg;
+                    self.note(c, |_| FollowKind::Leaf { seg, first, count });
                     self.tri_k.set(first);
                     self.tri_end.set(first + count);
                     self.go(TpState::TriFetch, c)
                 }
                 Ref::Node(i) => {
+                    let seg = self.hdr().seg;
+                    self.note(c, |_| FollowKind::Node { seg, node: i });
                     let h = self.hdr();
                     let a = h.base + SEGMENT_HEADER_BYTES as u64 + i as u64 * NODE_BYTES as u64;
                     self.node_addr.set(a);
@@ -124,6 +131,12 @@ impl Tp {
             return None;
         }
         self.stats.exits += 1;
+        let seg = self.hdr().seg;
+        self.note(c, |_| FollowKind::Exit {
+            seg,
+            child: e.seg,
+            entry: e.r,
+        });
         Some(self.go(TpState::Pop, c))
     }
 
@@ -253,6 +266,12 @@ impl Tp {
         if let Some(h) = self.tri_hit.val() {
             if h.closer_than(self.best.get()) {
                 self.best.set(h);
+                let seg = self.hdr().seg;
+                self.note(c, |_| FollowKind::Closer {
+                    seg,
+                    t: h.t,
+                    tri_id: h.tri_id,
+                });
             }
             if ray.is_shadow() {
                 return self.go(TpState::Finish, c);
@@ -295,6 +314,10 @@ impl Tp {
             self.stats.hits += 1;
         }
         self.stats.last_finish = c;
+        let seg = self.hdr().seg;
+        let best = best.is_hit().then_some((best.t, best.tri_id));
+        self.note(c, |_| FollowKind::Finish { seg, best });
+        self.followed = false;
         self.done_sent.set(false);
         self.state.set(TpState::Idle);
         // The next ray may already wait in the link: look next cycle.
@@ -339,6 +362,8 @@ impl Tp {
                 } else {
                     self.box1.set(v);
                 }
+                let (seg, side) = (self.hdr().seg, (r.tag >> 8) as u32);
+                self.note(c, |_| FollowKind::BoxTest { seg, side, hit: v });
                 ctx.set_status(Status::Busy);
                 if self.box_got.val() {
                     let w = c - self.req_at.val();
@@ -386,6 +411,12 @@ impl Tp {
         match ctx.pop(&self.tri_resp) {
             Some(r) => {
                 self.stats.tri_hits += r.hit as u64;
+                let seg = self.hdr().seg;
+                self.note(c, |_| FollowKind::TriTest {
+                    seg,
+                    tri_id: r.tri_id,
+                    hit: r.hit.then_some(r.t),
+                });
                 self.tri_hit.set(r.hit.then_some(HitRec {
                     t: r.t,
                     tri_id: r.tri_id,
