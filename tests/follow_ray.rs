@@ -312,13 +312,11 @@ fn render_follow_ray_writes_the_log_and_marks_the_waveform() {
     let (png, vcd) = (s("f.png"), s("f.vcd"));
     let mut args = base.to_vec();
     args.extend(["--out", &png, "--follow-ray", "1:149", "--vcd", &vcd]);
-    let o = dualstream(&args);
-    let out = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        o.status.success(),
-        "{out}{}",
-        String::from_utf8_lossy(&o.stderr)
+    let o = common::succeeds(
+        Command::new(env!("CARGO_BIN_EXE_dualstream")).args(&args),
+        "dualstream render --follow-ray",
     );
+    let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains("followed:"), "{out}");
     let log = log_events(&t.join("f.follow.txt"));
     assert!(log.len() > 50, "{} events", log.len());
@@ -366,13 +364,11 @@ fn render_follow_ray_writes_the_log_and_marks_the_waveform() {
     args.extend(["--out", &png, "--follow-ray", "1:149", "--vcd", &vcd2]);
     args.extend(["--trace-window", &win, "--trace-units", "scheduler"]);
     args.extend(["--follow-ray-out", "-"]);
-    let o = dualstream(&args);
-    let out = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        o.status.success(),
-        "{out}{}",
-        String::from_utf8_lossy(&o.stderr)
+    let o = common::succeeds(
+        Command::new(env!("CARGO_BIN_EXE_dualstream")).args(&args),
+        "dualstream render --follow-ray",
     );
+    let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains(" taken seg="), "the log on stdout: {out}");
     let (start, markers) = gtkw_markers(&t.join("g.gtkw"));
     let (_, end) = vcd_scopes(&t.join("g.vcd"));
