@@ -164,6 +164,7 @@ pub fn spec(
         max_bytes,
         every_edge: false,
         show: crate::rtl::trace::Show::default(),
+        cycles_of: Some(("core", core_ps)),
         from: from.saturating_mul(core_ps),
         // The last cycle's edge and everything before the next one (DRAM edges).
         to: to.map_or(Time::MAX, |c| {

@@ -15,6 +15,7 @@ mod read;
 
 pub use common::have;
 mod signals;
+mod windows;
 
 /// Runs the command line and insists that it succeeds.
 pub fn dualstream(args: &[&str]) {
