@@ -10,6 +10,7 @@ mod common;
 
 mod formats;
 mod gtkwave;
+mod initial;
 mod names;
 mod read;
 

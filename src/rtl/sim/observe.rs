@@ -154,6 +154,9 @@ impl Sim {
         for i in tracer.unit_indices() {
             self.slots[i].watched = true;
         }
+        for l in tracer.traced_links() {
+            self.links[l.0 as usize].set_keep_last(true);
+        }
         self.tracer = Some(tracer);
         Ok(())
     }
@@ -163,6 +166,9 @@ impl Sim {
         let now = self.now;
         for s in &mut self.slots {
             s.watched = false;
+        }
+        for l in &mut self.links {
+            l.set_keep_last(false);
         }
         self.tracer.take().map(|t| t.finish(now))
     }
