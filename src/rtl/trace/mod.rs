@@ -708,9 +708,13 @@ impl Tracer {
     }
 }
 
-/// The GTKWave save file written beside a trace file (`trace.gtkw`).
+/// The GTKWave save file written beside a trace file: its whole name and
+/// `.gtkw` (`x.vcd.gtkw`, `x.fst.gtkw`), so traces of one stem in two
+/// formats keep their own.
 pub fn save_file_for(trace: &Path) -> PathBuf {
-    trace.with_extension("gtkw")
+    let mut name = trace.file_name().unwrap_or_default().to_os_string();
+    name.push(".gtkw");
+    trace.with_file_name(name)
 }
 
 /// Whether a path names an FST file (by its extension, any case).
