@@ -42,7 +42,7 @@ pub enum Runner {
 pub struct Bench {
     /// The unit's module name, as `dualstream tb NAME` takes it.
     pub name: &'static str,
-    /// Other names `tb` accepts.
+    /// Other names `tb` accepts (`render --trace-units`' names among them).
     pub aliases: &'static [&'static str],
     /// What the bench checks, in a line.
     pub checks: &'static str,
@@ -141,7 +141,7 @@ pub const BENCHES: &[Bench] = &[
     },
     Bench {
         name: "hit_record_updater",
-        aliases: &["hru"],
+        aliases: &["hru", "hit_updater"],
         checks: "hit record updater: each record equals the atomic-min of its updates, bit for bit; merges counted",
         units: &["hit_record_updater"],
         clock: BenchClock::Core,
@@ -165,7 +165,7 @@ pub const BENCHES: &[Bench] = &[
     },
     Bench {
         name: "stream_scheduler",
-        aliases: &[],
+        aliases: &["scheduler"],
         checks: "stream scheduler on a real scene: every ray reaches every segment it is sent to, once, skipped subtrees stay skipped",
         units: &["stream_scheduler"],
         clock: BenchClock::Core,

@@ -30,7 +30,8 @@ pub struct TbArgs {
     /// otherwise.
     #[arg(long, alias = "wave")]
     vcd: Option<PathBuf>,
-    /// Units to trace (comma-separated instance patterns, `*` wildcard).
+    /// Units to trace: comma-separated instance patterns (`*` wildcard), or a
+    /// bench's name in either spelling (`scheduler` for `stream_scheduler`).
     #[arg(long, default_value = "")]
     trace: String,
     /// First cycle to trace, of the bench's own clock (the one `--cycles`
@@ -123,8 +124,15 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
             ))
         })
     };
+    // A bench's other name (render's `scheduler`) stands for its unit's
+    // instance (`tb.stream_scheduler`).
+    let filter: Vec<&str> = a
+        .trace
+        .split(',')
+        .map(|p| testbench::find(p.trim()).map_or(p, |b| b.name))
+        .collect();
     let spec = TraceSpec {
-        filter: a.trace,
+        filter: filter.join(","),
         from: ps(a.trace_from, "--trace-from")?,
         to: a.trace_to.map_or(Ok(u64::MAX), |c| ps(c, "--trace-to"))?,
         max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,

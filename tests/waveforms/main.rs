@@ -16,6 +16,7 @@ mod read;
 
 pub use common::have;
 mod signals;
+mod unit_names;
 mod windows;
 
 /// Runs the command line and insists that it succeeds.
