@@ -84,7 +84,7 @@ pub fn fill_behind_blocked_fill(
     sim_opts: SimOptions,
     b: FillBehindCfg,
 ) -> Result<FillBehindRun, TbError> {
-    fill_behind(sim_opts, b, None).map(|(run, _, _)| run)
+    fill_behind(sim_opts, b, 1000, None).map(|(run, _, _)| run)
 }
 
 /// `dualstream tb l1`: the script under `opts.sim`, with a waveform if asked,
@@ -97,7 +97,8 @@ pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
         Some(path) => Some(Tracer::to_file(path, opts.trace.clone())?),
         None => None,
     };
-    let (got, status_cycles, trace) = fill_behind(opts.sim.clone(), b, tracer)?;
+    let (got, status_cycles, trace) =
+        fill_behind(opts.sim.clone(), b, opts.config.clocks.core_ps, tracer)?;
     let r = b.ready_from;
     let mut errors = Vec::new();
     // Port 0 takes A when its sink starts; the freed link wakes the L1 the next
@@ -151,15 +152,16 @@ pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     Ok(rep)
 }
 
-/// The script; with a tracer, its waveform. Returns the run, the L1's status
-/// cycles and the waveform's statistics.
+/// The script on a `core_ps` clock; with a tracer, its waveform. Returns the
+/// run, the L1's status cycles and the waveform's statistics.
 fn fill_behind(
     sim_opts: SimOptions,
     b: FillBehindCfg,
+    core_ps: u64,
     tracer: Option<Tracer>,
 ) -> Result<(FillBehindRun, [u64; 4], Option<TraceStats>), TbError> {
     let mut sim = Sim::new(sim_opts);
-    let clk: ClockId = sim.clock("core", 1000)?;
+    let clk: ClockId = sim.clock("core", core_ps)?;
     let link = LinkCfg { depth: 2, delay: 1 };
     // One entry deep: a single unread answer fills port 0's response link.
     let resp_link = LinkCfg { depth: 1, delay: 1 };
@@ -223,7 +225,7 @@ fn fill_behind(
     for &u in drivers.iter().chain([&lines]) {
         sim.wake(u);
     }
-    let end = sim.run_to_idle(1_000_000)?;
+    let end = sim.run_to_idle(1000 * core_ps)?;
     let got = |s: UnitId| -> Vec<(u64, u64, Line)> {
         sim.unit_ref::<Sink<L1Resp>>(s)
             .got
@@ -250,7 +252,7 @@ fn fill_behind(
             .collect(),
         fills: counter("fills"),
         accesses: counter("accesses"),
-        end: end / 1000,
+        end: end / core_ps,
     };
     let trace = super::harness::close_trace(&mut sim)?;
     Ok((run, status_cycles, trace))

@@ -46,14 +46,16 @@ pub struct MemoryRun {
     pub trace: Option<TraceStats>,
 }
 
-/// The script at `latency` under `sim_opts`, with a waveform if `tracer`.
+/// The script at `latency` under `sim_opts` on a `core_ps` clock, with a
+/// waveform if `tracer`.
 pub fn script(
     sim_opts: SimOptions,
     latency: u32,
+    core_ps: u64,
     tracer: Option<Tracer>,
 ) -> Result<MemoryRun, TbError> {
     let mut sim = Sim::new(sim_opts);
-    let clk = sim.clock("core", 1000)?;
+    let clk = sim.clock("core", core_ps)?;
     let link = LinkCfg { depth: 2, delay: 1 };
     let (req_o, req_i) = sim.links::<MemLineReq>(2, |p| format!("tb.req{p}"), link);
     let (resp_o, resp_i) = sim.links::<MemLineResp>(2, |p| format!("tb.resp{p}"), link);
@@ -112,7 +114,7 @@ pub fn script(
     for &d in &drivers {
         sim.wake(d);
     }
-    let end = sim.run_to_idle(1_000_000)?;
+    let end = sim.run_to_idle(1000 * core_ps)?;
     let got = |s| sim.unit_ref::<Sink<MemLineResp>>(s).got.clone();
     let (port0, port1) = (got(sinks[0]), got(sinks[1]));
     let probe = sim.unit_ref::<Memory>(mem).probe();
@@ -123,7 +125,7 @@ pub fn script(
         port1,
         probe,
         status_cycles,
-        end: end / 1000,
+        end: end / core_ps,
         trace,
     })
 }
@@ -208,7 +210,12 @@ pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
             (Some(path), 0) => Some(Tracer::to_file(path, opts.trace.clone())?),
             _ => None,
         };
-        let r = script(opts.sim.clone(), latency, tracer)?;
+        let r = script(
+            opts.sim.clone(),
+            latency,
+            opts.config.clocks.core_ps,
+            tracer,
+        )?;
         rep.errors.extend(check(&r, latency));
         rep.requests += r.probe.requests;
         rep.results += (r.port0.len() + r.port1.len()) as u64;

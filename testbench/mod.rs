@@ -42,7 +42,7 @@ pub enum Runner {
 pub struct Bench {
     /// The unit's module name, as `dualstream tb NAME` takes it.
     pub name: &'static str,
-    /// Other names `tb` accepts.
+    /// Other names `tb` accepts (`render --trace-units`' names among them).
     pub aliases: &'static [&'static str],
     /// What the bench checks, in a line.
     pub checks: &'static str,
@@ -50,7 +50,35 @@ pub struct Bench {
     /// composite of several): `tests/testbenches.rs` checks every unit under
     /// `src/units/` is named by a bench or has a test in its own file.
     pub units: &'static [&'static str],
+    /// The clock the bench runs on: `--cycles` and `--trace-from/--trace-to`
+    /// count its cycles.
+    pub clock: BenchClock,
     pub runner: Runner,
+}
+
+/// A bench's clock, from the configuration's `[clocks]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BenchClock {
+    /// The core clock (`clocks.core_ps`).
+    Core,
+    /// The GDDR5 command clock (`clocks.dram_ps`).
+    Dram,
+}
+
+impl BenchClock {
+    /// Its domain's name, as the waveform's `clk_<name>`.
+    pub fn name(self) -> &'static str {
+        match self {
+            BenchClock::Core => "core",
+            BenchClock::Dram => "dram",
+        }
+    }
+    pub fn period_ps(self, config: &crate::config::Config) -> u64 {
+        match self {
+            BenchClock::Core => config.clocks.core_ps,
+            BenchClock::Dram => config.clocks.dram_ps,
+        }
+    }
 }
 
 /// Every testbench, in the order `tb --help` lists them.
@@ -60,6 +88,7 @@ pub const BENCHES: &[Bench] = &[
         aliases: &[],
         checks: "ray-box pipeline: results against the reference test, exact latency and interval",
         units: &["box_pipe"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(pipe_tb::run_random::<box_pipe_tb::BoxKind>),
     },
     Bench {
@@ -67,6 +96,7 @@ pub const BENCHES: &[Bench] = &[
         aliases: &[],
         checks: "ray-triangle pipeline: results against the reference test, exact latency and interval",
         units: &["tri_pipe"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(pipe_tb::run_random::<tri_pipe_tb::TriKind>),
     },
     Bench {
@@ -74,6 +104,7 @@ pub const BENCHES: &[Bench] = &[
         aliases: &[],
         checks: "TM-shared divider: reciprocals against the reference, exact latency and interval",
         units: &["divider"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(pipe_tb::run_random::<divider_tb::DivKind>),
     },
     Bench {
@@ -81,6 +112,7 @@ pub const BENCHES: &[Bench] = &[
         aliases: &[],
         checks: "L1 (directed): a line behind a blocked fill is answered the next cycle",
         units: &["l1"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(l1_tb::run),
     },
     Bench {
@@ -88,6 +120,7 @@ pub const BENCHES: &[Bench] = &[
         aliases: &["dram"],
         checks: "one GDDR5 channel: one response per request, the command stream passes the independent timing checker",
         units: &["mem_ctrl"],
+        clock: BenchClock::Dram,
         runner: Runner::Unit(mem_ctrl_tb::run_random),
     },
     Bench {
@@ -95,6 +128,7 @@ pub const BENCHES: &[Bench] = &[
         aliases: &[],
         checks: "memory unit (fixed model, directed): answers at its latency, one line per cycle round-robin, masked writes",
         units: &["memory"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(memory_tb::run),
     },
     Bench {
@@ -102,13 +136,15 @@ pub const BENCHES: &[Bench] = &[
         aliases: &[],
         checks: "staging buffer (directed): every ray to a TP once with its bucket's header, in fill order, one swap per bucket",
         units: &["staging_buffer"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(staging_buffer_tb::run),
     },
     Bench {
         name: "hit_record_updater",
-        aliases: &["hru"],
+        aliases: &["hru", "hit_updater"],
         checks: "hit record updater: each record equals the atomic-min of its updates, bit for bit; merges counted",
         units: &["hit_record_updater"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(hit_record_updater_tb::run),
     },
     Bench {
@@ -116,6 +152,7 @@ pub const BENCHES: &[Bench] = &[
         aliases: &[],
         checks: "scene buffer: every line answered with the DRAM image's bytes, slots reused while late lines of retired segments are dropped",
         units: &["scene_buffer"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(scene_buffer_tb::run),
     },
     Bench {
@@ -123,13 +160,15 @@ pub const BENCHES: &[Bench] = &[
         aliases: &[],
         checks: "L2: every read equals a replay of the access log (hits, MSHR merges, dirty evictions, flushes)",
         units: &["l2"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(l2_tb::run),
     },
     Bench {
         name: "stream_scheduler",
-        aliases: &[],
+        aliases: &["scheduler"],
         checks: "stream scheduler on a real scene: every ray reaches every segment it is sent to, once, skipped subtrees stay skipped",
         units: &["stream_scheduler"],
+        clock: BenchClock::Core,
         runner: Runner::Unit(stream_scheduler_tb::run),
     },
     Bench {
@@ -144,6 +183,7 @@ pub const BENCHES: &[Bench] = &[
             "divider",
             "tri_pipe",
         ],
+        clock: BenchClock::Core,
         runner: Runner::Treelet,
     },
 ];

@@ -53,16 +53,17 @@ pub struct StagingRun {
     pub trace: Option<TraceStats>,
 }
 
-/// The script under `sim_opts`, the TPs ready with probability `ready_p`
-/// (patterns from `seed`), with a waveform if `tracer`.
+/// The script under `sim_opts` on a `core_ps` clock, the TPs ready with
+/// probability `ready_p` (patterns from `seed`), with a waveform if `tracer`.
 pub fn script(
     sim_opts: SimOptions,
     ready_p: f64,
     seed: u64,
+    core_ps: u64,
     tracer: Option<Tracer>,
 ) -> Result<StagingRun, TbError> {
     let mut sim = Sim::new(sim_opts);
-    let clk = sim.clock("core", 1000)?;
+    let clk = sim.clock("core", core_ps)?;
     let link = LinkCfg { depth: 2, delay: 1 };
     // A TP's ray link holds one ray (its next), as in the TM.
     let ray_link = LinkCfg { depth: 1, delay: 1 };
@@ -116,7 +117,7 @@ pub fn script(
         }
     }
     sim.wake(drv);
-    let end = sim.run_to_idle(10_000_000)?;
+    let end = sim.run_to_idle(10_000 * core_ps)?;
     let st = sim.unit_stats(sb);
     let c = |n: &str| counter(&st, n);
     let tps = sinks
@@ -128,7 +129,7 @@ pub fn script(
         tps,
         counts: (c("rays_in"), c("rays_out"), c("swaps")),
         status_cycles: st.status_cycles,
-        end: end / 1000,
+        end: end / core_ps,
         trace,
     })
 }
@@ -181,7 +182,13 @@ pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
         Some(path) => Some(Tracer::to_file(path, opts.trace.clone())?),
         None => None,
     };
-    let r = script(opts.sim.clone(), opts.ready_p, opts.seed, tracer)?;
+    let r = script(
+        opts.sim.clone(),
+        opts.ready_p,
+        opts.seed,
+        opts.config.clocks.core_ps,
+        tracer,
+    )?;
     let (rays_in, rays_out, swaps) = r.counts;
     let mut rep = TbReport {
         unit: "staging_buffer",

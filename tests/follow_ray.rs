@@ -340,7 +340,7 @@ fn render_follow_ray_writes_the_log_and_marks_the_waveform() {
     }
     // The window is the ray's span (default, 1 ns cycles): markers at its
     // key events, every one in the window and at a logged event.
-    let (start, markers) = gtkw_markers(&t.join("f.gtkw"));
+    let (start, markers) = gtkw_markers(&t.join("f.vcd.gtkw"));
     assert!(start <= log[0].0 * 1000 && log.last().unwrap().0 * 1000 <= end);
     assert!(markers.len() >= 5, "{markers:?}");
     for (time, name) in &markers {
@@ -370,7 +370,7 @@ fn render_follow_ray_writes_the_log_and_marks_the_waveform() {
     );
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains(" taken seg="), "the log on stdout: {out}");
-    let (start, markers) = gtkw_markers(&t.join("g.gtkw"));
+    let (start, markers) = gtkw_markers(&t.join("g.vcd.gtkw"));
     let (_, end) = vcd_scopes(&t.join("g.vcd"));
     assert!(!markers.is_empty());
     assert!(
@@ -449,7 +449,7 @@ fn bad_rays_and_pixels_fail_with_the_fix_and_leave_no_file() {
                 "{extra:?}: error should mention '{n}': {err}"
             );
         }
-        for f in ["b.png", "b.vcd", "b.gtkw", "b.log"] {
+        for f in ["b.png", "b.vcd", "b.vcd.gtkw", "b.log"] {
             assert!(!t.join(f).exists(), "{extra:?} left {f}");
         }
     }
@@ -466,7 +466,7 @@ fn bad_rays_and_pixels_fail_with_the_fix_and_leave_no_file() {
     ]);
     let o = dualstream(&args);
     assert!(!o.status.success());
-    for f in ["b.png", "b.vcd", "b.gtkw", "b.log"] {
+    for f in ["b.png", "b.vcd", "b.vcd.gtkw", "b.log"] {
         assert!(!t.join(f).exists(), "left {f}");
     }
 }

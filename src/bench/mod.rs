@@ -149,6 +149,7 @@ pub fn measure(label: &str, tms: u32, activity: f64, cycles: u64, trace: Option<
             max_bytes: 0,
             every_edge: false,
             show: Default::default(),
+            cycles_of: None,
         };
         sim.attach_tracer(Tracer::to_file(&path, spec).expect("temp file"))
             .expect("filter matches");

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use dualstream::config::Config;
-use dualstream::rtl::{SimOptions, TraceError, TraceSpec};
+use dualstream::rtl::{SimOptions, TraceSpec};
 use dualstream::testbench::{self, TbOptions};
 
 use super::{CliError, WaveArgs, parse_res, parse_size};
@@ -30,13 +30,15 @@ pub struct TbArgs {
     /// otherwise.
     #[arg(long, alias = "wave")]
     vcd: Option<PathBuf>,
-    /// Units to trace (comma-separated instance patterns, `*` wildcard).
+    /// Units to trace: comma-separated instance patterns (`*` wildcard), or a
+    /// bench's name in either spelling (`scheduler` for `stream_scheduler`).
     #[arg(long, default_value = "")]
     trace: String,
-    /// First core cycle to trace.
+    /// First cycle to trace, of the bench's own clock (the one `--cycles`
+    /// counts: the DRAM clock for mem_ctrl, the core clock for the others).
     #[arg(long, default_value_t = 0)]
     trace_from: u64,
-    /// Last core cycle to trace.
+    /// Last cycle to trace, included, of the bench's own clock.
     #[arg(long)]
     trace_to: Option<u64>,
     /// The most the waveform may take (bytes, or with K, M, G; 0: no
@@ -81,7 +83,14 @@ fn unit_long_help() -> String {
             [] => b.name.to_string(),
             al => format!("{} ({})", b.name, al.join(", ")),
         };
-        s.push_str(&format!("\n  {name:<24} {}", b.checks));
+        let clock = match b.clock {
+            testbench::BenchClock::Core => String::new(),
+            c => format!(
+                " (runs on the {} clock: --cycles and --trace-from/--trace-to count its cycles)",
+                c.name()
+            ),
+        };
+        s.push_str(&format!("\n  {name:<24} {}{clock}", b.checks));
     }
     s
 }
@@ -97,22 +106,41 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
             "--trace, --trace-from/--trace-to, --trace-signals and --trace-max-width choose what a waveform holds; give --vcd FILE (.vcd or .fst) to write one".into(),
         ));
     }
-    let p = config.clocks.core_ps;
+    // The window counts the bench's own clock, as `--cycles` does.
+    let (clock, p) = (bench.clock.name(), bench.clock.period_ps(&config));
+    if let Some(to) = a.trace_to
+        && to < a.trace_from
+    {
+        return Err(CliError::Usage(format!(
+            "--trace-from {} --trace-to {to}: the trace window ends before it starts; give --trace-to at or after --trace-from (cycles of the bench's {clock} clock, both included)",
+            a.trace_from
+        )));
+    }
+    let ps = |c: u64, flag: &str| {
+        c.checked_mul(p).ok_or_else(|| {
+            CliError::Usage(format!(
+                "{flag} {c}: no run reaches that cycle of the {clock} clock ({p} ps); give a cycle within the run (--cycles {})",
+                a.cycles
+            ))
+        })
+    };
+    // A bench's other name (render's `scheduler`) stands for its unit's
+    // instance (`tb.stream_scheduler`).
+    let filter: Vec<&str> = a
+        .trace
+        .split(',')
+        .map(|p| testbench::find(p.trim()).map_or(p, |b| b.name))
+        .collect();
     let spec = TraceSpec {
-        filter: a.trace,
-        from: a.trace_from.saturating_mul(p),
-        to: a.trace_to.map_or(u64::MAX, |c| c.saturating_mul(p)),
+        filter: filter.join(","),
+        from: ps(a.trace_from, "--trace-from")?,
+        to: a.trace_to.map_or(Ok(u64::MAX), |c| ps(c, "--trace-to"))?,
         max_bytes: parse_size(&a.trace_max_bytes, "--trace-max-bytes")?,
         every_edge: a.wave.trace_every_edge,
         show: a.wave.show()?,
+        cycles_of: Some((clock, p)),
     };
-    spec.validate().map_err(|e| match e {
-        // The window in the flags' terms (they are cycles, the spec's ps).
-        TraceError::Window { from, to } => CliError::Usage(format!(
-            "--trace-from/--trace-to: trace window ends (ps {to}) before it starts (ps {from}); give an end at or after the start"
-        )),
-        e => e.into(),
-    })?;
+    spec.validate()?;
     let opts = TbOptions {
         cycles: a.cycles,
         seed: a.seed,

@@ -6,31 +6,75 @@
 use super::ChipError;
 use crate::rtl::{Time, TraceSpec};
 
-/// Names that stand for one global unit or a family of units, with the instance
-/// pattern each traces. `tm<k>` and `mem_ctrl<c>` are added per instance.
-const NAMED: &[(&str, &str, &str)] = &[
-    ("scheduler", "chip.scheduler", "the stream scheduler"),
-    ("scene_buffer", "chip.scene_buffer", "the scene buffer"),
-    ("hit_updater", "chip.hit_updater", "the hit record updater"),
-    ("memory", "chip.memory", "the memory unit (channel router)"),
+/// Names that stand for one global unit or a family of units: the name, the
+/// other names it takes (`dualstream tb`'s bench names, so one name works in
+/// both), the instance pattern it traces and what that is. `tm<k>` and
+/// `mem_ctrl<c>` are added per instance.
+type Named = (
+    &'static str,
+    &'static [&'static str],
+    &'static str,
+    &'static str,
+);
+const NAMED: &[Named] = &[
+    (
+        "scheduler",
+        &["stream_scheduler"],
+        "chip.scheduler",
+        "the stream scheduler",
+    ),
+    ("scene_buffer", &[], "chip.scene_buffer", "the scene buffer"),
+    (
+        "hit_updater",
+        &["hit_record_updater", "hru"],
+        "chip.hit_updater",
+        "the hit record updater",
+    ),
+    (
+        "memory",
+        &[],
+        "chip.memory",
+        "the memory unit (channel router)",
+    ),
     (
         "mem_ctrl",
+        &["dram"],
         "chip.mem_ctrl*",
         "every GDDR5 channel controller",
     ),
     (
         "tms",
+        &["tm"],
         "chip.tm*",
         "every TM with its TPs, L1, crossbar, pipelines",
     ),
-    ("host", "chip.host", "the host stand-in"),
-    ("l2", "chip.l2*", "the L2"),
+    ("host", &[], "chip.host", "the host stand-in"),
+    ("l2", &[], "chip.l2*", "the L2"),
+    ("tp", &[], "chip.tm*.tp*", "every TM's TPs"),
+    ("l1", &[], "chip.tm*.l1", "every TM's L1"),
+    ("xbar", &["tm_xbar"], "chip.tm*.xbar", "every TM's crossbar"),
+    (
+        "staging_buffer",
+        &[],
+        "chip.tm*.staging_buffer",
+        "every TM's staging buffer",
+    ),
+    (
+        "tri_pipe",
+        &[],
+        "chip.tm*.tri_pipe*",
+        "every TM's triangle pipelines",
+    ),
+    ("divider", &[], "chip.tm*.divider", "every TM's divider"),
 ];
 
-/// A unit name: a friendly name, `tm<k>`, `mem_ctrl<c>`, or an instance pattern
-/// (it has a `.` or a `*`: `chip.tm3.l1`, `chip.tm*.xbar`).
+/// A unit name: a friendly name or one of its others, `tm<k>`, `mem_ctrl<c>`,
+/// or an instance pattern (it has a `.` or a `*`: `chip.tm3.l1`, `chip.tm*.xbar`).
 fn pattern_of(name: &str) -> Option<String> {
-    if let Some((_, p, _)) = NAMED.iter().find(|(n, _, _)| *n == name) {
+    if let Some((_, _, p, _)) = NAMED
+        .iter()
+        .find(|(n, also, _, _)| *n == name || also.contains(&name))
+    {
         return Some(p.to_string());
     }
     for base in ["tm", "mem_ctrl"] {
@@ -54,8 +98,11 @@ pub fn valid_names(paths: &[&str]) -> String {
     };
     let mut v: Vec<String> = NAMED
         .iter()
-        .filter(|(_, p, _)| paths.iter().any(|q| spec(p).matches(q)))
-        .map(|(n, _, what)| format!("{n} ({what})"))
+        .filter(|(_, _, p, _)| paths.iter().any(|q| spec(p).matches(q)))
+        .map(|(n, also, _, what)| match also {
+            [] => format!("{n} ({what})"),
+            a => format!("{n} ({what}; also {})", a.join(", ")),
+        })
         .collect();
     // Instances are numbered from 0: the highest index names the range.
     let count = |base: &str| {
@@ -164,6 +211,7 @@ pub fn spec(
         max_bytes,
         every_edge: false,
         show: crate::rtl::trace::Show::default(),
+        cycles_of: Some(("core", core_ps)),
         from: from.saturating_mul(core_ps),
         // The last cycle's edge and everything before the next one (DRAM edges).
         to: to.map_or(Time::MAX, |c| {

@@ -286,6 +286,11 @@ pub struct Link<T: Payload> {
     prod: UnsafeCell<ProdSide<T>>,
     pub(crate) name: String,
     pub(crate) cfg: LinkCfg,
+    /// The last payload popped, kept while a tracer watches the link
+    /// (`keep_last`): what a port shows as data when none is at its head
+    /// (`LinkDyn::sample_held`). Boxed and reused: untraced links pay a flag.
+    last: Option<Box<T>>,
+    keep_last: bool,
 }
 
 // SAFETY: between edges the consumer half is reached only by the consumer's thread
@@ -300,6 +305,8 @@ impl<T: Payload> Link<T> {
             name,
             depth: cfg.depth,
             cfg,
+            last: None,
+            keep_last: false,
             delay_ps: 0,
             producer: None,
             consumer: None,
@@ -528,6 +535,13 @@ pub(crate) trait LinkDyn: Any + Send + Sync {
     /// registered ready).
     fn space_at_start(&self) -> bool;
     fn sample_producer(&self, out: [&mut Bits; 3]);
+    /// The data a port with no payload shows (it holds the last one it
+    /// showed), for the first value of a trace window: at the consumer the
+    /// last payload popped, at the producer the last pushed; zeros before
+    /// any (the reset value). Needs `set_keep_last` from before the pops.
+    fn sample_held(&self, consumer: bool, data: &mut Bits);
+    /// Keeps the last payload popped (a tracer watches the link).
+    fn set_keep_last(&mut self, on: bool);
     /// The payload's fields, for the waveform (`Payload::field_list`).
     fn fields(&self) -> Vec<super::bits::Field>;
     fn ends(&self) -> (Option<UnitId>, Option<UnitId>);
@@ -584,7 +598,15 @@ impl<T: Payload> LinkDyn for Link<T> {
         }
         let wake_producer = c.pops_now > 0 && c.full_at_start;
         if c.pops_now > 0 {
-            c.q.pop_front();
+            let e = c.q.pop_front();
+            if self.keep_last
+                && let Some(e) = e
+            {
+                match &mut self.last {
+                    Some(b) => **b = e.data,
+                    None => self.last = Some(Box::new(e.data)),
+                }
+            }
         }
         c.pops_now = 0;
         p.offered_now = false;
@@ -630,6 +652,29 @@ impl<T: Payload> LinkDyn for Link<T> {
     fn space_at_start(&self) -> bool {
         self.prod_ref().space_at_start
     }
+    fn sample_held(&self, consumer: bool, data: &mut Bits) {
+        data.clear();
+        // FIFO order: the last pushed is the tail while there is one.
+        let tail = (!consumer)
+            .then(|| self.cons_ref().q.back().map(|e| &e.data))
+            .flatten();
+        match tail.or(self.last.as_deref()) {
+            Some(v) => v.pack(data),
+            None => {
+                let mut left = T::BITS;
+                while left > 0 {
+                    data.push(0, left.min(64));
+                    left -= left.min(64);
+                }
+            }
+        }
+    }
+    fn set_keep_last(&mut self, on: bool) {
+        self.keep_last = on;
+        if !on {
+            self.last = None;
+        }
+    }
     fn fields(&self) -> Vec<super::bits::Field> {
         T::field_list()
     }
@@ -663,6 +708,7 @@ impl<T: Payload> LinkDyn for Link<T> {
         p.pushes = 0;
         p.refused_offers = 0;
         p.violations.clear();
+        self.last = None;
         self.max_occupancy = 0;
         if let Some(l) = &mut self.log {
             l.clear();

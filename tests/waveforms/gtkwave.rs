@@ -1,7 +1,9 @@
-//! The GTKWave save file written beside every trace: GTKWave itself loads
-//! it (under Xvfb), shows every signal it names, shows FSM states by name
-//! (a VCD through the generated filter, an FST through its enum table) and
-//! floats as numbers, and opens on the traced window.
+//! The GTKWave save file written beside every trace (`x.vcd.gtkw`,
+//! `x.fst.gtkw`): GTKWave itself loads it (under Xvfb), shows every signal it
+//! names, shows FSM states by name (a VCD through the generated filter, an
+//! FST through its enum table) and floats as numbers, and opens on the traced
+//! window; moved elsewhere with its trace and filters, it opens the same
+//! from any working directory.
 
 use std::path::Path;
 use std::process::Command;
@@ -9,12 +11,14 @@ use std::process::Command;
 use crate::common::{Scratch, succeeds};
 use crate::{chip_trace, have, read};
 
-/// Runs GTKWave on `trace` with `save` and a Tcl script that reports what it
-/// shows, then quits; returns the report lines (`KEY value`).
-fn gtkwave_report(dir: &Path, trace: &Path, save: &Path) -> Vec<String> {
+/// Runs GTKWave in `cwd` on `trace` (none: the one the save file names)
+/// with `save` and a Tcl script that reports what it shows, then quits;
+/// returns the report lines (`KEY value`).
+fn gtkwave_report(dir: &Path, cwd: &Path, trace: Option<&Path>, save: &Path) -> Vec<String> {
     // GTKWave rewrites the save file it was given when a script saves:
-    // give it a copy.
-    let copy = dir.join("view.gtkw");
+    // give it a copy, beside the original (the files it names are relative
+    // to it).
+    let copy = save.with_file_name("view.gtkw");
     std::fs::copy(save, &copy).unwrap();
     let tcl = dir.join("report.tcl");
     std::fs::write(
@@ -30,12 +34,14 @@ gtkwave::/File/Quit
     .unwrap();
     let o = succeeds(
         Command::new("timeout")
+            .current_dir(cwd)
             .args(["120", "xvfb-run", "-a", "gtkwave", "-S"])
             .arg(&tcl)
-            .arg(trace)
+            .args(trace)
             .arg(&copy),
         "gtkwave",
     );
+    std::fs::remove_file(&copy).unwrap();
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     out.lines().map(str::to_string).collect()
 }
@@ -61,7 +67,7 @@ fn gtkwave_opens_the_save_file_on_named_states_fields_and_the_window() {
             "12000..12600",
             &[],
         );
-        let save = d.join("c.gtkw");
+        let save = d.join(format!("c.{ext}.gtkw"));
         let text = std::fs::read_to_string(&save).unwrap();
         // Signal lines: everything that is not a directive, flag, group or filter.
         let named: Vec<&str> = text
@@ -84,7 +90,17 @@ fn gtkwave_opens_the_save_file_on_named_states_fields_and_the_window() {
             "every traced signal is in the view"
         );
         assert!(named[0].ends_with("clk_core"), "clocks first: {named:?}");
-        let r = gtkwave_report(&d, &trace, &save);
+        // A unit's group opens on its FSM state, above its ports and their
+        // payloads' fields.
+        let lines: Vec<&str> = text.lines().collect();
+        let tp = lines.iter().position(|l| *l == "-chip.tm0.tp0").unwrap();
+        let first = lines[tp + 1..].iter().find(|l| !"[*@-^".contains(&l[..1]));
+        assert_eq!(
+            first,
+            Some(&"chip.tm0.tp0.state[4:0]"),
+            "{ext}: state first"
+        );
+        let r = gtkwave_report(&d, &d, Some(&trace), &save);
         assert_eq!(
             value(&r, "DISPLAYED"),
             named.len().to_string(),
@@ -108,15 +124,41 @@ fn gtkwave_opens_the_save_file_on_named_states_fields_and_the_window() {
             (12_500_000..13_200_000).contains(&w[1]),
             "{ext}: shows the window: {w:?}"
         );
-        // VCD names states through a filter file beside the trace.
-        assert_eq!(
-            d.join("c.tp_state.filter").exists(),
-            ext == "vcd" || d.join("c.tp_state.filter").exists()
-        );
     }
-    let filter = std::fs::read_to_string(d.join("c.tp_state.filter")).unwrap();
+    // Each format has its own save file, naming its own trace; a VCD names
+    // states through a filter file beside it, by a relative path.
+    for ext in ["vcd", "fst"] {
+        let text = std::fs::read_to_string(d.join(format!("c.{ext}.gtkw"))).unwrap();
+        assert!(
+            text.contains(&format!("[dumpfile] \"c.{ext}\"\n")),
+            "{text}"
+        );
+        assert_eq!(text.contains("^1 c.vcd.tp_state.filter\n"), ext == "vcd");
+    }
+    let filter = std::fs::read_to_string(d.join("c.vcd.tp_state.filter")).unwrap();
     assert!(
         filter.contains("\n0 Idle\n") && filter.contains("\n1 Fetch\n"),
         "{filter}"
     );
+    // Moved together to another directory, opened from a third one (with
+    // the trace named, and with the save file alone): states still by name.
+    let moved = d.join("elsewhere/deeper");
+    std::fs::create_dir_all(&moved).unwrap();
+    for e in std::fs::read_dir(&*d).unwrap() {
+        let name = e.unwrap().file_name().into_string().unwrap();
+        if name.starts_with("c.vcd") {
+            std::fs::rename(d.join(&name), moved.join(&name)).unwrap();
+        }
+    }
+    let cwd = d.join("cwd");
+    std::fs::create_dir_all(&cwd).unwrap();
+    let save = moved.join("c.vcd.gtkw");
+    for trace in [Some(moved.join("c.vcd")), None] {
+        let r = gtkwave_report(&d, &cwd, trace.as_deref(), &save);
+        let state = value(&r, "STATE");
+        assert!(
+            state.chars().next().unwrap().is_ascii_uppercase(),
+            "moved ({trace:?}): state by name, got {state}"
+        );
+    }
 }

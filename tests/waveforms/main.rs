@@ -10,12 +10,15 @@ mod common;
 
 mod formats;
 mod gtkwave;
+mod initial;
 mod names;
 mod read;
 mod ready;
 
 pub use common::have;
 mod signals;
+mod unit_names;
+mod windows;
 
 /// Runs the command line and insists that it succeeds.
 pub fn dualstream(args: &[&str]) {

@@ -159,6 +159,9 @@ impl Sim {
                 s.check_ready = (from, to);
             }
         }
+        for l in tracer.traced_links() {
+            self.links[l.0 as usize].set_keep_last(true);
+        }
         self.tracer = Some(tracer);
         Ok(())
     }
@@ -182,6 +185,9 @@ impl Sim {
         for s in &mut self.slots {
             s.watched = false;
             s.check_ready = check;
+        }
+        for l in &mut self.links {
+            l.set_keep_last(false);
         }
         self.tracer.take().map(|t| t.finish(now))
     }

@@ -252,7 +252,7 @@ impl Tracer {
                 reg_derived.push((of, start, derived.len()));
             }
         }
-        self.view.end();
+        self.view.end_unit();
         let ports = decl.ports.iter().map(|p| (p.link, p.dir)).collect();
         self.full_bytes_per_ps += sigs
             .iter()

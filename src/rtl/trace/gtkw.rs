@@ -1,8 +1,15 @@
-//! The GTKWave save file written beside a trace (`trace.gtkw`), and a
-//! translate filter per FSM (`trace.<fsm>.filter`), so `gtkwave trace.vcd
-//! trace.gtkw` opens on the window with clocks first, one group per unit
+//! The GTKWave save file written beside a trace (`trace.vcd.gtkw`), and a
+//! translate filter per FSM (`trace.vcd.<fsm>.filter`), so `gtkwave trace.vcd
+//! trace.vcd.gtkw` opens on the window with clocks first, one group per unit
 //! instance, each port's valid, ready, fire, data and fields, the registers,
 //! and every FSM state by name.
+//!
+//! The files it names are relative to the save file: GTKWave reads a
+//! relative `^1` filter path against the working directory, unless the save
+//! file has a `[savefile]` line (the path it was written at, as GTKWave
+//! writes its own), when it resolves it against the save file's directory
+//! (savefile.c, `get_relative_adjusted_name`). So the trace, its filters and
+//! its save file can move together and open from anywhere.
 //!
 //! The format is GTKWave's own (what it writes with File > Write Save File):
 //! a line `@<flags>` sets the display flags of the signals after it; a
@@ -64,6 +71,8 @@ pub(crate) struct View {
     pub units: usize,
     /// Whether the unit being declared is beyond `VIEW_UNITS`.
     skipping: bool,
+    /// Where the unit being declared begins in `entries`.
+    unit_start: usize,
     /// Each FSM's state names and the file stem of its filter.
     pub fsms: Vec<(&'static [&'static str], String)>,
 }
@@ -103,15 +112,17 @@ impl View {
         });
     }
 
-    fn filter_path(trace: &Path, stem: &str) -> PathBuf {
+    /// A filter's file name, beside the trace: named after the whole file
+    /// name, as the save file is.
+    fn filter_name(trace: &Path, stem: &str) -> String {
         let base = trace
-            .file_stem()
+            .file_name()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        trace.with_file_name(format!("{base}.{stem}.filter"))
+        format!("{base}.{stem}.filter")
     }
 
-    /// Writes `trace.gtkw` beside `trace`, and for a VCD the filters;
+    /// Writes `trace.vcd.gtkw` (the trace's whole name plus `.gtkw`) beside `trace`, and for a VCD the filters;
     /// `from..=to` is the window shown, `markers` (time, name; at most
     /// `NAMED_MARKERS`) its named markers, the primary marker on the first.
     /// Returns the save file's path.
@@ -130,7 +141,7 @@ impl View {
             for (k, n) in names.iter().enumerate() {
                 let _ = writeln!(f, "{k} {n}");
             }
-            std::fs::write(Self::filter_path(&trace, stem), f)?;
+            std::fs::write(trace.with_file_name(Self::filter_name(&trace, stem)), f)?;
         }
         let mut s = String::new();
         let _ = writeln!(
@@ -145,7 +156,11 @@ impl View {
                 self.units
             );
         }
-        let _ = writeln!(s, "[dumpfile] \"{}\"", trace.display());
+        // Paths relative to the save file (see the module's comment).
+        let out = super::save_file_for(&trace);
+        let name = trace.file_name().unwrap_or_default().to_string_lossy();
+        let _ = writeln!(s, "[dumpfile] \"{name}\"");
+        let _ = writeln!(s, "[savefile] \"{}\"", out.display());
         let _ = writeln!(s, "[timestart] {from}");
         let _ = writeln!(s, "[size] 1600 900");
         // GTKWave's zoom is a power of two: this fits the window's span in
@@ -200,8 +215,8 @@ impl View {
                                 &mut s,
                                 (flag::FTRANSLATED | flag::RJUSTIFY | flag::DEC) as u64,
                             );
-                            let p = Self::filter_path(&trace, &self.fsms[*k].1);
-                            let _ = writeln!(s, "^1 {}", p.display());
+                            let _ =
+                                writeln!(s, "^1 {}", Self::filter_name(&trace, &self.fsms[*k].1));
                             let _ = writeln!(s, "{name}");
                             continue;
                         }
@@ -213,7 +228,6 @@ impl View {
                 }
             }
         }
-        let out = super::save_file_for(&trace);
         std::fs::write(&out, s)?;
         Ok(out)
     }
@@ -223,7 +237,34 @@ impl View {
         let closed = self.units >= OPEN_UNITS;
         self.units += 1;
         self.skipping = self.units > VIEW_UNITS;
+        self.unit_start = self.entries.len();
         self.begin(path, closed);
+    }
+
+    /// Closes a unit's group, its FSM registers moved to its top: what an
+    /// RTL engineer looks for first, above the ports.
+    pub fn end_unit(&mut self) {
+        if self.skipping {
+            return;
+        }
+        let body = self.entries.split_off(self.unit_start + 1);
+        let (mut fsms, mut rest) = (Vec::new(), Vec::new());
+        let mut depth = 0;
+        for e in body {
+            match &e {
+                Entry::Begin { .. } => depth += 1,
+                Entry::End => depth -= 1,
+                Entry::Sig { fsm: Some(_), .. } if depth == 0 => {
+                    fsms.push(e);
+                    continue;
+                }
+                Entry::Sig { .. } => {}
+            }
+            rest.push(e);
+        }
+        self.entries.append(&mut fsms);
+        self.entries.append(&mut rest);
+        self.end();
     }
 
     pub fn begin(&mut self, name: &str, closed: bool) {

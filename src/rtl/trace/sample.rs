@@ -69,12 +69,13 @@ impl Tracer {
         {
             return;
         }
+        let first = self.clock_t.is_none();
         if let Err(e) = self.clocks_until(t) {
             self.error = Some(e);
             return;
         }
         let mut due = std::mem::take(&mut self.due);
-        self.due_at(t, &mut due);
+        self.due_at(t, first, &mut due);
         for &ui in &due {
             let ui = ui as usize;
             let (period, index) = (self.units[ui].period, self.units[ui].index);
@@ -101,8 +102,9 @@ impl Tracer {
     }
 
     /// The traced units to sample at `t`, in unit order: the active ones
-    /// whose clock has an edge at `t`, and those woken for `t`.
-    fn due_at(&mut self, t: Time, due: &mut Vec<u32>) {
+    /// whose clock has an edge at `t` (all of them at the window's `first`
+    /// sample), and those woken for `t`.
+    fn due_at(&mut self, t: Time, first: bool, due: &mut Vec<u32>) {
         due.clear();
         while let Some(&std::cmp::Reverse((e, u))) = self.wakes.peek() {
             if e > t {
@@ -118,8 +120,11 @@ impl Tracer {
                 self.wakes.push(std::cmp::Reverse((t.div_ceil(p) * p, u)));
             }
         }
+        // The window's first sample (`first`) takes every unit, at an edge
+        // of its clock or between two: no signal is unknown from then on.
         for &u in &self.active {
-            if t.is_multiple_of(self.units[u as usize].period) {
+            let unit = &self.units[u as usize];
+            if t.is_multiple_of(unit.period) || (first && unit.fresh) {
                 due.push(u);
             }
         }
@@ -249,6 +254,11 @@ impl Tracer {
             match ready {
                 Some(r) => link.sample_consumer(t, r, [a, b, c]),
                 None => link.sample_producer([a, b, c]),
+            }
+            if c.is_empty() && !u.sigs[base + 2].written {
+                // No payload at the window's first sample: the data it holds
+                // (as an RTL simulator's $dumpvars writes every value).
+                link.sample_held(dir == PortDir::In, c);
             }
         }
         let regs = 3 * u.ports.len();
