@@ -2,22 +2,26 @@
 // Regenerate with `dualstream hdl --out hdl/` (sizes from the config: --config).
 // The chip top: 128 TMs of 16 TPs, the global units and their links, as simulated.
 // Ports: the host's links (it is not hardware); one clock per clock domain.
-module chip (
+module chip
+`ifndef YOSYS
+    import ds_pkg::*;
+`endif
+(
     input  wire clk_core,
     input  wire clk_dram,
     input  wire rst,
     input  wire emit_valid,
     output wire emit_ready,
-    input  wire [288:0] emit_data,
+    input  ray_write_t emit_data,
     input  wire start_valid,
     output wire start_ready,
-    input  wire [63:0] start_data,
+    input  wave_start_t start_data,
     input  wire flush_valid,
     output wire flush_ready,
-    input  wire flush_data,
+    input  l2_flush_t flush_data,
     output wire flush_done_valid,
     input  wire flush_done_ready,
-    output wire flush_done_data
+    output l2_flush_t flush_done_data
 );
     localparam integer MEM_CTRLS = 16;
     localparam integer TMS = 128;

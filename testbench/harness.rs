@@ -36,6 +36,8 @@ macro_rules! tb_component {
                     name: stringify!($field),
                     dir: PortDir::$dir,
                     width: T::BITS,
+                    ty: T::sv_type(),
+                    fields: T::field_list(),
                     link: self.$field.id,
                 }]
             }

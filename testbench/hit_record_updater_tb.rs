@@ -211,12 +211,16 @@ impl Declared for LineMem {
                 name: "req",
                 dir: PortDir::In,
                 width: <MemLineReq as Payload>::BITS,
+                ty: <MemLineReq as Payload>::sv_type(),
+                fields: <MemLineReq as Payload>::field_list(),
                 link: self.req.id,
             },
             PortDecl {
                 name: "resp",
                 dir: PortDir::Out,
                 width: <MemLineResp as Payload>::BITS,
+                ty: <MemLineResp as Payload>::sv_type(),
+                fields: <MemLineResp as Payload>::field_list(),
                 link: self.resp.id,
             },
         ]

@@ -89,12 +89,16 @@ impl Declared for FakeTm {
                 name: "fill",
                 dir: PortDir::In,
                 width: <SbFill as Payload>::BITS,
+                ty: <SbFill as Payload>::sv_type(),
+                fields: <SbFill as Payload>::field_list(),
                 link: self.fill.id,
             },
             PortDecl {
                 name: "ray_write",
                 dir: PortDir::Out,
                 width: <RayWrite as Payload>::BITS,
+                ty: <RayWrite as Payload>::sv_type(),
+                fields: <RayWrite as Payload>::field_list(),
                 link: self.out.id,
             },
         ]

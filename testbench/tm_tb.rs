@@ -96,12 +96,16 @@ impl Declared for IdealMem {
                 name: "req",
                 dir: PortDir::In,
                 width: <L1Req as crate::rtl::Payload>::BITS,
+                ty: <L1Req as crate::rtl::Payload>::sv_type(),
+                fields: <L1Req as crate::rtl::Payload>::field_list(),
                 link: self.req.id,
             },
             PortDecl {
                 name: "resp",
                 dir: PortDir::Out,
                 width: <L1Resp as crate::rtl::Payload>::BITS,
+                ty: <L1Resp as crate::rtl::Payload>::sv_type(),
+                fields: <L1Resp as crate::rtl::Payload>::field_list(),
                 link: self.resp.id,
             },
         ]

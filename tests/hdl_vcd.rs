@@ -13,6 +13,7 @@ use dualstream::rtl::TraceSpec;
 use dualstream::testbench::{self, TbOptions};
 
 mod common;
+use common::sv::{Def, Pkg};
 use common::{Scratch, have, succeeds};
 
 fn repo() -> PathBuf {
@@ -35,7 +36,7 @@ fn committed_hdl_matches_what_the_code_emits() {
     let mut have: Vec<String> = std::fs::read_dir(repo().join("hdl"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into())
-        .filter(|n: &String| n.ends_with(".v"))
+        .filter(|n: &String| n.ends_with(".v") || n.ends_with(".sv"))
         .collect();
     have.sort();
     assert_eq!(
@@ -55,33 +56,21 @@ fn committed_hdl_matches_what_the_code_emits() {
     }
 }
 
-/// (name, width) of the module's ports (without clk and rst) and non-array regs.
-fn verilog_signals(text: &str) -> BTreeMap<String, u32> {
+/// The package the code emits for the default configuration.
+fn package() -> Pkg {
+    Pkg::parse(&dualstream::machine::hdl::emit_package(&Config::default()).unwrap())
+}
+
+/// (name, width) of the module's ports (without clk and rst) and non-array
+/// regs, a typed one as wide as its type in the package.
+fn verilog_signals(pkg: &Pkg, text: &str) -> BTreeMap<String, u32> {
     let mut m = BTreeMap::new();
     for line in text.lines() {
-        let l = line.trim().trim_end_matches([',', ';']);
-        let rest = if let Some(r) = l
-            .strip_prefix("input  wire ")
-            .or_else(|| l.strip_prefix("output wire "))
+        if let Some((name, ty, _)) = pkg.decl(line)
+            && name != "clk"
+            && name != "rst"
         {
-            r
-        } else if let Some(r) = l.strip_prefix("reg ") {
-            if r.contains(" [0:") {
-                continue; // memory array: not traced
-            }
-            r
-        } else {
-            continue;
-        };
-        let (width, name) = match rest.strip_prefix('[') {
-            Some(r) => {
-                let (msb, name) = r.split_once(":0] ").unwrap();
-                (msb.parse::<u32>().unwrap() + 1, name)
-            }
-            None => (1, rest),
-        };
-        if name != "clk" && name != "rst" {
-            m.insert(name.to_string(), width);
+            m.insert(name, pkg.width(&ty));
         }
     }
     m
@@ -163,7 +152,7 @@ fn vcd_scopes_equal_verilog_modules_and_read_back() {
         let traced = &scopes[&format!("tb.{name}")];
         let decl = decls.iter().find(|d| d.module == name).unwrap();
         let module = dualstream::rtl::verilog::emit_module(decl);
-        let verilog = verilog_signals(&module);
+        let verilog = verilog_signals(&package(), &module);
         // `x_fire` (valid and ready) is the waveform's own, derived from
         // two signals the module has.
         let traced: BTreeMap<String, u32> = traced
@@ -200,11 +189,17 @@ fn renaming_a_port_renames_it_everywhere() {
     assert!(sigs.contains(&"request_data".to_string()));
     let v = dualstream::rtl::verilog::emit_module(&d);
     assert!(v.contains("request_data") && !v.contains(" req_data"));
-    assert_eq!(verilog_signals(&v).keys().cloned().collect::<Vec<_>>(), {
-        let mut s = sigs.clone();
-        s.sort();
-        s
-    });
+    assert_eq!(
+        verilog_signals(&package(), &v)
+            .keys()
+            .cloned()
+            .collect::<Vec<_>>(),
+        {
+            let mut s = sigs.clone();
+            s.sort();
+            s
+        }
+    );
 }
 
 #[test]
@@ -253,7 +248,8 @@ fn verilog_passes_verilator_iverilog_and_yosys() {
             let all: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
             let top = f.file_stem().unwrap().to_string_lossy();
             let script = format!(
-                "read_verilog -sv {}; hierarchy -check -top {top}; check -assert",
+                "read_verilog -sv {} {}; hierarchy -check -top {top}; check -assert",
+                repo().join("hdl/ds_pkg.sv").display(),
                 all.join(" ")
             );
             succeeds(Command::new("yosys").args(["-q", "-p", &script]), "yosys");
@@ -360,7 +356,8 @@ fn chip_top_wires_every_unit_and_lints() {
                 .filter(|p| p.ends_with(".v") && !p.ends_with("chip.v"))
                 .collect();
             let script = format!(
-                "read_verilog -sv -lib {}; read_verilog -sv {}; hierarchy -check -top chip; check -assert chip",
+                "read_verilog -sv -lib {} {}; read_verilog -sv {}; hierarchy -check -top chip; check -assert chip",
+                dir.join("ds_pkg.sv").display(),
                 lib.join(" "),
                 top.display()
             );
@@ -373,14 +370,17 @@ fn chip_top_wires_every_unit_and_lints() {
     }
 }
 
-/// Verilator (`-Wall`) and Icarus lint `file`, finding the modules it instantiates
-/// in `lib` (each skipped when the tool is missing; `have` requires it under CI).
+/// Verilator (`-Wall`) and Icarus lint `file` after `lib`'s package, finding
+/// the modules it instantiates in `lib` (each skipped when the tool is
+/// missing; `have` requires it under CI).
 fn lint_with_library(lib: &std::path::Path, file: &std::path::Path, what: &str) {
+    let pkg = lib.join("ds_pkg.sv");
     if have("verilator") {
         succeeds(
             Command::new("verilator")
                 .args(["--lint-only", "-Wall", "-y"])
                 .arg(lib)
+                .arg(&pkg)
                 .arg(file),
             &format!("verilator{what}"),
         );
@@ -390,6 +390,7 @@ fn lint_with_library(lib: &std::path::Path, file: &std::path::Path, what: &str) 
             Command::new("iverilog")
                 .args(["-g2012", "-o", "/dev/null", "-y"])
                 .arg(lib)
+                .arg(&pkg)
                 .arg(file),
             &format!("iverilog{what}"),
         );
@@ -443,8 +444,15 @@ fn first_values(path: &Path, scope: &str) -> BTreeMap<String, String> {
 }
 
 /// Register -> reset value (binary digits, no leading zeros) from a module's
-/// reset block (`name <= '0;` or `name <= W'hHEX;`).
-fn verilog_resets(module: &str) -> BTreeMap<String, String> {
+/// reset block (`name <= '0;`, `name <= W'hHEX;` or an enum literal of the
+/// package, `state <= TP_STATE_IDLE;`).
+fn verilog_resets(pkg: &Pkg, module: &str) -> BTreeMap<String, String> {
+    let literal = |v: &str| {
+        pkg.types.values().find_map(|d| match d {
+            Def::Enum(_, lits) => lits.iter().find(|(n, _)| n == v).map(|(_, k)| *k),
+            Def::Struct(_) => None,
+        })
+    };
     let mut out = BTreeMap::new();
     for l in module.lines() {
         let l = l.trim();
@@ -467,10 +475,13 @@ fn verilog_resets(module: &str) -> BTreeMap<String, String> {
                     t.to_string()
                 }
             }
-            None => {
-                assert_eq!(v, "'0", "{l}");
-                "0".to_string()
-            }
+            None => match literal(v) {
+                Some(k) => format!("{k:b}"),
+                None => {
+                    assert_eq!(v, "'0", "{l}");
+                    "0".to_string()
+                }
+            },
         };
         out.insert(name.to_string(), bits);
     }
@@ -488,7 +499,7 @@ fn verilog_resets_are_the_models_first_values() {
     for name in ["box_pipe", "tri_pipe", "divider"] {
         let decls = catalog(&testbench::bench_config(name, &Config::default()));
         let decl = decls.iter().find(|d| d.module == name).unwrap();
-        let resets = verilog_resets(&dualstream::rtl::verilog::emit_module(decl));
+        let resets = verilog_resets(&package(), &dualstream::rtl::verilog::emit_module(decl));
         assert!(!resets.is_empty(), "{name}: no reset block");
         let vcd = dir.join(format!("{name}.vcd"));
         let opts = TbOptions {
@@ -523,5 +534,171 @@ fn verilog_resets_are_the_models_first_values() {
         best.reset_literal().ends_with("ffffffff7f800000"),
         "{}",
         best.reset_literal()
+    );
+}
+
+/// What differs between the package's structs and the model's packing, for
+/// every port of every module: the port's type as the module writes it must
+/// be as wide as the port's vector, and a struct's leaves (read from the
+/// package text, members MSB first) must be the payload's fields
+/// (`Payload::field_list`) at the same offsets and widths; a payload without
+/// fields is a plain vector or an enum.
+fn layout_mismatches(pkg: &Pkg, decls: &[dualstream::rtl::UnitDecl]) -> (Vec<String>, usize) {
+    let mut bad = Vec::new();
+    let mut structs = std::collections::BTreeSet::new();
+    for d in decls {
+        let text = dualstream::rtl::verilog::emit_module(d);
+        let types: BTreeMap<String, String> = text
+            .lines()
+            .filter_map(|l| pkg.decl(l))
+            .map(|(n, t, _)| (n, t))
+            .collect();
+        for p in &d.ports {
+            let ty = &types[&format!("{}_data", p.name)];
+            let at = format!("{}.{}_data ({ty})", d.module, p.name);
+            if pkg.width(ty) != p.width {
+                bad.push(format!(
+                    "{at}: {} bits, the port {}",
+                    pkg.width(ty),
+                    p.width
+                ));
+            }
+            let is_struct = matches!(pkg.types.get(ty), Some(Def::Struct(_)));
+            if p.fields.is_empty() {
+                if is_struct {
+                    bad.push(format!("{at}: a struct for a payload without fields"));
+                }
+                continue;
+            }
+            if !is_struct {
+                bad.push(format!("{at}: not a struct, the payload has fields"));
+                continue;
+            }
+            structs.insert(ty.clone());
+            let mut leaves = Vec::new();
+            pkg.leaves(ty, "", 0, &mut leaves);
+            let model: Vec<(String, u32, u32)> = p
+                .fields
+                .iter()
+                .map(|f| (f.name.clone(), f.offset, f.width))
+                .collect();
+            for (m, s) in model.iter().zip(&leaves) {
+                if m != s {
+                    bad.push(format!("{at}: model {m:?}, package {s:?}"));
+                }
+            }
+            if model.len() != leaves.len() {
+                bad.push(format!(
+                    "{at}: {} fields in the model, {} in the package",
+                    model.len(),
+                    leaves.len()
+                ));
+            }
+        }
+    }
+    (bad, structs.len())
+}
+
+/// Each struct of `ds_pkg.sv` lays its payload out as `pack` does: the
+/// struct is as wide as the port's vector and each field sits at the
+/// model's offset; every FSM register is its enum, with the model's states
+/// in order, and resets to the model's state by name. Planted faults (the
+/// members in declaration order, as a naive emitter writes them; a member
+/// dropped) are caught.
+#[test]
+fn package_structs_lay_out_every_payload_as_the_model_packs_it() {
+    let cfg = Config::default();
+    let decls = catalog(&cfg);
+    let text = dualstream::machine::hdl::emit_package(&cfg).unwrap();
+    let pkg = Pkg::parse(&text);
+    let (bad, structs) = layout_mismatches(&pkg, &decls);
+    assert_eq!(bad, Vec::<String>::new());
+    assert!(structs >= 18, "{structs} port structs checked");
+    // The configured sizes, as the config gives them.
+    assert_eq!(pkg.params["TM_TPS"], cfg.tm.tps.to_string());
+    assert_eq!(pkg.params["CHIP_TMS"], cfg.chip.tms.to_string());
+    assert_eq!(
+        pkg.params["BOX_PIPE_LATENCY"],
+        cfg.box_pipe.latency.to_string()
+    );
+    assert_eq!(pkg.params["CHIP_L2_BYTES"], cfg.chip.l2.bytes.to_string());
+
+    // FSM registers: the enum type, its literals the model's states in
+    // encoding order, the reset the model's state.
+    let mut fsms = 0;
+    for d in &decls {
+        let module = dualstream::rtl::verilog::emit_module(d);
+        for s in d.state.iter().filter(|s| s.traced()) {
+            let Some(names) = s.enum_names else { continue };
+            let (_, ty, kind) = module
+                .lines()
+                .filter_map(|l| pkg.decl(l))
+                .find(|(n, _, _)| *n == s.name)
+                .unwrap();
+            assert_eq!(kind, "reg");
+            let Some(Def::Enum(w, lits)) = pkg.types.get(&ty) else {
+                panic!("{}.{}: {ty} is not an enum", d.module, s.name);
+            };
+            assert_eq!(*w, s.width, "{}.{}", d.module, s.name);
+            assert_eq!(lits.len(), names.len());
+            for (k, ((lit, v), state)) in lits.iter().zip(names.iter()).enumerate() {
+                assert_eq!(*v, k as u64);
+                let squashed: String = lit.chars().filter(|c| *c != '_').collect();
+                assert!(
+                    squashed.ends_with(&state.to_ascii_uppercase()),
+                    "{lit} names {state}"
+                );
+            }
+            let reset = s.reset.words().first().copied().unwrap_or(0) as usize;
+            assert!(
+                module.contains(&format!("{} <= {};", s.name, lits[reset].0)),
+                "{}.{} resets to {}",
+                d.module,
+                s.name,
+                lits[reset].0
+            );
+            fsms += 1;
+        }
+    }
+    assert!(
+        fsms >= 2,
+        "the TP's state and the channel controller's command"
+    );
+
+    // Planted: every struct's members in declaration order (LSB first).
+    let mut naive = String::new();
+    let mut members: Vec<&str> = Vec::new();
+    let mut inside = false;
+    for l in text.lines() {
+        if l.contains("typedef struct packed") {
+            inside = true;
+        } else if inside && l.trim_start().starts_with('}') {
+            inside = false;
+            for m in members.drain(..).rev() {
+                naive.push_str(m);
+                naive.push('\n');
+            }
+        } else if inside {
+            members.push(l);
+            continue;
+        }
+        naive.push_str(l);
+        naive.push('\n');
+    }
+    let (bad, _) = layout_mismatches(&Pkg::parse(&naive), &decls);
+    assert!(
+        bad.iter()
+            .any(|b| b.starts_with("box_pipe.req_data (box_req_t): model (\"origin.x\", 0, 32)")),
+        "{bad:?}"
+    );
+    assert!(bad.len() > 20, "{bad:?}");
+
+    // Planted: a member dropped (the hit flag of a box response).
+    let dropped = text.replacen("        logic hit; // [0]\n", "", 1);
+    assert_ne!(dropped, text);
+    let (bad, _) = layout_mismatches(&Pkg::parse(&dropped), &decls);
+    assert!(
+        bad.contains(&"box_pipe.resp_data (box_resp_t): 48 bits, the port 49".to_string()),
+        "{bad:?}"
     );
 }

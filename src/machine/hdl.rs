@@ -119,6 +119,7 @@ struct End {
     top: String,
     port: &'static str,
     width: u32,
+    ty: crate::rtl::sv::SvType,
 }
 
 /// A top-level instance: a leaf unit or a structural group of units.
@@ -194,6 +195,7 @@ impl Top {
                     top: top.clone(),
                     port: p.name,
                     width: p.width,
+                    ty: p.ty.clone(),
                 });
             }
         }
@@ -304,10 +306,10 @@ impl Top {
             let (ps, cs) = (self.signal(p, *id), self.signal(c, *id));
             if p.top == "host" || c.top == "host" {
                 // The host's side is the chip's port, named after the host's port.
-                let (h, other, dir) = if p.top == "host" {
-                    (p, c, ("input ", "output"))
+                let (h, other, dir, ddir) = if p.top == "host" {
+                    (p, c, ("input ", "output"), PortDir::In)
                 } else {
-                    (c, p, ("output", "input "))
+                    (c, p, ("output", "input "), PortDir::Out)
                 };
                 if self.in_family(&other.top) {
                     return Err(ChipError::Hdl(format!(
@@ -317,7 +319,11 @@ impl Top {
                 }
                 ports.push(format!("{} wire {}_valid", dir.0, h.port));
                 ports.push(format!("{} wire {}_ready", dir.1, h.port));
-                ports.push(format!("{} wire {}{}_data", dir.0, range(h.width), h.port));
+                ports.push(crate::rtl::verilog::port_decl(
+                    ddir,
+                    &h.ty,
+                    &format!("{}_data", h.port),
+                ));
                 conn.insert(
                     (other.top.clone(), other.port),
                     ["valid", "ready", "data"].map(|s| format!("{}_{s}", h.port)),
@@ -408,7 +414,12 @@ pub fn emit_chip(cfg: &Config) -> Result<String, ChipError> {
         v,
         "// Ports: the host's links (it is not hardware); one clock per clock domain."
     );
-    let _ = writeln!(v, "module chip (\n    {}\n);", w.ports.join(",\n    "));
+    let _ = writeln!(
+        v,
+        "module chip\n{}(\n    {}\n);",
+        crate::rtl::verilog::IMPORT,
+        w.ports.join(",\n    ")
+    );
     for (base, ks) in &top.families {
         let _ = writeln!(
             v,
@@ -501,7 +512,104 @@ pub fn catalog_checked(cfg: &Config) -> Result<Vec<UnitDecl>, ChipError> {
     Ok(v)
 }
 
-/// Writes one `<module>.v` per unit into `dir` (created if missing); returns the paths.
+/// The configuration sections whose integers size or time the hardware; in
+/// `tm.costs` only each state's `cycles` (the rest are instruction counts
+/// for the energy model); [`SIM_ONLY`] left out.
+const PARAM_SECTIONS: [&str; 8] = [
+    "clocks", "links", "box_pipe", "tri_pipe", "divider", "tm", "chip", "mem",
+];
+
+/// `cfg`'s sizes and latencies as (name, SV type, value) localparams, named
+/// by their path in the configuration (`[tm.l1] bytes` -> `TM_L1_BYTES`);
+/// texts and fractions are left to the comment lines of `notes`.
+/// Settings of the simulation or the energy model, not of the hardware.
+const SIM_ONLY: [&str; 3] = [
+    "mem.energy",
+    "chip.watchdog_cycles",
+    "chip.memory.check_timing",
+];
+
+fn config_params(cfg: &Config, notes: &mut Vec<String>) -> Vec<(String, String, String)> {
+    fn walk(
+        path: &str,
+        v: &serde_json::Value,
+        out: &mut Vec<(String, String, String)>,
+        notes: &mut Vec<String>,
+    ) {
+        use serde_json::Value;
+        let name = path.replace('.', "_").to_ascii_uppercase();
+        let energy_count = path.starts_with("tm.costs.")
+            && path.matches('.').count() == 3
+            && !path.ends_with(".cycles");
+        if energy_count || SIM_ONLY.contains(&path) {
+            return;
+        }
+        match v {
+            Value::Object(m) => {
+                for (k, x) in m {
+                    walk(&format!("{path}.{k}"), x, out, notes);
+                }
+            }
+            // Icarus 11 takes no `int unsigned`/`bit` localparams.
+            Value::Bool(b) => out.push((name, "[0:0]".into(), format!("1'b{}", *b as u8))),
+            Value::Number(n) => match n.as_u64() {
+                Some(x) if x < 1 << 31 => out.push((name, "integer".into(), x.to_string())),
+                Some(x) => out.push((name, "[63:0]".into(), format!("64'd{x}"))),
+                None => notes.push(format!("{name} = {n}")),
+            },
+            Value::String(t) => notes.push(format!("{name} = \"{t}\"")),
+            Value::Array(a) => {
+                for (k, x) in a.iter().enumerate() {
+                    walk(&format!("{path}.{k}"), x, out, notes);
+                }
+            }
+            Value::Null => {}
+        }
+    }
+    let json = serde_json::to_value(cfg).expect("a configuration serialises");
+    let mut out = Vec::new();
+    for sec in PARAM_SECTIONS {
+        if let Some(v) = json.get(sec) {
+            walk(sec, v, &mut out, notes);
+        }
+    }
+    out
+}
+
+/// The text of `hdl/ds_pkg.sv` for `cfg`: a struct for every payload type on
+/// a port of the catalog's modules, an enum for every FSM state register,
+/// and the configured sizes and latencies.
+pub fn emit_package(cfg: &Config) -> Result<String, ChipError> {
+    let mut pkg = crate::rtl::sv::Package::default();
+    for d in catalog_checked(cfg)? {
+        for p in &d.ports {
+            pkg.declare(&p.ty).map_err(ChipError::Hdl)?;
+        }
+        for s in &d.state {
+            if let Some(t @ crate::rtl::sv::SvType::Enum { .. }) = &s.ty {
+                pkg.declare(t).map_err(ChipError::Hdl)?;
+            }
+        }
+    }
+    let mut notes = Vec::new();
+    let params = config_params(cfg, &mut notes);
+    let mut header = vec![
+        format!("Generated by dualstream from {}; do not edit.", file!()),
+        "Regenerate with `dualstream hdl --out hdl/` (sizes from the config: --config).".into(),
+        "The payload types, FSM encodings and configured sizes every module imports.".into(),
+        "A struct's members are listed MSB first: the reverse of the model's field".into(),
+        "order (`pack` puts the first field in the lowest bits). Read it before the".into(),
+        "modules: `verilator ... hdl/ds_pkg.sv hdl/<unit>.v`.".into(),
+    ];
+    if !notes.is_empty() {
+        header.push("Configured, not numbers:".into());
+        header.extend(notes.into_iter().map(|n| format!("  {n}")));
+    }
+    Ok(pkg.emit(&header, &params))
+}
+
+/// Writes `ds_pkg.sv` and one `<module>.v` per unit into `dir` (created if
+/// missing); returns the paths.
 pub fn write_hdl(
     cfg: &Config,
     dir: &std::path::Path,
@@ -521,6 +629,10 @@ pub fn write_hdl(
         ChipError::File(FileError::new(p, e, msg))
     };
     let mut out = Vec::new();
+    // The package first: every module imports it.
+    let p = dir.join("ds_pkg.sv");
+    std::fs::write(&p, emit_package(cfg)?).map_err(|e| unwritable(&p, e))?;
+    out.push(p);
     for d in catalog_checked(cfg)? {
         let p = dir.join(format!("{}.v", d.module));
         std::fs::write(&p, crate::rtl::verilog::emit_module(&d)).map_err(|e| unwritable(&p, e))?;

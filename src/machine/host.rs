@@ -76,12 +76,16 @@ impl Declared for Host {
                 name: "emit",
                 dir: PortDir::Out,
                 width: RayWrite::BITS,
+                ty: RayWrite::sv_type(),
+                fields: RayWrite::field_list(),
                 link: self.emit.id,
             },
             PortDecl {
                 name: "start",
                 dir: PortDir::Out,
                 width: WaveStart::BITS,
+                ty: WaveStart::sv_type(),
+                fields: WaveStart::field_list(),
                 link: self.start.id,
             },
         ];
@@ -90,12 +94,16 @@ impl Declared for Host {
                 name: "flush",
                 dir: PortDir::Out,
                 width: L2Flush::BITS,
+                ty: L2Flush::sv_type(),
+                fields: L2Flush::field_list(),
                 link: q.id,
             });
             v.push(PortDecl {
                 name: "flush_done",
                 dir: PortDir::In,
                 width: L2Flush::BITS,
+                ty: L2Flush::sv_type(),
+                fields: L2Flush::field_list(),
                 link: d.id,
             });
         }

@@ -581,6 +581,7 @@ impl State for ChannelCtrl {
         out.items.push(StateDecl::reg("refresh_pending", 1));
         let mut cmd = StateDecl::reg("cmd", DramCmd::BITS);
         cmd.enum_names = DramCmd::enum_names();
+        cmd.ty = Some(DramCmd::sv_type());
         out.items.push(cmd);
         out.items
             .push(StateDecl::reg("cmd_bank", self.bank_bits.max(1)));

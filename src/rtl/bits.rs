@@ -154,6 +154,17 @@ pub trait Payload: Clone + std::fmt::Debug + PartialEq + Send + 'static {
             kind: Self::enum_names().map_or(FieldKind::Bits, FieldKind::Enum),
         });
     }
+    /// The SystemVerilog type (`hdl/ds_pkg.sv`): by default an FSM state's
+    /// enum or a `logic` vector; structs list their members.
+    fn sv_type() -> super::sv::SvType {
+        match Self::enum_names() {
+            Some(names) => super::sv::SvType::Enum {
+                name: short_type_name::<Self>(),
+                names,
+            },
+            None => super::sv::SvType::Logic(Self::BITS),
+        }
+    }
     /// The fields of the whole payload; empty for a leaf (its packed vector
     /// is all there is to show).
     fn field_list() -> Vec<Field> {
@@ -181,6 +192,12 @@ pub trait Payload: Clone + std::fmt::Debug + PartialEq + Send + 'static {
             a == b
         })
     }
+}
+
+/// `dualstream::mem::StreamTag` -> `StreamTag`.
+fn short_type_name<T: ?Sized>() -> &'static str {
+    let n = std::any::type_name::<T>();
+    n.rsplit("::").next().unwrap_or(n)
 }
 
 thread_local! {
@@ -219,6 +236,9 @@ impl Payload for bool {
 
 impl Payload for f32 {
     const BITS: u32 = 32;
+    fn sv_type() -> super::sv::SvType {
+        super::sv::SvType::Float
+    }
     fn fields(prefix: &str, offset: u32, out: &mut Vec<Field>) {
         out.push(Field {
             name: prefix.to_string(),
@@ -237,6 +257,17 @@ impl Payload for f32 {
 
 impl Payload for Vec3 {
     const BITS: u32 = 96;
+    fn sv_type() -> super::sv::SvType {
+        use super::sv::SvType;
+        SvType::Struct {
+            name: "Vec3".into(),
+            members: vec![
+                ("x", SvType::Float),
+                ("y", SvType::Float),
+                ("z", SvType::Float),
+            ],
+        }
+    }
     fn fields(prefix: &str, offset: u32, out: &mut Vec<Field>) {
         for (k, n) in ["x", "y", "z"].into_iter().enumerate() {
             f32::fields(&field_path(prefix, n), offset + 32 * k as u32, out);
@@ -255,6 +286,18 @@ impl Payload for Vec3 {
 impl<T: Payload> Payload for Option<T> {
     // A valid bit in the LSB, then the payload (zeros when absent).
     const BITS: u32 = 1 + T::BITS;
+    /// `valid`, then the value's members (a leaf is `value`), as `fields`.
+    fn sv_type() -> super::sv::SvType {
+        use super::sv::SvType;
+        let inner = T::sv_type();
+        let name = inner.option_name();
+        let mut members = vec![("valid", SvType::Logic(1))];
+        match inner {
+            SvType::Struct { members: m, .. } => members.extend(m),
+            leaf => members.push(("value", leaf)),
+        }
+        SvType::Struct { name, members }
+    }
     /// `valid`, then the value's fields (a leaf value is named `value`).
     fn fields(prefix: &str, offset: u32, out: &mut Vec<Field>) {
         bool::fields(&field_path(prefix, "valid"), offset, out);
@@ -310,6 +353,12 @@ macro_rules! payload_struct {
                     at += <$t as $crate::rtl::bits::Payload>::BITS;
                 )*
             }
+            fn sv_type() -> $crate::rtl::sv::SvType {
+                $crate::rtl::sv::SvType::Struct {
+                    name: stringify!($name).to_string(),
+                    members: vec![$((stringify!($f), <$t as $crate::rtl::bits::Payload>::sv_type())),*],
+                }
+            }
             fn pack(&self, out: &mut $crate::rtl::bits::Bits) {
                 $($crate::rtl::bits::Payload::pack(&self.$f, out);)*
             }
@@ -342,6 +391,12 @@ macro_rules! fsm_states {
             }
             fn enum_names() -> Option<&'static [&'static str]> {
                 Some(&[stringify!($first) $(, stringify!($rest))*])
+            }
+            fn sv_type() -> $crate::rtl::sv::SvType {
+                $crate::rtl::sv::SvType::Enum {
+                    name: stringify!($name),
+                    names: &[stringify!($first) $(, stringify!($rest))*],
+                }
             }
         }
     };
@@ -422,6 +477,18 @@ mod tests {
         assert_eq!(f[1].kind, FieldKind::Float);
         assert_eq!(f[9].kind, FieldKind::Enum(Five::enum_names().unwrap()));
         assert!(u32::field_list().is_empty() && Five::field_list().is_empty());
+        // The SystemVerilog struct's leaves are these fields (an `Option`'s
+        // members inline after its `valid`, a leaf one as `value`).
+        let mut leaves = Vec::new();
+        Outer::sv_type().leaves("", 0, &mut leaves);
+        let want: Vec<(String, u32, u32)> = f
+            .iter()
+            .map(|x| (x.name.clone(), x.offset, x.width))
+            .collect();
+        assert_eq!(leaves, want);
+        assert_eq!(Outer::sv_type().width(), Outer::BITS);
+        assert_eq!(<Option<Pair>>::sv_type().sv_name(), "opt_pair_t");
+        assert_eq!(<Option<f32>>::sv_type().sv_name(), "opt_f32_t");
         let v = Outer {
             p: Pair {
                 a: 7,

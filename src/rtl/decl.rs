@@ -21,6 +21,11 @@ pub struct PortDecl {
     /// Payload width in bits (the `x_data` vector).
     pub width: u32,
     pub link: LinkId,
+    /// The payload's SystemVerilog type (`Payload::sv_type`).
+    pub ty: super::sv::SvType,
+    /// The payload's leaf fields (`Payload::field_list`; empty for a leaf):
+    /// what the waveform shows and the package's struct must lay out.
+    pub fields: Vec<super::bits::Field>,
 }
 
 /// One piece of clocked state as the Verilog skeleton and the trace see it.
@@ -41,6 +46,9 @@ pub struct StateDecl {
     /// A register's payload fields (`Payload::field_list`; empty for a leaf),
     /// which the waveform shows beside the packed value.
     pub fields: Vec<super::bits::Field>,
+    /// A register's SystemVerilog type (`Payload::sv_type`; `None`: a plain
+    /// vector). The skeleton declares an FSM state register as its enum.
+    pub ty: Option<super::sv::SvType>,
 }
 
 impl StateDecl {
@@ -52,6 +60,7 @@ impl StateDecl {
             enum_names: None,
             reset: super::bits::Bits::new(),
             fields: Vec::new(),
+            ty: None,
         }
     }
     pub fn array(name: impl Into<String>, width: u32, depth: u32) -> Self {
@@ -62,6 +71,7 @@ impl StateDecl {
             enum_names: None,
             reset: super::bits::Bits::new(),
             fields: Vec::new(),
+            ty: None,
         }
     }
     pub fn bits(&self) -> u64 {

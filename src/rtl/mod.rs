@@ -9,6 +9,7 @@ pub mod model;
 pub mod pipe;
 pub mod sim;
 pub mod state;
+pub mod sv;
 pub mod trace;
 pub mod unit;
 pub mod verilog;

@@ -121,6 +121,7 @@ impl<T: Payload> State for Reg<T> {
         let mut d = StateDecl::reg(name, T::BITS);
         d.enum_names = T::enum_names();
         d.fields = T::field_list();
+        d.ty = Some(T::sv_type());
         out.items.push(d);
     }
     fn sample(&self, _cycle: u64, out: &mut Samples) {

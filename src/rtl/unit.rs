@@ -317,12 +317,16 @@ macro_rules! unit {
                         name: stringify!($i),
                         dir: $crate::rtl::PortDir::In,
                         width: <$it as $crate::rtl::Payload>::BITS,
+                        ty: <$it as $crate::rtl::Payload>::sv_type(),
+                        fields: <$it as $crate::rtl::Payload>::field_list(),
                         link: self.$i.id,
                     },)*
                     $($crate::rtl::PortDecl {
                         name: stringify!($o),
                         dir: $crate::rtl::PortDir::Out,
                         width: <$ot as $crate::rtl::Payload>::BITS,
+                        ty: <$ot as $crate::rtl::Payload>::sv_type(),
+                        fields: <$ot as $crate::rtl::Payload>::field_list(),
                         link: self.$o.id,
                     },)*
                 ];
@@ -331,6 +335,8 @@ macro_rules! unit {
                         name: $crate::rtl::decl::array_port_name(stringify!($ia), k),
                         dir: $crate::rtl::PortDir::In,
                         width: <$iat as $crate::rtl::Payload>::BITS,
+                        ty: <$iat as $crate::rtl::Payload>::sv_type(),
+                        fields: <$iat as $crate::rtl::Payload>::field_list(),
                         link: p.id,
                     });
                 })*)?
@@ -339,6 +345,8 @@ macro_rules! unit {
                         name: $crate::rtl::decl::array_port_name(stringify!($oa), k),
                         dir: $crate::rtl::PortDir::Out,
                         width: <$oat as $crate::rtl::Payload>::BITS,
+                        ty: <$oat as $crate::rtl::Payload>::sv_type(),
+                        fields: <$oat as $crate::rtl::Payload>::field_list(),
                         link: p.id,
                     });
                 })*)?

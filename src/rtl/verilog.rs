@@ -5,11 +5,45 @@
 //! declared with their reset, and outputs tied low: a skeleton for RTL designers to
 //! fill in, whose interface is guaranteed to match the model. The text passes
 //! `verilator --lint-only -Wall`, `iverilog -g2012` and yosys `check -assert` with no
-//! lint pragmas.
+//! lint pragmas, given the package `ds_pkg.sv` first.
+//!
+//! A port whose payload is a struct (or an FSM state) carries the package's
+//! type (`input  box_req_t req_data`); an FSM state register is its enum and
+//! resets to the model's state by name.
 
 use std::fmt::Write;
 
-use super::decl::{PortDir, UnitDecl};
+use super::decl::{PortDir, StateDecl, UnitDecl};
+use super::sv::{SvType, enum_literal};
+
+/// The package import every generated module makes. Yosys 0.23 (Debian 12)
+/// parses no `import` (and Icarus 11 no `ds_pkg::` type names): under
+/// `YOSYS` the package's declarations are in the compilation unit instead.
+pub const IMPORT: &str = "`ifndef YOSYS\n    import ds_pkg::*;\n`endif\n";
+
+/// A port's declaration: `input  box_req_t req_data`, `output wire [7:0] x`.
+pub fn port_decl(dir: PortDir, ty: &SvType, name: &str) -> String {
+    let d = match dir {
+        PortDir::In => "input ",
+        PortDir::Out => "output",
+    };
+    if ty.is_named() {
+        format!("{d} {} {name}", ty.sv_name())
+    } else {
+        format!("{d} wire {}{name}", range(ty.width()))
+    }
+}
+
+/// An enum register's type and reset literal (`TP_STATE_IDLE`).
+fn enum_reg(s: &StateDecl) -> Option<(String, String)> {
+    match &s.ty {
+        Some(t @ SvType::Enum { name, names }) if s.depth.is_none() => {
+            let k = s.reset.words().first().copied().unwrap_or(0) as usize;
+            Some((t.sv_name(), enum_literal(name, names.get(k)?)))
+        }
+        _ => None,
+    }
+}
 
 fn range(width: u32) -> String {
     if width == 1 {
@@ -34,19 +68,19 @@ pub fn emit_module(d: &UnitDecl) -> String {
     }
     let _ = writeln!(
         w,
-        "// Ports are valid/ready links; data is the payload packed LSB-first."
+        "// Ports are valid/ready links; data is the payload packed LSB-first (ds_pkg.sv's types)."
     );
     let _ = writeln!(w, "// State: {} bits.", d.state_bits());
-    let _ = write!(w, "module {}", d.module);
+    let _ = write!(w, "module {}\n{IMPORT}", d.module);
     if !d.params.is_empty() {
-        let _ = writeln!(w, " #(");
+        let _ = writeln!(w, "#(");
         for (i, p) in d.params.iter().enumerate() {
             let sep = if i + 1 == d.params.len() { "" } else { "," };
             let _ = writeln!(w, "    parameter integer {} = {}{}", p.name, p.value, sep);
         }
-        let _ = write!(w, ")");
+        let _ = write!(w, ") ");
     }
-    let _ = writeln!(w, " (");
+    let _ = writeln!(w, "(");
     let mut lines = vec!["input  wire clk".to_string(), "input  wire rst".to_string()];
     for p in &d.ports {
         let (din, dout) = match p.dir {
@@ -55,7 +89,7 @@ pub fn emit_module(d: &UnitDecl) -> String {
         };
         lines.push(format!("{din} wire {}_valid", p.name));
         lines.push(format!("{dout} wire {}_ready", p.name));
-        lines.push(format!("{din} wire {}{}_data", range(p.width), p.name));
+        lines.push(port_decl(p.dir, &p.ty, &format!("{}_data", p.name)));
     }
     let _ = writeln!(w, "    {}", lines.join(",\n    "));
     let _ = writeln!(w, ");");
@@ -76,7 +110,14 @@ pub fn emit_module(d: &UnitDecl) -> String {
     for s in &d.state {
         match s.depth {
             None => {
-                let _ = writeln!(w, "    reg {}{};", range(s.width), s.name);
+                match enum_reg(s) {
+                    Some((ty, _)) => {
+                        let _ = writeln!(w, "    {ty} {};", s.name);
+                    }
+                    None => {
+                        let _ = writeln!(w, "    reg {}{};", range(s.width), s.name);
+                    }
+                }
                 used.push(s.name.clone());
             }
             Some(depth) => {
@@ -86,7 +127,8 @@ pub fn emit_module(d: &UnitDecl) -> String {
                 used.push(format!("^{}[0]", s.name));
             }
         }
-        if let Some(names) = s.enum_names {
+        // An enum register's encodings are its type's (the package).
+        if let Some(names) = s.enum_names.filter(|_| enum_reg(s).is_none()) {
             let enc: Vec<String> = names
                 .iter()
                 .enumerate()
@@ -105,7 +147,8 @@ pub fn emit_module(d: &UnitDecl) -> String {
     for s in &d.state {
         match s.depth {
             None => {
-                let _ = writeln!(w, "            {} <= {};", s.name, s.reset_literal());
+                let reset = enum_reg(s).map_or_else(|| s.reset_literal(), |(_, lit)| lit);
+                let _ = writeln!(w, "            {} <= {reset};", s.name);
             }
             Some(depth) => {
                 let _ = writeln!(

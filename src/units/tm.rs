@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 use crate::contract::{HitRec, RayRec};
 use crate::rtl::PipeCfg;
 use crate::rtl::bits::{Bits, Field, Payload, field_path};
+use crate::rtl::sv::SvType;
 use crate::rtl::{ClockId, In, LinkCfg, Out, Sim, UnitId};
 
 use super::divider::{Divider, DividerPorts};
@@ -49,6 +50,17 @@ pub struct TmSpec {
 
 impl Payload for RayRec {
     const BITS: u32 = 256;
+    fn sv_type() -> SvType {
+        SvType::Struct {
+            name: "RayRec".into(),
+            members: vec![
+                ("origin", glam::Vec3::sv_type()),
+                ("dir", glam::Vec3::sv_type()),
+                ("ray_id", SvType::Logic(32)),
+                ("entry", SvType::Logic(32)),
+            ],
+        }
+    }
     fn fields(prefix: &str, at: u32, out: &mut Vec<Field>) {
         glam::Vec3::fields(&field_path(prefix, "origin"), at, out);
         glam::Vec3::fields(&field_path(prefix, "dir"), at + 96, out);
@@ -71,6 +83,17 @@ impl Payload for RayRec {
 
 impl Payload for HitRec {
     const BITS: u32 = 128;
+    fn sv_type() -> SvType {
+        SvType::Struct {
+            name: "HitRec".into(),
+            members: vec![
+                ("t", SvType::Float),
+                ("tri_id", SvType::Logic(32)),
+                ("u", SvType::Float),
+                ("v", SvType::Float),
+            ],
+        }
+    }
     fn fields(prefix: &str, at: u32, out: &mut Vec<Field>) {
         f32::fields(&field_path(prefix, "t"), at, out);
         u32::fields(&field_path(prefix, "tri_id"), at + 32, out);
@@ -603,6 +626,7 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &TmSpec, path: &str, ports: TmP
 /// simulator, so it is exactly the simulated netlist.
 pub fn emit_verilog(cfg: &TmSpec) -> String {
     use crate::rtl::decl::PortDir;
+    use crate::rtl::verilog::{IMPORT, port_decl};
     use std::collections::BTreeMap;
     use std::fmt::Write;
     let mut sim = Sim::default();
@@ -633,14 +657,14 @@ pub fn emit_verilog(cfg: &TmSpec) -> String {
     let names: Vec<String> = sim.link_stats().into_iter().map(|(n, _)| n).collect();
     let decls = sim.decls();
     // link -> (producer (inst, port), consumer (inst, port))
-    type End = Option<(String, &'static str, u32)>;
+    type End = Option<(String, &'static str, crate::rtl::sv::SvType)>;
     let mut ends: BTreeMap<u32, [End; 2]> = BTreeMap::new();
     for (path, d) in &decls {
         let inst = path.trim_start_matches("tm.").to_string();
         for p in &d.ports {
             let e = ends.entry(p.link.0).or_default();
             let k = if p.dir == PortDir::Out { 0 } else { 1 };
-            e[k] = Some((inst.clone(), p.name, p.width));
+            e[k] = Some((inst.clone(), p.name, p.ty.clone()));
         }
     }
     let mut v = String::new();
@@ -674,26 +698,26 @@ pub fn emit_verilog(cfg: &TmSpec) -> String {
                     .replace('.', "_");
                 wires.push(format!("    wire {w}_valid;"));
                 wires.push(format!("    wire {w}_ready;"));
-                wires.push(format!("    wire {}{w}_data;", rng(p.2)));
+                wires.push(format!("    wire {}{w}_data;", rng(p.2.width())));
                 conn.insert((p.0.clone(), p.1), w.clone());
                 conn.insert((c.0.clone(), c.1), w);
             }
             [Some(p), None] => {
                 ports.push(format!("output wire {}_valid", p.1));
                 ports.push(format!("input  wire {}_ready", p.1));
-                ports.push(format!("output wire {}{}_data", rng(p.2), p.1));
+                ports.push(port_decl(PortDir::Out, &p.2, &format!("{}_data", p.1)));
                 conn.insert((p.0.clone(), p.1), p.1.to_string());
             }
             [None, Some(c)] => {
                 ports.push(format!("input  wire {}_valid", c.1));
                 ports.push(format!("output wire {}_ready", c.1));
-                ports.push(format!("input  wire {}{}_data", rng(c.2), c.1));
+                ports.push(port_decl(PortDir::In, &c.2, &format!("{}_data", c.1)));
                 conn.insert((c.0.clone(), c.1), c.1.to_string());
             }
             [None, None] => {}
         }
     }
-    let _ = writeln!(v, "module tm (\n    {}\n);", ports.join(",\n    "));
+    let _ = writeln!(v, "module tm\n{IMPORT}(\n    {}\n);", ports.join(",\n    "));
     for w in wires {
         let _ = writeln!(v, "{w}");
     }

@@ -2,6 +2,9 @@
 
 use std::path::{Path, PathBuf};
 
+#[allow(dead_code)] // read by the tests of the generated SystemVerilog
+pub mod sv;
+
 /// A directory of one test's own under the system's temporary directory,
 /// removed with everything in it when the test passes. A failing test leaves it
 /// in place, so its files can be looked at.

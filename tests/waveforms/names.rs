@@ -18,6 +18,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::process::Command;
 
+use crate::common::sv::Pkg;
 use crate::common::{Scratch, succeeds};
 use crate::{chip_trace, dualstream, have, read};
 
@@ -46,10 +47,16 @@ struct Module {
     instances: Vec<(String, String)>,
 }
 
-/// Every module of the emitted files in `dir`, by name.
+/// Every module of the emitted files in `dir`, by name; a port or register
+/// of a package type (`input  box_req_t req_data`) as wide as the type in
+/// `ds_pkg.sv`.
 fn parse_netlist(files: &BTreeMap<String, String>) -> BTreeMap<String, Module> {
+    let pkg = Pkg::parse(&files["ds_pkg.sv"]);
     let mut out = BTreeMap::new();
-    for text in files.values() {
+    for (file, text) in files {
+        if !file.ends_with(".v") {
+            continue;
+        }
         let mut name = None;
         let mut m = Module::default();
         for line in text.lines() {
@@ -58,24 +65,10 @@ fn parse_netlist(files: &BTreeMap<String, String>) -> BTreeMap<String, Module> {
                 name = Some(r.split([' ', '(', '#']).next().unwrap().to_string());
                 continue;
             }
-            // `input  wire [W:0] name`, `reg [W:0] name`, `reg name [0:D]`.
-            let decl = l
-                .strip_prefix("input  wire ")
-                .or_else(|| l.strip_prefix("output wire "))
-                .map(|r| (r, "wire"))
-                .or_else(|| l.strip_prefix("reg ").map(|r| (r, "reg")));
-            if let Some((rest, kind)) = decl {
-                if rest.contains(" [0:") {
-                    continue; // a memory
-                }
-                let (width, var) = match rest.strip_prefix('[') {
-                    Some(r) => {
-                        let (msb, var) = r.split_once(":0] ").unwrap();
-                        (msb.parse::<u32>().unwrap() + 1, var)
-                    }
-                    None => (1, rest),
-                };
-                m.vars.insert(var.to_string(), (width, kind.to_string()));
+            // `input  wire [W:0] name`, `input  box_req_t name`, `reg [W:0]
+            // name`, `tp_state_t state` (not `reg name [0:D]`, a memory).
+            if let Some((var, ty, kind)) = pkg.decl(line) {
+                m.vars.insert(var, (pkg.width(&ty), kind.to_string()));
                 continue;
             }
             // An instance: `module #(...) name (` or `module name (`.
@@ -367,6 +360,7 @@ fn an_rtl_trace_lines_up_with_the_model_trace() {
             .arg(&sim)
             .arg("-y")
             .arg(d.join("hdl"))
+            .arg(d.join("hdl/ds_pkg.sv"))
             .arg(d.join("hdl/chip.v"))
             .arg(&dump),
         "iverilog",
