@@ -18,12 +18,6 @@ struct Cli {
     /// Configuration file (TOML); missing keys take the paper's values.
     #[arg(long, global = true)]
     config: Option<PathBuf>,
-    /// Simulator threads: `auto` (the default) or 1 up to the machine's cores.
-    /// Cycle mode spreads the TMs over N lanes (auto measures the run and uses
-    /// one lane while more do not pay); time sampling runs N windows side by
-    /// side (auto: one per core). Results are bit-identical for every choice.
-    #[arg(long, global = true, default_value = "auto", value_name = "auto|N")]
-    threads: String,
     /// The chip's memory in cycle mode: gddr5 (the paper's 16-channel GDDR5,
     /// the default) or fixed (a fixed latency and bandwidth: faster to think
     /// about, not the paper's figures). Overrides `[chip.memory] model`.
@@ -65,14 +59,13 @@ fn run(cli: Cli) -> Result<(), cli::CliError> {
     if let Some(m) = &cli.memory {
         config.chip.memory.model = dualstream::units::memory::MemoryModel::parse(m)?;
     }
-    let threads = cli::sim_threads(&cli.threads)?;
     match cli.cmd {
         Cmd::Tb(a) => cli::tb::tb(config, a),
-        Cmd::Render(a) => cli::render::render(config, threads, a),
-        Cmd::Report(a) => cli::report::report(config, threads, a),
-        Cmd::Scene { cmd } => cli::scene::scene(&config, threads, cmd),
+        Cmd::Render(a) => cli::render::render(config, a.threads.get()?, a),
+        Cmd::Report(a) => cli::report::report(config, a.threads.get()?, a),
+        Cmd::Scene { cmd } => cli::scene::scene(&config, cmd),
         Cmd::Hdl(a) => cli::hdl::hdl(&config, a),
-        Cmd::Bench { cmd } => cli::bench::bench(config, threads, cmd),
+        Cmd::Bench { cmd } => cli::bench::bench(config, cmd),
         Cmd::Dram(a) => cli::dram::dram(config, a),
         Cmd::Config(a) => cli::config::config(&config, a),
     }

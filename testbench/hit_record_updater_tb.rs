@@ -383,6 +383,11 @@ pub fn run_with(opts: &TbOptions, b: &HruTbCfg) -> Result<TbReport, TbError> {
 }
 
 fn check_knobs(opts: &TbOptions, b: &HruTbCfg) -> Result<(), TbError> {
+    if opts.cycles == 0 {
+        return Err(TbError::Invalid(
+            "--cycles 0 runs nothing; give at least 1 cycle".into(),
+        ));
+    }
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) || !prob(opts.load) {
         return Err(TbError::Invalid(
@@ -487,6 +492,10 @@ fn drive(
         for _ in 0..b.updates_per_tm {
             while !rng.chance(opts.load) {
                 c += 1;
+            }
+            // `--cycles` is the stimulus window; the workload caps it.
+            if c >= opts.cycles {
+                break;
             }
             let index = if rng.chance(0.6) {
                 rng.below(hot as u64) as u32

@@ -152,6 +152,11 @@ pub fn run_with(opts: &TbOptions, b: &L2TbCfg) -> Result<TbReport, TbError> {
 }
 
 fn check_knobs(opts: &TbOptions, b: &L2TbCfg) -> Result<(), TbError> {
+    if opts.cycles == 0 {
+        return Err(TbError::Invalid(
+            "--cycles 0 runs nothing; give at least 1 cycle".into(),
+        ));
+    }
     let prob = |p: f64| p > 0.0 && p <= 1.0;
     if !prob(opts.ready_p) || !prob(opts.load) {
         return Err(TbError::Invalid(
@@ -291,6 +296,10 @@ fn drive(
         for id in 0..b.requests_per_client {
             while !rng.chance(opts.load) {
                 c += 1;
+            }
+            // `--cycles` is the stimulus window; the workload caps it.
+            if c >= opts.cycles {
+                break;
             }
             let line = if rng.chance(0.5) {
                 rng.below(hot)

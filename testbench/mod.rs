@@ -53,8 +53,38 @@ pub struct Bench {
     /// The clock the bench runs on: `--cycles` and `--trace-from/--trace-to`
     /// count its cycles.
     pub clock: BenchClock,
+    /// The stimulus options (`--cycles`, `--ready`, `--load`) the bench
+    /// reads; `tb` refuses the others rather than ignore them.
+    pub knobs: &'static [Knob],
+    /// What it runs when `--cycles` is not among its knobs, or what bounds
+    /// it besides `--cycles` (its fixed workload), as `tb` reports it.
+    pub workload: &'static str,
     pub runner: Runner,
 }
+
+/// A stimulus option of `dualstream tb`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Knob {
+    /// `--cycles`: how long the stimulus runs.
+    Cycles,
+    /// `--ready`: the sinks' back-pressure.
+    Ready,
+    /// `--load`: the drivers' request rate.
+    Load,
+}
+
+impl Knob {
+    pub fn flag(self) -> &'static str {
+        match self {
+            Knob::Cycles => "--cycles",
+            Knob::Ready => "--ready",
+            Knob::Load => "--load",
+        }
+    }
+}
+
+/// Random stimulus over `--cycles` with back-pressure and load.
+const RANDOM: &[Knob] = &[Knob::Cycles, Knob::Ready, Knob::Load];
 
 /// A bench's clock, from the configuration's `[clocks]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -89,6 +119,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "ray-box pipeline: results against the reference test, exact latency and interval",
         units: &["box_pipe"],
         clock: BenchClock::Core,
+        knobs: RANDOM,
+        workload: "",
         runner: Runner::Unit(pipe_tb::run_random::<box_pipe_tb::BoxKind>),
     },
     Bench {
@@ -97,6 +129,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "ray-triangle pipeline: results against the reference test, exact latency and interval",
         units: &["tri_pipe"],
         clock: BenchClock::Core,
+        knobs: RANDOM,
+        workload: "",
         runner: Runner::Unit(pipe_tb::run_random::<tri_pipe_tb::TriKind>),
     },
     Bench {
@@ -105,6 +139,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "TM-shared divider: reciprocals against the reference, exact latency and interval",
         units: &["divider"],
         clock: BenchClock::Core,
+        knobs: RANDOM,
+        workload: "",
         runner: Runner::Unit(pipe_tb::run_random::<divider_tb::DivKind>),
     },
     Bench {
@@ -113,6 +149,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "L1 (directed): a line behind a blocked fill is answered the next cycle",
         units: &["l1"],
         clock: BenchClock::Core,
+        knobs: &[],
+        workload: "a directed script: a line requested behind a blocked fill",
         runner: Runner::Unit(l1_tb::run),
     },
     Bench {
@@ -121,6 +159,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "one GDDR5 channel: one response per request, the command stream passes the independent timing checker",
         units: &["mem_ctrl"],
         clock: BenchClock::Dram,
+        knobs: RANDOM,
+        workload: "",
         runner: Runner::Unit(mem_ctrl_tb::run_random),
     },
     Bench {
@@ -129,6 +169,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "memory unit (fixed model, directed): answers at its latency, one line per cycle round-robin, masked writes",
         units: &["memory"],
         clock: BenchClock::Core,
+        knobs: &[],
+        workload: "a directed script: reads and masked writes on every port",
         runner: Runner::Unit(memory_tb::run),
     },
     Bench {
@@ -137,6 +179,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "staging buffer (directed): every ray to a TP once with its bucket's header, in fill order, one swap per bucket",
         units: &["staging_buffer"],
         clock: BenchClock::Core,
+        knobs: &[Knob::Ready],
+        workload: "a directed script: three ray buckets (4, 2 and 3 rays) through halves of 4",
         runner: Runner::Unit(staging_buffer_tb::run),
     },
     Bench {
@@ -145,6 +189,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "hit record updater: each record equals the atomic-min of its updates, bit for bit; merges counted",
         units: &["hit_record_updater"],
         clock: BenchClock::Core,
+        knobs: RANDOM,
+        workload: "at most 400 updates per TM from 4 TMs on 48 records",
         runner: Runner::Unit(hit_record_updater_tb::run),
     },
     Bench {
@@ -153,6 +199,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "scene buffer: every line answered with the DRAM image's bytes, slots reused while late lines of retired segments are dropped",
         units: &["scene_buffer"],
         clock: BenchClock::Core,
+        knobs: &[Knob::Ready],
+        workload: "a fixed script: 150 line requests from each of 6 TMs over two phases of segment maps",
         runner: Runner::Unit(scene_buffer_tb::run),
     },
     Bench {
@@ -161,6 +209,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "L2: every read equals a replay of the access log (hits, MSHR merges, dirty evictions, flushes)",
         units: &["l2"],
         clock: BenchClock::Core,
+        knobs: RANDOM,
+        workload: "at most 500 accesses from each of 4 clients",
         runner: Runner::Unit(l2_tb::run),
     },
     Bench {
@@ -169,6 +219,8 @@ pub const BENCHES: &[Bench] = &[
         checks: "stream scheduler on a real scene: every ray reaches every segment it is sent to, once, skipped subtrees stay skipped",
         units: &["stream_scheduler"],
         clock: BenchClock::Core,
+        knobs: &[Knob::Ready],
+        workload: "a real scene's segments and ray buckets, until every ray is done",
         runner: Runner::Unit(stream_scheduler_tb::run),
     },
     Bench {
@@ -184,6 +236,8 @@ pub const BENCHES: &[Bench] = &[
             "tri_pipe",
         ],
         clock: BenchClock::Core,
+        knobs: &[],
+        workload: "the primary rays of one treelet (--scene, --treelet, --rays, --res)",
         runner: Runner::Treelet,
     },
 ];

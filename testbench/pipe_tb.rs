@@ -107,11 +107,14 @@ impl std::fmt::Display for TbReport {
             "  requests {}  results {}  cycles {}",
             self.requests, self.results, self.cycles
         )?;
-        writeln!(
-            f,
-            "  latency min {} max {} (cycles, acceptance to visible result)",
-            self.min_latency, self.max_latency
-        )?;
+        // Only benches that time each request measure a latency.
+        if self.max_latency > 0 {
+            writeln!(
+                f,
+                "  latency min {} max {} (cycles, acceptance to visible result)",
+                self.min_latency, self.max_latency
+            )?;
+        }
         writeln!(
             f,
             "  unit status cycles: busy {} wait_input {} output_blocked {} resource_busy {}",

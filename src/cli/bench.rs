@@ -84,6 +84,8 @@ pub struct TraceArgs {
 
 #[derive(Args)]
 pub struct SpeedErrorArgs {
+    #[command(flatten)]
+    threads: super::ThreadsArg,
     /// The scene (builtin name, .toml or .obj).
     #[arg(long, default_value = "cornell")]
     scene: String,
@@ -250,11 +252,11 @@ impl WindowArgs {
     }
 }
 
-pub fn bench(config: Config, threads: Threads, cmd: BenchCmd) -> Result<(), CliError> {
+pub fn bench(config: Config, cmd: BenchCmd) -> Result<(), CliError> {
     match cmd {
         BenchCmd::Kernel(s) => print!("{}", dualstream::bench::kernel_report(s.checked()?)),
         BenchCmd::Dram(s) => print!("{}", dualstream::mem::bench::report(s.checked()?)?),
-        BenchCmd::SpeedError(a) => speed_error(&config, threads, *a)?,
+        BenchCmd::SpeedError(a) => speed_error(&config, a.threads.get()?, *a)?,
         BenchCmd::Threads(a) => threads_bench(&config, a)?,
         BenchCmd::Trace(a) => trace_bench(&config, a)?,
         BenchCmd::Busy => dualstream::bench::threads::busy(),

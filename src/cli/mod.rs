@@ -90,6 +90,27 @@ pub fn parse_size(s: &str, flag: &str) -> Result<u64, CliError> {
     })
 }
 
+/// `--threads`, on the commands that simulate (render, report, scene info,
+/// bench speed-error): not a global flag, so `config`, `hdl` and `tb` (one
+/// thread, always) neither list nor take it.
+#[derive(clap::Args)]
+pub struct ThreadsArg {
+    /// Simulator threads: `auto` (the default) or 1 up to the machine's cores.
+    #[arg(
+        long,
+        default_value = "auto",
+        value_name = "auto|N",
+        long_help = "Simulator threads: `auto` (the default) or 1 up to the machine's cores. Cycle mode spreads the TMs over N lanes (auto measures the run and uses one lane while more do not pay); time sampling runs N windows side by side (auto: one per core). Results are bit-identical for every choice."
+    )]
+    pub threads: String,
+}
+
+impl ThreadsArg {
+    pub fn get(&self) -> Result<Threads, CliError> {
+        sim_threads(&self.threads)
+    }
+}
+
 /// `--threads`, checked.
 pub fn sim_threads(threads: &str) -> Result<Threads, CliError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());

@@ -17,6 +17,8 @@ use dualstream::sampling::{self, WindowEstimate};
 
 #[derive(Args)]
 pub struct RenderArgs {
+    #[command(flatten)]
+    pub threads: super::ThreadsArg,
     /// Builtin scene name, scene description (.toml) or Wavefront .obj.
     #[arg(long, default_value = dualstream::scene::DEFAULT_SCENE)]
     scene: String,
@@ -33,6 +35,9 @@ pub struct RenderArgs {
     /// Hit points per path (default: the scene's, 5 as in the paper).
     #[arg(long)]
     bounces: Option<u32>,
+    /// Seed of the path tracer's random numbers (default: the scene's, 1
+    /// unless its file sets `seed`): the same seed gives the same image and
+    /// statistics, bit for bit.
     #[arg(long)]
     seed: Option<u64>,
     /// Output image (PNG).

@@ -17,6 +17,8 @@ use dualstream::sampling;
 
 #[derive(Args)]
 pub struct ReportArgs {
+    #[command(flatten)]
+    pub threads: super::ThreadsArg,
     /// What to report: paper.
     what: String,
     /// Resolution (the paper's is 1024x1024).

@@ -13,12 +13,14 @@ pub enum SceneCmd {
     Info {
         /// Builtin scene name, scene description (.toml) or Wavefront .obj.
         scene: String,
+        #[command(flatten)]
+        threads: super::ThreadsArg,
     },
 }
 
-pub fn scene(config: &Config, threads: Threads, cmd: SceneCmd) -> Result<(), CliError> {
+pub fn scene(config: &Config, cmd: SceneCmd) -> Result<(), CliError> {
     match cmd {
-        SceneCmd::Info { scene } => info(config, threads, &scene),
+        SceneCmd::Info { scene, threads } => info(config, threads.get()?, &scene),
     }
 }
 

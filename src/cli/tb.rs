@@ -15,25 +15,34 @@ use super::{CliError, WaveArgs, parse_res, parse_size};
 pub struct TbArgs {
     #[arg(help = unit_help(), long_help = unit_long_help())]
     unit: String,
-    /// Cycles of stimulus (the bench then drains).
-    #[arg(long, default_value_t = 10_000)]
-    cycles: u64,
+    /// Cycles of stimulus, then the bench drains [default: 10000]. Random
+    /// benches only: a directed or scripted bench refuses it.
+    #[arg(long)]
+    cycles: Option<u64>,
+    /// Seed of the random stimulus and back-pressure.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Probability that the consumer is ready in a cycle (back-pressure below 1).
-    #[arg(long, default_value_t = 0.8)]
-    ready: f64,
-    /// Probability of a new request per cycle.
-    #[arg(long, default_value_t = 0.5)]
-    load: f64,
+    /// Probability that a sink is ready in a cycle (back-pressure below 1)
+    /// [default: 0.8]. Benches with sinks only.
+    #[arg(long)]
+    ready: Option<f64>,
+    /// Probability of a new request per cycle [default: 0.5]. Random
+    /// benches only.
+    #[arg(long)]
+    load: Option<f64>,
     /// Write a waveform here: FST for a `.fst` path (FSM states by name), VCD
     /// otherwise.
     #[arg(long, alias = "wave")]
     vcd: Option<PathBuf>,
     /// Units to trace: comma-separated instance patterns (`*` wildcard), or a
     /// bench's name in either spelling (`scheduler` for `stream_scheduler`).
-    #[arg(long, default_value = "")]
+    /// `--trace-units` as in `render`.
+    #[arg(long, alias = "trace-units", default_value = "")]
     trace: String,
+    /// Cycles to trace, of the bench's own clock: A..B (B excluded), A..=B or
+    /// A.. (to the end), as in `render`.
+    #[arg(long, conflicts_with_all = ["trace_from", "trace_to"])]
+    trace_window: Option<String>,
     /// First cycle to trace, of the bench's own clock (the one `--cycles`
     /// counts: the DRAM clock for mem_ctrl, the core clock for the others).
     #[arg(long, default_value_t = 0)]
@@ -97,10 +106,19 @@ fn unit_long_help() -> String {
 
 /// `dualstream tb UNIT`: runs the bench, prints its report and fails if the
 /// scoreboard found errors.
-pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
+pub fn tb(config: Config, mut a: TbArgs) -> Result<(), CliError> {
     let bench = testbench::find(&a.unit)?;
+    if let Some(w) = &a.trace_window {
+        (a.trace_from, a.trace_to) = dualstream::machine::trace::parse_window(w)?;
+    }
+    check_knobs(bench, &a)?;
+    let cycles = a.cycles.unwrap_or(10_000);
     // Trace options without a waveform file would be ignored: say so.
-    let traced = !a.trace.is_empty() || a.trace_from != 0 || a.trace_to.is_some() || a.wave.trims();
+    let traced = !a.trace.is_empty()
+        || a.trace_window.is_some()
+        || a.trace_from != 0
+        || a.trace_to.is_some()
+        || a.wave.trims();
     if traced && a.vcd.is_none() {
         return Err(CliError::Usage(
             "--trace, --trace-from/--trace-to, --trace-signals and --trace-max-width choose what a waveform holds; give --vcd FILE (.vcd or .fst) to write one".into(),
@@ -119,8 +137,7 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
     let ps = |c: u64, flag: &str| {
         c.checked_mul(p).ok_or_else(|| {
             CliError::Usage(format!(
-                "{flag} {c}: no run reaches that cycle of the {clock} clock ({p} ps); give a cycle within the run (--cycles {})",
-                a.cycles
+                "{flag} {c}: no run reaches that cycle of the {clock} clock ({p} ps); give a cycle within the run (--cycles {cycles})"
             ))
         })
     };
@@ -142,10 +159,10 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
     };
     spec.validate()?;
     let opts = TbOptions {
-        cycles: a.cycles,
+        cycles,
         seed: a.seed,
-        ready_p: a.ready,
-        load: a.load,
+        ready_p: a.ready.unwrap_or(0.8),
+        load: a.load.unwrap_or(0.5),
         vcd: a.vcd.clone(),
         trace: spec,
         sim: SimOptions {
@@ -176,6 +193,7 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
         };
         let rep = testbench::tm_tb::run(&topts)?;
         print!("{rep}");
+        println!("  stimulus: {}", bench.workload);
         println!("  wall time {:.3} s", start.elapsed().as_secs_f64());
         print_waveform(&a.vcd);
         return if rep.passed() {
@@ -186,6 +204,12 @@ pub fn tb(config: Config, a: TbArgs) -> Result<(), CliError> {
     }
     let rep = testbench::run_by_name(&a.unit, &opts)?;
     print!("{rep}");
+    println!("  stimulus: {}", stimulus(bench, &opts));
+    if a.shadow {
+        println!(
+            "  shadow: every sleeping unit was also evaluated at each edge of its clock, and none would have changed anything (the run fails if one would)"
+        );
+    }
     println!("  wall time {:.3} s", start.elapsed().as_secs_f64());
     print_waveform(&a.vcd);
     if !rep.passed() {
@@ -207,4 +231,63 @@ fn print_waveform(vcd: &Option<PathBuf>) {
             dualstream::rtl::trace::save_file_for(v).display()
         );
     }
+}
+
+/// Refuses a stimulus option the bench does not read (`--cycles` on a
+/// directed script, `--load` on a bench without drivers): ignoring it would
+/// report a run the user did not ask for.
+fn check_knobs(bench: &testbench::Bench, a: &TbArgs) -> Result<(), CliError> {
+    use testbench::Knob;
+    let given = [
+        (Knob::Cycles, a.cycles.is_some()),
+        (Knob::Ready, a.ready.is_some()),
+        (Knob::Load, a.load.is_some()),
+    ];
+    for (k, set) in given {
+        if set && !bench.knobs.contains(&k) {
+            let takers: Vec<&str> = testbench::BENCHES
+                .iter()
+                .filter(|b| b.knobs.contains(&k))
+                .map(|b| b.name)
+                .collect();
+            let reads = match bench.knobs {
+                [] => "none of --cycles, --ready, --load".to_string(),
+                ks => ks.iter().map(|k| k.flag()).collect::<Vec<_>>().join(", "),
+            };
+            return Err(CliError::Usage(format!(
+                "tb {} runs {}; {} does not apply to it (it reads {reads}); drop it, or use a bench that takes it: {}",
+                bench.name,
+                bench.workload,
+                k.flag(),
+                takers.join(", ")
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// What stimulus ran, in the bench's terms.
+fn stimulus(bench: &testbench::Bench, opts: &TbOptions) -> String {
+    use testbench::Knob;
+    let mut s = if bench.knobs.contains(&Knob::Cycles) {
+        let mut s = format!(
+            "random, {} cycles of the {} clock at load {}",
+            opts.cycles,
+            bench.clock.name(),
+            opts.load
+        );
+        if !bench.workload.is_empty() {
+            s.push_str(&format!(" ({}; --cycles ends it sooner)", bench.workload));
+        }
+        s
+    } else {
+        bench.workload.to_string()
+    };
+    if bench.knobs.contains(&Knob::Ready) {
+        s.push_str(&format!(", sinks ready with probability {}", opts.ready_p));
+    }
+    if !bench.knobs.is_empty() {
+        s.push_str(&format!(", seed {}", opts.seed));
+    }
+    s
 }

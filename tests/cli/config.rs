@@ -1,5 +1,5 @@
 //! The configuration: `--config` files (impossible ones refused), `dualstream
-//! config`, the example configs, and the global `--threads` and `--memory`.
+//! config`, the example configs, `--threads` (on the commands that simulate) and the global `--memory`.
 
 use crate::common::Scratch;
 use crate::{fails_with, run};
@@ -43,23 +43,28 @@ fn prints_the_default_config() {
 #[test]
 fn threads_and_memory_choices_are_checked() {
     fails_with(
-        &["--threads", "0", "config", "--print-default"],
+        &["render", "--threads", "0", "--res", "4x4"],
         &["--threads 0", "auto"],
     );
     fails_with(
-        &["--threads", "9999", "config", "--print-default"],
+        &["render", "--threads", "9999", "--res", "4x4"],
         &["core(s)", "auto"],
     );
     fails_with(
-        &["--threads", "two", "config", "--print-default"],
+        &["scene", "info", "cornell", "--threads", "two"],
         &["not a number"],
     );
+    // Only the commands that simulate take it: `config` and `hdl` neither
+    // list nor accept it.
+    fails_with(&["config", "--threads", "1"], &["--threads"]);
+    let o = run(&["hdl", "--help"]);
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("--threads"));
     fails_with(
         &["--memory", "sram", "config", "--print-default"],
         &["gddr5", "fixed"],
     );
     // `config` without --print-default prints the configuration in force.
-    let o = run(&["--threads", "1", "--memory", "fixed", "config"]);
+    let o = run(&["--memory", "fixed", "config"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("model = \"fixed\""));
     let o = run(&["config"]);

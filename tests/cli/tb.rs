@@ -164,3 +164,91 @@ fn tb_trace_options_without_a_waveform_are_refused() {
         &["--vcd FILE"],
     );
 }
+
+/// Every stimulus option is honoured or refused: `--cycles` bounds the
+/// random benches (the hit record updater sends fewer updates in 100 cycles
+/// than in 10,000), and a directed or scripted bench refuses the options it
+/// does not read, naming the benches that take them; the report says what
+/// ran, and `--shadow` that its check ran.
+#[test]
+fn stimulus_options_are_honoured_or_refused() {
+    let requests = |cycles: &str| {
+        let o = run(&["tb", "hru", "--cycles", cycles]);
+        let out = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(o.status.success(), "{out}");
+        assert!(out.contains(&format!("random, {cycles} cycles")), "{out}");
+        let line = out.lines().find(|l| l.contains("requests")).unwrap();
+        line.split_whitespace()
+            .nth(1)
+            .unwrap()
+            .parse::<u64>()
+            .unwrap()
+    };
+    let (short, long) = (requests("100"), requests("10000"));
+    assert!(short > 0 && short * 4 < long, "{short} vs {long}");
+    fails_with(
+        &["tb", "l1", "--cycles", "100"],
+        &[
+            "tb l1 runs a directed script",
+            "--cycles does not apply",
+            "box_pipe",
+        ],
+    );
+    fails_with(
+        &["tb", "stream_scheduler", "--load", "0.3"],
+        &["--load does not apply", "it reads --ready"],
+    );
+    fails_with(&["tb", "tm", "--ready", "0.5"], &["--ready does not apply"]);
+    let o = run(&["tb", "divider", "--cycles", "200", "--shadow"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && out.contains("shadow: every sleeping unit"),
+        "{out}"
+    );
+    let o = run(&["tb", "scene_buffer"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("stimulus: a fixed script"), "{out}");
+    assert!(!out.contains("latency min 0 max 0"), "{out}");
+}
+
+/// `tb` takes `render`'s trace flags: `--trace-units` and `--trace-window
+/// A..B` write the same waveform as `--trace` with `--trace-from A
+/// --trace-to B-1`.
+#[test]
+fn tb_takes_renders_trace_flags() {
+    let t = Scratch::new("cli-tb-flags");
+    let wave = |name: &str, extra: &[&str]| {
+        let p = t.join(name);
+        let mut a = vec![
+            "tb",
+            "box_pipe",
+            "--cycles",
+            "200",
+            "--vcd",
+            p.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        let o = run(&a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(&p).unwrap()
+    };
+    let a = wave(
+        "a.vcd",
+        &["--trace-units", "box_pipe", "--trace-window", "10..20"],
+    );
+    let b = wave(
+        "b.vcd",
+        &[
+            "--trace",
+            "box_pipe",
+            "--trace-from",
+            "10",
+            "--trace-to",
+            "19",
+        ],
+    );
+    assert!(a.len() > 100);
+    assert_eq!(a, b);
+    let c = wave("c.vcd", &["--trace-window", "10..30"]);
+    assert_ne!(a, c, "the window matters");
+}

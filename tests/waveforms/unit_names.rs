@@ -74,8 +74,6 @@ fn tb_trace_takes_a_benchs_other_name() {
     crate::dualstream(&[
         "tb",
         "scheduler",
-        "--cycles",
-        "100",
         "--vcd",
         p.to_str().unwrap(),
         "--trace",
