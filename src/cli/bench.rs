@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use clap::{Args, Subcommand};
 
 use dualstream::config::Config;
+use dualstream::render::header::{HeadedList, RunHeader, RunParams};
 use dualstream::rtl::Threads;
 use dualstream::sampling::{self, WindowPlan, speed_error};
 
@@ -273,6 +274,7 @@ pub fn bench(config: Config, cmd: BenchCmd) -> Result<(), CliError> {
 /// `dualstream bench threads`: every case on one lane, on one per core and on
 /// auto, idle and beside a busy process.
 fn threads_bench(config: &Config, a: ThreadsArgs) -> Result<(), CliError> {
+    let started = std::time::Instant::now();
     use dualstream::bench::threads as bt;
     let cases = bt::cases(a.modes.as_deref())?;
     let runs = bt::run(&a.scene, config, &cases, &mut |what| {
@@ -288,15 +290,18 @@ fn threads_bench(config: &Config, a: ThreadsArgs) -> Result<(), CliError> {
     );
     print!("{}", bt::table(&runs));
     if let Some(p) = a.json {
-        let text =
-            serde_json::to_string_pretty(&runs).map_err(|e| CliError::Failed(e.to_string()))?;
-        write_file(&p, text)?;
+        let run = RunParams {
+            scene: Some(a.scene.clone()),
+            ..RunParams::default()
+        };
+        write_json(config, run, started, &runs, &p)?;
     }
     Ok(())
 }
 
 /// `dualstream bench trace`: the tracer's cost on a cycle frame.
 fn trace_bench(config: &Config, a: TraceArgs) -> Result<(), CliError> {
+    let started = std::time::Instant::now();
     use dualstream::bench::trace as bt;
     if a.to <= a.from {
         return Err(CliError::Usage(format!(
@@ -316,9 +321,14 @@ fn trace_bench(config: &Config, a: TraceArgs) -> Result<(), CliError> {
     );
     print!("{}", bt::table(&runs));
     if let Some(p) = a.json {
-        let text =
-            serde_json::to_string_pretty(&runs).map_err(|e| CliError::Failed(e.to_string()))?;
-        write_file(&p, text)?;
+        let run = RunParams {
+            scene: Some(a.scene.clone()),
+            resolution: Some([sc.settings.width, sc.settings.height]),
+            mode: Some("cycle".into()),
+            threads: Some("1".into()),
+            ..RunParams::default()
+        };
+        write_json(config, run, started, &runs, &p)?;
     }
     Ok(())
 }
@@ -326,6 +336,7 @@ fn trace_bench(config: &Config, a: TraceArgs) -> Result<(), CliError> {
 /// `dualstream bench speed-error`: the faster modes against the cycle model
 /// (rendered here, or a finished one given with --reference).
 fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(), CliError> {
+    let started = std::time::Instant::now();
     let mut sc = dualstream::scene::load(&a.scene)?;
     (sc.settings.width, sc.settings.height) = parse_res(&a.res)?;
     sc.settings.validate()?;
@@ -362,12 +373,36 @@ fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(
         print!("{}", speed_error::part_table(&r.by_part));
     }
     if let Some(p) = a.json {
-        let text =
-            serde_json::to_string_pretty(&rows).map_err(|e| CliError::Failed(e.to_string()))?;
-        write_file(&p, text)?;
+        let run = RunParams {
+            scene: Some(a.scene.clone()),
+            resolution: Some([sc.settings.width, sc.settings.height]),
+            seed: Some(sc.settings.seed),
+            bounces: Some(sc.settings.bounces),
+            threads: Some(a.threads.threads.clone()),
+            ..RunParams::default()
+        };
+        write_json(config, run, started, &rows, &p)?;
     }
     if let Some(p) = a.plot {
         write_file(&p, speed_error::plot(&rows))?;
     }
     Ok(())
+}
+
+/// A benchmark's rows as JSON under `runs`, after the run's header.
+fn write_json(
+    config: &Config,
+    run: RunParams,
+    started: std::time::Instant,
+    rows: &impl serde::Serialize,
+    path: &std::path::Path,
+) -> Result<(), CliError> {
+    let header = RunHeader::new(config, run, started.elapsed().as_secs_f64());
+    let v = HeadedList {
+        header: &header,
+        key: "runs",
+        body: rows,
+    };
+    let text = serde_json::to_string_pretty(&v).map_err(|e| CliError::Failed(e.to_string()))?;
+    write_file(path, text)
 }

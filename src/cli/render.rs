@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use dualstream::config::Config;
+use dualstream::render::header::{RunHeader, RunParams};
 use dualstream::render::{self, Frame, Mode, RenderCfg, output};
 use dualstream::rtl::Threads;
 use dualstream::scene::Scene;
@@ -106,7 +107,7 @@ pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), Cli
     let outputs: Vec<PathBuf> = [Some(&a.out), a.stats.as_ref(), a.vcd.as_ref()]
         .into_iter()
         .flatten()
-        .filter(|p| !p.exists())
+        .filter(|p| p.as_os_str() != "-" && !p.exists())
         .cloned()
         .collect();
     // A waveform stopped by a failed frame is no output either, nor its save
@@ -149,6 +150,7 @@ fn follow_out(a: &RenderArgs) -> Option<PathBuf> {
 }
 
 fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(), CliError> {
+    let started = std::time::Instant::now();
     let sampled = a.mode == "windows";
     let mode = match a.mode.as_str() {
         "functional" | "windows" => Mode::Functional,
@@ -222,7 +224,16 @@ fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(),
     if mode != Mode::Reference && !sampled {
         frame.energy = Some(dualstream::render::energy::frame_energy(&config, &frame));
     }
-    write_outputs(&a, &frame, estimate.as_ref())
+    let run = RunParams {
+        scene: Some(a.scene.clone()),
+        resolution: Some([sc.settings.width, sc.settings.height]),
+        mode: Some(a.mode.clone()),
+        seed: Some(sc.settings.seed),
+        bounces: Some(sc.settings.bounces),
+        threads: Some(a.threads.threads.clone()),
+    };
+    let header = RunHeader::new(&config, run, started.elapsed().as_secs_f64());
+    write_outputs(&a, &frame, estimate.as_ref(), &header)
 }
 
 /// The scene with the command line's resolution, bounces and seed, checked.
@@ -279,7 +290,7 @@ fn trace_window(a: &RenderArgs, mode: Mode) -> Result<(u64, Option<u64>), CliErr
 fn check_writable(a: &RenderArgs) -> Result<(), CliError> {
     for (p, what) in [
         (Some(&a.out), "--out"),
-        (a.stats.as_ref(), "--stats"),
+        (a.stats.as_ref().filter(|p| p.as_os_str() != "-"), "--stats"),
         (a.vcd.as_ref(), "--vcd"),
     ] {
         if let Some(p) = p {
@@ -446,7 +457,16 @@ fn write_outputs(
     a: &RenderArgs,
     frame: &Frame,
     estimate: Option<&WindowEstimate>,
+    header: &RunHeader,
 ) -> Result<(), CliError> {
+    // With `--stats -` the JSON is stdout; what is said for people goes to
+    // stderr, so the JSON can be piped.
+    let to_stdout = a.stats.as_ref().is_some_and(|p| p.as_os_str() == "-");
+    macro_rules! say {
+        ($($t:tt)*) => {
+            if to_stdout { eprint!($($t)*) } else { print!($($t)*) }
+        };
+    }
     output::write_png(frame, &a.out)?;
     if let Some(path) = &a.pass_log {
         output::write_pass_log(frame, path)?;
@@ -454,14 +474,14 @@ fn write_outputs(
     if let Some(why) = &frame.accel.bvh_fallback {
         eprintln!("warning: {}", bvh_fallback_warning(why));
     }
-    print!("{}", output::summary(frame));
+    say!("{}", output::summary(frame));
     if let Some(e) = estimate {
-        print!("{}", sampling::window_summary(e));
+        say!("{}", sampling::window_summary(e));
     }
-    println!("image: {}", a.out.display());
+    say!("image: {}\n", a.out.display());
     if let (Some(p), Some(v)) = (&a.vcd, frame.chip.as_ref().and_then(|c| c.vcd)) {
-        println!(
-            "waveform: {} ({} units, {} signals, {} changes; open with: gtkwave {} {})",
+        say!(
+            "waveform: {} ({} units, {} signals, {} changes; open with: gtkwave {} {})\n",
             p.display(),
             v.units,
             v.signals,
@@ -476,17 +496,20 @@ fn write_outputs(
         match follow_out(a) {
             Some(p) => {
                 super::write_file(&p, &log)?;
-                println!("followed: {n} events: {}", p.display());
+                say!("followed: {n} events: {}\n", p.display());
             }
-            None => print!("{log}"),
+            None => say!("{log}"),
         }
     }
     if let Some(p) = &a.stats {
+        let p = (!to_stdout).then_some(p.as_path());
         match estimate {
-            Some(e) => sampling::write_json_estimated(frame, e, p)?,
-            None => output::write_json(frame, p)?,
+            Some(e) => sampling::write_json_estimated(frame, e, Some(header), p)?,
+            None => output::write_json(frame, Some(header), p)?,
         }
-        println!("statistics: {}", p.display());
+        if let Some(p) = p {
+            println!("statistics: {}", p.display());
+        }
     }
     Ok(())
 }

@@ -7,6 +7,7 @@ use clap::Args;
 
 use dualstream::config::Config;
 use dualstream::render::Mode;
+use dualstream::render::header::{HeadedList, RunHeader, RunParams};
 use dualstream::report::paper;
 use dualstream::rtl::Threads;
 use dualstream::units::memory::MemoryModel;
@@ -45,6 +46,7 @@ pub struct ReportArgs {
 /// `dualstream report paper`: renders the three paper scenes and prints the
 /// comparison table.
 pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), CliError> {
+    let started = std::time::Instant::now();
     let sampled = a.mode == "windows";
     let mode = match a.mode.as_str() {
         "functional" | "windows" => Mode::Functional,
@@ -109,17 +111,30 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Cli
         rows.extend(paper::compare(row, &frame));
     }
     print!("{}", paper::table(&rows));
-    write_outputs(&rows, a.json, a.plots)
+    let run = RunParams {
+        resolution: Some([w, h]),
+        mode: Some(a.mode.clone()),
+        threads: Some(a.threads.threads.clone()),
+        ..RunParams::default()
+    };
+    let header = RunHeader::new(&config, run, started.elapsed().as_secs_f64());
+    write_outputs(&rows, &header, a.json, a.plots)
 }
 
 /// The comparison as JSON and the figures as SVG, if asked for.
 fn write_outputs(
     rows: &[paper::Compared],
+    header: &RunHeader,
     json: Option<PathBuf>,
     plots: Option<PathBuf>,
 ) -> Result<(), CliError> {
     if let Some(p) = json {
-        let text = serde_json::to_string_pretty(rows).expect("rows serialise");
+        let v = HeadedList {
+            header,
+            key: "rows",
+            body: &rows,
+        };
+        let text = serde_json::to_string_pretty(&v).expect("rows serialise");
         std::fs::write(&p, text).map_err(|e| unwritable(&p, e, "; choose a writable --json"))?;
         println!("comparison: {}", p.display());
     }

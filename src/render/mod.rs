@@ -14,6 +14,7 @@ mod cycle;
 pub mod energy;
 mod error;
 mod frame;
+pub mod header;
 pub mod output;
 mod prepare;
 pub mod queues;

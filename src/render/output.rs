@@ -1,5 +1,6 @@
 //! What a render gives the user: the PNG, the Table-2-style summary, the JSON.
 
+use super::header::{Headed, RunHeader};
 use std::path::Path;
 
 use super::{Frame, RenderError};
@@ -64,13 +65,35 @@ pub fn write_pass_log(frame: &Frame, path: &Path) -> Result<(), RenderError> {
     })
 }
 
-pub fn write_json(frame: &Frame, path: &Path) -> Result<(), RenderError> {
-    write_stats(frame, path)
+/// The frame's statistics as JSON (`--stats`), after `header` if given, to
+/// `path` or (`None`) stdout.
+pub fn write_json(
+    frame: &Frame,
+    header: Option<&RunHeader>,
+    path: Option<&Path>,
+) -> Result<(), RenderError> {
+    write_stats(frame, header, path)
 }
 
-/// Writes `stats` as pretty JSON to `path` (`--stats`).
-pub fn write_stats(stats: &impl serde::Serialize, path: &Path) -> Result<(), RenderError> {
-    let text = serde_json::to_string_pretty(stats).expect("stats serialise");
+/// Writes `stats` as pretty JSON to `path` (`--stats`; `None`: stdout), with
+/// `header` as its first key.
+pub fn write_stats(
+    stats: &impl serde::Serialize,
+    header: Option<&RunHeader>,
+    path: Option<&Path>,
+) -> Result<(), RenderError> {
+    let text = match header {
+        Some(header) => serde_json::to_string_pretty(&Headed {
+            header,
+            body: stats,
+        }),
+        None => serde_json::to_string_pretty(stats),
+    }
+    .expect("stats serialise");
+    let Some(path) = path else {
+        println!("{text}");
+        return Ok(());
+    };
     std::fs::write(path, text).map_err(|e| {
         let msg = format!(
             "cannot write the statistics '{}': {e}; choose a writable --stats",

@@ -87,6 +87,11 @@ pub const TABLE2: [PaperRow; 3] = [
 #[derive(Clone, Debug, Serialize)]
 pub struct Compared {
     pub scene: String,
+    /// The metric's key: snake case with its unit last (`render_time_ms`,
+    /// `dram_energy_j`, `ray_stream_lines_millions`; `$ lines` are 64-byte
+    /// cache lines moved between the chip and DRAM).
+    pub key: &'static str,
+    /// The metric as the table names it.
     pub metric: &'static str,
     pub ours: Option<f64>,
     pub paper: f64,
@@ -96,25 +101,49 @@ pub struct Compared {
     pub note: &'static str,
 }
 
-/// A compared metric's name and its figure in a paper row.
-type Metric = (&'static str, fn(&PaperRow) -> f64);
+/// A compared metric's name as the table shows it, its key in the JSON
+/// (snake case, the unit last: `_ms`, `_j`, `_millions`), and its figure in a
+/// paper row.
+type Metric = (&'static str, &'static str, fn(&PaperRow) -> f64);
 
 /// The compared metrics, in table order.
 const METRICS: [Metric; 14] = [
-    ("render time (ms)", |r| r.render_ms),
-    ("rays traced per second (M)", |r| r.mrays_per_s),
-    ("rays traced (M)", |r| r.render_ms * r.mrays_per_s / 1000.0),
-    ("DRAM energy (J)", |r| r.dram_j),
-    ("DRAM energy, physical preset (J)", |r| r.dram_j),
-    ("on-chip memory energy (J)", |r| r.onchip_j),
-    ("compute energy (J)", |r| r.compute_j),
-    ("average bandwidth (GB/s)", |r| r.bandwidth_gbs),
-    ("$ lines transferred (M)", |r| r.lines_m),
-    ("ray stream $ lines (M)", |r| r.ray_lines_m),
-    ("scene stream $ lines (M)", |r| r.scene_lines_m),
-    ("shading $ lines (M)", |r| r.shading_lines_m),
-    ("hit record $ lines (M)", |r| r.hit_lines_m),
-    ("ray duplication", |r| r.duplication),
+    ("render time (ms)", "render_time_ms", |r| r.render_ms),
+    ("rays traced per second (M)", "rays_per_s_millions", |r| {
+        r.mrays_per_s
+    }),
+    ("rays traced (M)", "rays_traced_millions", |r| {
+        r.render_ms * r.mrays_per_s / 1000.0
+    }),
+    ("DRAM energy (J)", "dram_energy_j", |r| r.dram_j),
+    (
+        "DRAM energy, physical preset (J)",
+        "dram_energy_physical_j",
+        |r| r.dram_j,
+    ),
+    ("on-chip memory energy (J)", "onchip_energy_j", |r| {
+        r.onchip_j
+    }),
+    ("compute energy (J)", "compute_energy_j", |r| r.compute_j),
+    ("average bandwidth (GB/s)", "bandwidth_gb_per_s", |r| {
+        r.bandwidth_gbs
+    }),
+    ("$ lines transferred (M)", "lines_millions", |r| r.lines_m),
+    ("ray stream $ lines (M)", "ray_stream_lines_millions", |r| {
+        r.ray_lines_m
+    }),
+    (
+        "scene stream $ lines (M)",
+        "scene_stream_lines_millions",
+        |r| r.scene_lines_m,
+    ),
+    ("shading $ lines (M)", "shading_lines_millions", |r| {
+        r.shading_lines_m
+    }),
+    ("hit record $ lines (M)", "hit_record_lines_millions", |r| {
+        r.hit_lines_m
+    }),
+    ("ray duplication", "ray_duplication", |r| r.duplication),
 ];
 
 /// Our figure for each of [`METRICS`] (none where this frame cannot give it)
@@ -207,10 +236,11 @@ fn to_compared(row: &PaperRow, ours: Ours) -> Vec<Compared> {
     METRICS
         .iter()
         .zip(ours)
-        .map(|(&(metric, paper), (ours, note))| {
+        .map(|(&(metric, key, paper), (ours, note))| {
             let paper = paper(row);
             Compared {
                 scene: row.scene.to_string(),
+                key,
                 metric,
                 ours,
                 paper,

@@ -6,6 +6,7 @@ use std::path::Path;
 
 use super::{WindowEstimate, kind_times_text};
 use crate::render::Frame;
+use crate::render::header::RunHeader;
 use crate::render::output::write_stats;
 
 /// [`crate::render::output::write_json`] of a time-sampled frame: the functional frame's statistics and,
@@ -13,7 +14,8 @@ use crate::render::output::write_stats;
 pub fn write_json_estimated(
     frame: &Frame,
     estimate: &WindowEstimate,
-    path: &Path,
+    header: Option<&RunHeader>,
+    path: Option<&Path>,
 ) -> Result<(), SamplingError> {
     #[derive(serde::Serialize)]
     struct Estimated<'a> {
@@ -21,7 +23,7 @@ pub fn write_json_estimated(
         frame: &'a Frame,
         estimate: &'a WindowEstimate,
     }
-    Ok(write_stats(&Estimated { frame, estimate }, path)?)
+    Ok(write_stats(&Estimated { frame, estimate }, header, path)?)
 }
 
 /// The chip's figures as time sampling estimates them (`render --mode windows`).

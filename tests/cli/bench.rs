@@ -49,8 +49,12 @@ fn bench_speed_error_prints_every_mode_with_json_and_plot() {
     ] {
         assert!(out.contains(mode), "{mode} missing: {out}");
     }
-    let rows: Vec<serde_json::Value> =
+    let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    // The header says what ran.
+    assert_eq!(v["header"]["tool"], "dualstream");
+    assert_eq!(v["header"]["run"]["resolution"][0], 8);
+    let rows = v["runs"].as_array().unwrap();
     assert_eq!(rows.len(), 8);
     assert_eq!(rows[0]["err_cycles"], 0.0);
     assert!(rows[1]["speedup"].as_f64().unwrap() > 0.0);

@@ -36,6 +36,77 @@ fn render_writes_image_and_statistics() {
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert!(stats["total"]["rays"].as_u64().unwrap() > 256);
     assert_eq!(stats["width"], 16);
+    // The header: what made the file, before the statistics.
+    let h = &stats["header"];
+    assert_eq!(h["tool"], "dualstream");
+    assert_eq!(h["run"]["scene"], "tiny");
+    assert_eq!(h["run"]["resolution"], serde_json::json!([16, 16]));
+    assert_eq!(h["run"]["mode"], "functional");
+    assert_eq!(h["run"]["seed"], 1);
+    assert!(h["config"]["chip"]["tms"].as_u64().unwrap() > 0);
+    assert_eq!(h["config_hash"].as_str().unwrap().len(), 16);
+    assert!(h["wall_s"].as_f64().unwrap() > 0.0);
+    assert!(h["machine"]["cores"].as_u64().unwrap() >= 1);
+    // Built inside this checkout: its revision (test binaries live in its
+    // target/ too).
+    if std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(".git")
+        .exists()
+    {
+        let rev = h["git_revision"].as_str().expect("a revision");
+        assert!(rev.len() >= 40, "{rev}");
+    }
+    let text = std::fs::read_to_string(&json).unwrap();
+    assert!(
+        text.trim_start().starts_with("{\n  \"header\""),
+        "header first"
+    );
+}
+
+/// `--stats -` writes the JSON to stdout, alone (the summary goes to
+/// stderr), so it pipes into a JSON reader; the statistics equal a file's.
+#[test]
+fn render_stats_to_stdout() {
+    let t = Scratch::new("cli-stats-stdout");
+    let (png, json) = (t.join("r.png"), t.join("r.json"));
+    let args = |stats: &str| {
+        let p = png.to_str().unwrap().to_string();
+        vec![
+            "render".to_string(),
+            "--scene".into(),
+            "tiny".into(),
+            "--res".into(),
+            "8x8".into(),
+            "--out".into(),
+            p,
+            "--stats".into(),
+            stats.to_string(),
+        ]
+    };
+    let o = run(&args("-").iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut piped: serde_json::Value =
+        serde_json::from_slice(&o.stdout).expect("stdout is JSON alone");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("ray duplication"));
+    assert!(!std::path::Path::new("-").exists(), "no file named -");
+    let o = run(&args(json.to_str().unwrap())
+        .iter()
+        .map(String::as_str)
+        .collect::<Vec<_>>());
+    assert!(o.status.success());
+    let mut file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    // Build times are wall clock; the rest is bit for bit.
+    for v in [&mut piped, &mut file] {
+        let o = v.as_object_mut().unwrap();
+        o.remove("header");
+        o.retain(|k, _| !k.ends_with("_s"));
+        o["accel"]
+            .as_object_mut()
+            .unwrap()
+            .retain(|k, _| !k.ends_with("_s"));
+    }
+    assert_eq!(piped, file, "the same statistics");
 }
 
 #[test]

@@ -59,7 +59,7 @@ fn reference_files(
     f.energy = Some(dualstream::render::energy::frame_energy(&g, &f));
     let dir = Scratch::new(&format!("se-ref-{tag}"));
     let (j, p) = (dir.join("ref.json"), dir.join("ref.png"));
-    render::output::write_json(&f, &j).unwrap();
+    render::output::write_json(&f, None, Some(&j)).unwrap();
     render::output::write_png(&f, &p).unwrap();
     // Beside them, as `render --pass-log passes.csv` writes it.
     render::output::write_pass_log(&f, &dir.join("passes.csv")).unwrap();
