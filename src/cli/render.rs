@@ -31,7 +31,8 @@ pub struct RenderArgs {
     /// = "gddr5"`) or windows (time sampling: the functional frame, and the
     /// chip with GDDR5 simulated in windows whose figures estimate the cycle
     /// model's; within 3% of it on the paper scenes, docs/speed-error.md).
-    #[arg(long, default_value = "functional")]
+    #[arg(long, default_value = "functional",
+          value_parser = ["functional", "reference", "cycle", "windows"])]
     mode: String,
     /// Hit points per path (default: the scene's, 5 as in the paper).
     #[arg(long)]

@@ -39,7 +39,7 @@ pub struct ReportArgs {
     /// three scenes at 1024x1024) or windows (time sampling: the cycle
     /// model's figures estimated from windows of the chip, within 3% of it
     /// on these scenes (docs/speed-error.md), in minutes; same image).
-    #[arg(long, default_value = "functional")]
+    #[arg(long, default_value = "functional", value_parser = ["functional", "cycle", "windows"])]
     mode: String,
 }
 

@@ -126,7 +126,12 @@ fn render_and_scene_bad_input() {
     );
     fails_with(
         &["render", "--scene", "tiny", "--mode", "warp"],
-        &["unknown --mode"],
+        &["invalid value 'warp'", "functional, reference, cycle, windows"],
+    );
+    // A typo gets the mode it was meant to be.
+    fails_with(
+        &["render", "--scene", "tiny", "--mode", "cycles"],
+        &["a similar value exists: 'cycle'"],
     );
     fails_with(
         &["render", "--scene", "/nonexistent/scene.obj"],
