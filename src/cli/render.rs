@@ -45,6 +45,10 @@ pub struct RenderArgs {
     /// Output image (PNG).
     #[arg(long, default_value = "render.png")]
     out: PathBuf,
+    /// Also write the linear radiance, unclamped, as a PFM (32-bit float
+    /// RGB) here: to compare with another renderer numerically.
+    #[arg(long)]
+    hdr: Option<PathBuf>,
     /// Write the statistics as JSON here.
     #[arg(long)]
     stats: Option<PathBuf>,
@@ -105,12 +109,17 @@ pub struct RenderArgs {
 /// may take minutes), renders it and writes what was asked for. On an error
 /// the outputs the check created are removed: no empty file is left.
 pub fn render(config: Config, threads: Threads, a: RenderArgs) -> Result<(), CliError> {
-    let outputs: Vec<PathBuf> = [Some(&a.out), a.stats.as_ref(), a.vcd.as_ref()]
-        .into_iter()
-        .flatten()
-        .filter(|p| p.as_os_str() != "-" && !p.exists())
-        .cloned()
-        .collect();
+    let outputs: Vec<PathBuf> = [
+        Some(&a.out),
+        a.stats.as_ref(),
+        a.vcd.as_ref(),
+        a.hdr.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    .filter(|p| p.as_os_str() != "-" && !p.exists())
+    .cloned()
+    .collect();
     // A waveform stopped by a failed frame is no output either, nor its save
     // file and the follow log.
     let partial: Vec<PathBuf> = [
@@ -163,6 +172,14 @@ fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(),
             )));
         }
     };
+    if let Some(p) = &a.hdr
+        && !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("pfm"))
+    {
+        return Err(CliError::Usage(format!(
+            "--hdr {}: the HDR image is a PFM (32-bit float RGB); give a path ending in .pfm",
+            p.display()
+        )));
+    }
     let sc = load_scene(&a)?;
     let (from, to) = trace_window(&a, mode)?;
     check_writable(&a)?;
@@ -292,6 +309,7 @@ fn check_writable(a: &RenderArgs) -> Result<(), CliError> {
     for (p, what) in [
         (Some(&a.out), "--out"),
         (a.stats.as_ref().filter(|p| p.as_os_str() != "-"), "--stats"),
+        (a.hdr.as_ref(), "--hdr"),
         (a.vcd.as_ref(), "--vcd"),
     ] {
         if let Some(p) = p {
@@ -469,6 +487,9 @@ fn write_outputs(
         };
     }
     output::write_png(frame, &a.out)?;
+    if let Some(p) = &a.hdr {
+        output::write_pfm(frame, p)?;
+    }
     if let Some(path) = &a.pass_log {
         output::write_pass_log(frame, path)?;
     }
@@ -480,6 +501,9 @@ fn write_outputs(
         say!("{}", sampling::window_summary(e));
     }
     say!("image: {}\n", a.out.display());
+    if let Some(p) = &a.hdr {
+        say!("HDR image: {} (PFM, linear radiance)\n", p.display());
+    }
     if let (Some(p), Some(v)) = (&a.vcd, frame.chip.as_ref().and_then(|c| c.vcd)) {
         say!(
             "waveform: {} ({} units, {} signals, {} changes; open with: gtkwave {} {})\n",

@@ -44,6 +44,31 @@ pub fn write_png(frame: &Frame, path: &Path) -> Result<(), RenderError> {
     })
 }
 
+/// The frame's linear radiance as a PFM (Portable Float Map: `PF`, width
+/// and height, `-1` for little-endian, then 32-bit floats RGB, the bottom
+/// row first): unclamped and unencoded, for comparing with another
+/// renderer's output numerically (ImageMagick, OpenImageIO, pbrt's `imgtool`
+/// and Mitsuba read it).
+pub fn write_pfm(frame: &Frame, path: &Path) -> Result<(), RenderError> {
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let mut buf = format!("PF\n{w} {h}\n-1.0\n").into_bytes();
+    buf.reserve(w * h * 12);
+    for y in (0..h).rev() {
+        for c in &frame.radiance[y * w..(y + 1) * w] {
+            for x in [c.x, c.y, c.z] {
+                buf.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, buf).map_err(|e| {
+        let msg = format!(
+            "cannot write the HDR image '{}': {e}; choose a writable --hdr",
+            path.display()
+        );
+        RenderError::File(FileError::new(path, e, msg))
+    })
+}
+
 /// The segment passes of a cycle-mode frame (`RenderCfg::pass_log`) as CSV, one
 /// row per pass in retirement order: the chip run (run k > 0 shades wavefront
 /// k - 1, then traces wavefront k), the segment, its rays, and the core cycles

@@ -126,7 +126,10 @@ fn render_and_scene_bad_input() {
     );
     fails_with(
         &["render", "--scene", "tiny", "--mode", "warp"],
-        &["invalid value 'warp'", "functional, reference, cycle, windows"],
+        &[
+            "invalid value 'warp'",
+            "functional, reference, cycle, windows",
+        ],
     );
     // A typo gets the mode it was meant to be.
     fails_with(
@@ -358,4 +361,59 @@ fn a_tp_stack_overflow_names_the_scratchpad() {
             "can need up to",
         ],
     );
+}
+
+/// `--hdr x.pfm` writes the linear radiance: a PFM whose every pixel,
+/// encoded as the PNG is, gives the PNG's bytes (same orientation, same
+/// values, unclamped: some exceed 1 where the PNG saturates); another
+/// extension is refused before the frame.
+#[test]
+fn render_writes_a_linear_hdr_image() {
+    let t = Scratch::new("cli-hdr");
+    let (png, pfm) = (t.join("r.png"), t.join("r.pfm"));
+    let o = run(&[
+        "render",
+        "--res",
+        "24x16",
+        "--out",
+        png.to_str().unwrap(),
+        "--hdr",
+        pfm.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&pfm).unwrap();
+    let head = b"PF\n24 16\n-1.0\n";
+    assert_eq!(&bytes[..head.len()], head);
+    let floats: Vec<f32> = bytes[head.len()..]
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    assert_eq!(floats.len(), 24 * 16 * 3);
+    let img = image::open(&png).unwrap().to_rgb8();
+    let mut lit = 0;
+    for y in 0..16u32 {
+        for x in 0..24u32 {
+            // PFM rows go bottom to top.
+            let i = (((15 - y) * 24 + x) * 3) as usize;
+            let c = glam::Vec3::new(floats[i], floats[i + 1], floats[i + 2]);
+            assert_eq!(
+                dualstream::render::output::rgb8(c),
+                img.get_pixel(x, y).0,
+                "pixel {x},{y}"
+            );
+            lit += (c.max_element() > 0.0) as u32;
+        }
+    }
+    assert!(lit > 100, "a lit image ({lit} pixels)");
+    fails_with(
+        &[
+            "render",
+            "--res",
+            "4x4",
+            "--hdr",
+            t.join("r.exr").to_str().unwrap(),
+        ],
+        &["give a path ending in .pfm"],
+    );
+    assert!(!t.join("r.exr").exists());
 }
