@@ -23,6 +23,11 @@ struct Cli {
     /// about, not the paper's figures). Overrides `[chip.memory] model`.
     #[arg(long, global = true, value_parser = ["gddr5", "fixed"])]
     memory: Option<String>,
+    /// A directory to look for scene files and meshes in when they are not
+    /// where a path names them (repeat for several; after them, those in
+    /// $DUALSTREAM_SCENES). A mesh is found by its file name.
+    #[arg(long = "scenes-dir", global = true, value_name = "DIR")]
+    scenes_dir: Vec<PathBuf>,
     #[command(subcommand)]
     cmd: Cmd,
 }
@@ -55,6 +60,7 @@ enum Cmd {
 }
 
 fn run(cli: Cli) -> Result<(), cli::CliError> {
+    dualstream::scene::search::set_dirs(cli.scenes_dir.clone());
     let mut config = cli::load_config(&cli.config)?;
     if let Some(m) = &cli.memory {
         config.chip.memory.model = dualstream::units::memory::MemoryModel::parse(m)?;
@@ -69,6 +75,26 @@ fn run(cli: Cli) -> Result<(), cli::CliError> {
         Cmd::Dram(a) => cli::dram::dram(config, a),
         Cmd::Config(a) => cli::config::config(&config, a),
     }
+}
+
+/// `dualstream ... | head` closes stdout early: Rust ignores SIGPIPE, so the
+/// next `print!` panics ("failed printing to stdout: Broken pipe"). A
+/// command-line tool stops quietly then, as one killed by SIGPIPE would (exit
+/// status 141); restoring the signal's default action would need `unsafe`.
+fn quiet_on_closed_stdout() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if msg.starts_with("failed printing to stdout") && msg.contains("Broken pipe") {
+            std::process::exit(141);
+        }
+        default(info);
+    }));
 }
 
 /// Restarts the program with glibc's heap on transparent huge pages when the
@@ -100,6 +126,7 @@ fn with_huge_pages() {
 fn main() -> ExitCode {
     #[cfg(target_os = "linux")]
     with_huge_pages();
+    quiet_on_closed_stdout();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

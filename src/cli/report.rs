@@ -25,9 +25,6 @@ pub struct ReportArgs {
     /// Resolution (the paper's is 1024x1024).
     #[arg(long, default_value = "1024x1024")]
     res: String,
-    /// Directory of the scene files (dragon.toml, dragon_box.toml, dabrovic_sponza.toml).
-    #[arg(long, default_value = "scenes")]
-    scenes_dir: PathBuf,
     /// Write the comparison as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -66,13 +63,20 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Cli
     let (w, h) = parse_res(&a.res)?;
     let mut rows = Vec::new();
     for row in paper::TABLE2.iter() {
-        let path = a.scenes_dir.join(row.scene_file);
+        // The scene files: in the search path (--scenes-dir,
+        // $DUALSTREAM_SCENES), else the repository's scenes/.
+        let path = dualstream::scene::search::dirs()
+            .into_iter()
+            .chain([PathBuf::from("scenes")])
+            .map(|d| d.join(row.scene_file))
+            .find(|p| p.is_file())
+            .unwrap_or_else(|| PathBuf::from(row.scene_file));
         let spec = path
             .to_str()
             .ok_or_else(|| CliError::Usage("scene path is not UTF-8".into()))?;
         let mut sc = dualstream::scene::load(spec).map_err(|e| CliError::Hinted {
             error: Box::new(e.into()),
-            hint: "(the paper scenes need the meshes in ../shared/scenes; run from the repository root or pass --scenes-dir)",
+            hint: "(the paper scenes are scenes/*.toml and need their meshes: run from the repository root, or give the directories with --scenes-dir or $DUALSTREAM_SCENES)",
         })?;
         sc.settings.width = w;
         sc.settings.height = h;

@@ -269,13 +269,12 @@ fn add_mesh(b: &mut Builder, m: &MeshDesc, dir: &Path, here: &str) -> Result<(),
                     "{here}: `{k}` applies only to builtin meshes; remove it"
                 )));
             }
-            let full = dir.join(p);
-            if !full.is_file() {
-                return Err(SceneError::BadDesc(format!(
-                    "{here}: mesh file '{}' not found (path = \"{p}\" is relative to the scene file); fix the path",
-                    full.display()
-                )));
-            }
+            let full = super::search::find(dir, Path::new(p)).map_err(|tried| {
+                SceneError::BadDesc(format!(
+                    "{here}: mesh file '{p}' not found (a path is relative to the scene file); {}",
+                    super::search::tried_text(&tried)
+                ))
+            })?;
             obj::load_into(b, &full, &xf, albedo).map_err(|e| e.at(here))?;
             return Ok(());
         }

@@ -12,6 +12,7 @@ mod camera;
 mod desc;
 mod error;
 mod obj;
+pub mod search;
 
 use glam::Vec3;
 
@@ -194,11 +195,18 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
     if let Some(s) = builtin::build(spec) {
         return Ok(s);
     }
-    let path = std::path::Path::new(spec);
-    let ext = path
+    let given = std::path::Path::new(spec);
+    let ext = given
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase());
+    // A scene file not where it is named is looked for in the search path;
+    // missing everywhere, the loader's own error names the path as given.
+    let found = match ext.as_deref() {
+        Some("toml" | "obj") => search::find(std::path::Path::new(""), given).ok(),
+        _ => None,
+    };
+    let path = found.as_deref().unwrap_or(given);
     let scene = match ext.as_deref() {
         Some("toml") => desc::load(path)?,
         Some("obj") => obj::load_bare(path)?,
