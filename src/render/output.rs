@@ -160,9 +160,10 @@ pub fn summary(f: &Frame) -> String {
     );
     s += &format!("  {:<34} {:>12.2}\n", "ray duplication", f.duplication);
     s += &format!(
-        "  {:<34} {:>12}\n",
+        "  {:<34} {:>12}   ($: {}-byte cache lines between the chip and DRAM)\n",
         "$ lines transferred (M)",
-        m(t.total_lines())
+        m(t.total_lines()),
+        crate::contract::LINE_BYTES
     );
     s += &format!(
         "  {:<34} {:>12}\n",
@@ -215,7 +216,34 @@ pub fn summary(f: &Frame) -> String {
     }
     if let Some(c) = &f.chip {
         s += &chip_summary(c);
+        s += &frame_headline(f, c);
     }
+    s
+}
+
+/// The chip frame's figures in the paper's terms, last so they are what a
+/// user reads first: time at the core clock, rays per second, DRAM bandwidth
+/// and energy.
+fn frame_headline(f: &Frame, c: &super::ChipFrame) -> String {
+    let secs = c.total_cycles as f64 * c.core_ps as f64 * 1e-12;
+    let mut s = format!(
+        "frame: {:.3} ms ({} cycles at {:.2} GHz), {:.1} M rays/s",
+        secs * 1e3,
+        c.total_cycles,
+        1e3 / c.core_ps as f64,
+        if secs > 0.0 {
+            f.total.rays as f64 / secs / 1e6
+        } else {
+            0.0
+        }
+    );
+    if let (Some(bw), Some(d)) = (c.dram_bandwidth_gbs(), &c.dram) {
+        s += &format!(
+            ", DRAM {bw:.1} GB/s, {} (paper preset)",
+            crate::mem::stats::joules(d.energy_paper_j)
+        );
+    }
+    s.push('\n');
     s
 }
 

@@ -295,6 +295,27 @@ fn the_pass_log_is_written_in_cycle_mode_and_refused_elsewhere() {
     );
     let o = run(&[&args[..], &["--mode", "cycle"]].concat());
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The summary ends with the frame in the paper's terms: its time is the
+    // total cycles at the core clock.
+    let out = String::from_utf8_lossy(&o.stdout);
+    let cycles: u64 = out
+        .lines()
+        .find(|l| l.contains("total cycles"))
+        .and_then(|l| l.split_whitespace().last())
+        .unwrap()
+        .parse()
+        .unwrap();
+    let head = out
+        .lines()
+        .find(|l| l.starts_with("frame: "))
+        .expect("a frame line");
+    assert!(
+        head.contains(&format!("({cycles} cycles at 1.00 GHz)"))
+            && head.contains(&format!("{:.3} ms", cycles as f64 * 1e-6))
+            && head.contains("M rays/s"),
+        "{head}"
+    );
+    assert!(out.contains("($: 64-byte cache lines"), "{out}");
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     assert_eq!(lines.next(), Some("run,segment,rays,admit,retire"));
