@@ -94,6 +94,7 @@ impl RenderCfg {
                 sim,
                 trace: None,
                 follow: None,
+                capture: None,
             })),
             pixels: None,
             pass_log: false,
