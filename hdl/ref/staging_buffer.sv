@@ -125,20 +125,18 @@ module staging_buffer
     // The j-th TP of the search: (rr + j) mod TPS.
     function automatic logic [PW-1:0] tp_at(input integer j);
         integer p;
-        p = int'(rr) + j;
+        p = j + {{(32-PW){1'b0}}, rr};
         if (p >= TPS) p = p - TPS;
-        return PW'(p);
+        tp_at = p[PW-1:0];
     endfunction
 
     function automatic logic [AW-1:0] slot(input logic half, input logic [AW-1:0] idx);
-        return AW'(half ? HALF_RAYS : 0) + idx;
+        slot = AW'(half ? HALF_RAYS : 0) + idx;
     endfunction
 
+    // The ray at the head of the drained half, with its header (hdr is the MSB member).
     sb_ray_t out;
-    always_comb begin
-        out.ray = rays[slot(drain_half, AW'(read_idx))];
-        out.hdr = drain_half ? hdr1 : hdr0;
-    end
+    assign out = {drain_half ? hdr1 : hdr0, rays[slot(drain_half, AW'(read_idx))]};
 
     assign ray_0_valid = push && sel == 0;
     assign ray_0_data = out;
