@@ -229,7 +229,7 @@ pub fn run_random(opts: &TbOptions) -> Result<TbReport, TbError> {
         status_cycles: st.status_cycles,
         counters: vec![],
     };
-    if opts.vcd.is_some()
+    if (opts.vcd.is_some() || opts.sim.capture.is_some())
         && let Some(r) = tb.sim.finish_trace()
     {
         let st = r.map_err(|source| TbError::Vcd {

@@ -210,12 +210,12 @@ pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
             (Some(path), 0) => Some(Tracer::to_file(path, opts.trace.clone())?),
             _ => None,
         };
-        let r = script(
-            opts.sim.clone(),
-            latency,
-            opts.config.clocks.core_ps,
-            tracer,
-        )?;
+        // The first run alone is traced and captured.
+        let sim = crate::rtl::SimOptions {
+            capture: opts.sim.capture.clone().filter(|_| k == 0),
+            ..opts.sim.clone()
+        };
+        let r = script(sim, latency, opts.config.clocks.core_ps, tracer)?;
         rep.errors.extend(check(&r, latency));
         rep.requests += r.probe.requests;
         rep.results += (r.port0.len() + r.port1.len()) as u64;

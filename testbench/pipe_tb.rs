@@ -401,7 +401,7 @@ pub fn run_random<K: PipeKind>(opts: &TbOptions) -> Result<TbReport, TbError> {
     let limit = opts.cycles * 64 + 10_000;
     tb.run_to_idle(limit)?;
     let mut rep = tb.check(&sent, opts.ready_p >= 1.0);
-    if opts.vcd.is_some()
+    if (opts.vcd.is_some() || opts.sim.capture.is_some())
         && let Some(r) = tb.sim.finish_trace()
     {
         let st = r.map_err(|source| TbError::Vcd {

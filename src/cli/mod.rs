@@ -46,6 +46,109 @@ impl WaveArgs {
     }
 }
 
+/// Vectors (`--capture`, docs/rtl.md "Vectors"), on `render --mode cycle`
+/// and `tb`.
+#[derive(clap::Args)]
+pub struct CaptureArgs {
+    /// Write vectors of these unit instances, comma-separated: the names
+    /// --trace-units (render) or --trace (tb) take, or instance paths
+    /// (`tm0.staging_buffer`, `hit_record_updater`); one file per instance,
+    /// `<dir>/<instance path>.vec`.
+    #[arg(long, value_name = "UNITS")]
+    capture: Option<String>,
+    /// Cycles to capture, of each captured unit's own clock: A..B (B
+    /// excluded), A..=B or A.. (default: the whole run, from reset).
+    #[arg(long, value_name = "A..B", conflicts_with_all = ["capture_from", "capture_to"])]
+    capture_window: Option<String>,
+    /// First cycle to capture (of the unit's own clock).
+    #[arg(long)]
+    capture_from: Option<u64>,
+    /// Last cycle to capture, included.
+    #[arg(long)]
+    capture_to: Option<u64>,
+    /// The directory the vector files go to (created if missing).
+    #[arg(long, default_value = "vectors")]
+    capture_dir: PathBuf,
+    /// The most the vector files may take together (bytes, or with K, M, G;
+    /// 0: no limit).
+    #[arg(long, default_value = "1G")]
+    capture_max_bytes: String,
+}
+
+impl CaptureArgs {
+    /// The capture asked for (`None`: no `--capture`), its names mapped by
+    /// `name` (tb: a bench's other names), the window checked.
+    pub fn spec(
+        &self,
+        name: Option<&dyn Fn(&str) -> String>,
+    ) -> Result<Option<dualstream::rtl::trace::CaptureSpec>, CliError> {
+        let Some(units) = &self.capture else {
+            if self.capture_window.is_some()
+                || self.capture_from.is_some()
+                || self.capture_to.is_some()
+            {
+                return Err(CliError::Usage(
+                    "--capture-window/--capture-from/--capture-to choose the cycles of a capture: add --capture UNITS".into(),
+                ));
+            }
+            return Ok(None);
+        };
+        let (from, to) = match &self.capture_window {
+            Some(w) => dualstream::machine::trace::parse_window_of(
+                w,
+                "--capture-window",
+                "cycles of the captured unit's clock",
+            )?,
+            None => (self.capture_from.unwrap_or(0), self.capture_to),
+        };
+        if let Some(t) = to
+            && t < from
+        {
+            return Err(CliError::Usage(format!(
+                "--capture-from {from} --capture-to {t}: the capture window ends before it starts; give --capture-to at or after --capture-from"
+            )));
+        }
+        let filter: Vec<String> = units
+            .split(',')
+            .map(str::trim)
+            .filter(|n| !n.is_empty())
+            .map(|n| name.map_or(n.to_string(), |f| f(n)))
+            .collect();
+        if filter.is_empty() {
+            return Err(CliError::Usage(
+                "--capture names no unit; give instance names (tm0.staging_buffer)".into(),
+            ));
+        }
+        Ok(Some(dualstream::rtl::trace::CaptureSpec {
+            filter: filter.join(","),
+            from,
+            to,
+            dir: self.capture_dir.clone(),
+            max_bytes: parse_size(&self.capture_max_bytes, "--capture-max-bytes")?,
+        }))
+    }
+}
+
+impl CaptureArgs {
+    /// The directory vectors go to, if any are captured.
+    pub fn dir(&self) -> Option<&std::path::Path> {
+        self.capture.as_ref().map(|_| self.capture_dir.as_path())
+    }
+}
+
+/// Lists the vector files a capture wrote.
+pub fn print_captured(files: &[dualstream::rtl::trace::CaptureFile]) {
+    for f in files {
+        println!(
+            "vectors: {} ({} cycles, {} transfers, {} bytes)",
+            f.path.display(),
+            f.rows,
+            f.fires.iter().sum::<u64>(),
+            f.bytes
+        );
+    }
+}
+
 /// Says that the BVH came from the fallback builder, and why.
 pub fn bvh_fallback_warning(why: &str) -> String {
     format!(

@@ -103,6 +103,8 @@ pub struct RenderArgs {
     follow_ray_out: Option<PathBuf>,
     #[command(flatten)]
     wave: WaveArgs,
+    #[command(flatten)]
+    capture: super::CaptureArgs,
 }
 
 /// `dualstream render`: checks every option and output before the frame (it
@@ -184,6 +186,16 @@ fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(),
     let (from, to) = trace_window(&a, mode)?;
     check_writable(&a)?;
     let mut rc = render_cfg(&config, threads);
+    if let Some(cap) = a.capture.spec(None)? {
+        if mode != Mode::Cycle {
+            return Err(CliError::Usage(
+                "--capture records the chip's units: add --mode cycle".into(),
+            ));
+        }
+        if let Some(run) = rc.chip.as_mut() {
+            run.capture = Some(cap);
+        }
+    }
     if let (Some(path), Some(run)) = (&a.vcd, rc.chip.as_mut()) {
         run.trace = Some(render::ChipTrace {
             path: path.clone(),
@@ -514,6 +526,9 @@ fn write_outputs(
             p.display(),
             dualstream::rtl::trace::save_file_for(p).display()
         );
+    }
+    if let Some(c) = &frame.chip {
+        super::print_captured(&c.captured);
     }
     if !a.follow_ray.is_empty() || a.follow_pixel.is_some() {
         let log = follow_log(frame);

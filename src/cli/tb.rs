@@ -56,6 +56,8 @@ pub struct TbArgs {
     trace_max_bytes: String,
     #[command(flatten)]
     wave: WaveArgs,
+    #[command(flatten)]
+    capture: super::CaptureArgs,
     /// Evaluate every unit every cycle (no sleeping): slower, same results.
     #[arg(long)]
     no_sleep: bool,
@@ -172,13 +174,17 @@ pub fn tb(config: Config, mut a: TbArgs) -> Result<(), CliError> {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: a.capture.spec(Some(&|n: &str| {
+                testbench::find(n).map_or(n.to_string(), |b| b.name.to_string())
+            }))?,
         },
         config,
     };
     let start = std::time::Instant::now();
+    let start_time = std::time::SystemTime::now();
     if matches!(bench.runner, testbench::Runner::Treelet) {
         let topts = testbench::tm_tb::TmTbOptions {
-            scene: a.scene,
+            scene: a.scene.clone(),
             treelet: a.treelet,
             res: a.res.as_deref().map(parse_res).transpose()?,
             max_rays: a.rays,
@@ -196,6 +202,7 @@ pub fn tb(config: Config, mut a: TbArgs) -> Result<(), CliError> {
         println!("  stimulus: {}", bench.workload);
         println!("  wall time {:.3} s", start.elapsed().as_secs_f64());
         print_waveform(&a.vcd);
+        print_vectors(&a, start_time);
         return if rep.passed() {
             Ok(())
         } else {
@@ -212,6 +219,7 @@ pub fn tb(config: Config, mut a: TbArgs) -> Result<(), CliError> {
     }
     println!("  wall time {:.3} s", start.elapsed().as_secs_f64());
     print_waveform(&a.vcd);
+    print_vectors(&a, start_time);
     if !rep.passed() {
         return Err(CliError::Failed(format!(
             "testbench {} failed with {} errors",
@@ -290,4 +298,36 @@ fn stimulus(bench: &testbench::Bench, opts: &TbOptions) -> String {
         s.push_str(&format!(", seed {}", opts.seed));
     }
     s
+}
+
+/// Lists the vector files this run wrote into `--capture-dir` (a bench
+/// captures inside its own simulator and reports none).
+fn print_vectors(a: &TbArgs, since: std::time::SystemTime) {
+    let Some(dir) = a.capture.dir() else {
+        return;
+    };
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let mut files: Vec<PathBuf> = rd
+        .flatten()
+        .filter(|e| {
+            e.path().extension().is_some_and(|x| x == "vec")
+                && e.metadata()
+                    .and_then(|m| m.modified())
+                    .is_ok_and(|t| t >= since)
+        })
+        .map(|e| e.path())
+        .collect();
+    files.sort();
+    for f in files {
+        let rows = std::fs::read_to_string(&f)
+            .ok()
+            .and_then(|t| {
+                t.lines()
+                    .find_map(|l| l.strip_prefix("// rows ").map(str::to_string))
+            })
+            .unwrap_or_default();
+        println!("  vectors: {} ({rows} cycles)", f.display());
+    }
 }

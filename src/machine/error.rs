@@ -48,6 +48,8 @@ pub enum ChipError {
     },
     /// `--trace-window` that does not parse.
     BadWindow(String),
+    /// `--capture` names no unit of this chip.
+    Capture(String),
     /// The chip's netlist is not one the Verilog emitter can express.
     Hdl(String),
     /// A Verilog file or folder that cannot be written.
@@ -79,6 +81,7 @@ impl fmt::Display for ChipError {
                 "--trace-units: '{name}' matches no unit of this chip{hint}; valid names: {valid}"
             ),
             ChipError::File(e) => write!(f, "{e}"),
+            ChipError::Capture(m) => f.write_str(m),
         }
     }
 }

@@ -162,12 +162,49 @@ pub fn resolve(units: &str, paths: &[&str]) -> Result<String, ChipError> {
     Ok(pats.join(","))
 }
 
+/// The instance patterns for `--capture`'s comma-separated `units`: the
+/// names `--trace-units` takes, and instance paths with or without the root
+/// (`tm0.staging_buffer` is `chip.tm0.staging_buffer`). An unknown name, or
+/// one that matches no instance, is an error listing the valid ones.
+pub fn resolve_capture(units: &str, paths: &[&str]) -> Result<String, ChipError> {
+    let mut pats = Vec::new();
+    for name in units.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+        let rooted = format!("chip.{name}");
+        let found = resolve(name, paths).or_else(|e| match name.contains('.') {
+            true => resolve(&rooted, paths).map_err(|_| e),
+            false => Err(e),
+        });
+        match found {
+            Ok(p) => pats.push(p),
+            Err(e) => {
+                let why = e.to_string();
+                let why = why.strip_prefix("--trace-units: ").unwrap_or(&why);
+                return Err(ChipError::Capture(format!(
+                    "--capture: {why}; an instance path is also taken without its root (tm0.staging_buffer)"
+                )));
+            }
+        }
+    }
+    if pats.is_empty() {
+        return Err(ChipError::Capture(format!(
+            "--capture names no unit; valid names: {}",
+            valid_names(paths)
+        )));
+    }
+    Ok(pats.join(","))
+}
+
 /// A window of core cycles: `A..B` (B excluded), `A..=B` (B included) or `A..`
 /// (to the end). Returns the first and the last cycle (`None`: open).
 pub fn parse_window(s: &str) -> Result<(u64, Option<u64>), ChipError> {
+    parse_window_of(s, "--trace-window", "core cycles")
+}
+
+/// `parse_window` for option `flag`, whose cycles are `what`.
+pub fn parse_window_of(s: &str, flag: &str, what: &str) -> Result<(u64, Option<u64>), ChipError> {
     let bad = |why: &str| {
         ChipError::BadWindow(format!(
-            "--trace-window '{s}' {why}; give core cycles as A..B (B excluded), A..=B or A.."
+            "{flag} '{s}' {why}; give {what} as A..B (B excluded), A..=B or A.."
         ))
     };
     let (a, b) = s.split_once("..").ok_or_else(|| bad("has no '..'"))?;

@@ -16,6 +16,9 @@ pub struct ChipRun {
     /// Follow these rays (wavefront, ray id) through the chip (`render
     /// --follow-ray`): their events are in [`ChipFrame::follow`].
     pub follow: Option<Vec<(u32, u32)>>,
+    /// Capture vectors (`render --capture`, docs/rtl.md): `filter` holds the
+    /// unit names as `--capture` takes them (`crate::machine::trace::resolve_capture`).
+    pub capture: Option<crate::rtl::trace::CaptureSpec>,
 }
 
 /// A waveform of the chip over a window of core cycles (docs/chip.md).
@@ -114,6 +117,9 @@ pub struct ChipFrame {
     pub dram: Option<crate::machine::DramWave>,
     /// The waveform written (`ChipRun::trace`).
     pub vcd: Option<VcdInfo>,
+    /// The vector files written (`ChipRun::capture`; not a statistic).
+    #[serde(skip)]
+    pub captured: Vec<crate::rtl::trace::CaptureFile>,
     /// The followed rays' events in cycle order (`ChipRun::follow`; not a
     /// statistic).
     #[serde(skip)]
@@ -233,6 +239,17 @@ impl FrameChip {
             tracer.expect_end(2 * cycles * chip_cfg.clocks.core_ps);
             c.sim.attach_tracer(tracer)?;
         }
+        if let Some(cap) = &run.capture {
+            let paths: Vec<String> = (0..c.sim.unit_count())
+                .map(|i| c.sim.unit_path(crate::rtl::UnitId(i as u32)).to_string())
+                .collect();
+            let paths: Vec<&str> = paths.iter().map(String::as_str).collect();
+            let filter = crate::machine::trace::resolve_capture(&cap.filter, &paths)?;
+            c.sim.attach_capture(&crate::rtl::trace::CaptureSpec {
+                filter,
+                ..cap.clone()
+            })?;
+        }
         if cfg.verify || cfg.dump_rays.is_some() {
             c.enable_root_log();
         }
@@ -340,6 +357,7 @@ impl FrameChip {
             ),
             waves: self.waves,
             vcd,
+            captured: c.sim.captured(),
             follow: self.follow.map(|l| l.events()),
             evals_by_module: c.sim.evals_by_module(),
             sim_steps_by_lanes: c.sim.steps_by_lanes().to_vec(),

@@ -95,6 +95,7 @@ impl RenderCfg {
                 sim,
                 trace: None,
                 follow: None,
+                capture: None,
             })),
             pixels: None,
             pass_log: false,

@@ -10,6 +10,7 @@ pub mod pipe;
 pub mod sim;
 pub mod state;
 pub mod sv;
+pub mod tbgen;
 pub mod trace;
 pub mod unit;
 pub mod verilog;

@@ -129,6 +129,7 @@ fn onchip_energy(c: &Config, f: &Frame, total: &Counts) -> crate::energy::Energy
         line_bytes: crate::contract::LINE_BYTES,
         dram: None,
         vcd: None,
+        captured: Vec::new(),
         follow: None,
         evals_by_module: Vec::new(),
         sim_steps_by_lanes: Vec::new(),

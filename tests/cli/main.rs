@@ -8,6 +8,7 @@ use std::process::{Command, Output};
 mod common;
 
 mod bench;
+mod capture;
 mod config;
 mod dram;
 mod render;

@@ -48,6 +48,7 @@ fn reference_files(
             sim: Default::default(),
             trace: None,
             follow: None,
+            capture: None,
         })),
         ..Default::default()
     };

@@ -141,6 +141,10 @@ pub struct Sim {
     due: Vec<(u32, bool)>,
     taken: Vec<u32>,
     tracer: Option<Tracer>,
+    /// The vectors being captured (`--capture`), a tracer of its own, and the
+    /// files it wrote once finished.
+    capture: Option<Tracer>,
+    captured: crate::rtl::trace::Written,
     /// This thread's evaluation results of the current step.
     out: LaneOut,
     /// Due units of each lane (lane k at k - 1).
@@ -202,6 +206,8 @@ impl Sim {
             elaborated: false,
             due: Vec::new(),
             tracer: None,
+            capture: None,
+            captured: Default::default(),
             out: LaneOut::default(),
             lane_due: vec![Vec::new(); opts.threads.max(2)],
             lane_seq: 0,

@@ -5,7 +5,7 @@
 use super::{Clock, ClockId, NO_CHECK, Sim, SimError, Time, UnitId};
 use crate::rtl::decl::UnitDecl;
 use crate::rtl::link::{LinkEvent, LinkId, LinkStats};
-use crate::rtl::trace::{TraceStats, Tracer};
+use crate::rtl::trace::{CapUnit, CaptureFile, CaptureSpec, TraceError, TraceStats, Tracer};
 use crate::rtl::unit::{self, Unit};
 
 /// Evaluations of the units of one kind (see [`Sim::evals_by_module`]).
@@ -137,6 +137,61 @@ impl Sim {
 
     /// Attaches a VCD tracer (see [`crate::rtl::trace`]).
     pub fn attach_tracer(&mut self, mut tracer: Tracer) -> Result<(), SimError> {
+        self.bind_tracer(&mut tracer)?;
+        self.tracer = Some(tracer);
+        Ok(())
+    }
+
+    /// Captures vectors (docs/rtl.md, "Vectors") of the units whose instance
+    /// paths match `spec.filter`: one file per unit, written when the run's
+    /// trace finishes ([`Sim::finish_trace`]). Capturing changes no result.
+    pub fn attach_capture(&mut self, spec: &CaptureSpec) -> Result<(), SimError> {
+        self.elaborate()?;
+        let pick = crate::rtl::TraceSpec {
+            filter: spec.filter.clone(),
+            ..crate::rtl::TraceSpec::all()
+        };
+        let units: Vec<CapUnit> = self
+            .slots
+            .iter()
+            .filter(|s| pick.matches(&s.path))
+            .map(|s| {
+                let c = &self.clocks[s.clock.0 as usize];
+                CapUnit {
+                    path: s.path.clone(),
+                    decl: s.unit.decl(),
+                    clock: c.name.clone(),
+                    period: c.period_ps,
+                }
+            })
+            .collect();
+        if units.is_empty() {
+            return Err(SimError::TraceBind(TraceError::NoUnit {
+                filter: spec.filter.clone(),
+                units: self.slots.iter().map(|s| s.path.clone()).collect(),
+            }));
+        }
+        if let Some(to) = spec.to
+            && to < spec.from
+        {
+            return Err(SimError::TraceBind(TraceError::Window {
+                from: spec.from,
+                to,
+            }));
+        }
+        let mut t =
+            Tracer::capture(spec, units, self.captured.clone()).map_err(SimError::TraceBind)?;
+        self.bind_tracer(&mut t)?;
+        self.capture = Some(t);
+        Ok(())
+    }
+
+    /// The vector files the last finished capture wrote.
+    pub fn captured(&self) -> Vec<CaptureFile> {
+        self.captured.lock().expect("not poisoned").clone()
+    }
+
+    fn bind_tracer(&mut self, tracer: &mut Tracer) -> Result<(), SimError> {
         self.elaborate()?;
         let units: Vec<(&str, &dyn Unit, &Clock)> = self
             .slots
@@ -151,6 +206,13 @@ impl Sim {
             tracer.discard();
             return Err(SimError::Trace(e));
         }
+        self.watch(tracer);
+        Ok(())
+    }
+
+    /// Marks what a tracer samples: its units' registers and readiness, its
+    /// links' last payloads.
+    fn watch(&mut self, tracer: &Tracer) {
         let (from, to) = tracer.window();
         for i in tracer.unit_indices() {
             let s = &mut self.slots[i];
@@ -162,8 +224,6 @@ impl Sim {
         for l in tracer.traced_links() {
             self.links[l.0 as usize].set_keep_last(true);
         }
-        self.tracer = Some(tracer);
-        Ok(())
     }
 
     /// Named markers (time, name) for the waveform's save file, written when
@@ -174,7 +234,9 @@ impl Sim {
         }
     }
 
-    /// Detaches the tracer, flushing its output.
+    /// Detaches the tracer and the capture, flushing their output: the
+    /// waveform's counts (`None`: no waveform), or the first error of
+    /// either. The capture's files are then [`Sim::captured`].
     pub fn finish_trace(&mut self) -> Option<std::io::Result<TraceStats>> {
         let now = self.now;
         let check = if self.opts.check_ready {
@@ -189,7 +251,12 @@ impl Sim {
         for l in &mut self.links {
             l.set_keep_last(false);
         }
-        self.tracer.take().map(|t| t.finish(now))
+        let cap = self.capture.take().map(|t| t.finish(now));
+        let wave = self.tracer.take().map(|t| t.finish(now));
+        match cap {
+            Some(Err(e)) => Some(Err(e)),
+            _ => wave,
+        }
     }
 
     /// Every unit's declaration with its instance path (for hdl emission and reports).

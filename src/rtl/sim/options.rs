@@ -34,6 +34,10 @@ pub struct SimOptions {
     /// whenever a unit pops an input; a protocol violation otherwise). Always
     /// on for the units a tracer watches, whose waveform shows it.
     pub check_ready: bool,
+    /// Capture vectors of these units (`tb --capture`): attached when the
+    /// run starts ([`Sim::attach_capture`](super::Sim::attach_capture)),
+    /// written by [`Sim::finish_trace`](super::Sim::finish_trace).
+    pub capture: Option<crate::rtl::trace::CaptureSpec>,
 }
 
 /// How many evaluation threads a run uses (the command line's `--threads`).
@@ -94,6 +98,7 @@ impl Default for SimOptions {
             threads: 1,
             auto_lanes: false,
             check_ready: false,
+            capture: None,
         }
     }
 }

@@ -87,10 +87,10 @@ impl Sim {
                 t = t.min(edge_after(c.period_ps));
             }
         }
-        if let Some(tr) = &self.tracer
-            && let Some(te) = tr.next_sample_time(after)
-        {
-            t = t.min(te);
+        for tr in self.tracer.iter().chain(&self.capture) {
+            if let Some(te) = tr.next_sample_time(after) {
+                t = t.min(te);
+            }
         }
         Some(t)
     }

@@ -22,7 +22,10 @@ impl Sim {
 
     fn run_inner(&mut self, limit: Time, stop_when_idle: bool) -> Result<RunEnd, SimError> {
         self.elaborate()?;
-        if !self.parallel() || self.tracer.is_some() {
+        if let Some(spec) = self.opts.capture.take() {
+            self.attach_capture(&spec)?;
+        }
+        if !self.parallel() || self.tracer.is_some() || self.capture.is_some() {
             return self.run_loop(limit, stop_when_idle, None);
         }
         let crew = Crew::new(self.opts.threads - 1);
@@ -178,13 +181,13 @@ impl Sim {
                 std::mem::swap(&mut l, &mut self.lane_due);
             }
         }
-        if self.tracer.is_some() {
+        if self.tracer.is_some() || self.capture.is_some() {
             for &(u, is_due) in &due {
                 self.eval_unit(u, is_due)?;
             }
             // The waveform samples every register before the edge.
             let slots = &self.slots;
-            if let Some(tr) = &mut self.tracer {
+            for tr in self.tracer.iter_mut().chain(&mut self.capture) {
                 let activity = Activity {
                     due: &due,
                     touched: &self.out.touched,

@@ -23,6 +23,7 @@ use super::link::LinkId;
 use super::sim::Time;
 
 mod bind;
+mod capture;
 mod fst;
 mod gtkw;
 mod sample;
@@ -30,6 +31,8 @@ mod sink;
 mod vcd;
 
 use crate::util::FileError;
+pub(crate) use capture::{CapUnit, Written};
+pub use capture::{CaptureFile, CaptureSpec, DEFAULT_CAPTURE_MAX_BYTES, VECTORS_VERSION};
 pub use fst::WriteSeek;
 pub(crate) use sample::Activity;
 use sink::Sink;
@@ -525,6 +528,58 @@ impl Tracer {
             source,
         })?;
         Self::with_sink(Box::new(sink), "FST", spec)
+    }
+
+    /// A tracer writing vectors of `units` (`--capture`, docs/rtl.md):
+    /// every port's valid, ready and data, sampled at every edge of each
+    /// unit's clock over the cycles of `spec`; `written` is filled in with
+    /// the files when it finishes.
+    pub(crate) fn capture(
+        spec: &CaptureSpec,
+        units: Vec<CapUnit>,
+        written: Written,
+    ) -> Result<Self, TraceError> {
+        let filter = units
+            .iter()
+            .map(|u| u.path.as_str())
+            .collect::<Vec<_>>()
+            .join(",");
+        let from = units
+            .iter()
+            .map(|u| spec.from.saturating_mul(u.period))
+            .min()
+            .unwrap_or(0);
+        let to = match spec.to {
+            None => Time::MAX,
+            Some(c) => units
+                .iter()
+                .map(|u| {
+                    c.saturating_add(1)
+                        .saturating_mul(u.period)
+                        .saturating_sub(1)
+                })
+                .max()
+                .unwrap_or(Time::MAX),
+        };
+        let show = Show {
+            handshakes: true,
+            data: true,
+            fields: false,
+            fsm: false,
+            regs: false,
+            max_width: 0,
+        };
+        let tspec = TraceSpec {
+            filter,
+            from,
+            to,
+            max_bytes: 0,
+            every_edge: true,
+            show,
+            cycles_of: None,
+        };
+        let sink = capture::CaptureSink::new(spec, units, written);
+        Self::with_sink(Box::new(sink), "vector", tspec)
     }
 
     fn with_sink(
