@@ -53,1364 +53,4145 @@ module chip
     wire [TMS-1:0] tm_gmem_resp_valid;
     wire [TMS-1:0] tm_gmem_resp_ready;
     wire [TMS*612-1:0] tm_gmem_resp_data;
-    wire mem_req0_sched_valid;
-    wire mem_req0_sched_ready;
-    wire [675:0] mem_req0_sched_data;
-    wire mem_resp0_sched_valid;
-    wire mem_resp0_sched_ready;
-    wire [611:0] mem_resp0_sched_data;
-    wire mem_req1_scene_valid;
-    wire mem_req1_scene_ready;
-    wire [675:0] mem_req1_scene_data;
-    wire mem_resp1_scene_valid;
-    wire mem_resp1_scene_ready;
-    wire [611:0] mem_resp1_scene_data;
-    wire mem_req2_l2_valid;
-    wire mem_req2_l2_ready;
-    wire [675:0] mem_req2_l2_data;
-    wire mem_resp2_l2_valid;
-    wire mem_resp2_l2_ready;
-    wire [611:0] mem_resp2_l2_data;
-    wire mem_req_sched1_valid;
-    wire mem_req_sched1_ready;
-    wire [675:0] mem_req_sched1_data;
-    wire mem_resp_sched1_valid;
-    wire mem_resp_sched1_ready;
-    wire [611:0] mem_resp_sched1_data;
-    wire mem_req_sched2_valid;
-    wire mem_req_sched2_ready;
-    wire [675:0] mem_req_sched2_data;
-    wire mem_resp_sched2_valid;
-    wire mem_resp_sched2_ready;
-    wire [611:0] mem_resp_sched2_data;
-    wire mem_req_sched3_valid;
-    wire mem_req_sched3_ready;
-    wire [675:0] mem_req_sched3_data;
-    wire mem_resp_sched3_valid;
-    wire mem_resp_sched3_ready;
-    wire [611:0] mem_resp_sched3_data;
-    wire mem_req_scene1_valid;
-    wire mem_req_scene1_ready;
-    wire [675:0] mem_req_scene1_data;
-    wire mem_resp_scene1_valid;
-    wire mem_resp_scene1_ready;
-    wire [611:0] mem_resp_scene1_data;
-    wire mem_req_scene2_valid;
-    wire mem_req_scene2_ready;
-    wire [675:0] mem_req_scene2_data;
-    wire mem_resp_scene2_valid;
-    wire mem_resp_scene2_ready;
-    wire [611:0] mem_resp_scene2_data;
-    wire mem_req_scene3_valid;
-    wire mem_req_scene3_ready;
-    wire [675:0] mem_req_scene3_data;
-    wire mem_resp_scene3_valid;
-    wire mem_resp_scene3_ready;
-    wire [611:0] mem_resp_scene3_data;
-    wire slot_map_valid;
-    wire slot_map_ready;
-    wire [119:0] slot_map_data;
-    wire l2_req0_hits_valid;
-    wire l2_req0_hits_ready;
-    wire [675:0] l2_req0_hits_data;
-    wire l2_resp0_hits_valid;
-    wire l2_resp0_hits_ready;
-    wire [611:0] l2_resp0_hits_data;
-    wire mem_req_l2_lane1_valid;
-    wire mem_req_l2_lane1_ready;
-    wire [675:0] mem_req_l2_lane1_data;
-    wire mem_resp_l2_lane1_valid;
-    wire mem_resp_l2_lane1_ready;
-    wire [611:0] mem_resp_l2_lane1_data;
-    wire mem_req_l2_lane2_valid;
-    wire mem_req_l2_lane2_ready;
-    wire [675:0] mem_req_l2_lane2_data;
-    wire mem_resp_l2_lane2_valid;
-    wire mem_resp_l2_lane2_ready;
-    wire [611:0] mem_resp_l2_lane2_data;
-    wire mem_req_l2_lane3_valid;
-    wire mem_req_l2_lane3_ready;
-    wire [675:0] mem_req_l2_lane3_data;
-    wire mem_resp_l2_lane3_valid;
-    wire mem_resp_l2_lane3_ready;
-    wire [611:0] mem_resp_l2_lane3_data;
+    wire mem_req0_sched_push_valid;
+    wire mem_req0_sched_push_ready;
+    wire [675:0] mem_req0_sched_push_data;
+    wire mem_req0_sched_pop_valid;
+    wire mem_req0_sched_pop_ready;
+    wire [675:0] mem_req0_sched_pop_data;
+    wire mem_resp0_sched_push_valid;
+    wire mem_resp0_sched_push_ready;
+    wire [611:0] mem_resp0_sched_push_data;
+    wire mem_resp0_sched_pop_valid;
+    wire mem_resp0_sched_pop_ready;
+    wire [611:0] mem_resp0_sched_pop_data;
+    wire mem_req1_scene_push_valid;
+    wire mem_req1_scene_push_ready;
+    wire [675:0] mem_req1_scene_push_data;
+    wire mem_req1_scene_pop_valid;
+    wire mem_req1_scene_pop_ready;
+    wire [675:0] mem_req1_scene_pop_data;
+    wire mem_resp1_scene_push_valid;
+    wire mem_resp1_scene_push_ready;
+    wire [611:0] mem_resp1_scene_push_data;
+    wire mem_resp1_scene_pop_valid;
+    wire mem_resp1_scene_pop_ready;
+    wire [611:0] mem_resp1_scene_pop_data;
+    wire mem_req2_l2_push_valid;
+    wire mem_req2_l2_push_ready;
+    wire [675:0] mem_req2_l2_push_data;
+    wire mem_req2_l2_pop_valid;
+    wire mem_req2_l2_pop_ready;
+    wire [675:0] mem_req2_l2_pop_data;
+    wire mem_resp2_l2_push_valid;
+    wire mem_resp2_l2_push_ready;
+    wire [611:0] mem_resp2_l2_push_data;
+    wire mem_resp2_l2_pop_valid;
+    wire mem_resp2_l2_pop_ready;
+    wire [611:0] mem_resp2_l2_pop_data;
+    wire mem_req_sched1_push_valid;
+    wire mem_req_sched1_push_ready;
+    wire [675:0] mem_req_sched1_push_data;
+    wire mem_req_sched1_pop_valid;
+    wire mem_req_sched1_pop_ready;
+    wire [675:0] mem_req_sched1_pop_data;
+    wire mem_resp_sched1_push_valid;
+    wire mem_resp_sched1_push_ready;
+    wire [611:0] mem_resp_sched1_push_data;
+    wire mem_resp_sched1_pop_valid;
+    wire mem_resp_sched1_pop_ready;
+    wire [611:0] mem_resp_sched1_pop_data;
+    wire mem_req_sched2_push_valid;
+    wire mem_req_sched2_push_ready;
+    wire [675:0] mem_req_sched2_push_data;
+    wire mem_req_sched2_pop_valid;
+    wire mem_req_sched2_pop_ready;
+    wire [675:0] mem_req_sched2_pop_data;
+    wire mem_resp_sched2_push_valid;
+    wire mem_resp_sched2_push_ready;
+    wire [611:0] mem_resp_sched2_push_data;
+    wire mem_resp_sched2_pop_valid;
+    wire mem_resp_sched2_pop_ready;
+    wire [611:0] mem_resp_sched2_pop_data;
+    wire mem_req_sched3_push_valid;
+    wire mem_req_sched3_push_ready;
+    wire [675:0] mem_req_sched3_push_data;
+    wire mem_req_sched3_pop_valid;
+    wire mem_req_sched3_pop_ready;
+    wire [675:0] mem_req_sched3_pop_data;
+    wire mem_resp_sched3_push_valid;
+    wire mem_resp_sched3_push_ready;
+    wire [611:0] mem_resp_sched3_push_data;
+    wire mem_resp_sched3_pop_valid;
+    wire mem_resp_sched3_pop_ready;
+    wire [611:0] mem_resp_sched3_pop_data;
+    wire mem_req_scene1_push_valid;
+    wire mem_req_scene1_push_ready;
+    wire [675:0] mem_req_scene1_push_data;
+    wire mem_req_scene1_pop_valid;
+    wire mem_req_scene1_pop_ready;
+    wire [675:0] mem_req_scene1_pop_data;
+    wire mem_resp_scene1_push_valid;
+    wire mem_resp_scene1_push_ready;
+    wire [611:0] mem_resp_scene1_push_data;
+    wire mem_resp_scene1_pop_valid;
+    wire mem_resp_scene1_pop_ready;
+    wire [611:0] mem_resp_scene1_pop_data;
+    wire mem_req_scene2_push_valid;
+    wire mem_req_scene2_push_ready;
+    wire [675:0] mem_req_scene2_push_data;
+    wire mem_req_scene2_pop_valid;
+    wire mem_req_scene2_pop_ready;
+    wire [675:0] mem_req_scene2_pop_data;
+    wire mem_resp_scene2_push_valid;
+    wire mem_resp_scene2_push_ready;
+    wire [611:0] mem_resp_scene2_push_data;
+    wire mem_resp_scene2_pop_valid;
+    wire mem_resp_scene2_pop_ready;
+    wire [611:0] mem_resp_scene2_pop_data;
+    wire mem_req_scene3_push_valid;
+    wire mem_req_scene3_push_ready;
+    wire [675:0] mem_req_scene3_push_data;
+    wire mem_req_scene3_pop_valid;
+    wire mem_req_scene3_pop_ready;
+    wire [675:0] mem_req_scene3_pop_data;
+    wire mem_resp_scene3_push_valid;
+    wire mem_resp_scene3_push_ready;
+    wire [611:0] mem_resp_scene3_push_data;
+    wire mem_resp_scene3_pop_valid;
+    wire mem_resp_scene3_pop_ready;
+    wire [611:0] mem_resp_scene3_pop_data;
+    wire emit_pop_valid;
+    wire emit_pop_ready;
+    wire [288:0] emit_pop_data;
+    wire start_pop_valid;
+    wire start_pop_ready;
+    wire [63:0] start_pop_data;
+    wire slot_map_push_valid;
+    wire slot_map_push_ready;
+    wire [119:0] slot_map_push_data;
+    wire slot_map_pop_valid;
+    wire slot_map_pop_ready;
+    wire [119:0] slot_map_pop_data;
+    wire tm0_fill_push_valid;
+    wire tm0_fill_push_ready;
+    wire [384:0] tm0_fill_push_data;
+    wire tm1_fill_push_valid;
+    wire tm1_fill_push_ready;
+    wire [384:0] tm1_fill_push_data;
+    wire tm2_fill_push_valid;
+    wire tm2_fill_push_ready;
+    wire [384:0] tm2_fill_push_data;
+    wire tm3_fill_push_valid;
+    wire tm3_fill_push_ready;
+    wire [384:0] tm3_fill_push_data;
+    wire tm4_fill_push_valid;
+    wire tm4_fill_push_ready;
+    wire [384:0] tm4_fill_push_data;
+    wire tm5_fill_push_valid;
+    wire tm5_fill_push_ready;
+    wire [384:0] tm5_fill_push_data;
+    wire tm6_fill_push_valid;
+    wire tm6_fill_push_ready;
+    wire [384:0] tm6_fill_push_data;
+    wire tm7_fill_push_valid;
+    wire tm7_fill_push_ready;
+    wire [384:0] tm7_fill_push_data;
+    wire tm8_fill_push_valid;
+    wire tm8_fill_push_ready;
+    wire [384:0] tm8_fill_push_data;
+    wire tm9_fill_push_valid;
+    wire tm9_fill_push_ready;
+    wire [384:0] tm9_fill_push_data;
+    wire tm10_fill_push_valid;
+    wire tm10_fill_push_ready;
+    wire [384:0] tm10_fill_push_data;
+    wire tm11_fill_push_valid;
+    wire tm11_fill_push_ready;
+    wire [384:0] tm11_fill_push_data;
+    wire tm12_fill_push_valid;
+    wire tm12_fill_push_ready;
+    wire [384:0] tm12_fill_push_data;
+    wire tm13_fill_push_valid;
+    wire tm13_fill_push_ready;
+    wire [384:0] tm13_fill_push_data;
+    wire tm14_fill_push_valid;
+    wire tm14_fill_push_ready;
+    wire [384:0] tm14_fill_push_data;
+    wire tm15_fill_push_valid;
+    wire tm15_fill_push_ready;
+    wire [384:0] tm15_fill_push_data;
+    wire tm16_fill_push_valid;
+    wire tm16_fill_push_ready;
+    wire [384:0] tm16_fill_push_data;
+    wire tm17_fill_push_valid;
+    wire tm17_fill_push_ready;
+    wire [384:0] tm17_fill_push_data;
+    wire tm18_fill_push_valid;
+    wire tm18_fill_push_ready;
+    wire [384:0] tm18_fill_push_data;
+    wire tm19_fill_push_valid;
+    wire tm19_fill_push_ready;
+    wire [384:0] tm19_fill_push_data;
+    wire tm20_fill_push_valid;
+    wire tm20_fill_push_ready;
+    wire [384:0] tm20_fill_push_data;
+    wire tm21_fill_push_valid;
+    wire tm21_fill_push_ready;
+    wire [384:0] tm21_fill_push_data;
+    wire tm22_fill_push_valid;
+    wire tm22_fill_push_ready;
+    wire [384:0] tm22_fill_push_data;
+    wire tm23_fill_push_valid;
+    wire tm23_fill_push_ready;
+    wire [384:0] tm23_fill_push_data;
+    wire tm24_fill_push_valid;
+    wire tm24_fill_push_ready;
+    wire [384:0] tm24_fill_push_data;
+    wire tm25_fill_push_valid;
+    wire tm25_fill_push_ready;
+    wire [384:0] tm25_fill_push_data;
+    wire tm26_fill_push_valid;
+    wire tm26_fill_push_ready;
+    wire [384:0] tm26_fill_push_data;
+    wire tm27_fill_push_valid;
+    wire tm27_fill_push_ready;
+    wire [384:0] tm27_fill_push_data;
+    wire tm28_fill_push_valid;
+    wire tm28_fill_push_ready;
+    wire [384:0] tm28_fill_push_data;
+    wire tm29_fill_push_valid;
+    wire tm29_fill_push_ready;
+    wire [384:0] tm29_fill_push_data;
+    wire tm30_fill_push_valid;
+    wire tm30_fill_push_ready;
+    wire [384:0] tm30_fill_push_data;
+    wire tm31_fill_push_valid;
+    wire tm31_fill_push_ready;
+    wire [384:0] tm31_fill_push_data;
+    wire tm32_fill_push_valid;
+    wire tm32_fill_push_ready;
+    wire [384:0] tm32_fill_push_data;
+    wire tm33_fill_push_valid;
+    wire tm33_fill_push_ready;
+    wire [384:0] tm33_fill_push_data;
+    wire tm34_fill_push_valid;
+    wire tm34_fill_push_ready;
+    wire [384:0] tm34_fill_push_data;
+    wire tm35_fill_push_valid;
+    wire tm35_fill_push_ready;
+    wire [384:0] tm35_fill_push_data;
+    wire tm36_fill_push_valid;
+    wire tm36_fill_push_ready;
+    wire [384:0] tm36_fill_push_data;
+    wire tm37_fill_push_valid;
+    wire tm37_fill_push_ready;
+    wire [384:0] tm37_fill_push_data;
+    wire tm38_fill_push_valid;
+    wire tm38_fill_push_ready;
+    wire [384:0] tm38_fill_push_data;
+    wire tm39_fill_push_valid;
+    wire tm39_fill_push_ready;
+    wire [384:0] tm39_fill_push_data;
+    wire tm40_fill_push_valid;
+    wire tm40_fill_push_ready;
+    wire [384:0] tm40_fill_push_data;
+    wire tm41_fill_push_valid;
+    wire tm41_fill_push_ready;
+    wire [384:0] tm41_fill_push_data;
+    wire tm42_fill_push_valid;
+    wire tm42_fill_push_ready;
+    wire [384:0] tm42_fill_push_data;
+    wire tm43_fill_push_valid;
+    wire tm43_fill_push_ready;
+    wire [384:0] tm43_fill_push_data;
+    wire tm44_fill_push_valid;
+    wire tm44_fill_push_ready;
+    wire [384:0] tm44_fill_push_data;
+    wire tm45_fill_push_valid;
+    wire tm45_fill_push_ready;
+    wire [384:0] tm45_fill_push_data;
+    wire tm46_fill_push_valid;
+    wire tm46_fill_push_ready;
+    wire [384:0] tm46_fill_push_data;
+    wire tm47_fill_push_valid;
+    wire tm47_fill_push_ready;
+    wire [384:0] tm47_fill_push_data;
+    wire tm48_fill_push_valid;
+    wire tm48_fill_push_ready;
+    wire [384:0] tm48_fill_push_data;
+    wire tm49_fill_push_valid;
+    wire tm49_fill_push_ready;
+    wire [384:0] tm49_fill_push_data;
+    wire tm50_fill_push_valid;
+    wire tm50_fill_push_ready;
+    wire [384:0] tm50_fill_push_data;
+    wire tm51_fill_push_valid;
+    wire tm51_fill_push_ready;
+    wire [384:0] tm51_fill_push_data;
+    wire tm52_fill_push_valid;
+    wire tm52_fill_push_ready;
+    wire [384:0] tm52_fill_push_data;
+    wire tm53_fill_push_valid;
+    wire tm53_fill_push_ready;
+    wire [384:0] tm53_fill_push_data;
+    wire tm54_fill_push_valid;
+    wire tm54_fill_push_ready;
+    wire [384:0] tm54_fill_push_data;
+    wire tm55_fill_push_valid;
+    wire tm55_fill_push_ready;
+    wire [384:0] tm55_fill_push_data;
+    wire tm56_fill_push_valid;
+    wire tm56_fill_push_ready;
+    wire [384:0] tm56_fill_push_data;
+    wire tm57_fill_push_valid;
+    wire tm57_fill_push_ready;
+    wire [384:0] tm57_fill_push_data;
+    wire tm58_fill_push_valid;
+    wire tm58_fill_push_ready;
+    wire [384:0] tm58_fill_push_data;
+    wire tm59_fill_push_valid;
+    wire tm59_fill_push_ready;
+    wire [384:0] tm59_fill_push_data;
+    wire tm60_fill_push_valid;
+    wire tm60_fill_push_ready;
+    wire [384:0] tm60_fill_push_data;
+    wire tm61_fill_push_valid;
+    wire tm61_fill_push_ready;
+    wire [384:0] tm61_fill_push_data;
+    wire tm62_fill_push_valid;
+    wire tm62_fill_push_ready;
+    wire [384:0] tm62_fill_push_data;
+    wire tm63_fill_push_valid;
+    wire tm63_fill_push_ready;
+    wire [384:0] tm63_fill_push_data;
+    wire tm64_fill_push_valid;
+    wire tm64_fill_push_ready;
+    wire [384:0] tm64_fill_push_data;
+    wire tm65_fill_push_valid;
+    wire tm65_fill_push_ready;
+    wire [384:0] tm65_fill_push_data;
+    wire tm66_fill_push_valid;
+    wire tm66_fill_push_ready;
+    wire [384:0] tm66_fill_push_data;
+    wire tm67_fill_push_valid;
+    wire tm67_fill_push_ready;
+    wire [384:0] tm67_fill_push_data;
+    wire tm68_fill_push_valid;
+    wire tm68_fill_push_ready;
+    wire [384:0] tm68_fill_push_data;
+    wire tm69_fill_push_valid;
+    wire tm69_fill_push_ready;
+    wire [384:0] tm69_fill_push_data;
+    wire tm70_fill_push_valid;
+    wire tm70_fill_push_ready;
+    wire [384:0] tm70_fill_push_data;
+    wire tm71_fill_push_valid;
+    wire tm71_fill_push_ready;
+    wire [384:0] tm71_fill_push_data;
+    wire tm72_fill_push_valid;
+    wire tm72_fill_push_ready;
+    wire [384:0] tm72_fill_push_data;
+    wire tm73_fill_push_valid;
+    wire tm73_fill_push_ready;
+    wire [384:0] tm73_fill_push_data;
+    wire tm74_fill_push_valid;
+    wire tm74_fill_push_ready;
+    wire [384:0] tm74_fill_push_data;
+    wire tm75_fill_push_valid;
+    wire tm75_fill_push_ready;
+    wire [384:0] tm75_fill_push_data;
+    wire tm76_fill_push_valid;
+    wire tm76_fill_push_ready;
+    wire [384:0] tm76_fill_push_data;
+    wire tm77_fill_push_valid;
+    wire tm77_fill_push_ready;
+    wire [384:0] tm77_fill_push_data;
+    wire tm78_fill_push_valid;
+    wire tm78_fill_push_ready;
+    wire [384:0] tm78_fill_push_data;
+    wire tm79_fill_push_valid;
+    wire tm79_fill_push_ready;
+    wire [384:0] tm79_fill_push_data;
+    wire tm80_fill_push_valid;
+    wire tm80_fill_push_ready;
+    wire [384:0] tm80_fill_push_data;
+    wire tm81_fill_push_valid;
+    wire tm81_fill_push_ready;
+    wire [384:0] tm81_fill_push_data;
+    wire tm82_fill_push_valid;
+    wire tm82_fill_push_ready;
+    wire [384:0] tm82_fill_push_data;
+    wire tm83_fill_push_valid;
+    wire tm83_fill_push_ready;
+    wire [384:0] tm83_fill_push_data;
+    wire tm84_fill_push_valid;
+    wire tm84_fill_push_ready;
+    wire [384:0] tm84_fill_push_data;
+    wire tm85_fill_push_valid;
+    wire tm85_fill_push_ready;
+    wire [384:0] tm85_fill_push_data;
+    wire tm86_fill_push_valid;
+    wire tm86_fill_push_ready;
+    wire [384:0] tm86_fill_push_data;
+    wire tm87_fill_push_valid;
+    wire tm87_fill_push_ready;
+    wire [384:0] tm87_fill_push_data;
+    wire tm88_fill_push_valid;
+    wire tm88_fill_push_ready;
+    wire [384:0] tm88_fill_push_data;
+    wire tm89_fill_push_valid;
+    wire tm89_fill_push_ready;
+    wire [384:0] tm89_fill_push_data;
+    wire tm90_fill_push_valid;
+    wire tm90_fill_push_ready;
+    wire [384:0] tm90_fill_push_data;
+    wire tm91_fill_push_valid;
+    wire tm91_fill_push_ready;
+    wire [384:0] tm91_fill_push_data;
+    wire tm92_fill_push_valid;
+    wire tm92_fill_push_ready;
+    wire [384:0] tm92_fill_push_data;
+    wire tm93_fill_push_valid;
+    wire tm93_fill_push_ready;
+    wire [384:0] tm93_fill_push_data;
+    wire tm94_fill_push_valid;
+    wire tm94_fill_push_ready;
+    wire [384:0] tm94_fill_push_data;
+    wire tm95_fill_push_valid;
+    wire tm95_fill_push_ready;
+    wire [384:0] tm95_fill_push_data;
+    wire tm96_fill_push_valid;
+    wire tm96_fill_push_ready;
+    wire [384:0] tm96_fill_push_data;
+    wire tm97_fill_push_valid;
+    wire tm97_fill_push_ready;
+    wire [384:0] tm97_fill_push_data;
+    wire tm98_fill_push_valid;
+    wire tm98_fill_push_ready;
+    wire [384:0] tm98_fill_push_data;
+    wire tm99_fill_push_valid;
+    wire tm99_fill_push_ready;
+    wire [384:0] tm99_fill_push_data;
+    wire tm100_fill_push_valid;
+    wire tm100_fill_push_ready;
+    wire [384:0] tm100_fill_push_data;
+    wire tm101_fill_push_valid;
+    wire tm101_fill_push_ready;
+    wire [384:0] tm101_fill_push_data;
+    wire tm102_fill_push_valid;
+    wire tm102_fill_push_ready;
+    wire [384:0] tm102_fill_push_data;
+    wire tm103_fill_push_valid;
+    wire tm103_fill_push_ready;
+    wire [384:0] tm103_fill_push_data;
+    wire tm104_fill_push_valid;
+    wire tm104_fill_push_ready;
+    wire [384:0] tm104_fill_push_data;
+    wire tm105_fill_push_valid;
+    wire tm105_fill_push_ready;
+    wire [384:0] tm105_fill_push_data;
+    wire tm106_fill_push_valid;
+    wire tm106_fill_push_ready;
+    wire [384:0] tm106_fill_push_data;
+    wire tm107_fill_push_valid;
+    wire tm107_fill_push_ready;
+    wire [384:0] tm107_fill_push_data;
+    wire tm108_fill_push_valid;
+    wire tm108_fill_push_ready;
+    wire [384:0] tm108_fill_push_data;
+    wire tm109_fill_push_valid;
+    wire tm109_fill_push_ready;
+    wire [384:0] tm109_fill_push_data;
+    wire tm110_fill_push_valid;
+    wire tm110_fill_push_ready;
+    wire [384:0] tm110_fill_push_data;
+    wire tm111_fill_push_valid;
+    wire tm111_fill_push_ready;
+    wire [384:0] tm111_fill_push_data;
+    wire tm112_fill_push_valid;
+    wire tm112_fill_push_ready;
+    wire [384:0] tm112_fill_push_data;
+    wire tm113_fill_push_valid;
+    wire tm113_fill_push_ready;
+    wire [384:0] tm113_fill_push_data;
+    wire tm114_fill_push_valid;
+    wire tm114_fill_push_ready;
+    wire [384:0] tm114_fill_push_data;
+    wire tm115_fill_push_valid;
+    wire tm115_fill_push_ready;
+    wire [384:0] tm115_fill_push_data;
+    wire tm116_fill_push_valid;
+    wire tm116_fill_push_ready;
+    wire [384:0] tm116_fill_push_data;
+    wire tm117_fill_push_valid;
+    wire tm117_fill_push_ready;
+    wire [384:0] tm117_fill_push_data;
+    wire tm118_fill_push_valid;
+    wire tm118_fill_push_ready;
+    wire [384:0] tm118_fill_push_data;
+    wire tm119_fill_push_valid;
+    wire tm119_fill_push_ready;
+    wire [384:0] tm119_fill_push_data;
+    wire tm120_fill_push_valid;
+    wire tm120_fill_push_ready;
+    wire [384:0] tm120_fill_push_data;
+    wire tm121_fill_push_valid;
+    wire tm121_fill_push_ready;
+    wire [384:0] tm121_fill_push_data;
+    wire tm122_fill_push_valid;
+    wire tm122_fill_push_ready;
+    wire [384:0] tm122_fill_push_data;
+    wire tm123_fill_push_valid;
+    wire tm123_fill_push_ready;
+    wire [384:0] tm123_fill_push_data;
+    wire tm124_fill_push_valid;
+    wire tm124_fill_push_ready;
+    wire [384:0] tm124_fill_push_data;
+    wire tm125_fill_push_valid;
+    wire tm125_fill_push_ready;
+    wire [384:0] tm125_fill_push_data;
+    wire tm126_fill_push_valid;
+    wire tm126_fill_push_ready;
+    wire [384:0] tm126_fill_push_data;
+    wire tm127_fill_push_valid;
+    wire tm127_fill_push_ready;
+    wire [384:0] tm127_fill_push_data;
+    wire tm0_miss_req_pop_valid;
+    wire tm0_miss_req_pop_ready;
+    wire [63:0] tm0_miss_req_pop_data;
+    wire tm1_miss_req_pop_valid;
+    wire tm1_miss_req_pop_ready;
+    wire [63:0] tm1_miss_req_pop_data;
+    wire tm2_miss_req_pop_valid;
+    wire tm2_miss_req_pop_ready;
+    wire [63:0] tm2_miss_req_pop_data;
+    wire tm3_miss_req_pop_valid;
+    wire tm3_miss_req_pop_ready;
+    wire [63:0] tm3_miss_req_pop_data;
+    wire tm4_miss_req_pop_valid;
+    wire tm4_miss_req_pop_ready;
+    wire [63:0] tm4_miss_req_pop_data;
+    wire tm5_miss_req_pop_valid;
+    wire tm5_miss_req_pop_ready;
+    wire [63:0] tm5_miss_req_pop_data;
+    wire tm6_miss_req_pop_valid;
+    wire tm6_miss_req_pop_ready;
+    wire [63:0] tm6_miss_req_pop_data;
+    wire tm7_miss_req_pop_valid;
+    wire tm7_miss_req_pop_ready;
+    wire [63:0] tm7_miss_req_pop_data;
+    wire tm8_miss_req_pop_valid;
+    wire tm8_miss_req_pop_ready;
+    wire [63:0] tm8_miss_req_pop_data;
+    wire tm9_miss_req_pop_valid;
+    wire tm9_miss_req_pop_ready;
+    wire [63:0] tm9_miss_req_pop_data;
+    wire tm10_miss_req_pop_valid;
+    wire tm10_miss_req_pop_ready;
+    wire [63:0] tm10_miss_req_pop_data;
+    wire tm11_miss_req_pop_valid;
+    wire tm11_miss_req_pop_ready;
+    wire [63:0] tm11_miss_req_pop_data;
+    wire tm12_miss_req_pop_valid;
+    wire tm12_miss_req_pop_ready;
+    wire [63:0] tm12_miss_req_pop_data;
+    wire tm13_miss_req_pop_valid;
+    wire tm13_miss_req_pop_ready;
+    wire [63:0] tm13_miss_req_pop_data;
+    wire tm14_miss_req_pop_valid;
+    wire tm14_miss_req_pop_ready;
+    wire [63:0] tm14_miss_req_pop_data;
+    wire tm15_miss_req_pop_valid;
+    wire tm15_miss_req_pop_ready;
+    wire [63:0] tm15_miss_req_pop_data;
+    wire tm16_miss_req_pop_valid;
+    wire tm16_miss_req_pop_ready;
+    wire [63:0] tm16_miss_req_pop_data;
+    wire tm17_miss_req_pop_valid;
+    wire tm17_miss_req_pop_ready;
+    wire [63:0] tm17_miss_req_pop_data;
+    wire tm18_miss_req_pop_valid;
+    wire tm18_miss_req_pop_ready;
+    wire [63:0] tm18_miss_req_pop_data;
+    wire tm19_miss_req_pop_valid;
+    wire tm19_miss_req_pop_ready;
+    wire [63:0] tm19_miss_req_pop_data;
+    wire tm20_miss_req_pop_valid;
+    wire tm20_miss_req_pop_ready;
+    wire [63:0] tm20_miss_req_pop_data;
+    wire tm21_miss_req_pop_valid;
+    wire tm21_miss_req_pop_ready;
+    wire [63:0] tm21_miss_req_pop_data;
+    wire tm22_miss_req_pop_valid;
+    wire tm22_miss_req_pop_ready;
+    wire [63:0] tm22_miss_req_pop_data;
+    wire tm23_miss_req_pop_valid;
+    wire tm23_miss_req_pop_ready;
+    wire [63:0] tm23_miss_req_pop_data;
+    wire tm24_miss_req_pop_valid;
+    wire tm24_miss_req_pop_ready;
+    wire [63:0] tm24_miss_req_pop_data;
+    wire tm25_miss_req_pop_valid;
+    wire tm25_miss_req_pop_ready;
+    wire [63:0] tm25_miss_req_pop_data;
+    wire tm26_miss_req_pop_valid;
+    wire tm26_miss_req_pop_ready;
+    wire [63:0] tm26_miss_req_pop_data;
+    wire tm27_miss_req_pop_valid;
+    wire tm27_miss_req_pop_ready;
+    wire [63:0] tm27_miss_req_pop_data;
+    wire tm28_miss_req_pop_valid;
+    wire tm28_miss_req_pop_ready;
+    wire [63:0] tm28_miss_req_pop_data;
+    wire tm29_miss_req_pop_valid;
+    wire tm29_miss_req_pop_ready;
+    wire [63:0] tm29_miss_req_pop_data;
+    wire tm30_miss_req_pop_valid;
+    wire tm30_miss_req_pop_ready;
+    wire [63:0] tm30_miss_req_pop_data;
+    wire tm31_miss_req_pop_valid;
+    wire tm31_miss_req_pop_ready;
+    wire [63:0] tm31_miss_req_pop_data;
+    wire tm32_miss_req_pop_valid;
+    wire tm32_miss_req_pop_ready;
+    wire [63:0] tm32_miss_req_pop_data;
+    wire tm33_miss_req_pop_valid;
+    wire tm33_miss_req_pop_ready;
+    wire [63:0] tm33_miss_req_pop_data;
+    wire tm34_miss_req_pop_valid;
+    wire tm34_miss_req_pop_ready;
+    wire [63:0] tm34_miss_req_pop_data;
+    wire tm35_miss_req_pop_valid;
+    wire tm35_miss_req_pop_ready;
+    wire [63:0] tm35_miss_req_pop_data;
+    wire tm36_miss_req_pop_valid;
+    wire tm36_miss_req_pop_ready;
+    wire [63:0] tm36_miss_req_pop_data;
+    wire tm37_miss_req_pop_valid;
+    wire tm37_miss_req_pop_ready;
+    wire [63:0] tm37_miss_req_pop_data;
+    wire tm38_miss_req_pop_valid;
+    wire tm38_miss_req_pop_ready;
+    wire [63:0] tm38_miss_req_pop_data;
+    wire tm39_miss_req_pop_valid;
+    wire tm39_miss_req_pop_ready;
+    wire [63:0] tm39_miss_req_pop_data;
+    wire tm40_miss_req_pop_valid;
+    wire tm40_miss_req_pop_ready;
+    wire [63:0] tm40_miss_req_pop_data;
+    wire tm41_miss_req_pop_valid;
+    wire tm41_miss_req_pop_ready;
+    wire [63:0] tm41_miss_req_pop_data;
+    wire tm42_miss_req_pop_valid;
+    wire tm42_miss_req_pop_ready;
+    wire [63:0] tm42_miss_req_pop_data;
+    wire tm43_miss_req_pop_valid;
+    wire tm43_miss_req_pop_ready;
+    wire [63:0] tm43_miss_req_pop_data;
+    wire tm44_miss_req_pop_valid;
+    wire tm44_miss_req_pop_ready;
+    wire [63:0] tm44_miss_req_pop_data;
+    wire tm45_miss_req_pop_valid;
+    wire tm45_miss_req_pop_ready;
+    wire [63:0] tm45_miss_req_pop_data;
+    wire tm46_miss_req_pop_valid;
+    wire tm46_miss_req_pop_ready;
+    wire [63:0] tm46_miss_req_pop_data;
+    wire tm47_miss_req_pop_valid;
+    wire tm47_miss_req_pop_ready;
+    wire [63:0] tm47_miss_req_pop_data;
+    wire tm48_miss_req_pop_valid;
+    wire tm48_miss_req_pop_ready;
+    wire [63:0] tm48_miss_req_pop_data;
+    wire tm49_miss_req_pop_valid;
+    wire tm49_miss_req_pop_ready;
+    wire [63:0] tm49_miss_req_pop_data;
+    wire tm50_miss_req_pop_valid;
+    wire tm50_miss_req_pop_ready;
+    wire [63:0] tm50_miss_req_pop_data;
+    wire tm51_miss_req_pop_valid;
+    wire tm51_miss_req_pop_ready;
+    wire [63:0] tm51_miss_req_pop_data;
+    wire tm52_miss_req_pop_valid;
+    wire tm52_miss_req_pop_ready;
+    wire [63:0] tm52_miss_req_pop_data;
+    wire tm53_miss_req_pop_valid;
+    wire tm53_miss_req_pop_ready;
+    wire [63:0] tm53_miss_req_pop_data;
+    wire tm54_miss_req_pop_valid;
+    wire tm54_miss_req_pop_ready;
+    wire [63:0] tm54_miss_req_pop_data;
+    wire tm55_miss_req_pop_valid;
+    wire tm55_miss_req_pop_ready;
+    wire [63:0] tm55_miss_req_pop_data;
+    wire tm56_miss_req_pop_valid;
+    wire tm56_miss_req_pop_ready;
+    wire [63:0] tm56_miss_req_pop_data;
+    wire tm57_miss_req_pop_valid;
+    wire tm57_miss_req_pop_ready;
+    wire [63:0] tm57_miss_req_pop_data;
+    wire tm58_miss_req_pop_valid;
+    wire tm58_miss_req_pop_ready;
+    wire [63:0] tm58_miss_req_pop_data;
+    wire tm59_miss_req_pop_valid;
+    wire tm59_miss_req_pop_ready;
+    wire [63:0] tm59_miss_req_pop_data;
+    wire tm60_miss_req_pop_valid;
+    wire tm60_miss_req_pop_ready;
+    wire [63:0] tm60_miss_req_pop_data;
+    wire tm61_miss_req_pop_valid;
+    wire tm61_miss_req_pop_ready;
+    wire [63:0] tm61_miss_req_pop_data;
+    wire tm62_miss_req_pop_valid;
+    wire tm62_miss_req_pop_ready;
+    wire [63:0] tm62_miss_req_pop_data;
+    wire tm63_miss_req_pop_valid;
+    wire tm63_miss_req_pop_ready;
+    wire [63:0] tm63_miss_req_pop_data;
+    wire tm64_miss_req_pop_valid;
+    wire tm64_miss_req_pop_ready;
+    wire [63:0] tm64_miss_req_pop_data;
+    wire tm65_miss_req_pop_valid;
+    wire tm65_miss_req_pop_ready;
+    wire [63:0] tm65_miss_req_pop_data;
+    wire tm66_miss_req_pop_valid;
+    wire tm66_miss_req_pop_ready;
+    wire [63:0] tm66_miss_req_pop_data;
+    wire tm67_miss_req_pop_valid;
+    wire tm67_miss_req_pop_ready;
+    wire [63:0] tm67_miss_req_pop_data;
+    wire tm68_miss_req_pop_valid;
+    wire tm68_miss_req_pop_ready;
+    wire [63:0] tm68_miss_req_pop_data;
+    wire tm69_miss_req_pop_valid;
+    wire tm69_miss_req_pop_ready;
+    wire [63:0] tm69_miss_req_pop_data;
+    wire tm70_miss_req_pop_valid;
+    wire tm70_miss_req_pop_ready;
+    wire [63:0] tm70_miss_req_pop_data;
+    wire tm71_miss_req_pop_valid;
+    wire tm71_miss_req_pop_ready;
+    wire [63:0] tm71_miss_req_pop_data;
+    wire tm72_miss_req_pop_valid;
+    wire tm72_miss_req_pop_ready;
+    wire [63:0] tm72_miss_req_pop_data;
+    wire tm73_miss_req_pop_valid;
+    wire tm73_miss_req_pop_ready;
+    wire [63:0] tm73_miss_req_pop_data;
+    wire tm74_miss_req_pop_valid;
+    wire tm74_miss_req_pop_ready;
+    wire [63:0] tm74_miss_req_pop_data;
+    wire tm75_miss_req_pop_valid;
+    wire tm75_miss_req_pop_ready;
+    wire [63:0] tm75_miss_req_pop_data;
+    wire tm76_miss_req_pop_valid;
+    wire tm76_miss_req_pop_ready;
+    wire [63:0] tm76_miss_req_pop_data;
+    wire tm77_miss_req_pop_valid;
+    wire tm77_miss_req_pop_ready;
+    wire [63:0] tm77_miss_req_pop_data;
+    wire tm78_miss_req_pop_valid;
+    wire tm78_miss_req_pop_ready;
+    wire [63:0] tm78_miss_req_pop_data;
+    wire tm79_miss_req_pop_valid;
+    wire tm79_miss_req_pop_ready;
+    wire [63:0] tm79_miss_req_pop_data;
+    wire tm80_miss_req_pop_valid;
+    wire tm80_miss_req_pop_ready;
+    wire [63:0] tm80_miss_req_pop_data;
+    wire tm81_miss_req_pop_valid;
+    wire tm81_miss_req_pop_ready;
+    wire [63:0] tm81_miss_req_pop_data;
+    wire tm82_miss_req_pop_valid;
+    wire tm82_miss_req_pop_ready;
+    wire [63:0] tm82_miss_req_pop_data;
+    wire tm83_miss_req_pop_valid;
+    wire tm83_miss_req_pop_ready;
+    wire [63:0] tm83_miss_req_pop_data;
+    wire tm84_miss_req_pop_valid;
+    wire tm84_miss_req_pop_ready;
+    wire [63:0] tm84_miss_req_pop_data;
+    wire tm85_miss_req_pop_valid;
+    wire tm85_miss_req_pop_ready;
+    wire [63:0] tm85_miss_req_pop_data;
+    wire tm86_miss_req_pop_valid;
+    wire tm86_miss_req_pop_ready;
+    wire [63:0] tm86_miss_req_pop_data;
+    wire tm87_miss_req_pop_valid;
+    wire tm87_miss_req_pop_ready;
+    wire [63:0] tm87_miss_req_pop_data;
+    wire tm88_miss_req_pop_valid;
+    wire tm88_miss_req_pop_ready;
+    wire [63:0] tm88_miss_req_pop_data;
+    wire tm89_miss_req_pop_valid;
+    wire tm89_miss_req_pop_ready;
+    wire [63:0] tm89_miss_req_pop_data;
+    wire tm90_miss_req_pop_valid;
+    wire tm90_miss_req_pop_ready;
+    wire [63:0] tm90_miss_req_pop_data;
+    wire tm91_miss_req_pop_valid;
+    wire tm91_miss_req_pop_ready;
+    wire [63:0] tm91_miss_req_pop_data;
+    wire tm92_miss_req_pop_valid;
+    wire tm92_miss_req_pop_ready;
+    wire [63:0] tm92_miss_req_pop_data;
+    wire tm93_miss_req_pop_valid;
+    wire tm93_miss_req_pop_ready;
+    wire [63:0] tm93_miss_req_pop_data;
+    wire tm94_miss_req_pop_valid;
+    wire tm94_miss_req_pop_ready;
+    wire [63:0] tm94_miss_req_pop_data;
+    wire tm95_miss_req_pop_valid;
+    wire tm95_miss_req_pop_ready;
+    wire [63:0] tm95_miss_req_pop_data;
+    wire tm96_miss_req_pop_valid;
+    wire tm96_miss_req_pop_ready;
+    wire [63:0] tm96_miss_req_pop_data;
+    wire tm97_miss_req_pop_valid;
+    wire tm97_miss_req_pop_ready;
+    wire [63:0] tm97_miss_req_pop_data;
+    wire tm98_miss_req_pop_valid;
+    wire tm98_miss_req_pop_ready;
+    wire [63:0] tm98_miss_req_pop_data;
+    wire tm99_miss_req_pop_valid;
+    wire tm99_miss_req_pop_ready;
+    wire [63:0] tm99_miss_req_pop_data;
+    wire tm100_miss_req_pop_valid;
+    wire tm100_miss_req_pop_ready;
+    wire [63:0] tm100_miss_req_pop_data;
+    wire tm101_miss_req_pop_valid;
+    wire tm101_miss_req_pop_ready;
+    wire [63:0] tm101_miss_req_pop_data;
+    wire tm102_miss_req_pop_valid;
+    wire tm102_miss_req_pop_ready;
+    wire [63:0] tm102_miss_req_pop_data;
+    wire tm103_miss_req_pop_valid;
+    wire tm103_miss_req_pop_ready;
+    wire [63:0] tm103_miss_req_pop_data;
+    wire tm104_miss_req_pop_valid;
+    wire tm104_miss_req_pop_ready;
+    wire [63:0] tm104_miss_req_pop_data;
+    wire tm105_miss_req_pop_valid;
+    wire tm105_miss_req_pop_ready;
+    wire [63:0] tm105_miss_req_pop_data;
+    wire tm106_miss_req_pop_valid;
+    wire tm106_miss_req_pop_ready;
+    wire [63:0] tm106_miss_req_pop_data;
+    wire tm107_miss_req_pop_valid;
+    wire tm107_miss_req_pop_ready;
+    wire [63:0] tm107_miss_req_pop_data;
+    wire tm108_miss_req_pop_valid;
+    wire tm108_miss_req_pop_ready;
+    wire [63:0] tm108_miss_req_pop_data;
+    wire tm109_miss_req_pop_valid;
+    wire tm109_miss_req_pop_ready;
+    wire [63:0] tm109_miss_req_pop_data;
+    wire tm110_miss_req_pop_valid;
+    wire tm110_miss_req_pop_ready;
+    wire [63:0] tm110_miss_req_pop_data;
+    wire tm111_miss_req_pop_valid;
+    wire tm111_miss_req_pop_ready;
+    wire [63:0] tm111_miss_req_pop_data;
+    wire tm112_miss_req_pop_valid;
+    wire tm112_miss_req_pop_ready;
+    wire [63:0] tm112_miss_req_pop_data;
+    wire tm113_miss_req_pop_valid;
+    wire tm113_miss_req_pop_ready;
+    wire [63:0] tm113_miss_req_pop_data;
+    wire tm114_miss_req_pop_valid;
+    wire tm114_miss_req_pop_ready;
+    wire [63:0] tm114_miss_req_pop_data;
+    wire tm115_miss_req_pop_valid;
+    wire tm115_miss_req_pop_ready;
+    wire [63:0] tm115_miss_req_pop_data;
+    wire tm116_miss_req_pop_valid;
+    wire tm116_miss_req_pop_ready;
+    wire [63:0] tm116_miss_req_pop_data;
+    wire tm117_miss_req_pop_valid;
+    wire tm117_miss_req_pop_ready;
+    wire [63:0] tm117_miss_req_pop_data;
+    wire tm118_miss_req_pop_valid;
+    wire tm118_miss_req_pop_ready;
+    wire [63:0] tm118_miss_req_pop_data;
+    wire tm119_miss_req_pop_valid;
+    wire tm119_miss_req_pop_ready;
+    wire [63:0] tm119_miss_req_pop_data;
+    wire tm120_miss_req_pop_valid;
+    wire tm120_miss_req_pop_ready;
+    wire [63:0] tm120_miss_req_pop_data;
+    wire tm121_miss_req_pop_valid;
+    wire tm121_miss_req_pop_ready;
+    wire [63:0] tm121_miss_req_pop_data;
+    wire tm122_miss_req_pop_valid;
+    wire tm122_miss_req_pop_ready;
+    wire [63:0] tm122_miss_req_pop_data;
+    wire tm123_miss_req_pop_valid;
+    wire tm123_miss_req_pop_ready;
+    wire [63:0] tm123_miss_req_pop_data;
+    wire tm124_miss_req_pop_valid;
+    wire tm124_miss_req_pop_ready;
+    wire [63:0] tm124_miss_req_pop_data;
+    wire tm125_miss_req_pop_valid;
+    wire tm125_miss_req_pop_ready;
+    wire [63:0] tm125_miss_req_pop_data;
+    wire tm126_miss_req_pop_valid;
+    wire tm126_miss_req_pop_ready;
+    wire [63:0] tm126_miss_req_pop_data;
+    wire tm127_miss_req_pop_valid;
+    wire tm127_miss_req_pop_ready;
+    wire [63:0] tm127_miss_req_pop_data;
+    wire tm0_miss_resp_push_valid;
+    wire tm0_miss_resp_push_ready;
+    wire [575:0] tm0_miss_resp_push_data;
+    wire tm1_miss_resp_push_valid;
+    wire tm1_miss_resp_push_ready;
+    wire [575:0] tm1_miss_resp_push_data;
+    wire tm2_miss_resp_push_valid;
+    wire tm2_miss_resp_push_ready;
+    wire [575:0] tm2_miss_resp_push_data;
+    wire tm3_miss_resp_push_valid;
+    wire tm3_miss_resp_push_ready;
+    wire [575:0] tm3_miss_resp_push_data;
+    wire tm4_miss_resp_push_valid;
+    wire tm4_miss_resp_push_ready;
+    wire [575:0] tm4_miss_resp_push_data;
+    wire tm5_miss_resp_push_valid;
+    wire tm5_miss_resp_push_ready;
+    wire [575:0] tm5_miss_resp_push_data;
+    wire tm6_miss_resp_push_valid;
+    wire tm6_miss_resp_push_ready;
+    wire [575:0] tm6_miss_resp_push_data;
+    wire tm7_miss_resp_push_valid;
+    wire tm7_miss_resp_push_ready;
+    wire [575:0] tm7_miss_resp_push_data;
+    wire tm8_miss_resp_push_valid;
+    wire tm8_miss_resp_push_ready;
+    wire [575:0] tm8_miss_resp_push_data;
+    wire tm9_miss_resp_push_valid;
+    wire tm9_miss_resp_push_ready;
+    wire [575:0] tm9_miss_resp_push_data;
+    wire tm10_miss_resp_push_valid;
+    wire tm10_miss_resp_push_ready;
+    wire [575:0] tm10_miss_resp_push_data;
+    wire tm11_miss_resp_push_valid;
+    wire tm11_miss_resp_push_ready;
+    wire [575:0] tm11_miss_resp_push_data;
+    wire tm12_miss_resp_push_valid;
+    wire tm12_miss_resp_push_ready;
+    wire [575:0] tm12_miss_resp_push_data;
+    wire tm13_miss_resp_push_valid;
+    wire tm13_miss_resp_push_ready;
+    wire [575:0] tm13_miss_resp_push_data;
+    wire tm14_miss_resp_push_valid;
+    wire tm14_miss_resp_push_ready;
+    wire [575:0] tm14_miss_resp_push_data;
+    wire tm15_miss_resp_push_valid;
+    wire tm15_miss_resp_push_ready;
+    wire [575:0] tm15_miss_resp_push_data;
+    wire tm16_miss_resp_push_valid;
+    wire tm16_miss_resp_push_ready;
+    wire [575:0] tm16_miss_resp_push_data;
+    wire tm17_miss_resp_push_valid;
+    wire tm17_miss_resp_push_ready;
+    wire [575:0] tm17_miss_resp_push_data;
+    wire tm18_miss_resp_push_valid;
+    wire tm18_miss_resp_push_ready;
+    wire [575:0] tm18_miss_resp_push_data;
+    wire tm19_miss_resp_push_valid;
+    wire tm19_miss_resp_push_ready;
+    wire [575:0] tm19_miss_resp_push_data;
+    wire tm20_miss_resp_push_valid;
+    wire tm20_miss_resp_push_ready;
+    wire [575:0] tm20_miss_resp_push_data;
+    wire tm21_miss_resp_push_valid;
+    wire tm21_miss_resp_push_ready;
+    wire [575:0] tm21_miss_resp_push_data;
+    wire tm22_miss_resp_push_valid;
+    wire tm22_miss_resp_push_ready;
+    wire [575:0] tm22_miss_resp_push_data;
+    wire tm23_miss_resp_push_valid;
+    wire tm23_miss_resp_push_ready;
+    wire [575:0] tm23_miss_resp_push_data;
+    wire tm24_miss_resp_push_valid;
+    wire tm24_miss_resp_push_ready;
+    wire [575:0] tm24_miss_resp_push_data;
+    wire tm25_miss_resp_push_valid;
+    wire tm25_miss_resp_push_ready;
+    wire [575:0] tm25_miss_resp_push_data;
+    wire tm26_miss_resp_push_valid;
+    wire tm26_miss_resp_push_ready;
+    wire [575:0] tm26_miss_resp_push_data;
+    wire tm27_miss_resp_push_valid;
+    wire tm27_miss_resp_push_ready;
+    wire [575:0] tm27_miss_resp_push_data;
+    wire tm28_miss_resp_push_valid;
+    wire tm28_miss_resp_push_ready;
+    wire [575:0] tm28_miss_resp_push_data;
+    wire tm29_miss_resp_push_valid;
+    wire tm29_miss_resp_push_ready;
+    wire [575:0] tm29_miss_resp_push_data;
+    wire tm30_miss_resp_push_valid;
+    wire tm30_miss_resp_push_ready;
+    wire [575:0] tm30_miss_resp_push_data;
+    wire tm31_miss_resp_push_valid;
+    wire tm31_miss_resp_push_ready;
+    wire [575:0] tm31_miss_resp_push_data;
+    wire tm32_miss_resp_push_valid;
+    wire tm32_miss_resp_push_ready;
+    wire [575:0] tm32_miss_resp_push_data;
+    wire tm33_miss_resp_push_valid;
+    wire tm33_miss_resp_push_ready;
+    wire [575:0] tm33_miss_resp_push_data;
+    wire tm34_miss_resp_push_valid;
+    wire tm34_miss_resp_push_ready;
+    wire [575:0] tm34_miss_resp_push_data;
+    wire tm35_miss_resp_push_valid;
+    wire tm35_miss_resp_push_ready;
+    wire [575:0] tm35_miss_resp_push_data;
+    wire tm36_miss_resp_push_valid;
+    wire tm36_miss_resp_push_ready;
+    wire [575:0] tm36_miss_resp_push_data;
+    wire tm37_miss_resp_push_valid;
+    wire tm37_miss_resp_push_ready;
+    wire [575:0] tm37_miss_resp_push_data;
+    wire tm38_miss_resp_push_valid;
+    wire tm38_miss_resp_push_ready;
+    wire [575:0] tm38_miss_resp_push_data;
+    wire tm39_miss_resp_push_valid;
+    wire tm39_miss_resp_push_ready;
+    wire [575:0] tm39_miss_resp_push_data;
+    wire tm40_miss_resp_push_valid;
+    wire tm40_miss_resp_push_ready;
+    wire [575:0] tm40_miss_resp_push_data;
+    wire tm41_miss_resp_push_valid;
+    wire tm41_miss_resp_push_ready;
+    wire [575:0] tm41_miss_resp_push_data;
+    wire tm42_miss_resp_push_valid;
+    wire tm42_miss_resp_push_ready;
+    wire [575:0] tm42_miss_resp_push_data;
+    wire tm43_miss_resp_push_valid;
+    wire tm43_miss_resp_push_ready;
+    wire [575:0] tm43_miss_resp_push_data;
+    wire tm44_miss_resp_push_valid;
+    wire tm44_miss_resp_push_ready;
+    wire [575:0] tm44_miss_resp_push_data;
+    wire tm45_miss_resp_push_valid;
+    wire tm45_miss_resp_push_ready;
+    wire [575:0] tm45_miss_resp_push_data;
+    wire tm46_miss_resp_push_valid;
+    wire tm46_miss_resp_push_ready;
+    wire [575:0] tm46_miss_resp_push_data;
+    wire tm47_miss_resp_push_valid;
+    wire tm47_miss_resp_push_ready;
+    wire [575:0] tm47_miss_resp_push_data;
+    wire tm48_miss_resp_push_valid;
+    wire tm48_miss_resp_push_ready;
+    wire [575:0] tm48_miss_resp_push_data;
+    wire tm49_miss_resp_push_valid;
+    wire tm49_miss_resp_push_ready;
+    wire [575:0] tm49_miss_resp_push_data;
+    wire tm50_miss_resp_push_valid;
+    wire tm50_miss_resp_push_ready;
+    wire [575:0] tm50_miss_resp_push_data;
+    wire tm51_miss_resp_push_valid;
+    wire tm51_miss_resp_push_ready;
+    wire [575:0] tm51_miss_resp_push_data;
+    wire tm52_miss_resp_push_valid;
+    wire tm52_miss_resp_push_ready;
+    wire [575:0] tm52_miss_resp_push_data;
+    wire tm53_miss_resp_push_valid;
+    wire tm53_miss_resp_push_ready;
+    wire [575:0] tm53_miss_resp_push_data;
+    wire tm54_miss_resp_push_valid;
+    wire tm54_miss_resp_push_ready;
+    wire [575:0] tm54_miss_resp_push_data;
+    wire tm55_miss_resp_push_valid;
+    wire tm55_miss_resp_push_ready;
+    wire [575:0] tm55_miss_resp_push_data;
+    wire tm56_miss_resp_push_valid;
+    wire tm56_miss_resp_push_ready;
+    wire [575:0] tm56_miss_resp_push_data;
+    wire tm57_miss_resp_push_valid;
+    wire tm57_miss_resp_push_ready;
+    wire [575:0] tm57_miss_resp_push_data;
+    wire tm58_miss_resp_push_valid;
+    wire tm58_miss_resp_push_ready;
+    wire [575:0] tm58_miss_resp_push_data;
+    wire tm59_miss_resp_push_valid;
+    wire tm59_miss_resp_push_ready;
+    wire [575:0] tm59_miss_resp_push_data;
+    wire tm60_miss_resp_push_valid;
+    wire tm60_miss_resp_push_ready;
+    wire [575:0] tm60_miss_resp_push_data;
+    wire tm61_miss_resp_push_valid;
+    wire tm61_miss_resp_push_ready;
+    wire [575:0] tm61_miss_resp_push_data;
+    wire tm62_miss_resp_push_valid;
+    wire tm62_miss_resp_push_ready;
+    wire [575:0] tm62_miss_resp_push_data;
+    wire tm63_miss_resp_push_valid;
+    wire tm63_miss_resp_push_ready;
+    wire [575:0] tm63_miss_resp_push_data;
+    wire tm64_miss_resp_push_valid;
+    wire tm64_miss_resp_push_ready;
+    wire [575:0] tm64_miss_resp_push_data;
+    wire tm65_miss_resp_push_valid;
+    wire tm65_miss_resp_push_ready;
+    wire [575:0] tm65_miss_resp_push_data;
+    wire tm66_miss_resp_push_valid;
+    wire tm66_miss_resp_push_ready;
+    wire [575:0] tm66_miss_resp_push_data;
+    wire tm67_miss_resp_push_valid;
+    wire tm67_miss_resp_push_ready;
+    wire [575:0] tm67_miss_resp_push_data;
+    wire tm68_miss_resp_push_valid;
+    wire tm68_miss_resp_push_ready;
+    wire [575:0] tm68_miss_resp_push_data;
+    wire tm69_miss_resp_push_valid;
+    wire tm69_miss_resp_push_ready;
+    wire [575:0] tm69_miss_resp_push_data;
+    wire tm70_miss_resp_push_valid;
+    wire tm70_miss_resp_push_ready;
+    wire [575:0] tm70_miss_resp_push_data;
+    wire tm71_miss_resp_push_valid;
+    wire tm71_miss_resp_push_ready;
+    wire [575:0] tm71_miss_resp_push_data;
+    wire tm72_miss_resp_push_valid;
+    wire tm72_miss_resp_push_ready;
+    wire [575:0] tm72_miss_resp_push_data;
+    wire tm73_miss_resp_push_valid;
+    wire tm73_miss_resp_push_ready;
+    wire [575:0] tm73_miss_resp_push_data;
+    wire tm74_miss_resp_push_valid;
+    wire tm74_miss_resp_push_ready;
+    wire [575:0] tm74_miss_resp_push_data;
+    wire tm75_miss_resp_push_valid;
+    wire tm75_miss_resp_push_ready;
+    wire [575:0] tm75_miss_resp_push_data;
+    wire tm76_miss_resp_push_valid;
+    wire tm76_miss_resp_push_ready;
+    wire [575:0] tm76_miss_resp_push_data;
+    wire tm77_miss_resp_push_valid;
+    wire tm77_miss_resp_push_ready;
+    wire [575:0] tm77_miss_resp_push_data;
+    wire tm78_miss_resp_push_valid;
+    wire tm78_miss_resp_push_ready;
+    wire [575:0] tm78_miss_resp_push_data;
+    wire tm79_miss_resp_push_valid;
+    wire tm79_miss_resp_push_ready;
+    wire [575:0] tm79_miss_resp_push_data;
+    wire tm80_miss_resp_push_valid;
+    wire tm80_miss_resp_push_ready;
+    wire [575:0] tm80_miss_resp_push_data;
+    wire tm81_miss_resp_push_valid;
+    wire tm81_miss_resp_push_ready;
+    wire [575:0] tm81_miss_resp_push_data;
+    wire tm82_miss_resp_push_valid;
+    wire tm82_miss_resp_push_ready;
+    wire [575:0] tm82_miss_resp_push_data;
+    wire tm83_miss_resp_push_valid;
+    wire tm83_miss_resp_push_ready;
+    wire [575:0] tm83_miss_resp_push_data;
+    wire tm84_miss_resp_push_valid;
+    wire tm84_miss_resp_push_ready;
+    wire [575:0] tm84_miss_resp_push_data;
+    wire tm85_miss_resp_push_valid;
+    wire tm85_miss_resp_push_ready;
+    wire [575:0] tm85_miss_resp_push_data;
+    wire tm86_miss_resp_push_valid;
+    wire tm86_miss_resp_push_ready;
+    wire [575:0] tm86_miss_resp_push_data;
+    wire tm87_miss_resp_push_valid;
+    wire tm87_miss_resp_push_ready;
+    wire [575:0] tm87_miss_resp_push_data;
+    wire tm88_miss_resp_push_valid;
+    wire tm88_miss_resp_push_ready;
+    wire [575:0] tm88_miss_resp_push_data;
+    wire tm89_miss_resp_push_valid;
+    wire tm89_miss_resp_push_ready;
+    wire [575:0] tm89_miss_resp_push_data;
+    wire tm90_miss_resp_push_valid;
+    wire tm90_miss_resp_push_ready;
+    wire [575:0] tm90_miss_resp_push_data;
+    wire tm91_miss_resp_push_valid;
+    wire tm91_miss_resp_push_ready;
+    wire [575:0] tm91_miss_resp_push_data;
+    wire tm92_miss_resp_push_valid;
+    wire tm92_miss_resp_push_ready;
+    wire [575:0] tm92_miss_resp_push_data;
+    wire tm93_miss_resp_push_valid;
+    wire tm93_miss_resp_push_ready;
+    wire [575:0] tm93_miss_resp_push_data;
+    wire tm94_miss_resp_push_valid;
+    wire tm94_miss_resp_push_ready;
+    wire [575:0] tm94_miss_resp_push_data;
+    wire tm95_miss_resp_push_valid;
+    wire tm95_miss_resp_push_ready;
+    wire [575:0] tm95_miss_resp_push_data;
+    wire tm96_miss_resp_push_valid;
+    wire tm96_miss_resp_push_ready;
+    wire [575:0] tm96_miss_resp_push_data;
+    wire tm97_miss_resp_push_valid;
+    wire tm97_miss_resp_push_ready;
+    wire [575:0] tm97_miss_resp_push_data;
+    wire tm98_miss_resp_push_valid;
+    wire tm98_miss_resp_push_ready;
+    wire [575:0] tm98_miss_resp_push_data;
+    wire tm99_miss_resp_push_valid;
+    wire tm99_miss_resp_push_ready;
+    wire [575:0] tm99_miss_resp_push_data;
+    wire tm100_miss_resp_push_valid;
+    wire tm100_miss_resp_push_ready;
+    wire [575:0] tm100_miss_resp_push_data;
+    wire tm101_miss_resp_push_valid;
+    wire tm101_miss_resp_push_ready;
+    wire [575:0] tm101_miss_resp_push_data;
+    wire tm102_miss_resp_push_valid;
+    wire tm102_miss_resp_push_ready;
+    wire [575:0] tm102_miss_resp_push_data;
+    wire tm103_miss_resp_push_valid;
+    wire tm103_miss_resp_push_ready;
+    wire [575:0] tm103_miss_resp_push_data;
+    wire tm104_miss_resp_push_valid;
+    wire tm104_miss_resp_push_ready;
+    wire [575:0] tm104_miss_resp_push_data;
+    wire tm105_miss_resp_push_valid;
+    wire tm105_miss_resp_push_ready;
+    wire [575:0] tm105_miss_resp_push_data;
+    wire tm106_miss_resp_push_valid;
+    wire tm106_miss_resp_push_ready;
+    wire [575:0] tm106_miss_resp_push_data;
+    wire tm107_miss_resp_push_valid;
+    wire tm107_miss_resp_push_ready;
+    wire [575:0] tm107_miss_resp_push_data;
+    wire tm108_miss_resp_push_valid;
+    wire tm108_miss_resp_push_ready;
+    wire [575:0] tm108_miss_resp_push_data;
+    wire tm109_miss_resp_push_valid;
+    wire tm109_miss_resp_push_ready;
+    wire [575:0] tm109_miss_resp_push_data;
+    wire tm110_miss_resp_push_valid;
+    wire tm110_miss_resp_push_ready;
+    wire [575:0] tm110_miss_resp_push_data;
+    wire tm111_miss_resp_push_valid;
+    wire tm111_miss_resp_push_ready;
+    wire [575:0] tm111_miss_resp_push_data;
+    wire tm112_miss_resp_push_valid;
+    wire tm112_miss_resp_push_ready;
+    wire [575:0] tm112_miss_resp_push_data;
+    wire tm113_miss_resp_push_valid;
+    wire tm113_miss_resp_push_ready;
+    wire [575:0] tm113_miss_resp_push_data;
+    wire tm114_miss_resp_push_valid;
+    wire tm114_miss_resp_push_ready;
+    wire [575:0] tm114_miss_resp_push_data;
+    wire tm115_miss_resp_push_valid;
+    wire tm115_miss_resp_push_ready;
+    wire [575:0] tm115_miss_resp_push_data;
+    wire tm116_miss_resp_push_valid;
+    wire tm116_miss_resp_push_ready;
+    wire [575:0] tm116_miss_resp_push_data;
+    wire tm117_miss_resp_push_valid;
+    wire tm117_miss_resp_push_ready;
+    wire [575:0] tm117_miss_resp_push_data;
+    wire tm118_miss_resp_push_valid;
+    wire tm118_miss_resp_push_ready;
+    wire [575:0] tm118_miss_resp_push_data;
+    wire tm119_miss_resp_push_valid;
+    wire tm119_miss_resp_push_ready;
+    wire [575:0] tm119_miss_resp_push_data;
+    wire tm120_miss_resp_push_valid;
+    wire tm120_miss_resp_push_ready;
+    wire [575:0] tm120_miss_resp_push_data;
+    wire tm121_miss_resp_push_valid;
+    wire tm121_miss_resp_push_ready;
+    wire [575:0] tm121_miss_resp_push_data;
+    wire tm122_miss_resp_push_valid;
+    wire tm122_miss_resp_push_ready;
+    wire [575:0] tm122_miss_resp_push_data;
+    wire tm123_miss_resp_push_valid;
+    wire tm123_miss_resp_push_ready;
+    wire [575:0] tm123_miss_resp_push_data;
+    wire tm124_miss_resp_push_valid;
+    wire tm124_miss_resp_push_ready;
+    wire [575:0] tm124_miss_resp_push_data;
+    wire tm125_miss_resp_push_valid;
+    wire tm125_miss_resp_push_ready;
+    wire [575:0] tm125_miss_resp_push_data;
+    wire tm126_miss_resp_push_valid;
+    wire tm126_miss_resp_push_ready;
+    wire [575:0] tm126_miss_resp_push_data;
+    wire tm127_miss_resp_push_valid;
+    wire tm127_miss_resp_push_ready;
+    wire [575:0] tm127_miss_resp_push_data;
+    wire tm0_ray_write_pop_valid;
+    wire tm0_ray_write_pop_ready;
+    wire [288:0] tm0_ray_write_pop_data;
+    wire tm1_ray_write_pop_valid;
+    wire tm1_ray_write_pop_ready;
+    wire [288:0] tm1_ray_write_pop_data;
+    wire tm2_ray_write_pop_valid;
+    wire tm2_ray_write_pop_ready;
+    wire [288:0] tm2_ray_write_pop_data;
+    wire tm3_ray_write_pop_valid;
+    wire tm3_ray_write_pop_ready;
+    wire [288:0] tm3_ray_write_pop_data;
+    wire tm4_ray_write_pop_valid;
+    wire tm4_ray_write_pop_ready;
+    wire [288:0] tm4_ray_write_pop_data;
+    wire tm5_ray_write_pop_valid;
+    wire tm5_ray_write_pop_ready;
+    wire [288:0] tm5_ray_write_pop_data;
+    wire tm6_ray_write_pop_valid;
+    wire tm6_ray_write_pop_ready;
+    wire [288:0] tm6_ray_write_pop_data;
+    wire tm7_ray_write_pop_valid;
+    wire tm7_ray_write_pop_ready;
+    wire [288:0] tm7_ray_write_pop_data;
+    wire tm8_ray_write_pop_valid;
+    wire tm8_ray_write_pop_ready;
+    wire [288:0] tm8_ray_write_pop_data;
+    wire tm9_ray_write_pop_valid;
+    wire tm9_ray_write_pop_ready;
+    wire [288:0] tm9_ray_write_pop_data;
+    wire tm10_ray_write_pop_valid;
+    wire tm10_ray_write_pop_ready;
+    wire [288:0] tm10_ray_write_pop_data;
+    wire tm11_ray_write_pop_valid;
+    wire tm11_ray_write_pop_ready;
+    wire [288:0] tm11_ray_write_pop_data;
+    wire tm12_ray_write_pop_valid;
+    wire tm12_ray_write_pop_ready;
+    wire [288:0] tm12_ray_write_pop_data;
+    wire tm13_ray_write_pop_valid;
+    wire tm13_ray_write_pop_ready;
+    wire [288:0] tm13_ray_write_pop_data;
+    wire tm14_ray_write_pop_valid;
+    wire tm14_ray_write_pop_ready;
+    wire [288:0] tm14_ray_write_pop_data;
+    wire tm15_ray_write_pop_valid;
+    wire tm15_ray_write_pop_ready;
+    wire [288:0] tm15_ray_write_pop_data;
+    wire tm16_ray_write_pop_valid;
+    wire tm16_ray_write_pop_ready;
+    wire [288:0] tm16_ray_write_pop_data;
+    wire tm17_ray_write_pop_valid;
+    wire tm17_ray_write_pop_ready;
+    wire [288:0] tm17_ray_write_pop_data;
+    wire tm18_ray_write_pop_valid;
+    wire tm18_ray_write_pop_ready;
+    wire [288:0] tm18_ray_write_pop_data;
+    wire tm19_ray_write_pop_valid;
+    wire tm19_ray_write_pop_ready;
+    wire [288:0] tm19_ray_write_pop_data;
+    wire tm20_ray_write_pop_valid;
+    wire tm20_ray_write_pop_ready;
+    wire [288:0] tm20_ray_write_pop_data;
+    wire tm21_ray_write_pop_valid;
+    wire tm21_ray_write_pop_ready;
+    wire [288:0] tm21_ray_write_pop_data;
+    wire tm22_ray_write_pop_valid;
+    wire tm22_ray_write_pop_ready;
+    wire [288:0] tm22_ray_write_pop_data;
+    wire tm23_ray_write_pop_valid;
+    wire tm23_ray_write_pop_ready;
+    wire [288:0] tm23_ray_write_pop_data;
+    wire tm24_ray_write_pop_valid;
+    wire tm24_ray_write_pop_ready;
+    wire [288:0] tm24_ray_write_pop_data;
+    wire tm25_ray_write_pop_valid;
+    wire tm25_ray_write_pop_ready;
+    wire [288:0] tm25_ray_write_pop_data;
+    wire tm26_ray_write_pop_valid;
+    wire tm26_ray_write_pop_ready;
+    wire [288:0] tm26_ray_write_pop_data;
+    wire tm27_ray_write_pop_valid;
+    wire tm27_ray_write_pop_ready;
+    wire [288:0] tm27_ray_write_pop_data;
+    wire tm28_ray_write_pop_valid;
+    wire tm28_ray_write_pop_ready;
+    wire [288:0] tm28_ray_write_pop_data;
+    wire tm29_ray_write_pop_valid;
+    wire tm29_ray_write_pop_ready;
+    wire [288:0] tm29_ray_write_pop_data;
+    wire tm30_ray_write_pop_valid;
+    wire tm30_ray_write_pop_ready;
+    wire [288:0] tm30_ray_write_pop_data;
+    wire tm31_ray_write_pop_valid;
+    wire tm31_ray_write_pop_ready;
+    wire [288:0] tm31_ray_write_pop_data;
+    wire tm32_ray_write_pop_valid;
+    wire tm32_ray_write_pop_ready;
+    wire [288:0] tm32_ray_write_pop_data;
+    wire tm33_ray_write_pop_valid;
+    wire tm33_ray_write_pop_ready;
+    wire [288:0] tm33_ray_write_pop_data;
+    wire tm34_ray_write_pop_valid;
+    wire tm34_ray_write_pop_ready;
+    wire [288:0] tm34_ray_write_pop_data;
+    wire tm35_ray_write_pop_valid;
+    wire tm35_ray_write_pop_ready;
+    wire [288:0] tm35_ray_write_pop_data;
+    wire tm36_ray_write_pop_valid;
+    wire tm36_ray_write_pop_ready;
+    wire [288:0] tm36_ray_write_pop_data;
+    wire tm37_ray_write_pop_valid;
+    wire tm37_ray_write_pop_ready;
+    wire [288:0] tm37_ray_write_pop_data;
+    wire tm38_ray_write_pop_valid;
+    wire tm38_ray_write_pop_ready;
+    wire [288:0] tm38_ray_write_pop_data;
+    wire tm39_ray_write_pop_valid;
+    wire tm39_ray_write_pop_ready;
+    wire [288:0] tm39_ray_write_pop_data;
+    wire tm40_ray_write_pop_valid;
+    wire tm40_ray_write_pop_ready;
+    wire [288:0] tm40_ray_write_pop_data;
+    wire tm41_ray_write_pop_valid;
+    wire tm41_ray_write_pop_ready;
+    wire [288:0] tm41_ray_write_pop_data;
+    wire tm42_ray_write_pop_valid;
+    wire tm42_ray_write_pop_ready;
+    wire [288:0] tm42_ray_write_pop_data;
+    wire tm43_ray_write_pop_valid;
+    wire tm43_ray_write_pop_ready;
+    wire [288:0] tm43_ray_write_pop_data;
+    wire tm44_ray_write_pop_valid;
+    wire tm44_ray_write_pop_ready;
+    wire [288:0] tm44_ray_write_pop_data;
+    wire tm45_ray_write_pop_valid;
+    wire tm45_ray_write_pop_ready;
+    wire [288:0] tm45_ray_write_pop_data;
+    wire tm46_ray_write_pop_valid;
+    wire tm46_ray_write_pop_ready;
+    wire [288:0] tm46_ray_write_pop_data;
+    wire tm47_ray_write_pop_valid;
+    wire tm47_ray_write_pop_ready;
+    wire [288:0] tm47_ray_write_pop_data;
+    wire tm48_ray_write_pop_valid;
+    wire tm48_ray_write_pop_ready;
+    wire [288:0] tm48_ray_write_pop_data;
+    wire tm49_ray_write_pop_valid;
+    wire tm49_ray_write_pop_ready;
+    wire [288:0] tm49_ray_write_pop_data;
+    wire tm50_ray_write_pop_valid;
+    wire tm50_ray_write_pop_ready;
+    wire [288:0] tm50_ray_write_pop_data;
+    wire tm51_ray_write_pop_valid;
+    wire tm51_ray_write_pop_ready;
+    wire [288:0] tm51_ray_write_pop_data;
+    wire tm52_ray_write_pop_valid;
+    wire tm52_ray_write_pop_ready;
+    wire [288:0] tm52_ray_write_pop_data;
+    wire tm53_ray_write_pop_valid;
+    wire tm53_ray_write_pop_ready;
+    wire [288:0] tm53_ray_write_pop_data;
+    wire tm54_ray_write_pop_valid;
+    wire tm54_ray_write_pop_ready;
+    wire [288:0] tm54_ray_write_pop_data;
+    wire tm55_ray_write_pop_valid;
+    wire tm55_ray_write_pop_ready;
+    wire [288:0] tm55_ray_write_pop_data;
+    wire tm56_ray_write_pop_valid;
+    wire tm56_ray_write_pop_ready;
+    wire [288:0] tm56_ray_write_pop_data;
+    wire tm57_ray_write_pop_valid;
+    wire tm57_ray_write_pop_ready;
+    wire [288:0] tm57_ray_write_pop_data;
+    wire tm58_ray_write_pop_valid;
+    wire tm58_ray_write_pop_ready;
+    wire [288:0] tm58_ray_write_pop_data;
+    wire tm59_ray_write_pop_valid;
+    wire tm59_ray_write_pop_ready;
+    wire [288:0] tm59_ray_write_pop_data;
+    wire tm60_ray_write_pop_valid;
+    wire tm60_ray_write_pop_ready;
+    wire [288:0] tm60_ray_write_pop_data;
+    wire tm61_ray_write_pop_valid;
+    wire tm61_ray_write_pop_ready;
+    wire [288:0] tm61_ray_write_pop_data;
+    wire tm62_ray_write_pop_valid;
+    wire tm62_ray_write_pop_ready;
+    wire [288:0] tm62_ray_write_pop_data;
+    wire tm63_ray_write_pop_valid;
+    wire tm63_ray_write_pop_ready;
+    wire [288:0] tm63_ray_write_pop_data;
+    wire tm64_ray_write_pop_valid;
+    wire tm64_ray_write_pop_ready;
+    wire [288:0] tm64_ray_write_pop_data;
+    wire tm65_ray_write_pop_valid;
+    wire tm65_ray_write_pop_ready;
+    wire [288:0] tm65_ray_write_pop_data;
+    wire tm66_ray_write_pop_valid;
+    wire tm66_ray_write_pop_ready;
+    wire [288:0] tm66_ray_write_pop_data;
+    wire tm67_ray_write_pop_valid;
+    wire tm67_ray_write_pop_ready;
+    wire [288:0] tm67_ray_write_pop_data;
+    wire tm68_ray_write_pop_valid;
+    wire tm68_ray_write_pop_ready;
+    wire [288:0] tm68_ray_write_pop_data;
+    wire tm69_ray_write_pop_valid;
+    wire tm69_ray_write_pop_ready;
+    wire [288:0] tm69_ray_write_pop_data;
+    wire tm70_ray_write_pop_valid;
+    wire tm70_ray_write_pop_ready;
+    wire [288:0] tm70_ray_write_pop_data;
+    wire tm71_ray_write_pop_valid;
+    wire tm71_ray_write_pop_ready;
+    wire [288:0] tm71_ray_write_pop_data;
+    wire tm72_ray_write_pop_valid;
+    wire tm72_ray_write_pop_ready;
+    wire [288:0] tm72_ray_write_pop_data;
+    wire tm73_ray_write_pop_valid;
+    wire tm73_ray_write_pop_ready;
+    wire [288:0] tm73_ray_write_pop_data;
+    wire tm74_ray_write_pop_valid;
+    wire tm74_ray_write_pop_ready;
+    wire [288:0] tm74_ray_write_pop_data;
+    wire tm75_ray_write_pop_valid;
+    wire tm75_ray_write_pop_ready;
+    wire [288:0] tm75_ray_write_pop_data;
+    wire tm76_ray_write_pop_valid;
+    wire tm76_ray_write_pop_ready;
+    wire [288:0] tm76_ray_write_pop_data;
+    wire tm77_ray_write_pop_valid;
+    wire tm77_ray_write_pop_ready;
+    wire [288:0] tm77_ray_write_pop_data;
+    wire tm78_ray_write_pop_valid;
+    wire tm78_ray_write_pop_ready;
+    wire [288:0] tm78_ray_write_pop_data;
+    wire tm79_ray_write_pop_valid;
+    wire tm79_ray_write_pop_ready;
+    wire [288:0] tm79_ray_write_pop_data;
+    wire tm80_ray_write_pop_valid;
+    wire tm80_ray_write_pop_ready;
+    wire [288:0] tm80_ray_write_pop_data;
+    wire tm81_ray_write_pop_valid;
+    wire tm81_ray_write_pop_ready;
+    wire [288:0] tm81_ray_write_pop_data;
+    wire tm82_ray_write_pop_valid;
+    wire tm82_ray_write_pop_ready;
+    wire [288:0] tm82_ray_write_pop_data;
+    wire tm83_ray_write_pop_valid;
+    wire tm83_ray_write_pop_ready;
+    wire [288:0] tm83_ray_write_pop_data;
+    wire tm84_ray_write_pop_valid;
+    wire tm84_ray_write_pop_ready;
+    wire [288:0] tm84_ray_write_pop_data;
+    wire tm85_ray_write_pop_valid;
+    wire tm85_ray_write_pop_ready;
+    wire [288:0] tm85_ray_write_pop_data;
+    wire tm86_ray_write_pop_valid;
+    wire tm86_ray_write_pop_ready;
+    wire [288:0] tm86_ray_write_pop_data;
+    wire tm87_ray_write_pop_valid;
+    wire tm87_ray_write_pop_ready;
+    wire [288:0] tm87_ray_write_pop_data;
+    wire tm88_ray_write_pop_valid;
+    wire tm88_ray_write_pop_ready;
+    wire [288:0] tm88_ray_write_pop_data;
+    wire tm89_ray_write_pop_valid;
+    wire tm89_ray_write_pop_ready;
+    wire [288:0] tm89_ray_write_pop_data;
+    wire tm90_ray_write_pop_valid;
+    wire tm90_ray_write_pop_ready;
+    wire [288:0] tm90_ray_write_pop_data;
+    wire tm91_ray_write_pop_valid;
+    wire tm91_ray_write_pop_ready;
+    wire [288:0] tm91_ray_write_pop_data;
+    wire tm92_ray_write_pop_valid;
+    wire tm92_ray_write_pop_ready;
+    wire [288:0] tm92_ray_write_pop_data;
+    wire tm93_ray_write_pop_valid;
+    wire tm93_ray_write_pop_ready;
+    wire [288:0] tm93_ray_write_pop_data;
+    wire tm94_ray_write_pop_valid;
+    wire tm94_ray_write_pop_ready;
+    wire [288:0] tm94_ray_write_pop_data;
+    wire tm95_ray_write_pop_valid;
+    wire tm95_ray_write_pop_ready;
+    wire [288:0] tm95_ray_write_pop_data;
+    wire tm96_ray_write_pop_valid;
+    wire tm96_ray_write_pop_ready;
+    wire [288:0] tm96_ray_write_pop_data;
+    wire tm97_ray_write_pop_valid;
+    wire tm97_ray_write_pop_ready;
+    wire [288:0] tm97_ray_write_pop_data;
+    wire tm98_ray_write_pop_valid;
+    wire tm98_ray_write_pop_ready;
+    wire [288:0] tm98_ray_write_pop_data;
+    wire tm99_ray_write_pop_valid;
+    wire tm99_ray_write_pop_ready;
+    wire [288:0] tm99_ray_write_pop_data;
+    wire tm100_ray_write_pop_valid;
+    wire tm100_ray_write_pop_ready;
+    wire [288:0] tm100_ray_write_pop_data;
+    wire tm101_ray_write_pop_valid;
+    wire tm101_ray_write_pop_ready;
+    wire [288:0] tm101_ray_write_pop_data;
+    wire tm102_ray_write_pop_valid;
+    wire tm102_ray_write_pop_ready;
+    wire [288:0] tm102_ray_write_pop_data;
+    wire tm103_ray_write_pop_valid;
+    wire tm103_ray_write_pop_ready;
+    wire [288:0] tm103_ray_write_pop_data;
+    wire tm104_ray_write_pop_valid;
+    wire tm104_ray_write_pop_ready;
+    wire [288:0] tm104_ray_write_pop_data;
+    wire tm105_ray_write_pop_valid;
+    wire tm105_ray_write_pop_ready;
+    wire [288:0] tm105_ray_write_pop_data;
+    wire tm106_ray_write_pop_valid;
+    wire tm106_ray_write_pop_ready;
+    wire [288:0] tm106_ray_write_pop_data;
+    wire tm107_ray_write_pop_valid;
+    wire tm107_ray_write_pop_ready;
+    wire [288:0] tm107_ray_write_pop_data;
+    wire tm108_ray_write_pop_valid;
+    wire tm108_ray_write_pop_ready;
+    wire [288:0] tm108_ray_write_pop_data;
+    wire tm109_ray_write_pop_valid;
+    wire tm109_ray_write_pop_ready;
+    wire [288:0] tm109_ray_write_pop_data;
+    wire tm110_ray_write_pop_valid;
+    wire tm110_ray_write_pop_ready;
+    wire [288:0] tm110_ray_write_pop_data;
+    wire tm111_ray_write_pop_valid;
+    wire tm111_ray_write_pop_ready;
+    wire [288:0] tm111_ray_write_pop_data;
+    wire tm112_ray_write_pop_valid;
+    wire tm112_ray_write_pop_ready;
+    wire [288:0] tm112_ray_write_pop_data;
+    wire tm113_ray_write_pop_valid;
+    wire tm113_ray_write_pop_ready;
+    wire [288:0] tm113_ray_write_pop_data;
+    wire tm114_ray_write_pop_valid;
+    wire tm114_ray_write_pop_ready;
+    wire [288:0] tm114_ray_write_pop_data;
+    wire tm115_ray_write_pop_valid;
+    wire tm115_ray_write_pop_ready;
+    wire [288:0] tm115_ray_write_pop_data;
+    wire tm116_ray_write_pop_valid;
+    wire tm116_ray_write_pop_ready;
+    wire [288:0] tm116_ray_write_pop_data;
+    wire tm117_ray_write_pop_valid;
+    wire tm117_ray_write_pop_ready;
+    wire [288:0] tm117_ray_write_pop_data;
+    wire tm118_ray_write_pop_valid;
+    wire tm118_ray_write_pop_ready;
+    wire [288:0] tm118_ray_write_pop_data;
+    wire tm119_ray_write_pop_valid;
+    wire tm119_ray_write_pop_ready;
+    wire [288:0] tm119_ray_write_pop_data;
+    wire tm120_ray_write_pop_valid;
+    wire tm120_ray_write_pop_ready;
+    wire [288:0] tm120_ray_write_pop_data;
+    wire tm121_ray_write_pop_valid;
+    wire tm121_ray_write_pop_ready;
+    wire [288:0] tm121_ray_write_pop_data;
+    wire tm122_ray_write_pop_valid;
+    wire tm122_ray_write_pop_ready;
+    wire [288:0] tm122_ray_write_pop_data;
+    wire tm123_ray_write_pop_valid;
+    wire tm123_ray_write_pop_ready;
+    wire [288:0] tm123_ray_write_pop_data;
+    wire tm124_ray_write_pop_valid;
+    wire tm124_ray_write_pop_ready;
+    wire [288:0] tm124_ray_write_pop_data;
+    wire tm125_ray_write_pop_valid;
+    wire tm125_ray_write_pop_ready;
+    wire [288:0] tm125_ray_write_pop_data;
+    wire tm126_ray_write_pop_valid;
+    wire tm126_ray_write_pop_ready;
+    wire [288:0] tm126_ray_write_pop_data;
+    wire tm127_ray_write_pop_valid;
+    wire tm127_ray_write_pop_ready;
+    wire [288:0] tm127_ray_write_pop_data;
+    wire tm0_hit_pop_valid;
+    wire tm0_hit_pop_ready;
+    wire [159:0] tm0_hit_pop_data;
+    wire tm1_hit_pop_valid;
+    wire tm1_hit_pop_ready;
+    wire [159:0] tm1_hit_pop_data;
+    wire tm2_hit_pop_valid;
+    wire tm2_hit_pop_ready;
+    wire [159:0] tm2_hit_pop_data;
+    wire tm3_hit_pop_valid;
+    wire tm3_hit_pop_ready;
+    wire [159:0] tm3_hit_pop_data;
+    wire tm4_hit_pop_valid;
+    wire tm4_hit_pop_ready;
+    wire [159:0] tm4_hit_pop_data;
+    wire tm5_hit_pop_valid;
+    wire tm5_hit_pop_ready;
+    wire [159:0] tm5_hit_pop_data;
+    wire tm6_hit_pop_valid;
+    wire tm6_hit_pop_ready;
+    wire [159:0] tm6_hit_pop_data;
+    wire tm7_hit_pop_valid;
+    wire tm7_hit_pop_ready;
+    wire [159:0] tm7_hit_pop_data;
+    wire tm8_hit_pop_valid;
+    wire tm8_hit_pop_ready;
+    wire [159:0] tm8_hit_pop_data;
+    wire tm9_hit_pop_valid;
+    wire tm9_hit_pop_ready;
+    wire [159:0] tm9_hit_pop_data;
+    wire tm10_hit_pop_valid;
+    wire tm10_hit_pop_ready;
+    wire [159:0] tm10_hit_pop_data;
+    wire tm11_hit_pop_valid;
+    wire tm11_hit_pop_ready;
+    wire [159:0] tm11_hit_pop_data;
+    wire tm12_hit_pop_valid;
+    wire tm12_hit_pop_ready;
+    wire [159:0] tm12_hit_pop_data;
+    wire tm13_hit_pop_valid;
+    wire tm13_hit_pop_ready;
+    wire [159:0] tm13_hit_pop_data;
+    wire tm14_hit_pop_valid;
+    wire tm14_hit_pop_ready;
+    wire [159:0] tm14_hit_pop_data;
+    wire tm15_hit_pop_valid;
+    wire tm15_hit_pop_ready;
+    wire [159:0] tm15_hit_pop_data;
+    wire tm16_hit_pop_valid;
+    wire tm16_hit_pop_ready;
+    wire [159:0] tm16_hit_pop_data;
+    wire tm17_hit_pop_valid;
+    wire tm17_hit_pop_ready;
+    wire [159:0] tm17_hit_pop_data;
+    wire tm18_hit_pop_valid;
+    wire tm18_hit_pop_ready;
+    wire [159:0] tm18_hit_pop_data;
+    wire tm19_hit_pop_valid;
+    wire tm19_hit_pop_ready;
+    wire [159:0] tm19_hit_pop_data;
+    wire tm20_hit_pop_valid;
+    wire tm20_hit_pop_ready;
+    wire [159:0] tm20_hit_pop_data;
+    wire tm21_hit_pop_valid;
+    wire tm21_hit_pop_ready;
+    wire [159:0] tm21_hit_pop_data;
+    wire tm22_hit_pop_valid;
+    wire tm22_hit_pop_ready;
+    wire [159:0] tm22_hit_pop_data;
+    wire tm23_hit_pop_valid;
+    wire tm23_hit_pop_ready;
+    wire [159:0] tm23_hit_pop_data;
+    wire tm24_hit_pop_valid;
+    wire tm24_hit_pop_ready;
+    wire [159:0] tm24_hit_pop_data;
+    wire tm25_hit_pop_valid;
+    wire tm25_hit_pop_ready;
+    wire [159:0] tm25_hit_pop_data;
+    wire tm26_hit_pop_valid;
+    wire tm26_hit_pop_ready;
+    wire [159:0] tm26_hit_pop_data;
+    wire tm27_hit_pop_valid;
+    wire tm27_hit_pop_ready;
+    wire [159:0] tm27_hit_pop_data;
+    wire tm28_hit_pop_valid;
+    wire tm28_hit_pop_ready;
+    wire [159:0] tm28_hit_pop_data;
+    wire tm29_hit_pop_valid;
+    wire tm29_hit_pop_ready;
+    wire [159:0] tm29_hit_pop_data;
+    wire tm30_hit_pop_valid;
+    wire tm30_hit_pop_ready;
+    wire [159:0] tm30_hit_pop_data;
+    wire tm31_hit_pop_valid;
+    wire tm31_hit_pop_ready;
+    wire [159:0] tm31_hit_pop_data;
+    wire tm32_hit_pop_valid;
+    wire tm32_hit_pop_ready;
+    wire [159:0] tm32_hit_pop_data;
+    wire tm33_hit_pop_valid;
+    wire tm33_hit_pop_ready;
+    wire [159:0] tm33_hit_pop_data;
+    wire tm34_hit_pop_valid;
+    wire tm34_hit_pop_ready;
+    wire [159:0] tm34_hit_pop_data;
+    wire tm35_hit_pop_valid;
+    wire tm35_hit_pop_ready;
+    wire [159:0] tm35_hit_pop_data;
+    wire tm36_hit_pop_valid;
+    wire tm36_hit_pop_ready;
+    wire [159:0] tm36_hit_pop_data;
+    wire tm37_hit_pop_valid;
+    wire tm37_hit_pop_ready;
+    wire [159:0] tm37_hit_pop_data;
+    wire tm38_hit_pop_valid;
+    wire tm38_hit_pop_ready;
+    wire [159:0] tm38_hit_pop_data;
+    wire tm39_hit_pop_valid;
+    wire tm39_hit_pop_ready;
+    wire [159:0] tm39_hit_pop_data;
+    wire tm40_hit_pop_valid;
+    wire tm40_hit_pop_ready;
+    wire [159:0] tm40_hit_pop_data;
+    wire tm41_hit_pop_valid;
+    wire tm41_hit_pop_ready;
+    wire [159:0] tm41_hit_pop_data;
+    wire tm42_hit_pop_valid;
+    wire tm42_hit_pop_ready;
+    wire [159:0] tm42_hit_pop_data;
+    wire tm43_hit_pop_valid;
+    wire tm43_hit_pop_ready;
+    wire [159:0] tm43_hit_pop_data;
+    wire tm44_hit_pop_valid;
+    wire tm44_hit_pop_ready;
+    wire [159:0] tm44_hit_pop_data;
+    wire tm45_hit_pop_valid;
+    wire tm45_hit_pop_ready;
+    wire [159:0] tm45_hit_pop_data;
+    wire tm46_hit_pop_valid;
+    wire tm46_hit_pop_ready;
+    wire [159:0] tm46_hit_pop_data;
+    wire tm47_hit_pop_valid;
+    wire tm47_hit_pop_ready;
+    wire [159:0] tm47_hit_pop_data;
+    wire tm48_hit_pop_valid;
+    wire tm48_hit_pop_ready;
+    wire [159:0] tm48_hit_pop_data;
+    wire tm49_hit_pop_valid;
+    wire tm49_hit_pop_ready;
+    wire [159:0] tm49_hit_pop_data;
+    wire tm50_hit_pop_valid;
+    wire tm50_hit_pop_ready;
+    wire [159:0] tm50_hit_pop_data;
+    wire tm51_hit_pop_valid;
+    wire tm51_hit_pop_ready;
+    wire [159:0] tm51_hit_pop_data;
+    wire tm52_hit_pop_valid;
+    wire tm52_hit_pop_ready;
+    wire [159:0] tm52_hit_pop_data;
+    wire tm53_hit_pop_valid;
+    wire tm53_hit_pop_ready;
+    wire [159:0] tm53_hit_pop_data;
+    wire tm54_hit_pop_valid;
+    wire tm54_hit_pop_ready;
+    wire [159:0] tm54_hit_pop_data;
+    wire tm55_hit_pop_valid;
+    wire tm55_hit_pop_ready;
+    wire [159:0] tm55_hit_pop_data;
+    wire tm56_hit_pop_valid;
+    wire tm56_hit_pop_ready;
+    wire [159:0] tm56_hit_pop_data;
+    wire tm57_hit_pop_valid;
+    wire tm57_hit_pop_ready;
+    wire [159:0] tm57_hit_pop_data;
+    wire tm58_hit_pop_valid;
+    wire tm58_hit_pop_ready;
+    wire [159:0] tm58_hit_pop_data;
+    wire tm59_hit_pop_valid;
+    wire tm59_hit_pop_ready;
+    wire [159:0] tm59_hit_pop_data;
+    wire tm60_hit_pop_valid;
+    wire tm60_hit_pop_ready;
+    wire [159:0] tm60_hit_pop_data;
+    wire tm61_hit_pop_valid;
+    wire tm61_hit_pop_ready;
+    wire [159:0] tm61_hit_pop_data;
+    wire tm62_hit_pop_valid;
+    wire tm62_hit_pop_ready;
+    wire [159:0] tm62_hit_pop_data;
+    wire tm63_hit_pop_valid;
+    wire tm63_hit_pop_ready;
+    wire [159:0] tm63_hit_pop_data;
+    wire tm64_hit_pop_valid;
+    wire tm64_hit_pop_ready;
+    wire [159:0] tm64_hit_pop_data;
+    wire tm65_hit_pop_valid;
+    wire tm65_hit_pop_ready;
+    wire [159:0] tm65_hit_pop_data;
+    wire tm66_hit_pop_valid;
+    wire tm66_hit_pop_ready;
+    wire [159:0] tm66_hit_pop_data;
+    wire tm67_hit_pop_valid;
+    wire tm67_hit_pop_ready;
+    wire [159:0] tm67_hit_pop_data;
+    wire tm68_hit_pop_valid;
+    wire tm68_hit_pop_ready;
+    wire [159:0] tm68_hit_pop_data;
+    wire tm69_hit_pop_valid;
+    wire tm69_hit_pop_ready;
+    wire [159:0] tm69_hit_pop_data;
+    wire tm70_hit_pop_valid;
+    wire tm70_hit_pop_ready;
+    wire [159:0] tm70_hit_pop_data;
+    wire tm71_hit_pop_valid;
+    wire tm71_hit_pop_ready;
+    wire [159:0] tm71_hit_pop_data;
+    wire tm72_hit_pop_valid;
+    wire tm72_hit_pop_ready;
+    wire [159:0] tm72_hit_pop_data;
+    wire tm73_hit_pop_valid;
+    wire tm73_hit_pop_ready;
+    wire [159:0] tm73_hit_pop_data;
+    wire tm74_hit_pop_valid;
+    wire tm74_hit_pop_ready;
+    wire [159:0] tm74_hit_pop_data;
+    wire tm75_hit_pop_valid;
+    wire tm75_hit_pop_ready;
+    wire [159:0] tm75_hit_pop_data;
+    wire tm76_hit_pop_valid;
+    wire tm76_hit_pop_ready;
+    wire [159:0] tm76_hit_pop_data;
+    wire tm77_hit_pop_valid;
+    wire tm77_hit_pop_ready;
+    wire [159:0] tm77_hit_pop_data;
+    wire tm78_hit_pop_valid;
+    wire tm78_hit_pop_ready;
+    wire [159:0] tm78_hit_pop_data;
+    wire tm79_hit_pop_valid;
+    wire tm79_hit_pop_ready;
+    wire [159:0] tm79_hit_pop_data;
+    wire tm80_hit_pop_valid;
+    wire tm80_hit_pop_ready;
+    wire [159:0] tm80_hit_pop_data;
+    wire tm81_hit_pop_valid;
+    wire tm81_hit_pop_ready;
+    wire [159:0] tm81_hit_pop_data;
+    wire tm82_hit_pop_valid;
+    wire tm82_hit_pop_ready;
+    wire [159:0] tm82_hit_pop_data;
+    wire tm83_hit_pop_valid;
+    wire tm83_hit_pop_ready;
+    wire [159:0] tm83_hit_pop_data;
+    wire tm84_hit_pop_valid;
+    wire tm84_hit_pop_ready;
+    wire [159:0] tm84_hit_pop_data;
+    wire tm85_hit_pop_valid;
+    wire tm85_hit_pop_ready;
+    wire [159:0] tm85_hit_pop_data;
+    wire tm86_hit_pop_valid;
+    wire tm86_hit_pop_ready;
+    wire [159:0] tm86_hit_pop_data;
+    wire tm87_hit_pop_valid;
+    wire tm87_hit_pop_ready;
+    wire [159:0] tm87_hit_pop_data;
+    wire tm88_hit_pop_valid;
+    wire tm88_hit_pop_ready;
+    wire [159:0] tm88_hit_pop_data;
+    wire tm89_hit_pop_valid;
+    wire tm89_hit_pop_ready;
+    wire [159:0] tm89_hit_pop_data;
+    wire tm90_hit_pop_valid;
+    wire tm90_hit_pop_ready;
+    wire [159:0] tm90_hit_pop_data;
+    wire tm91_hit_pop_valid;
+    wire tm91_hit_pop_ready;
+    wire [159:0] tm91_hit_pop_data;
+    wire tm92_hit_pop_valid;
+    wire tm92_hit_pop_ready;
+    wire [159:0] tm92_hit_pop_data;
+    wire tm93_hit_pop_valid;
+    wire tm93_hit_pop_ready;
+    wire [159:0] tm93_hit_pop_data;
+    wire tm94_hit_pop_valid;
+    wire tm94_hit_pop_ready;
+    wire [159:0] tm94_hit_pop_data;
+    wire tm95_hit_pop_valid;
+    wire tm95_hit_pop_ready;
+    wire [159:0] tm95_hit_pop_data;
+    wire tm96_hit_pop_valid;
+    wire tm96_hit_pop_ready;
+    wire [159:0] tm96_hit_pop_data;
+    wire tm97_hit_pop_valid;
+    wire tm97_hit_pop_ready;
+    wire [159:0] tm97_hit_pop_data;
+    wire tm98_hit_pop_valid;
+    wire tm98_hit_pop_ready;
+    wire [159:0] tm98_hit_pop_data;
+    wire tm99_hit_pop_valid;
+    wire tm99_hit_pop_ready;
+    wire [159:0] tm99_hit_pop_data;
+    wire tm100_hit_pop_valid;
+    wire tm100_hit_pop_ready;
+    wire [159:0] tm100_hit_pop_data;
+    wire tm101_hit_pop_valid;
+    wire tm101_hit_pop_ready;
+    wire [159:0] tm101_hit_pop_data;
+    wire tm102_hit_pop_valid;
+    wire tm102_hit_pop_ready;
+    wire [159:0] tm102_hit_pop_data;
+    wire tm103_hit_pop_valid;
+    wire tm103_hit_pop_ready;
+    wire [159:0] tm103_hit_pop_data;
+    wire tm104_hit_pop_valid;
+    wire tm104_hit_pop_ready;
+    wire [159:0] tm104_hit_pop_data;
+    wire tm105_hit_pop_valid;
+    wire tm105_hit_pop_ready;
+    wire [159:0] tm105_hit_pop_data;
+    wire tm106_hit_pop_valid;
+    wire tm106_hit_pop_ready;
+    wire [159:0] tm106_hit_pop_data;
+    wire tm107_hit_pop_valid;
+    wire tm107_hit_pop_ready;
+    wire [159:0] tm107_hit_pop_data;
+    wire tm108_hit_pop_valid;
+    wire tm108_hit_pop_ready;
+    wire [159:0] tm108_hit_pop_data;
+    wire tm109_hit_pop_valid;
+    wire tm109_hit_pop_ready;
+    wire [159:0] tm109_hit_pop_data;
+    wire tm110_hit_pop_valid;
+    wire tm110_hit_pop_ready;
+    wire [159:0] tm110_hit_pop_data;
+    wire tm111_hit_pop_valid;
+    wire tm111_hit_pop_ready;
+    wire [159:0] tm111_hit_pop_data;
+    wire tm112_hit_pop_valid;
+    wire tm112_hit_pop_ready;
+    wire [159:0] tm112_hit_pop_data;
+    wire tm113_hit_pop_valid;
+    wire tm113_hit_pop_ready;
+    wire [159:0] tm113_hit_pop_data;
+    wire tm114_hit_pop_valid;
+    wire tm114_hit_pop_ready;
+    wire [159:0] tm114_hit_pop_data;
+    wire tm115_hit_pop_valid;
+    wire tm115_hit_pop_ready;
+    wire [159:0] tm115_hit_pop_data;
+    wire tm116_hit_pop_valid;
+    wire tm116_hit_pop_ready;
+    wire [159:0] tm116_hit_pop_data;
+    wire tm117_hit_pop_valid;
+    wire tm117_hit_pop_ready;
+    wire [159:0] tm117_hit_pop_data;
+    wire tm118_hit_pop_valid;
+    wire tm118_hit_pop_ready;
+    wire [159:0] tm118_hit_pop_data;
+    wire tm119_hit_pop_valid;
+    wire tm119_hit_pop_ready;
+    wire [159:0] tm119_hit_pop_data;
+    wire tm120_hit_pop_valid;
+    wire tm120_hit_pop_ready;
+    wire [159:0] tm120_hit_pop_data;
+    wire tm121_hit_pop_valid;
+    wire tm121_hit_pop_ready;
+    wire [159:0] tm121_hit_pop_data;
+    wire tm122_hit_pop_valid;
+    wire tm122_hit_pop_ready;
+    wire [159:0] tm122_hit_pop_data;
+    wire tm123_hit_pop_valid;
+    wire tm123_hit_pop_ready;
+    wire [159:0] tm123_hit_pop_data;
+    wire tm124_hit_pop_valid;
+    wire tm124_hit_pop_ready;
+    wire [159:0] tm124_hit_pop_data;
+    wire tm125_hit_pop_valid;
+    wire tm125_hit_pop_ready;
+    wire [159:0] tm125_hit_pop_data;
+    wire tm126_hit_pop_valid;
+    wire tm126_hit_pop_ready;
+    wire [159:0] tm126_hit_pop_data;
+    wire tm127_hit_pop_valid;
+    wire tm127_hit_pop_ready;
+    wire [159:0] tm127_hit_pop_data;
+    wire l2_req0_hits_push_valid;
+    wire l2_req0_hits_push_ready;
+    wire [675:0] l2_req0_hits_push_data;
+    wire l2_req0_hits_pop_valid;
+    wire l2_req0_hits_pop_ready;
+    wire [675:0] l2_req0_hits_pop_data;
+    wire tm0_gmem_req_pop_valid;
+    wire tm0_gmem_req_pop_ready;
+    wire [675:0] tm0_gmem_req_pop_data;
+    wire tm1_gmem_req_pop_valid;
+    wire tm1_gmem_req_pop_ready;
+    wire [675:0] tm1_gmem_req_pop_data;
+    wire tm2_gmem_req_pop_valid;
+    wire tm2_gmem_req_pop_ready;
+    wire [675:0] tm2_gmem_req_pop_data;
+    wire tm3_gmem_req_pop_valid;
+    wire tm3_gmem_req_pop_ready;
+    wire [675:0] tm3_gmem_req_pop_data;
+    wire tm4_gmem_req_pop_valid;
+    wire tm4_gmem_req_pop_ready;
+    wire [675:0] tm4_gmem_req_pop_data;
+    wire tm5_gmem_req_pop_valid;
+    wire tm5_gmem_req_pop_ready;
+    wire [675:0] tm5_gmem_req_pop_data;
+    wire tm6_gmem_req_pop_valid;
+    wire tm6_gmem_req_pop_ready;
+    wire [675:0] tm6_gmem_req_pop_data;
+    wire tm7_gmem_req_pop_valid;
+    wire tm7_gmem_req_pop_ready;
+    wire [675:0] tm7_gmem_req_pop_data;
+    wire tm8_gmem_req_pop_valid;
+    wire tm8_gmem_req_pop_ready;
+    wire [675:0] tm8_gmem_req_pop_data;
+    wire tm9_gmem_req_pop_valid;
+    wire tm9_gmem_req_pop_ready;
+    wire [675:0] tm9_gmem_req_pop_data;
+    wire tm10_gmem_req_pop_valid;
+    wire tm10_gmem_req_pop_ready;
+    wire [675:0] tm10_gmem_req_pop_data;
+    wire tm11_gmem_req_pop_valid;
+    wire tm11_gmem_req_pop_ready;
+    wire [675:0] tm11_gmem_req_pop_data;
+    wire tm12_gmem_req_pop_valid;
+    wire tm12_gmem_req_pop_ready;
+    wire [675:0] tm12_gmem_req_pop_data;
+    wire tm13_gmem_req_pop_valid;
+    wire tm13_gmem_req_pop_ready;
+    wire [675:0] tm13_gmem_req_pop_data;
+    wire tm14_gmem_req_pop_valid;
+    wire tm14_gmem_req_pop_ready;
+    wire [675:0] tm14_gmem_req_pop_data;
+    wire tm15_gmem_req_pop_valid;
+    wire tm15_gmem_req_pop_ready;
+    wire [675:0] tm15_gmem_req_pop_data;
+    wire tm16_gmem_req_pop_valid;
+    wire tm16_gmem_req_pop_ready;
+    wire [675:0] tm16_gmem_req_pop_data;
+    wire tm17_gmem_req_pop_valid;
+    wire tm17_gmem_req_pop_ready;
+    wire [675:0] tm17_gmem_req_pop_data;
+    wire tm18_gmem_req_pop_valid;
+    wire tm18_gmem_req_pop_ready;
+    wire [675:0] tm18_gmem_req_pop_data;
+    wire tm19_gmem_req_pop_valid;
+    wire tm19_gmem_req_pop_ready;
+    wire [675:0] tm19_gmem_req_pop_data;
+    wire tm20_gmem_req_pop_valid;
+    wire tm20_gmem_req_pop_ready;
+    wire [675:0] tm20_gmem_req_pop_data;
+    wire tm21_gmem_req_pop_valid;
+    wire tm21_gmem_req_pop_ready;
+    wire [675:0] tm21_gmem_req_pop_data;
+    wire tm22_gmem_req_pop_valid;
+    wire tm22_gmem_req_pop_ready;
+    wire [675:0] tm22_gmem_req_pop_data;
+    wire tm23_gmem_req_pop_valid;
+    wire tm23_gmem_req_pop_ready;
+    wire [675:0] tm23_gmem_req_pop_data;
+    wire tm24_gmem_req_pop_valid;
+    wire tm24_gmem_req_pop_ready;
+    wire [675:0] tm24_gmem_req_pop_data;
+    wire tm25_gmem_req_pop_valid;
+    wire tm25_gmem_req_pop_ready;
+    wire [675:0] tm25_gmem_req_pop_data;
+    wire tm26_gmem_req_pop_valid;
+    wire tm26_gmem_req_pop_ready;
+    wire [675:0] tm26_gmem_req_pop_data;
+    wire tm27_gmem_req_pop_valid;
+    wire tm27_gmem_req_pop_ready;
+    wire [675:0] tm27_gmem_req_pop_data;
+    wire tm28_gmem_req_pop_valid;
+    wire tm28_gmem_req_pop_ready;
+    wire [675:0] tm28_gmem_req_pop_data;
+    wire tm29_gmem_req_pop_valid;
+    wire tm29_gmem_req_pop_ready;
+    wire [675:0] tm29_gmem_req_pop_data;
+    wire tm30_gmem_req_pop_valid;
+    wire tm30_gmem_req_pop_ready;
+    wire [675:0] tm30_gmem_req_pop_data;
+    wire tm31_gmem_req_pop_valid;
+    wire tm31_gmem_req_pop_ready;
+    wire [675:0] tm31_gmem_req_pop_data;
+    wire tm32_gmem_req_pop_valid;
+    wire tm32_gmem_req_pop_ready;
+    wire [675:0] tm32_gmem_req_pop_data;
+    wire tm33_gmem_req_pop_valid;
+    wire tm33_gmem_req_pop_ready;
+    wire [675:0] tm33_gmem_req_pop_data;
+    wire tm34_gmem_req_pop_valid;
+    wire tm34_gmem_req_pop_ready;
+    wire [675:0] tm34_gmem_req_pop_data;
+    wire tm35_gmem_req_pop_valid;
+    wire tm35_gmem_req_pop_ready;
+    wire [675:0] tm35_gmem_req_pop_data;
+    wire tm36_gmem_req_pop_valid;
+    wire tm36_gmem_req_pop_ready;
+    wire [675:0] tm36_gmem_req_pop_data;
+    wire tm37_gmem_req_pop_valid;
+    wire tm37_gmem_req_pop_ready;
+    wire [675:0] tm37_gmem_req_pop_data;
+    wire tm38_gmem_req_pop_valid;
+    wire tm38_gmem_req_pop_ready;
+    wire [675:0] tm38_gmem_req_pop_data;
+    wire tm39_gmem_req_pop_valid;
+    wire tm39_gmem_req_pop_ready;
+    wire [675:0] tm39_gmem_req_pop_data;
+    wire tm40_gmem_req_pop_valid;
+    wire tm40_gmem_req_pop_ready;
+    wire [675:0] tm40_gmem_req_pop_data;
+    wire tm41_gmem_req_pop_valid;
+    wire tm41_gmem_req_pop_ready;
+    wire [675:0] tm41_gmem_req_pop_data;
+    wire tm42_gmem_req_pop_valid;
+    wire tm42_gmem_req_pop_ready;
+    wire [675:0] tm42_gmem_req_pop_data;
+    wire tm43_gmem_req_pop_valid;
+    wire tm43_gmem_req_pop_ready;
+    wire [675:0] tm43_gmem_req_pop_data;
+    wire tm44_gmem_req_pop_valid;
+    wire tm44_gmem_req_pop_ready;
+    wire [675:0] tm44_gmem_req_pop_data;
+    wire tm45_gmem_req_pop_valid;
+    wire tm45_gmem_req_pop_ready;
+    wire [675:0] tm45_gmem_req_pop_data;
+    wire tm46_gmem_req_pop_valid;
+    wire tm46_gmem_req_pop_ready;
+    wire [675:0] tm46_gmem_req_pop_data;
+    wire tm47_gmem_req_pop_valid;
+    wire tm47_gmem_req_pop_ready;
+    wire [675:0] tm47_gmem_req_pop_data;
+    wire tm48_gmem_req_pop_valid;
+    wire tm48_gmem_req_pop_ready;
+    wire [675:0] tm48_gmem_req_pop_data;
+    wire tm49_gmem_req_pop_valid;
+    wire tm49_gmem_req_pop_ready;
+    wire [675:0] tm49_gmem_req_pop_data;
+    wire tm50_gmem_req_pop_valid;
+    wire tm50_gmem_req_pop_ready;
+    wire [675:0] tm50_gmem_req_pop_data;
+    wire tm51_gmem_req_pop_valid;
+    wire tm51_gmem_req_pop_ready;
+    wire [675:0] tm51_gmem_req_pop_data;
+    wire tm52_gmem_req_pop_valid;
+    wire tm52_gmem_req_pop_ready;
+    wire [675:0] tm52_gmem_req_pop_data;
+    wire tm53_gmem_req_pop_valid;
+    wire tm53_gmem_req_pop_ready;
+    wire [675:0] tm53_gmem_req_pop_data;
+    wire tm54_gmem_req_pop_valid;
+    wire tm54_gmem_req_pop_ready;
+    wire [675:0] tm54_gmem_req_pop_data;
+    wire tm55_gmem_req_pop_valid;
+    wire tm55_gmem_req_pop_ready;
+    wire [675:0] tm55_gmem_req_pop_data;
+    wire tm56_gmem_req_pop_valid;
+    wire tm56_gmem_req_pop_ready;
+    wire [675:0] tm56_gmem_req_pop_data;
+    wire tm57_gmem_req_pop_valid;
+    wire tm57_gmem_req_pop_ready;
+    wire [675:0] tm57_gmem_req_pop_data;
+    wire tm58_gmem_req_pop_valid;
+    wire tm58_gmem_req_pop_ready;
+    wire [675:0] tm58_gmem_req_pop_data;
+    wire tm59_gmem_req_pop_valid;
+    wire tm59_gmem_req_pop_ready;
+    wire [675:0] tm59_gmem_req_pop_data;
+    wire tm60_gmem_req_pop_valid;
+    wire tm60_gmem_req_pop_ready;
+    wire [675:0] tm60_gmem_req_pop_data;
+    wire tm61_gmem_req_pop_valid;
+    wire tm61_gmem_req_pop_ready;
+    wire [675:0] tm61_gmem_req_pop_data;
+    wire tm62_gmem_req_pop_valid;
+    wire tm62_gmem_req_pop_ready;
+    wire [675:0] tm62_gmem_req_pop_data;
+    wire tm63_gmem_req_pop_valid;
+    wire tm63_gmem_req_pop_ready;
+    wire [675:0] tm63_gmem_req_pop_data;
+    wire tm64_gmem_req_pop_valid;
+    wire tm64_gmem_req_pop_ready;
+    wire [675:0] tm64_gmem_req_pop_data;
+    wire tm65_gmem_req_pop_valid;
+    wire tm65_gmem_req_pop_ready;
+    wire [675:0] tm65_gmem_req_pop_data;
+    wire tm66_gmem_req_pop_valid;
+    wire tm66_gmem_req_pop_ready;
+    wire [675:0] tm66_gmem_req_pop_data;
+    wire tm67_gmem_req_pop_valid;
+    wire tm67_gmem_req_pop_ready;
+    wire [675:0] tm67_gmem_req_pop_data;
+    wire tm68_gmem_req_pop_valid;
+    wire tm68_gmem_req_pop_ready;
+    wire [675:0] tm68_gmem_req_pop_data;
+    wire tm69_gmem_req_pop_valid;
+    wire tm69_gmem_req_pop_ready;
+    wire [675:0] tm69_gmem_req_pop_data;
+    wire tm70_gmem_req_pop_valid;
+    wire tm70_gmem_req_pop_ready;
+    wire [675:0] tm70_gmem_req_pop_data;
+    wire tm71_gmem_req_pop_valid;
+    wire tm71_gmem_req_pop_ready;
+    wire [675:0] tm71_gmem_req_pop_data;
+    wire tm72_gmem_req_pop_valid;
+    wire tm72_gmem_req_pop_ready;
+    wire [675:0] tm72_gmem_req_pop_data;
+    wire tm73_gmem_req_pop_valid;
+    wire tm73_gmem_req_pop_ready;
+    wire [675:0] tm73_gmem_req_pop_data;
+    wire tm74_gmem_req_pop_valid;
+    wire tm74_gmem_req_pop_ready;
+    wire [675:0] tm74_gmem_req_pop_data;
+    wire tm75_gmem_req_pop_valid;
+    wire tm75_gmem_req_pop_ready;
+    wire [675:0] tm75_gmem_req_pop_data;
+    wire tm76_gmem_req_pop_valid;
+    wire tm76_gmem_req_pop_ready;
+    wire [675:0] tm76_gmem_req_pop_data;
+    wire tm77_gmem_req_pop_valid;
+    wire tm77_gmem_req_pop_ready;
+    wire [675:0] tm77_gmem_req_pop_data;
+    wire tm78_gmem_req_pop_valid;
+    wire tm78_gmem_req_pop_ready;
+    wire [675:0] tm78_gmem_req_pop_data;
+    wire tm79_gmem_req_pop_valid;
+    wire tm79_gmem_req_pop_ready;
+    wire [675:0] tm79_gmem_req_pop_data;
+    wire tm80_gmem_req_pop_valid;
+    wire tm80_gmem_req_pop_ready;
+    wire [675:0] tm80_gmem_req_pop_data;
+    wire tm81_gmem_req_pop_valid;
+    wire tm81_gmem_req_pop_ready;
+    wire [675:0] tm81_gmem_req_pop_data;
+    wire tm82_gmem_req_pop_valid;
+    wire tm82_gmem_req_pop_ready;
+    wire [675:0] tm82_gmem_req_pop_data;
+    wire tm83_gmem_req_pop_valid;
+    wire tm83_gmem_req_pop_ready;
+    wire [675:0] tm83_gmem_req_pop_data;
+    wire tm84_gmem_req_pop_valid;
+    wire tm84_gmem_req_pop_ready;
+    wire [675:0] tm84_gmem_req_pop_data;
+    wire tm85_gmem_req_pop_valid;
+    wire tm85_gmem_req_pop_ready;
+    wire [675:0] tm85_gmem_req_pop_data;
+    wire tm86_gmem_req_pop_valid;
+    wire tm86_gmem_req_pop_ready;
+    wire [675:0] tm86_gmem_req_pop_data;
+    wire tm87_gmem_req_pop_valid;
+    wire tm87_gmem_req_pop_ready;
+    wire [675:0] tm87_gmem_req_pop_data;
+    wire tm88_gmem_req_pop_valid;
+    wire tm88_gmem_req_pop_ready;
+    wire [675:0] tm88_gmem_req_pop_data;
+    wire tm89_gmem_req_pop_valid;
+    wire tm89_gmem_req_pop_ready;
+    wire [675:0] tm89_gmem_req_pop_data;
+    wire tm90_gmem_req_pop_valid;
+    wire tm90_gmem_req_pop_ready;
+    wire [675:0] tm90_gmem_req_pop_data;
+    wire tm91_gmem_req_pop_valid;
+    wire tm91_gmem_req_pop_ready;
+    wire [675:0] tm91_gmem_req_pop_data;
+    wire tm92_gmem_req_pop_valid;
+    wire tm92_gmem_req_pop_ready;
+    wire [675:0] tm92_gmem_req_pop_data;
+    wire tm93_gmem_req_pop_valid;
+    wire tm93_gmem_req_pop_ready;
+    wire [675:0] tm93_gmem_req_pop_data;
+    wire tm94_gmem_req_pop_valid;
+    wire tm94_gmem_req_pop_ready;
+    wire [675:0] tm94_gmem_req_pop_data;
+    wire tm95_gmem_req_pop_valid;
+    wire tm95_gmem_req_pop_ready;
+    wire [675:0] tm95_gmem_req_pop_data;
+    wire tm96_gmem_req_pop_valid;
+    wire tm96_gmem_req_pop_ready;
+    wire [675:0] tm96_gmem_req_pop_data;
+    wire tm97_gmem_req_pop_valid;
+    wire tm97_gmem_req_pop_ready;
+    wire [675:0] tm97_gmem_req_pop_data;
+    wire tm98_gmem_req_pop_valid;
+    wire tm98_gmem_req_pop_ready;
+    wire [675:0] tm98_gmem_req_pop_data;
+    wire tm99_gmem_req_pop_valid;
+    wire tm99_gmem_req_pop_ready;
+    wire [675:0] tm99_gmem_req_pop_data;
+    wire tm100_gmem_req_pop_valid;
+    wire tm100_gmem_req_pop_ready;
+    wire [675:0] tm100_gmem_req_pop_data;
+    wire tm101_gmem_req_pop_valid;
+    wire tm101_gmem_req_pop_ready;
+    wire [675:0] tm101_gmem_req_pop_data;
+    wire tm102_gmem_req_pop_valid;
+    wire tm102_gmem_req_pop_ready;
+    wire [675:0] tm102_gmem_req_pop_data;
+    wire tm103_gmem_req_pop_valid;
+    wire tm103_gmem_req_pop_ready;
+    wire [675:0] tm103_gmem_req_pop_data;
+    wire tm104_gmem_req_pop_valid;
+    wire tm104_gmem_req_pop_ready;
+    wire [675:0] tm104_gmem_req_pop_data;
+    wire tm105_gmem_req_pop_valid;
+    wire tm105_gmem_req_pop_ready;
+    wire [675:0] tm105_gmem_req_pop_data;
+    wire tm106_gmem_req_pop_valid;
+    wire tm106_gmem_req_pop_ready;
+    wire [675:0] tm106_gmem_req_pop_data;
+    wire tm107_gmem_req_pop_valid;
+    wire tm107_gmem_req_pop_ready;
+    wire [675:0] tm107_gmem_req_pop_data;
+    wire tm108_gmem_req_pop_valid;
+    wire tm108_gmem_req_pop_ready;
+    wire [675:0] tm108_gmem_req_pop_data;
+    wire tm109_gmem_req_pop_valid;
+    wire tm109_gmem_req_pop_ready;
+    wire [675:0] tm109_gmem_req_pop_data;
+    wire tm110_gmem_req_pop_valid;
+    wire tm110_gmem_req_pop_ready;
+    wire [675:0] tm110_gmem_req_pop_data;
+    wire tm111_gmem_req_pop_valid;
+    wire tm111_gmem_req_pop_ready;
+    wire [675:0] tm111_gmem_req_pop_data;
+    wire tm112_gmem_req_pop_valid;
+    wire tm112_gmem_req_pop_ready;
+    wire [675:0] tm112_gmem_req_pop_data;
+    wire tm113_gmem_req_pop_valid;
+    wire tm113_gmem_req_pop_ready;
+    wire [675:0] tm113_gmem_req_pop_data;
+    wire tm114_gmem_req_pop_valid;
+    wire tm114_gmem_req_pop_ready;
+    wire [675:0] tm114_gmem_req_pop_data;
+    wire tm115_gmem_req_pop_valid;
+    wire tm115_gmem_req_pop_ready;
+    wire [675:0] tm115_gmem_req_pop_data;
+    wire tm116_gmem_req_pop_valid;
+    wire tm116_gmem_req_pop_ready;
+    wire [675:0] tm116_gmem_req_pop_data;
+    wire tm117_gmem_req_pop_valid;
+    wire tm117_gmem_req_pop_ready;
+    wire [675:0] tm117_gmem_req_pop_data;
+    wire tm118_gmem_req_pop_valid;
+    wire tm118_gmem_req_pop_ready;
+    wire [675:0] tm118_gmem_req_pop_data;
+    wire tm119_gmem_req_pop_valid;
+    wire tm119_gmem_req_pop_ready;
+    wire [675:0] tm119_gmem_req_pop_data;
+    wire tm120_gmem_req_pop_valid;
+    wire tm120_gmem_req_pop_ready;
+    wire [675:0] tm120_gmem_req_pop_data;
+    wire tm121_gmem_req_pop_valid;
+    wire tm121_gmem_req_pop_ready;
+    wire [675:0] tm121_gmem_req_pop_data;
+    wire tm122_gmem_req_pop_valid;
+    wire tm122_gmem_req_pop_ready;
+    wire [675:0] tm122_gmem_req_pop_data;
+    wire tm123_gmem_req_pop_valid;
+    wire tm123_gmem_req_pop_ready;
+    wire [675:0] tm123_gmem_req_pop_data;
+    wire tm124_gmem_req_pop_valid;
+    wire tm124_gmem_req_pop_ready;
+    wire [675:0] tm124_gmem_req_pop_data;
+    wire tm125_gmem_req_pop_valid;
+    wire tm125_gmem_req_pop_ready;
+    wire [675:0] tm125_gmem_req_pop_data;
+    wire tm126_gmem_req_pop_valid;
+    wire tm126_gmem_req_pop_ready;
+    wire [675:0] tm126_gmem_req_pop_data;
+    wire tm127_gmem_req_pop_valid;
+    wire tm127_gmem_req_pop_ready;
+    wire [675:0] tm127_gmem_req_pop_data;
+    wire l2_resp0_hits_push_valid;
+    wire l2_resp0_hits_push_ready;
+    wire [611:0] l2_resp0_hits_push_data;
+    wire l2_resp0_hits_pop_valid;
+    wire l2_resp0_hits_pop_ready;
+    wire [611:0] l2_resp0_hits_pop_data;
+    wire tm0_gmem_resp_push_valid;
+    wire tm0_gmem_resp_push_ready;
+    wire [611:0] tm0_gmem_resp_push_data;
+    wire tm1_gmem_resp_push_valid;
+    wire tm1_gmem_resp_push_ready;
+    wire [611:0] tm1_gmem_resp_push_data;
+    wire tm2_gmem_resp_push_valid;
+    wire tm2_gmem_resp_push_ready;
+    wire [611:0] tm2_gmem_resp_push_data;
+    wire tm3_gmem_resp_push_valid;
+    wire tm3_gmem_resp_push_ready;
+    wire [611:0] tm3_gmem_resp_push_data;
+    wire tm4_gmem_resp_push_valid;
+    wire tm4_gmem_resp_push_ready;
+    wire [611:0] tm4_gmem_resp_push_data;
+    wire tm5_gmem_resp_push_valid;
+    wire tm5_gmem_resp_push_ready;
+    wire [611:0] tm5_gmem_resp_push_data;
+    wire tm6_gmem_resp_push_valid;
+    wire tm6_gmem_resp_push_ready;
+    wire [611:0] tm6_gmem_resp_push_data;
+    wire tm7_gmem_resp_push_valid;
+    wire tm7_gmem_resp_push_ready;
+    wire [611:0] tm7_gmem_resp_push_data;
+    wire tm8_gmem_resp_push_valid;
+    wire tm8_gmem_resp_push_ready;
+    wire [611:0] tm8_gmem_resp_push_data;
+    wire tm9_gmem_resp_push_valid;
+    wire tm9_gmem_resp_push_ready;
+    wire [611:0] tm9_gmem_resp_push_data;
+    wire tm10_gmem_resp_push_valid;
+    wire tm10_gmem_resp_push_ready;
+    wire [611:0] tm10_gmem_resp_push_data;
+    wire tm11_gmem_resp_push_valid;
+    wire tm11_gmem_resp_push_ready;
+    wire [611:0] tm11_gmem_resp_push_data;
+    wire tm12_gmem_resp_push_valid;
+    wire tm12_gmem_resp_push_ready;
+    wire [611:0] tm12_gmem_resp_push_data;
+    wire tm13_gmem_resp_push_valid;
+    wire tm13_gmem_resp_push_ready;
+    wire [611:0] tm13_gmem_resp_push_data;
+    wire tm14_gmem_resp_push_valid;
+    wire tm14_gmem_resp_push_ready;
+    wire [611:0] tm14_gmem_resp_push_data;
+    wire tm15_gmem_resp_push_valid;
+    wire tm15_gmem_resp_push_ready;
+    wire [611:0] tm15_gmem_resp_push_data;
+    wire tm16_gmem_resp_push_valid;
+    wire tm16_gmem_resp_push_ready;
+    wire [611:0] tm16_gmem_resp_push_data;
+    wire tm17_gmem_resp_push_valid;
+    wire tm17_gmem_resp_push_ready;
+    wire [611:0] tm17_gmem_resp_push_data;
+    wire tm18_gmem_resp_push_valid;
+    wire tm18_gmem_resp_push_ready;
+    wire [611:0] tm18_gmem_resp_push_data;
+    wire tm19_gmem_resp_push_valid;
+    wire tm19_gmem_resp_push_ready;
+    wire [611:0] tm19_gmem_resp_push_data;
+    wire tm20_gmem_resp_push_valid;
+    wire tm20_gmem_resp_push_ready;
+    wire [611:0] tm20_gmem_resp_push_data;
+    wire tm21_gmem_resp_push_valid;
+    wire tm21_gmem_resp_push_ready;
+    wire [611:0] tm21_gmem_resp_push_data;
+    wire tm22_gmem_resp_push_valid;
+    wire tm22_gmem_resp_push_ready;
+    wire [611:0] tm22_gmem_resp_push_data;
+    wire tm23_gmem_resp_push_valid;
+    wire tm23_gmem_resp_push_ready;
+    wire [611:0] tm23_gmem_resp_push_data;
+    wire tm24_gmem_resp_push_valid;
+    wire tm24_gmem_resp_push_ready;
+    wire [611:0] tm24_gmem_resp_push_data;
+    wire tm25_gmem_resp_push_valid;
+    wire tm25_gmem_resp_push_ready;
+    wire [611:0] tm25_gmem_resp_push_data;
+    wire tm26_gmem_resp_push_valid;
+    wire tm26_gmem_resp_push_ready;
+    wire [611:0] tm26_gmem_resp_push_data;
+    wire tm27_gmem_resp_push_valid;
+    wire tm27_gmem_resp_push_ready;
+    wire [611:0] tm27_gmem_resp_push_data;
+    wire tm28_gmem_resp_push_valid;
+    wire tm28_gmem_resp_push_ready;
+    wire [611:0] tm28_gmem_resp_push_data;
+    wire tm29_gmem_resp_push_valid;
+    wire tm29_gmem_resp_push_ready;
+    wire [611:0] tm29_gmem_resp_push_data;
+    wire tm30_gmem_resp_push_valid;
+    wire tm30_gmem_resp_push_ready;
+    wire [611:0] tm30_gmem_resp_push_data;
+    wire tm31_gmem_resp_push_valid;
+    wire tm31_gmem_resp_push_ready;
+    wire [611:0] tm31_gmem_resp_push_data;
+    wire tm32_gmem_resp_push_valid;
+    wire tm32_gmem_resp_push_ready;
+    wire [611:0] tm32_gmem_resp_push_data;
+    wire tm33_gmem_resp_push_valid;
+    wire tm33_gmem_resp_push_ready;
+    wire [611:0] tm33_gmem_resp_push_data;
+    wire tm34_gmem_resp_push_valid;
+    wire tm34_gmem_resp_push_ready;
+    wire [611:0] tm34_gmem_resp_push_data;
+    wire tm35_gmem_resp_push_valid;
+    wire tm35_gmem_resp_push_ready;
+    wire [611:0] tm35_gmem_resp_push_data;
+    wire tm36_gmem_resp_push_valid;
+    wire tm36_gmem_resp_push_ready;
+    wire [611:0] tm36_gmem_resp_push_data;
+    wire tm37_gmem_resp_push_valid;
+    wire tm37_gmem_resp_push_ready;
+    wire [611:0] tm37_gmem_resp_push_data;
+    wire tm38_gmem_resp_push_valid;
+    wire tm38_gmem_resp_push_ready;
+    wire [611:0] tm38_gmem_resp_push_data;
+    wire tm39_gmem_resp_push_valid;
+    wire tm39_gmem_resp_push_ready;
+    wire [611:0] tm39_gmem_resp_push_data;
+    wire tm40_gmem_resp_push_valid;
+    wire tm40_gmem_resp_push_ready;
+    wire [611:0] tm40_gmem_resp_push_data;
+    wire tm41_gmem_resp_push_valid;
+    wire tm41_gmem_resp_push_ready;
+    wire [611:0] tm41_gmem_resp_push_data;
+    wire tm42_gmem_resp_push_valid;
+    wire tm42_gmem_resp_push_ready;
+    wire [611:0] tm42_gmem_resp_push_data;
+    wire tm43_gmem_resp_push_valid;
+    wire tm43_gmem_resp_push_ready;
+    wire [611:0] tm43_gmem_resp_push_data;
+    wire tm44_gmem_resp_push_valid;
+    wire tm44_gmem_resp_push_ready;
+    wire [611:0] tm44_gmem_resp_push_data;
+    wire tm45_gmem_resp_push_valid;
+    wire tm45_gmem_resp_push_ready;
+    wire [611:0] tm45_gmem_resp_push_data;
+    wire tm46_gmem_resp_push_valid;
+    wire tm46_gmem_resp_push_ready;
+    wire [611:0] tm46_gmem_resp_push_data;
+    wire tm47_gmem_resp_push_valid;
+    wire tm47_gmem_resp_push_ready;
+    wire [611:0] tm47_gmem_resp_push_data;
+    wire tm48_gmem_resp_push_valid;
+    wire tm48_gmem_resp_push_ready;
+    wire [611:0] tm48_gmem_resp_push_data;
+    wire tm49_gmem_resp_push_valid;
+    wire tm49_gmem_resp_push_ready;
+    wire [611:0] tm49_gmem_resp_push_data;
+    wire tm50_gmem_resp_push_valid;
+    wire tm50_gmem_resp_push_ready;
+    wire [611:0] tm50_gmem_resp_push_data;
+    wire tm51_gmem_resp_push_valid;
+    wire tm51_gmem_resp_push_ready;
+    wire [611:0] tm51_gmem_resp_push_data;
+    wire tm52_gmem_resp_push_valid;
+    wire tm52_gmem_resp_push_ready;
+    wire [611:0] tm52_gmem_resp_push_data;
+    wire tm53_gmem_resp_push_valid;
+    wire tm53_gmem_resp_push_ready;
+    wire [611:0] tm53_gmem_resp_push_data;
+    wire tm54_gmem_resp_push_valid;
+    wire tm54_gmem_resp_push_ready;
+    wire [611:0] tm54_gmem_resp_push_data;
+    wire tm55_gmem_resp_push_valid;
+    wire tm55_gmem_resp_push_ready;
+    wire [611:0] tm55_gmem_resp_push_data;
+    wire tm56_gmem_resp_push_valid;
+    wire tm56_gmem_resp_push_ready;
+    wire [611:0] tm56_gmem_resp_push_data;
+    wire tm57_gmem_resp_push_valid;
+    wire tm57_gmem_resp_push_ready;
+    wire [611:0] tm57_gmem_resp_push_data;
+    wire tm58_gmem_resp_push_valid;
+    wire tm58_gmem_resp_push_ready;
+    wire [611:0] tm58_gmem_resp_push_data;
+    wire tm59_gmem_resp_push_valid;
+    wire tm59_gmem_resp_push_ready;
+    wire [611:0] tm59_gmem_resp_push_data;
+    wire tm60_gmem_resp_push_valid;
+    wire tm60_gmem_resp_push_ready;
+    wire [611:0] tm60_gmem_resp_push_data;
+    wire tm61_gmem_resp_push_valid;
+    wire tm61_gmem_resp_push_ready;
+    wire [611:0] tm61_gmem_resp_push_data;
+    wire tm62_gmem_resp_push_valid;
+    wire tm62_gmem_resp_push_ready;
+    wire [611:0] tm62_gmem_resp_push_data;
+    wire tm63_gmem_resp_push_valid;
+    wire tm63_gmem_resp_push_ready;
+    wire [611:0] tm63_gmem_resp_push_data;
+    wire tm64_gmem_resp_push_valid;
+    wire tm64_gmem_resp_push_ready;
+    wire [611:0] tm64_gmem_resp_push_data;
+    wire tm65_gmem_resp_push_valid;
+    wire tm65_gmem_resp_push_ready;
+    wire [611:0] tm65_gmem_resp_push_data;
+    wire tm66_gmem_resp_push_valid;
+    wire tm66_gmem_resp_push_ready;
+    wire [611:0] tm66_gmem_resp_push_data;
+    wire tm67_gmem_resp_push_valid;
+    wire tm67_gmem_resp_push_ready;
+    wire [611:0] tm67_gmem_resp_push_data;
+    wire tm68_gmem_resp_push_valid;
+    wire tm68_gmem_resp_push_ready;
+    wire [611:0] tm68_gmem_resp_push_data;
+    wire tm69_gmem_resp_push_valid;
+    wire tm69_gmem_resp_push_ready;
+    wire [611:0] tm69_gmem_resp_push_data;
+    wire tm70_gmem_resp_push_valid;
+    wire tm70_gmem_resp_push_ready;
+    wire [611:0] tm70_gmem_resp_push_data;
+    wire tm71_gmem_resp_push_valid;
+    wire tm71_gmem_resp_push_ready;
+    wire [611:0] tm71_gmem_resp_push_data;
+    wire tm72_gmem_resp_push_valid;
+    wire tm72_gmem_resp_push_ready;
+    wire [611:0] tm72_gmem_resp_push_data;
+    wire tm73_gmem_resp_push_valid;
+    wire tm73_gmem_resp_push_ready;
+    wire [611:0] tm73_gmem_resp_push_data;
+    wire tm74_gmem_resp_push_valid;
+    wire tm74_gmem_resp_push_ready;
+    wire [611:0] tm74_gmem_resp_push_data;
+    wire tm75_gmem_resp_push_valid;
+    wire tm75_gmem_resp_push_ready;
+    wire [611:0] tm75_gmem_resp_push_data;
+    wire tm76_gmem_resp_push_valid;
+    wire tm76_gmem_resp_push_ready;
+    wire [611:0] tm76_gmem_resp_push_data;
+    wire tm77_gmem_resp_push_valid;
+    wire tm77_gmem_resp_push_ready;
+    wire [611:0] tm77_gmem_resp_push_data;
+    wire tm78_gmem_resp_push_valid;
+    wire tm78_gmem_resp_push_ready;
+    wire [611:0] tm78_gmem_resp_push_data;
+    wire tm79_gmem_resp_push_valid;
+    wire tm79_gmem_resp_push_ready;
+    wire [611:0] tm79_gmem_resp_push_data;
+    wire tm80_gmem_resp_push_valid;
+    wire tm80_gmem_resp_push_ready;
+    wire [611:0] tm80_gmem_resp_push_data;
+    wire tm81_gmem_resp_push_valid;
+    wire tm81_gmem_resp_push_ready;
+    wire [611:0] tm81_gmem_resp_push_data;
+    wire tm82_gmem_resp_push_valid;
+    wire tm82_gmem_resp_push_ready;
+    wire [611:0] tm82_gmem_resp_push_data;
+    wire tm83_gmem_resp_push_valid;
+    wire tm83_gmem_resp_push_ready;
+    wire [611:0] tm83_gmem_resp_push_data;
+    wire tm84_gmem_resp_push_valid;
+    wire tm84_gmem_resp_push_ready;
+    wire [611:0] tm84_gmem_resp_push_data;
+    wire tm85_gmem_resp_push_valid;
+    wire tm85_gmem_resp_push_ready;
+    wire [611:0] tm85_gmem_resp_push_data;
+    wire tm86_gmem_resp_push_valid;
+    wire tm86_gmem_resp_push_ready;
+    wire [611:0] tm86_gmem_resp_push_data;
+    wire tm87_gmem_resp_push_valid;
+    wire tm87_gmem_resp_push_ready;
+    wire [611:0] tm87_gmem_resp_push_data;
+    wire tm88_gmem_resp_push_valid;
+    wire tm88_gmem_resp_push_ready;
+    wire [611:0] tm88_gmem_resp_push_data;
+    wire tm89_gmem_resp_push_valid;
+    wire tm89_gmem_resp_push_ready;
+    wire [611:0] tm89_gmem_resp_push_data;
+    wire tm90_gmem_resp_push_valid;
+    wire tm90_gmem_resp_push_ready;
+    wire [611:0] tm90_gmem_resp_push_data;
+    wire tm91_gmem_resp_push_valid;
+    wire tm91_gmem_resp_push_ready;
+    wire [611:0] tm91_gmem_resp_push_data;
+    wire tm92_gmem_resp_push_valid;
+    wire tm92_gmem_resp_push_ready;
+    wire [611:0] tm92_gmem_resp_push_data;
+    wire tm93_gmem_resp_push_valid;
+    wire tm93_gmem_resp_push_ready;
+    wire [611:0] tm93_gmem_resp_push_data;
+    wire tm94_gmem_resp_push_valid;
+    wire tm94_gmem_resp_push_ready;
+    wire [611:0] tm94_gmem_resp_push_data;
+    wire tm95_gmem_resp_push_valid;
+    wire tm95_gmem_resp_push_ready;
+    wire [611:0] tm95_gmem_resp_push_data;
+    wire tm96_gmem_resp_push_valid;
+    wire tm96_gmem_resp_push_ready;
+    wire [611:0] tm96_gmem_resp_push_data;
+    wire tm97_gmem_resp_push_valid;
+    wire tm97_gmem_resp_push_ready;
+    wire [611:0] tm97_gmem_resp_push_data;
+    wire tm98_gmem_resp_push_valid;
+    wire tm98_gmem_resp_push_ready;
+    wire [611:0] tm98_gmem_resp_push_data;
+    wire tm99_gmem_resp_push_valid;
+    wire tm99_gmem_resp_push_ready;
+    wire [611:0] tm99_gmem_resp_push_data;
+    wire tm100_gmem_resp_push_valid;
+    wire tm100_gmem_resp_push_ready;
+    wire [611:0] tm100_gmem_resp_push_data;
+    wire tm101_gmem_resp_push_valid;
+    wire tm101_gmem_resp_push_ready;
+    wire [611:0] tm101_gmem_resp_push_data;
+    wire tm102_gmem_resp_push_valid;
+    wire tm102_gmem_resp_push_ready;
+    wire [611:0] tm102_gmem_resp_push_data;
+    wire tm103_gmem_resp_push_valid;
+    wire tm103_gmem_resp_push_ready;
+    wire [611:0] tm103_gmem_resp_push_data;
+    wire tm104_gmem_resp_push_valid;
+    wire tm104_gmem_resp_push_ready;
+    wire [611:0] tm104_gmem_resp_push_data;
+    wire tm105_gmem_resp_push_valid;
+    wire tm105_gmem_resp_push_ready;
+    wire [611:0] tm105_gmem_resp_push_data;
+    wire tm106_gmem_resp_push_valid;
+    wire tm106_gmem_resp_push_ready;
+    wire [611:0] tm106_gmem_resp_push_data;
+    wire tm107_gmem_resp_push_valid;
+    wire tm107_gmem_resp_push_ready;
+    wire [611:0] tm107_gmem_resp_push_data;
+    wire tm108_gmem_resp_push_valid;
+    wire tm108_gmem_resp_push_ready;
+    wire [611:0] tm108_gmem_resp_push_data;
+    wire tm109_gmem_resp_push_valid;
+    wire tm109_gmem_resp_push_ready;
+    wire [611:0] tm109_gmem_resp_push_data;
+    wire tm110_gmem_resp_push_valid;
+    wire tm110_gmem_resp_push_ready;
+    wire [611:0] tm110_gmem_resp_push_data;
+    wire tm111_gmem_resp_push_valid;
+    wire tm111_gmem_resp_push_ready;
+    wire [611:0] tm111_gmem_resp_push_data;
+    wire tm112_gmem_resp_push_valid;
+    wire tm112_gmem_resp_push_ready;
+    wire [611:0] tm112_gmem_resp_push_data;
+    wire tm113_gmem_resp_push_valid;
+    wire tm113_gmem_resp_push_ready;
+    wire [611:0] tm113_gmem_resp_push_data;
+    wire tm114_gmem_resp_push_valid;
+    wire tm114_gmem_resp_push_ready;
+    wire [611:0] tm114_gmem_resp_push_data;
+    wire tm115_gmem_resp_push_valid;
+    wire tm115_gmem_resp_push_ready;
+    wire [611:0] tm115_gmem_resp_push_data;
+    wire tm116_gmem_resp_push_valid;
+    wire tm116_gmem_resp_push_ready;
+    wire [611:0] tm116_gmem_resp_push_data;
+    wire tm117_gmem_resp_push_valid;
+    wire tm117_gmem_resp_push_ready;
+    wire [611:0] tm117_gmem_resp_push_data;
+    wire tm118_gmem_resp_push_valid;
+    wire tm118_gmem_resp_push_ready;
+    wire [611:0] tm118_gmem_resp_push_data;
+    wire tm119_gmem_resp_push_valid;
+    wire tm119_gmem_resp_push_ready;
+    wire [611:0] tm119_gmem_resp_push_data;
+    wire tm120_gmem_resp_push_valid;
+    wire tm120_gmem_resp_push_ready;
+    wire [611:0] tm120_gmem_resp_push_data;
+    wire tm121_gmem_resp_push_valid;
+    wire tm121_gmem_resp_push_ready;
+    wire [611:0] tm121_gmem_resp_push_data;
+    wire tm122_gmem_resp_push_valid;
+    wire tm122_gmem_resp_push_ready;
+    wire [611:0] tm122_gmem_resp_push_data;
+    wire tm123_gmem_resp_push_valid;
+    wire tm123_gmem_resp_push_ready;
+    wire [611:0] tm123_gmem_resp_push_data;
+    wire tm124_gmem_resp_push_valid;
+    wire tm124_gmem_resp_push_ready;
+    wire [611:0] tm124_gmem_resp_push_data;
+    wire tm125_gmem_resp_push_valid;
+    wire tm125_gmem_resp_push_ready;
+    wire [611:0] tm125_gmem_resp_push_data;
+    wire tm126_gmem_resp_push_valid;
+    wire tm126_gmem_resp_push_ready;
+    wire [611:0] tm126_gmem_resp_push_data;
+    wire tm127_gmem_resp_push_valid;
+    wire tm127_gmem_resp_push_ready;
+    wire [611:0] tm127_gmem_resp_push_data;
+    wire mem_req_l2_lane1_push_valid;
+    wire mem_req_l2_lane1_push_ready;
+    wire [675:0] mem_req_l2_lane1_push_data;
+    wire mem_req_l2_lane1_pop_valid;
+    wire mem_req_l2_lane1_pop_ready;
+    wire [675:0] mem_req_l2_lane1_pop_data;
+    wire mem_resp_l2_lane1_push_valid;
+    wire mem_resp_l2_lane1_push_ready;
+    wire [611:0] mem_resp_l2_lane1_push_data;
+    wire mem_resp_l2_lane1_pop_valid;
+    wire mem_resp_l2_lane1_pop_ready;
+    wire [611:0] mem_resp_l2_lane1_pop_data;
+    wire mem_req_l2_lane2_push_valid;
+    wire mem_req_l2_lane2_push_ready;
+    wire [675:0] mem_req_l2_lane2_push_data;
+    wire mem_req_l2_lane2_pop_valid;
+    wire mem_req_l2_lane2_pop_ready;
+    wire [675:0] mem_req_l2_lane2_pop_data;
+    wire mem_resp_l2_lane2_push_valid;
+    wire mem_resp_l2_lane2_push_ready;
+    wire [611:0] mem_resp_l2_lane2_push_data;
+    wire mem_resp_l2_lane2_pop_valid;
+    wire mem_resp_l2_lane2_pop_ready;
+    wire [611:0] mem_resp_l2_lane2_pop_data;
+    wire mem_req_l2_lane3_push_valid;
+    wire mem_req_l2_lane3_push_ready;
+    wire [675:0] mem_req_l2_lane3_push_data;
+    wire mem_req_l2_lane3_pop_valid;
+    wire mem_req_l2_lane3_pop_ready;
+    wire [675:0] mem_req_l2_lane3_pop_data;
+    wire mem_resp_l2_lane3_push_valid;
+    wire mem_resp_l2_lane3_push_ready;
+    wire [611:0] mem_resp_l2_lane3_push_data;
+    wire mem_resp_l2_lane3_pop_valid;
+    wire mem_resp_l2_lane3_pop_ready;
+    wire [611:0] mem_resp_l2_lane3_pop_data;
+    wire l2_flush_pop_valid;
+    wire l2_flush_pop_ready;
+    wire l2_flush_pop_data;
+    wire l2_flush_done_push_valid;
+    wire l2_flush_done_push_ready;
+    wire l2_flush_done_push_data;
     hit_record_updater #(.TMS(128), .QUEUE(64), .IN_FLIGHT(32)) hit_updater (
         .clk(clk_core),
         .rst(rst),
-        .hit_0_valid(tm_hit_valid[0]),
-        .hit_0_ready(tm_hit_ready[0]),
-        .hit_0_data(tm_hit_data[159:0]),
-        .hit_1_valid(tm_hit_valid[1]),
-        .hit_1_ready(tm_hit_ready[1]),
-        .hit_1_data(tm_hit_data[319:160]),
-        .hit_2_valid(tm_hit_valid[2]),
-        .hit_2_ready(tm_hit_ready[2]),
-        .hit_2_data(tm_hit_data[479:320]),
-        .hit_3_valid(tm_hit_valid[3]),
-        .hit_3_ready(tm_hit_ready[3]),
-        .hit_3_data(tm_hit_data[639:480]),
-        .hit_4_valid(tm_hit_valid[4]),
-        .hit_4_ready(tm_hit_ready[4]),
-        .hit_4_data(tm_hit_data[799:640]),
-        .hit_5_valid(tm_hit_valid[5]),
-        .hit_5_ready(tm_hit_ready[5]),
-        .hit_5_data(tm_hit_data[959:800]),
-        .hit_6_valid(tm_hit_valid[6]),
-        .hit_6_ready(tm_hit_ready[6]),
-        .hit_6_data(tm_hit_data[1119:960]),
-        .hit_7_valid(tm_hit_valid[7]),
-        .hit_7_ready(tm_hit_ready[7]),
-        .hit_7_data(tm_hit_data[1279:1120]),
-        .hit_8_valid(tm_hit_valid[8]),
-        .hit_8_ready(tm_hit_ready[8]),
-        .hit_8_data(tm_hit_data[1439:1280]),
-        .hit_9_valid(tm_hit_valid[9]),
-        .hit_9_ready(tm_hit_ready[9]),
-        .hit_9_data(tm_hit_data[1599:1440]),
-        .hit_10_valid(tm_hit_valid[10]),
-        .hit_10_ready(tm_hit_ready[10]),
-        .hit_10_data(tm_hit_data[1759:1600]),
-        .hit_11_valid(tm_hit_valid[11]),
-        .hit_11_ready(tm_hit_ready[11]),
-        .hit_11_data(tm_hit_data[1919:1760]),
-        .hit_12_valid(tm_hit_valid[12]),
-        .hit_12_ready(tm_hit_ready[12]),
-        .hit_12_data(tm_hit_data[2079:1920]),
-        .hit_13_valid(tm_hit_valid[13]),
-        .hit_13_ready(tm_hit_ready[13]),
-        .hit_13_data(tm_hit_data[2239:2080]),
-        .hit_14_valid(tm_hit_valid[14]),
-        .hit_14_ready(tm_hit_ready[14]),
-        .hit_14_data(tm_hit_data[2399:2240]),
-        .hit_15_valid(tm_hit_valid[15]),
-        .hit_15_ready(tm_hit_ready[15]),
-        .hit_15_data(tm_hit_data[2559:2400]),
-        .hit_16_valid(tm_hit_valid[16]),
-        .hit_16_ready(tm_hit_ready[16]),
-        .hit_16_data(tm_hit_data[2719:2560]),
-        .hit_17_valid(tm_hit_valid[17]),
-        .hit_17_ready(tm_hit_ready[17]),
-        .hit_17_data(tm_hit_data[2879:2720]),
-        .hit_18_valid(tm_hit_valid[18]),
-        .hit_18_ready(tm_hit_ready[18]),
-        .hit_18_data(tm_hit_data[3039:2880]),
-        .hit_19_valid(tm_hit_valid[19]),
-        .hit_19_ready(tm_hit_ready[19]),
-        .hit_19_data(tm_hit_data[3199:3040]),
-        .hit_20_valid(tm_hit_valid[20]),
-        .hit_20_ready(tm_hit_ready[20]),
-        .hit_20_data(tm_hit_data[3359:3200]),
-        .hit_21_valid(tm_hit_valid[21]),
-        .hit_21_ready(tm_hit_ready[21]),
-        .hit_21_data(tm_hit_data[3519:3360]),
-        .hit_22_valid(tm_hit_valid[22]),
-        .hit_22_ready(tm_hit_ready[22]),
-        .hit_22_data(tm_hit_data[3679:3520]),
-        .hit_23_valid(tm_hit_valid[23]),
-        .hit_23_ready(tm_hit_ready[23]),
-        .hit_23_data(tm_hit_data[3839:3680]),
-        .hit_24_valid(tm_hit_valid[24]),
-        .hit_24_ready(tm_hit_ready[24]),
-        .hit_24_data(tm_hit_data[3999:3840]),
-        .hit_25_valid(tm_hit_valid[25]),
-        .hit_25_ready(tm_hit_ready[25]),
-        .hit_25_data(tm_hit_data[4159:4000]),
-        .hit_26_valid(tm_hit_valid[26]),
-        .hit_26_ready(tm_hit_ready[26]),
-        .hit_26_data(tm_hit_data[4319:4160]),
-        .hit_27_valid(tm_hit_valid[27]),
-        .hit_27_ready(tm_hit_ready[27]),
-        .hit_27_data(tm_hit_data[4479:4320]),
-        .hit_28_valid(tm_hit_valid[28]),
-        .hit_28_ready(tm_hit_ready[28]),
-        .hit_28_data(tm_hit_data[4639:4480]),
-        .hit_29_valid(tm_hit_valid[29]),
-        .hit_29_ready(tm_hit_ready[29]),
-        .hit_29_data(tm_hit_data[4799:4640]),
-        .hit_30_valid(tm_hit_valid[30]),
-        .hit_30_ready(tm_hit_ready[30]),
-        .hit_30_data(tm_hit_data[4959:4800]),
-        .hit_31_valid(tm_hit_valid[31]),
-        .hit_31_ready(tm_hit_ready[31]),
-        .hit_31_data(tm_hit_data[5119:4960]),
-        .hit_32_valid(tm_hit_valid[32]),
-        .hit_32_ready(tm_hit_ready[32]),
-        .hit_32_data(tm_hit_data[5279:5120]),
-        .hit_33_valid(tm_hit_valid[33]),
-        .hit_33_ready(tm_hit_ready[33]),
-        .hit_33_data(tm_hit_data[5439:5280]),
-        .hit_34_valid(tm_hit_valid[34]),
-        .hit_34_ready(tm_hit_ready[34]),
-        .hit_34_data(tm_hit_data[5599:5440]),
-        .hit_35_valid(tm_hit_valid[35]),
-        .hit_35_ready(tm_hit_ready[35]),
-        .hit_35_data(tm_hit_data[5759:5600]),
-        .hit_36_valid(tm_hit_valid[36]),
-        .hit_36_ready(tm_hit_ready[36]),
-        .hit_36_data(tm_hit_data[5919:5760]),
-        .hit_37_valid(tm_hit_valid[37]),
-        .hit_37_ready(tm_hit_ready[37]),
-        .hit_37_data(tm_hit_data[6079:5920]),
-        .hit_38_valid(tm_hit_valid[38]),
-        .hit_38_ready(tm_hit_ready[38]),
-        .hit_38_data(tm_hit_data[6239:6080]),
-        .hit_39_valid(tm_hit_valid[39]),
-        .hit_39_ready(tm_hit_ready[39]),
-        .hit_39_data(tm_hit_data[6399:6240]),
-        .hit_40_valid(tm_hit_valid[40]),
-        .hit_40_ready(tm_hit_ready[40]),
-        .hit_40_data(tm_hit_data[6559:6400]),
-        .hit_41_valid(tm_hit_valid[41]),
-        .hit_41_ready(tm_hit_ready[41]),
-        .hit_41_data(tm_hit_data[6719:6560]),
-        .hit_42_valid(tm_hit_valid[42]),
-        .hit_42_ready(tm_hit_ready[42]),
-        .hit_42_data(tm_hit_data[6879:6720]),
-        .hit_43_valid(tm_hit_valid[43]),
-        .hit_43_ready(tm_hit_ready[43]),
-        .hit_43_data(tm_hit_data[7039:6880]),
-        .hit_44_valid(tm_hit_valid[44]),
-        .hit_44_ready(tm_hit_ready[44]),
-        .hit_44_data(tm_hit_data[7199:7040]),
-        .hit_45_valid(tm_hit_valid[45]),
-        .hit_45_ready(tm_hit_ready[45]),
-        .hit_45_data(tm_hit_data[7359:7200]),
-        .hit_46_valid(tm_hit_valid[46]),
-        .hit_46_ready(tm_hit_ready[46]),
-        .hit_46_data(tm_hit_data[7519:7360]),
-        .hit_47_valid(tm_hit_valid[47]),
-        .hit_47_ready(tm_hit_ready[47]),
-        .hit_47_data(tm_hit_data[7679:7520]),
-        .hit_48_valid(tm_hit_valid[48]),
-        .hit_48_ready(tm_hit_ready[48]),
-        .hit_48_data(tm_hit_data[7839:7680]),
-        .hit_49_valid(tm_hit_valid[49]),
-        .hit_49_ready(tm_hit_ready[49]),
-        .hit_49_data(tm_hit_data[7999:7840]),
-        .hit_50_valid(tm_hit_valid[50]),
-        .hit_50_ready(tm_hit_ready[50]),
-        .hit_50_data(tm_hit_data[8159:8000]),
-        .hit_51_valid(tm_hit_valid[51]),
-        .hit_51_ready(tm_hit_ready[51]),
-        .hit_51_data(tm_hit_data[8319:8160]),
-        .hit_52_valid(tm_hit_valid[52]),
-        .hit_52_ready(tm_hit_ready[52]),
-        .hit_52_data(tm_hit_data[8479:8320]),
-        .hit_53_valid(tm_hit_valid[53]),
-        .hit_53_ready(tm_hit_ready[53]),
-        .hit_53_data(tm_hit_data[8639:8480]),
-        .hit_54_valid(tm_hit_valid[54]),
-        .hit_54_ready(tm_hit_ready[54]),
-        .hit_54_data(tm_hit_data[8799:8640]),
-        .hit_55_valid(tm_hit_valid[55]),
-        .hit_55_ready(tm_hit_ready[55]),
-        .hit_55_data(tm_hit_data[8959:8800]),
-        .hit_56_valid(tm_hit_valid[56]),
-        .hit_56_ready(tm_hit_ready[56]),
-        .hit_56_data(tm_hit_data[9119:8960]),
-        .hit_57_valid(tm_hit_valid[57]),
-        .hit_57_ready(tm_hit_ready[57]),
-        .hit_57_data(tm_hit_data[9279:9120]),
-        .hit_58_valid(tm_hit_valid[58]),
-        .hit_58_ready(tm_hit_ready[58]),
-        .hit_58_data(tm_hit_data[9439:9280]),
-        .hit_59_valid(tm_hit_valid[59]),
-        .hit_59_ready(tm_hit_ready[59]),
-        .hit_59_data(tm_hit_data[9599:9440]),
-        .hit_60_valid(tm_hit_valid[60]),
-        .hit_60_ready(tm_hit_ready[60]),
-        .hit_60_data(tm_hit_data[9759:9600]),
-        .hit_61_valid(tm_hit_valid[61]),
-        .hit_61_ready(tm_hit_ready[61]),
-        .hit_61_data(tm_hit_data[9919:9760]),
-        .hit_62_valid(tm_hit_valid[62]),
-        .hit_62_ready(tm_hit_ready[62]),
-        .hit_62_data(tm_hit_data[10079:9920]),
-        .hit_63_valid(tm_hit_valid[63]),
-        .hit_63_ready(tm_hit_ready[63]),
-        .hit_63_data(tm_hit_data[10239:10080]),
-        .hit_64_valid(tm_hit_valid[64]),
-        .hit_64_ready(tm_hit_ready[64]),
-        .hit_64_data(tm_hit_data[10399:10240]),
-        .hit_65_valid(tm_hit_valid[65]),
-        .hit_65_ready(tm_hit_ready[65]),
-        .hit_65_data(tm_hit_data[10559:10400]),
-        .hit_66_valid(tm_hit_valid[66]),
-        .hit_66_ready(tm_hit_ready[66]),
-        .hit_66_data(tm_hit_data[10719:10560]),
-        .hit_67_valid(tm_hit_valid[67]),
-        .hit_67_ready(tm_hit_ready[67]),
-        .hit_67_data(tm_hit_data[10879:10720]),
-        .hit_68_valid(tm_hit_valid[68]),
-        .hit_68_ready(tm_hit_ready[68]),
-        .hit_68_data(tm_hit_data[11039:10880]),
-        .hit_69_valid(tm_hit_valid[69]),
-        .hit_69_ready(tm_hit_ready[69]),
-        .hit_69_data(tm_hit_data[11199:11040]),
-        .hit_70_valid(tm_hit_valid[70]),
-        .hit_70_ready(tm_hit_ready[70]),
-        .hit_70_data(tm_hit_data[11359:11200]),
-        .hit_71_valid(tm_hit_valid[71]),
-        .hit_71_ready(tm_hit_ready[71]),
-        .hit_71_data(tm_hit_data[11519:11360]),
-        .hit_72_valid(tm_hit_valid[72]),
-        .hit_72_ready(tm_hit_ready[72]),
-        .hit_72_data(tm_hit_data[11679:11520]),
-        .hit_73_valid(tm_hit_valid[73]),
-        .hit_73_ready(tm_hit_ready[73]),
-        .hit_73_data(tm_hit_data[11839:11680]),
-        .hit_74_valid(tm_hit_valid[74]),
-        .hit_74_ready(tm_hit_ready[74]),
-        .hit_74_data(tm_hit_data[11999:11840]),
-        .hit_75_valid(tm_hit_valid[75]),
-        .hit_75_ready(tm_hit_ready[75]),
-        .hit_75_data(tm_hit_data[12159:12000]),
-        .hit_76_valid(tm_hit_valid[76]),
-        .hit_76_ready(tm_hit_ready[76]),
-        .hit_76_data(tm_hit_data[12319:12160]),
-        .hit_77_valid(tm_hit_valid[77]),
-        .hit_77_ready(tm_hit_ready[77]),
-        .hit_77_data(tm_hit_data[12479:12320]),
-        .hit_78_valid(tm_hit_valid[78]),
-        .hit_78_ready(tm_hit_ready[78]),
-        .hit_78_data(tm_hit_data[12639:12480]),
-        .hit_79_valid(tm_hit_valid[79]),
-        .hit_79_ready(tm_hit_ready[79]),
-        .hit_79_data(tm_hit_data[12799:12640]),
-        .hit_80_valid(tm_hit_valid[80]),
-        .hit_80_ready(tm_hit_ready[80]),
-        .hit_80_data(tm_hit_data[12959:12800]),
-        .hit_81_valid(tm_hit_valid[81]),
-        .hit_81_ready(tm_hit_ready[81]),
-        .hit_81_data(tm_hit_data[13119:12960]),
-        .hit_82_valid(tm_hit_valid[82]),
-        .hit_82_ready(tm_hit_ready[82]),
-        .hit_82_data(tm_hit_data[13279:13120]),
-        .hit_83_valid(tm_hit_valid[83]),
-        .hit_83_ready(tm_hit_ready[83]),
-        .hit_83_data(tm_hit_data[13439:13280]),
-        .hit_84_valid(tm_hit_valid[84]),
-        .hit_84_ready(tm_hit_ready[84]),
-        .hit_84_data(tm_hit_data[13599:13440]),
-        .hit_85_valid(tm_hit_valid[85]),
-        .hit_85_ready(tm_hit_ready[85]),
-        .hit_85_data(tm_hit_data[13759:13600]),
-        .hit_86_valid(tm_hit_valid[86]),
-        .hit_86_ready(tm_hit_ready[86]),
-        .hit_86_data(tm_hit_data[13919:13760]),
-        .hit_87_valid(tm_hit_valid[87]),
-        .hit_87_ready(tm_hit_ready[87]),
-        .hit_87_data(tm_hit_data[14079:13920]),
-        .hit_88_valid(tm_hit_valid[88]),
-        .hit_88_ready(tm_hit_ready[88]),
-        .hit_88_data(tm_hit_data[14239:14080]),
-        .hit_89_valid(tm_hit_valid[89]),
-        .hit_89_ready(tm_hit_ready[89]),
-        .hit_89_data(tm_hit_data[14399:14240]),
-        .hit_90_valid(tm_hit_valid[90]),
-        .hit_90_ready(tm_hit_ready[90]),
-        .hit_90_data(tm_hit_data[14559:14400]),
-        .hit_91_valid(tm_hit_valid[91]),
-        .hit_91_ready(tm_hit_ready[91]),
-        .hit_91_data(tm_hit_data[14719:14560]),
-        .hit_92_valid(tm_hit_valid[92]),
-        .hit_92_ready(tm_hit_ready[92]),
-        .hit_92_data(tm_hit_data[14879:14720]),
-        .hit_93_valid(tm_hit_valid[93]),
-        .hit_93_ready(tm_hit_ready[93]),
-        .hit_93_data(tm_hit_data[15039:14880]),
-        .hit_94_valid(tm_hit_valid[94]),
-        .hit_94_ready(tm_hit_ready[94]),
-        .hit_94_data(tm_hit_data[15199:15040]),
-        .hit_95_valid(tm_hit_valid[95]),
-        .hit_95_ready(tm_hit_ready[95]),
-        .hit_95_data(tm_hit_data[15359:15200]),
-        .hit_96_valid(tm_hit_valid[96]),
-        .hit_96_ready(tm_hit_ready[96]),
-        .hit_96_data(tm_hit_data[15519:15360]),
-        .hit_97_valid(tm_hit_valid[97]),
-        .hit_97_ready(tm_hit_ready[97]),
-        .hit_97_data(tm_hit_data[15679:15520]),
-        .hit_98_valid(tm_hit_valid[98]),
-        .hit_98_ready(tm_hit_ready[98]),
-        .hit_98_data(tm_hit_data[15839:15680]),
-        .hit_99_valid(tm_hit_valid[99]),
-        .hit_99_ready(tm_hit_ready[99]),
-        .hit_99_data(tm_hit_data[15999:15840]),
-        .hit_100_valid(tm_hit_valid[100]),
-        .hit_100_ready(tm_hit_ready[100]),
-        .hit_100_data(tm_hit_data[16159:16000]),
-        .hit_101_valid(tm_hit_valid[101]),
-        .hit_101_ready(tm_hit_ready[101]),
-        .hit_101_data(tm_hit_data[16319:16160]),
-        .hit_102_valid(tm_hit_valid[102]),
-        .hit_102_ready(tm_hit_ready[102]),
-        .hit_102_data(tm_hit_data[16479:16320]),
-        .hit_103_valid(tm_hit_valid[103]),
-        .hit_103_ready(tm_hit_ready[103]),
-        .hit_103_data(tm_hit_data[16639:16480]),
-        .hit_104_valid(tm_hit_valid[104]),
-        .hit_104_ready(tm_hit_ready[104]),
-        .hit_104_data(tm_hit_data[16799:16640]),
-        .hit_105_valid(tm_hit_valid[105]),
-        .hit_105_ready(tm_hit_ready[105]),
-        .hit_105_data(tm_hit_data[16959:16800]),
-        .hit_106_valid(tm_hit_valid[106]),
-        .hit_106_ready(tm_hit_ready[106]),
-        .hit_106_data(tm_hit_data[17119:16960]),
-        .hit_107_valid(tm_hit_valid[107]),
-        .hit_107_ready(tm_hit_ready[107]),
-        .hit_107_data(tm_hit_data[17279:17120]),
-        .hit_108_valid(tm_hit_valid[108]),
-        .hit_108_ready(tm_hit_ready[108]),
-        .hit_108_data(tm_hit_data[17439:17280]),
-        .hit_109_valid(tm_hit_valid[109]),
-        .hit_109_ready(tm_hit_ready[109]),
-        .hit_109_data(tm_hit_data[17599:17440]),
-        .hit_110_valid(tm_hit_valid[110]),
-        .hit_110_ready(tm_hit_ready[110]),
-        .hit_110_data(tm_hit_data[17759:17600]),
-        .hit_111_valid(tm_hit_valid[111]),
-        .hit_111_ready(tm_hit_ready[111]),
-        .hit_111_data(tm_hit_data[17919:17760]),
-        .hit_112_valid(tm_hit_valid[112]),
-        .hit_112_ready(tm_hit_ready[112]),
-        .hit_112_data(tm_hit_data[18079:17920]),
-        .hit_113_valid(tm_hit_valid[113]),
-        .hit_113_ready(tm_hit_ready[113]),
-        .hit_113_data(tm_hit_data[18239:18080]),
-        .hit_114_valid(tm_hit_valid[114]),
-        .hit_114_ready(tm_hit_ready[114]),
-        .hit_114_data(tm_hit_data[18399:18240]),
-        .hit_115_valid(tm_hit_valid[115]),
-        .hit_115_ready(tm_hit_ready[115]),
-        .hit_115_data(tm_hit_data[18559:18400]),
-        .hit_116_valid(tm_hit_valid[116]),
-        .hit_116_ready(tm_hit_ready[116]),
-        .hit_116_data(tm_hit_data[18719:18560]),
-        .hit_117_valid(tm_hit_valid[117]),
-        .hit_117_ready(tm_hit_ready[117]),
-        .hit_117_data(tm_hit_data[18879:18720]),
-        .hit_118_valid(tm_hit_valid[118]),
-        .hit_118_ready(tm_hit_ready[118]),
-        .hit_118_data(tm_hit_data[19039:18880]),
-        .hit_119_valid(tm_hit_valid[119]),
-        .hit_119_ready(tm_hit_ready[119]),
-        .hit_119_data(tm_hit_data[19199:19040]),
-        .hit_120_valid(tm_hit_valid[120]),
-        .hit_120_ready(tm_hit_ready[120]),
-        .hit_120_data(tm_hit_data[19359:19200]),
-        .hit_121_valid(tm_hit_valid[121]),
-        .hit_121_ready(tm_hit_ready[121]),
-        .hit_121_data(tm_hit_data[19519:19360]),
-        .hit_122_valid(tm_hit_valid[122]),
-        .hit_122_ready(tm_hit_ready[122]),
-        .hit_122_data(tm_hit_data[19679:19520]),
-        .hit_123_valid(tm_hit_valid[123]),
-        .hit_123_ready(tm_hit_ready[123]),
-        .hit_123_data(tm_hit_data[19839:19680]),
-        .hit_124_valid(tm_hit_valid[124]),
-        .hit_124_ready(tm_hit_ready[124]),
-        .hit_124_data(tm_hit_data[19999:19840]),
-        .hit_125_valid(tm_hit_valid[125]),
-        .hit_125_ready(tm_hit_ready[125]),
-        .hit_125_data(tm_hit_data[20159:20000]),
-        .hit_126_valid(tm_hit_valid[126]),
-        .hit_126_ready(tm_hit_ready[126]),
-        .hit_126_data(tm_hit_data[20319:20160]),
-        .hit_127_valid(tm_hit_valid[127]),
-        .hit_127_ready(tm_hit_ready[127]),
-        .hit_127_data(tm_hit_data[20479:20320]),
-        .mem_req_valid(l2_req0_hits_valid),
-        .mem_req_ready(l2_req0_hits_ready),
-        .mem_req_data(l2_req0_hits_data),
-        .mem_resp_valid(l2_resp0_hits_valid),
-        .mem_resp_ready(l2_resp0_hits_ready),
-        .mem_resp_data(l2_resp0_hits_data)
+        .hit_0_valid(tm0_hit_pop_valid),
+        .hit_0_ready(tm0_hit_pop_ready),
+        .hit_0_data(tm0_hit_pop_data),
+        .hit_1_valid(tm1_hit_pop_valid),
+        .hit_1_ready(tm1_hit_pop_ready),
+        .hit_1_data(tm1_hit_pop_data),
+        .hit_2_valid(tm2_hit_pop_valid),
+        .hit_2_ready(tm2_hit_pop_ready),
+        .hit_2_data(tm2_hit_pop_data),
+        .hit_3_valid(tm3_hit_pop_valid),
+        .hit_3_ready(tm3_hit_pop_ready),
+        .hit_3_data(tm3_hit_pop_data),
+        .hit_4_valid(tm4_hit_pop_valid),
+        .hit_4_ready(tm4_hit_pop_ready),
+        .hit_4_data(tm4_hit_pop_data),
+        .hit_5_valid(tm5_hit_pop_valid),
+        .hit_5_ready(tm5_hit_pop_ready),
+        .hit_5_data(tm5_hit_pop_data),
+        .hit_6_valid(tm6_hit_pop_valid),
+        .hit_6_ready(tm6_hit_pop_ready),
+        .hit_6_data(tm6_hit_pop_data),
+        .hit_7_valid(tm7_hit_pop_valid),
+        .hit_7_ready(tm7_hit_pop_ready),
+        .hit_7_data(tm7_hit_pop_data),
+        .hit_8_valid(tm8_hit_pop_valid),
+        .hit_8_ready(tm8_hit_pop_ready),
+        .hit_8_data(tm8_hit_pop_data),
+        .hit_9_valid(tm9_hit_pop_valid),
+        .hit_9_ready(tm9_hit_pop_ready),
+        .hit_9_data(tm9_hit_pop_data),
+        .hit_10_valid(tm10_hit_pop_valid),
+        .hit_10_ready(tm10_hit_pop_ready),
+        .hit_10_data(tm10_hit_pop_data),
+        .hit_11_valid(tm11_hit_pop_valid),
+        .hit_11_ready(tm11_hit_pop_ready),
+        .hit_11_data(tm11_hit_pop_data),
+        .hit_12_valid(tm12_hit_pop_valid),
+        .hit_12_ready(tm12_hit_pop_ready),
+        .hit_12_data(tm12_hit_pop_data),
+        .hit_13_valid(tm13_hit_pop_valid),
+        .hit_13_ready(tm13_hit_pop_ready),
+        .hit_13_data(tm13_hit_pop_data),
+        .hit_14_valid(tm14_hit_pop_valid),
+        .hit_14_ready(tm14_hit_pop_ready),
+        .hit_14_data(tm14_hit_pop_data),
+        .hit_15_valid(tm15_hit_pop_valid),
+        .hit_15_ready(tm15_hit_pop_ready),
+        .hit_15_data(tm15_hit_pop_data),
+        .hit_16_valid(tm16_hit_pop_valid),
+        .hit_16_ready(tm16_hit_pop_ready),
+        .hit_16_data(tm16_hit_pop_data),
+        .hit_17_valid(tm17_hit_pop_valid),
+        .hit_17_ready(tm17_hit_pop_ready),
+        .hit_17_data(tm17_hit_pop_data),
+        .hit_18_valid(tm18_hit_pop_valid),
+        .hit_18_ready(tm18_hit_pop_ready),
+        .hit_18_data(tm18_hit_pop_data),
+        .hit_19_valid(tm19_hit_pop_valid),
+        .hit_19_ready(tm19_hit_pop_ready),
+        .hit_19_data(tm19_hit_pop_data),
+        .hit_20_valid(tm20_hit_pop_valid),
+        .hit_20_ready(tm20_hit_pop_ready),
+        .hit_20_data(tm20_hit_pop_data),
+        .hit_21_valid(tm21_hit_pop_valid),
+        .hit_21_ready(tm21_hit_pop_ready),
+        .hit_21_data(tm21_hit_pop_data),
+        .hit_22_valid(tm22_hit_pop_valid),
+        .hit_22_ready(tm22_hit_pop_ready),
+        .hit_22_data(tm22_hit_pop_data),
+        .hit_23_valid(tm23_hit_pop_valid),
+        .hit_23_ready(tm23_hit_pop_ready),
+        .hit_23_data(tm23_hit_pop_data),
+        .hit_24_valid(tm24_hit_pop_valid),
+        .hit_24_ready(tm24_hit_pop_ready),
+        .hit_24_data(tm24_hit_pop_data),
+        .hit_25_valid(tm25_hit_pop_valid),
+        .hit_25_ready(tm25_hit_pop_ready),
+        .hit_25_data(tm25_hit_pop_data),
+        .hit_26_valid(tm26_hit_pop_valid),
+        .hit_26_ready(tm26_hit_pop_ready),
+        .hit_26_data(tm26_hit_pop_data),
+        .hit_27_valid(tm27_hit_pop_valid),
+        .hit_27_ready(tm27_hit_pop_ready),
+        .hit_27_data(tm27_hit_pop_data),
+        .hit_28_valid(tm28_hit_pop_valid),
+        .hit_28_ready(tm28_hit_pop_ready),
+        .hit_28_data(tm28_hit_pop_data),
+        .hit_29_valid(tm29_hit_pop_valid),
+        .hit_29_ready(tm29_hit_pop_ready),
+        .hit_29_data(tm29_hit_pop_data),
+        .hit_30_valid(tm30_hit_pop_valid),
+        .hit_30_ready(tm30_hit_pop_ready),
+        .hit_30_data(tm30_hit_pop_data),
+        .hit_31_valid(tm31_hit_pop_valid),
+        .hit_31_ready(tm31_hit_pop_ready),
+        .hit_31_data(tm31_hit_pop_data),
+        .hit_32_valid(tm32_hit_pop_valid),
+        .hit_32_ready(tm32_hit_pop_ready),
+        .hit_32_data(tm32_hit_pop_data),
+        .hit_33_valid(tm33_hit_pop_valid),
+        .hit_33_ready(tm33_hit_pop_ready),
+        .hit_33_data(tm33_hit_pop_data),
+        .hit_34_valid(tm34_hit_pop_valid),
+        .hit_34_ready(tm34_hit_pop_ready),
+        .hit_34_data(tm34_hit_pop_data),
+        .hit_35_valid(tm35_hit_pop_valid),
+        .hit_35_ready(tm35_hit_pop_ready),
+        .hit_35_data(tm35_hit_pop_data),
+        .hit_36_valid(tm36_hit_pop_valid),
+        .hit_36_ready(tm36_hit_pop_ready),
+        .hit_36_data(tm36_hit_pop_data),
+        .hit_37_valid(tm37_hit_pop_valid),
+        .hit_37_ready(tm37_hit_pop_ready),
+        .hit_37_data(tm37_hit_pop_data),
+        .hit_38_valid(tm38_hit_pop_valid),
+        .hit_38_ready(tm38_hit_pop_ready),
+        .hit_38_data(tm38_hit_pop_data),
+        .hit_39_valid(tm39_hit_pop_valid),
+        .hit_39_ready(tm39_hit_pop_ready),
+        .hit_39_data(tm39_hit_pop_data),
+        .hit_40_valid(tm40_hit_pop_valid),
+        .hit_40_ready(tm40_hit_pop_ready),
+        .hit_40_data(tm40_hit_pop_data),
+        .hit_41_valid(tm41_hit_pop_valid),
+        .hit_41_ready(tm41_hit_pop_ready),
+        .hit_41_data(tm41_hit_pop_data),
+        .hit_42_valid(tm42_hit_pop_valid),
+        .hit_42_ready(tm42_hit_pop_ready),
+        .hit_42_data(tm42_hit_pop_data),
+        .hit_43_valid(tm43_hit_pop_valid),
+        .hit_43_ready(tm43_hit_pop_ready),
+        .hit_43_data(tm43_hit_pop_data),
+        .hit_44_valid(tm44_hit_pop_valid),
+        .hit_44_ready(tm44_hit_pop_ready),
+        .hit_44_data(tm44_hit_pop_data),
+        .hit_45_valid(tm45_hit_pop_valid),
+        .hit_45_ready(tm45_hit_pop_ready),
+        .hit_45_data(tm45_hit_pop_data),
+        .hit_46_valid(tm46_hit_pop_valid),
+        .hit_46_ready(tm46_hit_pop_ready),
+        .hit_46_data(tm46_hit_pop_data),
+        .hit_47_valid(tm47_hit_pop_valid),
+        .hit_47_ready(tm47_hit_pop_ready),
+        .hit_47_data(tm47_hit_pop_data),
+        .hit_48_valid(tm48_hit_pop_valid),
+        .hit_48_ready(tm48_hit_pop_ready),
+        .hit_48_data(tm48_hit_pop_data),
+        .hit_49_valid(tm49_hit_pop_valid),
+        .hit_49_ready(tm49_hit_pop_ready),
+        .hit_49_data(tm49_hit_pop_data),
+        .hit_50_valid(tm50_hit_pop_valid),
+        .hit_50_ready(tm50_hit_pop_ready),
+        .hit_50_data(tm50_hit_pop_data),
+        .hit_51_valid(tm51_hit_pop_valid),
+        .hit_51_ready(tm51_hit_pop_ready),
+        .hit_51_data(tm51_hit_pop_data),
+        .hit_52_valid(tm52_hit_pop_valid),
+        .hit_52_ready(tm52_hit_pop_ready),
+        .hit_52_data(tm52_hit_pop_data),
+        .hit_53_valid(tm53_hit_pop_valid),
+        .hit_53_ready(tm53_hit_pop_ready),
+        .hit_53_data(tm53_hit_pop_data),
+        .hit_54_valid(tm54_hit_pop_valid),
+        .hit_54_ready(tm54_hit_pop_ready),
+        .hit_54_data(tm54_hit_pop_data),
+        .hit_55_valid(tm55_hit_pop_valid),
+        .hit_55_ready(tm55_hit_pop_ready),
+        .hit_55_data(tm55_hit_pop_data),
+        .hit_56_valid(tm56_hit_pop_valid),
+        .hit_56_ready(tm56_hit_pop_ready),
+        .hit_56_data(tm56_hit_pop_data),
+        .hit_57_valid(tm57_hit_pop_valid),
+        .hit_57_ready(tm57_hit_pop_ready),
+        .hit_57_data(tm57_hit_pop_data),
+        .hit_58_valid(tm58_hit_pop_valid),
+        .hit_58_ready(tm58_hit_pop_ready),
+        .hit_58_data(tm58_hit_pop_data),
+        .hit_59_valid(tm59_hit_pop_valid),
+        .hit_59_ready(tm59_hit_pop_ready),
+        .hit_59_data(tm59_hit_pop_data),
+        .hit_60_valid(tm60_hit_pop_valid),
+        .hit_60_ready(tm60_hit_pop_ready),
+        .hit_60_data(tm60_hit_pop_data),
+        .hit_61_valid(tm61_hit_pop_valid),
+        .hit_61_ready(tm61_hit_pop_ready),
+        .hit_61_data(tm61_hit_pop_data),
+        .hit_62_valid(tm62_hit_pop_valid),
+        .hit_62_ready(tm62_hit_pop_ready),
+        .hit_62_data(tm62_hit_pop_data),
+        .hit_63_valid(tm63_hit_pop_valid),
+        .hit_63_ready(tm63_hit_pop_ready),
+        .hit_63_data(tm63_hit_pop_data),
+        .hit_64_valid(tm64_hit_pop_valid),
+        .hit_64_ready(tm64_hit_pop_ready),
+        .hit_64_data(tm64_hit_pop_data),
+        .hit_65_valid(tm65_hit_pop_valid),
+        .hit_65_ready(tm65_hit_pop_ready),
+        .hit_65_data(tm65_hit_pop_data),
+        .hit_66_valid(tm66_hit_pop_valid),
+        .hit_66_ready(tm66_hit_pop_ready),
+        .hit_66_data(tm66_hit_pop_data),
+        .hit_67_valid(tm67_hit_pop_valid),
+        .hit_67_ready(tm67_hit_pop_ready),
+        .hit_67_data(tm67_hit_pop_data),
+        .hit_68_valid(tm68_hit_pop_valid),
+        .hit_68_ready(tm68_hit_pop_ready),
+        .hit_68_data(tm68_hit_pop_data),
+        .hit_69_valid(tm69_hit_pop_valid),
+        .hit_69_ready(tm69_hit_pop_ready),
+        .hit_69_data(tm69_hit_pop_data),
+        .hit_70_valid(tm70_hit_pop_valid),
+        .hit_70_ready(tm70_hit_pop_ready),
+        .hit_70_data(tm70_hit_pop_data),
+        .hit_71_valid(tm71_hit_pop_valid),
+        .hit_71_ready(tm71_hit_pop_ready),
+        .hit_71_data(tm71_hit_pop_data),
+        .hit_72_valid(tm72_hit_pop_valid),
+        .hit_72_ready(tm72_hit_pop_ready),
+        .hit_72_data(tm72_hit_pop_data),
+        .hit_73_valid(tm73_hit_pop_valid),
+        .hit_73_ready(tm73_hit_pop_ready),
+        .hit_73_data(tm73_hit_pop_data),
+        .hit_74_valid(tm74_hit_pop_valid),
+        .hit_74_ready(tm74_hit_pop_ready),
+        .hit_74_data(tm74_hit_pop_data),
+        .hit_75_valid(tm75_hit_pop_valid),
+        .hit_75_ready(tm75_hit_pop_ready),
+        .hit_75_data(tm75_hit_pop_data),
+        .hit_76_valid(tm76_hit_pop_valid),
+        .hit_76_ready(tm76_hit_pop_ready),
+        .hit_76_data(tm76_hit_pop_data),
+        .hit_77_valid(tm77_hit_pop_valid),
+        .hit_77_ready(tm77_hit_pop_ready),
+        .hit_77_data(tm77_hit_pop_data),
+        .hit_78_valid(tm78_hit_pop_valid),
+        .hit_78_ready(tm78_hit_pop_ready),
+        .hit_78_data(tm78_hit_pop_data),
+        .hit_79_valid(tm79_hit_pop_valid),
+        .hit_79_ready(tm79_hit_pop_ready),
+        .hit_79_data(tm79_hit_pop_data),
+        .hit_80_valid(tm80_hit_pop_valid),
+        .hit_80_ready(tm80_hit_pop_ready),
+        .hit_80_data(tm80_hit_pop_data),
+        .hit_81_valid(tm81_hit_pop_valid),
+        .hit_81_ready(tm81_hit_pop_ready),
+        .hit_81_data(tm81_hit_pop_data),
+        .hit_82_valid(tm82_hit_pop_valid),
+        .hit_82_ready(tm82_hit_pop_ready),
+        .hit_82_data(tm82_hit_pop_data),
+        .hit_83_valid(tm83_hit_pop_valid),
+        .hit_83_ready(tm83_hit_pop_ready),
+        .hit_83_data(tm83_hit_pop_data),
+        .hit_84_valid(tm84_hit_pop_valid),
+        .hit_84_ready(tm84_hit_pop_ready),
+        .hit_84_data(tm84_hit_pop_data),
+        .hit_85_valid(tm85_hit_pop_valid),
+        .hit_85_ready(tm85_hit_pop_ready),
+        .hit_85_data(tm85_hit_pop_data),
+        .hit_86_valid(tm86_hit_pop_valid),
+        .hit_86_ready(tm86_hit_pop_ready),
+        .hit_86_data(tm86_hit_pop_data),
+        .hit_87_valid(tm87_hit_pop_valid),
+        .hit_87_ready(tm87_hit_pop_ready),
+        .hit_87_data(tm87_hit_pop_data),
+        .hit_88_valid(tm88_hit_pop_valid),
+        .hit_88_ready(tm88_hit_pop_ready),
+        .hit_88_data(tm88_hit_pop_data),
+        .hit_89_valid(tm89_hit_pop_valid),
+        .hit_89_ready(tm89_hit_pop_ready),
+        .hit_89_data(tm89_hit_pop_data),
+        .hit_90_valid(tm90_hit_pop_valid),
+        .hit_90_ready(tm90_hit_pop_ready),
+        .hit_90_data(tm90_hit_pop_data),
+        .hit_91_valid(tm91_hit_pop_valid),
+        .hit_91_ready(tm91_hit_pop_ready),
+        .hit_91_data(tm91_hit_pop_data),
+        .hit_92_valid(tm92_hit_pop_valid),
+        .hit_92_ready(tm92_hit_pop_ready),
+        .hit_92_data(tm92_hit_pop_data),
+        .hit_93_valid(tm93_hit_pop_valid),
+        .hit_93_ready(tm93_hit_pop_ready),
+        .hit_93_data(tm93_hit_pop_data),
+        .hit_94_valid(tm94_hit_pop_valid),
+        .hit_94_ready(tm94_hit_pop_ready),
+        .hit_94_data(tm94_hit_pop_data),
+        .hit_95_valid(tm95_hit_pop_valid),
+        .hit_95_ready(tm95_hit_pop_ready),
+        .hit_95_data(tm95_hit_pop_data),
+        .hit_96_valid(tm96_hit_pop_valid),
+        .hit_96_ready(tm96_hit_pop_ready),
+        .hit_96_data(tm96_hit_pop_data),
+        .hit_97_valid(tm97_hit_pop_valid),
+        .hit_97_ready(tm97_hit_pop_ready),
+        .hit_97_data(tm97_hit_pop_data),
+        .hit_98_valid(tm98_hit_pop_valid),
+        .hit_98_ready(tm98_hit_pop_ready),
+        .hit_98_data(tm98_hit_pop_data),
+        .hit_99_valid(tm99_hit_pop_valid),
+        .hit_99_ready(tm99_hit_pop_ready),
+        .hit_99_data(tm99_hit_pop_data),
+        .hit_100_valid(tm100_hit_pop_valid),
+        .hit_100_ready(tm100_hit_pop_ready),
+        .hit_100_data(tm100_hit_pop_data),
+        .hit_101_valid(tm101_hit_pop_valid),
+        .hit_101_ready(tm101_hit_pop_ready),
+        .hit_101_data(tm101_hit_pop_data),
+        .hit_102_valid(tm102_hit_pop_valid),
+        .hit_102_ready(tm102_hit_pop_ready),
+        .hit_102_data(tm102_hit_pop_data),
+        .hit_103_valid(tm103_hit_pop_valid),
+        .hit_103_ready(tm103_hit_pop_ready),
+        .hit_103_data(tm103_hit_pop_data),
+        .hit_104_valid(tm104_hit_pop_valid),
+        .hit_104_ready(tm104_hit_pop_ready),
+        .hit_104_data(tm104_hit_pop_data),
+        .hit_105_valid(tm105_hit_pop_valid),
+        .hit_105_ready(tm105_hit_pop_ready),
+        .hit_105_data(tm105_hit_pop_data),
+        .hit_106_valid(tm106_hit_pop_valid),
+        .hit_106_ready(tm106_hit_pop_ready),
+        .hit_106_data(tm106_hit_pop_data),
+        .hit_107_valid(tm107_hit_pop_valid),
+        .hit_107_ready(tm107_hit_pop_ready),
+        .hit_107_data(tm107_hit_pop_data),
+        .hit_108_valid(tm108_hit_pop_valid),
+        .hit_108_ready(tm108_hit_pop_ready),
+        .hit_108_data(tm108_hit_pop_data),
+        .hit_109_valid(tm109_hit_pop_valid),
+        .hit_109_ready(tm109_hit_pop_ready),
+        .hit_109_data(tm109_hit_pop_data),
+        .hit_110_valid(tm110_hit_pop_valid),
+        .hit_110_ready(tm110_hit_pop_ready),
+        .hit_110_data(tm110_hit_pop_data),
+        .hit_111_valid(tm111_hit_pop_valid),
+        .hit_111_ready(tm111_hit_pop_ready),
+        .hit_111_data(tm111_hit_pop_data),
+        .hit_112_valid(tm112_hit_pop_valid),
+        .hit_112_ready(tm112_hit_pop_ready),
+        .hit_112_data(tm112_hit_pop_data),
+        .hit_113_valid(tm113_hit_pop_valid),
+        .hit_113_ready(tm113_hit_pop_ready),
+        .hit_113_data(tm113_hit_pop_data),
+        .hit_114_valid(tm114_hit_pop_valid),
+        .hit_114_ready(tm114_hit_pop_ready),
+        .hit_114_data(tm114_hit_pop_data),
+        .hit_115_valid(tm115_hit_pop_valid),
+        .hit_115_ready(tm115_hit_pop_ready),
+        .hit_115_data(tm115_hit_pop_data),
+        .hit_116_valid(tm116_hit_pop_valid),
+        .hit_116_ready(tm116_hit_pop_ready),
+        .hit_116_data(tm116_hit_pop_data),
+        .hit_117_valid(tm117_hit_pop_valid),
+        .hit_117_ready(tm117_hit_pop_ready),
+        .hit_117_data(tm117_hit_pop_data),
+        .hit_118_valid(tm118_hit_pop_valid),
+        .hit_118_ready(tm118_hit_pop_ready),
+        .hit_118_data(tm118_hit_pop_data),
+        .hit_119_valid(tm119_hit_pop_valid),
+        .hit_119_ready(tm119_hit_pop_ready),
+        .hit_119_data(tm119_hit_pop_data),
+        .hit_120_valid(tm120_hit_pop_valid),
+        .hit_120_ready(tm120_hit_pop_ready),
+        .hit_120_data(tm120_hit_pop_data),
+        .hit_121_valid(tm121_hit_pop_valid),
+        .hit_121_ready(tm121_hit_pop_ready),
+        .hit_121_data(tm121_hit_pop_data),
+        .hit_122_valid(tm122_hit_pop_valid),
+        .hit_122_ready(tm122_hit_pop_ready),
+        .hit_122_data(tm122_hit_pop_data),
+        .hit_123_valid(tm123_hit_pop_valid),
+        .hit_123_ready(tm123_hit_pop_ready),
+        .hit_123_data(tm123_hit_pop_data),
+        .hit_124_valid(tm124_hit_pop_valid),
+        .hit_124_ready(tm124_hit_pop_ready),
+        .hit_124_data(tm124_hit_pop_data),
+        .hit_125_valid(tm125_hit_pop_valid),
+        .hit_125_ready(tm125_hit_pop_ready),
+        .hit_125_data(tm125_hit_pop_data),
+        .hit_126_valid(tm126_hit_pop_valid),
+        .hit_126_ready(tm126_hit_pop_ready),
+        .hit_126_data(tm126_hit_pop_data),
+        .hit_127_valid(tm127_hit_pop_valid),
+        .hit_127_ready(tm127_hit_pop_ready),
+        .hit_127_data(tm127_hit_pop_data),
+        .mem_req_valid(l2_req0_hits_push_valid),
+        .mem_req_ready(l2_req0_hits_push_ready),
+        .mem_req_data(l2_req0_hits_push_data),
+        .mem_resp_valid(l2_resp0_hits_pop_valid),
+        .mem_resp_ready(l2_resp0_hits_pop_ready),
+        .mem_resp_data(l2_resp0_hits_pop_data)
     );
     l2 #(.BYTES(524288), .BANKS(32), .WAYS(8), .LINE_BYTES(64), .HIT_LATENCY(10), .MSHRS(64), .TARGETS(8), .WRITEBACKS(16), .PORT_QUEUE(64), .MEM_LANES(4), .BANK_HASH(1), .COMBINE_READS(1)) l2 (
         .clk(clk_core),
         .rst(rst),
-        .mem_req_0_valid(mem_req2_l2_valid),
-        .mem_req_0_ready(mem_req2_l2_ready),
-        .mem_req_0_data(mem_req2_l2_data),
-        .mem_resp_0_valid(mem_resp2_l2_valid),
-        .mem_resp_0_ready(mem_resp2_l2_ready),
-        .mem_resp_0_data(mem_resp2_l2_data),
-        .req_0_valid(l2_req0_hits_valid),
-        .req_0_ready(l2_req0_hits_ready),
-        .req_0_data(l2_req0_hits_data),
-        .req_1_valid(tm_gmem_req_valid[0]),
-        .req_1_ready(tm_gmem_req_ready[0]),
-        .req_1_data(tm_gmem_req_data[675:0]),
-        .req_2_valid(tm_gmem_req_valid[1]),
-        .req_2_ready(tm_gmem_req_ready[1]),
-        .req_2_data(tm_gmem_req_data[1351:676]),
-        .req_3_valid(tm_gmem_req_valid[2]),
-        .req_3_ready(tm_gmem_req_ready[2]),
-        .req_3_data(tm_gmem_req_data[2027:1352]),
-        .req_4_valid(tm_gmem_req_valid[3]),
-        .req_4_ready(tm_gmem_req_ready[3]),
-        .req_4_data(tm_gmem_req_data[2703:2028]),
-        .req_5_valid(tm_gmem_req_valid[4]),
-        .req_5_ready(tm_gmem_req_ready[4]),
-        .req_5_data(tm_gmem_req_data[3379:2704]),
-        .req_6_valid(tm_gmem_req_valid[5]),
-        .req_6_ready(tm_gmem_req_ready[5]),
-        .req_6_data(tm_gmem_req_data[4055:3380]),
-        .req_7_valid(tm_gmem_req_valid[6]),
-        .req_7_ready(tm_gmem_req_ready[6]),
-        .req_7_data(tm_gmem_req_data[4731:4056]),
-        .req_8_valid(tm_gmem_req_valid[7]),
-        .req_8_ready(tm_gmem_req_ready[7]),
-        .req_8_data(tm_gmem_req_data[5407:4732]),
-        .req_9_valid(tm_gmem_req_valid[8]),
-        .req_9_ready(tm_gmem_req_ready[8]),
-        .req_9_data(tm_gmem_req_data[6083:5408]),
-        .req_10_valid(tm_gmem_req_valid[9]),
-        .req_10_ready(tm_gmem_req_ready[9]),
-        .req_10_data(tm_gmem_req_data[6759:6084]),
-        .req_11_valid(tm_gmem_req_valid[10]),
-        .req_11_ready(tm_gmem_req_ready[10]),
-        .req_11_data(tm_gmem_req_data[7435:6760]),
-        .req_12_valid(tm_gmem_req_valid[11]),
-        .req_12_ready(tm_gmem_req_ready[11]),
-        .req_12_data(tm_gmem_req_data[8111:7436]),
-        .req_13_valid(tm_gmem_req_valid[12]),
-        .req_13_ready(tm_gmem_req_ready[12]),
-        .req_13_data(tm_gmem_req_data[8787:8112]),
-        .req_14_valid(tm_gmem_req_valid[13]),
-        .req_14_ready(tm_gmem_req_ready[13]),
-        .req_14_data(tm_gmem_req_data[9463:8788]),
-        .req_15_valid(tm_gmem_req_valid[14]),
-        .req_15_ready(tm_gmem_req_ready[14]),
-        .req_15_data(tm_gmem_req_data[10139:9464]),
-        .req_16_valid(tm_gmem_req_valid[15]),
-        .req_16_ready(tm_gmem_req_ready[15]),
-        .req_16_data(tm_gmem_req_data[10815:10140]),
-        .req_17_valid(tm_gmem_req_valid[16]),
-        .req_17_ready(tm_gmem_req_ready[16]),
-        .req_17_data(tm_gmem_req_data[11491:10816]),
-        .req_18_valid(tm_gmem_req_valid[17]),
-        .req_18_ready(tm_gmem_req_ready[17]),
-        .req_18_data(tm_gmem_req_data[12167:11492]),
-        .req_19_valid(tm_gmem_req_valid[18]),
-        .req_19_ready(tm_gmem_req_ready[18]),
-        .req_19_data(tm_gmem_req_data[12843:12168]),
-        .req_20_valid(tm_gmem_req_valid[19]),
-        .req_20_ready(tm_gmem_req_ready[19]),
-        .req_20_data(tm_gmem_req_data[13519:12844]),
-        .req_21_valid(tm_gmem_req_valid[20]),
-        .req_21_ready(tm_gmem_req_ready[20]),
-        .req_21_data(tm_gmem_req_data[14195:13520]),
-        .req_22_valid(tm_gmem_req_valid[21]),
-        .req_22_ready(tm_gmem_req_ready[21]),
-        .req_22_data(tm_gmem_req_data[14871:14196]),
-        .req_23_valid(tm_gmem_req_valid[22]),
-        .req_23_ready(tm_gmem_req_ready[22]),
-        .req_23_data(tm_gmem_req_data[15547:14872]),
-        .req_24_valid(tm_gmem_req_valid[23]),
-        .req_24_ready(tm_gmem_req_ready[23]),
-        .req_24_data(tm_gmem_req_data[16223:15548]),
-        .req_25_valid(tm_gmem_req_valid[24]),
-        .req_25_ready(tm_gmem_req_ready[24]),
-        .req_25_data(tm_gmem_req_data[16899:16224]),
-        .req_26_valid(tm_gmem_req_valid[25]),
-        .req_26_ready(tm_gmem_req_ready[25]),
-        .req_26_data(tm_gmem_req_data[17575:16900]),
-        .req_27_valid(tm_gmem_req_valid[26]),
-        .req_27_ready(tm_gmem_req_ready[26]),
-        .req_27_data(tm_gmem_req_data[18251:17576]),
-        .req_28_valid(tm_gmem_req_valid[27]),
-        .req_28_ready(tm_gmem_req_ready[27]),
-        .req_28_data(tm_gmem_req_data[18927:18252]),
-        .req_29_valid(tm_gmem_req_valid[28]),
-        .req_29_ready(tm_gmem_req_ready[28]),
-        .req_29_data(tm_gmem_req_data[19603:18928]),
-        .req_30_valid(tm_gmem_req_valid[29]),
-        .req_30_ready(tm_gmem_req_ready[29]),
-        .req_30_data(tm_gmem_req_data[20279:19604]),
-        .req_31_valid(tm_gmem_req_valid[30]),
-        .req_31_ready(tm_gmem_req_ready[30]),
-        .req_31_data(tm_gmem_req_data[20955:20280]),
-        .req_32_valid(tm_gmem_req_valid[31]),
-        .req_32_ready(tm_gmem_req_ready[31]),
-        .req_32_data(tm_gmem_req_data[21631:20956]),
-        .req_33_valid(tm_gmem_req_valid[32]),
-        .req_33_ready(tm_gmem_req_ready[32]),
-        .req_33_data(tm_gmem_req_data[22307:21632]),
-        .req_34_valid(tm_gmem_req_valid[33]),
-        .req_34_ready(tm_gmem_req_ready[33]),
-        .req_34_data(tm_gmem_req_data[22983:22308]),
-        .req_35_valid(tm_gmem_req_valid[34]),
-        .req_35_ready(tm_gmem_req_ready[34]),
-        .req_35_data(tm_gmem_req_data[23659:22984]),
-        .req_36_valid(tm_gmem_req_valid[35]),
-        .req_36_ready(tm_gmem_req_ready[35]),
-        .req_36_data(tm_gmem_req_data[24335:23660]),
-        .req_37_valid(tm_gmem_req_valid[36]),
-        .req_37_ready(tm_gmem_req_ready[36]),
-        .req_37_data(tm_gmem_req_data[25011:24336]),
-        .req_38_valid(tm_gmem_req_valid[37]),
-        .req_38_ready(tm_gmem_req_ready[37]),
-        .req_38_data(tm_gmem_req_data[25687:25012]),
-        .req_39_valid(tm_gmem_req_valid[38]),
-        .req_39_ready(tm_gmem_req_ready[38]),
-        .req_39_data(tm_gmem_req_data[26363:25688]),
-        .req_40_valid(tm_gmem_req_valid[39]),
-        .req_40_ready(tm_gmem_req_ready[39]),
-        .req_40_data(tm_gmem_req_data[27039:26364]),
-        .req_41_valid(tm_gmem_req_valid[40]),
-        .req_41_ready(tm_gmem_req_ready[40]),
-        .req_41_data(tm_gmem_req_data[27715:27040]),
-        .req_42_valid(tm_gmem_req_valid[41]),
-        .req_42_ready(tm_gmem_req_ready[41]),
-        .req_42_data(tm_gmem_req_data[28391:27716]),
-        .req_43_valid(tm_gmem_req_valid[42]),
-        .req_43_ready(tm_gmem_req_ready[42]),
-        .req_43_data(tm_gmem_req_data[29067:28392]),
-        .req_44_valid(tm_gmem_req_valid[43]),
-        .req_44_ready(tm_gmem_req_ready[43]),
-        .req_44_data(tm_gmem_req_data[29743:29068]),
-        .req_45_valid(tm_gmem_req_valid[44]),
-        .req_45_ready(tm_gmem_req_ready[44]),
-        .req_45_data(tm_gmem_req_data[30419:29744]),
-        .req_46_valid(tm_gmem_req_valid[45]),
-        .req_46_ready(tm_gmem_req_ready[45]),
-        .req_46_data(tm_gmem_req_data[31095:30420]),
-        .req_47_valid(tm_gmem_req_valid[46]),
-        .req_47_ready(tm_gmem_req_ready[46]),
-        .req_47_data(tm_gmem_req_data[31771:31096]),
-        .req_48_valid(tm_gmem_req_valid[47]),
-        .req_48_ready(tm_gmem_req_ready[47]),
-        .req_48_data(tm_gmem_req_data[32447:31772]),
-        .req_49_valid(tm_gmem_req_valid[48]),
-        .req_49_ready(tm_gmem_req_ready[48]),
-        .req_49_data(tm_gmem_req_data[33123:32448]),
-        .req_50_valid(tm_gmem_req_valid[49]),
-        .req_50_ready(tm_gmem_req_ready[49]),
-        .req_50_data(tm_gmem_req_data[33799:33124]),
-        .req_51_valid(tm_gmem_req_valid[50]),
-        .req_51_ready(tm_gmem_req_ready[50]),
-        .req_51_data(tm_gmem_req_data[34475:33800]),
-        .req_52_valid(tm_gmem_req_valid[51]),
-        .req_52_ready(tm_gmem_req_ready[51]),
-        .req_52_data(tm_gmem_req_data[35151:34476]),
-        .req_53_valid(tm_gmem_req_valid[52]),
-        .req_53_ready(tm_gmem_req_ready[52]),
-        .req_53_data(tm_gmem_req_data[35827:35152]),
-        .req_54_valid(tm_gmem_req_valid[53]),
-        .req_54_ready(tm_gmem_req_ready[53]),
-        .req_54_data(tm_gmem_req_data[36503:35828]),
-        .req_55_valid(tm_gmem_req_valid[54]),
-        .req_55_ready(tm_gmem_req_ready[54]),
-        .req_55_data(tm_gmem_req_data[37179:36504]),
-        .req_56_valid(tm_gmem_req_valid[55]),
-        .req_56_ready(tm_gmem_req_ready[55]),
-        .req_56_data(tm_gmem_req_data[37855:37180]),
-        .req_57_valid(tm_gmem_req_valid[56]),
-        .req_57_ready(tm_gmem_req_ready[56]),
-        .req_57_data(tm_gmem_req_data[38531:37856]),
-        .req_58_valid(tm_gmem_req_valid[57]),
-        .req_58_ready(tm_gmem_req_ready[57]),
-        .req_58_data(tm_gmem_req_data[39207:38532]),
-        .req_59_valid(tm_gmem_req_valid[58]),
-        .req_59_ready(tm_gmem_req_ready[58]),
-        .req_59_data(tm_gmem_req_data[39883:39208]),
-        .req_60_valid(tm_gmem_req_valid[59]),
-        .req_60_ready(tm_gmem_req_ready[59]),
-        .req_60_data(tm_gmem_req_data[40559:39884]),
-        .req_61_valid(tm_gmem_req_valid[60]),
-        .req_61_ready(tm_gmem_req_ready[60]),
-        .req_61_data(tm_gmem_req_data[41235:40560]),
-        .req_62_valid(tm_gmem_req_valid[61]),
-        .req_62_ready(tm_gmem_req_ready[61]),
-        .req_62_data(tm_gmem_req_data[41911:41236]),
-        .req_63_valid(tm_gmem_req_valid[62]),
-        .req_63_ready(tm_gmem_req_ready[62]),
-        .req_63_data(tm_gmem_req_data[42587:41912]),
-        .req_64_valid(tm_gmem_req_valid[63]),
-        .req_64_ready(tm_gmem_req_ready[63]),
-        .req_64_data(tm_gmem_req_data[43263:42588]),
-        .req_65_valid(tm_gmem_req_valid[64]),
-        .req_65_ready(tm_gmem_req_ready[64]),
-        .req_65_data(tm_gmem_req_data[43939:43264]),
-        .req_66_valid(tm_gmem_req_valid[65]),
-        .req_66_ready(tm_gmem_req_ready[65]),
-        .req_66_data(tm_gmem_req_data[44615:43940]),
-        .req_67_valid(tm_gmem_req_valid[66]),
-        .req_67_ready(tm_gmem_req_ready[66]),
-        .req_67_data(tm_gmem_req_data[45291:44616]),
-        .req_68_valid(tm_gmem_req_valid[67]),
-        .req_68_ready(tm_gmem_req_ready[67]),
-        .req_68_data(tm_gmem_req_data[45967:45292]),
-        .req_69_valid(tm_gmem_req_valid[68]),
-        .req_69_ready(tm_gmem_req_ready[68]),
-        .req_69_data(tm_gmem_req_data[46643:45968]),
-        .req_70_valid(tm_gmem_req_valid[69]),
-        .req_70_ready(tm_gmem_req_ready[69]),
-        .req_70_data(tm_gmem_req_data[47319:46644]),
-        .req_71_valid(tm_gmem_req_valid[70]),
-        .req_71_ready(tm_gmem_req_ready[70]),
-        .req_71_data(tm_gmem_req_data[47995:47320]),
-        .req_72_valid(tm_gmem_req_valid[71]),
-        .req_72_ready(tm_gmem_req_ready[71]),
-        .req_72_data(tm_gmem_req_data[48671:47996]),
-        .req_73_valid(tm_gmem_req_valid[72]),
-        .req_73_ready(tm_gmem_req_ready[72]),
-        .req_73_data(tm_gmem_req_data[49347:48672]),
-        .req_74_valid(tm_gmem_req_valid[73]),
-        .req_74_ready(tm_gmem_req_ready[73]),
-        .req_74_data(tm_gmem_req_data[50023:49348]),
-        .req_75_valid(tm_gmem_req_valid[74]),
-        .req_75_ready(tm_gmem_req_ready[74]),
-        .req_75_data(tm_gmem_req_data[50699:50024]),
-        .req_76_valid(tm_gmem_req_valid[75]),
-        .req_76_ready(tm_gmem_req_ready[75]),
-        .req_76_data(tm_gmem_req_data[51375:50700]),
-        .req_77_valid(tm_gmem_req_valid[76]),
-        .req_77_ready(tm_gmem_req_ready[76]),
-        .req_77_data(tm_gmem_req_data[52051:51376]),
-        .req_78_valid(tm_gmem_req_valid[77]),
-        .req_78_ready(tm_gmem_req_ready[77]),
-        .req_78_data(tm_gmem_req_data[52727:52052]),
-        .req_79_valid(tm_gmem_req_valid[78]),
-        .req_79_ready(tm_gmem_req_ready[78]),
-        .req_79_data(tm_gmem_req_data[53403:52728]),
-        .req_80_valid(tm_gmem_req_valid[79]),
-        .req_80_ready(tm_gmem_req_ready[79]),
-        .req_80_data(tm_gmem_req_data[54079:53404]),
-        .req_81_valid(tm_gmem_req_valid[80]),
-        .req_81_ready(tm_gmem_req_ready[80]),
-        .req_81_data(tm_gmem_req_data[54755:54080]),
-        .req_82_valid(tm_gmem_req_valid[81]),
-        .req_82_ready(tm_gmem_req_ready[81]),
-        .req_82_data(tm_gmem_req_data[55431:54756]),
-        .req_83_valid(tm_gmem_req_valid[82]),
-        .req_83_ready(tm_gmem_req_ready[82]),
-        .req_83_data(tm_gmem_req_data[56107:55432]),
-        .req_84_valid(tm_gmem_req_valid[83]),
-        .req_84_ready(tm_gmem_req_ready[83]),
-        .req_84_data(tm_gmem_req_data[56783:56108]),
-        .req_85_valid(tm_gmem_req_valid[84]),
-        .req_85_ready(tm_gmem_req_ready[84]),
-        .req_85_data(tm_gmem_req_data[57459:56784]),
-        .req_86_valid(tm_gmem_req_valid[85]),
-        .req_86_ready(tm_gmem_req_ready[85]),
-        .req_86_data(tm_gmem_req_data[58135:57460]),
-        .req_87_valid(tm_gmem_req_valid[86]),
-        .req_87_ready(tm_gmem_req_ready[86]),
-        .req_87_data(tm_gmem_req_data[58811:58136]),
-        .req_88_valid(tm_gmem_req_valid[87]),
-        .req_88_ready(tm_gmem_req_ready[87]),
-        .req_88_data(tm_gmem_req_data[59487:58812]),
-        .req_89_valid(tm_gmem_req_valid[88]),
-        .req_89_ready(tm_gmem_req_ready[88]),
-        .req_89_data(tm_gmem_req_data[60163:59488]),
-        .req_90_valid(tm_gmem_req_valid[89]),
-        .req_90_ready(tm_gmem_req_ready[89]),
-        .req_90_data(tm_gmem_req_data[60839:60164]),
-        .req_91_valid(tm_gmem_req_valid[90]),
-        .req_91_ready(tm_gmem_req_ready[90]),
-        .req_91_data(tm_gmem_req_data[61515:60840]),
-        .req_92_valid(tm_gmem_req_valid[91]),
-        .req_92_ready(tm_gmem_req_ready[91]),
-        .req_92_data(tm_gmem_req_data[62191:61516]),
-        .req_93_valid(tm_gmem_req_valid[92]),
-        .req_93_ready(tm_gmem_req_ready[92]),
-        .req_93_data(tm_gmem_req_data[62867:62192]),
-        .req_94_valid(tm_gmem_req_valid[93]),
-        .req_94_ready(tm_gmem_req_ready[93]),
-        .req_94_data(tm_gmem_req_data[63543:62868]),
-        .req_95_valid(tm_gmem_req_valid[94]),
-        .req_95_ready(tm_gmem_req_ready[94]),
-        .req_95_data(tm_gmem_req_data[64219:63544]),
-        .req_96_valid(tm_gmem_req_valid[95]),
-        .req_96_ready(tm_gmem_req_ready[95]),
-        .req_96_data(tm_gmem_req_data[64895:64220]),
-        .req_97_valid(tm_gmem_req_valid[96]),
-        .req_97_ready(tm_gmem_req_ready[96]),
-        .req_97_data(tm_gmem_req_data[65571:64896]),
-        .req_98_valid(tm_gmem_req_valid[97]),
-        .req_98_ready(tm_gmem_req_ready[97]),
-        .req_98_data(tm_gmem_req_data[66247:65572]),
-        .req_99_valid(tm_gmem_req_valid[98]),
-        .req_99_ready(tm_gmem_req_ready[98]),
-        .req_99_data(tm_gmem_req_data[66923:66248]),
-        .req_100_valid(tm_gmem_req_valid[99]),
-        .req_100_ready(tm_gmem_req_ready[99]),
-        .req_100_data(tm_gmem_req_data[67599:66924]),
-        .req_101_valid(tm_gmem_req_valid[100]),
-        .req_101_ready(tm_gmem_req_ready[100]),
-        .req_101_data(tm_gmem_req_data[68275:67600]),
-        .req_102_valid(tm_gmem_req_valid[101]),
-        .req_102_ready(tm_gmem_req_ready[101]),
-        .req_102_data(tm_gmem_req_data[68951:68276]),
-        .req_103_valid(tm_gmem_req_valid[102]),
-        .req_103_ready(tm_gmem_req_ready[102]),
-        .req_103_data(tm_gmem_req_data[69627:68952]),
-        .req_104_valid(tm_gmem_req_valid[103]),
-        .req_104_ready(tm_gmem_req_ready[103]),
-        .req_104_data(tm_gmem_req_data[70303:69628]),
-        .req_105_valid(tm_gmem_req_valid[104]),
-        .req_105_ready(tm_gmem_req_ready[104]),
-        .req_105_data(tm_gmem_req_data[70979:70304]),
-        .req_106_valid(tm_gmem_req_valid[105]),
-        .req_106_ready(tm_gmem_req_ready[105]),
-        .req_106_data(tm_gmem_req_data[71655:70980]),
-        .req_107_valid(tm_gmem_req_valid[106]),
-        .req_107_ready(tm_gmem_req_ready[106]),
-        .req_107_data(tm_gmem_req_data[72331:71656]),
-        .req_108_valid(tm_gmem_req_valid[107]),
-        .req_108_ready(tm_gmem_req_ready[107]),
-        .req_108_data(tm_gmem_req_data[73007:72332]),
-        .req_109_valid(tm_gmem_req_valid[108]),
-        .req_109_ready(tm_gmem_req_ready[108]),
-        .req_109_data(tm_gmem_req_data[73683:73008]),
-        .req_110_valid(tm_gmem_req_valid[109]),
-        .req_110_ready(tm_gmem_req_ready[109]),
-        .req_110_data(tm_gmem_req_data[74359:73684]),
-        .req_111_valid(tm_gmem_req_valid[110]),
-        .req_111_ready(tm_gmem_req_ready[110]),
-        .req_111_data(tm_gmem_req_data[75035:74360]),
-        .req_112_valid(tm_gmem_req_valid[111]),
-        .req_112_ready(tm_gmem_req_ready[111]),
-        .req_112_data(tm_gmem_req_data[75711:75036]),
-        .req_113_valid(tm_gmem_req_valid[112]),
-        .req_113_ready(tm_gmem_req_ready[112]),
-        .req_113_data(tm_gmem_req_data[76387:75712]),
-        .req_114_valid(tm_gmem_req_valid[113]),
-        .req_114_ready(tm_gmem_req_ready[113]),
-        .req_114_data(tm_gmem_req_data[77063:76388]),
-        .req_115_valid(tm_gmem_req_valid[114]),
-        .req_115_ready(tm_gmem_req_ready[114]),
-        .req_115_data(tm_gmem_req_data[77739:77064]),
-        .req_116_valid(tm_gmem_req_valid[115]),
-        .req_116_ready(tm_gmem_req_ready[115]),
-        .req_116_data(tm_gmem_req_data[78415:77740]),
-        .req_117_valid(tm_gmem_req_valid[116]),
-        .req_117_ready(tm_gmem_req_ready[116]),
-        .req_117_data(tm_gmem_req_data[79091:78416]),
-        .req_118_valid(tm_gmem_req_valid[117]),
-        .req_118_ready(tm_gmem_req_ready[117]),
-        .req_118_data(tm_gmem_req_data[79767:79092]),
-        .req_119_valid(tm_gmem_req_valid[118]),
-        .req_119_ready(tm_gmem_req_ready[118]),
-        .req_119_data(tm_gmem_req_data[80443:79768]),
-        .req_120_valid(tm_gmem_req_valid[119]),
-        .req_120_ready(tm_gmem_req_ready[119]),
-        .req_120_data(tm_gmem_req_data[81119:80444]),
-        .req_121_valid(tm_gmem_req_valid[120]),
-        .req_121_ready(tm_gmem_req_ready[120]),
-        .req_121_data(tm_gmem_req_data[81795:81120]),
-        .req_122_valid(tm_gmem_req_valid[121]),
-        .req_122_ready(tm_gmem_req_ready[121]),
-        .req_122_data(tm_gmem_req_data[82471:81796]),
-        .req_123_valid(tm_gmem_req_valid[122]),
-        .req_123_ready(tm_gmem_req_ready[122]),
-        .req_123_data(tm_gmem_req_data[83147:82472]),
-        .req_124_valid(tm_gmem_req_valid[123]),
-        .req_124_ready(tm_gmem_req_ready[123]),
-        .req_124_data(tm_gmem_req_data[83823:83148]),
-        .req_125_valid(tm_gmem_req_valid[124]),
-        .req_125_ready(tm_gmem_req_ready[124]),
-        .req_125_data(tm_gmem_req_data[84499:83824]),
-        .req_126_valid(tm_gmem_req_valid[125]),
-        .req_126_ready(tm_gmem_req_ready[125]),
-        .req_126_data(tm_gmem_req_data[85175:84500]),
-        .req_127_valid(tm_gmem_req_valid[126]),
-        .req_127_ready(tm_gmem_req_ready[126]),
-        .req_127_data(tm_gmem_req_data[85851:85176]),
-        .req_128_valid(tm_gmem_req_valid[127]),
-        .req_128_ready(tm_gmem_req_ready[127]),
-        .req_128_data(tm_gmem_req_data[86527:85852]),
-        .resp_0_valid(l2_resp0_hits_valid),
-        .resp_0_ready(l2_resp0_hits_ready),
-        .resp_0_data(l2_resp0_hits_data),
-        .resp_1_valid(tm_gmem_resp_valid[0]),
-        .resp_1_ready(tm_gmem_resp_ready[0]),
-        .resp_1_data(tm_gmem_resp_data[611:0]),
-        .resp_2_valid(tm_gmem_resp_valid[1]),
-        .resp_2_ready(tm_gmem_resp_ready[1]),
-        .resp_2_data(tm_gmem_resp_data[1223:612]),
-        .resp_3_valid(tm_gmem_resp_valid[2]),
-        .resp_3_ready(tm_gmem_resp_ready[2]),
-        .resp_3_data(tm_gmem_resp_data[1835:1224]),
-        .resp_4_valid(tm_gmem_resp_valid[3]),
-        .resp_4_ready(tm_gmem_resp_ready[3]),
-        .resp_4_data(tm_gmem_resp_data[2447:1836]),
-        .resp_5_valid(tm_gmem_resp_valid[4]),
-        .resp_5_ready(tm_gmem_resp_ready[4]),
-        .resp_5_data(tm_gmem_resp_data[3059:2448]),
-        .resp_6_valid(tm_gmem_resp_valid[5]),
-        .resp_6_ready(tm_gmem_resp_ready[5]),
-        .resp_6_data(tm_gmem_resp_data[3671:3060]),
-        .resp_7_valid(tm_gmem_resp_valid[6]),
-        .resp_7_ready(tm_gmem_resp_ready[6]),
-        .resp_7_data(tm_gmem_resp_data[4283:3672]),
-        .resp_8_valid(tm_gmem_resp_valid[7]),
-        .resp_8_ready(tm_gmem_resp_ready[7]),
-        .resp_8_data(tm_gmem_resp_data[4895:4284]),
-        .resp_9_valid(tm_gmem_resp_valid[8]),
-        .resp_9_ready(tm_gmem_resp_ready[8]),
-        .resp_9_data(tm_gmem_resp_data[5507:4896]),
-        .resp_10_valid(tm_gmem_resp_valid[9]),
-        .resp_10_ready(tm_gmem_resp_ready[9]),
-        .resp_10_data(tm_gmem_resp_data[6119:5508]),
-        .resp_11_valid(tm_gmem_resp_valid[10]),
-        .resp_11_ready(tm_gmem_resp_ready[10]),
-        .resp_11_data(tm_gmem_resp_data[6731:6120]),
-        .resp_12_valid(tm_gmem_resp_valid[11]),
-        .resp_12_ready(tm_gmem_resp_ready[11]),
-        .resp_12_data(tm_gmem_resp_data[7343:6732]),
-        .resp_13_valid(tm_gmem_resp_valid[12]),
-        .resp_13_ready(tm_gmem_resp_ready[12]),
-        .resp_13_data(tm_gmem_resp_data[7955:7344]),
-        .resp_14_valid(tm_gmem_resp_valid[13]),
-        .resp_14_ready(tm_gmem_resp_ready[13]),
-        .resp_14_data(tm_gmem_resp_data[8567:7956]),
-        .resp_15_valid(tm_gmem_resp_valid[14]),
-        .resp_15_ready(tm_gmem_resp_ready[14]),
-        .resp_15_data(tm_gmem_resp_data[9179:8568]),
-        .resp_16_valid(tm_gmem_resp_valid[15]),
-        .resp_16_ready(tm_gmem_resp_ready[15]),
-        .resp_16_data(tm_gmem_resp_data[9791:9180]),
-        .resp_17_valid(tm_gmem_resp_valid[16]),
-        .resp_17_ready(tm_gmem_resp_ready[16]),
-        .resp_17_data(tm_gmem_resp_data[10403:9792]),
-        .resp_18_valid(tm_gmem_resp_valid[17]),
-        .resp_18_ready(tm_gmem_resp_ready[17]),
-        .resp_18_data(tm_gmem_resp_data[11015:10404]),
-        .resp_19_valid(tm_gmem_resp_valid[18]),
-        .resp_19_ready(tm_gmem_resp_ready[18]),
-        .resp_19_data(tm_gmem_resp_data[11627:11016]),
-        .resp_20_valid(tm_gmem_resp_valid[19]),
-        .resp_20_ready(tm_gmem_resp_ready[19]),
-        .resp_20_data(tm_gmem_resp_data[12239:11628]),
-        .resp_21_valid(tm_gmem_resp_valid[20]),
-        .resp_21_ready(tm_gmem_resp_ready[20]),
-        .resp_21_data(tm_gmem_resp_data[12851:12240]),
-        .resp_22_valid(tm_gmem_resp_valid[21]),
-        .resp_22_ready(tm_gmem_resp_ready[21]),
-        .resp_22_data(tm_gmem_resp_data[13463:12852]),
-        .resp_23_valid(tm_gmem_resp_valid[22]),
-        .resp_23_ready(tm_gmem_resp_ready[22]),
-        .resp_23_data(tm_gmem_resp_data[14075:13464]),
-        .resp_24_valid(tm_gmem_resp_valid[23]),
-        .resp_24_ready(tm_gmem_resp_ready[23]),
-        .resp_24_data(tm_gmem_resp_data[14687:14076]),
-        .resp_25_valid(tm_gmem_resp_valid[24]),
-        .resp_25_ready(tm_gmem_resp_ready[24]),
-        .resp_25_data(tm_gmem_resp_data[15299:14688]),
-        .resp_26_valid(tm_gmem_resp_valid[25]),
-        .resp_26_ready(tm_gmem_resp_ready[25]),
-        .resp_26_data(tm_gmem_resp_data[15911:15300]),
-        .resp_27_valid(tm_gmem_resp_valid[26]),
-        .resp_27_ready(tm_gmem_resp_ready[26]),
-        .resp_27_data(tm_gmem_resp_data[16523:15912]),
-        .resp_28_valid(tm_gmem_resp_valid[27]),
-        .resp_28_ready(tm_gmem_resp_ready[27]),
-        .resp_28_data(tm_gmem_resp_data[17135:16524]),
-        .resp_29_valid(tm_gmem_resp_valid[28]),
-        .resp_29_ready(tm_gmem_resp_ready[28]),
-        .resp_29_data(tm_gmem_resp_data[17747:17136]),
-        .resp_30_valid(tm_gmem_resp_valid[29]),
-        .resp_30_ready(tm_gmem_resp_ready[29]),
-        .resp_30_data(tm_gmem_resp_data[18359:17748]),
-        .resp_31_valid(tm_gmem_resp_valid[30]),
-        .resp_31_ready(tm_gmem_resp_ready[30]),
-        .resp_31_data(tm_gmem_resp_data[18971:18360]),
-        .resp_32_valid(tm_gmem_resp_valid[31]),
-        .resp_32_ready(tm_gmem_resp_ready[31]),
-        .resp_32_data(tm_gmem_resp_data[19583:18972]),
-        .resp_33_valid(tm_gmem_resp_valid[32]),
-        .resp_33_ready(tm_gmem_resp_ready[32]),
-        .resp_33_data(tm_gmem_resp_data[20195:19584]),
-        .resp_34_valid(tm_gmem_resp_valid[33]),
-        .resp_34_ready(tm_gmem_resp_ready[33]),
-        .resp_34_data(tm_gmem_resp_data[20807:20196]),
-        .resp_35_valid(tm_gmem_resp_valid[34]),
-        .resp_35_ready(tm_gmem_resp_ready[34]),
-        .resp_35_data(tm_gmem_resp_data[21419:20808]),
-        .resp_36_valid(tm_gmem_resp_valid[35]),
-        .resp_36_ready(tm_gmem_resp_ready[35]),
-        .resp_36_data(tm_gmem_resp_data[22031:21420]),
-        .resp_37_valid(tm_gmem_resp_valid[36]),
-        .resp_37_ready(tm_gmem_resp_ready[36]),
-        .resp_37_data(tm_gmem_resp_data[22643:22032]),
-        .resp_38_valid(tm_gmem_resp_valid[37]),
-        .resp_38_ready(tm_gmem_resp_ready[37]),
-        .resp_38_data(tm_gmem_resp_data[23255:22644]),
-        .resp_39_valid(tm_gmem_resp_valid[38]),
-        .resp_39_ready(tm_gmem_resp_ready[38]),
-        .resp_39_data(tm_gmem_resp_data[23867:23256]),
-        .resp_40_valid(tm_gmem_resp_valid[39]),
-        .resp_40_ready(tm_gmem_resp_ready[39]),
-        .resp_40_data(tm_gmem_resp_data[24479:23868]),
-        .resp_41_valid(tm_gmem_resp_valid[40]),
-        .resp_41_ready(tm_gmem_resp_ready[40]),
-        .resp_41_data(tm_gmem_resp_data[25091:24480]),
-        .resp_42_valid(tm_gmem_resp_valid[41]),
-        .resp_42_ready(tm_gmem_resp_ready[41]),
-        .resp_42_data(tm_gmem_resp_data[25703:25092]),
-        .resp_43_valid(tm_gmem_resp_valid[42]),
-        .resp_43_ready(tm_gmem_resp_ready[42]),
-        .resp_43_data(tm_gmem_resp_data[26315:25704]),
-        .resp_44_valid(tm_gmem_resp_valid[43]),
-        .resp_44_ready(tm_gmem_resp_ready[43]),
-        .resp_44_data(tm_gmem_resp_data[26927:26316]),
-        .resp_45_valid(tm_gmem_resp_valid[44]),
-        .resp_45_ready(tm_gmem_resp_ready[44]),
-        .resp_45_data(tm_gmem_resp_data[27539:26928]),
-        .resp_46_valid(tm_gmem_resp_valid[45]),
-        .resp_46_ready(tm_gmem_resp_ready[45]),
-        .resp_46_data(tm_gmem_resp_data[28151:27540]),
-        .resp_47_valid(tm_gmem_resp_valid[46]),
-        .resp_47_ready(tm_gmem_resp_ready[46]),
-        .resp_47_data(tm_gmem_resp_data[28763:28152]),
-        .resp_48_valid(tm_gmem_resp_valid[47]),
-        .resp_48_ready(tm_gmem_resp_ready[47]),
-        .resp_48_data(tm_gmem_resp_data[29375:28764]),
-        .resp_49_valid(tm_gmem_resp_valid[48]),
-        .resp_49_ready(tm_gmem_resp_ready[48]),
-        .resp_49_data(tm_gmem_resp_data[29987:29376]),
-        .resp_50_valid(tm_gmem_resp_valid[49]),
-        .resp_50_ready(tm_gmem_resp_ready[49]),
-        .resp_50_data(tm_gmem_resp_data[30599:29988]),
-        .resp_51_valid(tm_gmem_resp_valid[50]),
-        .resp_51_ready(tm_gmem_resp_ready[50]),
-        .resp_51_data(tm_gmem_resp_data[31211:30600]),
-        .resp_52_valid(tm_gmem_resp_valid[51]),
-        .resp_52_ready(tm_gmem_resp_ready[51]),
-        .resp_52_data(tm_gmem_resp_data[31823:31212]),
-        .resp_53_valid(tm_gmem_resp_valid[52]),
-        .resp_53_ready(tm_gmem_resp_ready[52]),
-        .resp_53_data(tm_gmem_resp_data[32435:31824]),
-        .resp_54_valid(tm_gmem_resp_valid[53]),
-        .resp_54_ready(tm_gmem_resp_ready[53]),
-        .resp_54_data(tm_gmem_resp_data[33047:32436]),
-        .resp_55_valid(tm_gmem_resp_valid[54]),
-        .resp_55_ready(tm_gmem_resp_ready[54]),
-        .resp_55_data(tm_gmem_resp_data[33659:33048]),
-        .resp_56_valid(tm_gmem_resp_valid[55]),
-        .resp_56_ready(tm_gmem_resp_ready[55]),
-        .resp_56_data(tm_gmem_resp_data[34271:33660]),
-        .resp_57_valid(tm_gmem_resp_valid[56]),
-        .resp_57_ready(tm_gmem_resp_ready[56]),
-        .resp_57_data(tm_gmem_resp_data[34883:34272]),
-        .resp_58_valid(tm_gmem_resp_valid[57]),
-        .resp_58_ready(tm_gmem_resp_ready[57]),
-        .resp_58_data(tm_gmem_resp_data[35495:34884]),
-        .resp_59_valid(tm_gmem_resp_valid[58]),
-        .resp_59_ready(tm_gmem_resp_ready[58]),
-        .resp_59_data(tm_gmem_resp_data[36107:35496]),
-        .resp_60_valid(tm_gmem_resp_valid[59]),
-        .resp_60_ready(tm_gmem_resp_ready[59]),
-        .resp_60_data(tm_gmem_resp_data[36719:36108]),
-        .resp_61_valid(tm_gmem_resp_valid[60]),
-        .resp_61_ready(tm_gmem_resp_ready[60]),
-        .resp_61_data(tm_gmem_resp_data[37331:36720]),
-        .resp_62_valid(tm_gmem_resp_valid[61]),
-        .resp_62_ready(tm_gmem_resp_ready[61]),
-        .resp_62_data(tm_gmem_resp_data[37943:37332]),
-        .resp_63_valid(tm_gmem_resp_valid[62]),
-        .resp_63_ready(tm_gmem_resp_ready[62]),
-        .resp_63_data(tm_gmem_resp_data[38555:37944]),
-        .resp_64_valid(tm_gmem_resp_valid[63]),
-        .resp_64_ready(tm_gmem_resp_ready[63]),
-        .resp_64_data(tm_gmem_resp_data[39167:38556]),
-        .resp_65_valid(tm_gmem_resp_valid[64]),
-        .resp_65_ready(tm_gmem_resp_ready[64]),
-        .resp_65_data(tm_gmem_resp_data[39779:39168]),
-        .resp_66_valid(tm_gmem_resp_valid[65]),
-        .resp_66_ready(tm_gmem_resp_ready[65]),
-        .resp_66_data(tm_gmem_resp_data[40391:39780]),
-        .resp_67_valid(tm_gmem_resp_valid[66]),
-        .resp_67_ready(tm_gmem_resp_ready[66]),
-        .resp_67_data(tm_gmem_resp_data[41003:40392]),
-        .resp_68_valid(tm_gmem_resp_valid[67]),
-        .resp_68_ready(tm_gmem_resp_ready[67]),
-        .resp_68_data(tm_gmem_resp_data[41615:41004]),
-        .resp_69_valid(tm_gmem_resp_valid[68]),
-        .resp_69_ready(tm_gmem_resp_ready[68]),
-        .resp_69_data(tm_gmem_resp_data[42227:41616]),
-        .resp_70_valid(tm_gmem_resp_valid[69]),
-        .resp_70_ready(tm_gmem_resp_ready[69]),
-        .resp_70_data(tm_gmem_resp_data[42839:42228]),
-        .resp_71_valid(tm_gmem_resp_valid[70]),
-        .resp_71_ready(tm_gmem_resp_ready[70]),
-        .resp_71_data(tm_gmem_resp_data[43451:42840]),
-        .resp_72_valid(tm_gmem_resp_valid[71]),
-        .resp_72_ready(tm_gmem_resp_ready[71]),
-        .resp_72_data(tm_gmem_resp_data[44063:43452]),
-        .resp_73_valid(tm_gmem_resp_valid[72]),
-        .resp_73_ready(tm_gmem_resp_ready[72]),
-        .resp_73_data(tm_gmem_resp_data[44675:44064]),
-        .resp_74_valid(tm_gmem_resp_valid[73]),
-        .resp_74_ready(tm_gmem_resp_ready[73]),
-        .resp_74_data(tm_gmem_resp_data[45287:44676]),
-        .resp_75_valid(tm_gmem_resp_valid[74]),
-        .resp_75_ready(tm_gmem_resp_ready[74]),
-        .resp_75_data(tm_gmem_resp_data[45899:45288]),
-        .resp_76_valid(tm_gmem_resp_valid[75]),
-        .resp_76_ready(tm_gmem_resp_ready[75]),
-        .resp_76_data(tm_gmem_resp_data[46511:45900]),
-        .resp_77_valid(tm_gmem_resp_valid[76]),
-        .resp_77_ready(tm_gmem_resp_ready[76]),
-        .resp_77_data(tm_gmem_resp_data[47123:46512]),
-        .resp_78_valid(tm_gmem_resp_valid[77]),
-        .resp_78_ready(tm_gmem_resp_ready[77]),
-        .resp_78_data(tm_gmem_resp_data[47735:47124]),
-        .resp_79_valid(tm_gmem_resp_valid[78]),
-        .resp_79_ready(tm_gmem_resp_ready[78]),
-        .resp_79_data(tm_gmem_resp_data[48347:47736]),
-        .resp_80_valid(tm_gmem_resp_valid[79]),
-        .resp_80_ready(tm_gmem_resp_ready[79]),
-        .resp_80_data(tm_gmem_resp_data[48959:48348]),
-        .resp_81_valid(tm_gmem_resp_valid[80]),
-        .resp_81_ready(tm_gmem_resp_ready[80]),
-        .resp_81_data(tm_gmem_resp_data[49571:48960]),
-        .resp_82_valid(tm_gmem_resp_valid[81]),
-        .resp_82_ready(tm_gmem_resp_ready[81]),
-        .resp_82_data(tm_gmem_resp_data[50183:49572]),
-        .resp_83_valid(tm_gmem_resp_valid[82]),
-        .resp_83_ready(tm_gmem_resp_ready[82]),
-        .resp_83_data(tm_gmem_resp_data[50795:50184]),
-        .resp_84_valid(tm_gmem_resp_valid[83]),
-        .resp_84_ready(tm_gmem_resp_ready[83]),
-        .resp_84_data(tm_gmem_resp_data[51407:50796]),
-        .resp_85_valid(tm_gmem_resp_valid[84]),
-        .resp_85_ready(tm_gmem_resp_ready[84]),
-        .resp_85_data(tm_gmem_resp_data[52019:51408]),
-        .resp_86_valid(tm_gmem_resp_valid[85]),
-        .resp_86_ready(tm_gmem_resp_ready[85]),
-        .resp_86_data(tm_gmem_resp_data[52631:52020]),
-        .resp_87_valid(tm_gmem_resp_valid[86]),
-        .resp_87_ready(tm_gmem_resp_ready[86]),
-        .resp_87_data(tm_gmem_resp_data[53243:52632]),
-        .resp_88_valid(tm_gmem_resp_valid[87]),
-        .resp_88_ready(tm_gmem_resp_ready[87]),
-        .resp_88_data(tm_gmem_resp_data[53855:53244]),
-        .resp_89_valid(tm_gmem_resp_valid[88]),
-        .resp_89_ready(tm_gmem_resp_ready[88]),
-        .resp_89_data(tm_gmem_resp_data[54467:53856]),
-        .resp_90_valid(tm_gmem_resp_valid[89]),
-        .resp_90_ready(tm_gmem_resp_ready[89]),
-        .resp_90_data(tm_gmem_resp_data[55079:54468]),
-        .resp_91_valid(tm_gmem_resp_valid[90]),
-        .resp_91_ready(tm_gmem_resp_ready[90]),
-        .resp_91_data(tm_gmem_resp_data[55691:55080]),
-        .resp_92_valid(tm_gmem_resp_valid[91]),
-        .resp_92_ready(tm_gmem_resp_ready[91]),
-        .resp_92_data(tm_gmem_resp_data[56303:55692]),
-        .resp_93_valid(tm_gmem_resp_valid[92]),
-        .resp_93_ready(tm_gmem_resp_ready[92]),
-        .resp_93_data(tm_gmem_resp_data[56915:56304]),
-        .resp_94_valid(tm_gmem_resp_valid[93]),
-        .resp_94_ready(tm_gmem_resp_ready[93]),
-        .resp_94_data(tm_gmem_resp_data[57527:56916]),
-        .resp_95_valid(tm_gmem_resp_valid[94]),
-        .resp_95_ready(tm_gmem_resp_ready[94]),
-        .resp_95_data(tm_gmem_resp_data[58139:57528]),
-        .resp_96_valid(tm_gmem_resp_valid[95]),
-        .resp_96_ready(tm_gmem_resp_ready[95]),
-        .resp_96_data(tm_gmem_resp_data[58751:58140]),
-        .resp_97_valid(tm_gmem_resp_valid[96]),
-        .resp_97_ready(tm_gmem_resp_ready[96]),
-        .resp_97_data(tm_gmem_resp_data[59363:58752]),
-        .resp_98_valid(tm_gmem_resp_valid[97]),
-        .resp_98_ready(tm_gmem_resp_ready[97]),
-        .resp_98_data(tm_gmem_resp_data[59975:59364]),
-        .resp_99_valid(tm_gmem_resp_valid[98]),
-        .resp_99_ready(tm_gmem_resp_ready[98]),
-        .resp_99_data(tm_gmem_resp_data[60587:59976]),
-        .resp_100_valid(tm_gmem_resp_valid[99]),
-        .resp_100_ready(tm_gmem_resp_ready[99]),
-        .resp_100_data(tm_gmem_resp_data[61199:60588]),
-        .resp_101_valid(tm_gmem_resp_valid[100]),
-        .resp_101_ready(tm_gmem_resp_ready[100]),
-        .resp_101_data(tm_gmem_resp_data[61811:61200]),
-        .resp_102_valid(tm_gmem_resp_valid[101]),
-        .resp_102_ready(tm_gmem_resp_ready[101]),
-        .resp_102_data(tm_gmem_resp_data[62423:61812]),
-        .resp_103_valid(tm_gmem_resp_valid[102]),
-        .resp_103_ready(tm_gmem_resp_ready[102]),
-        .resp_103_data(tm_gmem_resp_data[63035:62424]),
-        .resp_104_valid(tm_gmem_resp_valid[103]),
-        .resp_104_ready(tm_gmem_resp_ready[103]),
-        .resp_104_data(tm_gmem_resp_data[63647:63036]),
-        .resp_105_valid(tm_gmem_resp_valid[104]),
-        .resp_105_ready(tm_gmem_resp_ready[104]),
-        .resp_105_data(tm_gmem_resp_data[64259:63648]),
-        .resp_106_valid(tm_gmem_resp_valid[105]),
-        .resp_106_ready(tm_gmem_resp_ready[105]),
-        .resp_106_data(tm_gmem_resp_data[64871:64260]),
-        .resp_107_valid(tm_gmem_resp_valid[106]),
-        .resp_107_ready(tm_gmem_resp_ready[106]),
-        .resp_107_data(tm_gmem_resp_data[65483:64872]),
-        .resp_108_valid(tm_gmem_resp_valid[107]),
-        .resp_108_ready(tm_gmem_resp_ready[107]),
-        .resp_108_data(tm_gmem_resp_data[66095:65484]),
-        .resp_109_valid(tm_gmem_resp_valid[108]),
-        .resp_109_ready(tm_gmem_resp_ready[108]),
-        .resp_109_data(tm_gmem_resp_data[66707:66096]),
-        .resp_110_valid(tm_gmem_resp_valid[109]),
-        .resp_110_ready(tm_gmem_resp_ready[109]),
-        .resp_110_data(tm_gmem_resp_data[67319:66708]),
-        .resp_111_valid(tm_gmem_resp_valid[110]),
-        .resp_111_ready(tm_gmem_resp_ready[110]),
-        .resp_111_data(tm_gmem_resp_data[67931:67320]),
-        .resp_112_valid(tm_gmem_resp_valid[111]),
-        .resp_112_ready(tm_gmem_resp_ready[111]),
-        .resp_112_data(tm_gmem_resp_data[68543:67932]),
-        .resp_113_valid(tm_gmem_resp_valid[112]),
-        .resp_113_ready(tm_gmem_resp_ready[112]),
-        .resp_113_data(tm_gmem_resp_data[69155:68544]),
-        .resp_114_valid(tm_gmem_resp_valid[113]),
-        .resp_114_ready(tm_gmem_resp_ready[113]),
-        .resp_114_data(tm_gmem_resp_data[69767:69156]),
-        .resp_115_valid(tm_gmem_resp_valid[114]),
-        .resp_115_ready(tm_gmem_resp_ready[114]),
-        .resp_115_data(tm_gmem_resp_data[70379:69768]),
-        .resp_116_valid(tm_gmem_resp_valid[115]),
-        .resp_116_ready(tm_gmem_resp_ready[115]),
-        .resp_116_data(tm_gmem_resp_data[70991:70380]),
-        .resp_117_valid(tm_gmem_resp_valid[116]),
-        .resp_117_ready(tm_gmem_resp_ready[116]),
-        .resp_117_data(tm_gmem_resp_data[71603:70992]),
-        .resp_118_valid(tm_gmem_resp_valid[117]),
-        .resp_118_ready(tm_gmem_resp_ready[117]),
-        .resp_118_data(tm_gmem_resp_data[72215:71604]),
-        .resp_119_valid(tm_gmem_resp_valid[118]),
-        .resp_119_ready(tm_gmem_resp_ready[118]),
-        .resp_119_data(tm_gmem_resp_data[72827:72216]),
-        .resp_120_valid(tm_gmem_resp_valid[119]),
-        .resp_120_ready(tm_gmem_resp_ready[119]),
-        .resp_120_data(tm_gmem_resp_data[73439:72828]),
-        .resp_121_valid(tm_gmem_resp_valid[120]),
-        .resp_121_ready(tm_gmem_resp_ready[120]),
-        .resp_121_data(tm_gmem_resp_data[74051:73440]),
-        .resp_122_valid(tm_gmem_resp_valid[121]),
-        .resp_122_ready(tm_gmem_resp_ready[121]),
-        .resp_122_data(tm_gmem_resp_data[74663:74052]),
-        .resp_123_valid(tm_gmem_resp_valid[122]),
-        .resp_123_ready(tm_gmem_resp_ready[122]),
-        .resp_123_data(tm_gmem_resp_data[75275:74664]),
-        .resp_124_valid(tm_gmem_resp_valid[123]),
-        .resp_124_ready(tm_gmem_resp_ready[123]),
-        .resp_124_data(tm_gmem_resp_data[75887:75276]),
-        .resp_125_valid(tm_gmem_resp_valid[124]),
-        .resp_125_ready(tm_gmem_resp_ready[124]),
-        .resp_125_data(tm_gmem_resp_data[76499:75888]),
-        .resp_126_valid(tm_gmem_resp_valid[125]),
-        .resp_126_ready(tm_gmem_resp_ready[125]),
-        .resp_126_data(tm_gmem_resp_data[77111:76500]),
-        .resp_127_valid(tm_gmem_resp_valid[126]),
-        .resp_127_ready(tm_gmem_resp_ready[126]),
-        .resp_127_data(tm_gmem_resp_data[77723:77112]),
-        .resp_128_valid(tm_gmem_resp_valid[127]),
-        .resp_128_ready(tm_gmem_resp_ready[127]),
-        .resp_128_data(tm_gmem_resp_data[78335:77724]),
-        .mem_req_1_valid(mem_req_l2_lane1_valid),
-        .mem_req_1_ready(mem_req_l2_lane1_ready),
-        .mem_req_1_data(mem_req_l2_lane1_data),
-        .mem_resp_1_valid(mem_resp_l2_lane1_valid),
-        .mem_resp_1_ready(mem_resp_l2_lane1_ready),
-        .mem_resp_1_data(mem_resp_l2_lane1_data),
-        .mem_req_2_valid(mem_req_l2_lane2_valid),
-        .mem_req_2_ready(mem_req_l2_lane2_ready),
-        .mem_req_2_data(mem_req_l2_lane2_data),
-        .mem_resp_2_valid(mem_resp_l2_lane2_valid),
-        .mem_resp_2_ready(mem_resp_l2_lane2_ready),
-        .mem_resp_2_data(mem_resp_l2_lane2_data),
-        .mem_req_3_valid(mem_req_l2_lane3_valid),
-        .mem_req_3_ready(mem_req_l2_lane3_ready),
-        .mem_req_3_data(mem_req_l2_lane3_data),
-        .mem_resp_3_valid(mem_resp_l2_lane3_valid),
-        .mem_resp_3_ready(mem_resp_l2_lane3_ready),
-        .mem_resp_3_data(mem_resp_l2_lane3_data),
-        .flush_valid(flush_valid),
-        .flush_ready(flush_ready),
-        .flush_data(flush_data),
-        .flush_done_valid(flush_done_valid),
-        .flush_done_ready(flush_done_ready),
-        .flush_done_data(flush_done_data)
+        .mem_req_0_valid(mem_req2_l2_push_valid),
+        .mem_req_0_ready(mem_req2_l2_push_ready),
+        .mem_req_0_data(mem_req2_l2_push_data),
+        .mem_resp_0_valid(mem_resp2_l2_pop_valid),
+        .mem_resp_0_ready(mem_resp2_l2_pop_ready),
+        .mem_resp_0_data(mem_resp2_l2_pop_data),
+        .req_0_valid(l2_req0_hits_pop_valid),
+        .req_0_ready(l2_req0_hits_pop_ready),
+        .req_0_data(l2_req0_hits_pop_data),
+        .req_1_valid(tm0_gmem_req_pop_valid),
+        .req_1_ready(tm0_gmem_req_pop_ready),
+        .req_1_data(tm0_gmem_req_pop_data),
+        .req_2_valid(tm1_gmem_req_pop_valid),
+        .req_2_ready(tm1_gmem_req_pop_ready),
+        .req_2_data(tm1_gmem_req_pop_data),
+        .req_3_valid(tm2_gmem_req_pop_valid),
+        .req_3_ready(tm2_gmem_req_pop_ready),
+        .req_3_data(tm2_gmem_req_pop_data),
+        .req_4_valid(tm3_gmem_req_pop_valid),
+        .req_4_ready(tm3_gmem_req_pop_ready),
+        .req_4_data(tm3_gmem_req_pop_data),
+        .req_5_valid(tm4_gmem_req_pop_valid),
+        .req_5_ready(tm4_gmem_req_pop_ready),
+        .req_5_data(tm4_gmem_req_pop_data),
+        .req_6_valid(tm5_gmem_req_pop_valid),
+        .req_6_ready(tm5_gmem_req_pop_ready),
+        .req_6_data(tm5_gmem_req_pop_data),
+        .req_7_valid(tm6_gmem_req_pop_valid),
+        .req_7_ready(tm6_gmem_req_pop_ready),
+        .req_7_data(tm6_gmem_req_pop_data),
+        .req_8_valid(tm7_gmem_req_pop_valid),
+        .req_8_ready(tm7_gmem_req_pop_ready),
+        .req_8_data(tm7_gmem_req_pop_data),
+        .req_9_valid(tm8_gmem_req_pop_valid),
+        .req_9_ready(tm8_gmem_req_pop_ready),
+        .req_9_data(tm8_gmem_req_pop_data),
+        .req_10_valid(tm9_gmem_req_pop_valid),
+        .req_10_ready(tm9_gmem_req_pop_ready),
+        .req_10_data(tm9_gmem_req_pop_data),
+        .req_11_valid(tm10_gmem_req_pop_valid),
+        .req_11_ready(tm10_gmem_req_pop_ready),
+        .req_11_data(tm10_gmem_req_pop_data),
+        .req_12_valid(tm11_gmem_req_pop_valid),
+        .req_12_ready(tm11_gmem_req_pop_ready),
+        .req_12_data(tm11_gmem_req_pop_data),
+        .req_13_valid(tm12_gmem_req_pop_valid),
+        .req_13_ready(tm12_gmem_req_pop_ready),
+        .req_13_data(tm12_gmem_req_pop_data),
+        .req_14_valid(tm13_gmem_req_pop_valid),
+        .req_14_ready(tm13_gmem_req_pop_ready),
+        .req_14_data(tm13_gmem_req_pop_data),
+        .req_15_valid(tm14_gmem_req_pop_valid),
+        .req_15_ready(tm14_gmem_req_pop_ready),
+        .req_15_data(tm14_gmem_req_pop_data),
+        .req_16_valid(tm15_gmem_req_pop_valid),
+        .req_16_ready(tm15_gmem_req_pop_ready),
+        .req_16_data(tm15_gmem_req_pop_data),
+        .req_17_valid(tm16_gmem_req_pop_valid),
+        .req_17_ready(tm16_gmem_req_pop_ready),
+        .req_17_data(tm16_gmem_req_pop_data),
+        .req_18_valid(tm17_gmem_req_pop_valid),
+        .req_18_ready(tm17_gmem_req_pop_ready),
+        .req_18_data(tm17_gmem_req_pop_data),
+        .req_19_valid(tm18_gmem_req_pop_valid),
+        .req_19_ready(tm18_gmem_req_pop_ready),
+        .req_19_data(tm18_gmem_req_pop_data),
+        .req_20_valid(tm19_gmem_req_pop_valid),
+        .req_20_ready(tm19_gmem_req_pop_ready),
+        .req_20_data(tm19_gmem_req_pop_data),
+        .req_21_valid(tm20_gmem_req_pop_valid),
+        .req_21_ready(tm20_gmem_req_pop_ready),
+        .req_21_data(tm20_gmem_req_pop_data),
+        .req_22_valid(tm21_gmem_req_pop_valid),
+        .req_22_ready(tm21_gmem_req_pop_ready),
+        .req_22_data(tm21_gmem_req_pop_data),
+        .req_23_valid(tm22_gmem_req_pop_valid),
+        .req_23_ready(tm22_gmem_req_pop_ready),
+        .req_23_data(tm22_gmem_req_pop_data),
+        .req_24_valid(tm23_gmem_req_pop_valid),
+        .req_24_ready(tm23_gmem_req_pop_ready),
+        .req_24_data(tm23_gmem_req_pop_data),
+        .req_25_valid(tm24_gmem_req_pop_valid),
+        .req_25_ready(tm24_gmem_req_pop_ready),
+        .req_25_data(tm24_gmem_req_pop_data),
+        .req_26_valid(tm25_gmem_req_pop_valid),
+        .req_26_ready(tm25_gmem_req_pop_ready),
+        .req_26_data(tm25_gmem_req_pop_data),
+        .req_27_valid(tm26_gmem_req_pop_valid),
+        .req_27_ready(tm26_gmem_req_pop_ready),
+        .req_27_data(tm26_gmem_req_pop_data),
+        .req_28_valid(tm27_gmem_req_pop_valid),
+        .req_28_ready(tm27_gmem_req_pop_ready),
+        .req_28_data(tm27_gmem_req_pop_data),
+        .req_29_valid(tm28_gmem_req_pop_valid),
+        .req_29_ready(tm28_gmem_req_pop_ready),
+        .req_29_data(tm28_gmem_req_pop_data),
+        .req_30_valid(tm29_gmem_req_pop_valid),
+        .req_30_ready(tm29_gmem_req_pop_ready),
+        .req_30_data(tm29_gmem_req_pop_data),
+        .req_31_valid(tm30_gmem_req_pop_valid),
+        .req_31_ready(tm30_gmem_req_pop_ready),
+        .req_31_data(tm30_gmem_req_pop_data),
+        .req_32_valid(tm31_gmem_req_pop_valid),
+        .req_32_ready(tm31_gmem_req_pop_ready),
+        .req_32_data(tm31_gmem_req_pop_data),
+        .req_33_valid(tm32_gmem_req_pop_valid),
+        .req_33_ready(tm32_gmem_req_pop_ready),
+        .req_33_data(tm32_gmem_req_pop_data),
+        .req_34_valid(tm33_gmem_req_pop_valid),
+        .req_34_ready(tm33_gmem_req_pop_ready),
+        .req_34_data(tm33_gmem_req_pop_data),
+        .req_35_valid(tm34_gmem_req_pop_valid),
+        .req_35_ready(tm34_gmem_req_pop_ready),
+        .req_35_data(tm34_gmem_req_pop_data),
+        .req_36_valid(tm35_gmem_req_pop_valid),
+        .req_36_ready(tm35_gmem_req_pop_ready),
+        .req_36_data(tm35_gmem_req_pop_data),
+        .req_37_valid(tm36_gmem_req_pop_valid),
+        .req_37_ready(tm36_gmem_req_pop_ready),
+        .req_37_data(tm36_gmem_req_pop_data),
+        .req_38_valid(tm37_gmem_req_pop_valid),
+        .req_38_ready(tm37_gmem_req_pop_ready),
+        .req_38_data(tm37_gmem_req_pop_data),
+        .req_39_valid(tm38_gmem_req_pop_valid),
+        .req_39_ready(tm38_gmem_req_pop_ready),
+        .req_39_data(tm38_gmem_req_pop_data),
+        .req_40_valid(tm39_gmem_req_pop_valid),
+        .req_40_ready(tm39_gmem_req_pop_ready),
+        .req_40_data(tm39_gmem_req_pop_data),
+        .req_41_valid(tm40_gmem_req_pop_valid),
+        .req_41_ready(tm40_gmem_req_pop_ready),
+        .req_41_data(tm40_gmem_req_pop_data),
+        .req_42_valid(tm41_gmem_req_pop_valid),
+        .req_42_ready(tm41_gmem_req_pop_ready),
+        .req_42_data(tm41_gmem_req_pop_data),
+        .req_43_valid(tm42_gmem_req_pop_valid),
+        .req_43_ready(tm42_gmem_req_pop_ready),
+        .req_43_data(tm42_gmem_req_pop_data),
+        .req_44_valid(tm43_gmem_req_pop_valid),
+        .req_44_ready(tm43_gmem_req_pop_ready),
+        .req_44_data(tm43_gmem_req_pop_data),
+        .req_45_valid(tm44_gmem_req_pop_valid),
+        .req_45_ready(tm44_gmem_req_pop_ready),
+        .req_45_data(tm44_gmem_req_pop_data),
+        .req_46_valid(tm45_gmem_req_pop_valid),
+        .req_46_ready(tm45_gmem_req_pop_ready),
+        .req_46_data(tm45_gmem_req_pop_data),
+        .req_47_valid(tm46_gmem_req_pop_valid),
+        .req_47_ready(tm46_gmem_req_pop_ready),
+        .req_47_data(tm46_gmem_req_pop_data),
+        .req_48_valid(tm47_gmem_req_pop_valid),
+        .req_48_ready(tm47_gmem_req_pop_ready),
+        .req_48_data(tm47_gmem_req_pop_data),
+        .req_49_valid(tm48_gmem_req_pop_valid),
+        .req_49_ready(tm48_gmem_req_pop_ready),
+        .req_49_data(tm48_gmem_req_pop_data),
+        .req_50_valid(tm49_gmem_req_pop_valid),
+        .req_50_ready(tm49_gmem_req_pop_ready),
+        .req_50_data(tm49_gmem_req_pop_data),
+        .req_51_valid(tm50_gmem_req_pop_valid),
+        .req_51_ready(tm50_gmem_req_pop_ready),
+        .req_51_data(tm50_gmem_req_pop_data),
+        .req_52_valid(tm51_gmem_req_pop_valid),
+        .req_52_ready(tm51_gmem_req_pop_ready),
+        .req_52_data(tm51_gmem_req_pop_data),
+        .req_53_valid(tm52_gmem_req_pop_valid),
+        .req_53_ready(tm52_gmem_req_pop_ready),
+        .req_53_data(tm52_gmem_req_pop_data),
+        .req_54_valid(tm53_gmem_req_pop_valid),
+        .req_54_ready(tm53_gmem_req_pop_ready),
+        .req_54_data(tm53_gmem_req_pop_data),
+        .req_55_valid(tm54_gmem_req_pop_valid),
+        .req_55_ready(tm54_gmem_req_pop_ready),
+        .req_55_data(tm54_gmem_req_pop_data),
+        .req_56_valid(tm55_gmem_req_pop_valid),
+        .req_56_ready(tm55_gmem_req_pop_ready),
+        .req_56_data(tm55_gmem_req_pop_data),
+        .req_57_valid(tm56_gmem_req_pop_valid),
+        .req_57_ready(tm56_gmem_req_pop_ready),
+        .req_57_data(tm56_gmem_req_pop_data),
+        .req_58_valid(tm57_gmem_req_pop_valid),
+        .req_58_ready(tm57_gmem_req_pop_ready),
+        .req_58_data(tm57_gmem_req_pop_data),
+        .req_59_valid(tm58_gmem_req_pop_valid),
+        .req_59_ready(tm58_gmem_req_pop_ready),
+        .req_59_data(tm58_gmem_req_pop_data),
+        .req_60_valid(tm59_gmem_req_pop_valid),
+        .req_60_ready(tm59_gmem_req_pop_ready),
+        .req_60_data(tm59_gmem_req_pop_data),
+        .req_61_valid(tm60_gmem_req_pop_valid),
+        .req_61_ready(tm60_gmem_req_pop_ready),
+        .req_61_data(tm60_gmem_req_pop_data),
+        .req_62_valid(tm61_gmem_req_pop_valid),
+        .req_62_ready(tm61_gmem_req_pop_ready),
+        .req_62_data(tm61_gmem_req_pop_data),
+        .req_63_valid(tm62_gmem_req_pop_valid),
+        .req_63_ready(tm62_gmem_req_pop_ready),
+        .req_63_data(tm62_gmem_req_pop_data),
+        .req_64_valid(tm63_gmem_req_pop_valid),
+        .req_64_ready(tm63_gmem_req_pop_ready),
+        .req_64_data(tm63_gmem_req_pop_data),
+        .req_65_valid(tm64_gmem_req_pop_valid),
+        .req_65_ready(tm64_gmem_req_pop_ready),
+        .req_65_data(tm64_gmem_req_pop_data),
+        .req_66_valid(tm65_gmem_req_pop_valid),
+        .req_66_ready(tm65_gmem_req_pop_ready),
+        .req_66_data(tm65_gmem_req_pop_data),
+        .req_67_valid(tm66_gmem_req_pop_valid),
+        .req_67_ready(tm66_gmem_req_pop_ready),
+        .req_67_data(tm66_gmem_req_pop_data),
+        .req_68_valid(tm67_gmem_req_pop_valid),
+        .req_68_ready(tm67_gmem_req_pop_ready),
+        .req_68_data(tm67_gmem_req_pop_data),
+        .req_69_valid(tm68_gmem_req_pop_valid),
+        .req_69_ready(tm68_gmem_req_pop_ready),
+        .req_69_data(tm68_gmem_req_pop_data),
+        .req_70_valid(tm69_gmem_req_pop_valid),
+        .req_70_ready(tm69_gmem_req_pop_ready),
+        .req_70_data(tm69_gmem_req_pop_data),
+        .req_71_valid(tm70_gmem_req_pop_valid),
+        .req_71_ready(tm70_gmem_req_pop_ready),
+        .req_71_data(tm70_gmem_req_pop_data),
+        .req_72_valid(tm71_gmem_req_pop_valid),
+        .req_72_ready(tm71_gmem_req_pop_ready),
+        .req_72_data(tm71_gmem_req_pop_data),
+        .req_73_valid(tm72_gmem_req_pop_valid),
+        .req_73_ready(tm72_gmem_req_pop_ready),
+        .req_73_data(tm72_gmem_req_pop_data),
+        .req_74_valid(tm73_gmem_req_pop_valid),
+        .req_74_ready(tm73_gmem_req_pop_ready),
+        .req_74_data(tm73_gmem_req_pop_data),
+        .req_75_valid(tm74_gmem_req_pop_valid),
+        .req_75_ready(tm74_gmem_req_pop_ready),
+        .req_75_data(tm74_gmem_req_pop_data),
+        .req_76_valid(tm75_gmem_req_pop_valid),
+        .req_76_ready(tm75_gmem_req_pop_ready),
+        .req_76_data(tm75_gmem_req_pop_data),
+        .req_77_valid(tm76_gmem_req_pop_valid),
+        .req_77_ready(tm76_gmem_req_pop_ready),
+        .req_77_data(tm76_gmem_req_pop_data),
+        .req_78_valid(tm77_gmem_req_pop_valid),
+        .req_78_ready(tm77_gmem_req_pop_ready),
+        .req_78_data(tm77_gmem_req_pop_data),
+        .req_79_valid(tm78_gmem_req_pop_valid),
+        .req_79_ready(tm78_gmem_req_pop_ready),
+        .req_79_data(tm78_gmem_req_pop_data),
+        .req_80_valid(tm79_gmem_req_pop_valid),
+        .req_80_ready(tm79_gmem_req_pop_ready),
+        .req_80_data(tm79_gmem_req_pop_data),
+        .req_81_valid(tm80_gmem_req_pop_valid),
+        .req_81_ready(tm80_gmem_req_pop_ready),
+        .req_81_data(tm80_gmem_req_pop_data),
+        .req_82_valid(tm81_gmem_req_pop_valid),
+        .req_82_ready(tm81_gmem_req_pop_ready),
+        .req_82_data(tm81_gmem_req_pop_data),
+        .req_83_valid(tm82_gmem_req_pop_valid),
+        .req_83_ready(tm82_gmem_req_pop_ready),
+        .req_83_data(tm82_gmem_req_pop_data),
+        .req_84_valid(tm83_gmem_req_pop_valid),
+        .req_84_ready(tm83_gmem_req_pop_ready),
+        .req_84_data(tm83_gmem_req_pop_data),
+        .req_85_valid(tm84_gmem_req_pop_valid),
+        .req_85_ready(tm84_gmem_req_pop_ready),
+        .req_85_data(tm84_gmem_req_pop_data),
+        .req_86_valid(tm85_gmem_req_pop_valid),
+        .req_86_ready(tm85_gmem_req_pop_ready),
+        .req_86_data(tm85_gmem_req_pop_data),
+        .req_87_valid(tm86_gmem_req_pop_valid),
+        .req_87_ready(tm86_gmem_req_pop_ready),
+        .req_87_data(tm86_gmem_req_pop_data),
+        .req_88_valid(tm87_gmem_req_pop_valid),
+        .req_88_ready(tm87_gmem_req_pop_ready),
+        .req_88_data(tm87_gmem_req_pop_data),
+        .req_89_valid(tm88_gmem_req_pop_valid),
+        .req_89_ready(tm88_gmem_req_pop_ready),
+        .req_89_data(tm88_gmem_req_pop_data),
+        .req_90_valid(tm89_gmem_req_pop_valid),
+        .req_90_ready(tm89_gmem_req_pop_ready),
+        .req_90_data(tm89_gmem_req_pop_data),
+        .req_91_valid(tm90_gmem_req_pop_valid),
+        .req_91_ready(tm90_gmem_req_pop_ready),
+        .req_91_data(tm90_gmem_req_pop_data),
+        .req_92_valid(tm91_gmem_req_pop_valid),
+        .req_92_ready(tm91_gmem_req_pop_ready),
+        .req_92_data(tm91_gmem_req_pop_data),
+        .req_93_valid(tm92_gmem_req_pop_valid),
+        .req_93_ready(tm92_gmem_req_pop_ready),
+        .req_93_data(tm92_gmem_req_pop_data),
+        .req_94_valid(tm93_gmem_req_pop_valid),
+        .req_94_ready(tm93_gmem_req_pop_ready),
+        .req_94_data(tm93_gmem_req_pop_data),
+        .req_95_valid(tm94_gmem_req_pop_valid),
+        .req_95_ready(tm94_gmem_req_pop_ready),
+        .req_95_data(tm94_gmem_req_pop_data),
+        .req_96_valid(tm95_gmem_req_pop_valid),
+        .req_96_ready(tm95_gmem_req_pop_ready),
+        .req_96_data(tm95_gmem_req_pop_data),
+        .req_97_valid(tm96_gmem_req_pop_valid),
+        .req_97_ready(tm96_gmem_req_pop_ready),
+        .req_97_data(tm96_gmem_req_pop_data),
+        .req_98_valid(tm97_gmem_req_pop_valid),
+        .req_98_ready(tm97_gmem_req_pop_ready),
+        .req_98_data(tm97_gmem_req_pop_data),
+        .req_99_valid(tm98_gmem_req_pop_valid),
+        .req_99_ready(tm98_gmem_req_pop_ready),
+        .req_99_data(tm98_gmem_req_pop_data),
+        .req_100_valid(tm99_gmem_req_pop_valid),
+        .req_100_ready(tm99_gmem_req_pop_ready),
+        .req_100_data(tm99_gmem_req_pop_data),
+        .req_101_valid(tm100_gmem_req_pop_valid),
+        .req_101_ready(tm100_gmem_req_pop_ready),
+        .req_101_data(tm100_gmem_req_pop_data),
+        .req_102_valid(tm101_gmem_req_pop_valid),
+        .req_102_ready(tm101_gmem_req_pop_ready),
+        .req_102_data(tm101_gmem_req_pop_data),
+        .req_103_valid(tm102_gmem_req_pop_valid),
+        .req_103_ready(tm102_gmem_req_pop_ready),
+        .req_103_data(tm102_gmem_req_pop_data),
+        .req_104_valid(tm103_gmem_req_pop_valid),
+        .req_104_ready(tm103_gmem_req_pop_ready),
+        .req_104_data(tm103_gmem_req_pop_data),
+        .req_105_valid(tm104_gmem_req_pop_valid),
+        .req_105_ready(tm104_gmem_req_pop_ready),
+        .req_105_data(tm104_gmem_req_pop_data),
+        .req_106_valid(tm105_gmem_req_pop_valid),
+        .req_106_ready(tm105_gmem_req_pop_ready),
+        .req_106_data(tm105_gmem_req_pop_data),
+        .req_107_valid(tm106_gmem_req_pop_valid),
+        .req_107_ready(tm106_gmem_req_pop_ready),
+        .req_107_data(tm106_gmem_req_pop_data),
+        .req_108_valid(tm107_gmem_req_pop_valid),
+        .req_108_ready(tm107_gmem_req_pop_ready),
+        .req_108_data(tm107_gmem_req_pop_data),
+        .req_109_valid(tm108_gmem_req_pop_valid),
+        .req_109_ready(tm108_gmem_req_pop_ready),
+        .req_109_data(tm108_gmem_req_pop_data),
+        .req_110_valid(tm109_gmem_req_pop_valid),
+        .req_110_ready(tm109_gmem_req_pop_ready),
+        .req_110_data(tm109_gmem_req_pop_data),
+        .req_111_valid(tm110_gmem_req_pop_valid),
+        .req_111_ready(tm110_gmem_req_pop_ready),
+        .req_111_data(tm110_gmem_req_pop_data),
+        .req_112_valid(tm111_gmem_req_pop_valid),
+        .req_112_ready(tm111_gmem_req_pop_ready),
+        .req_112_data(tm111_gmem_req_pop_data),
+        .req_113_valid(tm112_gmem_req_pop_valid),
+        .req_113_ready(tm112_gmem_req_pop_ready),
+        .req_113_data(tm112_gmem_req_pop_data),
+        .req_114_valid(tm113_gmem_req_pop_valid),
+        .req_114_ready(tm113_gmem_req_pop_ready),
+        .req_114_data(tm113_gmem_req_pop_data),
+        .req_115_valid(tm114_gmem_req_pop_valid),
+        .req_115_ready(tm114_gmem_req_pop_ready),
+        .req_115_data(tm114_gmem_req_pop_data),
+        .req_116_valid(tm115_gmem_req_pop_valid),
+        .req_116_ready(tm115_gmem_req_pop_ready),
+        .req_116_data(tm115_gmem_req_pop_data),
+        .req_117_valid(tm116_gmem_req_pop_valid),
+        .req_117_ready(tm116_gmem_req_pop_ready),
+        .req_117_data(tm116_gmem_req_pop_data),
+        .req_118_valid(tm117_gmem_req_pop_valid),
+        .req_118_ready(tm117_gmem_req_pop_ready),
+        .req_118_data(tm117_gmem_req_pop_data),
+        .req_119_valid(tm118_gmem_req_pop_valid),
+        .req_119_ready(tm118_gmem_req_pop_ready),
+        .req_119_data(tm118_gmem_req_pop_data),
+        .req_120_valid(tm119_gmem_req_pop_valid),
+        .req_120_ready(tm119_gmem_req_pop_ready),
+        .req_120_data(tm119_gmem_req_pop_data),
+        .req_121_valid(tm120_gmem_req_pop_valid),
+        .req_121_ready(tm120_gmem_req_pop_ready),
+        .req_121_data(tm120_gmem_req_pop_data),
+        .req_122_valid(tm121_gmem_req_pop_valid),
+        .req_122_ready(tm121_gmem_req_pop_ready),
+        .req_122_data(tm121_gmem_req_pop_data),
+        .req_123_valid(tm122_gmem_req_pop_valid),
+        .req_123_ready(tm122_gmem_req_pop_ready),
+        .req_123_data(tm122_gmem_req_pop_data),
+        .req_124_valid(tm123_gmem_req_pop_valid),
+        .req_124_ready(tm123_gmem_req_pop_ready),
+        .req_124_data(tm123_gmem_req_pop_data),
+        .req_125_valid(tm124_gmem_req_pop_valid),
+        .req_125_ready(tm124_gmem_req_pop_ready),
+        .req_125_data(tm124_gmem_req_pop_data),
+        .req_126_valid(tm125_gmem_req_pop_valid),
+        .req_126_ready(tm125_gmem_req_pop_ready),
+        .req_126_data(tm125_gmem_req_pop_data),
+        .req_127_valid(tm126_gmem_req_pop_valid),
+        .req_127_ready(tm126_gmem_req_pop_ready),
+        .req_127_data(tm126_gmem_req_pop_data),
+        .req_128_valid(tm127_gmem_req_pop_valid),
+        .req_128_ready(tm127_gmem_req_pop_ready),
+        .req_128_data(tm127_gmem_req_pop_data),
+        .resp_0_valid(l2_resp0_hits_push_valid),
+        .resp_0_ready(l2_resp0_hits_push_ready),
+        .resp_0_data(l2_resp0_hits_push_data),
+        .resp_1_valid(tm0_gmem_resp_push_valid),
+        .resp_1_ready(tm0_gmem_resp_push_ready),
+        .resp_1_data(tm0_gmem_resp_push_data),
+        .resp_2_valid(tm1_gmem_resp_push_valid),
+        .resp_2_ready(tm1_gmem_resp_push_ready),
+        .resp_2_data(tm1_gmem_resp_push_data),
+        .resp_3_valid(tm2_gmem_resp_push_valid),
+        .resp_3_ready(tm2_gmem_resp_push_ready),
+        .resp_3_data(tm2_gmem_resp_push_data),
+        .resp_4_valid(tm3_gmem_resp_push_valid),
+        .resp_4_ready(tm3_gmem_resp_push_ready),
+        .resp_4_data(tm3_gmem_resp_push_data),
+        .resp_5_valid(tm4_gmem_resp_push_valid),
+        .resp_5_ready(tm4_gmem_resp_push_ready),
+        .resp_5_data(tm4_gmem_resp_push_data),
+        .resp_6_valid(tm5_gmem_resp_push_valid),
+        .resp_6_ready(tm5_gmem_resp_push_ready),
+        .resp_6_data(tm5_gmem_resp_push_data),
+        .resp_7_valid(tm6_gmem_resp_push_valid),
+        .resp_7_ready(tm6_gmem_resp_push_ready),
+        .resp_7_data(tm6_gmem_resp_push_data),
+        .resp_8_valid(tm7_gmem_resp_push_valid),
+        .resp_8_ready(tm7_gmem_resp_push_ready),
+        .resp_8_data(tm7_gmem_resp_push_data),
+        .resp_9_valid(tm8_gmem_resp_push_valid),
+        .resp_9_ready(tm8_gmem_resp_push_ready),
+        .resp_9_data(tm8_gmem_resp_push_data),
+        .resp_10_valid(tm9_gmem_resp_push_valid),
+        .resp_10_ready(tm9_gmem_resp_push_ready),
+        .resp_10_data(tm9_gmem_resp_push_data),
+        .resp_11_valid(tm10_gmem_resp_push_valid),
+        .resp_11_ready(tm10_gmem_resp_push_ready),
+        .resp_11_data(tm10_gmem_resp_push_data),
+        .resp_12_valid(tm11_gmem_resp_push_valid),
+        .resp_12_ready(tm11_gmem_resp_push_ready),
+        .resp_12_data(tm11_gmem_resp_push_data),
+        .resp_13_valid(tm12_gmem_resp_push_valid),
+        .resp_13_ready(tm12_gmem_resp_push_ready),
+        .resp_13_data(tm12_gmem_resp_push_data),
+        .resp_14_valid(tm13_gmem_resp_push_valid),
+        .resp_14_ready(tm13_gmem_resp_push_ready),
+        .resp_14_data(tm13_gmem_resp_push_data),
+        .resp_15_valid(tm14_gmem_resp_push_valid),
+        .resp_15_ready(tm14_gmem_resp_push_ready),
+        .resp_15_data(tm14_gmem_resp_push_data),
+        .resp_16_valid(tm15_gmem_resp_push_valid),
+        .resp_16_ready(tm15_gmem_resp_push_ready),
+        .resp_16_data(tm15_gmem_resp_push_data),
+        .resp_17_valid(tm16_gmem_resp_push_valid),
+        .resp_17_ready(tm16_gmem_resp_push_ready),
+        .resp_17_data(tm16_gmem_resp_push_data),
+        .resp_18_valid(tm17_gmem_resp_push_valid),
+        .resp_18_ready(tm17_gmem_resp_push_ready),
+        .resp_18_data(tm17_gmem_resp_push_data),
+        .resp_19_valid(tm18_gmem_resp_push_valid),
+        .resp_19_ready(tm18_gmem_resp_push_ready),
+        .resp_19_data(tm18_gmem_resp_push_data),
+        .resp_20_valid(tm19_gmem_resp_push_valid),
+        .resp_20_ready(tm19_gmem_resp_push_ready),
+        .resp_20_data(tm19_gmem_resp_push_data),
+        .resp_21_valid(tm20_gmem_resp_push_valid),
+        .resp_21_ready(tm20_gmem_resp_push_ready),
+        .resp_21_data(tm20_gmem_resp_push_data),
+        .resp_22_valid(tm21_gmem_resp_push_valid),
+        .resp_22_ready(tm21_gmem_resp_push_ready),
+        .resp_22_data(tm21_gmem_resp_push_data),
+        .resp_23_valid(tm22_gmem_resp_push_valid),
+        .resp_23_ready(tm22_gmem_resp_push_ready),
+        .resp_23_data(tm22_gmem_resp_push_data),
+        .resp_24_valid(tm23_gmem_resp_push_valid),
+        .resp_24_ready(tm23_gmem_resp_push_ready),
+        .resp_24_data(tm23_gmem_resp_push_data),
+        .resp_25_valid(tm24_gmem_resp_push_valid),
+        .resp_25_ready(tm24_gmem_resp_push_ready),
+        .resp_25_data(tm24_gmem_resp_push_data),
+        .resp_26_valid(tm25_gmem_resp_push_valid),
+        .resp_26_ready(tm25_gmem_resp_push_ready),
+        .resp_26_data(tm25_gmem_resp_push_data),
+        .resp_27_valid(tm26_gmem_resp_push_valid),
+        .resp_27_ready(tm26_gmem_resp_push_ready),
+        .resp_27_data(tm26_gmem_resp_push_data),
+        .resp_28_valid(tm27_gmem_resp_push_valid),
+        .resp_28_ready(tm27_gmem_resp_push_ready),
+        .resp_28_data(tm27_gmem_resp_push_data),
+        .resp_29_valid(tm28_gmem_resp_push_valid),
+        .resp_29_ready(tm28_gmem_resp_push_ready),
+        .resp_29_data(tm28_gmem_resp_push_data),
+        .resp_30_valid(tm29_gmem_resp_push_valid),
+        .resp_30_ready(tm29_gmem_resp_push_ready),
+        .resp_30_data(tm29_gmem_resp_push_data),
+        .resp_31_valid(tm30_gmem_resp_push_valid),
+        .resp_31_ready(tm30_gmem_resp_push_ready),
+        .resp_31_data(tm30_gmem_resp_push_data),
+        .resp_32_valid(tm31_gmem_resp_push_valid),
+        .resp_32_ready(tm31_gmem_resp_push_ready),
+        .resp_32_data(tm31_gmem_resp_push_data),
+        .resp_33_valid(tm32_gmem_resp_push_valid),
+        .resp_33_ready(tm32_gmem_resp_push_ready),
+        .resp_33_data(tm32_gmem_resp_push_data),
+        .resp_34_valid(tm33_gmem_resp_push_valid),
+        .resp_34_ready(tm33_gmem_resp_push_ready),
+        .resp_34_data(tm33_gmem_resp_push_data),
+        .resp_35_valid(tm34_gmem_resp_push_valid),
+        .resp_35_ready(tm34_gmem_resp_push_ready),
+        .resp_35_data(tm34_gmem_resp_push_data),
+        .resp_36_valid(tm35_gmem_resp_push_valid),
+        .resp_36_ready(tm35_gmem_resp_push_ready),
+        .resp_36_data(tm35_gmem_resp_push_data),
+        .resp_37_valid(tm36_gmem_resp_push_valid),
+        .resp_37_ready(tm36_gmem_resp_push_ready),
+        .resp_37_data(tm36_gmem_resp_push_data),
+        .resp_38_valid(tm37_gmem_resp_push_valid),
+        .resp_38_ready(tm37_gmem_resp_push_ready),
+        .resp_38_data(tm37_gmem_resp_push_data),
+        .resp_39_valid(tm38_gmem_resp_push_valid),
+        .resp_39_ready(tm38_gmem_resp_push_ready),
+        .resp_39_data(tm38_gmem_resp_push_data),
+        .resp_40_valid(tm39_gmem_resp_push_valid),
+        .resp_40_ready(tm39_gmem_resp_push_ready),
+        .resp_40_data(tm39_gmem_resp_push_data),
+        .resp_41_valid(tm40_gmem_resp_push_valid),
+        .resp_41_ready(tm40_gmem_resp_push_ready),
+        .resp_41_data(tm40_gmem_resp_push_data),
+        .resp_42_valid(tm41_gmem_resp_push_valid),
+        .resp_42_ready(tm41_gmem_resp_push_ready),
+        .resp_42_data(tm41_gmem_resp_push_data),
+        .resp_43_valid(tm42_gmem_resp_push_valid),
+        .resp_43_ready(tm42_gmem_resp_push_ready),
+        .resp_43_data(tm42_gmem_resp_push_data),
+        .resp_44_valid(tm43_gmem_resp_push_valid),
+        .resp_44_ready(tm43_gmem_resp_push_ready),
+        .resp_44_data(tm43_gmem_resp_push_data),
+        .resp_45_valid(tm44_gmem_resp_push_valid),
+        .resp_45_ready(tm44_gmem_resp_push_ready),
+        .resp_45_data(tm44_gmem_resp_push_data),
+        .resp_46_valid(tm45_gmem_resp_push_valid),
+        .resp_46_ready(tm45_gmem_resp_push_ready),
+        .resp_46_data(tm45_gmem_resp_push_data),
+        .resp_47_valid(tm46_gmem_resp_push_valid),
+        .resp_47_ready(tm46_gmem_resp_push_ready),
+        .resp_47_data(tm46_gmem_resp_push_data),
+        .resp_48_valid(tm47_gmem_resp_push_valid),
+        .resp_48_ready(tm47_gmem_resp_push_ready),
+        .resp_48_data(tm47_gmem_resp_push_data),
+        .resp_49_valid(tm48_gmem_resp_push_valid),
+        .resp_49_ready(tm48_gmem_resp_push_ready),
+        .resp_49_data(tm48_gmem_resp_push_data),
+        .resp_50_valid(tm49_gmem_resp_push_valid),
+        .resp_50_ready(tm49_gmem_resp_push_ready),
+        .resp_50_data(tm49_gmem_resp_push_data),
+        .resp_51_valid(tm50_gmem_resp_push_valid),
+        .resp_51_ready(tm50_gmem_resp_push_ready),
+        .resp_51_data(tm50_gmem_resp_push_data),
+        .resp_52_valid(tm51_gmem_resp_push_valid),
+        .resp_52_ready(tm51_gmem_resp_push_ready),
+        .resp_52_data(tm51_gmem_resp_push_data),
+        .resp_53_valid(tm52_gmem_resp_push_valid),
+        .resp_53_ready(tm52_gmem_resp_push_ready),
+        .resp_53_data(tm52_gmem_resp_push_data),
+        .resp_54_valid(tm53_gmem_resp_push_valid),
+        .resp_54_ready(tm53_gmem_resp_push_ready),
+        .resp_54_data(tm53_gmem_resp_push_data),
+        .resp_55_valid(tm54_gmem_resp_push_valid),
+        .resp_55_ready(tm54_gmem_resp_push_ready),
+        .resp_55_data(tm54_gmem_resp_push_data),
+        .resp_56_valid(tm55_gmem_resp_push_valid),
+        .resp_56_ready(tm55_gmem_resp_push_ready),
+        .resp_56_data(tm55_gmem_resp_push_data),
+        .resp_57_valid(tm56_gmem_resp_push_valid),
+        .resp_57_ready(tm56_gmem_resp_push_ready),
+        .resp_57_data(tm56_gmem_resp_push_data),
+        .resp_58_valid(tm57_gmem_resp_push_valid),
+        .resp_58_ready(tm57_gmem_resp_push_ready),
+        .resp_58_data(tm57_gmem_resp_push_data),
+        .resp_59_valid(tm58_gmem_resp_push_valid),
+        .resp_59_ready(tm58_gmem_resp_push_ready),
+        .resp_59_data(tm58_gmem_resp_push_data),
+        .resp_60_valid(tm59_gmem_resp_push_valid),
+        .resp_60_ready(tm59_gmem_resp_push_ready),
+        .resp_60_data(tm59_gmem_resp_push_data),
+        .resp_61_valid(tm60_gmem_resp_push_valid),
+        .resp_61_ready(tm60_gmem_resp_push_ready),
+        .resp_61_data(tm60_gmem_resp_push_data),
+        .resp_62_valid(tm61_gmem_resp_push_valid),
+        .resp_62_ready(tm61_gmem_resp_push_ready),
+        .resp_62_data(tm61_gmem_resp_push_data),
+        .resp_63_valid(tm62_gmem_resp_push_valid),
+        .resp_63_ready(tm62_gmem_resp_push_ready),
+        .resp_63_data(tm62_gmem_resp_push_data),
+        .resp_64_valid(tm63_gmem_resp_push_valid),
+        .resp_64_ready(tm63_gmem_resp_push_ready),
+        .resp_64_data(tm63_gmem_resp_push_data),
+        .resp_65_valid(tm64_gmem_resp_push_valid),
+        .resp_65_ready(tm64_gmem_resp_push_ready),
+        .resp_65_data(tm64_gmem_resp_push_data),
+        .resp_66_valid(tm65_gmem_resp_push_valid),
+        .resp_66_ready(tm65_gmem_resp_push_ready),
+        .resp_66_data(tm65_gmem_resp_push_data),
+        .resp_67_valid(tm66_gmem_resp_push_valid),
+        .resp_67_ready(tm66_gmem_resp_push_ready),
+        .resp_67_data(tm66_gmem_resp_push_data),
+        .resp_68_valid(tm67_gmem_resp_push_valid),
+        .resp_68_ready(tm67_gmem_resp_push_ready),
+        .resp_68_data(tm67_gmem_resp_push_data),
+        .resp_69_valid(tm68_gmem_resp_push_valid),
+        .resp_69_ready(tm68_gmem_resp_push_ready),
+        .resp_69_data(tm68_gmem_resp_push_data),
+        .resp_70_valid(tm69_gmem_resp_push_valid),
+        .resp_70_ready(tm69_gmem_resp_push_ready),
+        .resp_70_data(tm69_gmem_resp_push_data),
+        .resp_71_valid(tm70_gmem_resp_push_valid),
+        .resp_71_ready(tm70_gmem_resp_push_ready),
+        .resp_71_data(tm70_gmem_resp_push_data),
+        .resp_72_valid(tm71_gmem_resp_push_valid),
+        .resp_72_ready(tm71_gmem_resp_push_ready),
+        .resp_72_data(tm71_gmem_resp_push_data),
+        .resp_73_valid(tm72_gmem_resp_push_valid),
+        .resp_73_ready(tm72_gmem_resp_push_ready),
+        .resp_73_data(tm72_gmem_resp_push_data),
+        .resp_74_valid(tm73_gmem_resp_push_valid),
+        .resp_74_ready(tm73_gmem_resp_push_ready),
+        .resp_74_data(tm73_gmem_resp_push_data),
+        .resp_75_valid(tm74_gmem_resp_push_valid),
+        .resp_75_ready(tm74_gmem_resp_push_ready),
+        .resp_75_data(tm74_gmem_resp_push_data),
+        .resp_76_valid(tm75_gmem_resp_push_valid),
+        .resp_76_ready(tm75_gmem_resp_push_ready),
+        .resp_76_data(tm75_gmem_resp_push_data),
+        .resp_77_valid(tm76_gmem_resp_push_valid),
+        .resp_77_ready(tm76_gmem_resp_push_ready),
+        .resp_77_data(tm76_gmem_resp_push_data),
+        .resp_78_valid(tm77_gmem_resp_push_valid),
+        .resp_78_ready(tm77_gmem_resp_push_ready),
+        .resp_78_data(tm77_gmem_resp_push_data),
+        .resp_79_valid(tm78_gmem_resp_push_valid),
+        .resp_79_ready(tm78_gmem_resp_push_ready),
+        .resp_79_data(tm78_gmem_resp_push_data),
+        .resp_80_valid(tm79_gmem_resp_push_valid),
+        .resp_80_ready(tm79_gmem_resp_push_ready),
+        .resp_80_data(tm79_gmem_resp_push_data),
+        .resp_81_valid(tm80_gmem_resp_push_valid),
+        .resp_81_ready(tm80_gmem_resp_push_ready),
+        .resp_81_data(tm80_gmem_resp_push_data),
+        .resp_82_valid(tm81_gmem_resp_push_valid),
+        .resp_82_ready(tm81_gmem_resp_push_ready),
+        .resp_82_data(tm81_gmem_resp_push_data),
+        .resp_83_valid(tm82_gmem_resp_push_valid),
+        .resp_83_ready(tm82_gmem_resp_push_ready),
+        .resp_83_data(tm82_gmem_resp_push_data),
+        .resp_84_valid(tm83_gmem_resp_push_valid),
+        .resp_84_ready(tm83_gmem_resp_push_ready),
+        .resp_84_data(tm83_gmem_resp_push_data),
+        .resp_85_valid(tm84_gmem_resp_push_valid),
+        .resp_85_ready(tm84_gmem_resp_push_ready),
+        .resp_85_data(tm84_gmem_resp_push_data),
+        .resp_86_valid(tm85_gmem_resp_push_valid),
+        .resp_86_ready(tm85_gmem_resp_push_ready),
+        .resp_86_data(tm85_gmem_resp_push_data),
+        .resp_87_valid(tm86_gmem_resp_push_valid),
+        .resp_87_ready(tm86_gmem_resp_push_ready),
+        .resp_87_data(tm86_gmem_resp_push_data),
+        .resp_88_valid(tm87_gmem_resp_push_valid),
+        .resp_88_ready(tm87_gmem_resp_push_ready),
+        .resp_88_data(tm87_gmem_resp_push_data),
+        .resp_89_valid(tm88_gmem_resp_push_valid),
+        .resp_89_ready(tm88_gmem_resp_push_ready),
+        .resp_89_data(tm88_gmem_resp_push_data),
+        .resp_90_valid(tm89_gmem_resp_push_valid),
+        .resp_90_ready(tm89_gmem_resp_push_ready),
+        .resp_90_data(tm89_gmem_resp_push_data),
+        .resp_91_valid(tm90_gmem_resp_push_valid),
+        .resp_91_ready(tm90_gmem_resp_push_ready),
+        .resp_91_data(tm90_gmem_resp_push_data),
+        .resp_92_valid(tm91_gmem_resp_push_valid),
+        .resp_92_ready(tm91_gmem_resp_push_ready),
+        .resp_92_data(tm91_gmem_resp_push_data),
+        .resp_93_valid(tm92_gmem_resp_push_valid),
+        .resp_93_ready(tm92_gmem_resp_push_ready),
+        .resp_93_data(tm92_gmem_resp_push_data),
+        .resp_94_valid(tm93_gmem_resp_push_valid),
+        .resp_94_ready(tm93_gmem_resp_push_ready),
+        .resp_94_data(tm93_gmem_resp_push_data),
+        .resp_95_valid(tm94_gmem_resp_push_valid),
+        .resp_95_ready(tm94_gmem_resp_push_ready),
+        .resp_95_data(tm94_gmem_resp_push_data),
+        .resp_96_valid(tm95_gmem_resp_push_valid),
+        .resp_96_ready(tm95_gmem_resp_push_ready),
+        .resp_96_data(tm95_gmem_resp_push_data),
+        .resp_97_valid(tm96_gmem_resp_push_valid),
+        .resp_97_ready(tm96_gmem_resp_push_ready),
+        .resp_97_data(tm96_gmem_resp_push_data),
+        .resp_98_valid(tm97_gmem_resp_push_valid),
+        .resp_98_ready(tm97_gmem_resp_push_ready),
+        .resp_98_data(tm97_gmem_resp_push_data),
+        .resp_99_valid(tm98_gmem_resp_push_valid),
+        .resp_99_ready(tm98_gmem_resp_push_ready),
+        .resp_99_data(tm98_gmem_resp_push_data),
+        .resp_100_valid(tm99_gmem_resp_push_valid),
+        .resp_100_ready(tm99_gmem_resp_push_ready),
+        .resp_100_data(tm99_gmem_resp_push_data),
+        .resp_101_valid(tm100_gmem_resp_push_valid),
+        .resp_101_ready(tm100_gmem_resp_push_ready),
+        .resp_101_data(tm100_gmem_resp_push_data),
+        .resp_102_valid(tm101_gmem_resp_push_valid),
+        .resp_102_ready(tm101_gmem_resp_push_ready),
+        .resp_102_data(tm101_gmem_resp_push_data),
+        .resp_103_valid(tm102_gmem_resp_push_valid),
+        .resp_103_ready(tm102_gmem_resp_push_ready),
+        .resp_103_data(tm102_gmem_resp_push_data),
+        .resp_104_valid(tm103_gmem_resp_push_valid),
+        .resp_104_ready(tm103_gmem_resp_push_ready),
+        .resp_104_data(tm103_gmem_resp_push_data),
+        .resp_105_valid(tm104_gmem_resp_push_valid),
+        .resp_105_ready(tm104_gmem_resp_push_ready),
+        .resp_105_data(tm104_gmem_resp_push_data),
+        .resp_106_valid(tm105_gmem_resp_push_valid),
+        .resp_106_ready(tm105_gmem_resp_push_ready),
+        .resp_106_data(tm105_gmem_resp_push_data),
+        .resp_107_valid(tm106_gmem_resp_push_valid),
+        .resp_107_ready(tm106_gmem_resp_push_ready),
+        .resp_107_data(tm106_gmem_resp_push_data),
+        .resp_108_valid(tm107_gmem_resp_push_valid),
+        .resp_108_ready(tm107_gmem_resp_push_ready),
+        .resp_108_data(tm107_gmem_resp_push_data),
+        .resp_109_valid(tm108_gmem_resp_push_valid),
+        .resp_109_ready(tm108_gmem_resp_push_ready),
+        .resp_109_data(tm108_gmem_resp_push_data),
+        .resp_110_valid(tm109_gmem_resp_push_valid),
+        .resp_110_ready(tm109_gmem_resp_push_ready),
+        .resp_110_data(tm109_gmem_resp_push_data),
+        .resp_111_valid(tm110_gmem_resp_push_valid),
+        .resp_111_ready(tm110_gmem_resp_push_ready),
+        .resp_111_data(tm110_gmem_resp_push_data),
+        .resp_112_valid(tm111_gmem_resp_push_valid),
+        .resp_112_ready(tm111_gmem_resp_push_ready),
+        .resp_112_data(tm111_gmem_resp_push_data),
+        .resp_113_valid(tm112_gmem_resp_push_valid),
+        .resp_113_ready(tm112_gmem_resp_push_ready),
+        .resp_113_data(tm112_gmem_resp_push_data),
+        .resp_114_valid(tm113_gmem_resp_push_valid),
+        .resp_114_ready(tm113_gmem_resp_push_ready),
+        .resp_114_data(tm113_gmem_resp_push_data),
+        .resp_115_valid(tm114_gmem_resp_push_valid),
+        .resp_115_ready(tm114_gmem_resp_push_ready),
+        .resp_115_data(tm114_gmem_resp_push_data),
+        .resp_116_valid(tm115_gmem_resp_push_valid),
+        .resp_116_ready(tm115_gmem_resp_push_ready),
+        .resp_116_data(tm115_gmem_resp_push_data),
+        .resp_117_valid(tm116_gmem_resp_push_valid),
+        .resp_117_ready(tm116_gmem_resp_push_ready),
+        .resp_117_data(tm116_gmem_resp_push_data),
+        .resp_118_valid(tm117_gmem_resp_push_valid),
+        .resp_118_ready(tm117_gmem_resp_push_ready),
+        .resp_118_data(tm117_gmem_resp_push_data),
+        .resp_119_valid(tm118_gmem_resp_push_valid),
+        .resp_119_ready(tm118_gmem_resp_push_ready),
+        .resp_119_data(tm118_gmem_resp_push_data),
+        .resp_120_valid(tm119_gmem_resp_push_valid),
+        .resp_120_ready(tm119_gmem_resp_push_ready),
+        .resp_120_data(tm119_gmem_resp_push_data),
+        .resp_121_valid(tm120_gmem_resp_push_valid),
+        .resp_121_ready(tm120_gmem_resp_push_ready),
+        .resp_121_data(tm120_gmem_resp_push_data),
+        .resp_122_valid(tm121_gmem_resp_push_valid),
+        .resp_122_ready(tm121_gmem_resp_push_ready),
+        .resp_122_data(tm121_gmem_resp_push_data),
+        .resp_123_valid(tm122_gmem_resp_push_valid),
+        .resp_123_ready(tm122_gmem_resp_push_ready),
+        .resp_123_data(tm122_gmem_resp_push_data),
+        .resp_124_valid(tm123_gmem_resp_push_valid),
+        .resp_124_ready(tm123_gmem_resp_push_ready),
+        .resp_124_data(tm123_gmem_resp_push_data),
+        .resp_125_valid(tm124_gmem_resp_push_valid),
+        .resp_125_ready(tm124_gmem_resp_push_ready),
+        .resp_125_data(tm124_gmem_resp_push_data),
+        .resp_126_valid(tm125_gmem_resp_push_valid),
+        .resp_126_ready(tm125_gmem_resp_push_ready),
+        .resp_126_data(tm125_gmem_resp_push_data),
+        .resp_127_valid(tm126_gmem_resp_push_valid),
+        .resp_127_ready(tm126_gmem_resp_push_ready),
+        .resp_127_data(tm126_gmem_resp_push_data),
+        .resp_128_valid(tm127_gmem_resp_push_valid),
+        .resp_128_ready(tm127_gmem_resp_push_ready),
+        .resp_128_data(tm127_gmem_resp_push_data),
+        .mem_req_1_valid(mem_req_l2_lane1_push_valid),
+        .mem_req_1_ready(mem_req_l2_lane1_push_ready),
+        .mem_req_1_data(mem_req_l2_lane1_push_data),
+        .mem_resp_1_valid(mem_resp_l2_lane1_pop_valid),
+        .mem_resp_1_ready(mem_resp_l2_lane1_pop_ready),
+        .mem_resp_1_data(mem_resp_l2_lane1_pop_data),
+        .mem_req_2_valid(mem_req_l2_lane2_push_valid),
+        .mem_req_2_ready(mem_req_l2_lane2_push_ready),
+        .mem_req_2_data(mem_req_l2_lane2_push_data),
+        .mem_resp_2_valid(mem_resp_l2_lane2_pop_valid),
+        .mem_resp_2_ready(mem_resp_l2_lane2_pop_ready),
+        .mem_resp_2_data(mem_resp_l2_lane2_pop_data),
+        .mem_req_3_valid(mem_req_l2_lane3_push_valid),
+        .mem_req_3_ready(mem_req_l2_lane3_push_ready),
+        .mem_req_3_data(mem_req_l2_lane3_push_data),
+        .mem_resp_3_valid(mem_resp_l2_lane3_pop_valid),
+        .mem_resp_3_ready(mem_resp_l2_lane3_pop_ready),
+        .mem_resp_3_data(mem_resp_l2_lane3_pop_data),
+        .flush_valid(l2_flush_pop_valid),
+        .flush_ready(l2_flush_pop_ready),
+        .flush_data(l2_flush_pop_data),
+        .flush_done_valid(l2_flush_done_push_valid),
+        .flush_done_ready(l2_flush_done_push_ready),
+        .flush_done_data(l2_flush_done_push_data)
     );
     memory #(.PORTS(12), .LATENCY(0), .LINES_PER_CYCLE(0), .CHANNELS(16)) memory (
         .clk(clk_core),
         .rst(rst),
-        .req_0_valid(mem_req0_sched_valid),
-        .req_0_ready(mem_req0_sched_ready),
-        .req_0_data(mem_req0_sched_data),
-        .resp_0_valid(mem_resp0_sched_valid),
-        .resp_0_ready(mem_resp0_sched_ready),
-        .resp_0_data(mem_resp0_sched_data),
-        .req_1_valid(mem_req1_scene_valid),
-        .req_1_ready(mem_req1_scene_ready),
-        .req_1_data(mem_req1_scene_data),
-        .resp_1_valid(mem_resp1_scene_valid),
-        .resp_1_ready(mem_resp1_scene_ready),
-        .resp_1_data(mem_resp1_scene_data),
-        .req_2_valid(mem_req2_l2_valid),
-        .req_2_ready(mem_req2_l2_ready),
-        .req_2_data(mem_req2_l2_data),
-        .resp_2_valid(mem_resp2_l2_valid),
-        .resp_2_ready(mem_resp2_l2_ready),
-        .resp_2_data(mem_resp2_l2_data),
-        .req_3_valid(mem_req_sched1_valid),
-        .req_3_ready(mem_req_sched1_ready),
-        .req_3_data(mem_req_sched1_data),
-        .resp_3_valid(mem_resp_sched1_valid),
-        .resp_3_ready(mem_resp_sched1_ready),
-        .resp_3_data(mem_resp_sched1_data),
-        .req_4_valid(mem_req_sched2_valid),
-        .req_4_ready(mem_req_sched2_ready),
-        .req_4_data(mem_req_sched2_data),
-        .resp_4_valid(mem_resp_sched2_valid),
-        .resp_4_ready(mem_resp_sched2_ready),
-        .resp_4_data(mem_resp_sched2_data),
-        .req_5_valid(mem_req_sched3_valid),
-        .req_5_ready(mem_req_sched3_ready),
-        .req_5_data(mem_req_sched3_data),
-        .resp_5_valid(mem_resp_sched3_valid),
-        .resp_5_ready(mem_resp_sched3_ready),
-        .resp_5_data(mem_resp_sched3_data),
-        .req_6_valid(mem_req_scene1_valid),
-        .req_6_ready(mem_req_scene1_ready),
-        .req_6_data(mem_req_scene1_data),
-        .resp_6_valid(mem_resp_scene1_valid),
-        .resp_6_ready(mem_resp_scene1_ready),
-        .resp_6_data(mem_resp_scene1_data),
-        .req_7_valid(mem_req_scene2_valid),
-        .req_7_ready(mem_req_scene2_ready),
-        .req_7_data(mem_req_scene2_data),
-        .resp_7_valid(mem_resp_scene2_valid),
-        .resp_7_ready(mem_resp_scene2_ready),
-        .resp_7_data(mem_resp_scene2_data),
-        .req_8_valid(mem_req_scene3_valid),
-        .req_8_ready(mem_req_scene3_ready),
-        .req_8_data(mem_req_scene3_data),
-        .resp_8_valid(mem_resp_scene3_valid),
-        .resp_8_ready(mem_resp_scene3_ready),
-        .resp_8_data(mem_resp_scene3_data),
-        .req_9_valid(mem_req_l2_lane1_valid),
-        .req_9_ready(mem_req_l2_lane1_ready),
-        .req_9_data(mem_req_l2_lane1_data),
-        .resp_9_valid(mem_resp_l2_lane1_valid),
-        .resp_9_ready(mem_resp_l2_lane1_ready),
-        .resp_9_data(mem_resp_l2_lane1_data),
-        .req_10_valid(mem_req_l2_lane2_valid),
-        .req_10_ready(mem_req_l2_lane2_ready),
-        .req_10_data(mem_req_l2_lane2_data),
-        .resp_10_valid(mem_resp_l2_lane2_valid),
-        .resp_10_ready(mem_resp_l2_lane2_ready),
-        .resp_10_data(mem_resp_l2_lane2_data),
-        .req_11_valid(mem_req_l2_lane3_valid),
-        .req_11_ready(mem_req_l2_lane3_ready),
-        .req_11_data(mem_req_l2_lane3_data),
-        .resp_11_valid(mem_resp_l2_lane3_valid),
-        .resp_11_ready(mem_resp_l2_lane3_ready),
-        .resp_11_data(mem_resp_l2_lane3_data),
+        .req_0_valid(mem_req0_sched_pop_valid),
+        .req_0_ready(mem_req0_sched_pop_ready),
+        .req_0_data(mem_req0_sched_pop_data),
+        .resp_0_valid(mem_resp0_sched_push_valid),
+        .resp_0_ready(mem_resp0_sched_push_ready),
+        .resp_0_data(mem_resp0_sched_push_data),
+        .req_1_valid(mem_req1_scene_pop_valid),
+        .req_1_ready(mem_req1_scene_pop_ready),
+        .req_1_data(mem_req1_scene_pop_data),
+        .resp_1_valid(mem_resp1_scene_push_valid),
+        .resp_1_ready(mem_resp1_scene_push_ready),
+        .resp_1_data(mem_resp1_scene_push_data),
+        .req_2_valid(mem_req2_l2_pop_valid),
+        .req_2_ready(mem_req2_l2_pop_ready),
+        .req_2_data(mem_req2_l2_pop_data),
+        .resp_2_valid(mem_resp2_l2_push_valid),
+        .resp_2_ready(mem_resp2_l2_push_ready),
+        .resp_2_data(mem_resp2_l2_push_data),
+        .req_3_valid(mem_req_sched1_pop_valid),
+        .req_3_ready(mem_req_sched1_pop_ready),
+        .req_3_data(mem_req_sched1_pop_data),
+        .resp_3_valid(mem_resp_sched1_push_valid),
+        .resp_3_ready(mem_resp_sched1_push_ready),
+        .resp_3_data(mem_resp_sched1_push_data),
+        .req_4_valid(mem_req_sched2_pop_valid),
+        .req_4_ready(mem_req_sched2_pop_ready),
+        .req_4_data(mem_req_sched2_pop_data),
+        .resp_4_valid(mem_resp_sched2_push_valid),
+        .resp_4_ready(mem_resp_sched2_push_ready),
+        .resp_4_data(mem_resp_sched2_push_data),
+        .req_5_valid(mem_req_sched3_pop_valid),
+        .req_5_ready(mem_req_sched3_pop_ready),
+        .req_5_data(mem_req_sched3_pop_data),
+        .resp_5_valid(mem_resp_sched3_push_valid),
+        .resp_5_ready(mem_resp_sched3_push_ready),
+        .resp_5_data(mem_resp_sched3_push_data),
+        .req_6_valid(mem_req_scene1_pop_valid),
+        .req_6_ready(mem_req_scene1_pop_ready),
+        .req_6_data(mem_req_scene1_pop_data),
+        .resp_6_valid(mem_resp_scene1_push_valid),
+        .resp_6_ready(mem_resp_scene1_push_ready),
+        .resp_6_data(mem_resp_scene1_push_data),
+        .req_7_valid(mem_req_scene2_pop_valid),
+        .req_7_ready(mem_req_scene2_pop_ready),
+        .req_7_data(mem_req_scene2_pop_data),
+        .resp_7_valid(mem_resp_scene2_push_valid),
+        .resp_7_ready(mem_resp_scene2_push_ready),
+        .resp_7_data(mem_resp_scene2_push_data),
+        .req_8_valid(mem_req_scene3_pop_valid),
+        .req_8_ready(mem_req_scene3_pop_ready),
+        .req_8_data(mem_req_scene3_pop_data),
+        .resp_8_valid(mem_resp_scene3_push_valid),
+        .resp_8_ready(mem_resp_scene3_push_ready),
+        .resp_8_data(mem_resp_scene3_push_data),
+        .req_9_valid(mem_req_l2_lane1_pop_valid),
+        .req_9_ready(mem_req_l2_lane1_pop_ready),
+        .req_9_data(mem_req_l2_lane1_pop_data),
+        .resp_9_valid(mem_resp_l2_lane1_push_valid),
+        .resp_9_ready(mem_resp_l2_lane1_push_ready),
+        .resp_9_data(mem_resp_l2_lane1_push_data),
+        .req_10_valid(mem_req_l2_lane2_pop_valid),
+        .req_10_ready(mem_req_l2_lane2_pop_ready),
+        .req_10_data(mem_req_l2_lane2_pop_data),
+        .resp_10_valid(mem_resp_l2_lane2_push_valid),
+        .resp_10_ready(mem_resp_l2_lane2_push_ready),
+        .resp_10_data(mem_resp_l2_lane2_push_data),
+        .req_11_valid(mem_req_l2_lane3_pop_valid),
+        .req_11_ready(mem_req_l2_lane3_pop_ready),
+        .req_11_data(mem_req_l2_lane3_pop_data),
+        .resp_11_valid(mem_resp_l2_lane3_push_valid),
+        .resp_11_ready(mem_resp_l2_lane3_push_ready),
+        .resp_11_data(mem_resp_l2_lane3_push_data),
         .ch_req_0_valid(mem_ctrl_req_valid[0]),
         .ch_req_0_ready(mem_ctrl_req_ready[0]),
         .ch_req_0_data(mem_ctrl_req_data[99:0]),
@@ -1511,1606 +4292,1606 @@ module chip
     scene_buffer #(.SLOTS(64), .SLOT_LINES(1024), .BANKS(32), .LATENCY(4), .TMS(128)) scene_buffer (
         .clk(clk_core),
         .rst(rst),
-        .fill_0_valid(mem_resp1_scene_valid),
-        .fill_0_ready(mem_resp1_scene_ready),
-        .fill_0_data(mem_resp1_scene_data),
-        .fill_1_valid(mem_resp_scene1_valid),
-        .fill_1_ready(mem_resp_scene1_ready),
-        .fill_1_data(mem_resp_scene1_data),
-        .fill_2_valid(mem_resp_scene2_valid),
-        .fill_2_ready(mem_resp_scene2_ready),
-        .fill_2_data(mem_resp_scene2_data),
-        .fill_3_valid(mem_resp_scene3_valid),
-        .fill_3_ready(mem_resp_scene3_ready),
-        .fill_3_data(mem_resp_scene3_data),
-        .slot_map_valid(slot_map_valid),
-        .slot_map_ready(slot_map_ready),
-        .slot_map_data(slot_map_data),
-        .req_0_valid(tm_miss_req_valid[0]),
-        .req_0_ready(tm_miss_req_ready[0]),
-        .req_0_data(tm_miss_req_data[63:0]),
-        .req_1_valid(tm_miss_req_valid[1]),
-        .req_1_ready(tm_miss_req_ready[1]),
-        .req_1_data(tm_miss_req_data[127:64]),
-        .req_2_valid(tm_miss_req_valid[2]),
-        .req_2_ready(tm_miss_req_ready[2]),
-        .req_2_data(tm_miss_req_data[191:128]),
-        .req_3_valid(tm_miss_req_valid[3]),
-        .req_3_ready(tm_miss_req_ready[3]),
-        .req_3_data(tm_miss_req_data[255:192]),
-        .req_4_valid(tm_miss_req_valid[4]),
-        .req_4_ready(tm_miss_req_ready[4]),
-        .req_4_data(tm_miss_req_data[319:256]),
-        .req_5_valid(tm_miss_req_valid[5]),
-        .req_5_ready(tm_miss_req_ready[5]),
-        .req_5_data(tm_miss_req_data[383:320]),
-        .req_6_valid(tm_miss_req_valid[6]),
-        .req_6_ready(tm_miss_req_ready[6]),
-        .req_6_data(tm_miss_req_data[447:384]),
-        .req_7_valid(tm_miss_req_valid[7]),
-        .req_7_ready(tm_miss_req_ready[7]),
-        .req_7_data(tm_miss_req_data[511:448]),
-        .req_8_valid(tm_miss_req_valid[8]),
-        .req_8_ready(tm_miss_req_ready[8]),
-        .req_8_data(tm_miss_req_data[575:512]),
-        .req_9_valid(tm_miss_req_valid[9]),
-        .req_9_ready(tm_miss_req_ready[9]),
-        .req_9_data(tm_miss_req_data[639:576]),
-        .req_10_valid(tm_miss_req_valid[10]),
-        .req_10_ready(tm_miss_req_ready[10]),
-        .req_10_data(tm_miss_req_data[703:640]),
-        .req_11_valid(tm_miss_req_valid[11]),
-        .req_11_ready(tm_miss_req_ready[11]),
-        .req_11_data(tm_miss_req_data[767:704]),
-        .req_12_valid(tm_miss_req_valid[12]),
-        .req_12_ready(tm_miss_req_ready[12]),
-        .req_12_data(tm_miss_req_data[831:768]),
-        .req_13_valid(tm_miss_req_valid[13]),
-        .req_13_ready(tm_miss_req_ready[13]),
-        .req_13_data(tm_miss_req_data[895:832]),
-        .req_14_valid(tm_miss_req_valid[14]),
-        .req_14_ready(tm_miss_req_ready[14]),
-        .req_14_data(tm_miss_req_data[959:896]),
-        .req_15_valid(tm_miss_req_valid[15]),
-        .req_15_ready(tm_miss_req_ready[15]),
-        .req_15_data(tm_miss_req_data[1023:960]),
-        .req_16_valid(tm_miss_req_valid[16]),
-        .req_16_ready(tm_miss_req_ready[16]),
-        .req_16_data(tm_miss_req_data[1087:1024]),
-        .req_17_valid(tm_miss_req_valid[17]),
-        .req_17_ready(tm_miss_req_ready[17]),
-        .req_17_data(tm_miss_req_data[1151:1088]),
-        .req_18_valid(tm_miss_req_valid[18]),
-        .req_18_ready(tm_miss_req_ready[18]),
-        .req_18_data(tm_miss_req_data[1215:1152]),
-        .req_19_valid(tm_miss_req_valid[19]),
-        .req_19_ready(tm_miss_req_ready[19]),
-        .req_19_data(tm_miss_req_data[1279:1216]),
-        .req_20_valid(tm_miss_req_valid[20]),
-        .req_20_ready(tm_miss_req_ready[20]),
-        .req_20_data(tm_miss_req_data[1343:1280]),
-        .req_21_valid(tm_miss_req_valid[21]),
-        .req_21_ready(tm_miss_req_ready[21]),
-        .req_21_data(tm_miss_req_data[1407:1344]),
-        .req_22_valid(tm_miss_req_valid[22]),
-        .req_22_ready(tm_miss_req_ready[22]),
-        .req_22_data(tm_miss_req_data[1471:1408]),
-        .req_23_valid(tm_miss_req_valid[23]),
-        .req_23_ready(tm_miss_req_ready[23]),
-        .req_23_data(tm_miss_req_data[1535:1472]),
-        .req_24_valid(tm_miss_req_valid[24]),
-        .req_24_ready(tm_miss_req_ready[24]),
-        .req_24_data(tm_miss_req_data[1599:1536]),
-        .req_25_valid(tm_miss_req_valid[25]),
-        .req_25_ready(tm_miss_req_ready[25]),
-        .req_25_data(tm_miss_req_data[1663:1600]),
-        .req_26_valid(tm_miss_req_valid[26]),
-        .req_26_ready(tm_miss_req_ready[26]),
-        .req_26_data(tm_miss_req_data[1727:1664]),
-        .req_27_valid(tm_miss_req_valid[27]),
-        .req_27_ready(tm_miss_req_ready[27]),
-        .req_27_data(tm_miss_req_data[1791:1728]),
-        .req_28_valid(tm_miss_req_valid[28]),
-        .req_28_ready(tm_miss_req_ready[28]),
-        .req_28_data(tm_miss_req_data[1855:1792]),
-        .req_29_valid(tm_miss_req_valid[29]),
-        .req_29_ready(tm_miss_req_ready[29]),
-        .req_29_data(tm_miss_req_data[1919:1856]),
-        .req_30_valid(tm_miss_req_valid[30]),
-        .req_30_ready(tm_miss_req_ready[30]),
-        .req_30_data(tm_miss_req_data[1983:1920]),
-        .req_31_valid(tm_miss_req_valid[31]),
-        .req_31_ready(tm_miss_req_ready[31]),
-        .req_31_data(tm_miss_req_data[2047:1984]),
-        .req_32_valid(tm_miss_req_valid[32]),
-        .req_32_ready(tm_miss_req_ready[32]),
-        .req_32_data(tm_miss_req_data[2111:2048]),
-        .req_33_valid(tm_miss_req_valid[33]),
-        .req_33_ready(tm_miss_req_ready[33]),
-        .req_33_data(tm_miss_req_data[2175:2112]),
-        .req_34_valid(tm_miss_req_valid[34]),
-        .req_34_ready(tm_miss_req_ready[34]),
-        .req_34_data(tm_miss_req_data[2239:2176]),
-        .req_35_valid(tm_miss_req_valid[35]),
-        .req_35_ready(tm_miss_req_ready[35]),
-        .req_35_data(tm_miss_req_data[2303:2240]),
-        .req_36_valid(tm_miss_req_valid[36]),
-        .req_36_ready(tm_miss_req_ready[36]),
-        .req_36_data(tm_miss_req_data[2367:2304]),
-        .req_37_valid(tm_miss_req_valid[37]),
-        .req_37_ready(tm_miss_req_ready[37]),
-        .req_37_data(tm_miss_req_data[2431:2368]),
-        .req_38_valid(tm_miss_req_valid[38]),
-        .req_38_ready(tm_miss_req_ready[38]),
-        .req_38_data(tm_miss_req_data[2495:2432]),
-        .req_39_valid(tm_miss_req_valid[39]),
-        .req_39_ready(tm_miss_req_ready[39]),
-        .req_39_data(tm_miss_req_data[2559:2496]),
-        .req_40_valid(tm_miss_req_valid[40]),
-        .req_40_ready(tm_miss_req_ready[40]),
-        .req_40_data(tm_miss_req_data[2623:2560]),
-        .req_41_valid(tm_miss_req_valid[41]),
-        .req_41_ready(tm_miss_req_ready[41]),
-        .req_41_data(tm_miss_req_data[2687:2624]),
-        .req_42_valid(tm_miss_req_valid[42]),
-        .req_42_ready(tm_miss_req_ready[42]),
-        .req_42_data(tm_miss_req_data[2751:2688]),
-        .req_43_valid(tm_miss_req_valid[43]),
-        .req_43_ready(tm_miss_req_ready[43]),
-        .req_43_data(tm_miss_req_data[2815:2752]),
-        .req_44_valid(tm_miss_req_valid[44]),
-        .req_44_ready(tm_miss_req_ready[44]),
-        .req_44_data(tm_miss_req_data[2879:2816]),
-        .req_45_valid(tm_miss_req_valid[45]),
-        .req_45_ready(tm_miss_req_ready[45]),
-        .req_45_data(tm_miss_req_data[2943:2880]),
-        .req_46_valid(tm_miss_req_valid[46]),
-        .req_46_ready(tm_miss_req_ready[46]),
-        .req_46_data(tm_miss_req_data[3007:2944]),
-        .req_47_valid(tm_miss_req_valid[47]),
-        .req_47_ready(tm_miss_req_ready[47]),
-        .req_47_data(tm_miss_req_data[3071:3008]),
-        .req_48_valid(tm_miss_req_valid[48]),
-        .req_48_ready(tm_miss_req_ready[48]),
-        .req_48_data(tm_miss_req_data[3135:3072]),
-        .req_49_valid(tm_miss_req_valid[49]),
-        .req_49_ready(tm_miss_req_ready[49]),
-        .req_49_data(tm_miss_req_data[3199:3136]),
-        .req_50_valid(tm_miss_req_valid[50]),
-        .req_50_ready(tm_miss_req_ready[50]),
-        .req_50_data(tm_miss_req_data[3263:3200]),
-        .req_51_valid(tm_miss_req_valid[51]),
-        .req_51_ready(tm_miss_req_ready[51]),
-        .req_51_data(tm_miss_req_data[3327:3264]),
-        .req_52_valid(tm_miss_req_valid[52]),
-        .req_52_ready(tm_miss_req_ready[52]),
-        .req_52_data(tm_miss_req_data[3391:3328]),
-        .req_53_valid(tm_miss_req_valid[53]),
-        .req_53_ready(tm_miss_req_ready[53]),
-        .req_53_data(tm_miss_req_data[3455:3392]),
-        .req_54_valid(tm_miss_req_valid[54]),
-        .req_54_ready(tm_miss_req_ready[54]),
-        .req_54_data(tm_miss_req_data[3519:3456]),
-        .req_55_valid(tm_miss_req_valid[55]),
-        .req_55_ready(tm_miss_req_ready[55]),
-        .req_55_data(tm_miss_req_data[3583:3520]),
-        .req_56_valid(tm_miss_req_valid[56]),
-        .req_56_ready(tm_miss_req_ready[56]),
-        .req_56_data(tm_miss_req_data[3647:3584]),
-        .req_57_valid(tm_miss_req_valid[57]),
-        .req_57_ready(tm_miss_req_ready[57]),
-        .req_57_data(tm_miss_req_data[3711:3648]),
-        .req_58_valid(tm_miss_req_valid[58]),
-        .req_58_ready(tm_miss_req_ready[58]),
-        .req_58_data(tm_miss_req_data[3775:3712]),
-        .req_59_valid(tm_miss_req_valid[59]),
-        .req_59_ready(tm_miss_req_ready[59]),
-        .req_59_data(tm_miss_req_data[3839:3776]),
-        .req_60_valid(tm_miss_req_valid[60]),
-        .req_60_ready(tm_miss_req_ready[60]),
-        .req_60_data(tm_miss_req_data[3903:3840]),
-        .req_61_valid(tm_miss_req_valid[61]),
-        .req_61_ready(tm_miss_req_ready[61]),
-        .req_61_data(tm_miss_req_data[3967:3904]),
-        .req_62_valid(tm_miss_req_valid[62]),
-        .req_62_ready(tm_miss_req_ready[62]),
-        .req_62_data(tm_miss_req_data[4031:3968]),
-        .req_63_valid(tm_miss_req_valid[63]),
-        .req_63_ready(tm_miss_req_ready[63]),
-        .req_63_data(tm_miss_req_data[4095:4032]),
-        .req_64_valid(tm_miss_req_valid[64]),
-        .req_64_ready(tm_miss_req_ready[64]),
-        .req_64_data(tm_miss_req_data[4159:4096]),
-        .req_65_valid(tm_miss_req_valid[65]),
-        .req_65_ready(tm_miss_req_ready[65]),
-        .req_65_data(tm_miss_req_data[4223:4160]),
-        .req_66_valid(tm_miss_req_valid[66]),
-        .req_66_ready(tm_miss_req_ready[66]),
-        .req_66_data(tm_miss_req_data[4287:4224]),
-        .req_67_valid(tm_miss_req_valid[67]),
-        .req_67_ready(tm_miss_req_ready[67]),
-        .req_67_data(tm_miss_req_data[4351:4288]),
-        .req_68_valid(tm_miss_req_valid[68]),
-        .req_68_ready(tm_miss_req_ready[68]),
-        .req_68_data(tm_miss_req_data[4415:4352]),
-        .req_69_valid(tm_miss_req_valid[69]),
-        .req_69_ready(tm_miss_req_ready[69]),
-        .req_69_data(tm_miss_req_data[4479:4416]),
-        .req_70_valid(tm_miss_req_valid[70]),
-        .req_70_ready(tm_miss_req_ready[70]),
-        .req_70_data(tm_miss_req_data[4543:4480]),
-        .req_71_valid(tm_miss_req_valid[71]),
-        .req_71_ready(tm_miss_req_ready[71]),
-        .req_71_data(tm_miss_req_data[4607:4544]),
-        .req_72_valid(tm_miss_req_valid[72]),
-        .req_72_ready(tm_miss_req_ready[72]),
-        .req_72_data(tm_miss_req_data[4671:4608]),
-        .req_73_valid(tm_miss_req_valid[73]),
-        .req_73_ready(tm_miss_req_ready[73]),
-        .req_73_data(tm_miss_req_data[4735:4672]),
-        .req_74_valid(tm_miss_req_valid[74]),
-        .req_74_ready(tm_miss_req_ready[74]),
-        .req_74_data(tm_miss_req_data[4799:4736]),
-        .req_75_valid(tm_miss_req_valid[75]),
-        .req_75_ready(tm_miss_req_ready[75]),
-        .req_75_data(tm_miss_req_data[4863:4800]),
-        .req_76_valid(tm_miss_req_valid[76]),
-        .req_76_ready(tm_miss_req_ready[76]),
-        .req_76_data(tm_miss_req_data[4927:4864]),
-        .req_77_valid(tm_miss_req_valid[77]),
-        .req_77_ready(tm_miss_req_ready[77]),
-        .req_77_data(tm_miss_req_data[4991:4928]),
-        .req_78_valid(tm_miss_req_valid[78]),
-        .req_78_ready(tm_miss_req_ready[78]),
-        .req_78_data(tm_miss_req_data[5055:4992]),
-        .req_79_valid(tm_miss_req_valid[79]),
-        .req_79_ready(tm_miss_req_ready[79]),
-        .req_79_data(tm_miss_req_data[5119:5056]),
-        .req_80_valid(tm_miss_req_valid[80]),
-        .req_80_ready(tm_miss_req_ready[80]),
-        .req_80_data(tm_miss_req_data[5183:5120]),
-        .req_81_valid(tm_miss_req_valid[81]),
-        .req_81_ready(tm_miss_req_ready[81]),
-        .req_81_data(tm_miss_req_data[5247:5184]),
-        .req_82_valid(tm_miss_req_valid[82]),
-        .req_82_ready(tm_miss_req_ready[82]),
-        .req_82_data(tm_miss_req_data[5311:5248]),
-        .req_83_valid(tm_miss_req_valid[83]),
-        .req_83_ready(tm_miss_req_ready[83]),
-        .req_83_data(tm_miss_req_data[5375:5312]),
-        .req_84_valid(tm_miss_req_valid[84]),
-        .req_84_ready(tm_miss_req_ready[84]),
-        .req_84_data(tm_miss_req_data[5439:5376]),
-        .req_85_valid(tm_miss_req_valid[85]),
-        .req_85_ready(tm_miss_req_ready[85]),
-        .req_85_data(tm_miss_req_data[5503:5440]),
-        .req_86_valid(tm_miss_req_valid[86]),
-        .req_86_ready(tm_miss_req_ready[86]),
-        .req_86_data(tm_miss_req_data[5567:5504]),
-        .req_87_valid(tm_miss_req_valid[87]),
-        .req_87_ready(tm_miss_req_ready[87]),
-        .req_87_data(tm_miss_req_data[5631:5568]),
-        .req_88_valid(tm_miss_req_valid[88]),
-        .req_88_ready(tm_miss_req_ready[88]),
-        .req_88_data(tm_miss_req_data[5695:5632]),
-        .req_89_valid(tm_miss_req_valid[89]),
-        .req_89_ready(tm_miss_req_ready[89]),
-        .req_89_data(tm_miss_req_data[5759:5696]),
-        .req_90_valid(tm_miss_req_valid[90]),
-        .req_90_ready(tm_miss_req_ready[90]),
-        .req_90_data(tm_miss_req_data[5823:5760]),
-        .req_91_valid(tm_miss_req_valid[91]),
-        .req_91_ready(tm_miss_req_ready[91]),
-        .req_91_data(tm_miss_req_data[5887:5824]),
-        .req_92_valid(tm_miss_req_valid[92]),
-        .req_92_ready(tm_miss_req_ready[92]),
-        .req_92_data(tm_miss_req_data[5951:5888]),
-        .req_93_valid(tm_miss_req_valid[93]),
-        .req_93_ready(tm_miss_req_ready[93]),
-        .req_93_data(tm_miss_req_data[6015:5952]),
-        .req_94_valid(tm_miss_req_valid[94]),
-        .req_94_ready(tm_miss_req_ready[94]),
-        .req_94_data(tm_miss_req_data[6079:6016]),
-        .req_95_valid(tm_miss_req_valid[95]),
-        .req_95_ready(tm_miss_req_ready[95]),
-        .req_95_data(tm_miss_req_data[6143:6080]),
-        .req_96_valid(tm_miss_req_valid[96]),
-        .req_96_ready(tm_miss_req_ready[96]),
-        .req_96_data(tm_miss_req_data[6207:6144]),
-        .req_97_valid(tm_miss_req_valid[97]),
-        .req_97_ready(tm_miss_req_ready[97]),
-        .req_97_data(tm_miss_req_data[6271:6208]),
-        .req_98_valid(tm_miss_req_valid[98]),
-        .req_98_ready(tm_miss_req_ready[98]),
-        .req_98_data(tm_miss_req_data[6335:6272]),
-        .req_99_valid(tm_miss_req_valid[99]),
-        .req_99_ready(tm_miss_req_ready[99]),
-        .req_99_data(tm_miss_req_data[6399:6336]),
-        .req_100_valid(tm_miss_req_valid[100]),
-        .req_100_ready(tm_miss_req_ready[100]),
-        .req_100_data(tm_miss_req_data[6463:6400]),
-        .req_101_valid(tm_miss_req_valid[101]),
-        .req_101_ready(tm_miss_req_ready[101]),
-        .req_101_data(tm_miss_req_data[6527:6464]),
-        .req_102_valid(tm_miss_req_valid[102]),
-        .req_102_ready(tm_miss_req_ready[102]),
-        .req_102_data(tm_miss_req_data[6591:6528]),
-        .req_103_valid(tm_miss_req_valid[103]),
-        .req_103_ready(tm_miss_req_ready[103]),
-        .req_103_data(tm_miss_req_data[6655:6592]),
-        .req_104_valid(tm_miss_req_valid[104]),
-        .req_104_ready(tm_miss_req_ready[104]),
-        .req_104_data(tm_miss_req_data[6719:6656]),
-        .req_105_valid(tm_miss_req_valid[105]),
-        .req_105_ready(tm_miss_req_ready[105]),
-        .req_105_data(tm_miss_req_data[6783:6720]),
-        .req_106_valid(tm_miss_req_valid[106]),
-        .req_106_ready(tm_miss_req_ready[106]),
-        .req_106_data(tm_miss_req_data[6847:6784]),
-        .req_107_valid(tm_miss_req_valid[107]),
-        .req_107_ready(tm_miss_req_ready[107]),
-        .req_107_data(tm_miss_req_data[6911:6848]),
-        .req_108_valid(tm_miss_req_valid[108]),
-        .req_108_ready(tm_miss_req_ready[108]),
-        .req_108_data(tm_miss_req_data[6975:6912]),
-        .req_109_valid(tm_miss_req_valid[109]),
-        .req_109_ready(tm_miss_req_ready[109]),
-        .req_109_data(tm_miss_req_data[7039:6976]),
-        .req_110_valid(tm_miss_req_valid[110]),
-        .req_110_ready(tm_miss_req_ready[110]),
-        .req_110_data(tm_miss_req_data[7103:7040]),
-        .req_111_valid(tm_miss_req_valid[111]),
-        .req_111_ready(tm_miss_req_ready[111]),
-        .req_111_data(tm_miss_req_data[7167:7104]),
-        .req_112_valid(tm_miss_req_valid[112]),
-        .req_112_ready(tm_miss_req_ready[112]),
-        .req_112_data(tm_miss_req_data[7231:7168]),
-        .req_113_valid(tm_miss_req_valid[113]),
-        .req_113_ready(tm_miss_req_ready[113]),
-        .req_113_data(tm_miss_req_data[7295:7232]),
-        .req_114_valid(tm_miss_req_valid[114]),
-        .req_114_ready(tm_miss_req_ready[114]),
-        .req_114_data(tm_miss_req_data[7359:7296]),
-        .req_115_valid(tm_miss_req_valid[115]),
-        .req_115_ready(tm_miss_req_ready[115]),
-        .req_115_data(tm_miss_req_data[7423:7360]),
-        .req_116_valid(tm_miss_req_valid[116]),
-        .req_116_ready(tm_miss_req_ready[116]),
-        .req_116_data(tm_miss_req_data[7487:7424]),
-        .req_117_valid(tm_miss_req_valid[117]),
-        .req_117_ready(tm_miss_req_ready[117]),
-        .req_117_data(tm_miss_req_data[7551:7488]),
-        .req_118_valid(tm_miss_req_valid[118]),
-        .req_118_ready(tm_miss_req_ready[118]),
-        .req_118_data(tm_miss_req_data[7615:7552]),
-        .req_119_valid(tm_miss_req_valid[119]),
-        .req_119_ready(tm_miss_req_ready[119]),
-        .req_119_data(tm_miss_req_data[7679:7616]),
-        .req_120_valid(tm_miss_req_valid[120]),
-        .req_120_ready(tm_miss_req_ready[120]),
-        .req_120_data(tm_miss_req_data[7743:7680]),
-        .req_121_valid(tm_miss_req_valid[121]),
-        .req_121_ready(tm_miss_req_ready[121]),
-        .req_121_data(tm_miss_req_data[7807:7744]),
-        .req_122_valid(tm_miss_req_valid[122]),
-        .req_122_ready(tm_miss_req_ready[122]),
-        .req_122_data(tm_miss_req_data[7871:7808]),
-        .req_123_valid(tm_miss_req_valid[123]),
-        .req_123_ready(tm_miss_req_ready[123]),
-        .req_123_data(tm_miss_req_data[7935:7872]),
-        .req_124_valid(tm_miss_req_valid[124]),
-        .req_124_ready(tm_miss_req_ready[124]),
-        .req_124_data(tm_miss_req_data[7999:7936]),
-        .req_125_valid(tm_miss_req_valid[125]),
-        .req_125_ready(tm_miss_req_ready[125]),
-        .req_125_data(tm_miss_req_data[8063:8000]),
-        .req_126_valid(tm_miss_req_valid[126]),
-        .req_126_ready(tm_miss_req_ready[126]),
-        .req_126_data(tm_miss_req_data[8127:8064]),
-        .req_127_valid(tm_miss_req_valid[127]),
-        .req_127_ready(tm_miss_req_ready[127]),
-        .req_127_data(tm_miss_req_data[8191:8128]),
-        .resp_0_valid(tm_miss_resp_valid[0]),
-        .resp_0_ready(tm_miss_resp_ready[0]),
-        .resp_0_data(tm_miss_resp_data[575:0]),
-        .resp_1_valid(tm_miss_resp_valid[1]),
-        .resp_1_ready(tm_miss_resp_ready[1]),
-        .resp_1_data(tm_miss_resp_data[1151:576]),
-        .resp_2_valid(tm_miss_resp_valid[2]),
-        .resp_2_ready(tm_miss_resp_ready[2]),
-        .resp_2_data(tm_miss_resp_data[1727:1152]),
-        .resp_3_valid(tm_miss_resp_valid[3]),
-        .resp_3_ready(tm_miss_resp_ready[3]),
-        .resp_3_data(tm_miss_resp_data[2303:1728]),
-        .resp_4_valid(tm_miss_resp_valid[4]),
-        .resp_4_ready(tm_miss_resp_ready[4]),
-        .resp_4_data(tm_miss_resp_data[2879:2304]),
-        .resp_5_valid(tm_miss_resp_valid[5]),
-        .resp_5_ready(tm_miss_resp_ready[5]),
-        .resp_5_data(tm_miss_resp_data[3455:2880]),
-        .resp_6_valid(tm_miss_resp_valid[6]),
-        .resp_6_ready(tm_miss_resp_ready[6]),
-        .resp_6_data(tm_miss_resp_data[4031:3456]),
-        .resp_7_valid(tm_miss_resp_valid[7]),
-        .resp_7_ready(tm_miss_resp_ready[7]),
-        .resp_7_data(tm_miss_resp_data[4607:4032]),
-        .resp_8_valid(tm_miss_resp_valid[8]),
-        .resp_8_ready(tm_miss_resp_ready[8]),
-        .resp_8_data(tm_miss_resp_data[5183:4608]),
-        .resp_9_valid(tm_miss_resp_valid[9]),
-        .resp_9_ready(tm_miss_resp_ready[9]),
-        .resp_9_data(tm_miss_resp_data[5759:5184]),
-        .resp_10_valid(tm_miss_resp_valid[10]),
-        .resp_10_ready(tm_miss_resp_ready[10]),
-        .resp_10_data(tm_miss_resp_data[6335:5760]),
-        .resp_11_valid(tm_miss_resp_valid[11]),
-        .resp_11_ready(tm_miss_resp_ready[11]),
-        .resp_11_data(tm_miss_resp_data[6911:6336]),
-        .resp_12_valid(tm_miss_resp_valid[12]),
-        .resp_12_ready(tm_miss_resp_ready[12]),
-        .resp_12_data(tm_miss_resp_data[7487:6912]),
-        .resp_13_valid(tm_miss_resp_valid[13]),
-        .resp_13_ready(tm_miss_resp_ready[13]),
-        .resp_13_data(tm_miss_resp_data[8063:7488]),
-        .resp_14_valid(tm_miss_resp_valid[14]),
-        .resp_14_ready(tm_miss_resp_ready[14]),
-        .resp_14_data(tm_miss_resp_data[8639:8064]),
-        .resp_15_valid(tm_miss_resp_valid[15]),
-        .resp_15_ready(tm_miss_resp_ready[15]),
-        .resp_15_data(tm_miss_resp_data[9215:8640]),
-        .resp_16_valid(tm_miss_resp_valid[16]),
-        .resp_16_ready(tm_miss_resp_ready[16]),
-        .resp_16_data(tm_miss_resp_data[9791:9216]),
-        .resp_17_valid(tm_miss_resp_valid[17]),
-        .resp_17_ready(tm_miss_resp_ready[17]),
-        .resp_17_data(tm_miss_resp_data[10367:9792]),
-        .resp_18_valid(tm_miss_resp_valid[18]),
-        .resp_18_ready(tm_miss_resp_ready[18]),
-        .resp_18_data(tm_miss_resp_data[10943:10368]),
-        .resp_19_valid(tm_miss_resp_valid[19]),
-        .resp_19_ready(tm_miss_resp_ready[19]),
-        .resp_19_data(tm_miss_resp_data[11519:10944]),
-        .resp_20_valid(tm_miss_resp_valid[20]),
-        .resp_20_ready(tm_miss_resp_ready[20]),
-        .resp_20_data(tm_miss_resp_data[12095:11520]),
-        .resp_21_valid(tm_miss_resp_valid[21]),
-        .resp_21_ready(tm_miss_resp_ready[21]),
-        .resp_21_data(tm_miss_resp_data[12671:12096]),
-        .resp_22_valid(tm_miss_resp_valid[22]),
-        .resp_22_ready(tm_miss_resp_ready[22]),
-        .resp_22_data(tm_miss_resp_data[13247:12672]),
-        .resp_23_valid(tm_miss_resp_valid[23]),
-        .resp_23_ready(tm_miss_resp_ready[23]),
-        .resp_23_data(tm_miss_resp_data[13823:13248]),
-        .resp_24_valid(tm_miss_resp_valid[24]),
-        .resp_24_ready(tm_miss_resp_ready[24]),
-        .resp_24_data(tm_miss_resp_data[14399:13824]),
-        .resp_25_valid(tm_miss_resp_valid[25]),
-        .resp_25_ready(tm_miss_resp_ready[25]),
-        .resp_25_data(tm_miss_resp_data[14975:14400]),
-        .resp_26_valid(tm_miss_resp_valid[26]),
-        .resp_26_ready(tm_miss_resp_ready[26]),
-        .resp_26_data(tm_miss_resp_data[15551:14976]),
-        .resp_27_valid(tm_miss_resp_valid[27]),
-        .resp_27_ready(tm_miss_resp_ready[27]),
-        .resp_27_data(tm_miss_resp_data[16127:15552]),
-        .resp_28_valid(tm_miss_resp_valid[28]),
-        .resp_28_ready(tm_miss_resp_ready[28]),
-        .resp_28_data(tm_miss_resp_data[16703:16128]),
-        .resp_29_valid(tm_miss_resp_valid[29]),
-        .resp_29_ready(tm_miss_resp_ready[29]),
-        .resp_29_data(tm_miss_resp_data[17279:16704]),
-        .resp_30_valid(tm_miss_resp_valid[30]),
-        .resp_30_ready(tm_miss_resp_ready[30]),
-        .resp_30_data(tm_miss_resp_data[17855:17280]),
-        .resp_31_valid(tm_miss_resp_valid[31]),
-        .resp_31_ready(tm_miss_resp_ready[31]),
-        .resp_31_data(tm_miss_resp_data[18431:17856]),
-        .resp_32_valid(tm_miss_resp_valid[32]),
-        .resp_32_ready(tm_miss_resp_ready[32]),
-        .resp_32_data(tm_miss_resp_data[19007:18432]),
-        .resp_33_valid(tm_miss_resp_valid[33]),
-        .resp_33_ready(tm_miss_resp_ready[33]),
-        .resp_33_data(tm_miss_resp_data[19583:19008]),
-        .resp_34_valid(tm_miss_resp_valid[34]),
-        .resp_34_ready(tm_miss_resp_ready[34]),
-        .resp_34_data(tm_miss_resp_data[20159:19584]),
-        .resp_35_valid(tm_miss_resp_valid[35]),
-        .resp_35_ready(tm_miss_resp_ready[35]),
-        .resp_35_data(tm_miss_resp_data[20735:20160]),
-        .resp_36_valid(tm_miss_resp_valid[36]),
-        .resp_36_ready(tm_miss_resp_ready[36]),
-        .resp_36_data(tm_miss_resp_data[21311:20736]),
-        .resp_37_valid(tm_miss_resp_valid[37]),
-        .resp_37_ready(tm_miss_resp_ready[37]),
-        .resp_37_data(tm_miss_resp_data[21887:21312]),
-        .resp_38_valid(tm_miss_resp_valid[38]),
-        .resp_38_ready(tm_miss_resp_ready[38]),
-        .resp_38_data(tm_miss_resp_data[22463:21888]),
-        .resp_39_valid(tm_miss_resp_valid[39]),
-        .resp_39_ready(tm_miss_resp_ready[39]),
-        .resp_39_data(tm_miss_resp_data[23039:22464]),
-        .resp_40_valid(tm_miss_resp_valid[40]),
-        .resp_40_ready(tm_miss_resp_ready[40]),
-        .resp_40_data(tm_miss_resp_data[23615:23040]),
-        .resp_41_valid(tm_miss_resp_valid[41]),
-        .resp_41_ready(tm_miss_resp_ready[41]),
-        .resp_41_data(tm_miss_resp_data[24191:23616]),
-        .resp_42_valid(tm_miss_resp_valid[42]),
-        .resp_42_ready(tm_miss_resp_ready[42]),
-        .resp_42_data(tm_miss_resp_data[24767:24192]),
-        .resp_43_valid(tm_miss_resp_valid[43]),
-        .resp_43_ready(tm_miss_resp_ready[43]),
-        .resp_43_data(tm_miss_resp_data[25343:24768]),
-        .resp_44_valid(tm_miss_resp_valid[44]),
-        .resp_44_ready(tm_miss_resp_ready[44]),
-        .resp_44_data(tm_miss_resp_data[25919:25344]),
-        .resp_45_valid(tm_miss_resp_valid[45]),
-        .resp_45_ready(tm_miss_resp_ready[45]),
-        .resp_45_data(tm_miss_resp_data[26495:25920]),
-        .resp_46_valid(tm_miss_resp_valid[46]),
-        .resp_46_ready(tm_miss_resp_ready[46]),
-        .resp_46_data(tm_miss_resp_data[27071:26496]),
-        .resp_47_valid(tm_miss_resp_valid[47]),
-        .resp_47_ready(tm_miss_resp_ready[47]),
-        .resp_47_data(tm_miss_resp_data[27647:27072]),
-        .resp_48_valid(tm_miss_resp_valid[48]),
-        .resp_48_ready(tm_miss_resp_ready[48]),
-        .resp_48_data(tm_miss_resp_data[28223:27648]),
-        .resp_49_valid(tm_miss_resp_valid[49]),
-        .resp_49_ready(tm_miss_resp_ready[49]),
-        .resp_49_data(tm_miss_resp_data[28799:28224]),
-        .resp_50_valid(tm_miss_resp_valid[50]),
-        .resp_50_ready(tm_miss_resp_ready[50]),
-        .resp_50_data(tm_miss_resp_data[29375:28800]),
-        .resp_51_valid(tm_miss_resp_valid[51]),
-        .resp_51_ready(tm_miss_resp_ready[51]),
-        .resp_51_data(tm_miss_resp_data[29951:29376]),
-        .resp_52_valid(tm_miss_resp_valid[52]),
-        .resp_52_ready(tm_miss_resp_ready[52]),
-        .resp_52_data(tm_miss_resp_data[30527:29952]),
-        .resp_53_valid(tm_miss_resp_valid[53]),
-        .resp_53_ready(tm_miss_resp_ready[53]),
-        .resp_53_data(tm_miss_resp_data[31103:30528]),
-        .resp_54_valid(tm_miss_resp_valid[54]),
-        .resp_54_ready(tm_miss_resp_ready[54]),
-        .resp_54_data(tm_miss_resp_data[31679:31104]),
-        .resp_55_valid(tm_miss_resp_valid[55]),
-        .resp_55_ready(tm_miss_resp_ready[55]),
-        .resp_55_data(tm_miss_resp_data[32255:31680]),
-        .resp_56_valid(tm_miss_resp_valid[56]),
-        .resp_56_ready(tm_miss_resp_ready[56]),
-        .resp_56_data(tm_miss_resp_data[32831:32256]),
-        .resp_57_valid(tm_miss_resp_valid[57]),
-        .resp_57_ready(tm_miss_resp_ready[57]),
-        .resp_57_data(tm_miss_resp_data[33407:32832]),
-        .resp_58_valid(tm_miss_resp_valid[58]),
-        .resp_58_ready(tm_miss_resp_ready[58]),
-        .resp_58_data(tm_miss_resp_data[33983:33408]),
-        .resp_59_valid(tm_miss_resp_valid[59]),
-        .resp_59_ready(tm_miss_resp_ready[59]),
-        .resp_59_data(tm_miss_resp_data[34559:33984]),
-        .resp_60_valid(tm_miss_resp_valid[60]),
-        .resp_60_ready(tm_miss_resp_ready[60]),
-        .resp_60_data(tm_miss_resp_data[35135:34560]),
-        .resp_61_valid(tm_miss_resp_valid[61]),
-        .resp_61_ready(tm_miss_resp_ready[61]),
-        .resp_61_data(tm_miss_resp_data[35711:35136]),
-        .resp_62_valid(tm_miss_resp_valid[62]),
-        .resp_62_ready(tm_miss_resp_ready[62]),
-        .resp_62_data(tm_miss_resp_data[36287:35712]),
-        .resp_63_valid(tm_miss_resp_valid[63]),
-        .resp_63_ready(tm_miss_resp_ready[63]),
-        .resp_63_data(tm_miss_resp_data[36863:36288]),
-        .resp_64_valid(tm_miss_resp_valid[64]),
-        .resp_64_ready(tm_miss_resp_ready[64]),
-        .resp_64_data(tm_miss_resp_data[37439:36864]),
-        .resp_65_valid(tm_miss_resp_valid[65]),
-        .resp_65_ready(tm_miss_resp_ready[65]),
-        .resp_65_data(tm_miss_resp_data[38015:37440]),
-        .resp_66_valid(tm_miss_resp_valid[66]),
-        .resp_66_ready(tm_miss_resp_ready[66]),
-        .resp_66_data(tm_miss_resp_data[38591:38016]),
-        .resp_67_valid(tm_miss_resp_valid[67]),
-        .resp_67_ready(tm_miss_resp_ready[67]),
-        .resp_67_data(tm_miss_resp_data[39167:38592]),
-        .resp_68_valid(tm_miss_resp_valid[68]),
-        .resp_68_ready(tm_miss_resp_ready[68]),
-        .resp_68_data(tm_miss_resp_data[39743:39168]),
-        .resp_69_valid(tm_miss_resp_valid[69]),
-        .resp_69_ready(tm_miss_resp_ready[69]),
-        .resp_69_data(tm_miss_resp_data[40319:39744]),
-        .resp_70_valid(tm_miss_resp_valid[70]),
-        .resp_70_ready(tm_miss_resp_ready[70]),
-        .resp_70_data(tm_miss_resp_data[40895:40320]),
-        .resp_71_valid(tm_miss_resp_valid[71]),
-        .resp_71_ready(tm_miss_resp_ready[71]),
-        .resp_71_data(tm_miss_resp_data[41471:40896]),
-        .resp_72_valid(tm_miss_resp_valid[72]),
-        .resp_72_ready(tm_miss_resp_ready[72]),
-        .resp_72_data(tm_miss_resp_data[42047:41472]),
-        .resp_73_valid(tm_miss_resp_valid[73]),
-        .resp_73_ready(tm_miss_resp_ready[73]),
-        .resp_73_data(tm_miss_resp_data[42623:42048]),
-        .resp_74_valid(tm_miss_resp_valid[74]),
-        .resp_74_ready(tm_miss_resp_ready[74]),
-        .resp_74_data(tm_miss_resp_data[43199:42624]),
-        .resp_75_valid(tm_miss_resp_valid[75]),
-        .resp_75_ready(tm_miss_resp_ready[75]),
-        .resp_75_data(tm_miss_resp_data[43775:43200]),
-        .resp_76_valid(tm_miss_resp_valid[76]),
-        .resp_76_ready(tm_miss_resp_ready[76]),
-        .resp_76_data(tm_miss_resp_data[44351:43776]),
-        .resp_77_valid(tm_miss_resp_valid[77]),
-        .resp_77_ready(tm_miss_resp_ready[77]),
-        .resp_77_data(tm_miss_resp_data[44927:44352]),
-        .resp_78_valid(tm_miss_resp_valid[78]),
-        .resp_78_ready(tm_miss_resp_ready[78]),
-        .resp_78_data(tm_miss_resp_data[45503:44928]),
-        .resp_79_valid(tm_miss_resp_valid[79]),
-        .resp_79_ready(tm_miss_resp_ready[79]),
-        .resp_79_data(tm_miss_resp_data[46079:45504]),
-        .resp_80_valid(tm_miss_resp_valid[80]),
-        .resp_80_ready(tm_miss_resp_ready[80]),
-        .resp_80_data(tm_miss_resp_data[46655:46080]),
-        .resp_81_valid(tm_miss_resp_valid[81]),
-        .resp_81_ready(tm_miss_resp_ready[81]),
-        .resp_81_data(tm_miss_resp_data[47231:46656]),
-        .resp_82_valid(tm_miss_resp_valid[82]),
-        .resp_82_ready(tm_miss_resp_ready[82]),
-        .resp_82_data(tm_miss_resp_data[47807:47232]),
-        .resp_83_valid(tm_miss_resp_valid[83]),
-        .resp_83_ready(tm_miss_resp_ready[83]),
-        .resp_83_data(tm_miss_resp_data[48383:47808]),
-        .resp_84_valid(tm_miss_resp_valid[84]),
-        .resp_84_ready(tm_miss_resp_ready[84]),
-        .resp_84_data(tm_miss_resp_data[48959:48384]),
-        .resp_85_valid(tm_miss_resp_valid[85]),
-        .resp_85_ready(tm_miss_resp_ready[85]),
-        .resp_85_data(tm_miss_resp_data[49535:48960]),
-        .resp_86_valid(tm_miss_resp_valid[86]),
-        .resp_86_ready(tm_miss_resp_ready[86]),
-        .resp_86_data(tm_miss_resp_data[50111:49536]),
-        .resp_87_valid(tm_miss_resp_valid[87]),
-        .resp_87_ready(tm_miss_resp_ready[87]),
-        .resp_87_data(tm_miss_resp_data[50687:50112]),
-        .resp_88_valid(tm_miss_resp_valid[88]),
-        .resp_88_ready(tm_miss_resp_ready[88]),
-        .resp_88_data(tm_miss_resp_data[51263:50688]),
-        .resp_89_valid(tm_miss_resp_valid[89]),
-        .resp_89_ready(tm_miss_resp_ready[89]),
-        .resp_89_data(tm_miss_resp_data[51839:51264]),
-        .resp_90_valid(tm_miss_resp_valid[90]),
-        .resp_90_ready(tm_miss_resp_ready[90]),
-        .resp_90_data(tm_miss_resp_data[52415:51840]),
-        .resp_91_valid(tm_miss_resp_valid[91]),
-        .resp_91_ready(tm_miss_resp_ready[91]),
-        .resp_91_data(tm_miss_resp_data[52991:52416]),
-        .resp_92_valid(tm_miss_resp_valid[92]),
-        .resp_92_ready(tm_miss_resp_ready[92]),
-        .resp_92_data(tm_miss_resp_data[53567:52992]),
-        .resp_93_valid(tm_miss_resp_valid[93]),
-        .resp_93_ready(tm_miss_resp_ready[93]),
-        .resp_93_data(tm_miss_resp_data[54143:53568]),
-        .resp_94_valid(tm_miss_resp_valid[94]),
-        .resp_94_ready(tm_miss_resp_ready[94]),
-        .resp_94_data(tm_miss_resp_data[54719:54144]),
-        .resp_95_valid(tm_miss_resp_valid[95]),
-        .resp_95_ready(tm_miss_resp_ready[95]),
-        .resp_95_data(tm_miss_resp_data[55295:54720]),
-        .resp_96_valid(tm_miss_resp_valid[96]),
-        .resp_96_ready(tm_miss_resp_ready[96]),
-        .resp_96_data(tm_miss_resp_data[55871:55296]),
-        .resp_97_valid(tm_miss_resp_valid[97]),
-        .resp_97_ready(tm_miss_resp_ready[97]),
-        .resp_97_data(tm_miss_resp_data[56447:55872]),
-        .resp_98_valid(tm_miss_resp_valid[98]),
-        .resp_98_ready(tm_miss_resp_ready[98]),
-        .resp_98_data(tm_miss_resp_data[57023:56448]),
-        .resp_99_valid(tm_miss_resp_valid[99]),
-        .resp_99_ready(tm_miss_resp_ready[99]),
-        .resp_99_data(tm_miss_resp_data[57599:57024]),
-        .resp_100_valid(tm_miss_resp_valid[100]),
-        .resp_100_ready(tm_miss_resp_ready[100]),
-        .resp_100_data(tm_miss_resp_data[58175:57600]),
-        .resp_101_valid(tm_miss_resp_valid[101]),
-        .resp_101_ready(tm_miss_resp_ready[101]),
-        .resp_101_data(tm_miss_resp_data[58751:58176]),
-        .resp_102_valid(tm_miss_resp_valid[102]),
-        .resp_102_ready(tm_miss_resp_ready[102]),
-        .resp_102_data(tm_miss_resp_data[59327:58752]),
-        .resp_103_valid(tm_miss_resp_valid[103]),
-        .resp_103_ready(tm_miss_resp_ready[103]),
-        .resp_103_data(tm_miss_resp_data[59903:59328]),
-        .resp_104_valid(tm_miss_resp_valid[104]),
-        .resp_104_ready(tm_miss_resp_ready[104]),
-        .resp_104_data(tm_miss_resp_data[60479:59904]),
-        .resp_105_valid(tm_miss_resp_valid[105]),
-        .resp_105_ready(tm_miss_resp_ready[105]),
-        .resp_105_data(tm_miss_resp_data[61055:60480]),
-        .resp_106_valid(tm_miss_resp_valid[106]),
-        .resp_106_ready(tm_miss_resp_ready[106]),
-        .resp_106_data(tm_miss_resp_data[61631:61056]),
-        .resp_107_valid(tm_miss_resp_valid[107]),
-        .resp_107_ready(tm_miss_resp_ready[107]),
-        .resp_107_data(tm_miss_resp_data[62207:61632]),
-        .resp_108_valid(tm_miss_resp_valid[108]),
-        .resp_108_ready(tm_miss_resp_ready[108]),
-        .resp_108_data(tm_miss_resp_data[62783:62208]),
-        .resp_109_valid(tm_miss_resp_valid[109]),
-        .resp_109_ready(tm_miss_resp_ready[109]),
-        .resp_109_data(tm_miss_resp_data[63359:62784]),
-        .resp_110_valid(tm_miss_resp_valid[110]),
-        .resp_110_ready(tm_miss_resp_ready[110]),
-        .resp_110_data(tm_miss_resp_data[63935:63360]),
-        .resp_111_valid(tm_miss_resp_valid[111]),
-        .resp_111_ready(tm_miss_resp_ready[111]),
-        .resp_111_data(tm_miss_resp_data[64511:63936]),
-        .resp_112_valid(tm_miss_resp_valid[112]),
-        .resp_112_ready(tm_miss_resp_ready[112]),
-        .resp_112_data(tm_miss_resp_data[65087:64512]),
-        .resp_113_valid(tm_miss_resp_valid[113]),
-        .resp_113_ready(tm_miss_resp_ready[113]),
-        .resp_113_data(tm_miss_resp_data[65663:65088]),
-        .resp_114_valid(tm_miss_resp_valid[114]),
-        .resp_114_ready(tm_miss_resp_ready[114]),
-        .resp_114_data(tm_miss_resp_data[66239:65664]),
-        .resp_115_valid(tm_miss_resp_valid[115]),
-        .resp_115_ready(tm_miss_resp_ready[115]),
-        .resp_115_data(tm_miss_resp_data[66815:66240]),
-        .resp_116_valid(tm_miss_resp_valid[116]),
-        .resp_116_ready(tm_miss_resp_ready[116]),
-        .resp_116_data(tm_miss_resp_data[67391:66816]),
-        .resp_117_valid(tm_miss_resp_valid[117]),
-        .resp_117_ready(tm_miss_resp_ready[117]),
-        .resp_117_data(tm_miss_resp_data[67967:67392]),
-        .resp_118_valid(tm_miss_resp_valid[118]),
-        .resp_118_ready(tm_miss_resp_ready[118]),
-        .resp_118_data(tm_miss_resp_data[68543:67968]),
-        .resp_119_valid(tm_miss_resp_valid[119]),
-        .resp_119_ready(tm_miss_resp_ready[119]),
-        .resp_119_data(tm_miss_resp_data[69119:68544]),
-        .resp_120_valid(tm_miss_resp_valid[120]),
-        .resp_120_ready(tm_miss_resp_ready[120]),
-        .resp_120_data(tm_miss_resp_data[69695:69120]),
-        .resp_121_valid(tm_miss_resp_valid[121]),
-        .resp_121_ready(tm_miss_resp_ready[121]),
-        .resp_121_data(tm_miss_resp_data[70271:69696]),
-        .resp_122_valid(tm_miss_resp_valid[122]),
-        .resp_122_ready(tm_miss_resp_ready[122]),
-        .resp_122_data(tm_miss_resp_data[70847:70272]),
-        .resp_123_valid(tm_miss_resp_valid[123]),
-        .resp_123_ready(tm_miss_resp_ready[123]),
-        .resp_123_data(tm_miss_resp_data[71423:70848]),
-        .resp_124_valid(tm_miss_resp_valid[124]),
-        .resp_124_ready(tm_miss_resp_ready[124]),
-        .resp_124_data(tm_miss_resp_data[71999:71424]),
-        .resp_125_valid(tm_miss_resp_valid[125]),
-        .resp_125_ready(tm_miss_resp_ready[125]),
-        .resp_125_data(tm_miss_resp_data[72575:72000]),
-        .resp_126_valid(tm_miss_resp_valid[126]),
-        .resp_126_ready(tm_miss_resp_ready[126]),
-        .resp_126_data(tm_miss_resp_data[73151:72576]),
-        .resp_127_valid(tm_miss_resp_valid[127]),
-        .resp_127_ready(tm_miss_resp_ready[127]),
-        .resp_127_data(tm_miss_resp_data[73727:73152])
+        .fill_0_valid(mem_resp1_scene_pop_valid),
+        .fill_0_ready(mem_resp1_scene_pop_ready),
+        .fill_0_data(mem_resp1_scene_pop_data),
+        .fill_1_valid(mem_resp_scene1_pop_valid),
+        .fill_1_ready(mem_resp_scene1_pop_ready),
+        .fill_1_data(mem_resp_scene1_pop_data),
+        .fill_2_valid(mem_resp_scene2_pop_valid),
+        .fill_2_ready(mem_resp_scene2_pop_ready),
+        .fill_2_data(mem_resp_scene2_pop_data),
+        .fill_3_valid(mem_resp_scene3_pop_valid),
+        .fill_3_ready(mem_resp_scene3_pop_ready),
+        .fill_3_data(mem_resp_scene3_pop_data),
+        .slot_map_valid(slot_map_pop_valid),
+        .slot_map_ready(slot_map_pop_ready),
+        .slot_map_data(slot_map_pop_data),
+        .req_0_valid(tm0_miss_req_pop_valid),
+        .req_0_ready(tm0_miss_req_pop_ready),
+        .req_0_data(tm0_miss_req_pop_data),
+        .req_1_valid(tm1_miss_req_pop_valid),
+        .req_1_ready(tm1_miss_req_pop_ready),
+        .req_1_data(tm1_miss_req_pop_data),
+        .req_2_valid(tm2_miss_req_pop_valid),
+        .req_2_ready(tm2_miss_req_pop_ready),
+        .req_2_data(tm2_miss_req_pop_data),
+        .req_3_valid(tm3_miss_req_pop_valid),
+        .req_3_ready(tm3_miss_req_pop_ready),
+        .req_3_data(tm3_miss_req_pop_data),
+        .req_4_valid(tm4_miss_req_pop_valid),
+        .req_4_ready(tm4_miss_req_pop_ready),
+        .req_4_data(tm4_miss_req_pop_data),
+        .req_5_valid(tm5_miss_req_pop_valid),
+        .req_5_ready(tm5_miss_req_pop_ready),
+        .req_5_data(tm5_miss_req_pop_data),
+        .req_6_valid(tm6_miss_req_pop_valid),
+        .req_6_ready(tm6_miss_req_pop_ready),
+        .req_6_data(tm6_miss_req_pop_data),
+        .req_7_valid(tm7_miss_req_pop_valid),
+        .req_7_ready(tm7_miss_req_pop_ready),
+        .req_7_data(tm7_miss_req_pop_data),
+        .req_8_valid(tm8_miss_req_pop_valid),
+        .req_8_ready(tm8_miss_req_pop_ready),
+        .req_8_data(tm8_miss_req_pop_data),
+        .req_9_valid(tm9_miss_req_pop_valid),
+        .req_9_ready(tm9_miss_req_pop_ready),
+        .req_9_data(tm9_miss_req_pop_data),
+        .req_10_valid(tm10_miss_req_pop_valid),
+        .req_10_ready(tm10_miss_req_pop_ready),
+        .req_10_data(tm10_miss_req_pop_data),
+        .req_11_valid(tm11_miss_req_pop_valid),
+        .req_11_ready(tm11_miss_req_pop_ready),
+        .req_11_data(tm11_miss_req_pop_data),
+        .req_12_valid(tm12_miss_req_pop_valid),
+        .req_12_ready(tm12_miss_req_pop_ready),
+        .req_12_data(tm12_miss_req_pop_data),
+        .req_13_valid(tm13_miss_req_pop_valid),
+        .req_13_ready(tm13_miss_req_pop_ready),
+        .req_13_data(tm13_miss_req_pop_data),
+        .req_14_valid(tm14_miss_req_pop_valid),
+        .req_14_ready(tm14_miss_req_pop_ready),
+        .req_14_data(tm14_miss_req_pop_data),
+        .req_15_valid(tm15_miss_req_pop_valid),
+        .req_15_ready(tm15_miss_req_pop_ready),
+        .req_15_data(tm15_miss_req_pop_data),
+        .req_16_valid(tm16_miss_req_pop_valid),
+        .req_16_ready(tm16_miss_req_pop_ready),
+        .req_16_data(tm16_miss_req_pop_data),
+        .req_17_valid(tm17_miss_req_pop_valid),
+        .req_17_ready(tm17_miss_req_pop_ready),
+        .req_17_data(tm17_miss_req_pop_data),
+        .req_18_valid(tm18_miss_req_pop_valid),
+        .req_18_ready(tm18_miss_req_pop_ready),
+        .req_18_data(tm18_miss_req_pop_data),
+        .req_19_valid(tm19_miss_req_pop_valid),
+        .req_19_ready(tm19_miss_req_pop_ready),
+        .req_19_data(tm19_miss_req_pop_data),
+        .req_20_valid(tm20_miss_req_pop_valid),
+        .req_20_ready(tm20_miss_req_pop_ready),
+        .req_20_data(tm20_miss_req_pop_data),
+        .req_21_valid(tm21_miss_req_pop_valid),
+        .req_21_ready(tm21_miss_req_pop_ready),
+        .req_21_data(tm21_miss_req_pop_data),
+        .req_22_valid(tm22_miss_req_pop_valid),
+        .req_22_ready(tm22_miss_req_pop_ready),
+        .req_22_data(tm22_miss_req_pop_data),
+        .req_23_valid(tm23_miss_req_pop_valid),
+        .req_23_ready(tm23_miss_req_pop_ready),
+        .req_23_data(tm23_miss_req_pop_data),
+        .req_24_valid(tm24_miss_req_pop_valid),
+        .req_24_ready(tm24_miss_req_pop_ready),
+        .req_24_data(tm24_miss_req_pop_data),
+        .req_25_valid(tm25_miss_req_pop_valid),
+        .req_25_ready(tm25_miss_req_pop_ready),
+        .req_25_data(tm25_miss_req_pop_data),
+        .req_26_valid(tm26_miss_req_pop_valid),
+        .req_26_ready(tm26_miss_req_pop_ready),
+        .req_26_data(tm26_miss_req_pop_data),
+        .req_27_valid(tm27_miss_req_pop_valid),
+        .req_27_ready(tm27_miss_req_pop_ready),
+        .req_27_data(tm27_miss_req_pop_data),
+        .req_28_valid(tm28_miss_req_pop_valid),
+        .req_28_ready(tm28_miss_req_pop_ready),
+        .req_28_data(tm28_miss_req_pop_data),
+        .req_29_valid(tm29_miss_req_pop_valid),
+        .req_29_ready(tm29_miss_req_pop_ready),
+        .req_29_data(tm29_miss_req_pop_data),
+        .req_30_valid(tm30_miss_req_pop_valid),
+        .req_30_ready(tm30_miss_req_pop_ready),
+        .req_30_data(tm30_miss_req_pop_data),
+        .req_31_valid(tm31_miss_req_pop_valid),
+        .req_31_ready(tm31_miss_req_pop_ready),
+        .req_31_data(tm31_miss_req_pop_data),
+        .req_32_valid(tm32_miss_req_pop_valid),
+        .req_32_ready(tm32_miss_req_pop_ready),
+        .req_32_data(tm32_miss_req_pop_data),
+        .req_33_valid(tm33_miss_req_pop_valid),
+        .req_33_ready(tm33_miss_req_pop_ready),
+        .req_33_data(tm33_miss_req_pop_data),
+        .req_34_valid(tm34_miss_req_pop_valid),
+        .req_34_ready(tm34_miss_req_pop_ready),
+        .req_34_data(tm34_miss_req_pop_data),
+        .req_35_valid(tm35_miss_req_pop_valid),
+        .req_35_ready(tm35_miss_req_pop_ready),
+        .req_35_data(tm35_miss_req_pop_data),
+        .req_36_valid(tm36_miss_req_pop_valid),
+        .req_36_ready(tm36_miss_req_pop_ready),
+        .req_36_data(tm36_miss_req_pop_data),
+        .req_37_valid(tm37_miss_req_pop_valid),
+        .req_37_ready(tm37_miss_req_pop_ready),
+        .req_37_data(tm37_miss_req_pop_data),
+        .req_38_valid(tm38_miss_req_pop_valid),
+        .req_38_ready(tm38_miss_req_pop_ready),
+        .req_38_data(tm38_miss_req_pop_data),
+        .req_39_valid(tm39_miss_req_pop_valid),
+        .req_39_ready(tm39_miss_req_pop_ready),
+        .req_39_data(tm39_miss_req_pop_data),
+        .req_40_valid(tm40_miss_req_pop_valid),
+        .req_40_ready(tm40_miss_req_pop_ready),
+        .req_40_data(tm40_miss_req_pop_data),
+        .req_41_valid(tm41_miss_req_pop_valid),
+        .req_41_ready(tm41_miss_req_pop_ready),
+        .req_41_data(tm41_miss_req_pop_data),
+        .req_42_valid(tm42_miss_req_pop_valid),
+        .req_42_ready(tm42_miss_req_pop_ready),
+        .req_42_data(tm42_miss_req_pop_data),
+        .req_43_valid(tm43_miss_req_pop_valid),
+        .req_43_ready(tm43_miss_req_pop_ready),
+        .req_43_data(tm43_miss_req_pop_data),
+        .req_44_valid(tm44_miss_req_pop_valid),
+        .req_44_ready(tm44_miss_req_pop_ready),
+        .req_44_data(tm44_miss_req_pop_data),
+        .req_45_valid(tm45_miss_req_pop_valid),
+        .req_45_ready(tm45_miss_req_pop_ready),
+        .req_45_data(tm45_miss_req_pop_data),
+        .req_46_valid(tm46_miss_req_pop_valid),
+        .req_46_ready(tm46_miss_req_pop_ready),
+        .req_46_data(tm46_miss_req_pop_data),
+        .req_47_valid(tm47_miss_req_pop_valid),
+        .req_47_ready(tm47_miss_req_pop_ready),
+        .req_47_data(tm47_miss_req_pop_data),
+        .req_48_valid(tm48_miss_req_pop_valid),
+        .req_48_ready(tm48_miss_req_pop_ready),
+        .req_48_data(tm48_miss_req_pop_data),
+        .req_49_valid(tm49_miss_req_pop_valid),
+        .req_49_ready(tm49_miss_req_pop_ready),
+        .req_49_data(tm49_miss_req_pop_data),
+        .req_50_valid(tm50_miss_req_pop_valid),
+        .req_50_ready(tm50_miss_req_pop_ready),
+        .req_50_data(tm50_miss_req_pop_data),
+        .req_51_valid(tm51_miss_req_pop_valid),
+        .req_51_ready(tm51_miss_req_pop_ready),
+        .req_51_data(tm51_miss_req_pop_data),
+        .req_52_valid(tm52_miss_req_pop_valid),
+        .req_52_ready(tm52_miss_req_pop_ready),
+        .req_52_data(tm52_miss_req_pop_data),
+        .req_53_valid(tm53_miss_req_pop_valid),
+        .req_53_ready(tm53_miss_req_pop_ready),
+        .req_53_data(tm53_miss_req_pop_data),
+        .req_54_valid(tm54_miss_req_pop_valid),
+        .req_54_ready(tm54_miss_req_pop_ready),
+        .req_54_data(tm54_miss_req_pop_data),
+        .req_55_valid(tm55_miss_req_pop_valid),
+        .req_55_ready(tm55_miss_req_pop_ready),
+        .req_55_data(tm55_miss_req_pop_data),
+        .req_56_valid(tm56_miss_req_pop_valid),
+        .req_56_ready(tm56_miss_req_pop_ready),
+        .req_56_data(tm56_miss_req_pop_data),
+        .req_57_valid(tm57_miss_req_pop_valid),
+        .req_57_ready(tm57_miss_req_pop_ready),
+        .req_57_data(tm57_miss_req_pop_data),
+        .req_58_valid(tm58_miss_req_pop_valid),
+        .req_58_ready(tm58_miss_req_pop_ready),
+        .req_58_data(tm58_miss_req_pop_data),
+        .req_59_valid(tm59_miss_req_pop_valid),
+        .req_59_ready(tm59_miss_req_pop_ready),
+        .req_59_data(tm59_miss_req_pop_data),
+        .req_60_valid(tm60_miss_req_pop_valid),
+        .req_60_ready(tm60_miss_req_pop_ready),
+        .req_60_data(tm60_miss_req_pop_data),
+        .req_61_valid(tm61_miss_req_pop_valid),
+        .req_61_ready(tm61_miss_req_pop_ready),
+        .req_61_data(tm61_miss_req_pop_data),
+        .req_62_valid(tm62_miss_req_pop_valid),
+        .req_62_ready(tm62_miss_req_pop_ready),
+        .req_62_data(tm62_miss_req_pop_data),
+        .req_63_valid(tm63_miss_req_pop_valid),
+        .req_63_ready(tm63_miss_req_pop_ready),
+        .req_63_data(tm63_miss_req_pop_data),
+        .req_64_valid(tm64_miss_req_pop_valid),
+        .req_64_ready(tm64_miss_req_pop_ready),
+        .req_64_data(tm64_miss_req_pop_data),
+        .req_65_valid(tm65_miss_req_pop_valid),
+        .req_65_ready(tm65_miss_req_pop_ready),
+        .req_65_data(tm65_miss_req_pop_data),
+        .req_66_valid(tm66_miss_req_pop_valid),
+        .req_66_ready(tm66_miss_req_pop_ready),
+        .req_66_data(tm66_miss_req_pop_data),
+        .req_67_valid(tm67_miss_req_pop_valid),
+        .req_67_ready(tm67_miss_req_pop_ready),
+        .req_67_data(tm67_miss_req_pop_data),
+        .req_68_valid(tm68_miss_req_pop_valid),
+        .req_68_ready(tm68_miss_req_pop_ready),
+        .req_68_data(tm68_miss_req_pop_data),
+        .req_69_valid(tm69_miss_req_pop_valid),
+        .req_69_ready(tm69_miss_req_pop_ready),
+        .req_69_data(tm69_miss_req_pop_data),
+        .req_70_valid(tm70_miss_req_pop_valid),
+        .req_70_ready(tm70_miss_req_pop_ready),
+        .req_70_data(tm70_miss_req_pop_data),
+        .req_71_valid(tm71_miss_req_pop_valid),
+        .req_71_ready(tm71_miss_req_pop_ready),
+        .req_71_data(tm71_miss_req_pop_data),
+        .req_72_valid(tm72_miss_req_pop_valid),
+        .req_72_ready(tm72_miss_req_pop_ready),
+        .req_72_data(tm72_miss_req_pop_data),
+        .req_73_valid(tm73_miss_req_pop_valid),
+        .req_73_ready(tm73_miss_req_pop_ready),
+        .req_73_data(tm73_miss_req_pop_data),
+        .req_74_valid(tm74_miss_req_pop_valid),
+        .req_74_ready(tm74_miss_req_pop_ready),
+        .req_74_data(tm74_miss_req_pop_data),
+        .req_75_valid(tm75_miss_req_pop_valid),
+        .req_75_ready(tm75_miss_req_pop_ready),
+        .req_75_data(tm75_miss_req_pop_data),
+        .req_76_valid(tm76_miss_req_pop_valid),
+        .req_76_ready(tm76_miss_req_pop_ready),
+        .req_76_data(tm76_miss_req_pop_data),
+        .req_77_valid(tm77_miss_req_pop_valid),
+        .req_77_ready(tm77_miss_req_pop_ready),
+        .req_77_data(tm77_miss_req_pop_data),
+        .req_78_valid(tm78_miss_req_pop_valid),
+        .req_78_ready(tm78_miss_req_pop_ready),
+        .req_78_data(tm78_miss_req_pop_data),
+        .req_79_valid(tm79_miss_req_pop_valid),
+        .req_79_ready(tm79_miss_req_pop_ready),
+        .req_79_data(tm79_miss_req_pop_data),
+        .req_80_valid(tm80_miss_req_pop_valid),
+        .req_80_ready(tm80_miss_req_pop_ready),
+        .req_80_data(tm80_miss_req_pop_data),
+        .req_81_valid(tm81_miss_req_pop_valid),
+        .req_81_ready(tm81_miss_req_pop_ready),
+        .req_81_data(tm81_miss_req_pop_data),
+        .req_82_valid(tm82_miss_req_pop_valid),
+        .req_82_ready(tm82_miss_req_pop_ready),
+        .req_82_data(tm82_miss_req_pop_data),
+        .req_83_valid(tm83_miss_req_pop_valid),
+        .req_83_ready(tm83_miss_req_pop_ready),
+        .req_83_data(tm83_miss_req_pop_data),
+        .req_84_valid(tm84_miss_req_pop_valid),
+        .req_84_ready(tm84_miss_req_pop_ready),
+        .req_84_data(tm84_miss_req_pop_data),
+        .req_85_valid(tm85_miss_req_pop_valid),
+        .req_85_ready(tm85_miss_req_pop_ready),
+        .req_85_data(tm85_miss_req_pop_data),
+        .req_86_valid(tm86_miss_req_pop_valid),
+        .req_86_ready(tm86_miss_req_pop_ready),
+        .req_86_data(tm86_miss_req_pop_data),
+        .req_87_valid(tm87_miss_req_pop_valid),
+        .req_87_ready(tm87_miss_req_pop_ready),
+        .req_87_data(tm87_miss_req_pop_data),
+        .req_88_valid(tm88_miss_req_pop_valid),
+        .req_88_ready(tm88_miss_req_pop_ready),
+        .req_88_data(tm88_miss_req_pop_data),
+        .req_89_valid(tm89_miss_req_pop_valid),
+        .req_89_ready(tm89_miss_req_pop_ready),
+        .req_89_data(tm89_miss_req_pop_data),
+        .req_90_valid(tm90_miss_req_pop_valid),
+        .req_90_ready(tm90_miss_req_pop_ready),
+        .req_90_data(tm90_miss_req_pop_data),
+        .req_91_valid(tm91_miss_req_pop_valid),
+        .req_91_ready(tm91_miss_req_pop_ready),
+        .req_91_data(tm91_miss_req_pop_data),
+        .req_92_valid(tm92_miss_req_pop_valid),
+        .req_92_ready(tm92_miss_req_pop_ready),
+        .req_92_data(tm92_miss_req_pop_data),
+        .req_93_valid(tm93_miss_req_pop_valid),
+        .req_93_ready(tm93_miss_req_pop_ready),
+        .req_93_data(tm93_miss_req_pop_data),
+        .req_94_valid(tm94_miss_req_pop_valid),
+        .req_94_ready(tm94_miss_req_pop_ready),
+        .req_94_data(tm94_miss_req_pop_data),
+        .req_95_valid(tm95_miss_req_pop_valid),
+        .req_95_ready(tm95_miss_req_pop_ready),
+        .req_95_data(tm95_miss_req_pop_data),
+        .req_96_valid(tm96_miss_req_pop_valid),
+        .req_96_ready(tm96_miss_req_pop_ready),
+        .req_96_data(tm96_miss_req_pop_data),
+        .req_97_valid(tm97_miss_req_pop_valid),
+        .req_97_ready(tm97_miss_req_pop_ready),
+        .req_97_data(tm97_miss_req_pop_data),
+        .req_98_valid(tm98_miss_req_pop_valid),
+        .req_98_ready(tm98_miss_req_pop_ready),
+        .req_98_data(tm98_miss_req_pop_data),
+        .req_99_valid(tm99_miss_req_pop_valid),
+        .req_99_ready(tm99_miss_req_pop_ready),
+        .req_99_data(tm99_miss_req_pop_data),
+        .req_100_valid(tm100_miss_req_pop_valid),
+        .req_100_ready(tm100_miss_req_pop_ready),
+        .req_100_data(tm100_miss_req_pop_data),
+        .req_101_valid(tm101_miss_req_pop_valid),
+        .req_101_ready(tm101_miss_req_pop_ready),
+        .req_101_data(tm101_miss_req_pop_data),
+        .req_102_valid(tm102_miss_req_pop_valid),
+        .req_102_ready(tm102_miss_req_pop_ready),
+        .req_102_data(tm102_miss_req_pop_data),
+        .req_103_valid(tm103_miss_req_pop_valid),
+        .req_103_ready(tm103_miss_req_pop_ready),
+        .req_103_data(tm103_miss_req_pop_data),
+        .req_104_valid(tm104_miss_req_pop_valid),
+        .req_104_ready(tm104_miss_req_pop_ready),
+        .req_104_data(tm104_miss_req_pop_data),
+        .req_105_valid(tm105_miss_req_pop_valid),
+        .req_105_ready(tm105_miss_req_pop_ready),
+        .req_105_data(tm105_miss_req_pop_data),
+        .req_106_valid(tm106_miss_req_pop_valid),
+        .req_106_ready(tm106_miss_req_pop_ready),
+        .req_106_data(tm106_miss_req_pop_data),
+        .req_107_valid(tm107_miss_req_pop_valid),
+        .req_107_ready(tm107_miss_req_pop_ready),
+        .req_107_data(tm107_miss_req_pop_data),
+        .req_108_valid(tm108_miss_req_pop_valid),
+        .req_108_ready(tm108_miss_req_pop_ready),
+        .req_108_data(tm108_miss_req_pop_data),
+        .req_109_valid(tm109_miss_req_pop_valid),
+        .req_109_ready(tm109_miss_req_pop_ready),
+        .req_109_data(tm109_miss_req_pop_data),
+        .req_110_valid(tm110_miss_req_pop_valid),
+        .req_110_ready(tm110_miss_req_pop_ready),
+        .req_110_data(tm110_miss_req_pop_data),
+        .req_111_valid(tm111_miss_req_pop_valid),
+        .req_111_ready(tm111_miss_req_pop_ready),
+        .req_111_data(tm111_miss_req_pop_data),
+        .req_112_valid(tm112_miss_req_pop_valid),
+        .req_112_ready(tm112_miss_req_pop_ready),
+        .req_112_data(tm112_miss_req_pop_data),
+        .req_113_valid(tm113_miss_req_pop_valid),
+        .req_113_ready(tm113_miss_req_pop_ready),
+        .req_113_data(tm113_miss_req_pop_data),
+        .req_114_valid(tm114_miss_req_pop_valid),
+        .req_114_ready(tm114_miss_req_pop_ready),
+        .req_114_data(tm114_miss_req_pop_data),
+        .req_115_valid(tm115_miss_req_pop_valid),
+        .req_115_ready(tm115_miss_req_pop_ready),
+        .req_115_data(tm115_miss_req_pop_data),
+        .req_116_valid(tm116_miss_req_pop_valid),
+        .req_116_ready(tm116_miss_req_pop_ready),
+        .req_116_data(tm116_miss_req_pop_data),
+        .req_117_valid(tm117_miss_req_pop_valid),
+        .req_117_ready(tm117_miss_req_pop_ready),
+        .req_117_data(tm117_miss_req_pop_data),
+        .req_118_valid(tm118_miss_req_pop_valid),
+        .req_118_ready(tm118_miss_req_pop_ready),
+        .req_118_data(tm118_miss_req_pop_data),
+        .req_119_valid(tm119_miss_req_pop_valid),
+        .req_119_ready(tm119_miss_req_pop_ready),
+        .req_119_data(tm119_miss_req_pop_data),
+        .req_120_valid(tm120_miss_req_pop_valid),
+        .req_120_ready(tm120_miss_req_pop_ready),
+        .req_120_data(tm120_miss_req_pop_data),
+        .req_121_valid(tm121_miss_req_pop_valid),
+        .req_121_ready(tm121_miss_req_pop_ready),
+        .req_121_data(tm121_miss_req_pop_data),
+        .req_122_valid(tm122_miss_req_pop_valid),
+        .req_122_ready(tm122_miss_req_pop_ready),
+        .req_122_data(tm122_miss_req_pop_data),
+        .req_123_valid(tm123_miss_req_pop_valid),
+        .req_123_ready(tm123_miss_req_pop_ready),
+        .req_123_data(tm123_miss_req_pop_data),
+        .req_124_valid(tm124_miss_req_pop_valid),
+        .req_124_ready(tm124_miss_req_pop_ready),
+        .req_124_data(tm124_miss_req_pop_data),
+        .req_125_valid(tm125_miss_req_pop_valid),
+        .req_125_ready(tm125_miss_req_pop_ready),
+        .req_125_data(tm125_miss_req_pop_data),
+        .req_126_valid(tm126_miss_req_pop_valid),
+        .req_126_ready(tm126_miss_req_pop_ready),
+        .req_126_data(tm126_miss_req_pop_data),
+        .req_127_valid(tm127_miss_req_pop_valid),
+        .req_127_ready(tm127_miss_req_pop_ready),
+        .req_127_data(tm127_miss_req_pop_data),
+        .resp_0_valid(tm0_miss_resp_push_valid),
+        .resp_0_ready(tm0_miss_resp_push_ready),
+        .resp_0_data(tm0_miss_resp_push_data),
+        .resp_1_valid(tm1_miss_resp_push_valid),
+        .resp_1_ready(tm1_miss_resp_push_ready),
+        .resp_1_data(tm1_miss_resp_push_data),
+        .resp_2_valid(tm2_miss_resp_push_valid),
+        .resp_2_ready(tm2_miss_resp_push_ready),
+        .resp_2_data(tm2_miss_resp_push_data),
+        .resp_3_valid(tm3_miss_resp_push_valid),
+        .resp_3_ready(tm3_miss_resp_push_ready),
+        .resp_3_data(tm3_miss_resp_push_data),
+        .resp_4_valid(tm4_miss_resp_push_valid),
+        .resp_4_ready(tm4_miss_resp_push_ready),
+        .resp_4_data(tm4_miss_resp_push_data),
+        .resp_5_valid(tm5_miss_resp_push_valid),
+        .resp_5_ready(tm5_miss_resp_push_ready),
+        .resp_5_data(tm5_miss_resp_push_data),
+        .resp_6_valid(tm6_miss_resp_push_valid),
+        .resp_6_ready(tm6_miss_resp_push_ready),
+        .resp_6_data(tm6_miss_resp_push_data),
+        .resp_7_valid(tm7_miss_resp_push_valid),
+        .resp_7_ready(tm7_miss_resp_push_ready),
+        .resp_7_data(tm7_miss_resp_push_data),
+        .resp_8_valid(tm8_miss_resp_push_valid),
+        .resp_8_ready(tm8_miss_resp_push_ready),
+        .resp_8_data(tm8_miss_resp_push_data),
+        .resp_9_valid(tm9_miss_resp_push_valid),
+        .resp_9_ready(tm9_miss_resp_push_ready),
+        .resp_9_data(tm9_miss_resp_push_data),
+        .resp_10_valid(tm10_miss_resp_push_valid),
+        .resp_10_ready(tm10_miss_resp_push_ready),
+        .resp_10_data(tm10_miss_resp_push_data),
+        .resp_11_valid(tm11_miss_resp_push_valid),
+        .resp_11_ready(tm11_miss_resp_push_ready),
+        .resp_11_data(tm11_miss_resp_push_data),
+        .resp_12_valid(tm12_miss_resp_push_valid),
+        .resp_12_ready(tm12_miss_resp_push_ready),
+        .resp_12_data(tm12_miss_resp_push_data),
+        .resp_13_valid(tm13_miss_resp_push_valid),
+        .resp_13_ready(tm13_miss_resp_push_ready),
+        .resp_13_data(tm13_miss_resp_push_data),
+        .resp_14_valid(tm14_miss_resp_push_valid),
+        .resp_14_ready(tm14_miss_resp_push_ready),
+        .resp_14_data(tm14_miss_resp_push_data),
+        .resp_15_valid(tm15_miss_resp_push_valid),
+        .resp_15_ready(tm15_miss_resp_push_ready),
+        .resp_15_data(tm15_miss_resp_push_data),
+        .resp_16_valid(tm16_miss_resp_push_valid),
+        .resp_16_ready(tm16_miss_resp_push_ready),
+        .resp_16_data(tm16_miss_resp_push_data),
+        .resp_17_valid(tm17_miss_resp_push_valid),
+        .resp_17_ready(tm17_miss_resp_push_ready),
+        .resp_17_data(tm17_miss_resp_push_data),
+        .resp_18_valid(tm18_miss_resp_push_valid),
+        .resp_18_ready(tm18_miss_resp_push_ready),
+        .resp_18_data(tm18_miss_resp_push_data),
+        .resp_19_valid(tm19_miss_resp_push_valid),
+        .resp_19_ready(tm19_miss_resp_push_ready),
+        .resp_19_data(tm19_miss_resp_push_data),
+        .resp_20_valid(tm20_miss_resp_push_valid),
+        .resp_20_ready(tm20_miss_resp_push_ready),
+        .resp_20_data(tm20_miss_resp_push_data),
+        .resp_21_valid(tm21_miss_resp_push_valid),
+        .resp_21_ready(tm21_miss_resp_push_ready),
+        .resp_21_data(tm21_miss_resp_push_data),
+        .resp_22_valid(tm22_miss_resp_push_valid),
+        .resp_22_ready(tm22_miss_resp_push_ready),
+        .resp_22_data(tm22_miss_resp_push_data),
+        .resp_23_valid(tm23_miss_resp_push_valid),
+        .resp_23_ready(tm23_miss_resp_push_ready),
+        .resp_23_data(tm23_miss_resp_push_data),
+        .resp_24_valid(tm24_miss_resp_push_valid),
+        .resp_24_ready(tm24_miss_resp_push_ready),
+        .resp_24_data(tm24_miss_resp_push_data),
+        .resp_25_valid(tm25_miss_resp_push_valid),
+        .resp_25_ready(tm25_miss_resp_push_ready),
+        .resp_25_data(tm25_miss_resp_push_data),
+        .resp_26_valid(tm26_miss_resp_push_valid),
+        .resp_26_ready(tm26_miss_resp_push_ready),
+        .resp_26_data(tm26_miss_resp_push_data),
+        .resp_27_valid(tm27_miss_resp_push_valid),
+        .resp_27_ready(tm27_miss_resp_push_ready),
+        .resp_27_data(tm27_miss_resp_push_data),
+        .resp_28_valid(tm28_miss_resp_push_valid),
+        .resp_28_ready(tm28_miss_resp_push_ready),
+        .resp_28_data(tm28_miss_resp_push_data),
+        .resp_29_valid(tm29_miss_resp_push_valid),
+        .resp_29_ready(tm29_miss_resp_push_ready),
+        .resp_29_data(tm29_miss_resp_push_data),
+        .resp_30_valid(tm30_miss_resp_push_valid),
+        .resp_30_ready(tm30_miss_resp_push_ready),
+        .resp_30_data(tm30_miss_resp_push_data),
+        .resp_31_valid(tm31_miss_resp_push_valid),
+        .resp_31_ready(tm31_miss_resp_push_ready),
+        .resp_31_data(tm31_miss_resp_push_data),
+        .resp_32_valid(tm32_miss_resp_push_valid),
+        .resp_32_ready(tm32_miss_resp_push_ready),
+        .resp_32_data(tm32_miss_resp_push_data),
+        .resp_33_valid(tm33_miss_resp_push_valid),
+        .resp_33_ready(tm33_miss_resp_push_ready),
+        .resp_33_data(tm33_miss_resp_push_data),
+        .resp_34_valid(tm34_miss_resp_push_valid),
+        .resp_34_ready(tm34_miss_resp_push_ready),
+        .resp_34_data(tm34_miss_resp_push_data),
+        .resp_35_valid(tm35_miss_resp_push_valid),
+        .resp_35_ready(tm35_miss_resp_push_ready),
+        .resp_35_data(tm35_miss_resp_push_data),
+        .resp_36_valid(tm36_miss_resp_push_valid),
+        .resp_36_ready(tm36_miss_resp_push_ready),
+        .resp_36_data(tm36_miss_resp_push_data),
+        .resp_37_valid(tm37_miss_resp_push_valid),
+        .resp_37_ready(tm37_miss_resp_push_ready),
+        .resp_37_data(tm37_miss_resp_push_data),
+        .resp_38_valid(tm38_miss_resp_push_valid),
+        .resp_38_ready(tm38_miss_resp_push_ready),
+        .resp_38_data(tm38_miss_resp_push_data),
+        .resp_39_valid(tm39_miss_resp_push_valid),
+        .resp_39_ready(tm39_miss_resp_push_ready),
+        .resp_39_data(tm39_miss_resp_push_data),
+        .resp_40_valid(tm40_miss_resp_push_valid),
+        .resp_40_ready(tm40_miss_resp_push_ready),
+        .resp_40_data(tm40_miss_resp_push_data),
+        .resp_41_valid(tm41_miss_resp_push_valid),
+        .resp_41_ready(tm41_miss_resp_push_ready),
+        .resp_41_data(tm41_miss_resp_push_data),
+        .resp_42_valid(tm42_miss_resp_push_valid),
+        .resp_42_ready(tm42_miss_resp_push_ready),
+        .resp_42_data(tm42_miss_resp_push_data),
+        .resp_43_valid(tm43_miss_resp_push_valid),
+        .resp_43_ready(tm43_miss_resp_push_ready),
+        .resp_43_data(tm43_miss_resp_push_data),
+        .resp_44_valid(tm44_miss_resp_push_valid),
+        .resp_44_ready(tm44_miss_resp_push_ready),
+        .resp_44_data(tm44_miss_resp_push_data),
+        .resp_45_valid(tm45_miss_resp_push_valid),
+        .resp_45_ready(tm45_miss_resp_push_ready),
+        .resp_45_data(tm45_miss_resp_push_data),
+        .resp_46_valid(tm46_miss_resp_push_valid),
+        .resp_46_ready(tm46_miss_resp_push_ready),
+        .resp_46_data(tm46_miss_resp_push_data),
+        .resp_47_valid(tm47_miss_resp_push_valid),
+        .resp_47_ready(tm47_miss_resp_push_ready),
+        .resp_47_data(tm47_miss_resp_push_data),
+        .resp_48_valid(tm48_miss_resp_push_valid),
+        .resp_48_ready(tm48_miss_resp_push_ready),
+        .resp_48_data(tm48_miss_resp_push_data),
+        .resp_49_valid(tm49_miss_resp_push_valid),
+        .resp_49_ready(tm49_miss_resp_push_ready),
+        .resp_49_data(tm49_miss_resp_push_data),
+        .resp_50_valid(tm50_miss_resp_push_valid),
+        .resp_50_ready(tm50_miss_resp_push_ready),
+        .resp_50_data(tm50_miss_resp_push_data),
+        .resp_51_valid(tm51_miss_resp_push_valid),
+        .resp_51_ready(tm51_miss_resp_push_ready),
+        .resp_51_data(tm51_miss_resp_push_data),
+        .resp_52_valid(tm52_miss_resp_push_valid),
+        .resp_52_ready(tm52_miss_resp_push_ready),
+        .resp_52_data(tm52_miss_resp_push_data),
+        .resp_53_valid(tm53_miss_resp_push_valid),
+        .resp_53_ready(tm53_miss_resp_push_ready),
+        .resp_53_data(tm53_miss_resp_push_data),
+        .resp_54_valid(tm54_miss_resp_push_valid),
+        .resp_54_ready(tm54_miss_resp_push_ready),
+        .resp_54_data(tm54_miss_resp_push_data),
+        .resp_55_valid(tm55_miss_resp_push_valid),
+        .resp_55_ready(tm55_miss_resp_push_ready),
+        .resp_55_data(tm55_miss_resp_push_data),
+        .resp_56_valid(tm56_miss_resp_push_valid),
+        .resp_56_ready(tm56_miss_resp_push_ready),
+        .resp_56_data(tm56_miss_resp_push_data),
+        .resp_57_valid(tm57_miss_resp_push_valid),
+        .resp_57_ready(tm57_miss_resp_push_ready),
+        .resp_57_data(tm57_miss_resp_push_data),
+        .resp_58_valid(tm58_miss_resp_push_valid),
+        .resp_58_ready(tm58_miss_resp_push_ready),
+        .resp_58_data(tm58_miss_resp_push_data),
+        .resp_59_valid(tm59_miss_resp_push_valid),
+        .resp_59_ready(tm59_miss_resp_push_ready),
+        .resp_59_data(tm59_miss_resp_push_data),
+        .resp_60_valid(tm60_miss_resp_push_valid),
+        .resp_60_ready(tm60_miss_resp_push_ready),
+        .resp_60_data(tm60_miss_resp_push_data),
+        .resp_61_valid(tm61_miss_resp_push_valid),
+        .resp_61_ready(tm61_miss_resp_push_ready),
+        .resp_61_data(tm61_miss_resp_push_data),
+        .resp_62_valid(tm62_miss_resp_push_valid),
+        .resp_62_ready(tm62_miss_resp_push_ready),
+        .resp_62_data(tm62_miss_resp_push_data),
+        .resp_63_valid(tm63_miss_resp_push_valid),
+        .resp_63_ready(tm63_miss_resp_push_ready),
+        .resp_63_data(tm63_miss_resp_push_data),
+        .resp_64_valid(tm64_miss_resp_push_valid),
+        .resp_64_ready(tm64_miss_resp_push_ready),
+        .resp_64_data(tm64_miss_resp_push_data),
+        .resp_65_valid(tm65_miss_resp_push_valid),
+        .resp_65_ready(tm65_miss_resp_push_ready),
+        .resp_65_data(tm65_miss_resp_push_data),
+        .resp_66_valid(tm66_miss_resp_push_valid),
+        .resp_66_ready(tm66_miss_resp_push_ready),
+        .resp_66_data(tm66_miss_resp_push_data),
+        .resp_67_valid(tm67_miss_resp_push_valid),
+        .resp_67_ready(tm67_miss_resp_push_ready),
+        .resp_67_data(tm67_miss_resp_push_data),
+        .resp_68_valid(tm68_miss_resp_push_valid),
+        .resp_68_ready(tm68_miss_resp_push_ready),
+        .resp_68_data(tm68_miss_resp_push_data),
+        .resp_69_valid(tm69_miss_resp_push_valid),
+        .resp_69_ready(tm69_miss_resp_push_ready),
+        .resp_69_data(tm69_miss_resp_push_data),
+        .resp_70_valid(tm70_miss_resp_push_valid),
+        .resp_70_ready(tm70_miss_resp_push_ready),
+        .resp_70_data(tm70_miss_resp_push_data),
+        .resp_71_valid(tm71_miss_resp_push_valid),
+        .resp_71_ready(tm71_miss_resp_push_ready),
+        .resp_71_data(tm71_miss_resp_push_data),
+        .resp_72_valid(tm72_miss_resp_push_valid),
+        .resp_72_ready(tm72_miss_resp_push_ready),
+        .resp_72_data(tm72_miss_resp_push_data),
+        .resp_73_valid(tm73_miss_resp_push_valid),
+        .resp_73_ready(tm73_miss_resp_push_ready),
+        .resp_73_data(tm73_miss_resp_push_data),
+        .resp_74_valid(tm74_miss_resp_push_valid),
+        .resp_74_ready(tm74_miss_resp_push_ready),
+        .resp_74_data(tm74_miss_resp_push_data),
+        .resp_75_valid(tm75_miss_resp_push_valid),
+        .resp_75_ready(tm75_miss_resp_push_ready),
+        .resp_75_data(tm75_miss_resp_push_data),
+        .resp_76_valid(tm76_miss_resp_push_valid),
+        .resp_76_ready(tm76_miss_resp_push_ready),
+        .resp_76_data(tm76_miss_resp_push_data),
+        .resp_77_valid(tm77_miss_resp_push_valid),
+        .resp_77_ready(tm77_miss_resp_push_ready),
+        .resp_77_data(tm77_miss_resp_push_data),
+        .resp_78_valid(tm78_miss_resp_push_valid),
+        .resp_78_ready(tm78_miss_resp_push_ready),
+        .resp_78_data(tm78_miss_resp_push_data),
+        .resp_79_valid(tm79_miss_resp_push_valid),
+        .resp_79_ready(tm79_miss_resp_push_ready),
+        .resp_79_data(tm79_miss_resp_push_data),
+        .resp_80_valid(tm80_miss_resp_push_valid),
+        .resp_80_ready(tm80_miss_resp_push_ready),
+        .resp_80_data(tm80_miss_resp_push_data),
+        .resp_81_valid(tm81_miss_resp_push_valid),
+        .resp_81_ready(tm81_miss_resp_push_ready),
+        .resp_81_data(tm81_miss_resp_push_data),
+        .resp_82_valid(tm82_miss_resp_push_valid),
+        .resp_82_ready(tm82_miss_resp_push_ready),
+        .resp_82_data(tm82_miss_resp_push_data),
+        .resp_83_valid(tm83_miss_resp_push_valid),
+        .resp_83_ready(tm83_miss_resp_push_ready),
+        .resp_83_data(tm83_miss_resp_push_data),
+        .resp_84_valid(tm84_miss_resp_push_valid),
+        .resp_84_ready(tm84_miss_resp_push_ready),
+        .resp_84_data(tm84_miss_resp_push_data),
+        .resp_85_valid(tm85_miss_resp_push_valid),
+        .resp_85_ready(tm85_miss_resp_push_ready),
+        .resp_85_data(tm85_miss_resp_push_data),
+        .resp_86_valid(tm86_miss_resp_push_valid),
+        .resp_86_ready(tm86_miss_resp_push_ready),
+        .resp_86_data(tm86_miss_resp_push_data),
+        .resp_87_valid(tm87_miss_resp_push_valid),
+        .resp_87_ready(tm87_miss_resp_push_ready),
+        .resp_87_data(tm87_miss_resp_push_data),
+        .resp_88_valid(tm88_miss_resp_push_valid),
+        .resp_88_ready(tm88_miss_resp_push_ready),
+        .resp_88_data(tm88_miss_resp_push_data),
+        .resp_89_valid(tm89_miss_resp_push_valid),
+        .resp_89_ready(tm89_miss_resp_push_ready),
+        .resp_89_data(tm89_miss_resp_push_data),
+        .resp_90_valid(tm90_miss_resp_push_valid),
+        .resp_90_ready(tm90_miss_resp_push_ready),
+        .resp_90_data(tm90_miss_resp_push_data),
+        .resp_91_valid(tm91_miss_resp_push_valid),
+        .resp_91_ready(tm91_miss_resp_push_ready),
+        .resp_91_data(tm91_miss_resp_push_data),
+        .resp_92_valid(tm92_miss_resp_push_valid),
+        .resp_92_ready(tm92_miss_resp_push_ready),
+        .resp_92_data(tm92_miss_resp_push_data),
+        .resp_93_valid(tm93_miss_resp_push_valid),
+        .resp_93_ready(tm93_miss_resp_push_ready),
+        .resp_93_data(tm93_miss_resp_push_data),
+        .resp_94_valid(tm94_miss_resp_push_valid),
+        .resp_94_ready(tm94_miss_resp_push_ready),
+        .resp_94_data(tm94_miss_resp_push_data),
+        .resp_95_valid(tm95_miss_resp_push_valid),
+        .resp_95_ready(tm95_miss_resp_push_ready),
+        .resp_95_data(tm95_miss_resp_push_data),
+        .resp_96_valid(tm96_miss_resp_push_valid),
+        .resp_96_ready(tm96_miss_resp_push_ready),
+        .resp_96_data(tm96_miss_resp_push_data),
+        .resp_97_valid(tm97_miss_resp_push_valid),
+        .resp_97_ready(tm97_miss_resp_push_ready),
+        .resp_97_data(tm97_miss_resp_push_data),
+        .resp_98_valid(tm98_miss_resp_push_valid),
+        .resp_98_ready(tm98_miss_resp_push_ready),
+        .resp_98_data(tm98_miss_resp_push_data),
+        .resp_99_valid(tm99_miss_resp_push_valid),
+        .resp_99_ready(tm99_miss_resp_push_ready),
+        .resp_99_data(tm99_miss_resp_push_data),
+        .resp_100_valid(tm100_miss_resp_push_valid),
+        .resp_100_ready(tm100_miss_resp_push_ready),
+        .resp_100_data(tm100_miss_resp_push_data),
+        .resp_101_valid(tm101_miss_resp_push_valid),
+        .resp_101_ready(tm101_miss_resp_push_ready),
+        .resp_101_data(tm101_miss_resp_push_data),
+        .resp_102_valid(tm102_miss_resp_push_valid),
+        .resp_102_ready(tm102_miss_resp_push_ready),
+        .resp_102_data(tm102_miss_resp_push_data),
+        .resp_103_valid(tm103_miss_resp_push_valid),
+        .resp_103_ready(tm103_miss_resp_push_ready),
+        .resp_103_data(tm103_miss_resp_push_data),
+        .resp_104_valid(tm104_miss_resp_push_valid),
+        .resp_104_ready(tm104_miss_resp_push_ready),
+        .resp_104_data(tm104_miss_resp_push_data),
+        .resp_105_valid(tm105_miss_resp_push_valid),
+        .resp_105_ready(tm105_miss_resp_push_ready),
+        .resp_105_data(tm105_miss_resp_push_data),
+        .resp_106_valid(tm106_miss_resp_push_valid),
+        .resp_106_ready(tm106_miss_resp_push_ready),
+        .resp_106_data(tm106_miss_resp_push_data),
+        .resp_107_valid(tm107_miss_resp_push_valid),
+        .resp_107_ready(tm107_miss_resp_push_ready),
+        .resp_107_data(tm107_miss_resp_push_data),
+        .resp_108_valid(tm108_miss_resp_push_valid),
+        .resp_108_ready(tm108_miss_resp_push_ready),
+        .resp_108_data(tm108_miss_resp_push_data),
+        .resp_109_valid(tm109_miss_resp_push_valid),
+        .resp_109_ready(tm109_miss_resp_push_ready),
+        .resp_109_data(tm109_miss_resp_push_data),
+        .resp_110_valid(tm110_miss_resp_push_valid),
+        .resp_110_ready(tm110_miss_resp_push_ready),
+        .resp_110_data(tm110_miss_resp_push_data),
+        .resp_111_valid(tm111_miss_resp_push_valid),
+        .resp_111_ready(tm111_miss_resp_push_ready),
+        .resp_111_data(tm111_miss_resp_push_data),
+        .resp_112_valid(tm112_miss_resp_push_valid),
+        .resp_112_ready(tm112_miss_resp_push_ready),
+        .resp_112_data(tm112_miss_resp_push_data),
+        .resp_113_valid(tm113_miss_resp_push_valid),
+        .resp_113_ready(tm113_miss_resp_push_ready),
+        .resp_113_data(tm113_miss_resp_push_data),
+        .resp_114_valid(tm114_miss_resp_push_valid),
+        .resp_114_ready(tm114_miss_resp_push_ready),
+        .resp_114_data(tm114_miss_resp_push_data),
+        .resp_115_valid(tm115_miss_resp_push_valid),
+        .resp_115_ready(tm115_miss_resp_push_ready),
+        .resp_115_data(tm115_miss_resp_push_data),
+        .resp_116_valid(tm116_miss_resp_push_valid),
+        .resp_116_ready(tm116_miss_resp_push_ready),
+        .resp_116_data(tm116_miss_resp_push_data),
+        .resp_117_valid(tm117_miss_resp_push_valid),
+        .resp_117_ready(tm117_miss_resp_push_ready),
+        .resp_117_data(tm117_miss_resp_push_data),
+        .resp_118_valid(tm118_miss_resp_push_valid),
+        .resp_118_ready(tm118_miss_resp_push_ready),
+        .resp_118_data(tm118_miss_resp_push_data),
+        .resp_119_valid(tm119_miss_resp_push_valid),
+        .resp_119_ready(tm119_miss_resp_push_ready),
+        .resp_119_data(tm119_miss_resp_push_data),
+        .resp_120_valid(tm120_miss_resp_push_valid),
+        .resp_120_ready(tm120_miss_resp_push_ready),
+        .resp_120_data(tm120_miss_resp_push_data),
+        .resp_121_valid(tm121_miss_resp_push_valid),
+        .resp_121_ready(tm121_miss_resp_push_ready),
+        .resp_121_data(tm121_miss_resp_push_data),
+        .resp_122_valid(tm122_miss_resp_push_valid),
+        .resp_122_ready(tm122_miss_resp_push_ready),
+        .resp_122_data(tm122_miss_resp_push_data),
+        .resp_123_valid(tm123_miss_resp_push_valid),
+        .resp_123_ready(tm123_miss_resp_push_ready),
+        .resp_123_data(tm123_miss_resp_push_data),
+        .resp_124_valid(tm124_miss_resp_push_valid),
+        .resp_124_ready(tm124_miss_resp_push_ready),
+        .resp_124_data(tm124_miss_resp_push_data),
+        .resp_125_valid(tm125_miss_resp_push_valid),
+        .resp_125_ready(tm125_miss_resp_push_ready),
+        .resp_125_data(tm125_miss_resp_push_data),
+        .resp_126_valid(tm126_miss_resp_push_valid),
+        .resp_126_ready(tm126_miss_resp_push_ready),
+        .resp_126_data(tm126_miss_resp_push_data),
+        .resp_127_valid(tm127_miss_resp_push_valid),
+        .resp_127_ready(tm127_miss_resp_push_ready),
+        .resp_127_data(tm127_miss_resp_push_data)
     );
     stream_scheduler #(.TMS(128), .STREAMS(8), .SLOTS(64), .DEST_ENTRIES(1024), .WRITES_PER_CYCLE(4), .BUCKET_BUFFERS(16), .MEM_QUEUE(32), .RAY_LINES_PER_CYCLE(4), .SCENE_LINES_PER_CYCLE(4)) scheduler (
         .clk(clk_core),
         .rst(rst),
-        .mem_req_0_valid(mem_req0_sched_valid),
-        .mem_req_0_ready(mem_req0_sched_ready),
-        .mem_req_0_data(mem_req0_sched_data),
-        .mem_resp_0_valid(mem_resp0_sched_valid),
-        .mem_resp_0_ready(mem_resp0_sched_ready),
-        .mem_resp_0_data(mem_resp0_sched_data),
-        .scene_req_0_valid(mem_req1_scene_valid),
-        .scene_req_0_ready(mem_req1_scene_ready),
-        .scene_req_0_data(mem_req1_scene_data),
-        .mem_req_1_valid(mem_req_sched1_valid),
-        .mem_req_1_ready(mem_req_sched1_ready),
-        .mem_req_1_data(mem_req_sched1_data),
-        .mem_resp_1_valid(mem_resp_sched1_valid),
-        .mem_resp_1_ready(mem_resp_sched1_ready),
-        .mem_resp_1_data(mem_resp_sched1_data),
-        .mem_req_2_valid(mem_req_sched2_valid),
-        .mem_req_2_ready(mem_req_sched2_ready),
-        .mem_req_2_data(mem_req_sched2_data),
-        .mem_resp_2_valid(mem_resp_sched2_valid),
-        .mem_resp_2_ready(mem_resp_sched2_ready),
-        .mem_resp_2_data(mem_resp_sched2_data),
-        .mem_req_3_valid(mem_req_sched3_valid),
-        .mem_req_3_ready(mem_req_sched3_ready),
-        .mem_req_3_data(mem_req_sched3_data),
-        .mem_resp_3_valid(mem_resp_sched3_valid),
-        .mem_resp_3_ready(mem_resp_sched3_ready),
-        .mem_resp_3_data(mem_resp_sched3_data),
-        .scene_req_1_valid(mem_req_scene1_valid),
-        .scene_req_1_ready(mem_req_scene1_ready),
-        .scene_req_1_data(mem_req_scene1_data),
-        .scene_req_2_valid(mem_req_scene2_valid),
-        .scene_req_2_ready(mem_req_scene2_ready),
-        .scene_req_2_data(mem_req_scene2_data),
-        .scene_req_3_valid(mem_req_scene3_valid),
-        .scene_req_3_ready(mem_req_scene3_ready),
-        .scene_req_3_data(mem_req_scene3_data),
-        .emit_valid(emit_valid),
-        .emit_ready(emit_ready),
-        .emit_data(emit_data),
-        .start_valid(start_valid),
-        .start_ready(start_ready),
-        .start_data(start_data),
-        .slot_map_valid(slot_map_valid),
-        .slot_map_ready(slot_map_ready),
-        .slot_map_data(slot_map_data),
-        .fill_0_valid(tm_fill_valid[0]),
-        .fill_0_ready(tm_fill_ready[0]),
-        .fill_0_data(tm_fill_data[384:0]),
-        .fill_1_valid(tm_fill_valid[1]),
-        .fill_1_ready(tm_fill_ready[1]),
-        .fill_1_data(tm_fill_data[769:385]),
-        .fill_2_valid(tm_fill_valid[2]),
-        .fill_2_ready(tm_fill_ready[2]),
-        .fill_2_data(tm_fill_data[1154:770]),
-        .fill_3_valid(tm_fill_valid[3]),
-        .fill_3_ready(tm_fill_ready[3]),
-        .fill_3_data(tm_fill_data[1539:1155]),
-        .fill_4_valid(tm_fill_valid[4]),
-        .fill_4_ready(tm_fill_ready[4]),
-        .fill_4_data(tm_fill_data[1924:1540]),
-        .fill_5_valid(tm_fill_valid[5]),
-        .fill_5_ready(tm_fill_ready[5]),
-        .fill_5_data(tm_fill_data[2309:1925]),
-        .fill_6_valid(tm_fill_valid[6]),
-        .fill_6_ready(tm_fill_ready[6]),
-        .fill_6_data(tm_fill_data[2694:2310]),
-        .fill_7_valid(tm_fill_valid[7]),
-        .fill_7_ready(tm_fill_ready[7]),
-        .fill_7_data(tm_fill_data[3079:2695]),
-        .fill_8_valid(tm_fill_valid[8]),
-        .fill_8_ready(tm_fill_ready[8]),
-        .fill_8_data(tm_fill_data[3464:3080]),
-        .fill_9_valid(tm_fill_valid[9]),
-        .fill_9_ready(tm_fill_ready[9]),
-        .fill_9_data(tm_fill_data[3849:3465]),
-        .fill_10_valid(tm_fill_valid[10]),
-        .fill_10_ready(tm_fill_ready[10]),
-        .fill_10_data(tm_fill_data[4234:3850]),
-        .fill_11_valid(tm_fill_valid[11]),
-        .fill_11_ready(tm_fill_ready[11]),
-        .fill_11_data(tm_fill_data[4619:4235]),
-        .fill_12_valid(tm_fill_valid[12]),
-        .fill_12_ready(tm_fill_ready[12]),
-        .fill_12_data(tm_fill_data[5004:4620]),
-        .fill_13_valid(tm_fill_valid[13]),
-        .fill_13_ready(tm_fill_ready[13]),
-        .fill_13_data(tm_fill_data[5389:5005]),
-        .fill_14_valid(tm_fill_valid[14]),
-        .fill_14_ready(tm_fill_ready[14]),
-        .fill_14_data(tm_fill_data[5774:5390]),
-        .fill_15_valid(tm_fill_valid[15]),
-        .fill_15_ready(tm_fill_ready[15]),
-        .fill_15_data(tm_fill_data[6159:5775]),
-        .fill_16_valid(tm_fill_valid[16]),
-        .fill_16_ready(tm_fill_ready[16]),
-        .fill_16_data(tm_fill_data[6544:6160]),
-        .fill_17_valid(tm_fill_valid[17]),
-        .fill_17_ready(tm_fill_ready[17]),
-        .fill_17_data(tm_fill_data[6929:6545]),
-        .fill_18_valid(tm_fill_valid[18]),
-        .fill_18_ready(tm_fill_ready[18]),
-        .fill_18_data(tm_fill_data[7314:6930]),
-        .fill_19_valid(tm_fill_valid[19]),
-        .fill_19_ready(tm_fill_ready[19]),
-        .fill_19_data(tm_fill_data[7699:7315]),
-        .fill_20_valid(tm_fill_valid[20]),
-        .fill_20_ready(tm_fill_ready[20]),
-        .fill_20_data(tm_fill_data[8084:7700]),
-        .fill_21_valid(tm_fill_valid[21]),
-        .fill_21_ready(tm_fill_ready[21]),
-        .fill_21_data(tm_fill_data[8469:8085]),
-        .fill_22_valid(tm_fill_valid[22]),
-        .fill_22_ready(tm_fill_ready[22]),
-        .fill_22_data(tm_fill_data[8854:8470]),
-        .fill_23_valid(tm_fill_valid[23]),
-        .fill_23_ready(tm_fill_ready[23]),
-        .fill_23_data(tm_fill_data[9239:8855]),
-        .fill_24_valid(tm_fill_valid[24]),
-        .fill_24_ready(tm_fill_ready[24]),
-        .fill_24_data(tm_fill_data[9624:9240]),
-        .fill_25_valid(tm_fill_valid[25]),
-        .fill_25_ready(tm_fill_ready[25]),
-        .fill_25_data(tm_fill_data[10009:9625]),
-        .fill_26_valid(tm_fill_valid[26]),
-        .fill_26_ready(tm_fill_ready[26]),
-        .fill_26_data(tm_fill_data[10394:10010]),
-        .fill_27_valid(tm_fill_valid[27]),
-        .fill_27_ready(tm_fill_ready[27]),
-        .fill_27_data(tm_fill_data[10779:10395]),
-        .fill_28_valid(tm_fill_valid[28]),
-        .fill_28_ready(tm_fill_ready[28]),
-        .fill_28_data(tm_fill_data[11164:10780]),
-        .fill_29_valid(tm_fill_valid[29]),
-        .fill_29_ready(tm_fill_ready[29]),
-        .fill_29_data(tm_fill_data[11549:11165]),
-        .fill_30_valid(tm_fill_valid[30]),
-        .fill_30_ready(tm_fill_ready[30]),
-        .fill_30_data(tm_fill_data[11934:11550]),
-        .fill_31_valid(tm_fill_valid[31]),
-        .fill_31_ready(tm_fill_ready[31]),
-        .fill_31_data(tm_fill_data[12319:11935]),
-        .fill_32_valid(tm_fill_valid[32]),
-        .fill_32_ready(tm_fill_ready[32]),
-        .fill_32_data(tm_fill_data[12704:12320]),
-        .fill_33_valid(tm_fill_valid[33]),
-        .fill_33_ready(tm_fill_ready[33]),
-        .fill_33_data(tm_fill_data[13089:12705]),
-        .fill_34_valid(tm_fill_valid[34]),
-        .fill_34_ready(tm_fill_ready[34]),
-        .fill_34_data(tm_fill_data[13474:13090]),
-        .fill_35_valid(tm_fill_valid[35]),
-        .fill_35_ready(tm_fill_ready[35]),
-        .fill_35_data(tm_fill_data[13859:13475]),
-        .fill_36_valid(tm_fill_valid[36]),
-        .fill_36_ready(tm_fill_ready[36]),
-        .fill_36_data(tm_fill_data[14244:13860]),
-        .fill_37_valid(tm_fill_valid[37]),
-        .fill_37_ready(tm_fill_ready[37]),
-        .fill_37_data(tm_fill_data[14629:14245]),
-        .fill_38_valid(tm_fill_valid[38]),
-        .fill_38_ready(tm_fill_ready[38]),
-        .fill_38_data(tm_fill_data[15014:14630]),
-        .fill_39_valid(tm_fill_valid[39]),
-        .fill_39_ready(tm_fill_ready[39]),
-        .fill_39_data(tm_fill_data[15399:15015]),
-        .fill_40_valid(tm_fill_valid[40]),
-        .fill_40_ready(tm_fill_ready[40]),
-        .fill_40_data(tm_fill_data[15784:15400]),
-        .fill_41_valid(tm_fill_valid[41]),
-        .fill_41_ready(tm_fill_ready[41]),
-        .fill_41_data(tm_fill_data[16169:15785]),
-        .fill_42_valid(tm_fill_valid[42]),
-        .fill_42_ready(tm_fill_ready[42]),
-        .fill_42_data(tm_fill_data[16554:16170]),
-        .fill_43_valid(tm_fill_valid[43]),
-        .fill_43_ready(tm_fill_ready[43]),
-        .fill_43_data(tm_fill_data[16939:16555]),
-        .fill_44_valid(tm_fill_valid[44]),
-        .fill_44_ready(tm_fill_ready[44]),
-        .fill_44_data(tm_fill_data[17324:16940]),
-        .fill_45_valid(tm_fill_valid[45]),
-        .fill_45_ready(tm_fill_ready[45]),
-        .fill_45_data(tm_fill_data[17709:17325]),
-        .fill_46_valid(tm_fill_valid[46]),
-        .fill_46_ready(tm_fill_ready[46]),
-        .fill_46_data(tm_fill_data[18094:17710]),
-        .fill_47_valid(tm_fill_valid[47]),
-        .fill_47_ready(tm_fill_ready[47]),
-        .fill_47_data(tm_fill_data[18479:18095]),
-        .fill_48_valid(tm_fill_valid[48]),
-        .fill_48_ready(tm_fill_ready[48]),
-        .fill_48_data(tm_fill_data[18864:18480]),
-        .fill_49_valid(tm_fill_valid[49]),
-        .fill_49_ready(tm_fill_ready[49]),
-        .fill_49_data(tm_fill_data[19249:18865]),
-        .fill_50_valid(tm_fill_valid[50]),
-        .fill_50_ready(tm_fill_ready[50]),
-        .fill_50_data(tm_fill_data[19634:19250]),
-        .fill_51_valid(tm_fill_valid[51]),
-        .fill_51_ready(tm_fill_ready[51]),
-        .fill_51_data(tm_fill_data[20019:19635]),
-        .fill_52_valid(tm_fill_valid[52]),
-        .fill_52_ready(tm_fill_ready[52]),
-        .fill_52_data(tm_fill_data[20404:20020]),
-        .fill_53_valid(tm_fill_valid[53]),
-        .fill_53_ready(tm_fill_ready[53]),
-        .fill_53_data(tm_fill_data[20789:20405]),
-        .fill_54_valid(tm_fill_valid[54]),
-        .fill_54_ready(tm_fill_ready[54]),
-        .fill_54_data(tm_fill_data[21174:20790]),
-        .fill_55_valid(tm_fill_valid[55]),
-        .fill_55_ready(tm_fill_ready[55]),
-        .fill_55_data(tm_fill_data[21559:21175]),
-        .fill_56_valid(tm_fill_valid[56]),
-        .fill_56_ready(tm_fill_ready[56]),
-        .fill_56_data(tm_fill_data[21944:21560]),
-        .fill_57_valid(tm_fill_valid[57]),
-        .fill_57_ready(tm_fill_ready[57]),
-        .fill_57_data(tm_fill_data[22329:21945]),
-        .fill_58_valid(tm_fill_valid[58]),
-        .fill_58_ready(tm_fill_ready[58]),
-        .fill_58_data(tm_fill_data[22714:22330]),
-        .fill_59_valid(tm_fill_valid[59]),
-        .fill_59_ready(tm_fill_ready[59]),
-        .fill_59_data(tm_fill_data[23099:22715]),
-        .fill_60_valid(tm_fill_valid[60]),
-        .fill_60_ready(tm_fill_ready[60]),
-        .fill_60_data(tm_fill_data[23484:23100]),
-        .fill_61_valid(tm_fill_valid[61]),
-        .fill_61_ready(tm_fill_ready[61]),
-        .fill_61_data(tm_fill_data[23869:23485]),
-        .fill_62_valid(tm_fill_valid[62]),
-        .fill_62_ready(tm_fill_ready[62]),
-        .fill_62_data(tm_fill_data[24254:23870]),
-        .fill_63_valid(tm_fill_valid[63]),
-        .fill_63_ready(tm_fill_ready[63]),
-        .fill_63_data(tm_fill_data[24639:24255]),
-        .fill_64_valid(tm_fill_valid[64]),
-        .fill_64_ready(tm_fill_ready[64]),
-        .fill_64_data(tm_fill_data[25024:24640]),
-        .fill_65_valid(tm_fill_valid[65]),
-        .fill_65_ready(tm_fill_ready[65]),
-        .fill_65_data(tm_fill_data[25409:25025]),
-        .fill_66_valid(tm_fill_valid[66]),
-        .fill_66_ready(tm_fill_ready[66]),
-        .fill_66_data(tm_fill_data[25794:25410]),
-        .fill_67_valid(tm_fill_valid[67]),
-        .fill_67_ready(tm_fill_ready[67]),
-        .fill_67_data(tm_fill_data[26179:25795]),
-        .fill_68_valid(tm_fill_valid[68]),
-        .fill_68_ready(tm_fill_ready[68]),
-        .fill_68_data(tm_fill_data[26564:26180]),
-        .fill_69_valid(tm_fill_valid[69]),
-        .fill_69_ready(tm_fill_ready[69]),
-        .fill_69_data(tm_fill_data[26949:26565]),
-        .fill_70_valid(tm_fill_valid[70]),
-        .fill_70_ready(tm_fill_ready[70]),
-        .fill_70_data(tm_fill_data[27334:26950]),
-        .fill_71_valid(tm_fill_valid[71]),
-        .fill_71_ready(tm_fill_ready[71]),
-        .fill_71_data(tm_fill_data[27719:27335]),
-        .fill_72_valid(tm_fill_valid[72]),
-        .fill_72_ready(tm_fill_ready[72]),
-        .fill_72_data(tm_fill_data[28104:27720]),
-        .fill_73_valid(tm_fill_valid[73]),
-        .fill_73_ready(tm_fill_ready[73]),
-        .fill_73_data(tm_fill_data[28489:28105]),
-        .fill_74_valid(tm_fill_valid[74]),
-        .fill_74_ready(tm_fill_ready[74]),
-        .fill_74_data(tm_fill_data[28874:28490]),
-        .fill_75_valid(tm_fill_valid[75]),
-        .fill_75_ready(tm_fill_ready[75]),
-        .fill_75_data(tm_fill_data[29259:28875]),
-        .fill_76_valid(tm_fill_valid[76]),
-        .fill_76_ready(tm_fill_ready[76]),
-        .fill_76_data(tm_fill_data[29644:29260]),
-        .fill_77_valid(tm_fill_valid[77]),
-        .fill_77_ready(tm_fill_ready[77]),
-        .fill_77_data(tm_fill_data[30029:29645]),
-        .fill_78_valid(tm_fill_valid[78]),
-        .fill_78_ready(tm_fill_ready[78]),
-        .fill_78_data(tm_fill_data[30414:30030]),
-        .fill_79_valid(tm_fill_valid[79]),
-        .fill_79_ready(tm_fill_ready[79]),
-        .fill_79_data(tm_fill_data[30799:30415]),
-        .fill_80_valid(tm_fill_valid[80]),
-        .fill_80_ready(tm_fill_ready[80]),
-        .fill_80_data(tm_fill_data[31184:30800]),
-        .fill_81_valid(tm_fill_valid[81]),
-        .fill_81_ready(tm_fill_ready[81]),
-        .fill_81_data(tm_fill_data[31569:31185]),
-        .fill_82_valid(tm_fill_valid[82]),
-        .fill_82_ready(tm_fill_ready[82]),
-        .fill_82_data(tm_fill_data[31954:31570]),
-        .fill_83_valid(tm_fill_valid[83]),
-        .fill_83_ready(tm_fill_ready[83]),
-        .fill_83_data(tm_fill_data[32339:31955]),
-        .fill_84_valid(tm_fill_valid[84]),
-        .fill_84_ready(tm_fill_ready[84]),
-        .fill_84_data(tm_fill_data[32724:32340]),
-        .fill_85_valid(tm_fill_valid[85]),
-        .fill_85_ready(tm_fill_ready[85]),
-        .fill_85_data(tm_fill_data[33109:32725]),
-        .fill_86_valid(tm_fill_valid[86]),
-        .fill_86_ready(tm_fill_ready[86]),
-        .fill_86_data(tm_fill_data[33494:33110]),
-        .fill_87_valid(tm_fill_valid[87]),
-        .fill_87_ready(tm_fill_ready[87]),
-        .fill_87_data(tm_fill_data[33879:33495]),
-        .fill_88_valid(tm_fill_valid[88]),
-        .fill_88_ready(tm_fill_ready[88]),
-        .fill_88_data(tm_fill_data[34264:33880]),
-        .fill_89_valid(tm_fill_valid[89]),
-        .fill_89_ready(tm_fill_ready[89]),
-        .fill_89_data(tm_fill_data[34649:34265]),
-        .fill_90_valid(tm_fill_valid[90]),
-        .fill_90_ready(tm_fill_ready[90]),
-        .fill_90_data(tm_fill_data[35034:34650]),
-        .fill_91_valid(tm_fill_valid[91]),
-        .fill_91_ready(tm_fill_ready[91]),
-        .fill_91_data(tm_fill_data[35419:35035]),
-        .fill_92_valid(tm_fill_valid[92]),
-        .fill_92_ready(tm_fill_ready[92]),
-        .fill_92_data(tm_fill_data[35804:35420]),
-        .fill_93_valid(tm_fill_valid[93]),
-        .fill_93_ready(tm_fill_ready[93]),
-        .fill_93_data(tm_fill_data[36189:35805]),
-        .fill_94_valid(tm_fill_valid[94]),
-        .fill_94_ready(tm_fill_ready[94]),
-        .fill_94_data(tm_fill_data[36574:36190]),
-        .fill_95_valid(tm_fill_valid[95]),
-        .fill_95_ready(tm_fill_ready[95]),
-        .fill_95_data(tm_fill_data[36959:36575]),
-        .fill_96_valid(tm_fill_valid[96]),
-        .fill_96_ready(tm_fill_ready[96]),
-        .fill_96_data(tm_fill_data[37344:36960]),
-        .fill_97_valid(tm_fill_valid[97]),
-        .fill_97_ready(tm_fill_ready[97]),
-        .fill_97_data(tm_fill_data[37729:37345]),
-        .fill_98_valid(tm_fill_valid[98]),
-        .fill_98_ready(tm_fill_ready[98]),
-        .fill_98_data(tm_fill_data[38114:37730]),
-        .fill_99_valid(tm_fill_valid[99]),
-        .fill_99_ready(tm_fill_ready[99]),
-        .fill_99_data(tm_fill_data[38499:38115]),
-        .fill_100_valid(tm_fill_valid[100]),
-        .fill_100_ready(tm_fill_ready[100]),
-        .fill_100_data(tm_fill_data[38884:38500]),
-        .fill_101_valid(tm_fill_valid[101]),
-        .fill_101_ready(tm_fill_ready[101]),
-        .fill_101_data(tm_fill_data[39269:38885]),
-        .fill_102_valid(tm_fill_valid[102]),
-        .fill_102_ready(tm_fill_ready[102]),
-        .fill_102_data(tm_fill_data[39654:39270]),
-        .fill_103_valid(tm_fill_valid[103]),
-        .fill_103_ready(tm_fill_ready[103]),
-        .fill_103_data(tm_fill_data[40039:39655]),
-        .fill_104_valid(tm_fill_valid[104]),
-        .fill_104_ready(tm_fill_ready[104]),
-        .fill_104_data(tm_fill_data[40424:40040]),
-        .fill_105_valid(tm_fill_valid[105]),
-        .fill_105_ready(tm_fill_ready[105]),
-        .fill_105_data(tm_fill_data[40809:40425]),
-        .fill_106_valid(tm_fill_valid[106]),
-        .fill_106_ready(tm_fill_ready[106]),
-        .fill_106_data(tm_fill_data[41194:40810]),
-        .fill_107_valid(tm_fill_valid[107]),
-        .fill_107_ready(tm_fill_ready[107]),
-        .fill_107_data(tm_fill_data[41579:41195]),
-        .fill_108_valid(tm_fill_valid[108]),
-        .fill_108_ready(tm_fill_ready[108]),
-        .fill_108_data(tm_fill_data[41964:41580]),
-        .fill_109_valid(tm_fill_valid[109]),
-        .fill_109_ready(tm_fill_ready[109]),
-        .fill_109_data(tm_fill_data[42349:41965]),
-        .fill_110_valid(tm_fill_valid[110]),
-        .fill_110_ready(tm_fill_ready[110]),
-        .fill_110_data(tm_fill_data[42734:42350]),
-        .fill_111_valid(tm_fill_valid[111]),
-        .fill_111_ready(tm_fill_ready[111]),
-        .fill_111_data(tm_fill_data[43119:42735]),
-        .fill_112_valid(tm_fill_valid[112]),
-        .fill_112_ready(tm_fill_ready[112]),
-        .fill_112_data(tm_fill_data[43504:43120]),
-        .fill_113_valid(tm_fill_valid[113]),
-        .fill_113_ready(tm_fill_ready[113]),
-        .fill_113_data(tm_fill_data[43889:43505]),
-        .fill_114_valid(tm_fill_valid[114]),
-        .fill_114_ready(tm_fill_ready[114]),
-        .fill_114_data(tm_fill_data[44274:43890]),
-        .fill_115_valid(tm_fill_valid[115]),
-        .fill_115_ready(tm_fill_ready[115]),
-        .fill_115_data(tm_fill_data[44659:44275]),
-        .fill_116_valid(tm_fill_valid[116]),
-        .fill_116_ready(tm_fill_ready[116]),
-        .fill_116_data(tm_fill_data[45044:44660]),
-        .fill_117_valid(tm_fill_valid[117]),
-        .fill_117_ready(tm_fill_ready[117]),
-        .fill_117_data(tm_fill_data[45429:45045]),
-        .fill_118_valid(tm_fill_valid[118]),
-        .fill_118_ready(tm_fill_ready[118]),
-        .fill_118_data(tm_fill_data[45814:45430]),
-        .fill_119_valid(tm_fill_valid[119]),
-        .fill_119_ready(tm_fill_ready[119]),
-        .fill_119_data(tm_fill_data[46199:45815]),
-        .fill_120_valid(tm_fill_valid[120]),
-        .fill_120_ready(tm_fill_ready[120]),
-        .fill_120_data(tm_fill_data[46584:46200]),
-        .fill_121_valid(tm_fill_valid[121]),
-        .fill_121_ready(tm_fill_ready[121]),
-        .fill_121_data(tm_fill_data[46969:46585]),
-        .fill_122_valid(tm_fill_valid[122]),
-        .fill_122_ready(tm_fill_ready[122]),
-        .fill_122_data(tm_fill_data[47354:46970]),
-        .fill_123_valid(tm_fill_valid[123]),
-        .fill_123_ready(tm_fill_ready[123]),
-        .fill_123_data(tm_fill_data[47739:47355]),
-        .fill_124_valid(tm_fill_valid[124]),
-        .fill_124_ready(tm_fill_ready[124]),
-        .fill_124_data(tm_fill_data[48124:47740]),
-        .fill_125_valid(tm_fill_valid[125]),
-        .fill_125_ready(tm_fill_ready[125]),
-        .fill_125_data(tm_fill_data[48509:48125]),
-        .fill_126_valid(tm_fill_valid[126]),
-        .fill_126_ready(tm_fill_ready[126]),
-        .fill_126_data(tm_fill_data[48894:48510]),
-        .fill_127_valid(tm_fill_valid[127]),
-        .fill_127_ready(tm_fill_ready[127]),
-        .fill_127_data(tm_fill_data[49279:48895]),
-        .ray_write_0_valid(tm_ray_write_valid[0]),
-        .ray_write_0_ready(tm_ray_write_ready[0]),
-        .ray_write_0_data(tm_ray_write_data[288:0]),
-        .ray_write_1_valid(tm_ray_write_valid[1]),
-        .ray_write_1_ready(tm_ray_write_ready[1]),
-        .ray_write_1_data(tm_ray_write_data[577:289]),
-        .ray_write_2_valid(tm_ray_write_valid[2]),
-        .ray_write_2_ready(tm_ray_write_ready[2]),
-        .ray_write_2_data(tm_ray_write_data[866:578]),
-        .ray_write_3_valid(tm_ray_write_valid[3]),
-        .ray_write_3_ready(tm_ray_write_ready[3]),
-        .ray_write_3_data(tm_ray_write_data[1155:867]),
-        .ray_write_4_valid(tm_ray_write_valid[4]),
-        .ray_write_4_ready(tm_ray_write_ready[4]),
-        .ray_write_4_data(tm_ray_write_data[1444:1156]),
-        .ray_write_5_valid(tm_ray_write_valid[5]),
-        .ray_write_5_ready(tm_ray_write_ready[5]),
-        .ray_write_5_data(tm_ray_write_data[1733:1445]),
-        .ray_write_6_valid(tm_ray_write_valid[6]),
-        .ray_write_6_ready(tm_ray_write_ready[6]),
-        .ray_write_6_data(tm_ray_write_data[2022:1734]),
-        .ray_write_7_valid(tm_ray_write_valid[7]),
-        .ray_write_7_ready(tm_ray_write_ready[7]),
-        .ray_write_7_data(tm_ray_write_data[2311:2023]),
-        .ray_write_8_valid(tm_ray_write_valid[8]),
-        .ray_write_8_ready(tm_ray_write_ready[8]),
-        .ray_write_8_data(tm_ray_write_data[2600:2312]),
-        .ray_write_9_valid(tm_ray_write_valid[9]),
-        .ray_write_9_ready(tm_ray_write_ready[9]),
-        .ray_write_9_data(tm_ray_write_data[2889:2601]),
-        .ray_write_10_valid(tm_ray_write_valid[10]),
-        .ray_write_10_ready(tm_ray_write_ready[10]),
-        .ray_write_10_data(tm_ray_write_data[3178:2890]),
-        .ray_write_11_valid(tm_ray_write_valid[11]),
-        .ray_write_11_ready(tm_ray_write_ready[11]),
-        .ray_write_11_data(tm_ray_write_data[3467:3179]),
-        .ray_write_12_valid(tm_ray_write_valid[12]),
-        .ray_write_12_ready(tm_ray_write_ready[12]),
-        .ray_write_12_data(tm_ray_write_data[3756:3468]),
-        .ray_write_13_valid(tm_ray_write_valid[13]),
-        .ray_write_13_ready(tm_ray_write_ready[13]),
-        .ray_write_13_data(tm_ray_write_data[4045:3757]),
-        .ray_write_14_valid(tm_ray_write_valid[14]),
-        .ray_write_14_ready(tm_ray_write_ready[14]),
-        .ray_write_14_data(tm_ray_write_data[4334:4046]),
-        .ray_write_15_valid(tm_ray_write_valid[15]),
-        .ray_write_15_ready(tm_ray_write_ready[15]),
-        .ray_write_15_data(tm_ray_write_data[4623:4335]),
-        .ray_write_16_valid(tm_ray_write_valid[16]),
-        .ray_write_16_ready(tm_ray_write_ready[16]),
-        .ray_write_16_data(tm_ray_write_data[4912:4624]),
-        .ray_write_17_valid(tm_ray_write_valid[17]),
-        .ray_write_17_ready(tm_ray_write_ready[17]),
-        .ray_write_17_data(tm_ray_write_data[5201:4913]),
-        .ray_write_18_valid(tm_ray_write_valid[18]),
-        .ray_write_18_ready(tm_ray_write_ready[18]),
-        .ray_write_18_data(tm_ray_write_data[5490:5202]),
-        .ray_write_19_valid(tm_ray_write_valid[19]),
-        .ray_write_19_ready(tm_ray_write_ready[19]),
-        .ray_write_19_data(tm_ray_write_data[5779:5491]),
-        .ray_write_20_valid(tm_ray_write_valid[20]),
-        .ray_write_20_ready(tm_ray_write_ready[20]),
-        .ray_write_20_data(tm_ray_write_data[6068:5780]),
-        .ray_write_21_valid(tm_ray_write_valid[21]),
-        .ray_write_21_ready(tm_ray_write_ready[21]),
-        .ray_write_21_data(tm_ray_write_data[6357:6069]),
-        .ray_write_22_valid(tm_ray_write_valid[22]),
-        .ray_write_22_ready(tm_ray_write_ready[22]),
-        .ray_write_22_data(tm_ray_write_data[6646:6358]),
-        .ray_write_23_valid(tm_ray_write_valid[23]),
-        .ray_write_23_ready(tm_ray_write_ready[23]),
-        .ray_write_23_data(tm_ray_write_data[6935:6647]),
-        .ray_write_24_valid(tm_ray_write_valid[24]),
-        .ray_write_24_ready(tm_ray_write_ready[24]),
-        .ray_write_24_data(tm_ray_write_data[7224:6936]),
-        .ray_write_25_valid(tm_ray_write_valid[25]),
-        .ray_write_25_ready(tm_ray_write_ready[25]),
-        .ray_write_25_data(tm_ray_write_data[7513:7225]),
-        .ray_write_26_valid(tm_ray_write_valid[26]),
-        .ray_write_26_ready(tm_ray_write_ready[26]),
-        .ray_write_26_data(tm_ray_write_data[7802:7514]),
-        .ray_write_27_valid(tm_ray_write_valid[27]),
-        .ray_write_27_ready(tm_ray_write_ready[27]),
-        .ray_write_27_data(tm_ray_write_data[8091:7803]),
-        .ray_write_28_valid(tm_ray_write_valid[28]),
-        .ray_write_28_ready(tm_ray_write_ready[28]),
-        .ray_write_28_data(tm_ray_write_data[8380:8092]),
-        .ray_write_29_valid(tm_ray_write_valid[29]),
-        .ray_write_29_ready(tm_ray_write_ready[29]),
-        .ray_write_29_data(tm_ray_write_data[8669:8381]),
-        .ray_write_30_valid(tm_ray_write_valid[30]),
-        .ray_write_30_ready(tm_ray_write_ready[30]),
-        .ray_write_30_data(tm_ray_write_data[8958:8670]),
-        .ray_write_31_valid(tm_ray_write_valid[31]),
-        .ray_write_31_ready(tm_ray_write_ready[31]),
-        .ray_write_31_data(tm_ray_write_data[9247:8959]),
-        .ray_write_32_valid(tm_ray_write_valid[32]),
-        .ray_write_32_ready(tm_ray_write_ready[32]),
-        .ray_write_32_data(tm_ray_write_data[9536:9248]),
-        .ray_write_33_valid(tm_ray_write_valid[33]),
-        .ray_write_33_ready(tm_ray_write_ready[33]),
-        .ray_write_33_data(tm_ray_write_data[9825:9537]),
-        .ray_write_34_valid(tm_ray_write_valid[34]),
-        .ray_write_34_ready(tm_ray_write_ready[34]),
-        .ray_write_34_data(tm_ray_write_data[10114:9826]),
-        .ray_write_35_valid(tm_ray_write_valid[35]),
-        .ray_write_35_ready(tm_ray_write_ready[35]),
-        .ray_write_35_data(tm_ray_write_data[10403:10115]),
-        .ray_write_36_valid(tm_ray_write_valid[36]),
-        .ray_write_36_ready(tm_ray_write_ready[36]),
-        .ray_write_36_data(tm_ray_write_data[10692:10404]),
-        .ray_write_37_valid(tm_ray_write_valid[37]),
-        .ray_write_37_ready(tm_ray_write_ready[37]),
-        .ray_write_37_data(tm_ray_write_data[10981:10693]),
-        .ray_write_38_valid(tm_ray_write_valid[38]),
-        .ray_write_38_ready(tm_ray_write_ready[38]),
-        .ray_write_38_data(tm_ray_write_data[11270:10982]),
-        .ray_write_39_valid(tm_ray_write_valid[39]),
-        .ray_write_39_ready(tm_ray_write_ready[39]),
-        .ray_write_39_data(tm_ray_write_data[11559:11271]),
-        .ray_write_40_valid(tm_ray_write_valid[40]),
-        .ray_write_40_ready(tm_ray_write_ready[40]),
-        .ray_write_40_data(tm_ray_write_data[11848:11560]),
-        .ray_write_41_valid(tm_ray_write_valid[41]),
-        .ray_write_41_ready(tm_ray_write_ready[41]),
-        .ray_write_41_data(tm_ray_write_data[12137:11849]),
-        .ray_write_42_valid(tm_ray_write_valid[42]),
-        .ray_write_42_ready(tm_ray_write_ready[42]),
-        .ray_write_42_data(tm_ray_write_data[12426:12138]),
-        .ray_write_43_valid(tm_ray_write_valid[43]),
-        .ray_write_43_ready(tm_ray_write_ready[43]),
-        .ray_write_43_data(tm_ray_write_data[12715:12427]),
-        .ray_write_44_valid(tm_ray_write_valid[44]),
-        .ray_write_44_ready(tm_ray_write_ready[44]),
-        .ray_write_44_data(tm_ray_write_data[13004:12716]),
-        .ray_write_45_valid(tm_ray_write_valid[45]),
-        .ray_write_45_ready(tm_ray_write_ready[45]),
-        .ray_write_45_data(tm_ray_write_data[13293:13005]),
-        .ray_write_46_valid(tm_ray_write_valid[46]),
-        .ray_write_46_ready(tm_ray_write_ready[46]),
-        .ray_write_46_data(tm_ray_write_data[13582:13294]),
-        .ray_write_47_valid(tm_ray_write_valid[47]),
-        .ray_write_47_ready(tm_ray_write_ready[47]),
-        .ray_write_47_data(tm_ray_write_data[13871:13583]),
-        .ray_write_48_valid(tm_ray_write_valid[48]),
-        .ray_write_48_ready(tm_ray_write_ready[48]),
-        .ray_write_48_data(tm_ray_write_data[14160:13872]),
-        .ray_write_49_valid(tm_ray_write_valid[49]),
-        .ray_write_49_ready(tm_ray_write_ready[49]),
-        .ray_write_49_data(tm_ray_write_data[14449:14161]),
-        .ray_write_50_valid(tm_ray_write_valid[50]),
-        .ray_write_50_ready(tm_ray_write_ready[50]),
-        .ray_write_50_data(tm_ray_write_data[14738:14450]),
-        .ray_write_51_valid(tm_ray_write_valid[51]),
-        .ray_write_51_ready(tm_ray_write_ready[51]),
-        .ray_write_51_data(tm_ray_write_data[15027:14739]),
-        .ray_write_52_valid(tm_ray_write_valid[52]),
-        .ray_write_52_ready(tm_ray_write_ready[52]),
-        .ray_write_52_data(tm_ray_write_data[15316:15028]),
-        .ray_write_53_valid(tm_ray_write_valid[53]),
-        .ray_write_53_ready(tm_ray_write_ready[53]),
-        .ray_write_53_data(tm_ray_write_data[15605:15317]),
-        .ray_write_54_valid(tm_ray_write_valid[54]),
-        .ray_write_54_ready(tm_ray_write_ready[54]),
-        .ray_write_54_data(tm_ray_write_data[15894:15606]),
-        .ray_write_55_valid(tm_ray_write_valid[55]),
-        .ray_write_55_ready(tm_ray_write_ready[55]),
-        .ray_write_55_data(tm_ray_write_data[16183:15895]),
-        .ray_write_56_valid(tm_ray_write_valid[56]),
-        .ray_write_56_ready(tm_ray_write_ready[56]),
-        .ray_write_56_data(tm_ray_write_data[16472:16184]),
-        .ray_write_57_valid(tm_ray_write_valid[57]),
-        .ray_write_57_ready(tm_ray_write_ready[57]),
-        .ray_write_57_data(tm_ray_write_data[16761:16473]),
-        .ray_write_58_valid(tm_ray_write_valid[58]),
-        .ray_write_58_ready(tm_ray_write_ready[58]),
-        .ray_write_58_data(tm_ray_write_data[17050:16762]),
-        .ray_write_59_valid(tm_ray_write_valid[59]),
-        .ray_write_59_ready(tm_ray_write_ready[59]),
-        .ray_write_59_data(tm_ray_write_data[17339:17051]),
-        .ray_write_60_valid(tm_ray_write_valid[60]),
-        .ray_write_60_ready(tm_ray_write_ready[60]),
-        .ray_write_60_data(tm_ray_write_data[17628:17340]),
-        .ray_write_61_valid(tm_ray_write_valid[61]),
-        .ray_write_61_ready(tm_ray_write_ready[61]),
-        .ray_write_61_data(tm_ray_write_data[17917:17629]),
-        .ray_write_62_valid(tm_ray_write_valid[62]),
-        .ray_write_62_ready(tm_ray_write_ready[62]),
-        .ray_write_62_data(tm_ray_write_data[18206:17918]),
-        .ray_write_63_valid(tm_ray_write_valid[63]),
-        .ray_write_63_ready(tm_ray_write_ready[63]),
-        .ray_write_63_data(tm_ray_write_data[18495:18207]),
-        .ray_write_64_valid(tm_ray_write_valid[64]),
-        .ray_write_64_ready(tm_ray_write_ready[64]),
-        .ray_write_64_data(tm_ray_write_data[18784:18496]),
-        .ray_write_65_valid(tm_ray_write_valid[65]),
-        .ray_write_65_ready(tm_ray_write_ready[65]),
-        .ray_write_65_data(tm_ray_write_data[19073:18785]),
-        .ray_write_66_valid(tm_ray_write_valid[66]),
-        .ray_write_66_ready(tm_ray_write_ready[66]),
-        .ray_write_66_data(tm_ray_write_data[19362:19074]),
-        .ray_write_67_valid(tm_ray_write_valid[67]),
-        .ray_write_67_ready(tm_ray_write_ready[67]),
-        .ray_write_67_data(tm_ray_write_data[19651:19363]),
-        .ray_write_68_valid(tm_ray_write_valid[68]),
-        .ray_write_68_ready(tm_ray_write_ready[68]),
-        .ray_write_68_data(tm_ray_write_data[19940:19652]),
-        .ray_write_69_valid(tm_ray_write_valid[69]),
-        .ray_write_69_ready(tm_ray_write_ready[69]),
-        .ray_write_69_data(tm_ray_write_data[20229:19941]),
-        .ray_write_70_valid(tm_ray_write_valid[70]),
-        .ray_write_70_ready(tm_ray_write_ready[70]),
-        .ray_write_70_data(tm_ray_write_data[20518:20230]),
-        .ray_write_71_valid(tm_ray_write_valid[71]),
-        .ray_write_71_ready(tm_ray_write_ready[71]),
-        .ray_write_71_data(tm_ray_write_data[20807:20519]),
-        .ray_write_72_valid(tm_ray_write_valid[72]),
-        .ray_write_72_ready(tm_ray_write_ready[72]),
-        .ray_write_72_data(tm_ray_write_data[21096:20808]),
-        .ray_write_73_valid(tm_ray_write_valid[73]),
-        .ray_write_73_ready(tm_ray_write_ready[73]),
-        .ray_write_73_data(tm_ray_write_data[21385:21097]),
-        .ray_write_74_valid(tm_ray_write_valid[74]),
-        .ray_write_74_ready(tm_ray_write_ready[74]),
-        .ray_write_74_data(tm_ray_write_data[21674:21386]),
-        .ray_write_75_valid(tm_ray_write_valid[75]),
-        .ray_write_75_ready(tm_ray_write_ready[75]),
-        .ray_write_75_data(tm_ray_write_data[21963:21675]),
-        .ray_write_76_valid(tm_ray_write_valid[76]),
-        .ray_write_76_ready(tm_ray_write_ready[76]),
-        .ray_write_76_data(tm_ray_write_data[22252:21964]),
-        .ray_write_77_valid(tm_ray_write_valid[77]),
-        .ray_write_77_ready(tm_ray_write_ready[77]),
-        .ray_write_77_data(tm_ray_write_data[22541:22253]),
-        .ray_write_78_valid(tm_ray_write_valid[78]),
-        .ray_write_78_ready(tm_ray_write_ready[78]),
-        .ray_write_78_data(tm_ray_write_data[22830:22542]),
-        .ray_write_79_valid(tm_ray_write_valid[79]),
-        .ray_write_79_ready(tm_ray_write_ready[79]),
-        .ray_write_79_data(tm_ray_write_data[23119:22831]),
-        .ray_write_80_valid(tm_ray_write_valid[80]),
-        .ray_write_80_ready(tm_ray_write_ready[80]),
-        .ray_write_80_data(tm_ray_write_data[23408:23120]),
-        .ray_write_81_valid(tm_ray_write_valid[81]),
-        .ray_write_81_ready(tm_ray_write_ready[81]),
-        .ray_write_81_data(tm_ray_write_data[23697:23409]),
-        .ray_write_82_valid(tm_ray_write_valid[82]),
-        .ray_write_82_ready(tm_ray_write_ready[82]),
-        .ray_write_82_data(tm_ray_write_data[23986:23698]),
-        .ray_write_83_valid(tm_ray_write_valid[83]),
-        .ray_write_83_ready(tm_ray_write_ready[83]),
-        .ray_write_83_data(tm_ray_write_data[24275:23987]),
-        .ray_write_84_valid(tm_ray_write_valid[84]),
-        .ray_write_84_ready(tm_ray_write_ready[84]),
-        .ray_write_84_data(tm_ray_write_data[24564:24276]),
-        .ray_write_85_valid(tm_ray_write_valid[85]),
-        .ray_write_85_ready(tm_ray_write_ready[85]),
-        .ray_write_85_data(tm_ray_write_data[24853:24565]),
-        .ray_write_86_valid(tm_ray_write_valid[86]),
-        .ray_write_86_ready(tm_ray_write_ready[86]),
-        .ray_write_86_data(tm_ray_write_data[25142:24854]),
-        .ray_write_87_valid(tm_ray_write_valid[87]),
-        .ray_write_87_ready(tm_ray_write_ready[87]),
-        .ray_write_87_data(tm_ray_write_data[25431:25143]),
-        .ray_write_88_valid(tm_ray_write_valid[88]),
-        .ray_write_88_ready(tm_ray_write_ready[88]),
-        .ray_write_88_data(tm_ray_write_data[25720:25432]),
-        .ray_write_89_valid(tm_ray_write_valid[89]),
-        .ray_write_89_ready(tm_ray_write_ready[89]),
-        .ray_write_89_data(tm_ray_write_data[26009:25721]),
-        .ray_write_90_valid(tm_ray_write_valid[90]),
-        .ray_write_90_ready(tm_ray_write_ready[90]),
-        .ray_write_90_data(tm_ray_write_data[26298:26010]),
-        .ray_write_91_valid(tm_ray_write_valid[91]),
-        .ray_write_91_ready(tm_ray_write_ready[91]),
-        .ray_write_91_data(tm_ray_write_data[26587:26299]),
-        .ray_write_92_valid(tm_ray_write_valid[92]),
-        .ray_write_92_ready(tm_ray_write_ready[92]),
-        .ray_write_92_data(tm_ray_write_data[26876:26588]),
-        .ray_write_93_valid(tm_ray_write_valid[93]),
-        .ray_write_93_ready(tm_ray_write_ready[93]),
-        .ray_write_93_data(tm_ray_write_data[27165:26877]),
-        .ray_write_94_valid(tm_ray_write_valid[94]),
-        .ray_write_94_ready(tm_ray_write_ready[94]),
-        .ray_write_94_data(tm_ray_write_data[27454:27166]),
-        .ray_write_95_valid(tm_ray_write_valid[95]),
-        .ray_write_95_ready(tm_ray_write_ready[95]),
-        .ray_write_95_data(tm_ray_write_data[27743:27455]),
-        .ray_write_96_valid(tm_ray_write_valid[96]),
-        .ray_write_96_ready(tm_ray_write_ready[96]),
-        .ray_write_96_data(tm_ray_write_data[28032:27744]),
-        .ray_write_97_valid(tm_ray_write_valid[97]),
-        .ray_write_97_ready(tm_ray_write_ready[97]),
-        .ray_write_97_data(tm_ray_write_data[28321:28033]),
-        .ray_write_98_valid(tm_ray_write_valid[98]),
-        .ray_write_98_ready(tm_ray_write_ready[98]),
-        .ray_write_98_data(tm_ray_write_data[28610:28322]),
-        .ray_write_99_valid(tm_ray_write_valid[99]),
-        .ray_write_99_ready(tm_ray_write_ready[99]),
-        .ray_write_99_data(tm_ray_write_data[28899:28611]),
-        .ray_write_100_valid(tm_ray_write_valid[100]),
-        .ray_write_100_ready(tm_ray_write_ready[100]),
-        .ray_write_100_data(tm_ray_write_data[29188:28900]),
-        .ray_write_101_valid(tm_ray_write_valid[101]),
-        .ray_write_101_ready(tm_ray_write_ready[101]),
-        .ray_write_101_data(tm_ray_write_data[29477:29189]),
-        .ray_write_102_valid(tm_ray_write_valid[102]),
-        .ray_write_102_ready(tm_ray_write_ready[102]),
-        .ray_write_102_data(tm_ray_write_data[29766:29478]),
-        .ray_write_103_valid(tm_ray_write_valid[103]),
-        .ray_write_103_ready(tm_ray_write_ready[103]),
-        .ray_write_103_data(tm_ray_write_data[30055:29767]),
-        .ray_write_104_valid(tm_ray_write_valid[104]),
-        .ray_write_104_ready(tm_ray_write_ready[104]),
-        .ray_write_104_data(tm_ray_write_data[30344:30056]),
-        .ray_write_105_valid(tm_ray_write_valid[105]),
-        .ray_write_105_ready(tm_ray_write_ready[105]),
-        .ray_write_105_data(tm_ray_write_data[30633:30345]),
-        .ray_write_106_valid(tm_ray_write_valid[106]),
-        .ray_write_106_ready(tm_ray_write_ready[106]),
-        .ray_write_106_data(tm_ray_write_data[30922:30634]),
-        .ray_write_107_valid(tm_ray_write_valid[107]),
-        .ray_write_107_ready(tm_ray_write_ready[107]),
-        .ray_write_107_data(tm_ray_write_data[31211:30923]),
-        .ray_write_108_valid(tm_ray_write_valid[108]),
-        .ray_write_108_ready(tm_ray_write_ready[108]),
-        .ray_write_108_data(tm_ray_write_data[31500:31212]),
-        .ray_write_109_valid(tm_ray_write_valid[109]),
-        .ray_write_109_ready(tm_ray_write_ready[109]),
-        .ray_write_109_data(tm_ray_write_data[31789:31501]),
-        .ray_write_110_valid(tm_ray_write_valid[110]),
-        .ray_write_110_ready(tm_ray_write_ready[110]),
-        .ray_write_110_data(tm_ray_write_data[32078:31790]),
-        .ray_write_111_valid(tm_ray_write_valid[111]),
-        .ray_write_111_ready(tm_ray_write_ready[111]),
-        .ray_write_111_data(tm_ray_write_data[32367:32079]),
-        .ray_write_112_valid(tm_ray_write_valid[112]),
-        .ray_write_112_ready(tm_ray_write_ready[112]),
-        .ray_write_112_data(tm_ray_write_data[32656:32368]),
-        .ray_write_113_valid(tm_ray_write_valid[113]),
-        .ray_write_113_ready(tm_ray_write_ready[113]),
-        .ray_write_113_data(tm_ray_write_data[32945:32657]),
-        .ray_write_114_valid(tm_ray_write_valid[114]),
-        .ray_write_114_ready(tm_ray_write_ready[114]),
-        .ray_write_114_data(tm_ray_write_data[33234:32946]),
-        .ray_write_115_valid(tm_ray_write_valid[115]),
-        .ray_write_115_ready(tm_ray_write_ready[115]),
-        .ray_write_115_data(tm_ray_write_data[33523:33235]),
-        .ray_write_116_valid(tm_ray_write_valid[116]),
-        .ray_write_116_ready(tm_ray_write_ready[116]),
-        .ray_write_116_data(tm_ray_write_data[33812:33524]),
-        .ray_write_117_valid(tm_ray_write_valid[117]),
-        .ray_write_117_ready(tm_ray_write_ready[117]),
-        .ray_write_117_data(tm_ray_write_data[34101:33813]),
-        .ray_write_118_valid(tm_ray_write_valid[118]),
-        .ray_write_118_ready(tm_ray_write_ready[118]),
-        .ray_write_118_data(tm_ray_write_data[34390:34102]),
-        .ray_write_119_valid(tm_ray_write_valid[119]),
-        .ray_write_119_ready(tm_ray_write_ready[119]),
-        .ray_write_119_data(tm_ray_write_data[34679:34391]),
-        .ray_write_120_valid(tm_ray_write_valid[120]),
-        .ray_write_120_ready(tm_ray_write_ready[120]),
-        .ray_write_120_data(tm_ray_write_data[34968:34680]),
-        .ray_write_121_valid(tm_ray_write_valid[121]),
-        .ray_write_121_ready(tm_ray_write_ready[121]),
-        .ray_write_121_data(tm_ray_write_data[35257:34969]),
-        .ray_write_122_valid(tm_ray_write_valid[122]),
-        .ray_write_122_ready(tm_ray_write_ready[122]),
-        .ray_write_122_data(tm_ray_write_data[35546:35258]),
-        .ray_write_123_valid(tm_ray_write_valid[123]),
-        .ray_write_123_ready(tm_ray_write_ready[123]),
-        .ray_write_123_data(tm_ray_write_data[35835:35547]),
-        .ray_write_124_valid(tm_ray_write_valid[124]),
-        .ray_write_124_ready(tm_ray_write_ready[124]),
-        .ray_write_124_data(tm_ray_write_data[36124:35836]),
-        .ray_write_125_valid(tm_ray_write_valid[125]),
-        .ray_write_125_ready(tm_ray_write_ready[125]),
-        .ray_write_125_data(tm_ray_write_data[36413:36125]),
-        .ray_write_126_valid(tm_ray_write_valid[126]),
-        .ray_write_126_ready(tm_ray_write_ready[126]),
-        .ray_write_126_data(tm_ray_write_data[36702:36414]),
-        .ray_write_127_valid(tm_ray_write_valid[127]),
-        .ray_write_127_ready(tm_ray_write_ready[127]),
-        .ray_write_127_data(tm_ray_write_data[36991:36703])
+        .mem_req_0_valid(mem_req0_sched_push_valid),
+        .mem_req_0_ready(mem_req0_sched_push_ready),
+        .mem_req_0_data(mem_req0_sched_push_data),
+        .mem_resp_0_valid(mem_resp0_sched_pop_valid),
+        .mem_resp_0_ready(mem_resp0_sched_pop_ready),
+        .mem_resp_0_data(mem_resp0_sched_pop_data),
+        .scene_req_0_valid(mem_req1_scene_push_valid),
+        .scene_req_0_ready(mem_req1_scene_push_ready),
+        .scene_req_0_data(mem_req1_scene_push_data),
+        .mem_req_1_valid(mem_req_sched1_push_valid),
+        .mem_req_1_ready(mem_req_sched1_push_ready),
+        .mem_req_1_data(mem_req_sched1_push_data),
+        .mem_resp_1_valid(mem_resp_sched1_pop_valid),
+        .mem_resp_1_ready(mem_resp_sched1_pop_ready),
+        .mem_resp_1_data(mem_resp_sched1_pop_data),
+        .mem_req_2_valid(mem_req_sched2_push_valid),
+        .mem_req_2_ready(mem_req_sched2_push_ready),
+        .mem_req_2_data(mem_req_sched2_push_data),
+        .mem_resp_2_valid(mem_resp_sched2_pop_valid),
+        .mem_resp_2_ready(mem_resp_sched2_pop_ready),
+        .mem_resp_2_data(mem_resp_sched2_pop_data),
+        .mem_req_3_valid(mem_req_sched3_push_valid),
+        .mem_req_3_ready(mem_req_sched3_push_ready),
+        .mem_req_3_data(mem_req_sched3_push_data),
+        .mem_resp_3_valid(mem_resp_sched3_pop_valid),
+        .mem_resp_3_ready(mem_resp_sched3_pop_ready),
+        .mem_resp_3_data(mem_resp_sched3_pop_data),
+        .scene_req_1_valid(mem_req_scene1_push_valid),
+        .scene_req_1_ready(mem_req_scene1_push_ready),
+        .scene_req_1_data(mem_req_scene1_push_data),
+        .scene_req_2_valid(mem_req_scene2_push_valid),
+        .scene_req_2_ready(mem_req_scene2_push_ready),
+        .scene_req_2_data(mem_req_scene2_push_data),
+        .scene_req_3_valid(mem_req_scene3_push_valid),
+        .scene_req_3_ready(mem_req_scene3_push_ready),
+        .scene_req_3_data(mem_req_scene3_push_data),
+        .emit_valid(emit_pop_valid),
+        .emit_ready(emit_pop_ready),
+        .emit_data(emit_pop_data),
+        .start_valid(start_pop_valid),
+        .start_ready(start_pop_ready),
+        .start_data(start_pop_data),
+        .slot_map_valid(slot_map_push_valid),
+        .slot_map_ready(slot_map_push_ready),
+        .slot_map_data(slot_map_push_data),
+        .fill_0_valid(tm0_fill_push_valid),
+        .fill_0_ready(tm0_fill_push_ready),
+        .fill_0_data(tm0_fill_push_data),
+        .fill_1_valid(tm1_fill_push_valid),
+        .fill_1_ready(tm1_fill_push_ready),
+        .fill_1_data(tm1_fill_push_data),
+        .fill_2_valid(tm2_fill_push_valid),
+        .fill_2_ready(tm2_fill_push_ready),
+        .fill_2_data(tm2_fill_push_data),
+        .fill_3_valid(tm3_fill_push_valid),
+        .fill_3_ready(tm3_fill_push_ready),
+        .fill_3_data(tm3_fill_push_data),
+        .fill_4_valid(tm4_fill_push_valid),
+        .fill_4_ready(tm4_fill_push_ready),
+        .fill_4_data(tm4_fill_push_data),
+        .fill_5_valid(tm5_fill_push_valid),
+        .fill_5_ready(tm5_fill_push_ready),
+        .fill_5_data(tm5_fill_push_data),
+        .fill_6_valid(tm6_fill_push_valid),
+        .fill_6_ready(tm6_fill_push_ready),
+        .fill_6_data(tm6_fill_push_data),
+        .fill_7_valid(tm7_fill_push_valid),
+        .fill_7_ready(tm7_fill_push_ready),
+        .fill_7_data(tm7_fill_push_data),
+        .fill_8_valid(tm8_fill_push_valid),
+        .fill_8_ready(tm8_fill_push_ready),
+        .fill_8_data(tm8_fill_push_data),
+        .fill_9_valid(tm9_fill_push_valid),
+        .fill_9_ready(tm9_fill_push_ready),
+        .fill_9_data(tm9_fill_push_data),
+        .fill_10_valid(tm10_fill_push_valid),
+        .fill_10_ready(tm10_fill_push_ready),
+        .fill_10_data(tm10_fill_push_data),
+        .fill_11_valid(tm11_fill_push_valid),
+        .fill_11_ready(tm11_fill_push_ready),
+        .fill_11_data(tm11_fill_push_data),
+        .fill_12_valid(tm12_fill_push_valid),
+        .fill_12_ready(tm12_fill_push_ready),
+        .fill_12_data(tm12_fill_push_data),
+        .fill_13_valid(tm13_fill_push_valid),
+        .fill_13_ready(tm13_fill_push_ready),
+        .fill_13_data(tm13_fill_push_data),
+        .fill_14_valid(tm14_fill_push_valid),
+        .fill_14_ready(tm14_fill_push_ready),
+        .fill_14_data(tm14_fill_push_data),
+        .fill_15_valid(tm15_fill_push_valid),
+        .fill_15_ready(tm15_fill_push_ready),
+        .fill_15_data(tm15_fill_push_data),
+        .fill_16_valid(tm16_fill_push_valid),
+        .fill_16_ready(tm16_fill_push_ready),
+        .fill_16_data(tm16_fill_push_data),
+        .fill_17_valid(tm17_fill_push_valid),
+        .fill_17_ready(tm17_fill_push_ready),
+        .fill_17_data(tm17_fill_push_data),
+        .fill_18_valid(tm18_fill_push_valid),
+        .fill_18_ready(tm18_fill_push_ready),
+        .fill_18_data(tm18_fill_push_data),
+        .fill_19_valid(tm19_fill_push_valid),
+        .fill_19_ready(tm19_fill_push_ready),
+        .fill_19_data(tm19_fill_push_data),
+        .fill_20_valid(tm20_fill_push_valid),
+        .fill_20_ready(tm20_fill_push_ready),
+        .fill_20_data(tm20_fill_push_data),
+        .fill_21_valid(tm21_fill_push_valid),
+        .fill_21_ready(tm21_fill_push_ready),
+        .fill_21_data(tm21_fill_push_data),
+        .fill_22_valid(tm22_fill_push_valid),
+        .fill_22_ready(tm22_fill_push_ready),
+        .fill_22_data(tm22_fill_push_data),
+        .fill_23_valid(tm23_fill_push_valid),
+        .fill_23_ready(tm23_fill_push_ready),
+        .fill_23_data(tm23_fill_push_data),
+        .fill_24_valid(tm24_fill_push_valid),
+        .fill_24_ready(tm24_fill_push_ready),
+        .fill_24_data(tm24_fill_push_data),
+        .fill_25_valid(tm25_fill_push_valid),
+        .fill_25_ready(tm25_fill_push_ready),
+        .fill_25_data(tm25_fill_push_data),
+        .fill_26_valid(tm26_fill_push_valid),
+        .fill_26_ready(tm26_fill_push_ready),
+        .fill_26_data(tm26_fill_push_data),
+        .fill_27_valid(tm27_fill_push_valid),
+        .fill_27_ready(tm27_fill_push_ready),
+        .fill_27_data(tm27_fill_push_data),
+        .fill_28_valid(tm28_fill_push_valid),
+        .fill_28_ready(tm28_fill_push_ready),
+        .fill_28_data(tm28_fill_push_data),
+        .fill_29_valid(tm29_fill_push_valid),
+        .fill_29_ready(tm29_fill_push_ready),
+        .fill_29_data(tm29_fill_push_data),
+        .fill_30_valid(tm30_fill_push_valid),
+        .fill_30_ready(tm30_fill_push_ready),
+        .fill_30_data(tm30_fill_push_data),
+        .fill_31_valid(tm31_fill_push_valid),
+        .fill_31_ready(tm31_fill_push_ready),
+        .fill_31_data(tm31_fill_push_data),
+        .fill_32_valid(tm32_fill_push_valid),
+        .fill_32_ready(tm32_fill_push_ready),
+        .fill_32_data(tm32_fill_push_data),
+        .fill_33_valid(tm33_fill_push_valid),
+        .fill_33_ready(tm33_fill_push_ready),
+        .fill_33_data(tm33_fill_push_data),
+        .fill_34_valid(tm34_fill_push_valid),
+        .fill_34_ready(tm34_fill_push_ready),
+        .fill_34_data(tm34_fill_push_data),
+        .fill_35_valid(tm35_fill_push_valid),
+        .fill_35_ready(tm35_fill_push_ready),
+        .fill_35_data(tm35_fill_push_data),
+        .fill_36_valid(tm36_fill_push_valid),
+        .fill_36_ready(tm36_fill_push_ready),
+        .fill_36_data(tm36_fill_push_data),
+        .fill_37_valid(tm37_fill_push_valid),
+        .fill_37_ready(tm37_fill_push_ready),
+        .fill_37_data(tm37_fill_push_data),
+        .fill_38_valid(tm38_fill_push_valid),
+        .fill_38_ready(tm38_fill_push_ready),
+        .fill_38_data(tm38_fill_push_data),
+        .fill_39_valid(tm39_fill_push_valid),
+        .fill_39_ready(tm39_fill_push_ready),
+        .fill_39_data(tm39_fill_push_data),
+        .fill_40_valid(tm40_fill_push_valid),
+        .fill_40_ready(tm40_fill_push_ready),
+        .fill_40_data(tm40_fill_push_data),
+        .fill_41_valid(tm41_fill_push_valid),
+        .fill_41_ready(tm41_fill_push_ready),
+        .fill_41_data(tm41_fill_push_data),
+        .fill_42_valid(tm42_fill_push_valid),
+        .fill_42_ready(tm42_fill_push_ready),
+        .fill_42_data(tm42_fill_push_data),
+        .fill_43_valid(tm43_fill_push_valid),
+        .fill_43_ready(tm43_fill_push_ready),
+        .fill_43_data(tm43_fill_push_data),
+        .fill_44_valid(tm44_fill_push_valid),
+        .fill_44_ready(tm44_fill_push_ready),
+        .fill_44_data(tm44_fill_push_data),
+        .fill_45_valid(tm45_fill_push_valid),
+        .fill_45_ready(tm45_fill_push_ready),
+        .fill_45_data(tm45_fill_push_data),
+        .fill_46_valid(tm46_fill_push_valid),
+        .fill_46_ready(tm46_fill_push_ready),
+        .fill_46_data(tm46_fill_push_data),
+        .fill_47_valid(tm47_fill_push_valid),
+        .fill_47_ready(tm47_fill_push_ready),
+        .fill_47_data(tm47_fill_push_data),
+        .fill_48_valid(tm48_fill_push_valid),
+        .fill_48_ready(tm48_fill_push_ready),
+        .fill_48_data(tm48_fill_push_data),
+        .fill_49_valid(tm49_fill_push_valid),
+        .fill_49_ready(tm49_fill_push_ready),
+        .fill_49_data(tm49_fill_push_data),
+        .fill_50_valid(tm50_fill_push_valid),
+        .fill_50_ready(tm50_fill_push_ready),
+        .fill_50_data(tm50_fill_push_data),
+        .fill_51_valid(tm51_fill_push_valid),
+        .fill_51_ready(tm51_fill_push_ready),
+        .fill_51_data(tm51_fill_push_data),
+        .fill_52_valid(tm52_fill_push_valid),
+        .fill_52_ready(tm52_fill_push_ready),
+        .fill_52_data(tm52_fill_push_data),
+        .fill_53_valid(tm53_fill_push_valid),
+        .fill_53_ready(tm53_fill_push_ready),
+        .fill_53_data(tm53_fill_push_data),
+        .fill_54_valid(tm54_fill_push_valid),
+        .fill_54_ready(tm54_fill_push_ready),
+        .fill_54_data(tm54_fill_push_data),
+        .fill_55_valid(tm55_fill_push_valid),
+        .fill_55_ready(tm55_fill_push_ready),
+        .fill_55_data(tm55_fill_push_data),
+        .fill_56_valid(tm56_fill_push_valid),
+        .fill_56_ready(tm56_fill_push_ready),
+        .fill_56_data(tm56_fill_push_data),
+        .fill_57_valid(tm57_fill_push_valid),
+        .fill_57_ready(tm57_fill_push_ready),
+        .fill_57_data(tm57_fill_push_data),
+        .fill_58_valid(tm58_fill_push_valid),
+        .fill_58_ready(tm58_fill_push_ready),
+        .fill_58_data(tm58_fill_push_data),
+        .fill_59_valid(tm59_fill_push_valid),
+        .fill_59_ready(tm59_fill_push_ready),
+        .fill_59_data(tm59_fill_push_data),
+        .fill_60_valid(tm60_fill_push_valid),
+        .fill_60_ready(tm60_fill_push_ready),
+        .fill_60_data(tm60_fill_push_data),
+        .fill_61_valid(tm61_fill_push_valid),
+        .fill_61_ready(tm61_fill_push_ready),
+        .fill_61_data(tm61_fill_push_data),
+        .fill_62_valid(tm62_fill_push_valid),
+        .fill_62_ready(tm62_fill_push_ready),
+        .fill_62_data(tm62_fill_push_data),
+        .fill_63_valid(tm63_fill_push_valid),
+        .fill_63_ready(tm63_fill_push_ready),
+        .fill_63_data(tm63_fill_push_data),
+        .fill_64_valid(tm64_fill_push_valid),
+        .fill_64_ready(tm64_fill_push_ready),
+        .fill_64_data(tm64_fill_push_data),
+        .fill_65_valid(tm65_fill_push_valid),
+        .fill_65_ready(tm65_fill_push_ready),
+        .fill_65_data(tm65_fill_push_data),
+        .fill_66_valid(tm66_fill_push_valid),
+        .fill_66_ready(tm66_fill_push_ready),
+        .fill_66_data(tm66_fill_push_data),
+        .fill_67_valid(tm67_fill_push_valid),
+        .fill_67_ready(tm67_fill_push_ready),
+        .fill_67_data(tm67_fill_push_data),
+        .fill_68_valid(tm68_fill_push_valid),
+        .fill_68_ready(tm68_fill_push_ready),
+        .fill_68_data(tm68_fill_push_data),
+        .fill_69_valid(tm69_fill_push_valid),
+        .fill_69_ready(tm69_fill_push_ready),
+        .fill_69_data(tm69_fill_push_data),
+        .fill_70_valid(tm70_fill_push_valid),
+        .fill_70_ready(tm70_fill_push_ready),
+        .fill_70_data(tm70_fill_push_data),
+        .fill_71_valid(tm71_fill_push_valid),
+        .fill_71_ready(tm71_fill_push_ready),
+        .fill_71_data(tm71_fill_push_data),
+        .fill_72_valid(tm72_fill_push_valid),
+        .fill_72_ready(tm72_fill_push_ready),
+        .fill_72_data(tm72_fill_push_data),
+        .fill_73_valid(tm73_fill_push_valid),
+        .fill_73_ready(tm73_fill_push_ready),
+        .fill_73_data(tm73_fill_push_data),
+        .fill_74_valid(tm74_fill_push_valid),
+        .fill_74_ready(tm74_fill_push_ready),
+        .fill_74_data(tm74_fill_push_data),
+        .fill_75_valid(tm75_fill_push_valid),
+        .fill_75_ready(tm75_fill_push_ready),
+        .fill_75_data(tm75_fill_push_data),
+        .fill_76_valid(tm76_fill_push_valid),
+        .fill_76_ready(tm76_fill_push_ready),
+        .fill_76_data(tm76_fill_push_data),
+        .fill_77_valid(tm77_fill_push_valid),
+        .fill_77_ready(tm77_fill_push_ready),
+        .fill_77_data(tm77_fill_push_data),
+        .fill_78_valid(tm78_fill_push_valid),
+        .fill_78_ready(tm78_fill_push_ready),
+        .fill_78_data(tm78_fill_push_data),
+        .fill_79_valid(tm79_fill_push_valid),
+        .fill_79_ready(tm79_fill_push_ready),
+        .fill_79_data(tm79_fill_push_data),
+        .fill_80_valid(tm80_fill_push_valid),
+        .fill_80_ready(tm80_fill_push_ready),
+        .fill_80_data(tm80_fill_push_data),
+        .fill_81_valid(tm81_fill_push_valid),
+        .fill_81_ready(tm81_fill_push_ready),
+        .fill_81_data(tm81_fill_push_data),
+        .fill_82_valid(tm82_fill_push_valid),
+        .fill_82_ready(tm82_fill_push_ready),
+        .fill_82_data(tm82_fill_push_data),
+        .fill_83_valid(tm83_fill_push_valid),
+        .fill_83_ready(tm83_fill_push_ready),
+        .fill_83_data(tm83_fill_push_data),
+        .fill_84_valid(tm84_fill_push_valid),
+        .fill_84_ready(tm84_fill_push_ready),
+        .fill_84_data(tm84_fill_push_data),
+        .fill_85_valid(tm85_fill_push_valid),
+        .fill_85_ready(tm85_fill_push_ready),
+        .fill_85_data(tm85_fill_push_data),
+        .fill_86_valid(tm86_fill_push_valid),
+        .fill_86_ready(tm86_fill_push_ready),
+        .fill_86_data(tm86_fill_push_data),
+        .fill_87_valid(tm87_fill_push_valid),
+        .fill_87_ready(tm87_fill_push_ready),
+        .fill_87_data(tm87_fill_push_data),
+        .fill_88_valid(tm88_fill_push_valid),
+        .fill_88_ready(tm88_fill_push_ready),
+        .fill_88_data(tm88_fill_push_data),
+        .fill_89_valid(tm89_fill_push_valid),
+        .fill_89_ready(tm89_fill_push_ready),
+        .fill_89_data(tm89_fill_push_data),
+        .fill_90_valid(tm90_fill_push_valid),
+        .fill_90_ready(tm90_fill_push_ready),
+        .fill_90_data(tm90_fill_push_data),
+        .fill_91_valid(tm91_fill_push_valid),
+        .fill_91_ready(tm91_fill_push_ready),
+        .fill_91_data(tm91_fill_push_data),
+        .fill_92_valid(tm92_fill_push_valid),
+        .fill_92_ready(tm92_fill_push_ready),
+        .fill_92_data(tm92_fill_push_data),
+        .fill_93_valid(tm93_fill_push_valid),
+        .fill_93_ready(tm93_fill_push_ready),
+        .fill_93_data(tm93_fill_push_data),
+        .fill_94_valid(tm94_fill_push_valid),
+        .fill_94_ready(tm94_fill_push_ready),
+        .fill_94_data(tm94_fill_push_data),
+        .fill_95_valid(tm95_fill_push_valid),
+        .fill_95_ready(tm95_fill_push_ready),
+        .fill_95_data(tm95_fill_push_data),
+        .fill_96_valid(tm96_fill_push_valid),
+        .fill_96_ready(tm96_fill_push_ready),
+        .fill_96_data(tm96_fill_push_data),
+        .fill_97_valid(tm97_fill_push_valid),
+        .fill_97_ready(tm97_fill_push_ready),
+        .fill_97_data(tm97_fill_push_data),
+        .fill_98_valid(tm98_fill_push_valid),
+        .fill_98_ready(tm98_fill_push_ready),
+        .fill_98_data(tm98_fill_push_data),
+        .fill_99_valid(tm99_fill_push_valid),
+        .fill_99_ready(tm99_fill_push_ready),
+        .fill_99_data(tm99_fill_push_data),
+        .fill_100_valid(tm100_fill_push_valid),
+        .fill_100_ready(tm100_fill_push_ready),
+        .fill_100_data(tm100_fill_push_data),
+        .fill_101_valid(tm101_fill_push_valid),
+        .fill_101_ready(tm101_fill_push_ready),
+        .fill_101_data(tm101_fill_push_data),
+        .fill_102_valid(tm102_fill_push_valid),
+        .fill_102_ready(tm102_fill_push_ready),
+        .fill_102_data(tm102_fill_push_data),
+        .fill_103_valid(tm103_fill_push_valid),
+        .fill_103_ready(tm103_fill_push_ready),
+        .fill_103_data(tm103_fill_push_data),
+        .fill_104_valid(tm104_fill_push_valid),
+        .fill_104_ready(tm104_fill_push_ready),
+        .fill_104_data(tm104_fill_push_data),
+        .fill_105_valid(tm105_fill_push_valid),
+        .fill_105_ready(tm105_fill_push_ready),
+        .fill_105_data(tm105_fill_push_data),
+        .fill_106_valid(tm106_fill_push_valid),
+        .fill_106_ready(tm106_fill_push_ready),
+        .fill_106_data(tm106_fill_push_data),
+        .fill_107_valid(tm107_fill_push_valid),
+        .fill_107_ready(tm107_fill_push_ready),
+        .fill_107_data(tm107_fill_push_data),
+        .fill_108_valid(tm108_fill_push_valid),
+        .fill_108_ready(tm108_fill_push_ready),
+        .fill_108_data(tm108_fill_push_data),
+        .fill_109_valid(tm109_fill_push_valid),
+        .fill_109_ready(tm109_fill_push_ready),
+        .fill_109_data(tm109_fill_push_data),
+        .fill_110_valid(tm110_fill_push_valid),
+        .fill_110_ready(tm110_fill_push_ready),
+        .fill_110_data(tm110_fill_push_data),
+        .fill_111_valid(tm111_fill_push_valid),
+        .fill_111_ready(tm111_fill_push_ready),
+        .fill_111_data(tm111_fill_push_data),
+        .fill_112_valid(tm112_fill_push_valid),
+        .fill_112_ready(tm112_fill_push_ready),
+        .fill_112_data(tm112_fill_push_data),
+        .fill_113_valid(tm113_fill_push_valid),
+        .fill_113_ready(tm113_fill_push_ready),
+        .fill_113_data(tm113_fill_push_data),
+        .fill_114_valid(tm114_fill_push_valid),
+        .fill_114_ready(tm114_fill_push_ready),
+        .fill_114_data(tm114_fill_push_data),
+        .fill_115_valid(tm115_fill_push_valid),
+        .fill_115_ready(tm115_fill_push_ready),
+        .fill_115_data(tm115_fill_push_data),
+        .fill_116_valid(tm116_fill_push_valid),
+        .fill_116_ready(tm116_fill_push_ready),
+        .fill_116_data(tm116_fill_push_data),
+        .fill_117_valid(tm117_fill_push_valid),
+        .fill_117_ready(tm117_fill_push_ready),
+        .fill_117_data(tm117_fill_push_data),
+        .fill_118_valid(tm118_fill_push_valid),
+        .fill_118_ready(tm118_fill_push_ready),
+        .fill_118_data(tm118_fill_push_data),
+        .fill_119_valid(tm119_fill_push_valid),
+        .fill_119_ready(tm119_fill_push_ready),
+        .fill_119_data(tm119_fill_push_data),
+        .fill_120_valid(tm120_fill_push_valid),
+        .fill_120_ready(tm120_fill_push_ready),
+        .fill_120_data(tm120_fill_push_data),
+        .fill_121_valid(tm121_fill_push_valid),
+        .fill_121_ready(tm121_fill_push_ready),
+        .fill_121_data(tm121_fill_push_data),
+        .fill_122_valid(tm122_fill_push_valid),
+        .fill_122_ready(tm122_fill_push_ready),
+        .fill_122_data(tm122_fill_push_data),
+        .fill_123_valid(tm123_fill_push_valid),
+        .fill_123_ready(tm123_fill_push_ready),
+        .fill_123_data(tm123_fill_push_data),
+        .fill_124_valid(tm124_fill_push_valid),
+        .fill_124_ready(tm124_fill_push_ready),
+        .fill_124_data(tm124_fill_push_data),
+        .fill_125_valid(tm125_fill_push_valid),
+        .fill_125_ready(tm125_fill_push_ready),
+        .fill_125_data(tm125_fill_push_data),
+        .fill_126_valid(tm126_fill_push_valid),
+        .fill_126_ready(tm126_fill_push_ready),
+        .fill_126_data(tm126_fill_push_data),
+        .fill_127_valid(tm127_fill_push_valid),
+        .fill_127_ready(tm127_fill_push_ready),
+        .fill_127_data(tm127_fill_push_data),
+        .ray_write_0_valid(tm0_ray_write_pop_valid),
+        .ray_write_0_ready(tm0_ray_write_pop_ready),
+        .ray_write_0_data(tm0_ray_write_pop_data),
+        .ray_write_1_valid(tm1_ray_write_pop_valid),
+        .ray_write_1_ready(tm1_ray_write_pop_ready),
+        .ray_write_1_data(tm1_ray_write_pop_data),
+        .ray_write_2_valid(tm2_ray_write_pop_valid),
+        .ray_write_2_ready(tm2_ray_write_pop_ready),
+        .ray_write_2_data(tm2_ray_write_pop_data),
+        .ray_write_3_valid(tm3_ray_write_pop_valid),
+        .ray_write_3_ready(tm3_ray_write_pop_ready),
+        .ray_write_3_data(tm3_ray_write_pop_data),
+        .ray_write_4_valid(tm4_ray_write_pop_valid),
+        .ray_write_4_ready(tm4_ray_write_pop_ready),
+        .ray_write_4_data(tm4_ray_write_pop_data),
+        .ray_write_5_valid(tm5_ray_write_pop_valid),
+        .ray_write_5_ready(tm5_ray_write_pop_ready),
+        .ray_write_5_data(tm5_ray_write_pop_data),
+        .ray_write_6_valid(tm6_ray_write_pop_valid),
+        .ray_write_6_ready(tm6_ray_write_pop_ready),
+        .ray_write_6_data(tm6_ray_write_pop_data),
+        .ray_write_7_valid(tm7_ray_write_pop_valid),
+        .ray_write_7_ready(tm7_ray_write_pop_ready),
+        .ray_write_7_data(tm7_ray_write_pop_data),
+        .ray_write_8_valid(tm8_ray_write_pop_valid),
+        .ray_write_8_ready(tm8_ray_write_pop_ready),
+        .ray_write_8_data(tm8_ray_write_pop_data),
+        .ray_write_9_valid(tm9_ray_write_pop_valid),
+        .ray_write_9_ready(tm9_ray_write_pop_ready),
+        .ray_write_9_data(tm9_ray_write_pop_data),
+        .ray_write_10_valid(tm10_ray_write_pop_valid),
+        .ray_write_10_ready(tm10_ray_write_pop_ready),
+        .ray_write_10_data(tm10_ray_write_pop_data),
+        .ray_write_11_valid(tm11_ray_write_pop_valid),
+        .ray_write_11_ready(tm11_ray_write_pop_ready),
+        .ray_write_11_data(tm11_ray_write_pop_data),
+        .ray_write_12_valid(tm12_ray_write_pop_valid),
+        .ray_write_12_ready(tm12_ray_write_pop_ready),
+        .ray_write_12_data(tm12_ray_write_pop_data),
+        .ray_write_13_valid(tm13_ray_write_pop_valid),
+        .ray_write_13_ready(tm13_ray_write_pop_ready),
+        .ray_write_13_data(tm13_ray_write_pop_data),
+        .ray_write_14_valid(tm14_ray_write_pop_valid),
+        .ray_write_14_ready(tm14_ray_write_pop_ready),
+        .ray_write_14_data(tm14_ray_write_pop_data),
+        .ray_write_15_valid(tm15_ray_write_pop_valid),
+        .ray_write_15_ready(tm15_ray_write_pop_ready),
+        .ray_write_15_data(tm15_ray_write_pop_data),
+        .ray_write_16_valid(tm16_ray_write_pop_valid),
+        .ray_write_16_ready(tm16_ray_write_pop_ready),
+        .ray_write_16_data(tm16_ray_write_pop_data),
+        .ray_write_17_valid(tm17_ray_write_pop_valid),
+        .ray_write_17_ready(tm17_ray_write_pop_ready),
+        .ray_write_17_data(tm17_ray_write_pop_data),
+        .ray_write_18_valid(tm18_ray_write_pop_valid),
+        .ray_write_18_ready(tm18_ray_write_pop_ready),
+        .ray_write_18_data(tm18_ray_write_pop_data),
+        .ray_write_19_valid(tm19_ray_write_pop_valid),
+        .ray_write_19_ready(tm19_ray_write_pop_ready),
+        .ray_write_19_data(tm19_ray_write_pop_data),
+        .ray_write_20_valid(tm20_ray_write_pop_valid),
+        .ray_write_20_ready(tm20_ray_write_pop_ready),
+        .ray_write_20_data(tm20_ray_write_pop_data),
+        .ray_write_21_valid(tm21_ray_write_pop_valid),
+        .ray_write_21_ready(tm21_ray_write_pop_ready),
+        .ray_write_21_data(tm21_ray_write_pop_data),
+        .ray_write_22_valid(tm22_ray_write_pop_valid),
+        .ray_write_22_ready(tm22_ray_write_pop_ready),
+        .ray_write_22_data(tm22_ray_write_pop_data),
+        .ray_write_23_valid(tm23_ray_write_pop_valid),
+        .ray_write_23_ready(tm23_ray_write_pop_ready),
+        .ray_write_23_data(tm23_ray_write_pop_data),
+        .ray_write_24_valid(tm24_ray_write_pop_valid),
+        .ray_write_24_ready(tm24_ray_write_pop_ready),
+        .ray_write_24_data(tm24_ray_write_pop_data),
+        .ray_write_25_valid(tm25_ray_write_pop_valid),
+        .ray_write_25_ready(tm25_ray_write_pop_ready),
+        .ray_write_25_data(tm25_ray_write_pop_data),
+        .ray_write_26_valid(tm26_ray_write_pop_valid),
+        .ray_write_26_ready(tm26_ray_write_pop_ready),
+        .ray_write_26_data(tm26_ray_write_pop_data),
+        .ray_write_27_valid(tm27_ray_write_pop_valid),
+        .ray_write_27_ready(tm27_ray_write_pop_ready),
+        .ray_write_27_data(tm27_ray_write_pop_data),
+        .ray_write_28_valid(tm28_ray_write_pop_valid),
+        .ray_write_28_ready(tm28_ray_write_pop_ready),
+        .ray_write_28_data(tm28_ray_write_pop_data),
+        .ray_write_29_valid(tm29_ray_write_pop_valid),
+        .ray_write_29_ready(tm29_ray_write_pop_ready),
+        .ray_write_29_data(tm29_ray_write_pop_data),
+        .ray_write_30_valid(tm30_ray_write_pop_valid),
+        .ray_write_30_ready(tm30_ray_write_pop_ready),
+        .ray_write_30_data(tm30_ray_write_pop_data),
+        .ray_write_31_valid(tm31_ray_write_pop_valid),
+        .ray_write_31_ready(tm31_ray_write_pop_ready),
+        .ray_write_31_data(tm31_ray_write_pop_data),
+        .ray_write_32_valid(tm32_ray_write_pop_valid),
+        .ray_write_32_ready(tm32_ray_write_pop_ready),
+        .ray_write_32_data(tm32_ray_write_pop_data),
+        .ray_write_33_valid(tm33_ray_write_pop_valid),
+        .ray_write_33_ready(tm33_ray_write_pop_ready),
+        .ray_write_33_data(tm33_ray_write_pop_data),
+        .ray_write_34_valid(tm34_ray_write_pop_valid),
+        .ray_write_34_ready(tm34_ray_write_pop_ready),
+        .ray_write_34_data(tm34_ray_write_pop_data),
+        .ray_write_35_valid(tm35_ray_write_pop_valid),
+        .ray_write_35_ready(tm35_ray_write_pop_ready),
+        .ray_write_35_data(tm35_ray_write_pop_data),
+        .ray_write_36_valid(tm36_ray_write_pop_valid),
+        .ray_write_36_ready(tm36_ray_write_pop_ready),
+        .ray_write_36_data(tm36_ray_write_pop_data),
+        .ray_write_37_valid(tm37_ray_write_pop_valid),
+        .ray_write_37_ready(tm37_ray_write_pop_ready),
+        .ray_write_37_data(tm37_ray_write_pop_data),
+        .ray_write_38_valid(tm38_ray_write_pop_valid),
+        .ray_write_38_ready(tm38_ray_write_pop_ready),
+        .ray_write_38_data(tm38_ray_write_pop_data),
+        .ray_write_39_valid(tm39_ray_write_pop_valid),
+        .ray_write_39_ready(tm39_ray_write_pop_ready),
+        .ray_write_39_data(tm39_ray_write_pop_data),
+        .ray_write_40_valid(tm40_ray_write_pop_valid),
+        .ray_write_40_ready(tm40_ray_write_pop_ready),
+        .ray_write_40_data(tm40_ray_write_pop_data),
+        .ray_write_41_valid(tm41_ray_write_pop_valid),
+        .ray_write_41_ready(tm41_ray_write_pop_ready),
+        .ray_write_41_data(tm41_ray_write_pop_data),
+        .ray_write_42_valid(tm42_ray_write_pop_valid),
+        .ray_write_42_ready(tm42_ray_write_pop_ready),
+        .ray_write_42_data(tm42_ray_write_pop_data),
+        .ray_write_43_valid(tm43_ray_write_pop_valid),
+        .ray_write_43_ready(tm43_ray_write_pop_ready),
+        .ray_write_43_data(tm43_ray_write_pop_data),
+        .ray_write_44_valid(tm44_ray_write_pop_valid),
+        .ray_write_44_ready(tm44_ray_write_pop_ready),
+        .ray_write_44_data(tm44_ray_write_pop_data),
+        .ray_write_45_valid(tm45_ray_write_pop_valid),
+        .ray_write_45_ready(tm45_ray_write_pop_ready),
+        .ray_write_45_data(tm45_ray_write_pop_data),
+        .ray_write_46_valid(tm46_ray_write_pop_valid),
+        .ray_write_46_ready(tm46_ray_write_pop_ready),
+        .ray_write_46_data(tm46_ray_write_pop_data),
+        .ray_write_47_valid(tm47_ray_write_pop_valid),
+        .ray_write_47_ready(tm47_ray_write_pop_ready),
+        .ray_write_47_data(tm47_ray_write_pop_data),
+        .ray_write_48_valid(tm48_ray_write_pop_valid),
+        .ray_write_48_ready(tm48_ray_write_pop_ready),
+        .ray_write_48_data(tm48_ray_write_pop_data),
+        .ray_write_49_valid(tm49_ray_write_pop_valid),
+        .ray_write_49_ready(tm49_ray_write_pop_ready),
+        .ray_write_49_data(tm49_ray_write_pop_data),
+        .ray_write_50_valid(tm50_ray_write_pop_valid),
+        .ray_write_50_ready(tm50_ray_write_pop_ready),
+        .ray_write_50_data(tm50_ray_write_pop_data),
+        .ray_write_51_valid(tm51_ray_write_pop_valid),
+        .ray_write_51_ready(tm51_ray_write_pop_ready),
+        .ray_write_51_data(tm51_ray_write_pop_data),
+        .ray_write_52_valid(tm52_ray_write_pop_valid),
+        .ray_write_52_ready(tm52_ray_write_pop_ready),
+        .ray_write_52_data(tm52_ray_write_pop_data),
+        .ray_write_53_valid(tm53_ray_write_pop_valid),
+        .ray_write_53_ready(tm53_ray_write_pop_ready),
+        .ray_write_53_data(tm53_ray_write_pop_data),
+        .ray_write_54_valid(tm54_ray_write_pop_valid),
+        .ray_write_54_ready(tm54_ray_write_pop_ready),
+        .ray_write_54_data(tm54_ray_write_pop_data),
+        .ray_write_55_valid(tm55_ray_write_pop_valid),
+        .ray_write_55_ready(tm55_ray_write_pop_ready),
+        .ray_write_55_data(tm55_ray_write_pop_data),
+        .ray_write_56_valid(tm56_ray_write_pop_valid),
+        .ray_write_56_ready(tm56_ray_write_pop_ready),
+        .ray_write_56_data(tm56_ray_write_pop_data),
+        .ray_write_57_valid(tm57_ray_write_pop_valid),
+        .ray_write_57_ready(tm57_ray_write_pop_ready),
+        .ray_write_57_data(tm57_ray_write_pop_data),
+        .ray_write_58_valid(tm58_ray_write_pop_valid),
+        .ray_write_58_ready(tm58_ray_write_pop_ready),
+        .ray_write_58_data(tm58_ray_write_pop_data),
+        .ray_write_59_valid(tm59_ray_write_pop_valid),
+        .ray_write_59_ready(tm59_ray_write_pop_ready),
+        .ray_write_59_data(tm59_ray_write_pop_data),
+        .ray_write_60_valid(tm60_ray_write_pop_valid),
+        .ray_write_60_ready(tm60_ray_write_pop_ready),
+        .ray_write_60_data(tm60_ray_write_pop_data),
+        .ray_write_61_valid(tm61_ray_write_pop_valid),
+        .ray_write_61_ready(tm61_ray_write_pop_ready),
+        .ray_write_61_data(tm61_ray_write_pop_data),
+        .ray_write_62_valid(tm62_ray_write_pop_valid),
+        .ray_write_62_ready(tm62_ray_write_pop_ready),
+        .ray_write_62_data(tm62_ray_write_pop_data),
+        .ray_write_63_valid(tm63_ray_write_pop_valid),
+        .ray_write_63_ready(tm63_ray_write_pop_ready),
+        .ray_write_63_data(tm63_ray_write_pop_data),
+        .ray_write_64_valid(tm64_ray_write_pop_valid),
+        .ray_write_64_ready(tm64_ray_write_pop_ready),
+        .ray_write_64_data(tm64_ray_write_pop_data),
+        .ray_write_65_valid(tm65_ray_write_pop_valid),
+        .ray_write_65_ready(tm65_ray_write_pop_ready),
+        .ray_write_65_data(tm65_ray_write_pop_data),
+        .ray_write_66_valid(tm66_ray_write_pop_valid),
+        .ray_write_66_ready(tm66_ray_write_pop_ready),
+        .ray_write_66_data(tm66_ray_write_pop_data),
+        .ray_write_67_valid(tm67_ray_write_pop_valid),
+        .ray_write_67_ready(tm67_ray_write_pop_ready),
+        .ray_write_67_data(tm67_ray_write_pop_data),
+        .ray_write_68_valid(tm68_ray_write_pop_valid),
+        .ray_write_68_ready(tm68_ray_write_pop_ready),
+        .ray_write_68_data(tm68_ray_write_pop_data),
+        .ray_write_69_valid(tm69_ray_write_pop_valid),
+        .ray_write_69_ready(tm69_ray_write_pop_ready),
+        .ray_write_69_data(tm69_ray_write_pop_data),
+        .ray_write_70_valid(tm70_ray_write_pop_valid),
+        .ray_write_70_ready(tm70_ray_write_pop_ready),
+        .ray_write_70_data(tm70_ray_write_pop_data),
+        .ray_write_71_valid(tm71_ray_write_pop_valid),
+        .ray_write_71_ready(tm71_ray_write_pop_ready),
+        .ray_write_71_data(tm71_ray_write_pop_data),
+        .ray_write_72_valid(tm72_ray_write_pop_valid),
+        .ray_write_72_ready(tm72_ray_write_pop_ready),
+        .ray_write_72_data(tm72_ray_write_pop_data),
+        .ray_write_73_valid(tm73_ray_write_pop_valid),
+        .ray_write_73_ready(tm73_ray_write_pop_ready),
+        .ray_write_73_data(tm73_ray_write_pop_data),
+        .ray_write_74_valid(tm74_ray_write_pop_valid),
+        .ray_write_74_ready(tm74_ray_write_pop_ready),
+        .ray_write_74_data(tm74_ray_write_pop_data),
+        .ray_write_75_valid(tm75_ray_write_pop_valid),
+        .ray_write_75_ready(tm75_ray_write_pop_ready),
+        .ray_write_75_data(tm75_ray_write_pop_data),
+        .ray_write_76_valid(tm76_ray_write_pop_valid),
+        .ray_write_76_ready(tm76_ray_write_pop_ready),
+        .ray_write_76_data(tm76_ray_write_pop_data),
+        .ray_write_77_valid(tm77_ray_write_pop_valid),
+        .ray_write_77_ready(tm77_ray_write_pop_ready),
+        .ray_write_77_data(tm77_ray_write_pop_data),
+        .ray_write_78_valid(tm78_ray_write_pop_valid),
+        .ray_write_78_ready(tm78_ray_write_pop_ready),
+        .ray_write_78_data(tm78_ray_write_pop_data),
+        .ray_write_79_valid(tm79_ray_write_pop_valid),
+        .ray_write_79_ready(tm79_ray_write_pop_ready),
+        .ray_write_79_data(tm79_ray_write_pop_data),
+        .ray_write_80_valid(tm80_ray_write_pop_valid),
+        .ray_write_80_ready(tm80_ray_write_pop_ready),
+        .ray_write_80_data(tm80_ray_write_pop_data),
+        .ray_write_81_valid(tm81_ray_write_pop_valid),
+        .ray_write_81_ready(tm81_ray_write_pop_ready),
+        .ray_write_81_data(tm81_ray_write_pop_data),
+        .ray_write_82_valid(tm82_ray_write_pop_valid),
+        .ray_write_82_ready(tm82_ray_write_pop_ready),
+        .ray_write_82_data(tm82_ray_write_pop_data),
+        .ray_write_83_valid(tm83_ray_write_pop_valid),
+        .ray_write_83_ready(tm83_ray_write_pop_ready),
+        .ray_write_83_data(tm83_ray_write_pop_data),
+        .ray_write_84_valid(tm84_ray_write_pop_valid),
+        .ray_write_84_ready(tm84_ray_write_pop_ready),
+        .ray_write_84_data(tm84_ray_write_pop_data),
+        .ray_write_85_valid(tm85_ray_write_pop_valid),
+        .ray_write_85_ready(tm85_ray_write_pop_ready),
+        .ray_write_85_data(tm85_ray_write_pop_data),
+        .ray_write_86_valid(tm86_ray_write_pop_valid),
+        .ray_write_86_ready(tm86_ray_write_pop_ready),
+        .ray_write_86_data(tm86_ray_write_pop_data),
+        .ray_write_87_valid(tm87_ray_write_pop_valid),
+        .ray_write_87_ready(tm87_ray_write_pop_ready),
+        .ray_write_87_data(tm87_ray_write_pop_data),
+        .ray_write_88_valid(tm88_ray_write_pop_valid),
+        .ray_write_88_ready(tm88_ray_write_pop_ready),
+        .ray_write_88_data(tm88_ray_write_pop_data),
+        .ray_write_89_valid(tm89_ray_write_pop_valid),
+        .ray_write_89_ready(tm89_ray_write_pop_ready),
+        .ray_write_89_data(tm89_ray_write_pop_data),
+        .ray_write_90_valid(tm90_ray_write_pop_valid),
+        .ray_write_90_ready(tm90_ray_write_pop_ready),
+        .ray_write_90_data(tm90_ray_write_pop_data),
+        .ray_write_91_valid(tm91_ray_write_pop_valid),
+        .ray_write_91_ready(tm91_ray_write_pop_ready),
+        .ray_write_91_data(tm91_ray_write_pop_data),
+        .ray_write_92_valid(tm92_ray_write_pop_valid),
+        .ray_write_92_ready(tm92_ray_write_pop_ready),
+        .ray_write_92_data(tm92_ray_write_pop_data),
+        .ray_write_93_valid(tm93_ray_write_pop_valid),
+        .ray_write_93_ready(tm93_ray_write_pop_ready),
+        .ray_write_93_data(tm93_ray_write_pop_data),
+        .ray_write_94_valid(tm94_ray_write_pop_valid),
+        .ray_write_94_ready(tm94_ray_write_pop_ready),
+        .ray_write_94_data(tm94_ray_write_pop_data),
+        .ray_write_95_valid(tm95_ray_write_pop_valid),
+        .ray_write_95_ready(tm95_ray_write_pop_ready),
+        .ray_write_95_data(tm95_ray_write_pop_data),
+        .ray_write_96_valid(tm96_ray_write_pop_valid),
+        .ray_write_96_ready(tm96_ray_write_pop_ready),
+        .ray_write_96_data(tm96_ray_write_pop_data),
+        .ray_write_97_valid(tm97_ray_write_pop_valid),
+        .ray_write_97_ready(tm97_ray_write_pop_ready),
+        .ray_write_97_data(tm97_ray_write_pop_data),
+        .ray_write_98_valid(tm98_ray_write_pop_valid),
+        .ray_write_98_ready(tm98_ray_write_pop_ready),
+        .ray_write_98_data(tm98_ray_write_pop_data),
+        .ray_write_99_valid(tm99_ray_write_pop_valid),
+        .ray_write_99_ready(tm99_ray_write_pop_ready),
+        .ray_write_99_data(tm99_ray_write_pop_data),
+        .ray_write_100_valid(tm100_ray_write_pop_valid),
+        .ray_write_100_ready(tm100_ray_write_pop_ready),
+        .ray_write_100_data(tm100_ray_write_pop_data),
+        .ray_write_101_valid(tm101_ray_write_pop_valid),
+        .ray_write_101_ready(tm101_ray_write_pop_ready),
+        .ray_write_101_data(tm101_ray_write_pop_data),
+        .ray_write_102_valid(tm102_ray_write_pop_valid),
+        .ray_write_102_ready(tm102_ray_write_pop_ready),
+        .ray_write_102_data(tm102_ray_write_pop_data),
+        .ray_write_103_valid(tm103_ray_write_pop_valid),
+        .ray_write_103_ready(tm103_ray_write_pop_ready),
+        .ray_write_103_data(tm103_ray_write_pop_data),
+        .ray_write_104_valid(tm104_ray_write_pop_valid),
+        .ray_write_104_ready(tm104_ray_write_pop_ready),
+        .ray_write_104_data(tm104_ray_write_pop_data),
+        .ray_write_105_valid(tm105_ray_write_pop_valid),
+        .ray_write_105_ready(tm105_ray_write_pop_ready),
+        .ray_write_105_data(tm105_ray_write_pop_data),
+        .ray_write_106_valid(tm106_ray_write_pop_valid),
+        .ray_write_106_ready(tm106_ray_write_pop_ready),
+        .ray_write_106_data(tm106_ray_write_pop_data),
+        .ray_write_107_valid(tm107_ray_write_pop_valid),
+        .ray_write_107_ready(tm107_ray_write_pop_ready),
+        .ray_write_107_data(tm107_ray_write_pop_data),
+        .ray_write_108_valid(tm108_ray_write_pop_valid),
+        .ray_write_108_ready(tm108_ray_write_pop_ready),
+        .ray_write_108_data(tm108_ray_write_pop_data),
+        .ray_write_109_valid(tm109_ray_write_pop_valid),
+        .ray_write_109_ready(tm109_ray_write_pop_ready),
+        .ray_write_109_data(tm109_ray_write_pop_data),
+        .ray_write_110_valid(tm110_ray_write_pop_valid),
+        .ray_write_110_ready(tm110_ray_write_pop_ready),
+        .ray_write_110_data(tm110_ray_write_pop_data),
+        .ray_write_111_valid(tm111_ray_write_pop_valid),
+        .ray_write_111_ready(tm111_ray_write_pop_ready),
+        .ray_write_111_data(tm111_ray_write_pop_data),
+        .ray_write_112_valid(tm112_ray_write_pop_valid),
+        .ray_write_112_ready(tm112_ray_write_pop_ready),
+        .ray_write_112_data(tm112_ray_write_pop_data),
+        .ray_write_113_valid(tm113_ray_write_pop_valid),
+        .ray_write_113_ready(tm113_ray_write_pop_ready),
+        .ray_write_113_data(tm113_ray_write_pop_data),
+        .ray_write_114_valid(tm114_ray_write_pop_valid),
+        .ray_write_114_ready(tm114_ray_write_pop_ready),
+        .ray_write_114_data(tm114_ray_write_pop_data),
+        .ray_write_115_valid(tm115_ray_write_pop_valid),
+        .ray_write_115_ready(tm115_ray_write_pop_ready),
+        .ray_write_115_data(tm115_ray_write_pop_data),
+        .ray_write_116_valid(tm116_ray_write_pop_valid),
+        .ray_write_116_ready(tm116_ray_write_pop_ready),
+        .ray_write_116_data(tm116_ray_write_pop_data),
+        .ray_write_117_valid(tm117_ray_write_pop_valid),
+        .ray_write_117_ready(tm117_ray_write_pop_ready),
+        .ray_write_117_data(tm117_ray_write_pop_data),
+        .ray_write_118_valid(tm118_ray_write_pop_valid),
+        .ray_write_118_ready(tm118_ray_write_pop_ready),
+        .ray_write_118_data(tm118_ray_write_pop_data),
+        .ray_write_119_valid(tm119_ray_write_pop_valid),
+        .ray_write_119_ready(tm119_ray_write_pop_ready),
+        .ray_write_119_data(tm119_ray_write_pop_data),
+        .ray_write_120_valid(tm120_ray_write_pop_valid),
+        .ray_write_120_ready(tm120_ray_write_pop_ready),
+        .ray_write_120_data(tm120_ray_write_pop_data),
+        .ray_write_121_valid(tm121_ray_write_pop_valid),
+        .ray_write_121_ready(tm121_ray_write_pop_ready),
+        .ray_write_121_data(tm121_ray_write_pop_data),
+        .ray_write_122_valid(tm122_ray_write_pop_valid),
+        .ray_write_122_ready(tm122_ray_write_pop_ready),
+        .ray_write_122_data(tm122_ray_write_pop_data),
+        .ray_write_123_valid(tm123_ray_write_pop_valid),
+        .ray_write_123_ready(tm123_ray_write_pop_ready),
+        .ray_write_123_data(tm123_ray_write_pop_data),
+        .ray_write_124_valid(tm124_ray_write_pop_valid),
+        .ray_write_124_ready(tm124_ray_write_pop_ready),
+        .ray_write_124_data(tm124_ray_write_pop_data),
+        .ray_write_125_valid(tm125_ray_write_pop_valid),
+        .ray_write_125_ready(tm125_ray_write_pop_ready),
+        .ray_write_125_data(tm125_ray_write_pop_data),
+        .ray_write_126_valid(tm126_ray_write_pop_valid),
+        .ray_write_126_ready(tm126_ray_write_pop_ready),
+        .ray_write_126_data(tm126_ray_write_pop_data),
+        .ray_write_127_valid(tm127_ray_write_pop_valid),
+        .ray_write_127_ready(tm127_ray_write_pop_ready),
+        .ray_write_127_data(tm127_ray_write_pop_data)
     );
     mem_ctrl #(.CHANNEL(0), .BANKS(16), .READ_QUEUE(64), .WRITE_QUEUE(96)) mem_ctrl0 (
         .clk(clk_dram),
@@ -6471,6 +9252,9276 @@ module chip
         .gmem_resp_valid(tm_gmem_resp_valid[127]),
         .gmem_resp_ready(tm_gmem_resp_ready[127]),
         .gmem_resp_data(tm_gmem_resp_data[78335:77724])
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req0_sched (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req0_sched_push_valid),
+        .push_ready(mem_req0_sched_push_ready),
+        .push_data(mem_req0_sched_push_data),
+        .pop_valid(mem_req0_sched_pop_valid),
+        .pop_ready(mem_req0_sched_pop_ready),
+        .pop_data(mem_req0_sched_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp0_sched (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp0_sched_push_valid),
+        .push_ready(mem_resp0_sched_push_ready),
+        .push_data(mem_resp0_sched_push_data),
+        .pop_valid(mem_resp0_sched_pop_valid),
+        .pop_ready(mem_resp0_sched_pop_ready),
+        .pop_data(mem_resp0_sched_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req1_scene (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req1_scene_push_valid),
+        .push_ready(mem_req1_scene_push_ready),
+        .push_data(mem_req1_scene_push_data),
+        .pop_valid(mem_req1_scene_pop_valid),
+        .pop_ready(mem_req1_scene_pop_ready),
+        .pop_data(mem_req1_scene_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp1_scene (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp1_scene_push_valid),
+        .push_ready(mem_resp1_scene_push_ready),
+        .push_data(mem_resp1_scene_push_data),
+        .pop_valid(mem_resp1_scene_pop_valid),
+        .pop_ready(mem_resp1_scene_pop_ready),
+        .pop_data(mem_resp1_scene_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req2_l2 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req2_l2_push_valid),
+        .push_ready(mem_req2_l2_push_ready),
+        .push_data(mem_req2_l2_push_data),
+        .pop_valid(mem_req2_l2_pop_valid),
+        .pop_ready(mem_req2_l2_pop_ready),
+        .pop_data(mem_req2_l2_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp2_l2 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp2_l2_push_valid),
+        .push_ready(mem_resp2_l2_push_ready),
+        .push_data(mem_resp2_l2_push_data),
+        .pop_valid(mem_resp2_l2_pop_valid),
+        .pop_ready(mem_resp2_l2_pop_ready),
+        .pop_data(mem_resp2_l2_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req_sched1 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req_sched1_push_valid),
+        .push_ready(mem_req_sched1_push_ready),
+        .push_data(mem_req_sched1_push_data),
+        .pop_valid(mem_req_sched1_pop_valid),
+        .pop_ready(mem_req_sched1_pop_ready),
+        .pop_data(mem_req_sched1_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp_sched1 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp_sched1_push_valid),
+        .push_ready(mem_resp_sched1_push_ready),
+        .push_data(mem_resp_sched1_push_data),
+        .pop_valid(mem_resp_sched1_pop_valid),
+        .pop_ready(mem_resp_sched1_pop_ready),
+        .pop_data(mem_resp_sched1_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req_sched2 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req_sched2_push_valid),
+        .push_ready(mem_req_sched2_push_ready),
+        .push_data(mem_req_sched2_push_data),
+        .pop_valid(mem_req_sched2_pop_valid),
+        .pop_ready(mem_req_sched2_pop_ready),
+        .pop_data(mem_req_sched2_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp_sched2 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp_sched2_push_valid),
+        .push_ready(mem_resp_sched2_push_ready),
+        .push_data(mem_resp_sched2_push_data),
+        .pop_valid(mem_resp_sched2_pop_valid),
+        .pop_ready(mem_resp_sched2_pop_ready),
+        .pop_data(mem_resp_sched2_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req_sched3 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req_sched3_push_valid),
+        .push_ready(mem_req_sched3_push_ready),
+        .push_data(mem_req_sched3_push_data),
+        .pop_valid(mem_req_sched3_pop_valid),
+        .pop_ready(mem_req_sched3_pop_ready),
+        .pop_data(mem_req_sched3_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp_sched3 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp_sched3_push_valid),
+        .push_ready(mem_resp_sched3_push_ready),
+        .push_data(mem_resp_sched3_push_data),
+        .pop_valid(mem_resp_sched3_pop_valid),
+        .pop_ready(mem_resp_sched3_pop_ready),
+        .pop_data(mem_resp_sched3_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req_scene1 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req_scene1_push_valid),
+        .push_ready(mem_req_scene1_push_ready),
+        .push_data(mem_req_scene1_push_data),
+        .pop_valid(mem_req_scene1_pop_valid),
+        .pop_ready(mem_req_scene1_pop_ready),
+        .pop_data(mem_req_scene1_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp_scene1 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp_scene1_push_valid),
+        .push_ready(mem_resp_scene1_push_ready),
+        .push_data(mem_resp_scene1_push_data),
+        .pop_valid(mem_resp_scene1_pop_valid),
+        .pop_ready(mem_resp_scene1_pop_ready),
+        .pop_data(mem_resp_scene1_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req_scene2 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req_scene2_push_valid),
+        .push_ready(mem_req_scene2_push_ready),
+        .push_data(mem_req_scene2_push_data),
+        .pop_valid(mem_req_scene2_pop_valid),
+        .pop_ready(mem_req_scene2_pop_ready),
+        .pop_data(mem_req_scene2_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp_scene2 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp_scene2_push_valid),
+        .push_ready(mem_resp_scene2_push_ready),
+        .push_data(mem_resp_scene2_push_data),
+        .pop_valid(mem_resp_scene2_pop_valid),
+        .pop_ready(mem_resp_scene2_pop_ready),
+        .pop_data(mem_resp_scene2_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req_scene3 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req_scene3_push_valid),
+        .push_ready(mem_req_scene3_push_ready),
+        .push_data(mem_req_scene3_push_data),
+        .pop_valid(mem_req_scene3_pop_valid),
+        .pop_ready(mem_req_scene3_pop_ready),
+        .pop_data(mem_req_scene3_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp_scene3 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp_scene3_push_valid),
+        .push_ready(mem_resp_scene3_push_ready),
+        .push_data(mem_resp_scene3_push_data),
+        .pop_valid(mem_resp_scene3_pop_valid),
+        .pop_ready(mem_resp_scene3_pop_ready),
+        .pop_data(mem_resp_scene3_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_emit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(emit_valid),
+        .push_ready(emit_ready),
+        .push_data(emit_data),
+        .pop_valid(emit_pop_valid),
+        .pop_ready(emit_pop_ready),
+        .pop_data(emit_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_start (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(start_valid),
+        .push_ready(start_ready),
+        .push_data(start_data),
+        .pop_valid(start_pop_valid),
+        .pop_ready(start_pop_ready),
+        .pop_data(start_pop_data)
+    );
+    ds_link #(.WIDTH(120), .DEPTH(2), .DELAY(1)) link_slot_map (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(slot_map_push_valid),
+        .push_ready(slot_map_push_ready),
+        .push_data(slot_map_push_data),
+        .pop_valid(slot_map_pop_valid),
+        .pop_ready(slot_map_pop_ready),
+        .pop_data(slot_map_pop_data)
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm0_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm0_fill_push_valid),
+        .push_ready(tm0_fill_push_ready),
+        .push_data(tm0_fill_push_data),
+        .pop_valid(tm_fill_valid[0]),
+        .pop_ready(tm_fill_ready[0]),
+        .pop_data(tm_fill_data[384:0])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm1_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm1_fill_push_valid),
+        .push_ready(tm1_fill_push_ready),
+        .push_data(tm1_fill_push_data),
+        .pop_valid(tm_fill_valid[1]),
+        .pop_ready(tm_fill_ready[1]),
+        .pop_data(tm_fill_data[769:385])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm2_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm2_fill_push_valid),
+        .push_ready(tm2_fill_push_ready),
+        .push_data(tm2_fill_push_data),
+        .pop_valid(tm_fill_valid[2]),
+        .pop_ready(tm_fill_ready[2]),
+        .pop_data(tm_fill_data[1154:770])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm3_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm3_fill_push_valid),
+        .push_ready(tm3_fill_push_ready),
+        .push_data(tm3_fill_push_data),
+        .pop_valid(tm_fill_valid[3]),
+        .pop_ready(tm_fill_ready[3]),
+        .pop_data(tm_fill_data[1539:1155])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm4_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm4_fill_push_valid),
+        .push_ready(tm4_fill_push_ready),
+        .push_data(tm4_fill_push_data),
+        .pop_valid(tm_fill_valid[4]),
+        .pop_ready(tm_fill_ready[4]),
+        .pop_data(tm_fill_data[1924:1540])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm5_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm5_fill_push_valid),
+        .push_ready(tm5_fill_push_ready),
+        .push_data(tm5_fill_push_data),
+        .pop_valid(tm_fill_valid[5]),
+        .pop_ready(tm_fill_ready[5]),
+        .pop_data(tm_fill_data[2309:1925])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm6_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm6_fill_push_valid),
+        .push_ready(tm6_fill_push_ready),
+        .push_data(tm6_fill_push_data),
+        .pop_valid(tm_fill_valid[6]),
+        .pop_ready(tm_fill_ready[6]),
+        .pop_data(tm_fill_data[2694:2310])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm7_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm7_fill_push_valid),
+        .push_ready(tm7_fill_push_ready),
+        .push_data(tm7_fill_push_data),
+        .pop_valid(tm_fill_valid[7]),
+        .pop_ready(tm_fill_ready[7]),
+        .pop_data(tm_fill_data[3079:2695])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm8_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm8_fill_push_valid),
+        .push_ready(tm8_fill_push_ready),
+        .push_data(tm8_fill_push_data),
+        .pop_valid(tm_fill_valid[8]),
+        .pop_ready(tm_fill_ready[8]),
+        .pop_data(tm_fill_data[3464:3080])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm9_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm9_fill_push_valid),
+        .push_ready(tm9_fill_push_ready),
+        .push_data(tm9_fill_push_data),
+        .pop_valid(tm_fill_valid[9]),
+        .pop_ready(tm_fill_ready[9]),
+        .pop_data(tm_fill_data[3849:3465])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm10_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm10_fill_push_valid),
+        .push_ready(tm10_fill_push_ready),
+        .push_data(tm10_fill_push_data),
+        .pop_valid(tm_fill_valid[10]),
+        .pop_ready(tm_fill_ready[10]),
+        .pop_data(tm_fill_data[4234:3850])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm11_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm11_fill_push_valid),
+        .push_ready(tm11_fill_push_ready),
+        .push_data(tm11_fill_push_data),
+        .pop_valid(tm_fill_valid[11]),
+        .pop_ready(tm_fill_ready[11]),
+        .pop_data(tm_fill_data[4619:4235])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm12_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm12_fill_push_valid),
+        .push_ready(tm12_fill_push_ready),
+        .push_data(tm12_fill_push_data),
+        .pop_valid(tm_fill_valid[12]),
+        .pop_ready(tm_fill_ready[12]),
+        .pop_data(tm_fill_data[5004:4620])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm13_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm13_fill_push_valid),
+        .push_ready(tm13_fill_push_ready),
+        .push_data(tm13_fill_push_data),
+        .pop_valid(tm_fill_valid[13]),
+        .pop_ready(tm_fill_ready[13]),
+        .pop_data(tm_fill_data[5389:5005])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm14_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm14_fill_push_valid),
+        .push_ready(tm14_fill_push_ready),
+        .push_data(tm14_fill_push_data),
+        .pop_valid(tm_fill_valid[14]),
+        .pop_ready(tm_fill_ready[14]),
+        .pop_data(tm_fill_data[5774:5390])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm15_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm15_fill_push_valid),
+        .push_ready(tm15_fill_push_ready),
+        .push_data(tm15_fill_push_data),
+        .pop_valid(tm_fill_valid[15]),
+        .pop_ready(tm_fill_ready[15]),
+        .pop_data(tm_fill_data[6159:5775])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm16_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm16_fill_push_valid),
+        .push_ready(tm16_fill_push_ready),
+        .push_data(tm16_fill_push_data),
+        .pop_valid(tm_fill_valid[16]),
+        .pop_ready(tm_fill_ready[16]),
+        .pop_data(tm_fill_data[6544:6160])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm17_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm17_fill_push_valid),
+        .push_ready(tm17_fill_push_ready),
+        .push_data(tm17_fill_push_data),
+        .pop_valid(tm_fill_valid[17]),
+        .pop_ready(tm_fill_ready[17]),
+        .pop_data(tm_fill_data[6929:6545])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm18_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm18_fill_push_valid),
+        .push_ready(tm18_fill_push_ready),
+        .push_data(tm18_fill_push_data),
+        .pop_valid(tm_fill_valid[18]),
+        .pop_ready(tm_fill_ready[18]),
+        .pop_data(tm_fill_data[7314:6930])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm19_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm19_fill_push_valid),
+        .push_ready(tm19_fill_push_ready),
+        .push_data(tm19_fill_push_data),
+        .pop_valid(tm_fill_valid[19]),
+        .pop_ready(tm_fill_ready[19]),
+        .pop_data(tm_fill_data[7699:7315])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm20_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm20_fill_push_valid),
+        .push_ready(tm20_fill_push_ready),
+        .push_data(tm20_fill_push_data),
+        .pop_valid(tm_fill_valid[20]),
+        .pop_ready(tm_fill_ready[20]),
+        .pop_data(tm_fill_data[8084:7700])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm21_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm21_fill_push_valid),
+        .push_ready(tm21_fill_push_ready),
+        .push_data(tm21_fill_push_data),
+        .pop_valid(tm_fill_valid[21]),
+        .pop_ready(tm_fill_ready[21]),
+        .pop_data(tm_fill_data[8469:8085])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm22_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm22_fill_push_valid),
+        .push_ready(tm22_fill_push_ready),
+        .push_data(tm22_fill_push_data),
+        .pop_valid(tm_fill_valid[22]),
+        .pop_ready(tm_fill_ready[22]),
+        .pop_data(tm_fill_data[8854:8470])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm23_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm23_fill_push_valid),
+        .push_ready(tm23_fill_push_ready),
+        .push_data(tm23_fill_push_data),
+        .pop_valid(tm_fill_valid[23]),
+        .pop_ready(tm_fill_ready[23]),
+        .pop_data(tm_fill_data[9239:8855])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm24_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm24_fill_push_valid),
+        .push_ready(tm24_fill_push_ready),
+        .push_data(tm24_fill_push_data),
+        .pop_valid(tm_fill_valid[24]),
+        .pop_ready(tm_fill_ready[24]),
+        .pop_data(tm_fill_data[9624:9240])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm25_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm25_fill_push_valid),
+        .push_ready(tm25_fill_push_ready),
+        .push_data(tm25_fill_push_data),
+        .pop_valid(tm_fill_valid[25]),
+        .pop_ready(tm_fill_ready[25]),
+        .pop_data(tm_fill_data[10009:9625])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm26_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm26_fill_push_valid),
+        .push_ready(tm26_fill_push_ready),
+        .push_data(tm26_fill_push_data),
+        .pop_valid(tm_fill_valid[26]),
+        .pop_ready(tm_fill_ready[26]),
+        .pop_data(tm_fill_data[10394:10010])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm27_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm27_fill_push_valid),
+        .push_ready(tm27_fill_push_ready),
+        .push_data(tm27_fill_push_data),
+        .pop_valid(tm_fill_valid[27]),
+        .pop_ready(tm_fill_ready[27]),
+        .pop_data(tm_fill_data[10779:10395])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm28_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm28_fill_push_valid),
+        .push_ready(tm28_fill_push_ready),
+        .push_data(tm28_fill_push_data),
+        .pop_valid(tm_fill_valid[28]),
+        .pop_ready(tm_fill_ready[28]),
+        .pop_data(tm_fill_data[11164:10780])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm29_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm29_fill_push_valid),
+        .push_ready(tm29_fill_push_ready),
+        .push_data(tm29_fill_push_data),
+        .pop_valid(tm_fill_valid[29]),
+        .pop_ready(tm_fill_ready[29]),
+        .pop_data(tm_fill_data[11549:11165])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm30_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm30_fill_push_valid),
+        .push_ready(tm30_fill_push_ready),
+        .push_data(tm30_fill_push_data),
+        .pop_valid(tm_fill_valid[30]),
+        .pop_ready(tm_fill_ready[30]),
+        .pop_data(tm_fill_data[11934:11550])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm31_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm31_fill_push_valid),
+        .push_ready(tm31_fill_push_ready),
+        .push_data(tm31_fill_push_data),
+        .pop_valid(tm_fill_valid[31]),
+        .pop_ready(tm_fill_ready[31]),
+        .pop_data(tm_fill_data[12319:11935])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm32_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm32_fill_push_valid),
+        .push_ready(tm32_fill_push_ready),
+        .push_data(tm32_fill_push_data),
+        .pop_valid(tm_fill_valid[32]),
+        .pop_ready(tm_fill_ready[32]),
+        .pop_data(tm_fill_data[12704:12320])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm33_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm33_fill_push_valid),
+        .push_ready(tm33_fill_push_ready),
+        .push_data(tm33_fill_push_data),
+        .pop_valid(tm_fill_valid[33]),
+        .pop_ready(tm_fill_ready[33]),
+        .pop_data(tm_fill_data[13089:12705])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm34_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm34_fill_push_valid),
+        .push_ready(tm34_fill_push_ready),
+        .push_data(tm34_fill_push_data),
+        .pop_valid(tm_fill_valid[34]),
+        .pop_ready(tm_fill_ready[34]),
+        .pop_data(tm_fill_data[13474:13090])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm35_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm35_fill_push_valid),
+        .push_ready(tm35_fill_push_ready),
+        .push_data(tm35_fill_push_data),
+        .pop_valid(tm_fill_valid[35]),
+        .pop_ready(tm_fill_ready[35]),
+        .pop_data(tm_fill_data[13859:13475])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm36_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm36_fill_push_valid),
+        .push_ready(tm36_fill_push_ready),
+        .push_data(tm36_fill_push_data),
+        .pop_valid(tm_fill_valid[36]),
+        .pop_ready(tm_fill_ready[36]),
+        .pop_data(tm_fill_data[14244:13860])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm37_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm37_fill_push_valid),
+        .push_ready(tm37_fill_push_ready),
+        .push_data(tm37_fill_push_data),
+        .pop_valid(tm_fill_valid[37]),
+        .pop_ready(tm_fill_ready[37]),
+        .pop_data(tm_fill_data[14629:14245])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm38_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm38_fill_push_valid),
+        .push_ready(tm38_fill_push_ready),
+        .push_data(tm38_fill_push_data),
+        .pop_valid(tm_fill_valid[38]),
+        .pop_ready(tm_fill_ready[38]),
+        .pop_data(tm_fill_data[15014:14630])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm39_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm39_fill_push_valid),
+        .push_ready(tm39_fill_push_ready),
+        .push_data(tm39_fill_push_data),
+        .pop_valid(tm_fill_valid[39]),
+        .pop_ready(tm_fill_ready[39]),
+        .pop_data(tm_fill_data[15399:15015])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm40_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm40_fill_push_valid),
+        .push_ready(tm40_fill_push_ready),
+        .push_data(tm40_fill_push_data),
+        .pop_valid(tm_fill_valid[40]),
+        .pop_ready(tm_fill_ready[40]),
+        .pop_data(tm_fill_data[15784:15400])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm41_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm41_fill_push_valid),
+        .push_ready(tm41_fill_push_ready),
+        .push_data(tm41_fill_push_data),
+        .pop_valid(tm_fill_valid[41]),
+        .pop_ready(tm_fill_ready[41]),
+        .pop_data(tm_fill_data[16169:15785])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm42_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm42_fill_push_valid),
+        .push_ready(tm42_fill_push_ready),
+        .push_data(tm42_fill_push_data),
+        .pop_valid(tm_fill_valid[42]),
+        .pop_ready(tm_fill_ready[42]),
+        .pop_data(tm_fill_data[16554:16170])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm43_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm43_fill_push_valid),
+        .push_ready(tm43_fill_push_ready),
+        .push_data(tm43_fill_push_data),
+        .pop_valid(tm_fill_valid[43]),
+        .pop_ready(tm_fill_ready[43]),
+        .pop_data(tm_fill_data[16939:16555])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm44_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm44_fill_push_valid),
+        .push_ready(tm44_fill_push_ready),
+        .push_data(tm44_fill_push_data),
+        .pop_valid(tm_fill_valid[44]),
+        .pop_ready(tm_fill_ready[44]),
+        .pop_data(tm_fill_data[17324:16940])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm45_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm45_fill_push_valid),
+        .push_ready(tm45_fill_push_ready),
+        .push_data(tm45_fill_push_data),
+        .pop_valid(tm_fill_valid[45]),
+        .pop_ready(tm_fill_ready[45]),
+        .pop_data(tm_fill_data[17709:17325])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm46_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm46_fill_push_valid),
+        .push_ready(tm46_fill_push_ready),
+        .push_data(tm46_fill_push_data),
+        .pop_valid(tm_fill_valid[46]),
+        .pop_ready(tm_fill_ready[46]),
+        .pop_data(tm_fill_data[18094:17710])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm47_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm47_fill_push_valid),
+        .push_ready(tm47_fill_push_ready),
+        .push_data(tm47_fill_push_data),
+        .pop_valid(tm_fill_valid[47]),
+        .pop_ready(tm_fill_ready[47]),
+        .pop_data(tm_fill_data[18479:18095])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm48_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm48_fill_push_valid),
+        .push_ready(tm48_fill_push_ready),
+        .push_data(tm48_fill_push_data),
+        .pop_valid(tm_fill_valid[48]),
+        .pop_ready(tm_fill_ready[48]),
+        .pop_data(tm_fill_data[18864:18480])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm49_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm49_fill_push_valid),
+        .push_ready(tm49_fill_push_ready),
+        .push_data(tm49_fill_push_data),
+        .pop_valid(tm_fill_valid[49]),
+        .pop_ready(tm_fill_ready[49]),
+        .pop_data(tm_fill_data[19249:18865])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm50_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm50_fill_push_valid),
+        .push_ready(tm50_fill_push_ready),
+        .push_data(tm50_fill_push_data),
+        .pop_valid(tm_fill_valid[50]),
+        .pop_ready(tm_fill_ready[50]),
+        .pop_data(tm_fill_data[19634:19250])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm51_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm51_fill_push_valid),
+        .push_ready(tm51_fill_push_ready),
+        .push_data(tm51_fill_push_data),
+        .pop_valid(tm_fill_valid[51]),
+        .pop_ready(tm_fill_ready[51]),
+        .pop_data(tm_fill_data[20019:19635])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm52_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm52_fill_push_valid),
+        .push_ready(tm52_fill_push_ready),
+        .push_data(tm52_fill_push_data),
+        .pop_valid(tm_fill_valid[52]),
+        .pop_ready(tm_fill_ready[52]),
+        .pop_data(tm_fill_data[20404:20020])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm53_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm53_fill_push_valid),
+        .push_ready(tm53_fill_push_ready),
+        .push_data(tm53_fill_push_data),
+        .pop_valid(tm_fill_valid[53]),
+        .pop_ready(tm_fill_ready[53]),
+        .pop_data(tm_fill_data[20789:20405])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm54_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm54_fill_push_valid),
+        .push_ready(tm54_fill_push_ready),
+        .push_data(tm54_fill_push_data),
+        .pop_valid(tm_fill_valid[54]),
+        .pop_ready(tm_fill_ready[54]),
+        .pop_data(tm_fill_data[21174:20790])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm55_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm55_fill_push_valid),
+        .push_ready(tm55_fill_push_ready),
+        .push_data(tm55_fill_push_data),
+        .pop_valid(tm_fill_valid[55]),
+        .pop_ready(tm_fill_ready[55]),
+        .pop_data(tm_fill_data[21559:21175])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm56_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm56_fill_push_valid),
+        .push_ready(tm56_fill_push_ready),
+        .push_data(tm56_fill_push_data),
+        .pop_valid(tm_fill_valid[56]),
+        .pop_ready(tm_fill_ready[56]),
+        .pop_data(tm_fill_data[21944:21560])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm57_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm57_fill_push_valid),
+        .push_ready(tm57_fill_push_ready),
+        .push_data(tm57_fill_push_data),
+        .pop_valid(tm_fill_valid[57]),
+        .pop_ready(tm_fill_ready[57]),
+        .pop_data(tm_fill_data[22329:21945])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm58_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm58_fill_push_valid),
+        .push_ready(tm58_fill_push_ready),
+        .push_data(tm58_fill_push_data),
+        .pop_valid(tm_fill_valid[58]),
+        .pop_ready(tm_fill_ready[58]),
+        .pop_data(tm_fill_data[22714:22330])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm59_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm59_fill_push_valid),
+        .push_ready(tm59_fill_push_ready),
+        .push_data(tm59_fill_push_data),
+        .pop_valid(tm_fill_valid[59]),
+        .pop_ready(tm_fill_ready[59]),
+        .pop_data(tm_fill_data[23099:22715])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm60_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm60_fill_push_valid),
+        .push_ready(tm60_fill_push_ready),
+        .push_data(tm60_fill_push_data),
+        .pop_valid(tm_fill_valid[60]),
+        .pop_ready(tm_fill_ready[60]),
+        .pop_data(tm_fill_data[23484:23100])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm61_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm61_fill_push_valid),
+        .push_ready(tm61_fill_push_ready),
+        .push_data(tm61_fill_push_data),
+        .pop_valid(tm_fill_valid[61]),
+        .pop_ready(tm_fill_ready[61]),
+        .pop_data(tm_fill_data[23869:23485])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm62_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm62_fill_push_valid),
+        .push_ready(tm62_fill_push_ready),
+        .push_data(tm62_fill_push_data),
+        .pop_valid(tm_fill_valid[62]),
+        .pop_ready(tm_fill_ready[62]),
+        .pop_data(tm_fill_data[24254:23870])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm63_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm63_fill_push_valid),
+        .push_ready(tm63_fill_push_ready),
+        .push_data(tm63_fill_push_data),
+        .pop_valid(tm_fill_valid[63]),
+        .pop_ready(tm_fill_ready[63]),
+        .pop_data(tm_fill_data[24639:24255])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm64_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm64_fill_push_valid),
+        .push_ready(tm64_fill_push_ready),
+        .push_data(tm64_fill_push_data),
+        .pop_valid(tm_fill_valid[64]),
+        .pop_ready(tm_fill_ready[64]),
+        .pop_data(tm_fill_data[25024:24640])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm65_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm65_fill_push_valid),
+        .push_ready(tm65_fill_push_ready),
+        .push_data(tm65_fill_push_data),
+        .pop_valid(tm_fill_valid[65]),
+        .pop_ready(tm_fill_ready[65]),
+        .pop_data(tm_fill_data[25409:25025])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm66_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm66_fill_push_valid),
+        .push_ready(tm66_fill_push_ready),
+        .push_data(tm66_fill_push_data),
+        .pop_valid(tm_fill_valid[66]),
+        .pop_ready(tm_fill_ready[66]),
+        .pop_data(tm_fill_data[25794:25410])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm67_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm67_fill_push_valid),
+        .push_ready(tm67_fill_push_ready),
+        .push_data(tm67_fill_push_data),
+        .pop_valid(tm_fill_valid[67]),
+        .pop_ready(tm_fill_ready[67]),
+        .pop_data(tm_fill_data[26179:25795])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm68_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm68_fill_push_valid),
+        .push_ready(tm68_fill_push_ready),
+        .push_data(tm68_fill_push_data),
+        .pop_valid(tm_fill_valid[68]),
+        .pop_ready(tm_fill_ready[68]),
+        .pop_data(tm_fill_data[26564:26180])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm69_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm69_fill_push_valid),
+        .push_ready(tm69_fill_push_ready),
+        .push_data(tm69_fill_push_data),
+        .pop_valid(tm_fill_valid[69]),
+        .pop_ready(tm_fill_ready[69]),
+        .pop_data(tm_fill_data[26949:26565])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm70_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm70_fill_push_valid),
+        .push_ready(tm70_fill_push_ready),
+        .push_data(tm70_fill_push_data),
+        .pop_valid(tm_fill_valid[70]),
+        .pop_ready(tm_fill_ready[70]),
+        .pop_data(tm_fill_data[27334:26950])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm71_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm71_fill_push_valid),
+        .push_ready(tm71_fill_push_ready),
+        .push_data(tm71_fill_push_data),
+        .pop_valid(tm_fill_valid[71]),
+        .pop_ready(tm_fill_ready[71]),
+        .pop_data(tm_fill_data[27719:27335])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm72_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm72_fill_push_valid),
+        .push_ready(tm72_fill_push_ready),
+        .push_data(tm72_fill_push_data),
+        .pop_valid(tm_fill_valid[72]),
+        .pop_ready(tm_fill_ready[72]),
+        .pop_data(tm_fill_data[28104:27720])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm73_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm73_fill_push_valid),
+        .push_ready(tm73_fill_push_ready),
+        .push_data(tm73_fill_push_data),
+        .pop_valid(tm_fill_valid[73]),
+        .pop_ready(tm_fill_ready[73]),
+        .pop_data(tm_fill_data[28489:28105])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm74_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm74_fill_push_valid),
+        .push_ready(tm74_fill_push_ready),
+        .push_data(tm74_fill_push_data),
+        .pop_valid(tm_fill_valid[74]),
+        .pop_ready(tm_fill_ready[74]),
+        .pop_data(tm_fill_data[28874:28490])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm75_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm75_fill_push_valid),
+        .push_ready(tm75_fill_push_ready),
+        .push_data(tm75_fill_push_data),
+        .pop_valid(tm_fill_valid[75]),
+        .pop_ready(tm_fill_ready[75]),
+        .pop_data(tm_fill_data[29259:28875])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm76_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm76_fill_push_valid),
+        .push_ready(tm76_fill_push_ready),
+        .push_data(tm76_fill_push_data),
+        .pop_valid(tm_fill_valid[76]),
+        .pop_ready(tm_fill_ready[76]),
+        .pop_data(tm_fill_data[29644:29260])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm77_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm77_fill_push_valid),
+        .push_ready(tm77_fill_push_ready),
+        .push_data(tm77_fill_push_data),
+        .pop_valid(tm_fill_valid[77]),
+        .pop_ready(tm_fill_ready[77]),
+        .pop_data(tm_fill_data[30029:29645])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm78_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm78_fill_push_valid),
+        .push_ready(tm78_fill_push_ready),
+        .push_data(tm78_fill_push_data),
+        .pop_valid(tm_fill_valid[78]),
+        .pop_ready(tm_fill_ready[78]),
+        .pop_data(tm_fill_data[30414:30030])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm79_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm79_fill_push_valid),
+        .push_ready(tm79_fill_push_ready),
+        .push_data(tm79_fill_push_data),
+        .pop_valid(tm_fill_valid[79]),
+        .pop_ready(tm_fill_ready[79]),
+        .pop_data(tm_fill_data[30799:30415])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm80_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm80_fill_push_valid),
+        .push_ready(tm80_fill_push_ready),
+        .push_data(tm80_fill_push_data),
+        .pop_valid(tm_fill_valid[80]),
+        .pop_ready(tm_fill_ready[80]),
+        .pop_data(tm_fill_data[31184:30800])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm81_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm81_fill_push_valid),
+        .push_ready(tm81_fill_push_ready),
+        .push_data(tm81_fill_push_data),
+        .pop_valid(tm_fill_valid[81]),
+        .pop_ready(tm_fill_ready[81]),
+        .pop_data(tm_fill_data[31569:31185])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm82_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm82_fill_push_valid),
+        .push_ready(tm82_fill_push_ready),
+        .push_data(tm82_fill_push_data),
+        .pop_valid(tm_fill_valid[82]),
+        .pop_ready(tm_fill_ready[82]),
+        .pop_data(tm_fill_data[31954:31570])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm83_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm83_fill_push_valid),
+        .push_ready(tm83_fill_push_ready),
+        .push_data(tm83_fill_push_data),
+        .pop_valid(tm_fill_valid[83]),
+        .pop_ready(tm_fill_ready[83]),
+        .pop_data(tm_fill_data[32339:31955])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm84_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm84_fill_push_valid),
+        .push_ready(tm84_fill_push_ready),
+        .push_data(tm84_fill_push_data),
+        .pop_valid(tm_fill_valid[84]),
+        .pop_ready(tm_fill_ready[84]),
+        .pop_data(tm_fill_data[32724:32340])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm85_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm85_fill_push_valid),
+        .push_ready(tm85_fill_push_ready),
+        .push_data(tm85_fill_push_data),
+        .pop_valid(tm_fill_valid[85]),
+        .pop_ready(tm_fill_ready[85]),
+        .pop_data(tm_fill_data[33109:32725])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm86_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm86_fill_push_valid),
+        .push_ready(tm86_fill_push_ready),
+        .push_data(tm86_fill_push_data),
+        .pop_valid(tm_fill_valid[86]),
+        .pop_ready(tm_fill_ready[86]),
+        .pop_data(tm_fill_data[33494:33110])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm87_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm87_fill_push_valid),
+        .push_ready(tm87_fill_push_ready),
+        .push_data(tm87_fill_push_data),
+        .pop_valid(tm_fill_valid[87]),
+        .pop_ready(tm_fill_ready[87]),
+        .pop_data(tm_fill_data[33879:33495])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm88_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm88_fill_push_valid),
+        .push_ready(tm88_fill_push_ready),
+        .push_data(tm88_fill_push_data),
+        .pop_valid(tm_fill_valid[88]),
+        .pop_ready(tm_fill_ready[88]),
+        .pop_data(tm_fill_data[34264:33880])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm89_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm89_fill_push_valid),
+        .push_ready(tm89_fill_push_ready),
+        .push_data(tm89_fill_push_data),
+        .pop_valid(tm_fill_valid[89]),
+        .pop_ready(tm_fill_ready[89]),
+        .pop_data(tm_fill_data[34649:34265])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm90_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm90_fill_push_valid),
+        .push_ready(tm90_fill_push_ready),
+        .push_data(tm90_fill_push_data),
+        .pop_valid(tm_fill_valid[90]),
+        .pop_ready(tm_fill_ready[90]),
+        .pop_data(tm_fill_data[35034:34650])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm91_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm91_fill_push_valid),
+        .push_ready(tm91_fill_push_ready),
+        .push_data(tm91_fill_push_data),
+        .pop_valid(tm_fill_valid[91]),
+        .pop_ready(tm_fill_ready[91]),
+        .pop_data(tm_fill_data[35419:35035])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm92_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm92_fill_push_valid),
+        .push_ready(tm92_fill_push_ready),
+        .push_data(tm92_fill_push_data),
+        .pop_valid(tm_fill_valid[92]),
+        .pop_ready(tm_fill_ready[92]),
+        .pop_data(tm_fill_data[35804:35420])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm93_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm93_fill_push_valid),
+        .push_ready(tm93_fill_push_ready),
+        .push_data(tm93_fill_push_data),
+        .pop_valid(tm_fill_valid[93]),
+        .pop_ready(tm_fill_ready[93]),
+        .pop_data(tm_fill_data[36189:35805])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm94_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm94_fill_push_valid),
+        .push_ready(tm94_fill_push_ready),
+        .push_data(tm94_fill_push_data),
+        .pop_valid(tm_fill_valid[94]),
+        .pop_ready(tm_fill_ready[94]),
+        .pop_data(tm_fill_data[36574:36190])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm95_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm95_fill_push_valid),
+        .push_ready(tm95_fill_push_ready),
+        .push_data(tm95_fill_push_data),
+        .pop_valid(tm_fill_valid[95]),
+        .pop_ready(tm_fill_ready[95]),
+        .pop_data(tm_fill_data[36959:36575])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm96_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm96_fill_push_valid),
+        .push_ready(tm96_fill_push_ready),
+        .push_data(tm96_fill_push_data),
+        .pop_valid(tm_fill_valid[96]),
+        .pop_ready(tm_fill_ready[96]),
+        .pop_data(tm_fill_data[37344:36960])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm97_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm97_fill_push_valid),
+        .push_ready(tm97_fill_push_ready),
+        .push_data(tm97_fill_push_data),
+        .pop_valid(tm_fill_valid[97]),
+        .pop_ready(tm_fill_ready[97]),
+        .pop_data(tm_fill_data[37729:37345])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm98_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm98_fill_push_valid),
+        .push_ready(tm98_fill_push_ready),
+        .push_data(tm98_fill_push_data),
+        .pop_valid(tm_fill_valid[98]),
+        .pop_ready(tm_fill_ready[98]),
+        .pop_data(tm_fill_data[38114:37730])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm99_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm99_fill_push_valid),
+        .push_ready(tm99_fill_push_ready),
+        .push_data(tm99_fill_push_data),
+        .pop_valid(tm_fill_valid[99]),
+        .pop_ready(tm_fill_ready[99]),
+        .pop_data(tm_fill_data[38499:38115])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm100_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm100_fill_push_valid),
+        .push_ready(tm100_fill_push_ready),
+        .push_data(tm100_fill_push_data),
+        .pop_valid(tm_fill_valid[100]),
+        .pop_ready(tm_fill_ready[100]),
+        .pop_data(tm_fill_data[38884:38500])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm101_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm101_fill_push_valid),
+        .push_ready(tm101_fill_push_ready),
+        .push_data(tm101_fill_push_data),
+        .pop_valid(tm_fill_valid[101]),
+        .pop_ready(tm_fill_ready[101]),
+        .pop_data(tm_fill_data[39269:38885])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm102_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm102_fill_push_valid),
+        .push_ready(tm102_fill_push_ready),
+        .push_data(tm102_fill_push_data),
+        .pop_valid(tm_fill_valid[102]),
+        .pop_ready(tm_fill_ready[102]),
+        .pop_data(tm_fill_data[39654:39270])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm103_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm103_fill_push_valid),
+        .push_ready(tm103_fill_push_ready),
+        .push_data(tm103_fill_push_data),
+        .pop_valid(tm_fill_valid[103]),
+        .pop_ready(tm_fill_ready[103]),
+        .pop_data(tm_fill_data[40039:39655])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm104_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm104_fill_push_valid),
+        .push_ready(tm104_fill_push_ready),
+        .push_data(tm104_fill_push_data),
+        .pop_valid(tm_fill_valid[104]),
+        .pop_ready(tm_fill_ready[104]),
+        .pop_data(tm_fill_data[40424:40040])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm105_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm105_fill_push_valid),
+        .push_ready(tm105_fill_push_ready),
+        .push_data(tm105_fill_push_data),
+        .pop_valid(tm_fill_valid[105]),
+        .pop_ready(tm_fill_ready[105]),
+        .pop_data(tm_fill_data[40809:40425])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm106_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm106_fill_push_valid),
+        .push_ready(tm106_fill_push_ready),
+        .push_data(tm106_fill_push_data),
+        .pop_valid(tm_fill_valid[106]),
+        .pop_ready(tm_fill_ready[106]),
+        .pop_data(tm_fill_data[41194:40810])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm107_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm107_fill_push_valid),
+        .push_ready(tm107_fill_push_ready),
+        .push_data(tm107_fill_push_data),
+        .pop_valid(tm_fill_valid[107]),
+        .pop_ready(tm_fill_ready[107]),
+        .pop_data(tm_fill_data[41579:41195])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm108_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm108_fill_push_valid),
+        .push_ready(tm108_fill_push_ready),
+        .push_data(tm108_fill_push_data),
+        .pop_valid(tm_fill_valid[108]),
+        .pop_ready(tm_fill_ready[108]),
+        .pop_data(tm_fill_data[41964:41580])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm109_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm109_fill_push_valid),
+        .push_ready(tm109_fill_push_ready),
+        .push_data(tm109_fill_push_data),
+        .pop_valid(tm_fill_valid[109]),
+        .pop_ready(tm_fill_ready[109]),
+        .pop_data(tm_fill_data[42349:41965])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm110_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm110_fill_push_valid),
+        .push_ready(tm110_fill_push_ready),
+        .push_data(tm110_fill_push_data),
+        .pop_valid(tm_fill_valid[110]),
+        .pop_ready(tm_fill_ready[110]),
+        .pop_data(tm_fill_data[42734:42350])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm111_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm111_fill_push_valid),
+        .push_ready(tm111_fill_push_ready),
+        .push_data(tm111_fill_push_data),
+        .pop_valid(tm_fill_valid[111]),
+        .pop_ready(tm_fill_ready[111]),
+        .pop_data(tm_fill_data[43119:42735])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm112_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm112_fill_push_valid),
+        .push_ready(tm112_fill_push_ready),
+        .push_data(tm112_fill_push_data),
+        .pop_valid(tm_fill_valid[112]),
+        .pop_ready(tm_fill_ready[112]),
+        .pop_data(tm_fill_data[43504:43120])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm113_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm113_fill_push_valid),
+        .push_ready(tm113_fill_push_ready),
+        .push_data(tm113_fill_push_data),
+        .pop_valid(tm_fill_valid[113]),
+        .pop_ready(tm_fill_ready[113]),
+        .pop_data(tm_fill_data[43889:43505])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm114_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm114_fill_push_valid),
+        .push_ready(tm114_fill_push_ready),
+        .push_data(tm114_fill_push_data),
+        .pop_valid(tm_fill_valid[114]),
+        .pop_ready(tm_fill_ready[114]),
+        .pop_data(tm_fill_data[44274:43890])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm115_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm115_fill_push_valid),
+        .push_ready(tm115_fill_push_ready),
+        .push_data(tm115_fill_push_data),
+        .pop_valid(tm_fill_valid[115]),
+        .pop_ready(tm_fill_ready[115]),
+        .pop_data(tm_fill_data[44659:44275])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm116_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm116_fill_push_valid),
+        .push_ready(tm116_fill_push_ready),
+        .push_data(tm116_fill_push_data),
+        .pop_valid(tm_fill_valid[116]),
+        .pop_ready(tm_fill_ready[116]),
+        .pop_data(tm_fill_data[45044:44660])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm117_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm117_fill_push_valid),
+        .push_ready(tm117_fill_push_ready),
+        .push_data(tm117_fill_push_data),
+        .pop_valid(tm_fill_valid[117]),
+        .pop_ready(tm_fill_ready[117]),
+        .pop_data(tm_fill_data[45429:45045])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm118_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm118_fill_push_valid),
+        .push_ready(tm118_fill_push_ready),
+        .push_data(tm118_fill_push_data),
+        .pop_valid(tm_fill_valid[118]),
+        .pop_ready(tm_fill_ready[118]),
+        .pop_data(tm_fill_data[45814:45430])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm119_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm119_fill_push_valid),
+        .push_ready(tm119_fill_push_ready),
+        .push_data(tm119_fill_push_data),
+        .pop_valid(tm_fill_valid[119]),
+        .pop_ready(tm_fill_ready[119]),
+        .pop_data(tm_fill_data[46199:45815])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm120_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm120_fill_push_valid),
+        .push_ready(tm120_fill_push_ready),
+        .push_data(tm120_fill_push_data),
+        .pop_valid(tm_fill_valid[120]),
+        .pop_ready(tm_fill_ready[120]),
+        .pop_data(tm_fill_data[46584:46200])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm121_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm121_fill_push_valid),
+        .push_ready(tm121_fill_push_ready),
+        .push_data(tm121_fill_push_data),
+        .pop_valid(tm_fill_valid[121]),
+        .pop_ready(tm_fill_ready[121]),
+        .pop_data(tm_fill_data[46969:46585])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm122_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm122_fill_push_valid),
+        .push_ready(tm122_fill_push_ready),
+        .push_data(tm122_fill_push_data),
+        .pop_valid(tm_fill_valid[122]),
+        .pop_ready(tm_fill_ready[122]),
+        .pop_data(tm_fill_data[47354:46970])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm123_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm123_fill_push_valid),
+        .push_ready(tm123_fill_push_ready),
+        .push_data(tm123_fill_push_data),
+        .pop_valid(tm_fill_valid[123]),
+        .pop_ready(tm_fill_ready[123]),
+        .pop_data(tm_fill_data[47739:47355])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm124_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm124_fill_push_valid),
+        .push_ready(tm124_fill_push_ready),
+        .push_data(tm124_fill_push_data),
+        .pop_valid(tm_fill_valid[124]),
+        .pop_ready(tm_fill_ready[124]),
+        .pop_data(tm_fill_data[48124:47740])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm125_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm125_fill_push_valid),
+        .push_ready(tm125_fill_push_ready),
+        .push_data(tm125_fill_push_data),
+        .pop_valid(tm_fill_valid[125]),
+        .pop_ready(tm_fill_ready[125]),
+        .pop_data(tm_fill_data[48509:48125])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm126_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm126_fill_push_valid),
+        .push_ready(tm126_fill_push_ready),
+        .push_data(tm126_fill_push_data),
+        .pop_valid(tm_fill_valid[126]),
+        .pop_ready(tm_fill_ready[126]),
+        .pop_data(tm_fill_data[48894:48510])
+    );
+    ds_link #(.WIDTH(385), .DEPTH(2), .DELAY(1)) link_tm127_fill (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm127_fill_push_valid),
+        .push_ready(tm127_fill_push_ready),
+        .push_data(tm127_fill_push_data),
+        .pop_valid(tm_fill_valid[127]),
+        .pop_ready(tm_fill_ready[127]),
+        .pop_data(tm_fill_data[49279:48895])
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm0_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[0]),
+        .push_ready(tm_miss_req_ready[0]),
+        .push_data(tm_miss_req_data[63:0]),
+        .pop_valid(tm0_miss_req_pop_valid),
+        .pop_ready(tm0_miss_req_pop_ready),
+        .pop_data(tm0_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm1_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[1]),
+        .push_ready(tm_miss_req_ready[1]),
+        .push_data(tm_miss_req_data[127:64]),
+        .pop_valid(tm1_miss_req_pop_valid),
+        .pop_ready(tm1_miss_req_pop_ready),
+        .pop_data(tm1_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm2_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[2]),
+        .push_ready(tm_miss_req_ready[2]),
+        .push_data(tm_miss_req_data[191:128]),
+        .pop_valid(tm2_miss_req_pop_valid),
+        .pop_ready(tm2_miss_req_pop_ready),
+        .pop_data(tm2_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm3_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[3]),
+        .push_ready(tm_miss_req_ready[3]),
+        .push_data(tm_miss_req_data[255:192]),
+        .pop_valid(tm3_miss_req_pop_valid),
+        .pop_ready(tm3_miss_req_pop_ready),
+        .pop_data(tm3_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm4_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[4]),
+        .push_ready(tm_miss_req_ready[4]),
+        .push_data(tm_miss_req_data[319:256]),
+        .pop_valid(tm4_miss_req_pop_valid),
+        .pop_ready(tm4_miss_req_pop_ready),
+        .pop_data(tm4_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm5_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[5]),
+        .push_ready(tm_miss_req_ready[5]),
+        .push_data(tm_miss_req_data[383:320]),
+        .pop_valid(tm5_miss_req_pop_valid),
+        .pop_ready(tm5_miss_req_pop_ready),
+        .pop_data(tm5_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm6_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[6]),
+        .push_ready(tm_miss_req_ready[6]),
+        .push_data(tm_miss_req_data[447:384]),
+        .pop_valid(tm6_miss_req_pop_valid),
+        .pop_ready(tm6_miss_req_pop_ready),
+        .pop_data(tm6_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm7_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[7]),
+        .push_ready(tm_miss_req_ready[7]),
+        .push_data(tm_miss_req_data[511:448]),
+        .pop_valid(tm7_miss_req_pop_valid),
+        .pop_ready(tm7_miss_req_pop_ready),
+        .pop_data(tm7_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm8_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[8]),
+        .push_ready(tm_miss_req_ready[8]),
+        .push_data(tm_miss_req_data[575:512]),
+        .pop_valid(tm8_miss_req_pop_valid),
+        .pop_ready(tm8_miss_req_pop_ready),
+        .pop_data(tm8_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm9_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[9]),
+        .push_ready(tm_miss_req_ready[9]),
+        .push_data(tm_miss_req_data[639:576]),
+        .pop_valid(tm9_miss_req_pop_valid),
+        .pop_ready(tm9_miss_req_pop_ready),
+        .pop_data(tm9_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm10_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[10]),
+        .push_ready(tm_miss_req_ready[10]),
+        .push_data(tm_miss_req_data[703:640]),
+        .pop_valid(tm10_miss_req_pop_valid),
+        .pop_ready(tm10_miss_req_pop_ready),
+        .pop_data(tm10_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm11_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[11]),
+        .push_ready(tm_miss_req_ready[11]),
+        .push_data(tm_miss_req_data[767:704]),
+        .pop_valid(tm11_miss_req_pop_valid),
+        .pop_ready(tm11_miss_req_pop_ready),
+        .pop_data(tm11_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm12_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[12]),
+        .push_ready(tm_miss_req_ready[12]),
+        .push_data(tm_miss_req_data[831:768]),
+        .pop_valid(tm12_miss_req_pop_valid),
+        .pop_ready(tm12_miss_req_pop_ready),
+        .pop_data(tm12_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm13_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[13]),
+        .push_ready(tm_miss_req_ready[13]),
+        .push_data(tm_miss_req_data[895:832]),
+        .pop_valid(tm13_miss_req_pop_valid),
+        .pop_ready(tm13_miss_req_pop_ready),
+        .pop_data(tm13_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm14_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[14]),
+        .push_ready(tm_miss_req_ready[14]),
+        .push_data(tm_miss_req_data[959:896]),
+        .pop_valid(tm14_miss_req_pop_valid),
+        .pop_ready(tm14_miss_req_pop_ready),
+        .pop_data(tm14_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm15_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[15]),
+        .push_ready(tm_miss_req_ready[15]),
+        .push_data(tm_miss_req_data[1023:960]),
+        .pop_valid(tm15_miss_req_pop_valid),
+        .pop_ready(tm15_miss_req_pop_ready),
+        .pop_data(tm15_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm16_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[16]),
+        .push_ready(tm_miss_req_ready[16]),
+        .push_data(tm_miss_req_data[1087:1024]),
+        .pop_valid(tm16_miss_req_pop_valid),
+        .pop_ready(tm16_miss_req_pop_ready),
+        .pop_data(tm16_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm17_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[17]),
+        .push_ready(tm_miss_req_ready[17]),
+        .push_data(tm_miss_req_data[1151:1088]),
+        .pop_valid(tm17_miss_req_pop_valid),
+        .pop_ready(tm17_miss_req_pop_ready),
+        .pop_data(tm17_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm18_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[18]),
+        .push_ready(tm_miss_req_ready[18]),
+        .push_data(tm_miss_req_data[1215:1152]),
+        .pop_valid(tm18_miss_req_pop_valid),
+        .pop_ready(tm18_miss_req_pop_ready),
+        .pop_data(tm18_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm19_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[19]),
+        .push_ready(tm_miss_req_ready[19]),
+        .push_data(tm_miss_req_data[1279:1216]),
+        .pop_valid(tm19_miss_req_pop_valid),
+        .pop_ready(tm19_miss_req_pop_ready),
+        .pop_data(tm19_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm20_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[20]),
+        .push_ready(tm_miss_req_ready[20]),
+        .push_data(tm_miss_req_data[1343:1280]),
+        .pop_valid(tm20_miss_req_pop_valid),
+        .pop_ready(tm20_miss_req_pop_ready),
+        .pop_data(tm20_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm21_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[21]),
+        .push_ready(tm_miss_req_ready[21]),
+        .push_data(tm_miss_req_data[1407:1344]),
+        .pop_valid(tm21_miss_req_pop_valid),
+        .pop_ready(tm21_miss_req_pop_ready),
+        .pop_data(tm21_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm22_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[22]),
+        .push_ready(tm_miss_req_ready[22]),
+        .push_data(tm_miss_req_data[1471:1408]),
+        .pop_valid(tm22_miss_req_pop_valid),
+        .pop_ready(tm22_miss_req_pop_ready),
+        .pop_data(tm22_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm23_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[23]),
+        .push_ready(tm_miss_req_ready[23]),
+        .push_data(tm_miss_req_data[1535:1472]),
+        .pop_valid(tm23_miss_req_pop_valid),
+        .pop_ready(tm23_miss_req_pop_ready),
+        .pop_data(tm23_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm24_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[24]),
+        .push_ready(tm_miss_req_ready[24]),
+        .push_data(tm_miss_req_data[1599:1536]),
+        .pop_valid(tm24_miss_req_pop_valid),
+        .pop_ready(tm24_miss_req_pop_ready),
+        .pop_data(tm24_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm25_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[25]),
+        .push_ready(tm_miss_req_ready[25]),
+        .push_data(tm_miss_req_data[1663:1600]),
+        .pop_valid(tm25_miss_req_pop_valid),
+        .pop_ready(tm25_miss_req_pop_ready),
+        .pop_data(tm25_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm26_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[26]),
+        .push_ready(tm_miss_req_ready[26]),
+        .push_data(tm_miss_req_data[1727:1664]),
+        .pop_valid(tm26_miss_req_pop_valid),
+        .pop_ready(tm26_miss_req_pop_ready),
+        .pop_data(tm26_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm27_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[27]),
+        .push_ready(tm_miss_req_ready[27]),
+        .push_data(tm_miss_req_data[1791:1728]),
+        .pop_valid(tm27_miss_req_pop_valid),
+        .pop_ready(tm27_miss_req_pop_ready),
+        .pop_data(tm27_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm28_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[28]),
+        .push_ready(tm_miss_req_ready[28]),
+        .push_data(tm_miss_req_data[1855:1792]),
+        .pop_valid(tm28_miss_req_pop_valid),
+        .pop_ready(tm28_miss_req_pop_ready),
+        .pop_data(tm28_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm29_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[29]),
+        .push_ready(tm_miss_req_ready[29]),
+        .push_data(tm_miss_req_data[1919:1856]),
+        .pop_valid(tm29_miss_req_pop_valid),
+        .pop_ready(tm29_miss_req_pop_ready),
+        .pop_data(tm29_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm30_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[30]),
+        .push_ready(tm_miss_req_ready[30]),
+        .push_data(tm_miss_req_data[1983:1920]),
+        .pop_valid(tm30_miss_req_pop_valid),
+        .pop_ready(tm30_miss_req_pop_ready),
+        .pop_data(tm30_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm31_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[31]),
+        .push_ready(tm_miss_req_ready[31]),
+        .push_data(tm_miss_req_data[2047:1984]),
+        .pop_valid(tm31_miss_req_pop_valid),
+        .pop_ready(tm31_miss_req_pop_ready),
+        .pop_data(tm31_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm32_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[32]),
+        .push_ready(tm_miss_req_ready[32]),
+        .push_data(tm_miss_req_data[2111:2048]),
+        .pop_valid(tm32_miss_req_pop_valid),
+        .pop_ready(tm32_miss_req_pop_ready),
+        .pop_data(tm32_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm33_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[33]),
+        .push_ready(tm_miss_req_ready[33]),
+        .push_data(tm_miss_req_data[2175:2112]),
+        .pop_valid(tm33_miss_req_pop_valid),
+        .pop_ready(tm33_miss_req_pop_ready),
+        .pop_data(tm33_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm34_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[34]),
+        .push_ready(tm_miss_req_ready[34]),
+        .push_data(tm_miss_req_data[2239:2176]),
+        .pop_valid(tm34_miss_req_pop_valid),
+        .pop_ready(tm34_miss_req_pop_ready),
+        .pop_data(tm34_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm35_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[35]),
+        .push_ready(tm_miss_req_ready[35]),
+        .push_data(tm_miss_req_data[2303:2240]),
+        .pop_valid(tm35_miss_req_pop_valid),
+        .pop_ready(tm35_miss_req_pop_ready),
+        .pop_data(tm35_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm36_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[36]),
+        .push_ready(tm_miss_req_ready[36]),
+        .push_data(tm_miss_req_data[2367:2304]),
+        .pop_valid(tm36_miss_req_pop_valid),
+        .pop_ready(tm36_miss_req_pop_ready),
+        .pop_data(tm36_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm37_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[37]),
+        .push_ready(tm_miss_req_ready[37]),
+        .push_data(tm_miss_req_data[2431:2368]),
+        .pop_valid(tm37_miss_req_pop_valid),
+        .pop_ready(tm37_miss_req_pop_ready),
+        .pop_data(tm37_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm38_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[38]),
+        .push_ready(tm_miss_req_ready[38]),
+        .push_data(tm_miss_req_data[2495:2432]),
+        .pop_valid(tm38_miss_req_pop_valid),
+        .pop_ready(tm38_miss_req_pop_ready),
+        .pop_data(tm38_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm39_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[39]),
+        .push_ready(tm_miss_req_ready[39]),
+        .push_data(tm_miss_req_data[2559:2496]),
+        .pop_valid(tm39_miss_req_pop_valid),
+        .pop_ready(tm39_miss_req_pop_ready),
+        .pop_data(tm39_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm40_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[40]),
+        .push_ready(tm_miss_req_ready[40]),
+        .push_data(tm_miss_req_data[2623:2560]),
+        .pop_valid(tm40_miss_req_pop_valid),
+        .pop_ready(tm40_miss_req_pop_ready),
+        .pop_data(tm40_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm41_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[41]),
+        .push_ready(tm_miss_req_ready[41]),
+        .push_data(tm_miss_req_data[2687:2624]),
+        .pop_valid(tm41_miss_req_pop_valid),
+        .pop_ready(tm41_miss_req_pop_ready),
+        .pop_data(tm41_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm42_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[42]),
+        .push_ready(tm_miss_req_ready[42]),
+        .push_data(tm_miss_req_data[2751:2688]),
+        .pop_valid(tm42_miss_req_pop_valid),
+        .pop_ready(tm42_miss_req_pop_ready),
+        .pop_data(tm42_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm43_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[43]),
+        .push_ready(tm_miss_req_ready[43]),
+        .push_data(tm_miss_req_data[2815:2752]),
+        .pop_valid(tm43_miss_req_pop_valid),
+        .pop_ready(tm43_miss_req_pop_ready),
+        .pop_data(tm43_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm44_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[44]),
+        .push_ready(tm_miss_req_ready[44]),
+        .push_data(tm_miss_req_data[2879:2816]),
+        .pop_valid(tm44_miss_req_pop_valid),
+        .pop_ready(tm44_miss_req_pop_ready),
+        .pop_data(tm44_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm45_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[45]),
+        .push_ready(tm_miss_req_ready[45]),
+        .push_data(tm_miss_req_data[2943:2880]),
+        .pop_valid(tm45_miss_req_pop_valid),
+        .pop_ready(tm45_miss_req_pop_ready),
+        .pop_data(tm45_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm46_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[46]),
+        .push_ready(tm_miss_req_ready[46]),
+        .push_data(tm_miss_req_data[3007:2944]),
+        .pop_valid(tm46_miss_req_pop_valid),
+        .pop_ready(tm46_miss_req_pop_ready),
+        .pop_data(tm46_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm47_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[47]),
+        .push_ready(tm_miss_req_ready[47]),
+        .push_data(tm_miss_req_data[3071:3008]),
+        .pop_valid(tm47_miss_req_pop_valid),
+        .pop_ready(tm47_miss_req_pop_ready),
+        .pop_data(tm47_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm48_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[48]),
+        .push_ready(tm_miss_req_ready[48]),
+        .push_data(tm_miss_req_data[3135:3072]),
+        .pop_valid(tm48_miss_req_pop_valid),
+        .pop_ready(tm48_miss_req_pop_ready),
+        .pop_data(tm48_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm49_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[49]),
+        .push_ready(tm_miss_req_ready[49]),
+        .push_data(tm_miss_req_data[3199:3136]),
+        .pop_valid(tm49_miss_req_pop_valid),
+        .pop_ready(tm49_miss_req_pop_ready),
+        .pop_data(tm49_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm50_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[50]),
+        .push_ready(tm_miss_req_ready[50]),
+        .push_data(tm_miss_req_data[3263:3200]),
+        .pop_valid(tm50_miss_req_pop_valid),
+        .pop_ready(tm50_miss_req_pop_ready),
+        .pop_data(tm50_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm51_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[51]),
+        .push_ready(tm_miss_req_ready[51]),
+        .push_data(tm_miss_req_data[3327:3264]),
+        .pop_valid(tm51_miss_req_pop_valid),
+        .pop_ready(tm51_miss_req_pop_ready),
+        .pop_data(tm51_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm52_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[52]),
+        .push_ready(tm_miss_req_ready[52]),
+        .push_data(tm_miss_req_data[3391:3328]),
+        .pop_valid(tm52_miss_req_pop_valid),
+        .pop_ready(tm52_miss_req_pop_ready),
+        .pop_data(tm52_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm53_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[53]),
+        .push_ready(tm_miss_req_ready[53]),
+        .push_data(tm_miss_req_data[3455:3392]),
+        .pop_valid(tm53_miss_req_pop_valid),
+        .pop_ready(tm53_miss_req_pop_ready),
+        .pop_data(tm53_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm54_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[54]),
+        .push_ready(tm_miss_req_ready[54]),
+        .push_data(tm_miss_req_data[3519:3456]),
+        .pop_valid(tm54_miss_req_pop_valid),
+        .pop_ready(tm54_miss_req_pop_ready),
+        .pop_data(tm54_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm55_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[55]),
+        .push_ready(tm_miss_req_ready[55]),
+        .push_data(tm_miss_req_data[3583:3520]),
+        .pop_valid(tm55_miss_req_pop_valid),
+        .pop_ready(tm55_miss_req_pop_ready),
+        .pop_data(tm55_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm56_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[56]),
+        .push_ready(tm_miss_req_ready[56]),
+        .push_data(tm_miss_req_data[3647:3584]),
+        .pop_valid(tm56_miss_req_pop_valid),
+        .pop_ready(tm56_miss_req_pop_ready),
+        .pop_data(tm56_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm57_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[57]),
+        .push_ready(tm_miss_req_ready[57]),
+        .push_data(tm_miss_req_data[3711:3648]),
+        .pop_valid(tm57_miss_req_pop_valid),
+        .pop_ready(tm57_miss_req_pop_ready),
+        .pop_data(tm57_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm58_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[58]),
+        .push_ready(tm_miss_req_ready[58]),
+        .push_data(tm_miss_req_data[3775:3712]),
+        .pop_valid(tm58_miss_req_pop_valid),
+        .pop_ready(tm58_miss_req_pop_ready),
+        .pop_data(tm58_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm59_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[59]),
+        .push_ready(tm_miss_req_ready[59]),
+        .push_data(tm_miss_req_data[3839:3776]),
+        .pop_valid(tm59_miss_req_pop_valid),
+        .pop_ready(tm59_miss_req_pop_ready),
+        .pop_data(tm59_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm60_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[60]),
+        .push_ready(tm_miss_req_ready[60]),
+        .push_data(tm_miss_req_data[3903:3840]),
+        .pop_valid(tm60_miss_req_pop_valid),
+        .pop_ready(tm60_miss_req_pop_ready),
+        .pop_data(tm60_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm61_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[61]),
+        .push_ready(tm_miss_req_ready[61]),
+        .push_data(tm_miss_req_data[3967:3904]),
+        .pop_valid(tm61_miss_req_pop_valid),
+        .pop_ready(tm61_miss_req_pop_ready),
+        .pop_data(tm61_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm62_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[62]),
+        .push_ready(tm_miss_req_ready[62]),
+        .push_data(tm_miss_req_data[4031:3968]),
+        .pop_valid(tm62_miss_req_pop_valid),
+        .pop_ready(tm62_miss_req_pop_ready),
+        .pop_data(tm62_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm63_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[63]),
+        .push_ready(tm_miss_req_ready[63]),
+        .push_data(tm_miss_req_data[4095:4032]),
+        .pop_valid(tm63_miss_req_pop_valid),
+        .pop_ready(tm63_miss_req_pop_ready),
+        .pop_data(tm63_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm64_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[64]),
+        .push_ready(tm_miss_req_ready[64]),
+        .push_data(tm_miss_req_data[4159:4096]),
+        .pop_valid(tm64_miss_req_pop_valid),
+        .pop_ready(tm64_miss_req_pop_ready),
+        .pop_data(tm64_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm65_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[65]),
+        .push_ready(tm_miss_req_ready[65]),
+        .push_data(tm_miss_req_data[4223:4160]),
+        .pop_valid(tm65_miss_req_pop_valid),
+        .pop_ready(tm65_miss_req_pop_ready),
+        .pop_data(tm65_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm66_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[66]),
+        .push_ready(tm_miss_req_ready[66]),
+        .push_data(tm_miss_req_data[4287:4224]),
+        .pop_valid(tm66_miss_req_pop_valid),
+        .pop_ready(tm66_miss_req_pop_ready),
+        .pop_data(tm66_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm67_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[67]),
+        .push_ready(tm_miss_req_ready[67]),
+        .push_data(tm_miss_req_data[4351:4288]),
+        .pop_valid(tm67_miss_req_pop_valid),
+        .pop_ready(tm67_miss_req_pop_ready),
+        .pop_data(tm67_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm68_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[68]),
+        .push_ready(tm_miss_req_ready[68]),
+        .push_data(tm_miss_req_data[4415:4352]),
+        .pop_valid(tm68_miss_req_pop_valid),
+        .pop_ready(tm68_miss_req_pop_ready),
+        .pop_data(tm68_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm69_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[69]),
+        .push_ready(tm_miss_req_ready[69]),
+        .push_data(tm_miss_req_data[4479:4416]),
+        .pop_valid(tm69_miss_req_pop_valid),
+        .pop_ready(tm69_miss_req_pop_ready),
+        .pop_data(tm69_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm70_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[70]),
+        .push_ready(tm_miss_req_ready[70]),
+        .push_data(tm_miss_req_data[4543:4480]),
+        .pop_valid(tm70_miss_req_pop_valid),
+        .pop_ready(tm70_miss_req_pop_ready),
+        .pop_data(tm70_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm71_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[71]),
+        .push_ready(tm_miss_req_ready[71]),
+        .push_data(tm_miss_req_data[4607:4544]),
+        .pop_valid(tm71_miss_req_pop_valid),
+        .pop_ready(tm71_miss_req_pop_ready),
+        .pop_data(tm71_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm72_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[72]),
+        .push_ready(tm_miss_req_ready[72]),
+        .push_data(tm_miss_req_data[4671:4608]),
+        .pop_valid(tm72_miss_req_pop_valid),
+        .pop_ready(tm72_miss_req_pop_ready),
+        .pop_data(tm72_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm73_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[73]),
+        .push_ready(tm_miss_req_ready[73]),
+        .push_data(tm_miss_req_data[4735:4672]),
+        .pop_valid(tm73_miss_req_pop_valid),
+        .pop_ready(tm73_miss_req_pop_ready),
+        .pop_data(tm73_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm74_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[74]),
+        .push_ready(tm_miss_req_ready[74]),
+        .push_data(tm_miss_req_data[4799:4736]),
+        .pop_valid(tm74_miss_req_pop_valid),
+        .pop_ready(tm74_miss_req_pop_ready),
+        .pop_data(tm74_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm75_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[75]),
+        .push_ready(tm_miss_req_ready[75]),
+        .push_data(tm_miss_req_data[4863:4800]),
+        .pop_valid(tm75_miss_req_pop_valid),
+        .pop_ready(tm75_miss_req_pop_ready),
+        .pop_data(tm75_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm76_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[76]),
+        .push_ready(tm_miss_req_ready[76]),
+        .push_data(tm_miss_req_data[4927:4864]),
+        .pop_valid(tm76_miss_req_pop_valid),
+        .pop_ready(tm76_miss_req_pop_ready),
+        .pop_data(tm76_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm77_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[77]),
+        .push_ready(tm_miss_req_ready[77]),
+        .push_data(tm_miss_req_data[4991:4928]),
+        .pop_valid(tm77_miss_req_pop_valid),
+        .pop_ready(tm77_miss_req_pop_ready),
+        .pop_data(tm77_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm78_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[78]),
+        .push_ready(tm_miss_req_ready[78]),
+        .push_data(tm_miss_req_data[5055:4992]),
+        .pop_valid(tm78_miss_req_pop_valid),
+        .pop_ready(tm78_miss_req_pop_ready),
+        .pop_data(tm78_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm79_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[79]),
+        .push_ready(tm_miss_req_ready[79]),
+        .push_data(tm_miss_req_data[5119:5056]),
+        .pop_valid(tm79_miss_req_pop_valid),
+        .pop_ready(tm79_miss_req_pop_ready),
+        .pop_data(tm79_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm80_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[80]),
+        .push_ready(tm_miss_req_ready[80]),
+        .push_data(tm_miss_req_data[5183:5120]),
+        .pop_valid(tm80_miss_req_pop_valid),
+        .pop_ready(tm80_miss_req_pop_ready),
+        .pop_data(tm80_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm81_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[81]),
+        .push_ready(tm_miss_req_ready[81]),
+        .push_data(tm_miss_req_data[5247:5184]),
+        .pop_valid(tm81_miss_req_pop_valid),
+        .pop_ready(tm81_miss_req_pop_ready),
+        .pop_data(tm81_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm82_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[82]),
+        .push_ready(tm_miss_req_ready[82]),
+        .push_data(tm_miss_req_data[5311:5248]),
+        .pop_valid(tm82_miss_req_pop_valid),
+        .pop_ready(tm82_miss_req_pop_ready),
+        .pop_data(tm82_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm83_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[83]),
+        .push_ready(tm_miss_req_ready[83]),
+        .push_data(tm_miss_req_data[5375:5312]),
+        .pop_valid(tm83_miss_req_pop_valid),
+        .pop_ready(tm83_miss_req_pop_ready),
+        .pop_data(tm83_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm84_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[84]),
+        .push_ready(tm_miss_req_ready[84]),
+        .push_data(tm_miss_req_data[5439:5376]),
+        .pop_valid(tm84_miss_req_pop_valid),
+        .pop_ready(tm84_miss_req_pop_ready),
+        .pop_data(tm84_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm85_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[85]),
+        .push_ready(tm_miss_req_ready[85]),
+        .push_data(tm_miss_req_data[5503:5440]),
+        .pop_valid(tm85_miss_req_pop_valid),
+        .pop_ready(tm85_miss_req_pop_ready),
+        .pop_data(tm85_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm86_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[86]),
+        .push_ready(tm_miss_req_ready[86]),
+        .push_data(tm_miss_req_data[5567:5504]),
+        .pop_valid(tm86_miss_req_pop_valid),
+        .pop_ready(tm86_miss_req_pop_ready),
+        .pop_data(tm86_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm87_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[87]),
+        .push_ready(tm_miss_req_ready[87]),
+        .push_data(tm_miss_req_data[5631:5568]),
+        .pop_valid(tm87_miss_req_pop_valid),
+        .pop_ready(tm87_miss_req_pop_ready),
+        .pop_data(tm87_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm88_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[88]),
+        .push_ready(tm_miss_req_ready[88]),
+        .push_data(tm_miss_req_data[5695:5632]),
+        .pop_valid(tm88_miss_req_pop_valid),
+        .pop_ready(tm88_miss_req_pop_ready),
+        .pop_data(tm88_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm89_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[89]),
+        .push_ready(tm_miss_req_ready[89]),
+        .push_data(tm_miss_req_data[5759:5696]),
+        .pop_valid(tm89_miss_req_pop_valid),
+        .pop_ready(tm89_miss_req_pop_ready),
+        .pop_data(tm89_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm90_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[90]),
+        .push_ready(tm_miss_req_ready[90]),
+        .push_data(tm_miss_req_data[5823:5760]),
+        .pop_valid(tm90_miss_req_pop_valid),
+        .pop_ready(tm90_miss_req_pop_ready),
+        .pop_data(tm90_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm91_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[91]),
+        .push_ready(tm_miss_req_ready[91]),
+        .push_data(tm_miss_req_data[5887:5824]),
+        .pop_valid(tm91_miss_req_pop_valid),
+        .pop_ready(tm91_miss_req_pop_ready),
+        .pop_data(tm91_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm92_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[92]),
+        .push_ready(tm_miss_req_ready[92]),
+        .push_data(tm_miss_req_data[5951:5888]),
+        .pop_valid(tm92_miss_req_pop_valid),
+        .pop_ready(tm92_miss_req_pop_ready),
+        .pop_data(tm92_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm93_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[93]),
+        .push_ready(tm_miss_req_ready[93]),
+        .push_data(tm_miss_req_data[6015:5952]),
+        .pop_valid(tm93_miss_req_pop_valid),
+        .pop_ready(tm93_miss_req_pop_ready),
+        .pop_data(tm93_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm94_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[94]),
+        .push_ready(tm_miss_req_ready[94]),
+        .push_data(tm_miss_req_data[6079:6016]),
+        .pop_valid(tm94_miss_req_pop_valid),
+        .pop_ready(tm94_miss_req_pop_ready),
+        .pop_data(tm94_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm95_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[95]),
+        .push_ready(tm_miss_req_ready[95]),
+        .push_data(tm_miss_req_data[6143:6080]),
+        .pop_valid(tm95_miss_req_pop_valid),
+        .pop_ready(tm95_miss_req_pop_ready),
+        .pop_data(tm95_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm96_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[96]),
+        .push_ready(tm_miss_req_ready[96]),
+        .push_data(tm_miss_req_data[6207:6144]),
+        .pop_valid(tm96_miss_req_pop_valid),
+        .pop_ready(tm96_miss_req_pop_ready),
+        .pop_data(tm96_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm97_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[97]),
+        .push_ready(tm_miss_req_ready[97]),
+        .push_data(tm_miss_req_data[6271:6208]),
+        .pop_valid(tm97_miss_req_pop_valid),
+        .pop_ready(tm97_miss_req_pop_ready),
+        .pop_data(tm97_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm98_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[98]),
+        .push_ready(tm_miss_req_ready[98]),
+        .push_data(tm_miss_req_data[6335:6272]),
+        .pop_valid(tm98_miss_req_pop_valid),
+        .pop_ready(tm98_miss_req_pop_ready),
+        .pop_data(tm98_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm99_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[99]),
+        .push_ready(tm_miss_req_ready[99]),
+        .push_data(tm_miss_req_data[6399:6336]),
+        .pop_valid(tm99_miss_req_pop_valid),
+        .pop_ready(tm99_miss_req_pop_ready),
+        .pop_data(tm99_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm100_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[100]),
+        .push_ready(tm_miss_req_ready[100]),
+        .push_data(tm_miss_req_data[6463:6400]),
+        .pop_valid(tm100_miss_req_pop_valid),
+        .pop_ready(tm100_miss_req_pop_ready),
+        .pop_data(tm100_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm101_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[101]),
+        .push_ready(tm_miss_req_ready[101]),
+        .push_data(tm_miss_req_data[6527:6464]),
+        .pop_valid(tm101_miss_req_pop_valid),
+        .pop_ready(tm101_miss_req_pop_ready),
+        .pop_data(tm101_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm102_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[102]),
+        .push_ready(tm_miss_req_ready[102]),
+        .push_data(tm_miss_req_data[6591:6528]),
+        .pop_valid(tm102_miss_req_pop_valid),
+        .pop_ready(tm102_miss_req_pop_ready),
+        .pop_data(tm102_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm103_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[103]),
+        .push_ready(tm_miss_req_ready[103]),
+        .push_data(tm_miss_req_data[6655:6592]),
+        .pop_valid(tm103_miss_req_pop_valid),
+        .pop_ready(tm103_miss_req_pop_ready),
+        .pop_data(tm103_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm104_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[104]),
+        .push_ready(tm_miss_req_ready[104]),
+        .push_data(tm_miss_req_data[6719:6656]),
+        .pop_valid(tm104_miss_req_pop_valid),
+        .pop_ready(tm104_miss_req_pop_ready),
+        .pop_data(tm104_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm105_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[105]),
+        .push_ready(tm_miss_req_ready[105]),
+        .push_data(tm_miss_req_data[6783:6720]),
+        .pop_valid(tm105_miss_req_pop_valid),
+        .pop_ready(tm105_miss_req_pop_ready),
+        .pop_data(tm105_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm106_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[106]),
+        .push_ready(tm_miss_req_ready[106]),
+        .push_data(tm_miss_req_data[6847:6784]),
+        .pop_valid(tm106_miss_req_pop_valid),
+        .pop_ready(tm106_miss_req_pop_ready),
+        .pop_data(tm106_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm107_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[107]),
+        .push_ready(tm_miss_req_ready[107]),
+        .push_data(tm_miss_req_data[6911:6848]),
+        .pop_valid(tm107_miss_req_pop_valid),
+        .pop_ready(tm107_miss_req_pop_ready),
+        .pop_data(tm107_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm108_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[108]),
+        .push_ready(tm_miss_req_ready[108]),
+        .push_data(tm_miss_req_data[6975:6912]),
+        .pop_valid(tm108_miss_req_pop_valid),
+        .pop_ready(tm108_miss_req_pop_ready),
+        .pop_data(tm108_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm109_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[109]),
+        .push_ready(tm_miss_req_ready[109]),
+        .push_data(tm_miss_req_data[7039:6976]),
+        .pop_valid(tm109_miss_req_pop_valid),
+        .pop_ready(tm109_miss_req_pop_ready),
+        .pop_data(tm109_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm110_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[110]),
+        .push_ready(tm_miss_req_ready[110]),
+        .push_data(tm_miss_req_data[7103:7040]),
+        .pop_valid(tm110_miss_req_pop_valid),
+        .pop_ready(tm110_miss_req_pop_ready),
+        .pop_data(tm110_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm111_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[111]),
+        .push_ready(tm_miss_req_ready[111]),
+        .push_data(tm_miss_req_data[7167:7104]),
+        .pop_valid(tm111_miss_req_pop_valid),
+        .pop_ready(tm111_miss_req_pop_ready),
+        .pop_data(tm111_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm112_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[112]),
+        .push_ready(tm_miss_req_ready[112]),
+        .push_data(tm_miss_req_data[7231:7168]),
+        .pop_valid(tm112_miss_req_pop_valid),
+        .pop_ready(tm112_miss_req_pop_ready),
+        .pop_data(tm112_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm113_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[113]),
+        .push_ready(tm_miss_req_ready[113]),
+        .push_data(tm_miss_req_data[7295:7232]),
+        .pop_valid(tm113_miss_req_pop_valid),
+        .pop_ready(tm113_miss_req_pop_ready),
+        .pop_data(tm113_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm114_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[114]),
+        .push_ready(tm_miss_req_ready[114]),
+        .push_data(tm_miss_req_data[7359:7296]),
+        .pop_valid(tm114_miss_req_pop_valid),
+        .pop_ready(tm114_miss_req_pop_ready),
+        .pop_data(tm114_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm115_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[115]),
+        .push_ready(tm_miss_req_ready[115]),
+        .push_data(tm_miss_req_data[7423:7360]),
+        .pop_valid(tm115_miss_req_pop_valid),
+        .pop_ready(tm115_miss_req_pop_ready),
+        .pop_data(tm115_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm116_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[116]),
+        .push_ready(tm_miss_req_ready[116]),
+        .push_data(tm_miss_req_data[7487:7424]),
+        .pop_valid(tm116_miss_req_pop_valid),
+        .pop_ready(tm116_miss_req_pop_ready),
+        .pop_data(tm116_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm117_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[117]),
+        .push_ready(tm_miss_req_ready[117]),
+        .push_data(tm_miss_req_data[7551:7488]),
+        .pop_valid(tm117_miss_req_pop_valid),
+        .pop_ready(tm117_miss_req_pop_ready),
+        .pop_data(tm117_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm118_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[118]),
+        .push_ready(tm_miss_req_ready[118]),
+        .push_data(tm_miss_req_data[7615:7552]),
+        .pop_valid(tm118_miss_req_pop_valid),
+        .pop_ready(tm118_miss_req_pop_ready),
+        .pop_data(tm118_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm119_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[119]),
+        .push_ready(tm_miss_req_ready[119]),
+        .push_data(tm_miss_req_data[7679:7616]),
+        .pop_valid(tm119_miss_req_pop_valid),
+        .pop_ready(tm119_miss_req_pop_ready),
+        .pop_data(tm119_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm120_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[120]),
+        .push_ready(tm_miss_req_ready[120]),
+        .push_data(tm_miss_req_data[7743:7680]),
+        .pop_valid(tm120_miss_req_pop_valid),
+        .pop_ready(tm120_miss_req_pop_ready),
+        .pop_data(tm120_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm121_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[121]),
+        .push_ready(tm_miss_req_ready[121]),
+        .push_data(tm_miss_req_data[7807:7744]),
+        .pop_valid(tm121_miss_req_pop_valid),
+        .pop_ready(tm121_miss_req_pop_ready),
+        .pop_data(tm121_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm122_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[122]),
+        .push_ready(tm_miss_req_ready[122]),
+        .push_data(tm_miss_req_data[7871:7808]),
+        .pop_valid(tm122_miss_req_pop_valid),
+        .pop_ready(tm122_miss_req_pop_ready),
+        .pop_data(tm122_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm123_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[123]),
+        .push_ready(tm_miss_req_ready[123]),
+        .push_data(tm_miss_req_data[7935:7872]),
+        .pop_valid(tm123_miss_req_pop_valid),
+        .pop_ready(tm123_miss_req_pop_ready),
+        .pop_data(tm123_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm124_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[124]),
+        .push_ready(tm_miss_req_ready[124]),
+        .push_data(tm_miss_req_data[7999:7936]),
+        .pop_valid(tm124_miss_req_pop_valid),
+        .pop_ready(tm124_miss_req_pop_ready),
+        .pop_data(tm124_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm125_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[125]),
+        .push_ready(tm_miss_req_ready[125]),
+        .push_data(tm_miss_req_data[8063:8000]),
+        .pop_valid(tm125_miss_req_pop_valid),
+        .pop_ready(tm125_miss_req_pop_ready),
+        .pop_data(tm125_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm126_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[126]),
+        .push_ready(tm_miss_req_ready[126]),
+        .push_data(tm_miss_req_data[8127:8064]),
+        .pop_valid(tm126_miss_req_pop_valid),
+        .pop_ready(tm126_miss_req_pop_ready),
+        .pop_data(tm126_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tm127_miss_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_miss_req_valid[127]),
+        .push_ready(tm_miss_req_ready[127]),
+        .push_data(tm_miss_req_data[8191:8128]),
+        .pop_valid(tm127_miss_req_pop_valid),
+        .pop_ready(tm127_miss_req_pop_ready),
+        .pop_data(tm127_miss_req_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm0_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm0_miss_resp_push_valid),
+        .push_ready(tm0_miss_resp_push_ready),
+        .push_data(tm0_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[0]),
+        .pop_ready(tm_miss_resp_ready[0]),
+        .pop_data(tm_miss_resp_data[575:0])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm1_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm1_miss_resp_push_valid),
+        .push_ready(tm1_miss_resp_push_ready),
+        .push_data(tm1_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[1]),
+        .pop_ready(tm_miss_resp_ready[1]),
+        .pop_data(tm_miss_resp_data[1151:576])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm2_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm2_miss_resp_push_valid),
+        .push_ready(tm2_miss_resp_push_ready),
+        .push_data(tm2_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[2]),
+        .pop_ready(tm_miss_resp_ready[2]),
+        .pop_data(tm_miss_resp_data[1727:1152])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm3_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm3_miss_resp_push_valid),
+        .push_ready(tm3_miss_resp_push_ready),
+        .push_data(tm3_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[3]),
+        .pop_ready(tm_miss_resp_ready[3]),
+        .pop_data(tm_miss_resp_data[2303:1728])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm4_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm4_miss_resp_push_valid),
+        .push_ready(tm4_miss_resp_push_ready),
+        .push_data(tm4_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[4]),
+        .pop_ready(tm_miss_resp_ready[4]),
+        .pop_data(tm_miss_resp_data[2879:2304])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm5_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm5_miss_resp_push_valid),
+        .push_ready(tm5_miss_resp_push_ready),
+        .push_data(tm5_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[5]),
+        .pop_ready(tm_miss_resp_ready[5]),
+        .pop_data(tm_miss_resp_data[3455:2880])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm6_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm6_miss_resp_push_valid),
+        .push_ready(tm6_miss_resp_push_ready),
+        .push_data(tm6_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[6]),
+        .pop_ready(tm_miss_resp_ready[6]),
+        .pop_data(tm_miss_resp_data[4031:3456])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm7_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm7_miss_resp_push_valid),
+        .push_ready(tm7_miss_resp_push_ready),
+        .push_data(tm7_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[7]),
+        .pop_ready(tm_miss_resp_ready[7]),
+        .pop_data(tm_miss_resp_data[4607:4032])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm8_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm8_miss_resp_push_valid),
+        .push_ready(tm8_miss_resp_push_ready),
+        .push_data(tm8_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[8]),
+        .pop_ready(tm_miss_resp_ready[8]),
+        .pop_data(tm_miss_resp_data[5183:4608])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm9_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm9_miss_resp_push_valid),
+        .push_ready(tm9_miss_resp_push_ready),
+        .push_data(tm9_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[9]),
+        .pop_ready(tm_miss_resp_ready[9]),
+        .pop_data(tm_miss_resp_data[5759:5184])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm10_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm10_miss_resp_push_valid),
+        .push_ready(tm10_miss_resp_push_ready),
+        .push_data(tm10_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[10]),
+        .pop_ready(tm_miss_resp_ready[10]),
+        .pop_data(tm_miss_resp_data[6335:5760])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm11_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm11_miss_resp_push_valid),
+        .push_ready(tm11_miss_resp_push_ready),
+        .push_data(tm11_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[11]),
+        .pop_ready(tm_miss_resp_ready[11]),
+        .pop_data(tm_miss_resp_data[6911:6336])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm12_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm12_miss_resp_push_valid),
+        .push_ready(tm12_miss_resp_push_ready),
+        .push_data(tm12_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[12]),
+        .pop_ready(tm_miss_resp_ready[12]),
+        .pop_data(tm_miss_resp_data[7487:6912])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm13_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm13_miss_resp_push_valid),
+        .push_ready(tm13_miss_resp_push_ready),
+        .push_data(tm13_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[13]),
+        .pop_ready(tm_miss_resp_ready[13]),
+        .pop_data(tm_miss_resp_data[8063:7488])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm14_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm14_miss_resp_push_valid),
+        .push_ready(tm14_miss_resp_push_ready),
+        .push_data(tm14_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[14]),
+        .pop_ready(tm_miss_resp_ready[14]),
+        .pop_data(tm_miss_resp_data[8639:8064])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm15_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm15_miss_resp_push_valid),
+        .push_ready(tm15_miss_resp_push_ready),
+        .push_data(tm15_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[15]),
+        .pop_ready(tm_miss_resp_ready[15]),
+        .pop_data(tm_miss_resp_data[9215:8640])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm16_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm16_miss_resp_push_valid),
+        .push_ready(tm16_miss_resp_push_ready),
+        .push_data(tm16_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[16]),
+        .pop_ready(tm_miss_resp_ready[16]),
+        .pop_data(tm_miss_resp_data[9791:9216])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm17_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm17_miss_resp_push_valid),
+        .push_ready(tm17_miss_resp_push_ready),
+        .push_data(tm17_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[17]),
+        .pop_ready(tm_miss_resp_ready[17]),
+        .pop_data(tm_miss_resp_data[10367:9792])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm18_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm18_miss_resp_push_valid),
+        .push_ready(tm18_miss_resp_push_ready),
+        .push_data(tm18_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[18]),
+        .pop_ready(tm_miss_resp_ready[18]),
+        .pop_data(tm_miss_resp_data[10943:10368])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm19_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm19_miss_resp_push_valid),
+        .push_ready(tm19_miss_resp_push_ready),
+        .push_data(tm19_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[19]),
+        .pop_ready(tm_miss_resp_ready[19]),
+        .pop_data(tm_miss_resp_data[11519:10944])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm20_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm20_miss_resp_push_valid),
+        .push_ready(tm20_miss_resp_push_ready),
+        .push_data(tm20_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[20]),
+        .pop_ready(tm_miss_resp_ready[20]),
+        .pop_data(tm_miss_resp_data[12095:11520])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm21_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm21_miss_resp_push_valid),
+        .push_ready(tm21_miss_resp_push_ready),
+        .push_data(tm21_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[21]),
+        .pop_ready(tm_miss_resp_ready[21]),
+        .pop_data(tm_miss_resp_data[12671:12096])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm22_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm22_miss_resp_push_valid),
+        .push_ready(tm22_miss_resp_push_ready),
+        .push_data(tm22_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[22]),
+        .pop_ready(tm_miss_resp_ready[22]),
+        .pop_data(tm_miss_resp_data[13247:12672])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm23_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm23_miss_resp_push_valid),
+        .push_ready(tm23_miss_resp_push_ready),
+        .push_data(tm23_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[23]),
+        .pop_ready(tm_miss_resp_ready[23]),
+        .pop_data(tm_miss_resp_data[13823:13248])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm24_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm24_miss_resp_push_valid),
+        .push_ready(tm24_miss_resp_push_ready),
+        .push_data(tm24_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[24]),
+        .pop_ready(tm_miss_resp_ready[24]),
+        .pop_data(tm_miss_resp_data[14399:13824])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm25_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm25_miss_resp_push_valid),
+        .push_ready(tm25_miss_resp_push_ready),
+        .push_data(tm25_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[25]),
+        .pop_ready(tm_miss_resp_ready[25]),
+        .pop_data(tm_miss_resp_data[14975:14400])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm26_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm26_miss_resp_push_valid),
+        .push_ready(tm26_miss_resp_push_ready),
+        .push_data(tm26_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[26]),
+        .pop_ready(tm_miss_resp_ready[26]),
+        .pop_data(tm_miss_resp_data[15551:14976])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm27_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm27_miss_resp_push_valid),
+        .push_ready(tm27_miss_resp_push_ready),
+        .push_data(tm27_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[27]),
+        .pop_ready(tm_miss_resp_ready[27]),
+        .pop_data(tm_miss_resp_data[16127:15552])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm28_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm28_miss_resp_push_valid),
+        .push_ready(tm28_miss_resp_push_ready),
+        .push_data(tm28_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[28]),
+        .pop_ready(tm_miss_resp_ready[28]),
+        .pop_data(tm_miss_resp_data[16703:16128])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm29_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm29_miss_resp_push_valid),
+        .push_ready(tm29_miss_resp_push_ready),
+        .push_data(tm29_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[29]),
+        .pop_ready(tm_miss_resp_ready[29]),
+        .pop_data(tm_miss_resp_data[17279:16704])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm30_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm30_miss_resp_push_valid),
+        .push_ready(tm30_miss_resp_push_ready),
+        .push_data(tm30_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[30]),
+        .pop_ready(tm_miss_resp_ready[30]),
+        .pop_data(tm_miss_resp_data[17855:17280])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm31_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm31_miss_resp_push_valid),
+        .push_ready(tm31_miss_resp_push_ready),
+        .push_data(tm31_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[31]),
+        .pop_ready(tm_miss_resp_ready[31]),
+        .pop_data(tm_miss_resp_data[18431:17856])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm32_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm32_miss_resp_push_valid),
+        .push_ready(tm32_miss_resp_push_ready),
+        .push_data(tm32_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[32]),
+        .pop_ready(tm_miss_resp_ready[32]),
+        .pop_data(tm_miss_resp_data[19007:18432])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm33_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm33_miss_resp_push_valid),
+        .push_ready(tm33_miss_resp_push_ready),
+        .push_data(tm33_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[33]),
+        .pop_ready(tm_miss_resp_ready[33]),
+        .pop_data(tm_miss_resp_data[19583:19008])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm34_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm34_miss_resp_push_valid),
+        .push_ready(tm34_miss_resp_push_ready),
+        .push_data(tm34_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[34]),
+        .pop_ready(tm_miss_resp_ready[34]),
+        .pop_data(tm_miss_resp_data[20159:19584])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm35_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm35_miss_resp_push_valid),
+        .push_ready(tm35_miss_resp_push_ready),
+        .push_data(tm35_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[35]),
+        .pop_ready(tm_miss_resp_ready[35]),
+        .pop_data(tm_miss_resp_data[20735:20160])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm36_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm36_miss_resp_push_valid),
+        .push_ready(tm36_miss_resp_push_ready),
+        .push_data(tm36_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[36]),
+        .pop_ready(tm_miss_resp_ready[36]),
+        .pop_data(tm_miss_resp_data[21311:20736])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm37_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm37_miss_resp_push_valid),
+        .push_ready(tm37_miss_resp_push_ready),
+        .push_data(tm37_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[37]),
+        .pop_ready(tm_miss_resp_ready[37]),
+        .pop_data(tm_miss_resp_data[21887:21312])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm38_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm38_miss_resp_push_valid),
+        .push_ready(tm38_miss_resp_push_ready),
+        .push_data(tm38_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[38]),
+        .pop_ready(tm_miss_resp_ready[38]),
+        .pop_data(tm_miss_resp_data[22463:21888])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm39_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm39_miss_resp_push_valid),
+        .push_ready(tm39_miss_resp_push_ready),
+        .push_data(tm39_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[39]),
+        .pop_ready(tm_miss_resp_ready[39]),
+        .pop_data(tm_miss_resp_data[23039:22464])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm40_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm40_miss_resp_push_valid),
+        .push_ready(tm40_miss_resp_push_ready),
+        .push_data(tm40_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[40]),
+        .pop_ready(tm_miss_resp_ready[40]),
+        .pop_data(tm_miss_resp_data[23615:23040])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm41_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm41_miss_resp_push_valid),
+        .push_ready(tm41_miss_resp_push_ready),
+        .push_data(tm41_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[41]),
+        .pop_ready(tm_miss_resp_ready[41]),
+        .pop_data(tm_miss_resp_data[24191:23616])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm42_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm42_miss_resp_push_valid),
+        .push_ready(tm42_miss_resp_push_ready),
+        .push_data(tm42_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[42]),
+        .pop_ready(tm_miss_resp_ready[42]),
+        .pop_data(tm_miss_resp_data[24767:24192])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm43_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm43_miss_resp_push_valid),
+        .push_ready(tm43_miss_resp_push_ready),
+        .push_data(tm43_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[43]),
+        .pop_ready(tm_miss_resp_ready[43]),
+        .pop_data(tm_miss_resp_data[25343:24768])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm44_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm44_miss_resp_push_valid),
+        .push_ready(tm44_miss_resp_push_ready),
+        .push_data(tm44_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[44]),
+        .pop_ready(tm_miss_resp_ready[44]),
+        .pop_data(tm_miss_resp_data[25919:25344])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm45_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm45_miss_resp_push_valid),
+        .push_ready(tm45_miss_resp_push_ready),
+        .push_data(tm45_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[45]),
+        .pop_ready(tm_miss_resp_ready[45]),
+        .pop_data(tm_miss_resp_data[26495:25920])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm46_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm46_miss_resp_push_valid),
+        .push_ready(tm46_miss_resp_push_ready),
+        .push_data(tm46_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[46]),
+        .pop_ready(tm_miss_resp_ready[46]),
+        .pop_data(tm_miss_resp_data[27071:26496])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm47_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm47_miss_resp_push_valid),
+        .push_ready(tm47_miss_resp_push_ready),
+        .push_data(tm47_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[47]),
+        .pop_ready(tm_miss_resp_ready[47]),
+        .pop_data(tm_miss_resp_data[27647:27072])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm48_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm48_miss_resp_push_valid),
+        .push_ready(tm48_miss_resp_push_ready),
+        .push_data(tm48_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[48]),
+        .pop_ready(tm_miss_resp_ready[48]),
+        .pop_data(tm_miss_resp_data[28223:27648])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm49_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm49_miss_resp_push_valid),
+        .push_ready(tm49_miss_resp_push_ready),
+        .push_data(tm49_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[49]),
+        .pop_ready(tm_miss_resp_ready[49]),
+        .pop_data(tm_miss_resp_data[28799:28224])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm50_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm50_miss_resp_push_valid),
+        .push_ready(tm50_miss_resp_push_ready),
+        .push_data(tm50_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[50]),
+        .pop_ready(tm_miss_resp_ready[50]),
+        .pop_data(tm_miss_resp_data[29375:28800])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm51_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm51_miss_resp_push_valid),
+        .push_ready(tm51_miss_resp_push_ready),
+        .push_data(tm51_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[51]),
+        .pop_ready(tm_miss_resp_ready[51]),
+        .pop_data(tm_miss_resp_data[29951:29376])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm52_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm52_miss_resp_push_valid),
+        .push_ready(tm52_miss_resp_push_ready),
+        .push_data(tm52_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[52]),
+        .pop_ready(tm_miss_resp_ready[52]),
+        .pop_data(tm_miss_resp_data[30527:29952])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm53_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm53_miss_resp_push_valid),
+        .push_ready(tm53_miss_resp_push_ready),
+        .push_data(tm53_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[53]),
+        .pop_ready(tm_miss_resp_ready[53]),
+        .pop_data(tm_miss_resp_data[31103:30528])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm54_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm54_miss_resp_push_valid),
+        .push_ready(tm54_miss_resp_push_ready),
+        .push_data(tm54_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[54]),
+        .pop_ready(tm_miss_resp_ready[54]),
+        .pop_data(tm_miss_resp_data[31679:31104])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm55_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm55_miss_resp_push_valid),
+        .push_ready(tm55_miss_resp_push_ready),
+        .push_data(tm55_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[55]),
+        .pop_ready(tm_miss_resp_ready[55]),
+        .pop_data(tm_miss_resp_data[32255:31680])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm56_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm56_miss_resp_push_valid),
+        .push_ready(tm56_miss_resp_push_ready),
+        .push_data(tm56_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[56]),
+        .pop_ready(tm_miss_resp_ready[56]),
+        .pop_data(tm_miss_resp_data[32831:32256])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm57_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm57_miss_resp_push_valid),
+        .push_ready(tm57_miss_resp_push_ready),
+        .push_data(tm57_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[57]),
+        .pop_ready(tm_miss_resp_ready[57]),
+        .pop_data(tm_miss_resp_data[33407:32832])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm58_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm58_miss_resp_push_valid),
+        .push_ready(tm58_miss_resp_push_ready),
+        .push_data(tm58_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[58]),
+        .pop_ready(tm_miss_resp_ready[58]),
+        .pop_data(tm_miss_resp_data[33983:33408])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm59_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm59_miss_resp_push_valid),
+        .push_ready(tm59_miss_resp_push_ready),
+        .push_data(tm59_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[59]),
+        .pop_ready(tm_miss_resp_ready[59]),
+        .pop_data(tm_miss_resp_data[34559:33984])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm60_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm60_miss_resp_push_valid),
+        .push_ready(tm60_miss_resp_push_ready),
+        .push_data(tm60_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[60]),
+        .pop_ready(tm_miss_resp_ready[60]),
+        .pop_data(tm_miss_resp_data[35135:34560])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm61_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm61_miss_resp_push_valid),
+        .push_ready(tm61_miss_resp_push_ready),
+        .push_data(tm61_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[61]),
+        .pop_ready(tm_miss_resp_ready[61]),
+        .pop_data(tm_miss_resp_data[35711:35136])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm62_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm62_miss_resp_push_valid),
+        .push_ready(tm62_miss_resp_push_ready),
+        .push_data(tm62_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[62]),
+        .pop_ready(tm_miss_resp_ready[62]),
+        .pop_data(tm_miss_resp_data[36287:35712])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm63_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm63_miss_resp_push_valid),
+        .push_ready(tm63_miss_resp_push_ready),
+        .push_data(tm63_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[63]),
+        .pop_ready(tm_miss_resp_ready[63]),
+        .pop_data(tm_miss_resp_data[36863:36288])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm64_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm64_miss_resp_push_valid),
+        .push_ready(tm64_miss_resp_push_ready),
+        .push_data(tm64_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[64]),
+        .pop_ready(tm_miss_resp_ready[64]),
+        .pop_data(tm_miss_resp_data[37439:36864])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm65_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm65_miss_resp_push_valid),
+        .push_ready(tm65_miss_resp_push_ready),
+        .push_data(tm65_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[65]),
+        .pop_ready(tm_miss_resp_ready[65]),
+        .pop_data(tm_miss_resp_data[38015:37440])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm66_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm66_miss_resp_push_valid),
+        .push_ready(tm66_miss_resp_push_ready),
+        .push_data(tm66_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[66]),
+        .pop_ready(tm_miss_resp_ready[66]),
+        .pop_data(tm_miss_resp_data[38591:38016])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm67_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm67_miss_resp_push_valid),
+        .push_ready(tm67_miss_resp_push_ready),
+        .push_data(tm67_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[67]),
+        .pop_ready(tm_miss_resp_ready[67]),
+        .pop_data(tm_miss_resp_data[39167:38592])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm68_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm68_miss_resp_push_valid),
+        .push_ready(tm68_miss_resp_push_ready),
+        .push_data(tm68_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[68]),
+        .pop_ready(tm_miss_resp_ready[68]),
+        .pop_data(tm_miss_resp_data[39743:39168])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm69_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm69_miss_resp_push_valid),
+        .push_ready(tm69_miss_resp_push_ready),
+        .push_data(tm69_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[69]),
+        .pop_ready(tm_miss_resp_ready[69]),
+        .pop_data(tm_miss_resp_data[40319:39744])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm70_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm70_miss_resp_push_valid),
+        .push_ready(tm70_miss_resp_push_ready),
+        .push_data(tm70_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[70]),
+        .pop_ready(tm_miss_resp_ready[70]),
+        .pop_data(tm_miss_resp_data[40895:40320])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm71_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm71_miss_resp_push_valid),
+        .push_ready(tm71_miss_resp_push_ready),
+        .push_data(tm71_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[71]),
+        .pop_ready(tm_miss_resp_ready[71]),
+        .pop_data(tm_miss_resp_data[41471:40896])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm72_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm72_miss_resp_push_valid),
+        .push_ready(tm72_miss_resp_push_ready),
+        .push_data(tm72_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[72]),
+        .pop_ready(tm_miss_resp_ready[72]),
+        .pop_data(tm_miss_resp_data[42047:41472])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm73_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm73_miss_resp_push_valid),
+        .push_ready(tm73_miss_resp_push_ready),
+        .push_data(tm73_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[73]),
+        .pop_ready(tm_miss_resp_ready[73]),
+        .pop_data(tm_miss_resp_data[42623:42048])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm74_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm74_miss_resp_push_valid),
+        .push_ready(tm74_miss_resp_push_ready),
+        .push_data(tm74_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[74]),
+        .pop_ready(tm_miss_resp_ready[74]),
+        .pop_data(tm_miss_resp_data[43199:42624])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm75_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm75_miss_resp_push_valid),
+        .push_ready(tm75_miss_resp_push_ready),
+        .push_data(tm75_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[75]),
+        .pop_ready(tm_miss_resp_ready[75]),
+        .pop_data(tm_miss_resp_data[43775:43200])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm76_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm76_miss_resp_push_valid),
+        .push_ready(tm76_miss_resp_push_ready),
+        .push_data(tm76_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[76]),
+        .pop_ready(tm_miss_resp_ready[76]),
+        .pop_data(tm_miss_resp_data[44351:43776])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm77_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm77_miss_resp_push_valid),
+        .push_ready(tm77_miss_resp_push_ready),
+        .push_data(tm77_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[77]),
+        .pop_ready(tm_miss_resp_ready[77]),
+        .pop_data(tm_miss_resp_data[44927:44352])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm78_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm78_miss_resp_push_valid),
+        .push_ready(tm78_miss_resp_push_ready),
+        .push_data(tm78_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[78]),
+        .pop_ready(tm_miss_resp_ready[78]),
+        .pop_data(tm_miss_resp_data[45503:44928])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm79_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm79_miss_resp_push_valid),
+        .push_ready(tm79_miss_resp_push_ready),
+        .push_data(tm79_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[79]),
+        .pop_ready(tm_miss_resp_ready[79]),
+        .pop_data(tm_miss_resp_data[46079:45504])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm80_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm80_miss_resp_push_valid),
+        .push_ready(tm80_miss_resp_push_ready),
+        .push_data(tm80_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[80]),
+        .pop_ready(tm_miss_resp_ready[80]),
+        .pop_data(tm_miss_resp_data[46655:46080])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm81_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm81_miss_resp_push_valid),
+        .push_ready(tm81_miss_resp_push_ready),
+        .push_data(tm81_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[81]),
+        .pop_ready(tm_miss_resp_ready[81]),
+        .pop_data(tm_miss_resp_data[47231:46656])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm82_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm82_miss_resp_push_valid),
+        .push_ready(tm82_miss_resp_push_ready),
+        .push_data(tm82_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[82]),
+        .pop_ready(tm_miss_resp_ready[82]),
+        .pop_data(tm_miss_resp_data[47807:47232])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm83_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm83_miss_resp_push_valid),
+        .push_ready(tm83_miss_resp_push_ready),
+        .push_data(tm83_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[83]),
+        .pop_ready(tm_miss_resp_ready[83]),
+        .pop_data(tm_miss_resp_data[48383:47808])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm84_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm84_miss_resp_push_valid),
+        .push_ready(tm84_miss_resp_push_ready),
+        .push_data(tm84_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[84]),
+        .pop_ready(tm_miss_resp_ready[84]),
+        .pop_data(tm_miss_resp_data[48959:48384])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm85_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm85_miss_resp_push_valid),
+        .push_ready(tm85_miss_resp_push_ready),
+        .push_data(tm85_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[85]),
+        .pop_ready(tm_miss_resp_ready[85]),
+        .pop_data(tm_miss_resp_data[49535:48960])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm86_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm86_miss_resp_push_valid),
+        .push_ready(tm86_miss_resp_push_ready),
+        .push_data(tm86_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[86]),
+        .pop_ready(tm_miss_resp_ready[86]),
+        .pop_data(tm_miss_resp_data[50111:49536])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm87_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm87_miss_resp_push_valid),
+        .push_ready(tm87_miss_resp_push_ready),
+        .push_data(tm87_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[87]),
+        .pop_ready(tm_miss_resp_ready[87]),
+        .pop_data(tm_miss_resp_data[50687:50112])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm88_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm88_miss_resp_push_valid),
+        .push_ready(tm88_miss_resp_push_ready),
+        .push_data(tm88_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[88]),
+        .pop_ready(tm_miss_resp_ready[88]),
+        .pop_data(tm_miss_resp_data[51263:50688])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm89_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm89_miss_resp_push_valid),
+        .push_ready(tm89_miss_resp_push_ready),
+        .push_data(tm89_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[89]),
+        .pop_ready(tm_miss_resp_ready[89]),
+        .pop_data(tm_miss_resp_data[51839:51264])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm90_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm90_miss_resp_push_valid),
+        .push_ready(tm90_miss_resp_push_ready),
+        .push_data(tm90_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[90]),
+        .pop_ready(tm_miss_resp_ready[90]),
+        .pop_data(tm_miss_resp_data[52415:51840])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm91_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm91_miss_resp_push_valid),
+        .push_ready(tm91_miss_resp_push_ready),
+        .push_data(tm91_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[91]),
+        .pop_ready(tm_miss_resp_ready[91]),
+        .pop_data(tm_miss_resp_data[52991:52416])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm92_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm92_miss_resp_push_valid),
+        .push_ready(tm92_miss_resp_push_ready),
+        .push_data(tm92_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[92]),
+        .pop_ready(tm_miss_resp_ready[92]),
+        .pop_data(tm_miss_resp_data[53567:52992])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm93_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm93_miss_resp_push_valid),
+        .push_ready(tm93_miss_resp_push_ready),
+        .push_data(tm93_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[93]),
+        .pop_ready(tm_miss_resp_ready[93]),
+        .pop_data(tm_miss_resp_data[54143:53568])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm94_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm94_miss_resp_push_valid),
+        .push_ready(tm94_miss_resp_push_ready),
+        .push_data(tm94_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[94]),
+        .pop_ready(tm_miss_resp_ready[94]),
+        .pop_data(tm_miss_resp_data[54719:54144])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm95_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm95_miss_resp_push_valid),
+        .push_ready(tm95_miss_resp_push_ready),
+        .push_data(tm95_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[95]),
+        .pop_ready(tm_miss_resp_ready[95]),
+        .pop_data(tm_miss_resp_data[55295:54720])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm96_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm96_miss_resp_push_valid),
+        .push_ready(tm96_miss_resp_push_ready),
+        .push_data(tm96_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[96]),
+        .pop_ready(tm_miss_resp_ready[96]),
+        .pop_data(tm_miss_resp_data[55871:55296])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm97_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm97_miss_resp_push_valid),
+        .push_ready(tm97_miss_resp_push_ready),
+        .push_data(tm97_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[97]),
+        .pop_ready(tm_miss_resp_ready[97]),
+        .pop_data(tm_miss_resp_data[56447:55872])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm98_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm98_miss_resp_push_valid),
+        .push_ready(tm98_miss_resp_push_ready),
+        .push_data(tm98_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[98]),
+        .pop_ready(tm_miss_resp_ready[98]),
+        .pop_data(tm_miss_resp_data[57023:56448])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm99_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm99_miss_resp_push_valid),
+        .push_ready(tm99_miss_resp_push_ready),
+        .push_data(tm99_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[99]),
+        .pop_ready(tm_miss_resp_ready[99]),
+        .pop_data(tm_miss_resp_data[57599:57024])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm100_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm100_miss_resp_push_valid),
+        .push_ready(tm100_miss_resp_push_ready),
+        .push_data(tm100_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[100]),
+        .pop_ready(tm_miss_resp_ready[100]),
+        .pop_data(tm_miss_resp_data[58175:57600])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm101_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm101_miss_resp_push_valid),
+        .push_ready(tm101_miss_resp_push_ready),
+        .push_data(tm101_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[101]),
+        .pop_ready(tm_miss_resp_ready[101]),
+        .pop_data(tm_miss_resp_data[58751:58176])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm102_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm102_miss_resp_push_valid),
+        .push_ready(tm102_miss_resp_push_ready),
+        .push_data(tm102_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[102]),
+        .pop_ready(tm_miss_resp_ready[102]),
+        .pop_data(tm_miss_resp_data[59327:58752])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm103_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm103_miss_resp_push_valid),
+        .push_ready(tm103_miss_resp_push_ready),
+        .push_data(tm103_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[103]),
+        .pop_ready(tm_miss_resp_ready[103]),
+        .pop_data(tm_miss_resp_data[59903:59328])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm104_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm104_miss_resp_push_valid),
+        .push_ready(tm104_miss_resp_push_ready),
+        .push_data(tm104_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[104]),
+        .pop_ready(tm_miss_resp_ready[104]),
+        .pop_data(tm_miss_resp_data[60479:59904])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm105_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm105_miss_resp_push_valid),
+        .push_ready(tm105_miss_resp_push_ready),
+        .push_data(tm105_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[105]),
+        .pop_ready(tm_miss_resp_ready[105]),
+        .pop_data(tm_miss_resp_data[61055:60480])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm106_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm106_miss_resp_push_valid),
+        .push_ready(tm106_miss_resp_push_ready),
+        .push_data(tm106_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[106]),
+        .pop_ready(tm_miss_resp_ready[106]),
+        .pop_data(tm_miss_resp_data[61631:61056])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm107_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm107_miss_resp_push_valid),
+        .push_ready(tm107_miss_resp_push_ready),
+        .push_data(tm107_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[107]),
+        .pop_ready(tm_miss_resp_ready[107]),
+        .pop_data(tm_miss_resp_data[62207:61632])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm108_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm108_miss_resp_push_valid),
+        .push_ready(tm108_miss_resp_push_ready),
+        .push_data(tm108_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[108]),
+        .pop_ready(tm_miss_resp_ready[108]),
+        .pop_data(tm_miss_resp_data[62783:62208])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm109_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm109_miss_resp_push_valid),
+        .push_ready(tm109_miss_resp_push_ready),
+        .push_data(tm109_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[109]),
+        .pop_ready(tm_miss_resp_ready[109]),
+        .pop_data(tm_miss_resp_data[63359:62784])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm110_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm110_miss_resp_push_valid),
+        .push_ready(tm110_miss_resp_push_ready),
+        .push_data(tm110_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[110]),
+        .pop_ready(tm_miss_resp_ready[110]),
+        .pop_data(tm_miss_resp_data[63935:63360])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm111_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm111_miss_resp_push_valid),
+        .push_ready(tm111_miss_resp_push_ready),
+        .push_data(tm111_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[111]),
+        .pop_ready(tm_miss_resp_ready[111]),
+        .pop_data(tm_miss_resp_data[64511:63936])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm112_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm112_miss_resp_push_valid),
+        .push_ready(tm112_miss_resp_push_ready),
+        .push_data(tm112_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[112]),
+        .pop_ready(tm_miss_resp_ready[112]),
+        .pop_data(tm_miss_resp_data[65087:64512])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm113_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm113_miss_resp_push_valid),
+        .push_ready(tm113_miss_resp_push_ready),
+        .push_data(tm113_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[113]),
+        .pop_ready(tm_miss_resp_ready[113]),
+        .pop_data(tm_miss_resp_data[65663:65088])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm114_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm114_miss_resp_push_valid),
+        .push_ready(tm114_miss_resp_push_ready),
+        .push_data(tm114_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[114]),
+        .pop_ready(tm_miss_resp_ready[114]),
+        .pop_data(tm_miss_resp_data[66239:65664])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm115_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm115_miss_resp_push_valid),
+        .push_ready(tm115_miss_resp_push_ready),
+        .push_data(tm115_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[115]),
+        .pop_ready(tm_miss_resp_ready[115]),
+        .pop_data(tm_miss_resp_data[66815:66240])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm116_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm116_miss_resp_push_valid),
+        .push_ready(tm116_miss_resp_push_ready),
+        .push_data(tm116_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[116]),
+        .pop_ready(tm_miss_resp_ready[116]),
+        .pop_data(tm_miss_resp_data[67391:66816])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm117_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm117_miss_resp_push_valid),
+        .push_ready(tm117_miss_resp_push_ready),
+        .push_data(tm117_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[117]),
+        .pop_ready(tm_miss_resp_ready[117]),
+        .pop_data(tm_miss_resp_data[67967:67392])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm118_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm118_miss_resp_push_valid),
+        .push_ready(tm118_miss_resp_push_ready),
+        .push_data(tm118_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[118]),
+        .pop_ready(tm_miss_resp_ready[118]),
+        .pop_data(tm_miss_resp_data[68543:67968])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm119_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm119_miss_resp_push_valid),
+        .push_ready(tm119_miss_resp_push_ready),
+        .push_data(tm119_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[119]),
+        .pop_ready(tm_miss_resp_ready[119]),
+        .pop_data(tm_miss_resp_data[69119:68544])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm120_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm120_miss_resp_push_valid),
+        .push_ready(tm120_miss_resp_push_ready),
+        .push_data(tm120_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[120]),
+        .pop_ready(tm_miss_resp_ready[120]),
+        .pop_data(tm_miss_resp_data[69695:69120])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm121_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm121_miss_resp_push_valid),
+        .push_ready(tm121_miss_resp_push_ready),
+        .push_data(tm121_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[121]),
+        .pop_ready(tm_miss_resp_ready[121]),
+        .pop_data(tm_miss_resp_data[70271:69696])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm122_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm122_miss_resp_push_valid),
+        .push_ready(tm122_miss_resp_push_ready),
+        .push_data(tm122_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[122]),
+        .pop_ready(tm_miss_resp_ready[122]),
+        .pop_data(tm_miss_resp_data[70847:70272])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm123_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm123_miss_resp_push_valid),
+        .push_ready(tm123_miss_resp_push_ready),
+        .push_data(tm123_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[123]),
+        .pop_ready(tm_miss_resp_ready[123]),
+        .pop_data(tm_miss_resp_data[71423:70848])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm124_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm124_miss_resp_push_valid),
+        .push_ready(tm124_miss_resp_push_ready),
+        .push_data(tm124_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[124]),
+        .pop_ready(tm_miss_resp_ready[124]),
+        .pop_data(tm_miss_resp_data[71999:71424])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm125_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm125_miss_resp_push_valid),
+        .push_ready(tm125_miss_resp_push_ready),
+        .push_data(tm125_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[125]),
+        .pop_ready(tm_miss_resp_ready[125]),
+        .pop_data(tm_miss_resp_data[72575:72000])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm126_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm126_miss_resp_push_valid),
+        .push_ready(tm126_miss_resp_push_ready),
+        .push_data(tm126_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[126]),
+        .pop_ready(tm_miss_resp_ready[126]),
+        .pop_data(tm_miss_resp_data[73151:72576])
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tm127_miss_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm127_miss_resp_push_valid),
+        .push_ready(tm127_miss_resp_push_ready),
+        .push_data(tm127_miss_resp_push_data),
+        .pop_valid(tm_miss_resp_valid[127]),
+        .pop_ready(tm_miss_resp_ready[127]),
+        .pop_data(tm_miss_resp_data[73727:73152])
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm0_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[0]),
+        .push_ready(tm_ray_write_ready[0]),
+        .push_data(tm_ray_write_data[288:0]),
+        .pop_valid(tm0_ray_write_pop_valid),
+        .pop_ready(tm0_ray_write_pop_ready),
+        .pop_data(tm0_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm1_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[1]),
+        .push_ready(tm_ray_write_ready[1]),
+        .push_data(tm_ray_write_data[577:289]),
+        .pop_valid(tm1_ray_write_pop_valid),
+        .pop_ready(tm1_ray_write_pop_ready),
+        .pop_data(tm1_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm2_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[2]),
+        .push_ready(tm_ray_write_ready[2]),
+        .push_data(tm_ray_write_data[866:578]),
+        .pop_valid(tm2_ray_write_pop_valid),
+        .pop_ready(tm2_ray_write_pop_ready),
+        .pop_data(tm2_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm3_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[3]),
+        .push_ready(tm_ray_write_ready[3]),
+        .push_data(tm_ray_write_data[1155:867]),
+        .pop_valid(tm3_ray_write_pop_valid),
+        .pop_ready(tm3_ray_write_pop_ready),
+        .pop_data(tm3_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm4_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[4]),
+        .push_ready(tm_ray_write_ready[4]),
+        .push_data(tm_ray_write_data[1444:1156]),
+        .pop_valid(tm4_ray_write_pop_valid),
+        .pop_ready(tm4_ray_write_pop_ready),
+        .pop_data(tm4_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm5_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[5]),
+        .push_ready(tm_ray_write_ready[5]),
+        .push_data(tm_ray_write_data[1733:1445]),
+        .pop_valid(tm5_ray_write_pop_valid),
+        .pop_ready(tm5_ray_write_pop_ready),
+        .pop_data(tm5_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm6_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[6]),
+        .push_ready(tm_ray_write_ready[6]),
+        .push_data(tm_ray_write_data[2022:1734]),
+        .pop_valid(tm6_ray_write_pop_valid),
+        .pop_ready(tm6_ray_write_pop_ready),
+        .pop_data(tm6_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm7_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[7]),
+        .push_ready(tm_ray_write_ready[7]),
+        .push_data(tm_ray_write_data[2311:2023]),
+        .pop_valid(tm7_ray_write_pop_valid),
+        .pop_ready(tm7_ray_write_pop_ready),
+        .pop_data(tm7_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm8_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[8]),
+        .push_ready(tm_ray_write_ready[8]),
+        .push_data(tm_ray_write_data[2600:2312]),
+        .pop_valid(tm8_ray_write_pop_valid),
+        .pop_ready(tm8_ray_write_pop_ready),
+        .pop_data(tm8_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm9_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[9]),
+        .push_ready(tm_ray_write_ready[9]),
+        .push_data(tm_ray_write_data[2889:2601]),
+        .pop_valid(tm9_ray_write_pop_valid),
+        .pop_ready(tm9_ray_write_pop_ready),
+        .pop_data(tm9_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm10_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[10]),
+        .push_ready(tm_ray_write_ready[10]),
+        .push_data(tm_ray_write_data[3178:2890]),
+        .pop_valid(tm10_ray_write_pop_valid),
+        .pop_ready(tm10_ray_write_pop_ready),
+        .pop_data(tm10_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm11_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[11]),
+        .push_ready(tm_ray_write_ready[11]),
+        .push_data(tm_ray_write_data[3467:3179]),
+        .pop_valid(tm11_ray_write_pop_valid),
+        .pop_ready(tm11_ray_write_pop_ready),
+        .pop_data(tm11_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm12_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[12]),
+        .push_ready(tm_ray_write_ready[12]),
+        .push_data(tm_ray_write_data[3756:3468]),
+        .pop_valid(tm12_ray_write_pop_valid),
+        .pop_ready(tm12_ray_write_pop_ready),
+        .pop_data(tm12_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm13_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[13]),
+        .push_ready(tm_ray_write_ready[13]),
+        .push_data(tm_ray_write_data[4045:3757]),
+        .pop_valid(tm13_ray_write_pop_valid),
+        .pop_ready(tm13_ray_write_pop_ready),
+        .pop_data(tm13_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm14_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[14]),
+        .push_ready(tm_ray_write_ready[14]),
+        .push_data(tm_ray_write_data[4334:4046]),
+        .pop_valid(tm14_ray_write_pop_valid),
+        .pop_ready(tm14_ray_write_pop_ready),
+        .pop_data(tm14_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm15_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[15]),
+        .push_ready(tm_ray_write_ready[15]),
+        .push_data(tm_ray_write_data[4623:4335]),
+        .pop_valid(tm15_ray_write_pop_valid),
+        .pop_ready(tm15_ray_write_pop_ready),
+        .pop_data(tm15_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm16_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[16]),
+        .push_ready(tm_ray_write_ready[16]),
+        .push_data(tm_ray_write_data[4912:4624]),
+        .pop_valid(tm16_ray_write_pop_valid),
+        .pop_ready(tm16_ray_write_pop_ready),
+        .pop_data(tm16_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm17_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[17]),
+        .push_ready(tm_ray_write_ready[17]),
+        .push_data(tm_ray_write_data[5201:4913]),
+        .pop_valid(tm17_ray_write_pop_valid),
+        .pop_ready(tm17_ray_write_pop_ready),
+        .pop_data(tm17_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm18_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[18]),
+        .push_ready(tm_ray_write_ready[18]),
+        .push_data(tm_ray_write_data[5490:5202]),
+        .pop_valid(tm18_ray_write_pop_valid),
+        .pop_ready(tm18_ray_write_pop_ready),
+        .pop_data(tm18_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm19_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[19]),
+        .push_ready(tm_ray_write_ready[19]),
+        .push_data(tm_ray_write_data[5779:5491]),
+        .pop_valid(tm19_ray_write_pop_valid),
+        .pop_ready(tm19_ray_write_pop_ready),
+        .pop_data(tm19_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm20_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[20]),
+        .push_ready(tm_ray_write_ready[20]),
+        .push_data(tm_ray_write_data[6068:5780]),
+        .pop_valid(tm20_ray_write_pop_valid),
+        .pop_ready(tm20_ray_write_pop_ready),
+        .pop_data(tm20_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm21_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[21]),
+        .push_ready(tm_ray_write_ready[21]),
+        .push_data(tm_ray_write_data[6357:6069]),
+        .pop_valid(tm21_ray_write_pop_valid),
+        .pop_ready(tm21_ray_write_pop_ready),
+        .pop_data(tm21_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm22_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[22]),
+        .push_ready(tm_ray_write_ready[22]),
+        .push_data(tm_ray_write_data[6646:6358]),
+        .pop_valid(tm22_ray_write_pop_valid),
+        .pop_ready(tm22_ray_write_pop_ready),
+        .pop_data(tm22_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm23_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[23]),
+        .push_ready(tm_ray_write_ready[23]),
+        .push_data(tm_ray_write_data[6935:6647]),
+        .pop_valid(tm23_ray_write_pop_valid),
+        .pop_ready(tm23_ray_write_pop_ready),
+        .pop_data(tm23_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm24_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[24]),
+        .push_ready(tm_ray_write_ready[24]),
+        .push_data(tm_ray_write_data[7224:6936]),
+        .pop_valid(tm24_ray_write_pop_valid),
+        .pop_ready(tm24_ray_write_pop_ready),
+        .pop_data(tm24_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm25_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[25]),
+        .push_ready(tm_ray_write_ready[25]),
+        .push_data(tm_ray_write_data[7513:7225]),
+        .pop_valid(tm25_ray_write_pop_valid),
+        .pop_ready(tm25_ray_write_pop_ready),
+        .pop_data(tm25_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm26_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[26]),
+        .push_ready(tm_ray_write_ready[26]),
+        .push_data(tm_ray_write_data[7802:7514]),
+        .pop_valid(tm26_ray_write_pop_valid),
+        .pop_ready(tm26_ray_write_pop_ready),
+        .pop_data(tm26_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm27_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[27]),
+        .push_ready(tm_ray_write_ready[27]),
+        .push_data(tm_ray_write_data[8091:7803]),
+        .pop_valid(tm27_ray_write_pop_valid),
+        .pop_ready(tm27_ray_write_pop_ready),
+        .pop_data(tm27_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm28_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[28]),
+        .push_ready(tm_ray_write_ready[28]),
+        .push_data(tm_ray_write_data[8380:8092]),
+        .pop_valid(tm28_ray_write_pop_valid),
+        .pop_ready(tm28_ray_write_pop_ready),
+        .pop_data(tm28_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm29_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[29]),
+        .push_ready(tm_ray_write_ready[29]),
+        .push_data(tm_ray_write_data[8669:8381]),
+        .pop_valid(tm29_ray_write_pop_valid),
+        .pop_ready(tm29_ray_write_pop_ready),
+        .pop_data(tm29_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm30_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[30]),
+        .push_ready(tm_ray_write_ready[30]),
+        .push_data(tm_ray_write_data[8958:8670]),
+        .pop_valid(tm30_ray_write_pop_valid),
+        .pop_ready(tm30_ray_write_pop_ready),
+        .pop_data(tm30_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm31_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[31]),
+        .push_ready(tm_ray_write_ready[31]),
+        .push_data(tm_ray_write_data[9247:8959]),
+        .pop_valid(tm31_ray_write_pop_valid),
+        .pop_ready(tm31_ray_write_pop_ready),
+        .pop_data(tm31_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm32_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[32]),
+        .push_ready(tm_ray_write_ready[32]),
+        .push_data(tm_ray_write_data[9536:9248]),
+        .pop_valid(tm32_ray_write_pop_valid),
+        .pop_ready(tm32_ray_write_pop_ready),
+        .pop_data(tm32_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm33_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[33]),
+        .push_ready(tm_ray_write_ready[33]),
+        .push_data(tm_ray_write_data[9825:9537]),
+        .pop_valid(tm33_ray_write_pop_valid),
+        .pop_ready(tm33_ray_write_pop_ready),
+        .pop_data(tm33_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm34_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[34]),
+        .push_ready(tm_ray_write_ready[34]),
+        .push_data(tm_ray_write_data[10114:9826]),
+        .pop_valid(tm34_ray_write_pop_valid),
+        .pop_ready(tm34_ray_write_pop_ready),
+        .pop_data(tm34_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm35_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[35]),
+        .push_ready(tm_ray_write_ready[35]),
+        .push_data(tm_ray_write_data[10403:10115]),
+        .pop_valid(tm35_ray_write_pop_valid),
+        .pop_ready(tm35_ray_write_pop_ready),
+        .pop_data(tm35_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm36_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[36]),
+        .push_ready(tm_ray_write_ready[36]),
+        .push_data(tm_ray_write_data[10692:10404]),
+        .pop_valid(tm36_ray_write_pop_valid),
+        .pop_ready(tm36_ray_write_pop_ready),
+        .pop_data(tm36_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm37_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[37]),
+        .push_ready(tm_ray_write_ready[37]),
+        .push_data(tm_ray_write_data[10981:10693]),
+        .pop_valid(tm37_ray_write_pop_valid),
+        .pop_ready(tm37_ray_write_pop_ready),
+        .pop_data(tm37_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm38_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[38]),
+        .push_ready(tm_ray_write_ready[38]),
+        .push_data(tm_ray_write_data[11270:10982]),
+        .pop_valid(tm38_ray_write_pop_valid),
+        .pop_ready(tm38_ray_write_pop_ready),
+        .pop_data(tm38_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm39_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[39]),
+        .push_ready(tm_ray_write_ready[39]),
+        .push_data(tm_ray_write_data[11559:11271]),
+        .pop_valid(tm39_ray_write_pop_valid),
+        .pop_ready(tm39_ray_write_pop_ready),
+        .pop_data(tm39_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm40_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[40]),
+        .push_ready(tm_ray_write_ready[40]),
+        .push_data(tm_ray_write_data[11848:11560]),
+        .pop_valid(tm40_ray_write_pop_valid),
+        .pop_ready(tm40_ray_write_pop_ready),
+        .pop_data(tm40_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm41_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[41]),
+        .push_ready(tm_ray_write_ready[41]),
+        .push_data(tm_ray_write_data[12137:11849]),
+        .pop_valid(tm41_ray_write_pop_valid),
+        .pop_ready(tm41_ray_write_pop_ready),
+        .pop_data(tm41_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm42_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[42]),
+        .push_ready(tm_ray_write_ready[42]),
+        .push_data(tm_ray_write_data[12426:12138]),
+        .pop_valid(tm42_ray_write_pop_valid),
+        .pop_ready(tm42_ray_write_pop_ready),
+        .pop_data(tm42_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm43_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[43]),
+        .push_ready(tm_ray_write_ready[43]),
+        .push_data(tm_ray_write_data[12715:12427]),
+        .pop_valid(tm43_ray_write_pop_valid),
+        .pop_ready(tm43_ray_write_pop_ready),
+        .pop_data(tm43_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm44_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[44]),
+        .push_ready(tm_ray_write_ready[44]),
+        .push_data(tm_ray_write_data[13004:12716]),
+        .pop_valid(tm44_ray_write_pop_valid),
+        .pop_ready(tm44_ray_write_pop_ready),
+        .pop_data(tm44_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm45_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[45]),
+        .push_ready(tm_ray_write_ready[45]),
+        .push_data(tm_ray_write_data[13293:13005]),
+        .pop_valid(tm45_ray_write_pop_valid),
+        .pop_ready(tm45_ray_write_pop_ready),
+        .pop_data(tm45_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm46_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[46]),
+        .push_ready(tm_ray_write_ready[46]),
+        .push_data(tm_ray_write_data[13582:13294]),
+        .pop_valid(tm46_ray_write_pop_valid),
+        .pop_ready(tm46_ray_write_pop_ready),
+        .pop_data(tm46_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm47_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[47]),
+        .push_ready(tm_ray_write_ready[47]),
+        .push_data(tm_ray_write_data[13871:13583]),
+        .pop_valid(tm47_ray_write_pop_valid),
+        .pop_ready(tm47_ray_write_pop_ready),
+        .pop_data(tm47_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm48_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[48]),
+        .push_ready(tm_ray_write_ready[48]),
+        .push_data(tm_ray_write_data[14160:13872]),
+        .pop_valid(tm48_ray_write_pop_valid),
+        .pop_ready(tm48_ray_write_pop_ready),
+        .pop_data(tm48_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm49_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[49]),
+        .push_ready(tm_ray_write_ready[49]),
+        .push_data(tm_ray_write_data[14449:14161]),
+        .pop_valid(tm49_ray_write_pop_valid),
+        .pop_ready(tm49_ray_write_pop_ready),
+        .pop_data(tm49_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm50_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[50]),
+        .push_ready(tm_ray_write_ready[50]),
+        .push_data(tm_ray_write_data[14738:14450]),
+        .pop_valid(tm50_ray_write_pop_valid),
+        .pop_ready(tm50_ray_write_pop_ready),
+        .pop_data(tm50_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm51_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[51]),
+        .push_ready(tm_ray_write_ready[51]),
+        .push_data(tm_ray_write_data[15027:14739]),
+        .pop_valid(tm51_ray_write_pop_valid),
+        .pop_ready(tm51_ray_write_pop_ready),
+        .pop_data(tm51_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm52_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[52]),
+        .push_ready(tm_ray_write_ready[52]),
+        .push_data(tm_ray_write_data[15316:15028]),
+        .pop_valid(tm52_ray_write_pop_valid),
+        .pop_ready(tm52_ray_write_pop_ready),
+        .pop_data(tm52_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm53_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[53]),
+        .push_ready(tm_ray_write_ready[53]),
+        .push_data(tm_ray_write_data[15605:15317]),
+        .pop_valid(tm53_ray_write_pop_valid),
+        .pop_ready(tm53_ray_write_pop_ready),
+        .pop_data(tm53_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm54_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[54]),
+        .push_ready(tm_ray_write_ready[54]),
+        .push_data(tm_ray_write_data[15894:15606]),
+        .pop_valid(tm54_ray_write_pop_valid),
+        .pop_ready(tm54_ray_write_pop_ready),
+        .pop_data(tm54_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm55_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[55]),
+        .push_ready(tm_ray_write_ready[55]),
+        .push_data(tm_ray_write_data[16183:15895]),
+        .pop_valid(tm55_ray_write_pop_valid),
+        .pop_ready(tm55_ray_write_pop_ready),
+        .pop_data(tm55_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm56_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[56]),
+        .push_ready(tm_ray_write_ready[56]),
+        .push_data(tm_ray_write_data[16472:16184]),
+        .pop_valid(tm56_ray_write_pop_valid),
+        .pop_ready(tm56_ray_write_pop_ready),
+        .pop_data(tm56_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm57_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[57]),
+        .push_ready(tm_ray_write_ready[57]),
+        .push_data(tm_ray_write_data[16761:16473]),
+        .pop_valid(tm57_ray_write_pop_valid),
+        .pop_ready(tm57_ray_write_pop_ready),
+        .pop_data(tm57_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm58_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[58]),
+        .push_ready(tm_ray_write_ready[58]),
+        .push_data(tm_ray_write_data[17050:16762]),
+        .pop_valid(tm58_ray_write_pop_valid),
+        .pop_ready(tm58_ray_write_pop_ready),
+        .pop_data(tm58_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm59_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[59]),
+        .push_ready(tm_ray_write_ready[59]),
+        .push_data(tm_ray_write_data[17339:17051]),
+        .pop_valid(tm59_ray_write_pop_valid),
+        .pop_ready(tm59_ray_write_pop_ready),
+        .pop_data(tm59_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm60_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[60]),
+        .push_ready(tm_ray_write_ready[60]),
+        .push_data(tm_ray_write_data[17628:17340]),
+        .pop_valid(tm60_ray_write_pop_valid),
+        .pop_ready(tm60_ray_write_pop_ready),
+        .pop_data(tm60_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm61_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[61]),
+        .push_ready(tm_ray_write_ready[61]),
+        .push_data(tm_ray_write_data[17917:17629]),
+        .pop_valid(tm61_ray_write_pop_valid),
+        .pop_ready(tm61_ray_write_pop_ready),
+        .pop_data(tm61_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm62_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[62]),
+        .push_ready(tm_ray_write_ready[62]),
+        .push_data(tm_ray_write_data[18206:17918]),
+        .pop_valid(tm62_ray_write_pop_valid),
+        .pop_ready(tm62_ray_write_pop_ready),
+        .pop_data(tm62_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm63_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[63]),
+        .push_ready(tm_ray_write_ready[63]),
+        .push_data(tm_ray_write_data[18495:18207]),
+        .pop_valid(tm63_ray_write_pop_valid),
+        .pop_ready(tm63_ray_write_pop_ready),
+        .pop_data(tm63_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm64_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[64]),
+        .push_ready(tm_ray_write_ready[64]),
+        .push_data(tm_ray_write_data[18784:18496]),
+        .pop_valid(tm64_ray_write_pop_valid),
+        .pop_ready(tm64_ray_write_pop_ready),
+        .pop_data(tm64_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm65_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[65]),
+        .push_ready(tm_ray_write_ready[65]),
+        .push_data(tm_ray_write_data[19073:18785]),
+        .pop_valid(tm65_ray_write_pop_valid),
+        .pop_ready(tm65_ray_write_pop_ready),
+        .pop_data(tm65_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm66_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[66]),
+        .push_ready(tm_ray_write_ready[66]),
+        .push_data(tm_ray_write_data[19362:19074]),
+        .pop_valid(tm66_ray_write_pop_valid),
+        .pop_ready(tm66_ray_write_pop_ready),
+        .pop_data(tm66_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm67_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[67]),
+        .push_ready(tm_ray_write_ready[67]),
+        .push_data(tm_ray_write_data[19651:19363]),
+        .pop_valid(tm67_ray_write_pop_valid),
+        .pop_ready(tm67_ray_write_pop_ready),
+        .pop_data(tm67_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm68_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[68]),
+        .push_ready(tm_ray_write_ready[68]),
+        .push_data(tm_ray_write_data[19940:19652]),
+        .pop_valid(tm68_ray_write_pop_valid),
+        .pop_ready(tm68_ray_write_pop_ready),
+        .pop_data(tm68_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm69_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[69]),
+        .push_ready(tm_ray_write_ready[69]),
+        .push_data(tm_ray_write_data[20229:19941]),
+        .pop_valid(tm69_ray_write_pop_valid),
+        .pop_ready(tm69_ray_write_pop_ready),
+        .pop_data(tm69_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm70_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[70]),
+        .push_ready(tm_ray_write_ready[70]),
+        .push_data(tm_ray_write_data[20518:20230]),
+        .pop_valid(tm70_ray_write_pop_valid),
+        .pop_ready(tm70_ray_write_pop_ready),
+        .pop_data(tm70_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm71_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[71]),
+        .push_ready(tm_ray_write_ready[71]),
+        .push_data(tm_ray_write_data[20807:20519]),
+        .pop_valid(tm71_ray_write_pop_valid),
+        .pop_ready(tm71_ray_write_pop_ready),
+        .pop_data(tm71_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm72_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[72]),
+        .push_ready(tm_ray_write_ready[72]),
+        .push_data(tm_ray_write_data[21096:20808]),
+        .pop_valid(tm72_ray_write_pop_valid),
+        .pop_ready(tm72_ray_write_pop_ready),
+        .pop_data(tm72_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm73_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[73]),
+        .push_ready(tm_ray_write_ready[73]),
+        .push_data(tm_ray_write_data[21385:21097]),
+        .pop_valid(tm73_ray_write_pop_valid),
+        .pop_ready(tm73_ray_write_pop_ready),
+        .pop_data(tm73_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm74_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[74]),
+        .push_ready(tm_ray_write_ready[74]),
+        .push_data(tm_ray_write_data[21674:21386]),
+        .pop_valid(tm74_ray_write_pop_valid),
+        .pop_ready(tm74_ray_write_pop_ready),
+        .pop_data(tm74_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm75_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[75]),
+        .push_ready(tm_ray_write_ready[75]),
+        .push_data(tm_ray_write_data[21963:21675]),
+        .pop_valid(tm75_ray_write_pop_valid),
+        .pop_ready(tm75_ray_write_pop_ready),
+        .pop_data(tm75_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm76_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[76]),
+        .push_ready(tm_ray_write_ready[76]),
+        .push_data(tm_ray_write_data[22252:21964]),
+        .pop_valid(tm76_ray_write_pop_valid),
+        .pop_ready(tm76_ray_write_pop_ready),
+        .pop_data(tm76_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm77_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[77]),
+        .push_ready(tm_ray_write_ready[77]),
+        .push_data(tm_ray_write_data[22541:22253]),
+        .pop_valid(tm77_ray_write_pop_valid),
+        .pop_ready(tm77_ray_write_pop_ready),
+        .pop_data(tm77_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm78_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[78]),
+        .push_ready(tm_ray_write_ready[78]),
+        .push_data(tm_ray_write_data[22830:22542]),
+        .pop_valid(tm78_ray_write_pop_valid),
+        .pop_ready(tm78_ray_write_pop_ready),
+        .pop_data(tm78_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm79_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[79]),
+        .push_ready(tm_ray_write_ready[79]),
+        .push_data(tm_ray_write_data[23119:22831]),
+        .pop_valid(tm79_ray_write_pop_valid),
+        .pop_ready(tm79_ray_write_pop_ready),
+        .pop_data(tm79_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm80_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[80]),
+        .push_ready(tm_ray_write_ready[80]),
+        .push_data(tm_ray_write_data[23408:23120]),
+        .pop_valid(tm80_ray_write_pop_valid),
+        .pop_ready(tm80_ray_write_pop_ready),
+        .pop_data(tm80_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm81_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[81]),
+        .push_ready(tm_ray_write_ready[81]),
+        .push_data(tm_ray_write_data[23697:23409]),
+        .pop_valid(tm81_ray_write_pop_valid),
+        .pop_ready(tm81_ray_write_pop_ready),
+        .pop_data(tm81_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm82_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[82]),
+        .push_ready(tm_ray_write_ready[82]),
+        .push_data(tm_ray_write_data[23986:23698]),
+        .pop_valid(tm82_ray_write_pop_valid),
+        .pop_ready(tm82_ray_write_pop_ready),
+        .pop_data(tm82_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm83_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[83]),
+        .push_ready(tm_ray_write_ready[83]),
+        .push_data(tm_ray_write_data[24275:23987]),
+        .pop_valid(tm83_ray_write_pop_valid),
+        .pop_ready(tm83_ray_write_pop_ready),
+        .pop_data(tm83_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm84_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[84]),
+        .push_ready(tm_ray_write_ready[84]),
+        .push_data(tm_ray_write_data[24564:24276]),
+        .pop_valid(tm84_ray_write_pop_valid),
+        .pop_ready(tm84_ray_write_pop_ready),
+        .pop_data(tm84_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm85_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[85]),
+        .push_ready(tm_ray_write_ready[85]),
+        .push_data(tm_ray_write_data[24853:24565]),
+        .pop_valid(tm85_ray_write_pop_valid),
+        .pop_ready(tm85_ray_write_pop_ready),
+        .pop_data(tm85_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm86_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[86]),
+        .push_ready(tm_ray_write_ready[86]),
+        .push_data(tm_ray_write_data[25142:24854]),
+        .pop_valid(tm86_ray_write_pop_valid),
+        .pop_ready(tm86_ray_write_pop_ready),
+        .pop_data(tm86_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm87_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[87]),
+        .push_ready(tm_ray_write_ready[87]),
+        .push_data(tm_ray_write_data[25431:25143]),
+        .pop_valid(tm87_ray_write_pop_valid),
+        .pop_ready(tm87_ray_write_pop_ready),
+        .pop_data(tm87_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm88_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[88]),
+        .push_ready(tm_ray_write_ready[88]),
+        .push_data(tm_ray_write_data[25720:25432]),
+        .pop_valid(tm88_ray_write_pop_valid),
+        .pop_ready(tm88_ray_write_pop_ready),
+        .pop_data(tm88_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm89_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[89]),
+        .push_ready(tm_ray_write_ready[89]),
+        .push_data(tm_ray_write_data[26009:25721]),
+        .pop_valid(tm89_ray_write_pop_valid),
+        .pop_ready(tm89_ray_write_pop_ready),
+        .pop_data(tm89_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm90_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[90]),
+        .push_ready(tm_ray_write_ready[90]),
+        .push_data(tm_ray_write_data[26298:26010]),
+        .pop_valid(tm90_ray_write_pop_valid),
+        .pop_ready(tm90_ray_write_pop_ready),
+        .pop_data(tm90_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm91_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[91]),
+        .push_ready(tm_ray_write_ready[91]),
+        .push_data(tm_ray_write_data[26587:26299]),
+        .pop_valid(tm91_ray_write_pop_valid),
+        .pop_ready(tm91_ray_write_pop_ready),
+        .pop_data(tm91_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm92_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[92]),
+        .push_ready(tm_ray_write_ready[92]),
+        .push_data(tm_ray_write_data[26876:26588]),
+        .pop_valid(tm92_ray_write_pop_valid),
+        .pop_ready(tm92_ray_write_pop_ready),
+        .pop_data(tm92_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm93_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[93]),
+        .push_ready(tm_ray_write_ready[93]),
+        .push_data(tm_ray_write_data[27165:26877]),
+        .pop_valid(tm93_ray_write_pop_valid),
+        .pop_ready(tm93_ray_write_pop_ready),
+        .pop_data(tm93_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm94_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[94]),
+        .push_ready(tm_ray_write_ready[94]),
+        .push_data(tm_ray_write_data[27454:27166]),
+        .pop_valid(tm94_ray_write_pop_valid),
+        .pop_ready(tm94_ray_write_pop_ready),
+        .pop_data(tm94_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm95_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[95]),
+        .push_ready(tm_ray_write_ready[95]),
+        .push_data(tm_ray_write_data[27743:27455]),
+        .pop_valid(tm95_ray_write_pop_valid),
+        .pop_ready(tm95_ray_write_pop_ready),
+        .pop_data(tm95_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm96_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[96]),
+        .push_ready(tm_ray_write_ready[96]),
+        .push_data(tm_ray_write_data[28032:27744]),
+        .pop_valid(tm96_ray_write_pop_valid),
+        .pop_ready(tm96_ray_write_pop_ready),
+        .pop_data(tm96_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm97_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[97]),
+        .push_ready(tm_ray_write_ready[97]),
+        .push_data(tm_ray_write_data[28321:28033]),
+        .pop_valid(tm97_ray_write_pop_valid),
+        .pop_ready(tm97_ray_write_pop_ready),
+        .pop_data(tm97_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm98_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[98]),
+        .push_ready(tm_ray_write_ready[98]),
+        .push_data(tm_ray_write_data[28610:28322]),
+        .pop_valid(tm98_ray_write_pop_valid),
+        .pop_ready(tm98_ray_write_pop_ready),
+        .pop_data(tm98_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm99_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[99]),
+        .push_ready(tm_ray_write_ready[99]),
+        .push_data(tm_ray_write_data[28899:28611]),
+        .pop_valid(tm99_ray_write_pop_valid),
+        .pop_ready(tm99_ray_write_pop_ready),
+        .pop_data(tm99_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm100_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[100]),
+        .push_ready(tm_ray_write_ready[100]),
+        .push_data(tm_ray_write_data[29188:28900]),
+        .pop_valid(tm100_ray_write_pop_valid),
+        .pop_ready(tm100_ray_write_pop_ready),
+        .pop_data(tm100_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm101_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[101]),
+        .push_ready(tm_ray_write_ready[101]),
+        .push_data(tm_ray_write_data[29477:29189]),
+        .pop_valid(tm101_ray_write_pop_valid),
+        .pop_ready(tm101_ray_write_pop_ready),
+        .pop_data(tm101_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm102_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[102]),
+        .push_ready(tm_ray_write_ready[102]),
+        .push_data(tm_ray_write_data[29766:29478]),
+        .pop_valid(tm102_ray_write_pop_valid),
+        .pop_ready(tm102_ray_write_pop_ready),
+        .pop_data(tm102_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm103_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[103]),
+        .push_ready(tm_ray_write_ready[103]),
+        .push_data(tm_ray_write_data[30055:29767]),
+        .pop_valid(tm103_ray_write_pop_valid),
+        .pop_ready(tm103_ray_write_pop_ready),
+        .pop_data(tm103_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm104_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[104]),
+        .push_ready(tm_ray_write_ready[104]),
+        .push_data(tm_ray_write_data[30344:30056]),
+        .pop_valid(tm104_ray_write_pop_valid),
+        .pop_ready(tm104_ray_write_pop_ready),
+        .pop_data(tm104_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm105_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[105]),
+        .push_ready(tm_ray_write_ready[105]),
+        .push_data(tm_ray_write_data[30633:30345]),
+        .pop_valid(tm105_ray_write_pop_valid),
+        .pop_ready(tm105_ray_write_pop_ready),
+        .pop_data(tm105_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm106_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[106]),
+        .push_ready(tm_ray_write_ready[106]),
+        .push_data(tm_ray_write_data[30922:30634]),
+        .pop_valid(tm106_ray_write_pop_valid),
+        .pop_ready(tm106_ray_write_pop_ready),
+        .pop_data(tm106_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm107_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[107]),
+        .push_ready(tm_ray_write_ready[107]),
+        .push_data(tm_ray_write_data[31211:30923]),
+        .pop_valid(tm107_ray_write_pop_valid),
+        .pop_ready(tm107_ray_write_pop_ready),
+        .pop_data(tm107_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm108_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[108]),
+        .push_ready(tm_ray_write_ready[108]),
+        .push_data(tm_ray_write_data[31500:31212]),
+        .pop_valid(tm108_ray_write_pop_valid),
+        .pop_ready(tm108_ray_write_pop_ready),
+        .pop_data(tm108_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm109_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[109]),
+        .push_ready(tm_ray_write_ready[109]),
+        .push_data(tm_ray_write_data[31789:31501]),
+        .pop_valid(tm109_ray_write_pop_valid),
+        .pop_ready(tm109_ray_write_pop_ready),
+        .pop_data(tm109_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm110_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[110]),
+        .push_ready(tm_ray_write_ready[110]),
+        .push_data(tm_ray_write_data[32078:31790]),
+        .pop_valid(tm110_ray_write_pop_valid),
+        .pop_ready(tm110_ray_write_pop_ready),
+        .pop_data(tm110_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm111_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[111]),
+        .push_ready(tm_ray_write_ready[111]),
+        .push_data(tm_ray_write_data[32367:32079]),
+        .pop_valid(tm111_ray_write_pop_valid),
+        .pop_ready(tm111_ray_write_pop_ready),
+        .pop_data(tm111_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm112_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[112]),
+        .push_ready(tm_ray_write_ready[112]),
+        .push_data(tm_ray_write_data[32656:32368]),
+        .pop_valid(tm112_ray_write_pop_valid),
+        .pop_ready(tm112_ray_write_pop_ready),
+        .pop_data(tm112_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm113_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[113]),
+        .push_ready(tm_ray_write_ready[113]),
+        .push_data(tm_ray_write_data[32945:32657]),
+        .pop_valid(tm113_ray_write_pop_valid),
+        .pop_ready(tm113_ray_write_pop_ready),
+        .pop_data(tm113_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm114_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[114]),
+        .push_ready(tm_ray_write_ready[114]),
+        .push_data(tm_ray_write_data[33234:32946]),
+        .pop_valid(tm114_ray_write_pop_valid),
+        .pop_ready(tm114_ray_write_pop_ready),
+        .pop_data(tm114_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm115_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[115]),
+        .push_ready(tm_ray_write_ready[115]),
+        .push_data(tm_ray_write_data[33523:33235]),
+        .pop_valid(tm115_ray_write_pop_valid),
+        .pop_ready(tm115_ray_write_pop_ready),
+        .pop_data(tm115_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm116_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[116]),
+        .push_ready(tm_ray_write_ready[116]),
+        .push_data(tm_ray_write_data[33812:33524]),
+        .pop_valid(tm116_ray_write_pop_valid),
+        .pop_ready(tm116_ray_write_pop_ready),
+        .pop_data(tm116_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm117_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[117]),
+        .push_ready(tm_ray_write_ready[117]),
+        .push_data(tm_ray_write_data[34101:33813]),
+        .pop_valid(tm117_ray_write_pop_valid),
+        .pop_ready(tm117_ray_write_pop_ready),
+        .pop_data(tm117_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm118_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[118]),
+        .push_ready(tm_ray_write_ready[118]),
+        .push_data(tm_ray_write_data[34390:34102]),
+        .pop_valid(tm118_ray_write_pop_valid),
+        .pop_ready(tm118_ray_write_pop_ready),
+        .pop_data(tm118_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm119_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[119]),
+        .push_ready(tm_ray_write_ready[119]),
+        .push_data(tm_ray_write_data[34679:34391]),
+        .pop_valid(tm119_ray_write_pop_valid),
+        .pop_ready(tm119_ray_write_pop_ready),
+        .pop_data(tm119_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm120_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[120]),
+        .push_ready(tm_ray_write_ready[120]),
+        .push_data(tm_ray_write_data[34968:34680]),
+        .pop_valid(tm120_ray_write_pop_valid),
+        .pop_ready(tm120_ray_write_pop_ready),
+        .pop_data(tm120_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm121_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[121]),
+        .push_ready(tm_ray_write_ready[121]),
+        .push_data(tm_ray_write_data[35257:34969]),
+        .pop_valid(tm121_ray_write_pop_valid),
+        .pop_ready(tm121_ray_write_pop_ready),
+        .pop_data(tm121_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm122_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[122]),
+        .push_ready(tm_ray_write_ready[122]),
+        .push_data(tm_ray_write_data[35546:35258]),
+        .pop_valid(tm122_ray_write_pop_valid),
+        .pop_ready(tm122_ray_write_pop_ready),
+        .pop_data(tm122_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm123_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[123]),
+        .push_ready(tm_ray_write_ready[123]),
+        .push_data(tm_ray_write_data[35835:35547]),
+        .pop_valid(tm123_ray_write_pop_valid),
+        .pop_ready(tm123_ray_write_pop_ready),
+        .pop_data(tm123_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm124_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[124]),
+        .push_ready(tm_ray_write_ready[124]),
+        .push_data(tm_ray_write_data[36124:35836]),
+        .pop_valid(tm124_ray_write_pop_valid),
+        .pop_ready(tm124_ray_write_pop_ready),
+        .pop_data(tm124_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm125_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[125]),
+        .push_ready(tm_ray_write_ready[125]),
+        .push_data(tm_ray_write_data[36413:36125]),
+        .pop_valid(tm125_ray_write_pop_valid),
+        .pop_ready(tm125_ray_write_pop_ready),
+        .pop_data(tm125_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm126_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[126]),
+        .push_ready(tm_ray_write_ready[126]),
+        .push_data(tm_ray_write_data[36702:36414]),
+        .pop_valid(tm126_ray_write_pop_valid),
+        .pop_ready(tm126_ray_write_pop_ready),
+        .pop_data(tm126_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tm127_ray_write (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_ray_write_valid[127]),
+        .push_ready(tm_ray_write_ready[127]),
+        .push_data(tm_ray_write_data[36991:36703]),
+        .pop_valid(tm127_ray_write_pop_valid),
+        .pop_ready(tm127_ray_write_pop_ready),
+        .pop_data(tm127_ray_write_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm0_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[0]),
+        .push_ready(tm_hit_ready[0]),
+        .push_data(tm_hit_data[159:0]),
+        .pop_valid(tm0_hit_pop_valid),
+        .pop_ready(tm0_hit_pop_ready),
+        .pop_data(tm0_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm1_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[1]),
+        .push_ready(tm_hit_ready[1]),
+        .push_data(tm_hit_data[319:160]),
+        .pop_valid(tm1_hit_pop_valid),
+        .pop_ready(tm1_hit_pop_ready),
+        .pop_data(tm1_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm2_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[2]),
+        .push_ready(tm_hit_ready[2]),
+        .push_data(tm_hit_data[479:320]),
+        .pop_valid(tm2_hit_pop_valid),
+        .pop_ready(tm2_hit_pop_ready),
+        .pop_data(tm2_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm3_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[3]),
+        .push_ready(tm_hit_ready[3]),
+        .push_data(tm_hit_data[639:480]),
+        .pop_valid(tm3_hit_pop_valid),
+        .pop_ready(tm3_hit_pop_ready),
+        .pop_data(tm3_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm4_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[4]),
+        .push_ready(tm_hit_ready[4]),
+        .push_data(tm_hit_data[799:640]),
+        .pop_valid(tm4_hit_pop_valid),
+        .pop_ready(tm4_hit_pop_ready),
+        .pop_data(tm4_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm5_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[5]),
+        .push_ready(tm_hit_ready[5]),
+        .push_data(tm_hit_data[959:800]),
+        .pop_valid(tm5_hit_pop_valid),
+        .pop_ready(tm5_hit_pop_ready),
+        .pop_data(tm5_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm6_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[6]),
+        .push_ready(tm_hit_ready[6]),
+        .push_data(tm_hit_data[1119:960]),
+        .pop_valid(tm6_hit_pop_valid),
+        .pop_ready(tm6_hit_pop_ready),
+        .pop_data(tm6_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm7_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[7]),
+        .push_ready(tm_hit_ready[7]),
+        .push_data(tm_hit_data[1279:1120]),
+        .pop_valid(tm7_hit_pop_valid),
+        .pop_ready(tm7_hit_pop_ready),
+        .pop_data(tm7_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm8_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[8]),
+        .push_ready(tm_hit_ready[8]),
+        .push_data(tm_hit_data[1439:1280]),
+        .pop_valid(tm8_hit_pop_valid),
+        .pop_ready(tm8_hit_pop_ready),
+        .pop_data(tm8_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm9_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[9]),
+        .push_ready(tm_hit_ready[9]),
+        .push_data(tm_hit_data[1599:1440]),
+        .pop_valid(tm9_hit_pop_valid),
+        .pop_ready(tm9_hit_pop_ready),
+        .pop_data(tm9_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm10_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[10]),
+        .push_ready(tm_hit_ready[10]),
+        .push_data(tm_hit_data[1759:1600]),
+        .pop_valid(tm10_hit_pop_valid),
+        .pop_ready(tm10_hit_pop_ready),
+        .pop_data(tm10_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm11_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[11]),
+        .push_ready(tm_hit_ready[11]),
+        .push_data(tm_hit_data[1919:1760]),
+        .pop_valid(tm11_hit_pop_valid),
+        .pop_ready(tm11_hit_pop_ready),
+        .pop_data(tm11_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm12_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[12]),
+        .push_ready(tm_hit_ready[12]),
+        .push_data(tm_hit_data[2079:1920]),
+        .pop_valid(tm12_hit_pop_valid),
+        .pop_ready(tm12_hit_pop_ready),
+        .pop_data(tm12_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm13_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[13]),
+        .push_ready(tm_hit_ready[13]),
+        .push_data(tm_hit_data[2239:2080]),
+        .pop_valid(tm13_hit_pop_valid),
+        .pop_ready(tm13_hit_pop_ready),
+        .pop_data(tm13_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm14_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[14]),
+        .push_ready(tm_hit_ready[14]),
+        .push_data(tm_hit_data[2399:2240]),
+        .pop_valid(tm14_hit_pop_valid),
+        .pop_ready(tm14_hit_pop_ready),
+        .pop_data(tm14_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm15_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[15]),
+        .push_ready(tm_hit_ready[15]),
+        .push_data(tm_hit_data[2559:2400]),
+        .pop_valid(tm15_hit_pop_valid),
+        .pop_ready(tm15_hit_pop_ready),
+        .pop_data(tm15_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm16_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[16]),
+        .push_ready(tm_hit_ready[16]),
+        .push_data(tm_hit_data[2719:2560]),
+        .pop_valid(tm16_hit_pop_valid),
+        .pop_ready(tm16_hit_pop_ready),
+        .pop_data(tm16_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm17_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[17]),
+        .push_ready(tm_hit_ready[17]),
+        .push_data(tm_hit_data[2879:2720]),
+        .pop_valid(tm17_hit_pop_valid),
+        .pop_ready(tm17_hit_pop_ready),
+        .pop_data(tm17_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm18_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[18]),
+        .push_ready(tm_hit_ready[18]),
+        .push_data(tm_hit_data[3039:2880]),
+        .pop_valid(tm18_hit_pop_valid),
+        .pop_ready(tm18_hit_pop_ready),
+        .pop_data(tm18_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm19_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[19]),
+        .push_ready(tm_hit_ready[19]),
+        .push_data(tm_hit_data[3199:3040]),
+        .pop_valid(tm19_hit_pop_valid),
+        .pop_ready(tm19_hit_pop_ready),
+        .pop_data(tm19_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm20_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[20]),
+        .push_ready(tm_hit_ready[20]),
+        .push_data(tm_hit_data[3359:3200]),
+        .pop_valid(tm20_hit_pop_valid),
+        .pop_ready(tm20_hit_pop_ready),
+        .pop_data(tm20_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm21_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[21]),
+        .push_ready(tm_hit_ready[21]),
+        .push_data(tm_hit_data[3519:3360]),
+        .pop_valid(tm21_hit_pop_valid),
+        .pop_ready(tm21_hit_pop_ready),
+        .pop_data(tm21_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm22_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[22]),
+        .push_ready(tm_hit_ready[22]),
+        .push_data(tm_hit_data[3679:3520]),
+        .pop_valid(tm22_hit_pop_valid),
+        .pop_ready(tm22_hit_pop_ready),
+        .pop_data(tm22_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm23_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[23]),
+        .push_ready(tm_hit_ready[23]),
+        .push_data(tm_hit_data[3839:3680]),
+        .pop_valid(tm23_hit_pop_valid),
+        .pop_ready(tm23_hit_pop_ready),
+        .pop_data(tm23_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm24_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[24]),
+        .push_ready(tm_hit_ready[24]),
+        .push_data(tm_hit_data[3999:3840]),
+        .pop_valid(tm24_hit_pop_valid),
+        .pop_ready(tm24_hit_pop_ready),
+        .pop_data(tm24_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm25_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[25]),
+        .push_ready(tm_hit_ready[25]),
+        .push_data(tm_hit_data[4159:4000]),
+        .pop_valid(tm25_hit_pop_valid),
+        .pop_ready(tm25_hit_pop_ready),
+        .pop_data(tm25_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm26_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[26]),
+        .push_ready(tm_hit_ready[26]),
+        .push_data(tm_hit_data[4319:4160]),
+        .pop_valid(tm26_hit_pop_valid),
+        .pop_ready(tm26_hit_pop_ready),
+        .pop_data(tm26_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm27_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[27]),
+        .push_ready(tm_hit_ready[27]),
+        .push_data(tm_hit_data[4479:4320]),
+        .pop_valid(tm27_hit_pop_valid),
+        .pop_ready(tm27_hit_pop_ready),
+        .pop_data(tm27_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm28_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[28]),
+        .push_ready(tm_hit_ready[28]),
+        .push_data(tm_hit_data[4639:4480]),
+        .pop_valid(tm28_hit_pop_valid),
+        .pop_ready(tm28_hit_pop_ready),
+        .pop_data(tm28_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm29_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[29]),
+        .push_ready(tm_hit_ready[29]),
+        .push_data(tm_hit_data[4799:4640]),
+        .pop_valid(tm29_hit_pop_valid),
+        .pop_ready(tm29_hit_pop_ready),
+        .pop_data(tm29_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm30_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[30]),
+        .push_ready(tm_hit_ready[30]),
+        .push_data(tm_hit_data[4959:4800]),
+        .pop_valid(tm30_hit_pop_valid),
+        .pop_ready(tm30_hit_pop_ready),
+        .pop_data(tm30_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm31_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[31]),
+        .push_ready(tm_hit_ready[31]),
+        .push_data(tm_hit_data[5119:4960]),
+        .pop_valid(tm31_hit_pop_valid),
+        .pop_ready(tm31_hit_pop_ready),
+        .pop_data(tm31_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm32_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[32]),
+        .push_ready(tm_hit_ready[32]),
+        .push_data(tm_hit_data[5279:5120]),
+        .pop_valid(tm32_hit_pop_valid),
+        .pop_ready(tm32_hit_pop_ready),
+        .pop_data(tm32_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm33_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[33]),
+        .push_ready(tm_hit_ready[33]),
+        .push_data(tm_hit_data[5439:5280]),
+        .pop_valid(tm33_hit_pop_valid),
+        .pop_ready(tm33_hit_pop_ready),
+        .pop_data(tm33_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm34_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[34]),
+        .push_ready(tm_hit_ready[34]),
+        .push_data(tm_hit_data[5599:5440]),
+        .pop_valid(tm34_hit_pop_valid),
+        .pop_ready(tm34_hit_pop_ready),
+        .pop_data(tm34_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm35_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[35]),
+        .push_ready(tm_hit_ready[35]),
+        .push_data(tm_hit_data[5759:5600]),
+        .pop_valid(tm35_hit_pop_valid),
+        .pop_ready(tm35_hit_pop_ready),
+        .pop_data(tm35_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm36_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[36]),
+        .push_ready(tm_hit_ready[36]),
+        .push_data(tm_hit_data[5919:5760]),
+        .pop_valid(tm36_hit_pop_valid),
+        .pop_ready(tm36_hit_pop_ready),
+        .pop_data(tm36_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm37_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[37]),
+        .push_ready(tm_hit_ready[37]),
+        .push_data(tm_hit_data[6079:5920]),
+        .pop_valid(tm37_hit_pop_valid),
+        .pop_ready(tm37_hit_pop_ready),
+        .pop_data(tm37_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm38_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[38]),
+        .push_ready(tm_hit_ready[38]),
+        .push_data(tm_hit_data[6239:6080]),
+        .pop_valid(tm38_hit_pop_valid),
+        .pop_ready(tm38_hit_pop_ready),
+        .pop_data(tm38_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm39_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[39]),
+        .push_ready(tm_hit_ready[39]),
+        .push_data(tm_hit_data[6399:6240]),
+        .pop_valid(tm39_hit_pop_valid),
+        .pop_ready(tm39_hit_pop_ready),
+        .pop_data(tm39_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm40_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[40]),
+        .push_ready(tm_hit_ready[40]),
+        .push_data(tm_hit_data[6559:6400]),
+        .pop_valid(tm40_hit_pop_valid),
+        .pop_ready(tm40_hit_pop_ready),
+        .pop_data(tm40_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm41_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[41]),
+        .push_ready(tm_hit_ready[41]),
+        .push_data(tm_hit_data[6719:6560]),
+        .pop_valid(tm41_hit_pop_valid),
+        .pop_ready(tm41_hit_pop_ready),
+        .pop_data(tm41_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm42_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[42]),
+        .push_ready(tm_hit_ready[42]),
+        .push_data(tm_hit_data[6879:6720]),
+        .pop_valid(tm42_hit_pop_valid),
+        .pop_ready(tm42_hit_pop_ready),
+        .pop_data(tm42_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm43_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[43]),
+        .push_ready(tm_hit_ready[43]),
+        .push_data(tm_hit_data[7039:6880]),
+        .pop_valid(tm43_hit_pop_valid),
+        .pop_ready(tm43_hit_pop_ready),
+        .pop_data(tm43_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm44_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[44]),
+        .push_ready(tm_hit_ready[44]),
+        .push_data(tm_hit_data[7199:7040]),
+        .pop_valid(tm44_hit_pop_valid),
+        .pop_ready(tm44_hit_pop_ready),
+        .pop_data(tm44_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm45_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[45]),
+        .push_ready(tm_hit_ready[45]),
+        .push_data(tm_hit_data[7359:7200]),
+        .pop_valid(tm45_hit_pop_valid),
+        .pop_ready(tm45_hit_pop_ready),
+        .pop_data(tm45_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm46_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[46]),
+        .push_ready(tm_hit_ready[46]),
+        .push_data(tm_hit_data[7519:7360]),
+        .pop_valid(tm46_hit_pop_valid),
+        .pop_ready(tm46_hit_pop_ready),
+        .pop_data(tm46_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm47_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[47]),
+        .push_ready(tm_hit_ready[47]),
+        .push_data(tm_hit_data[7679:7520]),
+        .pop_valid(tm47_hit_pop_valid),
+        .pop_ready(tm47_hit_pop_ready),
+        .pop_data(tm47_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm48_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[48]),
+        .push_ready(tm_hit_ready[48]),
+        .push_data(tm_hit_data[7839:7680]),
+        .pop_valid(tm48_hit_pop_valid),
+        .pop_ready(tm48_hit_pop_ready),
+        .pop_data(tm48_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm49_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[49]),
+        .push_ready(tm_hit_ready[49]),
+        .push_data(tm_hit_data[7999:7840]),
+        .pop_valid(tm49_hit_pop_valid),
+        .pop_ready(tm49_hit_pop_ready),
+        .pop_data(tm49_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm50_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[50]),
+        .push_ready(tm_hit_ready[50]),
+        .push_data(tm_hit_data[8159:8000]),
+        .pop_valid(tm50_hit_pop_valid),
+        .pop_ready(tm50_hit_pop_ready),
+        .pop_data(tm50_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm51_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[51]),
+        .push_ready(tm_hit_ready[51]),
+        .push_data(tm_hit_data[8319:8160]),
+        .pop_valid(tm51_hit_pop_valid),
+        .pop_ready(tm51_hit_pop_ready),
+        .pop_data(tm51_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm52_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[52]),
+        .push_ready(tm_hit_ready[52]),
+        .push_data(tm_hit_data[8479:8320]),
+        .pop_valid(tm52_hit_pop_valid),
+        .pop_ready(tm52_hit_pop_ready),
+        .pop_data(tm52_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm53_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[53]),
+        .push_ready(tm_hit_ready[53]),
+        .push_data(tm_hit_data[8639:8480]),
+        .pop_valid(tm53_hit_pop_valid),
+        .pop_ready(tm53_hit_pop_ready),
+        .pop_data(tm53_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm54_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[54]),
+        .push_ready(tm_hit_ready[54]),
+        .push_data(tm_hit_data[8799:8640]),
+        .pop_valid(tm54_hit_pop_valid),
+        .pop_ready(tm54_hit_pop_ready),
+        .pop_data(tm54_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm55_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[55]),
+        .push_ready(tm_hit_ready[55]),
+        .push_data(tm_hit_data[8959:8800]),
+        .pop_valid(tm55_hit_pop_valid),
+        .pop_ready(tm55_hit_pop_ready),
+        .pop_data(tm55_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm56_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[56]),
+        .push_ready(tm_hit_ready[56]),
+        .push_data(tm_hit_data[9119:8960]),
+        .pop_valid(tm56_hit_pop_valid),
+        .pop_ready(tm56_hit_pop_ready),
+        .pop_data(tm56_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm57_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[57]),
+        .push_ready(tm_hit_ready[57]),
+        .push_data(tm_hit_data[9279:9120]),
+        .pop_valid(tm57_hit_pop_valid),
+        .pop_ready(tm57_hit_pop_ready),
+        .pop_data(tm57_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm58_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[58]),
+        .push_ready(tm_hit_ready[58]),
+        .push_data(tm_hit_data[9439:9280]),
+        .pop_valid(tm58_hit_pop_valid),
+        .pop_ready(tm58_hit_pop_ready),
+        .pop_data(tm58_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm59_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[59]),
+        .push_ready(tm_hit_ready[59]),
+        .push_data(tm_hit_data[9599:9440]),
+        .pop_valid(tm59_hit_pop_valid),
+        .pop_ready(tm59_hit_pop_ready),
+        .pop_data(tm59_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm60_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[60]),
+        .push_ready(tm_hit_ready[60]),
+        .push_data(tm_hit_data[9759:9600]),
+        .pop_valid(tm60_hit_pop_valid),
+        .pop_ready(tm60_hit_pop_ready),
+        .pop_data(tm60_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm61_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[61]),
+        .push_ready(tm_hit_ready[61]),
+        .push_data(tm_hit_data[9919:9760]),
+        .pop_valid(tm61_hit_pop_valid),
+        .pop_ready(tm61_hit_pop_ready),
+        .pop_data(tm61_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm62_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[62]),
+        .push_ready(tm_hit_ready[62]),
+        .push_data(tm_hit_data[10079:9920]),
+        .pop_valid(tm62_hit_pop_valid),
+        .pop_ready(tm62_hit_pop_ready),
+        .pop_data(tm62_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm63_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[63]),
+        .push_ready(tm_hit_ready[63]),
+        .push_data(tm_hit_data[10239:10080]),
+        .pop_valid(tm63_hit_pop_valid),
+        .pop_ready(tm63_hit_pop_ready),
+        .pop_data(tm63_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm64_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[64]),
+        .push_ready(tm_hit_ready[64]),
+        .push_data(tm_hit_data[10399:10240]),
+        .pop_valid(tm64_hit_pop_valid),
+        .pop_ready(tm64_hit_pop_ready),
+        .pop_data(tm64_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm65_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[65]),
+        .push_ready(tm_hit_ready[65]),
+        .push_data(tm_hit_data[10559:10400]),
+        .pop_valid(tm65_hit_pop_valid),
+        .pop_ready(tm65_hit_pop_ready),
+        .pop_data(tm65_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm66_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[66]),
+        .push_ready(tm_hit_ready[66]),
+        .push_data(tm_hit_data[10719:10560]),
+        .pop_valid(tm66_hit_pop_valid),
+        .pop_ready(tm66_hit_pop_ready),
+        .pop_data(tm66_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm67_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[67]),
+        .push_ready(tm_hit_ready[67]),
+        .push_data(tm_hit_data[10879:10720]),
+        .pop_valid(tm67_hit_pop_valid),
+        .pop_ready(tm67_hit_pop_ready),
+        .pop_data(tm67_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm68_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[68]),
+        .push_ready(tm_hit_ready[68]),
+        .push_data(tm_hit_data[11039:10880]),
+        .pop_valid(tm68_hit_pop_valid),
+        .pop_ready(tm68_hit_pop_ready),
+        .pop_data(tm68_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm69_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[69]),
+        .push_ready(tm_hit_ready[69]),
+        .push_data(tm_hit_data[11199:11040]),
+        .pop_valid(tm69_hit_pop_valid),
+        .pop_ready(tm69_hit_pop_ready),
+        .pop_data(tm69_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm70_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[70]),
+        .push_ready(tm_hit_ready[70]),
+        .push_data(tm_hit_data[11359:11200]),
+        .pop_valid(tm70_hit_pop_valid),
+        .pop_ready(tm70_hit_pop_ready),
+        .pop_data(tm70_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm71_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[71]),
+        .push_ready(tm_hit_ready[71]),
+        .push_data(tm_hit_data[11519:11360]),
+        .pop_valid(tm71_hit_pop_valid),
+        .pop_ready(tm71_hit_pop_ready),
+        .pop_data(tm71_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm72_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[72]),
+        .push_ready(tm_hit_ready[72]),
+        .push_data(tm_hit_data[11679:11520]),
+        .pop_valid(tm72_hit_pop_valid),
+        .pop_ready(tm72_hit_pop_ready),
+        .pop_data(tm72_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm73_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[73]),
+        .push_ready(tm_hit_ready[73]),
+        .push_data(tm_hit_data[11839:11680]),
+        .pop_valid(tm73_hit_pop_valid),
+        .pop_ready(tm73_hit_pop_ready),
+        .pop_data(tm73_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm74_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[74]),
+        .push_ready(tm_hit_ready[74]),
+        .push_data(tm_hit_data[11999:11840]),
+        .pop_valid(tm74_hit_pop_valid),
+        .pop_ready(tm74_hit_pop_ready),
+        .pop_data(tm74_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm75_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[75]),
+        .push_ready(tm_hit_ready[75]),
+        .push_data(tm_hit_data[12159:12000]),
+        .pop_valid(tm75_hit_pop_valid),
+        .pop_ready(tm75_hit_pop_ready),
+        .pop_data(tm75_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm76_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[76]),
+        .push_ready(tm_hit_ready[76]),
+        .push_data(tm_hit_data[12319:12160]),
+        .pop_valid(tm76_hit_pop_valid),
+        .pop_ready(tm76_hit_pop_ready),
+        .pop_data(tm76_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm77_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[77]),
+        .push_ready(tm_hit_ready[77]),
+        .push_data(tm_hit_data[12479:12320]),
+        .pop_valid(tm77_hit_pop_valid),
+        .pop_ready(tm77_hit_pop_ready),
+        .pop_data(tm77_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm78_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[78]),
+        .push_ready(tm_hit_ready[78]),
+        .push_data(tm_hit_data[12639:12480]),
+        .pop_valid(tm78_hit_pop_valid),
+        .pop_ready(tm78_hit_pop_ready),
+        .pop_data(tm78_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm79_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[79]),
+        .push_ready(tm_hit_ready[79]),
+        .push_data(tm_hit_data[12799:12640]),
+        .pop_valid(tm79_hit_pop_valid),
+        .pop_ready(tm79_hit_pop_ready),
+        .pop_data(tm79_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm80_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[80]),
+        .push_ready(tm_hit_ready[80]),
+        .push_data(tm_hit_data[12959:12800]),
+        .pop_valid(tm80_hit_pop_valid),
+        .pop_ready(tm80_hit_pop_ready),
+        .pop_data(tm80_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm81_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[81]),
+        .push_ready(tm_hit_ready[81]),
+        .push_data(tm_hit_data[13119:12960]),
+        .pop_valid(tm81_hit_pop_valid),
+        .pop_ready(tm81_hit_pop_ready),
+        .pop_data(tm81_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm82_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[82]),
+        .push_ready(tm_hit_ready[82]),
+        .push_data(tm_hit_data[13279:13120]),
+        .pop_valid(tm82_hit_pop_valid),
+        .pop_ready(tm82_hit_pop_ready),
+        .pop_data(tm82_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm83_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[83]),
+        .push_ready(tm_hit_ready[83]),
+        .push_data(tm_hit_data[13439:13280]),
+        .pop_valid(tm83_hit_pop_valid),
+        .pop_ready(tm83_hit_pop_ready),
+        .pop_data(tm83_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm84_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[84]),
+        .push_ready(tm_hit_ready[84]),
+        .push_data(tm_hit_data[13599:13440]),
+        .pop_valid(tm84_hit_pop_valid),
+        .pop_ready(tm84_hit_pop_ready),
+        .pop_data(tm84_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm85_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[85]),
+        .push_ready(tm_hit_ready[85]),
+        .push_data(tm_hit_data[13759:13600]),
+        .pop_valid(tm85_hit_pop_valid),
+        .pop_ready(tm85_hit_pop_ready),
+        .pop_data(tm85_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm86_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[86]),
+        .push_ready(tm_hit_ready[86]),
+        .push_data(tm_hit_data[13919:13760]),
+        .pop_valid(tm86_hit_pop_valid),
+        .pop_ready(tm86_hit_pop_ready),
+        .pop_data(tm86_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm87_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[87]),
+        .push_ready(tm_hit_ready[87]),
+        .push_data(tm_hit_data[14079:13920]),
+        .pop_valid(tm87_hit_pop_valid),
+        .pop_ready(tm87_hit_pop_ready),
+        .pop_data(tm87_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm88_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[88]),
+        .push_ready(tm_hit_ready[88]),
+        .push_data(tm_hit_data[14239:14080]),
+        .pop_valid(tm88_hit_pop_valid),
+        .pop_ready(tm88_hit_pop_ready),
+        .pop_data(tm88_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm89_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[89]),
+        .push_ready(tm_hit_ready[89]),
+        .push_data(tm_hit_data[14399:14240]),
+        .pop_valid(tm89_hit_pop_valid),
+        .pop_ready(tm89_hit_pop_ready),
+        .pop_data(tm89_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm90_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[90]),
+        .push_ready(tm_hit_ready[90]),
+        .push_data(tm_hit_data[14559:14400]),
+        .pop_valid(tm90_hit_pop_valid),
+        .pop_ready(tm90_hit_pop_ready),
+        .pop_data(tm90_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm91_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[91]),
+        .push_ready(tm_hit_ready[91]),
+        .push_data(tm_hit_data[14719:14560]),
+        .pop_valid(tm91_hit_pop_valid),
+        .pop_ready(tm91_hit_pop_ready),
+        .pop_data(tm91_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm92_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[92]),
+        .push_ready(tm_hit_ready[92]),
+        .push_data(tm_hit_data[14879:14720]),
+        .pop_valid(tm92_hit_pop_valid),
+        .pop_ready(tm92_hit_pop_ready),
+        .pop_data(tm92_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm93_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[93]),
+        .push_ready(tm_hit_ready[93]),
+        .push_data(tm_hit_data[15039:14880]),
+        .pop_valid(tm93_hit_pop_valid),
+        .pop_ready(tm93_hit_pop_ready),
+        .pop_data(tm93_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm94_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[94]),
+        .push_ready(tm_hit_ready[94]),
+        .push_data(tm_hit_data[15199:15040]),
+        .pop_valid(tm94_hit_pop_valid),
+        .pop_ready(tm94_hit_pop_ready),
+        .pop_data(tm94_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm95_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[95]),
+        .push_ready(tm_hit_ready[95]),
+        .push_data(tm_hit_data[15359:15200]),
+        .pop_valid(tm95_hit_pop_valid),
+        .pop_ready(tm95_hit_pop_ready),
+        .pop_data(tm95_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm96_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[96]),
+        .push_ready(tm_hit_ready[96]),
+        .push_data(tm_hit_data[15519:15360]),
+        .pop_valid(tm96_hit_pop_valid),
+        .pop_ready(tm96_hit_pop_ready),
+        .pop_data(tm96_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm97_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[97]),
+        .push_ready(tm_hit_ready[97]),
+        .push_data(tm_hit_data[15679:15520]),
+        .pop_valid(tm97_hit_pop_valid),
+        .pop_ready(tm97_hit_pop_ready),
+        .pop_data(tm97_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm98_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[98]),
+        .push_ready(tm_hit_ready[98]),
+        .push_data(tm_hit_data[15839:15680]),
+        .pop_valid(tm98_hit_pop_valid),
+        .pop_ready(tm98_hit_pop_ready),
+        .pop_data(tm98_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm99_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[99]),
+        .push_ready(tm_hit_ready[99]),
+        .push_data(tm_hit_data[15999:15840]),
+        .pop_valid(tm99_hit_pop_valid),
+        .pop_ready(tm99_hit_pop_ready),
+        .pop_data(tm99_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm100_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[100]),
+        .push_ready(tm_hit_ready[100]),
+        .push_data(tm_hit_data[16159:16000]),
+        .pop_valid(tm100_hit_pop_valid),
+        .pop_ready(tm100_hit_pop_ready),
+        .pop_data(tm100_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm101_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[101]),
+        .push_ready(tm_hit_ready[101]),
+        .push_data(tm_hit_data[16319:16160]),
+        .pop_valid(tm101_hit_pop_valid),
+        .pop_ready(tm101_hit_pop_ready),
+        .pop_data(tm101_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm102_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[102]),
+        .push_ready(tm_hit_ready[102]),
+        .push_data(tm_hit_data[16479:16320]),
+        .pop_valid(tm102_hit_pop_valid),
+        .pop_ready(tm102_hit_pop_ready),
+        .pop_data(tm102_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm103_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[103]),
+        .push_ready(tm_hit_ready[103]),
+        .push_data(tm_hit_data[16639:16480]),
+        .pop_valid(tm103_hit_pop_valid),
+        .pop_ready(tm103_hit_pop_ready),
+        .pop_data(tm103_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm104_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[104]),
+        .push_ready(tm_hit_ready[104]),
+        .push_data(tm_hit_data[16799:16640]),
+        .pop_valid(tm104_hit_pop_valid),
+        .pop_ready(tm104_hit_pop_ready),
+        .pop_data(tm104_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm105_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[105]),
+        .push_ready(tm_hit_ready[105]),
+        .push_data(tm_hit_data[16959:16800]),
+        .pop_valid(tm105_hit_pop_valid),
+        .pop_ready(tm105_hit_pop_ready),
+        .pop_data(tm105_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm106_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[106]),
+        .push_ready(tm_hit_ready[106]),
+        .push_data(tm_hit_data[17119:16960]),
+        .pop_valid(tm106_hit_pop_valid),
+        .pop_ready(tm106_hit_pop_ready),
+        .pop_data(tm106_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm107_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[107]),
+        .push_ready(tm_hit_ready[107]),
+        .push_data(tm_hit_data[17279:17120]),
+        .pop_valid(tm107_hit_pop_valid),
+        .pop_ready(tm107_hit_pop_ready),
+        .pop_data(tm107_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm108_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[108]),
+        .push_ready(tm_hit_ready[108]),
+        .push_data(tm_hit_data[17439:17280]),
+        .pop_valid(tm108_hit_pop_valid),
+        .pop_ready(tm108_hit_pop_ready),
+        .pop_data(tm108_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm109_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[109]),
+        .push_ready(tm_hit_ready[109]),
+        .push_data(tm_hit_data[17599:17440]),
+        .pop_valid(tm109_hit_pop_valid),
+        .pop_ready(tm109_hit_pop_ready),
+        .pop_data(tm109_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm110_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[110]),
+        .push_ready(tm_hit_ready[110]),
+        .push_data(tm_hit_data[17759:17600]),
+        .pop_valid(tm110_hit_pop_valid),
+        .pop_ready(tm110_hit_pop_ready),
+        .pop_data(tm110_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm111_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[111]),
+        .push_ready(tm_hit_ready[111]),
+        .push_data(tm_hit_data[17919:17760]),
+        .pop_valid(tm111_hit_pop_valid),
+        .pop_ready(tm111_hit_pop_ready),
+        .pop_data(tm111_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm112_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[112]),
+        .push_ready(tm_hit_ready[112]),
+        .push_data(tm_hit_data[18079:17920]),
+        .pop_valid(tm112_hit_pop_valid),
+        .pop_ready(tm112_hit_pop_ready),
+        .pop_data(tm112_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm113_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[113]),
+        .push_ready(tm_hit_ready[113]),
+        .push_data(tm_hit_data[18239:18080]),
+        .pop_valid(tm113_hit_pop_valid),
+        .pop_ready(tm113_hit_pop_ready),
+        .pop_data(tm113_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm114_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[114]),
+        .push_ready(tm_hit_ready[114]),
+        .push_data(tm_hit_data[18399:18240]),
+        .pop_valid(tm114_hit_pop_valid),
+        .pop_ready(tm114_hit_pop_ready),
+        .pop_data(tm114_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm115_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[115]),
+        .push_ready(tm_hit_ready[115]),
+        .push_data(tm_hit_data[18559:18400]),
+        .pop_valid(tm115_hit_pop_valid),
+        .pop_ready(tm115_hit_pop_ready),
+        .pop_data(tm115_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm116_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[116]),
+        .push_ready(tm_hit_ready[116]),
+        .push_data(tm_hit_data[18719:18560]),
+        .pop_valid(tm116_hit_pop_valid),
+        .pop_ready(tm116_hit_pop_ready),
+        .pop_data(tm116_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm117_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[117]),
+        .push_ready(tm_hit_ready[117]),
+        .push_data(tm_hit_data[18879:18720]),
+        .pop_valid(tm117_hit_pop_valid),
+        .pop_ready(tm117_hit_pop_ready),
+        .pop_data(tm117_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm118_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[118]),
+        .push_ready(tm_hit_ready[118]),
+        .push_data(tm_hit_data[19039:18880]),
+        .pop_valid(tm118_hit_pop_valid),
+        .pop_ready(tm118_hit_pop_ready),
+        .pop_data(tm118_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm119_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[119]),
+        .push_ready(tm_hit_ready[119]),
+        .push_data(tm_hit_data[19199:19040]),
+        .pop_valid(tm119_hit_pop_valid),
+        .pop_ready(tm119_hit_pop_ready),
+        .pop_data(tm119_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm120_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[120]),
+        .push_ready(tm_hit_ready[120]),
+        .push_data(tm_hit_data[19359:19200]),
+        .pop_valid(tm120_hit_pop_valid),
+        .pop_ready(tm120_hit_pop_ready),
+        .pop_data(tm120_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm121_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[121]),
+        .push_ready(tm_hit_ready[121]),
+        .push_data(tm_hit_data[19519:19360]),
+        .pop_valid(tm121_hit_pop_valid),
+        .pop_ready(tm121_hit_pop_ready),
+        .pop_data(tm121_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm122_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[122]),
+        .push_ready(tm_hit_ready[122]),
+        .push_data(tm_hit_data[19679:19520]),
+        .pop_valid(tm122_hit_pop_valid),
+        .pop_ready(tm122_hit_pop_ready),
+        .pop_data(tm122_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm123_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[123]),
+        .push_ready(tm_hit_ready[123]),
+        .push_data(tm_hit_data[19839:19680]),
+        .pop_valid(tm123_hit_pop_valid),
+        .pop_ready(tm123_hit_pop_ready),
+        .pop_data(tm123_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm124_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[124]),
+        .push_ready(tm_hit_ready[124]),
+        .push_data(tm_hit_data[19999:19840]),
+        .pop_valid(tm124_hit_pop_valid),
+        .pop_ready(tm124_hit_pop_ready),
+        .pop_data(tm124_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm125_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[125]),
+        .push_ready(tm_hit_ready[125]),
+        .push_data(tm_hit_data[20159:20000]),
+        .pop_valid(tm125_hit_pop_valid),
+        .pop_ready(tm125_hit_pop_ready),
+        .pop_data(tm125_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm126_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[126]),
+        .push_ready(tm_hit_ready[126]),
+        .push_data(tm_hit_data[20319:20160]),
+        .pop_valid(tm126_hit_pop_valid),
+        .pop_ready(tm126_hit_pop_ready),
+        .pop_data(tm126_hit_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tm127_hit (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_hit_valid[127]),
+        .push_ready(tm_hit_ready[127]),
+        .push_data(tm_hit_data[20479:20320]),
+        .pop_valid(tm127_hit_pop_valid),
+        .pop_ready(tm127_hit_pop_ready),
+        .pop_data(tm127_hit_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_l2_req0_hits (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(l2_req0_hits_push_valid),
+        .push_ready(l2_req0_hits_push_ready),
+        .push_data(l2_req0_hits_push_data),
+        .pop_valid(l2_req0_hits_pop_valid),
+        .pop_ready(l2_req0_hits_pop_ready),
+        .pop_data(l2_req0_hits_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm0_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[0]),
+        .push_ready(tm_gmem_req_ready[0]),
+        .push_data(tm_gmem_req_data[675:0]),
+        .pop_valid(tm0_gmem_req_pop_valid),
+        .pop_ready(tm0_gmem_req_pop_ready),
+        .pop_data(tm0_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm1_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[1]),
+        .push_ready(tm_gmem_req_ready[1]),
+        .push_data(tm_gmem_req_data[1351:676]),
+        .pop_valid(tm1_gmem_req_pop_valid),
+        .pop_ready(tm1_gmem_req_pop_ready),
+        .pop_data(tm1_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm2_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[2]),
+        .push_ready(tm_gmem_req_ready[2]),
+        .push_data(tm_gmem_req_data[2027:1352]),
+        .pop_valid(tm2_gmem_req_pop_valid),
+        .pop_ready(tm2_gmem_req_pop_ready),
+        .pop_data(tm2_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm3_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[3]),
+        .push_ready(tm_gmem_req_ready[3]),
+        .push_data(tm_gmem_req_data[2703:2028]),
+        .pop_valid(tm3_gmem_req_pop_valid),
+        .pop_ready(tm3_gmem_req_pop_ready),
+        .pop_data(tm3_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm4_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[4]),
+        .push_ready(tm_gmem_req_ready[4]),
+        .push_data(tm_gmem_req_data[3379:2704]),
+        .pop_valid(tm4_gmem_req_pop_valid),
+        .pop_ready(tm4_gmem_req_pop_ready),
+        .pop_data(tm4_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm5_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[5]),
+        .push_ready(tm_gmem_req_ready[5]),
+        .push_data(tm_gmem_req_data[4055:3380]),
+        .pop_valid(tm5_gmem_req_pop_valid),
+        .pop_ready(tm5_gmem_req_pop_ready),
+        .pop_data(tm5_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm6_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[6]),
+        .push_ready(tm_gmem_req_ready[6]),
+        .push_data(tm_gmem_req_data[4731:4056]),
+        .pop_valid(tm6_gmem_req_pop_valid),
+        .pop_ready(tm6_gmem_req_pop_ready),
+        .pop_data(tm6_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm7_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[7]),
+        .push_ready(tm_gmem_req_ready[7]),
+        .push_data(tm_gmem_req_data[5407:4732]),
+        .pop_valid(tm7_gmem_req_pop_valid),
+        .pop_ready(tm7_gmem_req_pop_ready),
+        .pop_data(tm7_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm8_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[8]),
+        .push_ready(tm_gmem_req_ready[8]),
+        .push_data(tm_gmem_req_data[6083:5408]),
+        .pop_valid(tm8_gmem_req_pop_valid),
+        .pop_ready(tm8_gmem_req_pop_ready),
+        .pop_data(tm8_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm9_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[9]),
+        .push_ready(tm_gmem_req_ready[9]),
+        .push_data(tm_gmem_req_data[6759:6084]),
+        .pop_valid(tm9_gmem_req_pop_valid),
+        .pop_ready(tm9_gmem_req_pop_ready),
+        .pop_data(tm9_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm10_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[10]),
+        .push_ready(tm_gmem_req_ready[10]),
+        .push_data(tm_gmem_req_data[7435:6760]),
+        .pop_valid(tm10_gmem_req_pop_valid),
+        .pop_ready(tm10_gmem_req_pop_ready),
+        .pop_data(tm10_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm11_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[11]),
+        .push_ready(tm_gmem_req_ready[11]),
+        .push_data(tm_gmem_req_data[8111:7436]),
+        .pop_valid(tm11_gmem_req_pop_valid),
+        .pop_ready(tm11_gmem_req_pop_ready),
+        .pop_data(tm11_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm12_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[12]),
+        .push_ready(tm_gmem_req_ready[12]),
+        .push_data(tm_gmem_req_data[8787:8112]),
+        .pop_valid(tm12_gmem_req_pop_valid),
+        .pop_ready(tm12_gmem_req_pop_ready),
+        .pop_data(tm12_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm13_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[13]),
+        .push_ready(tm_gmem_req_ready[13]),
+        .push_data(tm_gmem_req_data[9463:8788]),
+        .pop_valid(tm13_gmem_req_pop_valid),
+        .pop_ready(tm13_gmem_req_pop_ready),
+        .pop_data(tm13_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm14_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[14]),
+        .push_ready(tm_gmem_req_ready[14]),
+        .push_data(tm_gmem_req_data[10139:9464]),
+        .pop_valid(tm14_gmem_req_pop_valid),
+        .pop_ready(tm14_gmem_req_pop_ready),
+        .pop_data(tm14_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm15_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[15]),
+        .push_ready(tm_gmem_req_ready[15]),
+        .push_data(tm_gmem_req_data[10815:10140]),
+        .pop_valid(tm15_gmem_req_pop_valid),
+        .pop_ready(tm15_gmem_req_pop_ready),
+        .pop_data(tm15_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm16_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[16]),
+        .push_ready(tm_gmem_req_ready[16]),
+        .push_data(tm_gmem_req_data[11491:10816]),
+        .pop_valid(tm16_gmem_req_pop_valid),
+        .pop_ready(tm16_gmem_req_pop_ready),
+        .pop_data(tm16_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm17_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[17]),
+        .push_ready(tm_gmem_req_ready[17]),
+        .push_data(tm_gmem_req_data[12167:11492]),
+        .pop_valid(tm17_gmem_req_pop_valid),
+        .pop_ready(tm17_gmem_req_pop_ready),
+        .pop_data(tm17_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm18_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[18]),
+        .push_ready(tm_gmem_req_ready[18]),
+        .push_data(tm_gmem_req_data[12843:12168]),
+        .pop_valid(tm18_gmem_req_pop_valid),
+        .pop_ready(tm18_gmem_req_pop_ready),
+        .pop_data(tm18_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm19_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[19]),
+        .push_ready(tm_gmem_req_ready[19]),
+        .push_data(tm_gmem_req_data[13519:12844]),
+        .pop_valid(tm19_gmem_req_pop_valid),
+        .pop_ready(tm19_gmem_req_pop_ready),
+        .pop_data(tm19_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm20_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[20]),
+        .push_ready(tm_gmem_req_ready[20]),
+        .push_data(tm_gmem_req_data[14195:13520]),
+        .pop_valid(tm20_gmem_req_pop_valid),
+        .pop_ready(tm20_gmem_req_pop_ready),
+        .pop_data(tm20_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm21_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[21]),
+        .push_ready(tm_gmem_req_ready[21]),
+        .push_data(tm_gmem_req_data[14871:14196]),
+        .pop_valid(tm21_gmem_req_pop_valid),
+        .pop_ready(tm21_gmem_req_pop_ready),
+        .pop_data(tm21_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm22_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[22]),
+        .push_ready(tm_gmem_req_ready[22]),
+        .push_data(tm_gmem_req_data[15547:14872]),
+        .pop_valid(tm22_gmem_req_pop_valid),
+        .pop_ready(tm22_gmem_req_pop_ready),
+        .pop_data(tm22_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm23_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[23]),
+        .push_ready(tm_gmem_req_ready[23]),
+        .push_data(tm_gmem_req_data[16223:15548]),
+        .pop_valid(tm23_gmem_req_pop_valid),
+        .pop_ready(tm23_gmem_req_pop_ready),
+        .pop_data(tm23_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm24_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[24]),
+        .push_ready(tm_gmem_req_ready[24]),
+        .push_data(tm_gmem_req_data[16899:16224]),
+        .pop_valid(tm24_gmem_req_pop_valid),
+        .pop_ready(tm24_gmem_req_pop_ready),
+        .pop_data(tm24_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm25_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[25]),
+        .push_ready(tm_gmem_req_ready[25]),
+        .push_data(tm_gmem_req_data[17575:16900]),
+        .pop_valid(tm25_gmem_req_pop_valid),
+        .pop_ready(tm25_gmem_req_pop_ready),
+        .pop_data(tm25_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm26_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[26]),
+        .push_ready(tm_gmem_req_ready[26]),
+        .push_data(tm_gmem_req_data[18251:17576]),
+        .pop_valid(tm26_gmem_req_pop_valid),
+        .pop_ready(tm26_gmem_req_pop_ready),
+        .pop_data(tm26_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm27_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[27]),
+        .push_ready(tm_gmem_req_ready[27]),
+        .push_data(tm_gmem_req_data[18927:18252]),
+        .pop_valid(tm27_gmem_req_pop_valid),
+        .pop_ready(tm27_gmem_req_pop_ready),
+        .pop_data(tm27_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm28_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[28]),
+        .push_ready(tm_gmem_req_ready[28]),
+        .push_data(tm_gmem_req_data[19603:18928]),
+        .pop_valid(tm28_gmem_req_pop_valid),
+        .pop_ready(tm28_gmem_req_pop_ready),
+        .pop_data(tm28_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm29_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[29]),
+        .push_ready(tm_gmem_req_ready[29]),
+        .push_data(tm_gmem_req_data[20279:19604]),
+        .pop_valid(tm29_gmem_req_pop_valid),
+        .pop_ready(tm29_gmem_req_pop_ready),
+        .pop_data(tm29_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm30_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[30]),
+        .push_ready(tm_gmem_req_ready[30]),
+        .push_data(tm_gmem_req_data[20955:20280]),
+        .pop_valid(tm30_gmem_req_pop_valid),
+        .pop_ready(tm30_gmem_req_pop_ready),
+        .pop_data(tm30_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm31_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[31]),
+        .push_ready(tm_gmem_req_ready[31]),
+        .push_data(tm_gmem_req_data[21631:20956]),
+        .pop_valid(tm31_gmem_req_pop_valid),
+        .pop_ready(tm31_gmem_req_pop_ready),
+        .pop_data(tm31_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm32_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[32]),
+        .push_ready(tm_gmem_req_ready[32]),
+        .push_data(tm_gmem_req_data[22307:21632]),
+        .pop_valid(tm32_gmem_req_pop_valid),
+        .pop_ready(tm32_gmem_req_pop_ready),
+        .pop_data(tm32_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm33_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[33]),
+        .push_ready(tm_gmem_req_ready[33]),
+        .push_data(tm_gmem_req_data[22983:22308]),
+        .pop_valid(tm33_gmem_req_pop_valid),
+        .pop_ready(tm33_gmem_req_pop_ready),
+        .pop_data(tm33_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm34_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[34]),
+        .push_ready(tm_gmem_req_ready[34]),
+        .push_data(tm_gmem_req_data[23659:22984]),
+        .pop_valid(tm34_gmem_req_pop_valid),
+        .pop_ready(tm34_gmem_req_pop_ready),
+        .pop_data(tm34_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm35_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[35]),
+        .push_ready(tm_gmem_req_ready[35]),
+        .push_data(tm_gmem_req_data[24335:23660]),
+        .pop_valid(tm35_gmem_req_pop_valid),
+        .pop_ready(tm35_gmem_req_pop_ready),
+        .pop_data(tm35_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm36_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[36]),
+        .push_ready(tm_gmem_req_ready[36]),
+        .push_data(tm_gmem_req_data[25011:24336]),
+        .pop_valid(tm36_gmem_req_pop_valid),
+        .pop_ready(tm36_gmem_req_pop_ready),
+        .pop_data(tm36_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm37_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[37]),
+        .push_ready(tm_gmem_req_ready[37]),
+        .push_data(tm_gmem_req_data[25687:25012]),
+        .pop_valid(tm37_gmem_req_pop_valid),
+        .pop_ready(tm37_gmem_req_pop_ready),
+        .pop_data(tm37_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm38_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[38]),
+        .push_ready(tm_gmem_req_ready[38]),
+        .push_data(tm_gmem_req_data[26363:25688]),
+        .pop_valid(tm38_gmem_req_pop_valid),
+        .pop_ready(tm38_gmem_req_pop_ready),
+        .pop_data(tm38_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm39_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[39]),
+        .push_ready(tm_gmem_req_ready[39]),
+        .push_data(tm_gmem_req_data[27039:26364]),
+        .pop_valid(tm39_gmem_req_pop_valid),
+        .pop_ready(tm39_gmem_req_pop_ready),
+        .pop_data(tm39_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm40_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[40]),
+        .push_ready(tm_gmem_req_ready[40]),
+        .push_data(tm_gmem_req_data[27715:27040]),
+        .pop_valid(tm40_gmem_req_pop_valid),
+        .pop_ready(tm40_gmem_req_pop_ready),
+        .pop_data(tm40_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm41_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[41]),
+        .push_ready(tm_gmem_req_ready[41]),
+        .push_data(tm_gmem_req_data[28391:27716]),
+        .pop_valid(tm41_gmem_req_pop_valid),
+        .pop_ready(tm41_gmem_req_pop_ready),
+        .pop_data(tm41_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm42_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[42]),
+        .push_ready(tm_gmem_req_ready[42]),
+        .push_data(tm_gmem_req_data[29067:28392]),
+        .pop_valid(tm42_gmem_req_pop_valid),
+        .pop_ready(tm42_gmem_req_pop_ready),
+        .pop_data(tm42_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm43_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[43]),
+        .push_ready(tm_gmem_req_ready[43]),
+        .push_data(tm_gmem_req_data[29743:29068]),
+        .pop_valid(tm43_gmem_req_pop_valid),
+        .pop_ready(tm43_gmem_req_pop_ready),
+        .pop_data(tm43_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm44_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[44]),
+        .push_ready(tm_gmem_req_ready[44]),
+        .push_data(tm_gmem_req_data[30419:29744]),
+        .pop_valid(tm44_gmem_req_pop_valid),
+        .pop_ready(tm44_gmem_req_pop_ready),
+        .pop_data(tm44_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm45_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[45]),
+        .push_ready(tm_gmem_req_ready[45]),
+        .push_data(tm_gmem_req_data[31095:30420]),
+        .pop_valid(tm45_gmem_req_pop_valid),
+        .pop_ready(tm45_gmem_req_pop_ready),
+        .pop_data(tm45_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm46_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[46]),
+        .push_ready(tm_gmem_req_ready[46]),
+        .push_data(tm_gmem_req_data[31771:31096]),
+        .pop_valid(tm46_gmem_req_pop_valid),
+        .pop_ready(tm46_gmem_req_pop_ready),
+        .pop_data(tm46_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm47_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[47]),
+        .push_ready(tm_gmem_req_ready[47]),
+        .push_data(tm_gmem_req_data[32447:31772]),
+        .pop_valid(tm47_gmem_req_pop_valid),
+        .pop_ready(tm47_gmem_req_pop_ready),
+        .pop_data(tm47_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm48_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[48]),
+        .push_ready(tm_gmem_req_ready[48]),
+        .push_data(tm_gmem_req_data[33123:32448]),
+        .pop_valid(tm48_gmem_req_pop_valid),
+        .pop_ready(tm48_gmem_req_pop_ready),
+        .pop_data(tm48_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm49_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[49]),
+        .push_ready(tm_gmem_req_ready[49]),
+        .push_data(tm_gmem_req_data[33799:33124]),
+        .pop_valid(tm49_gmem_req_pop_valid),
+        .pop_ready(tm49_gmem_req_pop_ready),
+        .pop_data(tm49_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm50_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[50]),
+        .push_ready(tm_gmem_req_ready[50]),
+        .push_data(tm_gmem_req_data[34475:33800]),
+        .pop_valid(tm50_gmem_req_pop_valid),
+        .pop_ready(tm50_gmem_req_pop_ready),
+        .pop_data(tm50_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm51_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[51]),
+        .push_ready(tm_gmem_req_ready[51]),
+        .push_data(tm_gmem_req_data[35151:34476]),
+        .pop_valid(tm51_gmem_req_pop_valid),
+        .pop_ready(tm51_gmem_req_pop_ready),
+        .pop_data(tm51_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm52_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[52]),
+        .push_ready(tm_gmem_req_ready[52]),
+        .push_data(tm_gmem_req_data[35827:35152]),
+        .pop_valid(tm52_gmem_req_pop_valid),
+        .pop_ready(tm52_gmem_req_pop_ready),
+        .pop_data(tm52_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm53_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[53]),
+        .push_ready(tm_gmem_req_ready[53]),
+        .push_data(tm_gmem_req_data[36503:35828]),
+        .pop_valid(tm53_gmem_req_pop_valid),
+        .pop_ready(tm53_gmem_req_pop_ready),
+        .pop_data(tm53_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm54_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[54]),
+        .push_ready(tm_gmem_req_ready[54]),
+        .push_data(tm_gmem_req_data[37179:36504]),
+        .pop_valid(tm54_gmem_req_pop_valid),
+        .pop_ready(tm54_gmem_req_pop_ready),
+        .pop_data(tm54_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm55_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[55]),
+        .push_ready(tm_gmem_req_ready[55]),
+        .push_data(tm_gmem_req_data[37855:37180]),
+        .pop_valid(tm55_gmem_req_pop_valid),
+        .pop_ready(tm55_gmem_req_pop_ready),
+        .pop_data(tm55_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm56_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[56]),
+        .push_ready(tm_gmem_req_ready[56]),
+        .push_data(tm_gmem_req_data[38531:37856]),
+        .pop_valid(tm56_gmem_req_pop_valid),
+        .pop_ready(tm56_gmem_req_pop_ready),
+        .pop_data(tm56_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm57_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[57]),
+        .push_ready(tm_gmem_req_ready[57]),
+        .push_data(tm_gmem_req_data[39207:38532]),
+        .pop_valid(tm57_gmem_req_pop_valid),
+        .pop_ready(tm57_gmem_req_pop_ready),
+        .pop_data(tm57_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm58_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[58]),
+        .push_ready(tm_gmem_req_ready[58]),
+        .push_data(tm_gmem_req_data[39883:39208]),
+        .pop_valid(tm58_gmem_req_pop_valid),
+        .pop_ready(tm58_gmem_req_pop_ready),
+        .pop_data(tm58_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm59_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[59]),
+        .push_ready(tm_gmem_req_ready[59]),
+        .push_data(tm_gmem_req_data[40559:39884]),
+        .pop_valid(tm59_gmem_req_pop_valid),
+        .pop_ready(tm59_gmem_req_pop_ready),
+        .pop_data(tm59_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm60_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[60]),
+        .push_ready(tm_gmem_req_ready[60]),
+        .push_data(tm_gmem_req_data[41235:40560]),
+        .pop_valid(tm60_gmem_req_pop_valid),
+        .pop_ready(tm60_gmem_req_pop_ready),
+        .pop_data(tm60_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm61_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[61]),
+        .push_ready(tm_gmem_req_ready[61]),
+        .push_data(tm_gmem_req_data[41911:41236]),
+        .pop_valid(tm61_gmem_req_pop_valid),
+        .pop_ready(tm61_gmem_req_pop_ready),
+        .pop_data(tm61_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm62_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[62]),
+        .push_ready(tm_gmem_req_ready[62]),
+        .push_data(tm_gmem_req_data[42587:41912]),
+        .pop_valid(tm62_gmem_req_pop_valid),
+        .pop_ready(tm62_gmem_req_pop_ready),
+        .pop_data(tm62_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm63_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[63]),
+        .push_ready(tm_gmem_req_ready[63]),
+        .push_data(tm_gmem_req_data[43263:42588]),
+        .pop_valid(tm63_gmem_req_pop_valid),
+        .pop_ready(tm63_gmem_req_pop_ready),
+        .pop_data(tm63_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm64_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[64]),
+        .push_ready(tm_gmem_req_ready[64]),
+        .push_data(tm_gmem_req_data[43939:43264]),
+        .pop_valid(tm64_gmem_req_pop_valid),
+        .pop_ready(tm64_gmem_req_pop_ready),
+        .pop_data(tm64_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm65_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[65]),
+        .push_ready(tm_gmem_req_ready[65]),
+        .push_data(tm_gmem_req_data[44615:43940]),
+        .pop_valid(tm65_gmem_req_pop_valid),
+        .pop_ready(tm65_gmem_req_pop_ready),
+        .pop_data(tm65_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm66_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[66]),
+        .push_ready(tm_gmem_req_ready[66]),
+        .push_data(tm_gmem_req_data[45291:44616]),
+        .pop_valid(tm66_gmem_req_pop_valid),
+        .pop_ready(tm66_gmem_req_pop_ready),
+        .pop_data(tm66_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm67_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[67]),
+        .push_ready(tm_gmem_req_ready[67]),
+        .push_data(tm_gmem_req_data[45967:45292]),
+        .pop_valid(tm67_gmem_req_pop_valid),
+        .pop_ready(tm67_gmem_req_pop_ready),
+        .pop_data(tm67_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm68_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[68]),
+        .push_ready(tm_gmem_req_ready[68]),
+        .push_data(tm_gmem_req_data[46643:45968]),
+        .pop_valid(tm68_gmem_req_pop_valid),
+        .pop_ready(tm68_gmem_req_pop_ready),
+        .pop_data(tm68_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm69_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[69]),
+        .push_ready(tm_gmem_req_ready[69]),
+        .push_data(tm_gmem_req_data[47319:46644]),
+        .pop_valid(tm69_gmem_req_pop_valid),
+        .pop_ready(tm69_gmem_req_pop_ready),
+        .pop_data(tm69_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm70_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[70]),
+        .push_ready(tm_gmem_req_ready[70]),
+        .push_data(tm_gmem_req_data[47995:47320]),
+        .pop_valid(tm70_gmem_req_pop_valid),
+        .pop_ready(tm70_gmem_req_pop_ready),
+        .pop_data(tm70_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm71_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[71]),
+        .push_ready(tm_gmem_req_ready[71]),
+        .push_data(tm_gmem_req_data[48671:47996]),
+        .pop_valid(tm71_gmem_req_pop_valid),
+        .pop_ready(tm71_gmem_req_pop_ready),
+        .pop_data(tm71_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm72_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[72]),
+        .push_ready(tm_gmem_req_ready[72]),
+        .push_data(tm_gmem_req_data[49347:48672]),
+        .pop_valid(tm72_gmem_req_pop_valid),
+        .pop_ready(tm72_gmem_req_pop_ready),
+        .pop_data(tm72_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm73_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[73]),
+        .push_ready(tm_gmem_req_ready[73]),
+        .push_data(tm_gmem_req_data[50023:49348]),
+        .pop_valid(tm73_gmem_req_pop_valid),
+        .pop_ready(tm73_gmem_req_pop_ready),
+        .pop_data(tm73_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm74_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[74]),
+        .push_ready(tm_gmem_req_ready[74]),
+        .push_data(tm_gmem_req_data[50699:50024]),
+        .pop_valid(tm74_gmem_req_pop_valid),
+        .pop_ready(tm74_gmem_req_pop_ready),
+        .pop_data(tm74_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm75_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[75]),
+        .push_ready(tm_gmem_req_ready[75]),
+        .push_data(tm_gmem_req_data[51375:50700]),
+        .pop_valid(tm75_gmem_req_pop_valid),
+        .pop_ready(tm75_gmem_req_pop_ready),
+        .pop_data(tm75_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm76_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[76]),
+        .push_ready(tm_gmem_req_ready[76]),
+        .push_data(tm_gmem_req_data[52051:51376]),
+        .pop_valid(tm76_gmem_req_pop_valid),
+        .pop_ready(tm76_gmem_req_pop_ready),
+        .pop_data(tm76_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm77_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[77]),
+        .push_ready(tm_gmem_req_ready[77]),
+        .push_data(tm_gmem_req_data[52727:52052]),
+        .pop_valid(tm77_gmem_req_pop_valid),
+        .pop_ready(tm77_gmem_req_pop_ready),
+        .pop_data(tm77_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm78_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[78]),
+        .push_ready(tm_gmem_req_ready[78]),
+        .push_data(tm_gmem_req_data[53403:52728]),
+        .pop_valid(tm78_gmem_req_pop_valid),
+        .pop_ready(tm78_gmem_req_pop_ready),
+        .pop_data(tm78_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm79_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[79]),
+        .push_ready(tm_gmem_req_ready[79]),
+        .push_data(tm_gmem_req_data[54079:53404]),
+        .pop_valid(tm79_gmem_req_pop_valid),
+        .pop_ready(tm79_gmem_req_pop_ready),
+        .pop_data(tm79_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm80_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[80]),
+        .push_ready(tm_gmem_req_ready[80]),
+        .push_data(tm_gmem_req_data[54755:54080]),
+        .pop_valid(tm80_gmem_req_pop_valid),
+        .pop_ready(tm80_gmem_req_pop_ready),
+        .pop_data(tm80_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm81_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[81]),
+        .push_ready(tm_gmem_req_ready[81]),
+        .push_data(tm_gmem_req_data[55431:54756]),
+        .pop_valid(tm81_gmem_req_pop_valid),
+        .pop_ready(tm81_gmem_req_pop_ready),
+        .pop_data(tm81_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm82_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[82]),
+        .push_ready(tm_gmem_req_ready[82]),
+        .push_data(tm_gmem_req_data[56107:55432]),
+        .pop_valid(tm82_gmem_req_pop_valid),
+        .pop_ready(tm82_gmem_req_pop_ready),
+        .pop_data(tm82_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm83_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[83]),
+        .push_ready(tm_gmem_req_ready[83]),
+        .push_data(tm_gmem_req_data[56783:56108]),
+        .pop_valid(tm83_gmem_req_pop_valid),
+        .pop_ready(tm83_gmem_req_pop_ready),
+        .pop_data(tm83_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm84_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[84]),
+        .push_ready(tm_gmem_req_ready[84]),
+        .push_data(tm_gmem_req_data[57459:56784]),
+        .pop_valid(tm84_gmem_req_pop_valid),
+        .pop_ready(tm84_gmem_req_pop_ready),
+        .pop_data(tm84_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm85_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[85]),
+        .push_ready(tm_gmem_req_ready[85]),
+        .push_data(tm_gmem_req_data[58135:57460]),
+        .pop_valid(tm85_gmem_req_pop_valid),
+        .pop_ready(tm85_gmem_req_pop_ready),
+        .pop_data(tm85_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm86_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[86]),
+        .push_ready(tm_gmem_req_ready[86]),
+        .push_data(tm_gmem_req_data[58811:58136]),
+        .pop_valid(tm86_gmem_req_pop_valid),
+        .pop_ready(tm86_gmem_req_pop_ready),
+        .pop_data(tm86_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm87_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[87]),
+        .push_ready(tm_gmem_req_ready[87]),
+        .push_data(tm_gmem_req_data[59487:58812]),
+        .pop_valid(tm87_gmem_req_pop_valid),
+        .pop_ready(tm87_gmem_req_pop_ready),
+        .pop_data(tm87_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm88_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[88]),
+        .push_ready(tm_gmem_req_ready[88]),
+        .push_data(tm_gmem_req_data[60163:59488]),
+        .pop_valid(tm88_gmem_req_pop_valid),
+        .pop_ready(tm88_gmem_req_pop_ready),
+        .pop_data(tm88_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm89_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[89]),
+        .push_ready(tm_gmem_req_ready[89]),
+        .push_data(tm_gmem_req_data[60839:60164]),
+        .pop_valid(tm89_gmem_req_pop_valid),
+        .pop_ready(tm89_gmem_req_pop_ready),
+        .pop_data(tm89_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm90_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[90]),
+        .push_ready(tm_gmem_req_ready[90]),
+        .push_data(tm_gmem_req_data[61515:60840]),
+        .pop_valid(tm90_gmem_req_pop_valid),
+        .pop_ready(tm90_gmem_req_pop_ready),
+        .pop_data(tm90_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm91_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[91]),
+        .push_ready(tm_gmem_req_ready[91]),
+        .push_data(tm_gmem_req_data[62191:61516]),
+        .pop_valid(tm91_gmem_req_pop_valid),
+        .pop_ready(tm91_gmem_req_pop_ready),
+        .pop_data(tm91_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm92_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[92]),
+        .push_ready(tm_gmem_req_ready[92]),
+        .push_data(tm_gmem_req_data[62867:62192]),
+        .pop_valid(tm92_gmem_req_pop_valid),
+        .pop_ready(tm92_gmem_req_pop_ready),
+        .pop_data(tm92_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm93_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[93]),
+        .push_ready(tm_gmem_req_ready[93]),
+        .push_data(tm_gmem_req_data[63543:62868]),
+        .pop_valid(tm93_gmem_req_pop_valid),
+        .pop_ready(tm93_gmem_req_pop_ready),
+        .pop_data(tm93_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm94_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[94]),
+        .push_ready(tm_gmem_req_ready[94]),
+        .push_data(tm_gmem_req_data[64219:63544]),
+        .pop_valid(tm94_gmem_req_pop_valid),
+        .pop_ready(tm94_gmem_req_pop_ready),
+        .pop_data(tm94_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm95_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[95]),
+        .push_ready(tm_gmem_req_ready[95]),
+        .push_data(tm_gmem_req_data[64895:64220]),
+        .pop_valid(tm95_gmem_req_pop_valid),
+        .pop_ready(tm95_gmem_req_pop_ready),
+        .pop_data(tm95_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm96_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[96]),
+        .push_ready(tm_gmem_req_ready[96]),
+        .push_data(tm_gmem_req_data[65571:64896]),
+        .pop_valid(tm96_gmem_req_pop_valid),
+        .pop_ready(tm96_gmem_req_pop_ready),
+        .pop_data(tm96_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm97_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[97]),
+        .push_ready(tm_gmem_req_ready[97]),
+        .push_data(tm_gmem_req_data[66247:65572]),
+        .pop_valid(tm97_gmem_req_pop_valid),
+        .pop_ready(tm97_gmem_req_pop_ready),
+        .pop_data(tm97_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm98_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[98]),
+        .push_ready(tm_gmem_req_ready[98]),
+        .push_data(tm_gmem_req_data[66923:66248]),
+        .pop_valid(tm98_gmem_req_pop_valid),
+        .pop_ready(tm98_gmem_req_pop_ready),
+        .pop_data(tm98_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm99_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[99]),
+        .push_ready(tm_gmem_req_ready[99]),
+        .push_data(tm_gmem_req_data[67599:66924]),
+        .pop_valid(tm99_gmem_req_pop_valid),
+        .pop_ready(tm99_gmem_req_pop_ready),
+        .pop_data(tm99_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm100_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[100]),
+        .push_ready(tm_gmem_req_ready[100]),
+        .push_data(tm_gmem_req_data[68275:67600]),
+        .pop_valid(tm100_gmem_req_pop_valid),
+        .pop_ready(tm100_gmem_req_pop_ready),
+        .pop_data(tm100_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm101_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[101]),
+        .push_ready(tm_gmem_req_ready[101]),
+        .push_data(tm_gmem_req_data[68951:68276]),
+        .pop_valid(tm101_gmem_req_pop_valid),
+        .pop_ready(tm101_gmem_req_pop_ready),
+        .pop_data(tm101_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm102_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[102]),
+        .push_ready(tm_gmem_req_ready[102]),
+        .push_data(tm_gmem_req_data[69627:68952]),
+        .pop_valid(tm102_gmem_req_pop_valid),
+        .pop_ready(tm102_gmem_req_pop_ready),
+        .pop_data(tm102_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm103_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[103]),
+        .push_ready(tm_gmem_req_ready[103]),
+        .push_data(tm_gmem_req_data[70303:69628]),
+        .pop_valid(tm103_gmem_req_pop_valid),
+        .pop_ready(tm103_gmem_req_pop_ready),
+        .pop_data(tm103_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm104_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[104]),
+        .push_ready(tm_gmem_req_ready[104]),
+        .push_data(tm_gmem_req_data[70979:70304]),
+        .pop_valid(tm104_gmem_req_pop_valid),
+        .pop_ready(tm104_gmem_req_pop_ready),
+        .pop_data(tm104_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm105_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[105]),
+        .push_ready(tm_gmem_req_ready[105]),
+        .push_data(tm_gmem_req_data[71655:70980]),
+        .pop_valid(tm105_gmem_req_pop_valid),
+        .pop_ready(tm105_gmem_req_pop_ready),
+        .pop_data(tm105_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm106_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[106]),
+        .push_ready(tm_gmem_req_ready[106]),
+        .push_data(tm_gmem_req_data[72331:71656]),
+        .pop_valid(tm106_gmem_req_pop_valid),
+        .pop_ready(tm106_gmem_req_pop_ready),
+        .pop_data(tm106_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm107_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[107]),
+        .push_ready(tm_gmem_req_ready[107]),
+        .push_data(tm_gmem_req_data[73007:72332]),
+        .pop_valid(tm107_gmem_req_pop_valid),
+        .pop_ready(tm107_gmem_req_pop_ready),
+        .pop_data(tm107_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm108_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[108]),
+        .push_ready(tm_gmem_req_ready[108]),
+        .push_data(tm_gmem_req_data[73683:73008]),
+        .pop_valid(tm108_gmem_req_pop_valid),
+        .pop_ready(tm108_gmem_req_pop_ready),
+        .pop_data(tm108_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm109_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[109]),
+        .push_ready(tm_gmem_req_ready[109]),
+        .push_data(tm_gmem_req_data[74359:73684]),
+        .pop_valid(tm109_gmem_req_pop_valid),
+        .pop_ready(tm109_gmem_req_pop_ready),
+        .pop_data(tm109_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm110_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[110]),
+        .push_ready(tm_gmem_req_ready[110]),
+        .push_data(tm_gmem_req_data[75035:74360]),
+        .pop_valid(tm110_gmem_req_pop_valid),
+        .pop_ready(tm110_gmem_req_pop_ready),
+        .pop_data(tm110_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm111_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[111]),
+        .push_ready(tm_gmem_req_ready[111]),
+        .push_data(tm_gmem_req_data[75711:75036]),
+        .pop_valid(tm111_gmem_req_pop_valid),
+        .pop_ready(tm111_gmem_req_pop_ready),
+        .pop_data(tm111_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm112_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[112]),
+        .push_ready(tm_gmem_req_ready[112]),
+        .push_data(tm_gmem_req_data[76387:75712]),
+        .pop_valid(tm112_gmem_req_pop_valid),
+        .pop_ready(tm112_gmem_req_pop_ready),
+        .pop_data(tm112_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm113_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[113]),
+        .push_ready(tm_gmem_req_ready[113]),
+        .push_data(tm_gmem_req_data[77063:76388]),
+        .pop_valid(tm113_gmem_req_pop_valid),
+        .pop_ready(tm113_gmem_req_pop_ready),
+        .pop_data(tm113_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm114_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[114]),
+        .push_ready(tm_gmem_req_ready[114]),
+        .push_data(tm_gmem_req_data[77739:77064]),
+        .pop_valid(tm114_gmem_req_pop_valid),
+        .pop_ready(tm114_gmem_req_pop_ready),
+        .pop_data(tm114_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm115_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[115]),
+        .push_ready(tm_gmem_req_ready[115]),
+        .push_data(tm_gmem_req_data[78415:77740]),
+        .pop_valid(tm115_gmem_req_pop_valid),
+        .pop_ready(tm115_gmem_req_pop_ready),
+        .pop_data(tm115_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm116_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[116]),
+        .push_ready(tm_gmem_req_ready[116]),
+        .push_data(tm_gmem_req_data[79091:78416]),
+        .pop_valid(tm116_gmem_req_pop_valid),
+        .pop_ready(tm116_gmem_req_pop_ready),
+        .pop_data(tm116_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm117_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[117]),
+        .push_ready(tm_gmem_req_ready[117]),
+        .push_data(tm_gmem_req_data[79767:79092]),
+        .pop_valid(tm117_gmem_req_pop_valid),
+        .pop_ready(tm117_gmem_req_pop_ready),
+        .pop_data(tm117_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm118_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[118]),
+        .push_ready(tm_gmem_req_ready[118]),
+        .push_data(tm_gmem_req_data[80443:79768]),
+        .pop_valid(tm118_gmem_req_pop_valid),
+        .pop_ready(tm118_gmem_req_pop_ready),
+        .pop_data(tm118_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm119_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[119]),
+        .push_ready(tm_gmem_req_ready[119]),
+        .push_data(tm_gmem_req_data[81119:80444]),
+        .pop_valid(tm119_gmem_req_pop_valid),
+        .pop_ready(tm119_gmem_req_pop_ready),
+        .pop_data(tm119_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm120_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[120]),
+        .push_ready(tm_gmem_req_ready[120]),
+        .push_data(tm_gmem_req_data[81795:81120]),
+        .pop_valid(tm120_gmem_req_pop_valid),
+        .pop_ready(tm120_gmem_req_pop_ready),
+        .pop_data(tm120_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm121_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[121]),
+        .push_ready(tm_gmem_req_ready[121]),
+        .push_data(tm_gmem_req_data[82471:81796]),
+        .pop_valid(tm121_gmem_req_pop_valid),
+        .pop_ready(tm121_gmem_req_pop_ready),
+        .pop_data(tm121_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm122_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[122]),
+        .push_ready(tm_gmem_req_ready[122]),
+        .push_data(tm_gmem_req_data[83147:82472]),
+        .pop_valid(tm122_gmem_req_pop_valid),
+        .pop_ready(tm122_gmem_req_pop_ready),
+        .pop_data(tm122_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm123_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[123]),
+        .push_ready(tm_gmem_req_ready[123]),
+        .push_data(tm_gmem_req_data[83823:83148]),
+        .pop_valid(tm123_gmem_req_pop_valid),
+        .pop_ready(tm123_gmem_req_pop_ready),
+        .pop_data(tm123_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm124_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[124]),
+        .push_ready(tm_gmem_req_ready[124]),
+        .push_data(tm_gmem_req_data[84499:83824]),
+        .pop_valid(tm124_gmem_req_pop_valid),
+        .pop_ready(tm124_gmem_req_pop_ready),
+        .pop_data(tm124_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm125_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[125]),
+        .push_ready(tm_gmem_req_ready[125]),
+        .push_data(tm_gmem_req_data[85175:84500]),
+        .pop_valid(tm125_gmem_req_pop_valid),
+        .pop_ready(tm125_gmem_req_pop_ready),
+        .pop_data(tm125_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm126_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[126]),
+        .push_ready(tm_gmem_req_ready[126]),
+        .push_data(tm_gmem_req_data[85851:85176]),
+        .pop_valid(tm126_gmem_req_pop_valid),
+        .pop_ready(tm126_gmem_req_pop_ready),
+        .pop_data(tm126_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tm127_gmem_req (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm_gmem_req_valid[127]),
+        .push_ready(tm_gmem_req_ready[127]),
+        .push_data(tm_gmem_req_data[86527:85852]),
+        .pop_valid(tm127_gmem_req_pop_valid),
+        .pop_ready(tm127_gmem_req_pop_ready),
+        .pop_data(tm127_gmem_req_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_l2_resp0_hits (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(l2_resp0_hits_push_valid),
+        .push_ready(l2_resp0_hits_push_ready),
+        .push_data(l2_resp0_hits_push_data),
+        .pop_valid(l2_resp0_hits_pop_valid),
+        .pop_ready(l2_resp0_hits_pop_ready),
+        .pop_data(l2_resp0_hits_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm0_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm0_gmem_resp_push_valid),
+        .push_ready(tm0_gmem_resp_push_ready),
+        .push_data(tm0_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[0]),
+        .pop_ready(tm_gmem_resp_ready[0]),
+        .pop_data(tm_gmem_resp_data[611:0])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm1_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm1_gmem_resp_push_valid),
+        .push_ready(tm1_gmem_resp_push_ready),
+        .push_data(tm1_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[1]),
+        .pop_ready(tm_gmem_resp_ready[1]),
+        .pop_data(tm_gmem_resp_data[1223:612])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm2_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm2_gmem_resp_push_valid),
+        .push_ready(tm2_gmem_resp_push_ready),
+        .push_data(tm2_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[2]),
+        .pop_ready(tm_gmem_resp_ready[2]),
+        .pop_data(tm_gmem_resp_data[1835:1224])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm3_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm3_gmem_resp_push_valid),
+        .push_ready(tm3_gmem_resp_push_ready),
+        .push_data(tm3_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[3]),
+        .pop_ready(tm_gmem_resp_ready[3]),
+        .pop_data(tm_gmem_resp_data[2447:1836])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm4_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm4_gmem_resp_push_valid),
+        .push_ready(tm4_gmem_resp_push_ready),
+        .push_data(tm4_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[4]),
+        .pop_ready(tm_gmem_resp_ready[4]),
+        .pop_data(tm_gmem_resp_data[3059:2448])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm5_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm5_gmem_resp_push_valid),
+        .push_ready(tm5_gmem_resp_push_ready),
+        .push_data(tm5_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[5]),
+        .pop_ready(tm_gmem_resp_ready[5]),
+        .pop_data(tm_gmem_resp_data[3671:3060])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm6_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm6_gmem_resp_push_valid),
+        .push_ready(tm6_gmem_resp_push_ready),
+        .push_data(tm6_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[6]),
+        .pop_ready(tm_gmem_resp_ready[6]),
+        .pop_data(tm_gmem_resp_data[4283:3672])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm7_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm7_gmem_resp_push_valid),
+        .push_ready(tm7_gmem_resp_push_ready),
+        .push_data(tm7_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[7]),
+        .pop_ready(tm_gmem_resp_ready[7]),
+        .pop_data(tm_gmem_resp_data[4895:4284])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm8_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm8_gmem_resp_push_valid),
+        .push_ready(tm8_gmem_resp_push_ready),
+        .push_data(tm8_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[8]),
+        .pop_ready(tm_gmem_resp_ready[8]),
+        .pop_data(tm_gmem_resp_data[5507:4896])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm9_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm9_gmem_resp_push_valid),
+        .push_ready(tm9_gmem_resp_push_ready),
+        .push_data(tm9_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[9]),
+        .pop_ready(tm_gmem_resp_ready[9]),
+        .pop_data(tm_gmem_resp_data[6119:5508])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm10_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm10_gmem_resp_push_valid),
+        .push_ready(tm10_gmem_resp_push_ready),
+        .push_data(tm10_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[10]),
+        .pop_ready(tm_gmem_resp_ready[10]),
+        .pop_data(tm_gmem_resp_data[6731:6120])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm11_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm11_gmem_resp_push_valid),
+        .push_ready(tm11_gmem_resp_push_ready),
+        .push_data(tm11_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[11]),
+        .pop_ready(tm_gmem_resp_ready[11]),
+        .pop_data(tm_gmem_resp_data[7343:6732])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm12_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm12_gmem_resp_push_valid),
+        .push_ready(tm12_gmem_resp_push_ready),
+        .push_data(tm12_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[12]),
+        .pop_ready(tm_gmem_resp_ready[12]),
+        .pop_data(tm_gmem_resp_data[7955:7344])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm13_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm13_gmem_resp_push_valid),
+        .push_ready(tm13_gmem_resp_push_ready),
+        .push_data(tm13_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[13]),
+        .pop_ready(tm_gmem_resp_ready[13]),
+        .pop_data(tm_gmem_resp_data[8567:7956])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm14_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm14_gmem_resp_push_valid),
+        .push_ready(tm14_gmem_resp_push_ready),
+        .push_data(tm14_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[14]),
+        .pop_ready(tm_gmem_resp_ready[14]),
+        .pop_data(tm_gmem_resp_data[9179:8568])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm15_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm15_gmem_resp_push_valid),
+        .push_ready(tm15_gmem_resp_push_ready),
+        .push_data(tm15_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[15]),
+        .pop_ready(tm_gmem_resp_ready[15]),
+        .pop_data(tm_gmem_resp_data[9791:9180])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm16_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm16_gmem_resp_push_valid),
+        .push_ready(tm16_gmem_resp_push_ready),
+        .push_data(tm16_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[16]),
+        .pop_ready(tm_gmem_resp_ready[16]),
+        .pop_data(tm_gmem_resp_data[10403:9792])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm17_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm17_gmem_resp_push_valid),
+        .push_ready(tm17_gmem_resp_push_ready),
+        .push_data(tm17_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[17]),
+        .pop_ready(tm_gmem_resp_ready[17]),
+        .pop_data(tm_gmem_resp_data[11015:10404])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm18_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm18_gmem_resp_push_valid),
+        .push_ready(tm18_gmem_resp_push_ready),
+        .push_data(tm18_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[18]),
+        .pop_ready(tm_gmem_resp_ready[18]),
+        .pop_data(tm_gmem_resp_data[11627:11016])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm19_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm19_gmem_resp_push_valid),
+        .push_ready(tm19_gmem_resp_push_ready),
+        .push_data(tm19_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[19]),
+        .pop_ready(tm_gmem_resp_ready[19]),
+        .pop_data(tm_gmem_resp_data[12239:11628])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm20_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm20_gmem_resp_push_valid),
+        .push_ready(tm20_gmem_resp_push_ready),
+        .push_data(tm20_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[20]),
+        .pop_ready(tm_gmem_resp_ready[20]),
+        .pop_data(tm_gmem_resp_data[12851:12240])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm21_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm21_gmem_resp_push_valid),
+        .push_ready(tm21_gmem_resp_push_ready),
+        .push_data(tm21_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[21]),
+        .pop_ready(tm_gmem_resp_ready[21]),
+        .pop_data(tm_gmem_resp_data[13463:12852])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm22_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm22_gmem_resp_push_valid),
+        .push_ready(tm22_gmem_resp_push_ready),
+        .push_data(tm22_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[22]),
+        .pop_ready(tm_gmem_resp_ready[22]),
+        .pop_data(tm_gmem_resp_data[14075:13464])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm23_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm23_gmem_resp_push_valid),
+        .push_ready(tm23_gmem_resp_push_ready),
+        .push_data(tm23_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[23]),
+        .pop_ready(tm_gmem_resp_ready[23]),
+        .pop_data(tm_gmem_resp_data[14687:14076])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm24_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm24_gmem_resp_push_valid),
+        .push_ready(tm24_gmem_resp_push_ready),
+        .push_data(tm24_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[24]),
+        .pop_ready(tm_gmem_resp_ready[24]),
+        .pop_data(tm_gmem_resp_data[15299:14688])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm25_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm25_gmem_resp_push_valid),
+        .push_ready(tm25_gmem_resp_push_ready),
+        .push_data(tm25_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[25]),
+        .pop_ready(tm_gmem_resp_ready[25]),
+        .pop_data(tm_gmem_resp_data[15911:15300])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm26_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm26_gmem_resp_push_valid),
+        .push_ready(tm26_gmem_resp_push_ready),
+        .push_data(tm26_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[26]),
+        .pop_ready(tm_gmem_resp_ready[26]),
+        .pop_data(tm_gmem_resp_data[16523:15912])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm27_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm27_gmem_resp_push_valid),
+        .push_ready(tm27_gmem_resp_push_ready),
+        .push_data(tm27_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[27]),
+        .pop_ready(tm_gmem_resp_ready[27]),
+        .pop_data(tm_gmem_resp_data[17135:16524])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm28_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm28_gmem_resp_push_valid),
+        .push_ready(tm28_gmem_resp_push_ready),
+        .push_data(tm28_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[28]),
+        .pop_ready(tm_gmem_resp_ready[28]),
+        .pop_data(tm_gmem_resp_data[17747:17136])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm29_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm29_gmem_resp_push_valid),
+        .push_ready(tm29_gmem_resp_push_ready),
+        .push_data(tm29_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[29]),
+        .pop_ready(tm_gmem_resp_ready[29]),
+        .pop_data(tm_gmem_resp_data[18359:17748])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm30_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm30_gmem_resp_push_valid),
+        .push_ready(tm30_gmem_resp_push_ready),
+        .push_data(tm30_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[30]),
+        .pop_ready(tm_gmem_resp_ready[30]),
+        .pop_data(tm_gmem_resp_data[18971:18360])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm31_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm31_gmem_resp_push_valid),
+        .push_ready(tm31_gmem_resp_push_ready),
+        .push_data(tm31_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[31]),
+        .pop_ready(tm_gmem_resp_ready[31]),
+        .pop_data(tm_gmem_resp_data[19583:18972])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm32_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm32_gmem_resp_push_valid),
+        .push_ready(tm32_gmem_resp_push_ready),
+        .push_data(tm32_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[32]),
+        .pop_ready(tm_gmem_resp_ready[32]),
+        .pop_data(tm_gmem_resp_data[20195:19584])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm33_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm33_gmem_resp_push_valid),
+        .push_ready(tm33_gmem_resp_push_ready),
+        .push_data(tm33_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[33]),
+        .pop_ready(tm_gmem_resp_ready[33]),
+        .pop_data(tm_gmem_resp_data[20807:20196])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm34_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm34_gmem_resp_push_valid),
+        .push_ready(tm34_gmem_resp_push_ready),
+        .push_data(tm34_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[34]),
+        .pop_ready(tm_gmem_resp_ready[34]),
+        .pop_data(tm_gmem_resp_data[21419:20808])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm35_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm35_gmem_resp_push_valid),
+        .push_ready(tm35_gmem_resp_push_ready),
+        .push_data(tm35_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[35]),
+        .pop_ready(tm_gmem_resp_ready[35]),
+        .pop_data(tm_gmem_resp_data[22031:21420])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm36_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm36_gmem_resp_push_valid),
+        .push_ready(tm36_gmem_resp_push_ready),
+        .push_data(tm36_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[36]),
+        .pop_ready(tm_gmem_resp_ready[36]),
+        .pop_data(tm_gmem_resp_data[22643:22032])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm37_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm37_gmem_resp_push_valid),
+        .push_ready(tm37_gmem_resp_push_ready),
+        .push_data(tm37_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[37]),
+        .pop_ready(tm_gmem_resp_ready[37]),
+        .pop_data(tm_gmem_resp_data[23255:22644])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm38_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm38_gmem_resp_push_valid),
+        .push_ready(tm38_gmem_resp_push_ready),
+        .push_data(tm38_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[38]),
+        .pop_ready(tm_gmem_resp_ready[38]),
+        .pop_data(tm_gmem_resp_data[23867:23256])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm39_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm39_gmem_resp_push_valid),
+        .push_ready(tm39_gmem_resp_push_ready),
+        .push_data(tm39_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[39]),
+        .pop_ready(tm_gmem_resp_ready[39]),
+        .pop_data(tm_gmem_resp_data[24479:23868])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm40_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm40_gmem_resp_push_valid),
+        .push_ready(tm40_gmem_resp_push_ready),
+        .push_data(tm40_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[40]),
+        .pop_ready(tm_gmem_resp_ready[40]),
+        .pop_data(tm_gmem_resp_data[25091:24480])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm41_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm41_gmem_resp_push_valid),
+        .push_ready(tm41_gmem_resp_push_ready),
+        .push_data(tm41_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[41]),
+        .pop_ready(tm_gmem_resp_ready[41]),
+        .pop_data(tm_gmem_resp_data[25703:25092])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm42_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm42_gmem_resp_push_valid),
+        .push_ready(tm42_gmem_resp_push_ready),
+        .push_data(tm42_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[42]),
+        .pop_ready(tm_gmem_resp_ready[42]),
+        .pop_data(tm_gmem_resp_data[26315:25704])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm43_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm43_gmem_resp_push_valid),
+        .push_ready(tm43_gmem_resp_push_ready),
+        .push_data(tm43_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[43]),
+        .pop_ready(tm_gmem_resp_ready[43]),
+        .pop_data(tm_gmem_resp_data[26927:26316])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm44_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm44_gmem_resp_push_valid),
+        .push_ready(tm44_gmem_resp_push_ready),
+        .push_data(tm44_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[44]),
+        .pop_ready(tm_gmem_resp_ready[44]),
+        .pop_data(tm_gmem_resp_data[27539:26928])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm45_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm45_gmem_resp_push_valid),
+        .push_ready(tm45_gmem_resp_push_ready),
+        .push_data(tm45_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[45]),
+        .pop_ready(tm_gmem_resp_ready[45]),
+        .pop_data(tm_gmem_resp_data[28151:27540])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm46_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm46_gmem_resp_push_valid),
+        .push_ready(tm46_gmem_resp_push_ready),
+        .push_data(tm46_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[46]),
+        .pop_ready(tm_gmem_resp_ready[46]),
+        .pop_data(tm_gmem_resp_data[28763:28152])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm47_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm47_gmem_resp_push_valid),
+        .push_ready(tm47_gmem_resp_push_ready),
+        .push_data(tm47_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[47]),
+        .pop_ready(tm_gmem_resp_ready[47]),
+        .pop_data(tm_gmem_resp_data[29375:28764])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm48_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm48_gmem_resp_push_valid),
+        .push_ready(tm48_gmem_resp_push_ready),
+        .push_data(tm48_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[48]),
+        .pop_ready(tm_gmem_resp_ready[48]),
+        .pop_data(tm_gmem_resp_data[29987:29376])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm49_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm49_gmem_resp_push_valid),
+        .push_ready(tm49_gmem_resp_push_ready),
+        .push_data(tm49_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[49]),
+        .pop_ready(tm_gmem_resp_ready[49]),
+        .pop_data(tm_gmem_resp_data[30599:29988])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm50_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm50_gmem_resp_push_valid),
+        .push_ready(tm50_gmem_resp_push_ready),
+        .push_data(tm50_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[50]),
+        .pop_ready(tm_gmem_resp_ready[50]),
+        .pop_data(tm_gmem_resp_data[31211:30600])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm51_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm51_gmem_resp_push_valid),
+        .push_ready(tm51_gmem_resp_push_ready),
+        .push_data(tm51_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[51]),
+        .pop_ready(tm_gmem_resp_ready[51]),
+        .pop_data(tm_gmem_resp_data[31823:31212])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm52_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm52_gmem_resp_push_valid),
+        .push_ready(tm52_gmem_resp_push_ready),
+        .push_data(tm52_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[52]),
+        .pop_ready(tm_gmem_resp_ready[52]),
+        .pop_data(tm_gmem_resp_data[32435:31824])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm53_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm53_gmem_resp_push_valid),
+        .push_ready(tm53_gmem_resp_push_ready),
+        .push_data(tm53_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[53]),
+        .pop_ready(tm_gmem_resp_ready[53]),
+        .pop_data(tm_gmem_resp_data[33047:32436])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm54_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm54_gmem_resp_push_valid),
+        .push_ready(tm54_gmem_resp_push_ready),
+        .push_data(tm54_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[54]),
+        .pop_ready(tm_gmem_resp_ready[54]),
+        .pop_data(tm_gmem_resp_data[33659:33048])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm55_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm55_gmem_resp_push_valid),
+        .push_ready(tm55_gmem_resp_push_ready),
+        .push_data(tm55_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[55]),
+        .pop_ready(tm_gmem_resp_ready[55]),
+        .pop_data(tm_gmem_resp_data[34271:33660])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm56_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm56_gmem_resp_push_valid),
+        .push_ready(tm56_gmem_resp_push_ready),
+        .push_data(tm56_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[56]),
+        .pop_ready(tm_gmem_resp_ready[56]),
+        .pop_data(tm_gmem_resp_data[34883:34272])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm57_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm57_gmem_resp_push_valid),
+        .push_ready(tm57_gmem_resp_push_ready),
+        .push_data(tm57_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[57]),
+        .pop_ready(tm_gmem_resp_ready[57]),
+        .pop_data(tm_gmem_resp_data[35495:34884])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm58_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm58_gmem_resp_push_valid),
+        .push_ready(tm58_gmem_resp_push_ready),
+        .push_data(tm58_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[58]),
+        .pop_ready(tm_gmem_resp_ready[58]),
+        .pop_data(tm_gmem_resp_data[36107:35496])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm59_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm59_gmem_resp_push_valid),
+        .push_ready(tm59_gmem_resp_push_ready),
+        .push_data(tm59_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[59]),
+        .pop_ready(tm_gmem_resp_ready[59]),
+        .pop_data(tm_gmem_resp_data[36719:36108])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm60_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm60_gmem_resp_push_valid),
+        .push_ready(tm60_gmem_resp_push_ready),
+        .push_data(tm60_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[60]),
+        .pop_ready(tm_gmem_resp_ready[60]),
+        .pop_data(tm_gmem_resp_data[37331:36720])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm61_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm61_gmem_resp_push_valid),
+        .push_ready(tm61_gmem_resp_push_ready),
+        .push_data(tm61_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[61]),
+        .pop_ready(tm_gmem_resp_ready[61]),
+        .pop_data(tm_gmem_resp_data[37943:37332])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm62_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm62_gmem_resp_push_valid),
+        .push_ready(tm62_gmem_resp_push_ready),
+        .push_data(tm62_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[62]),
+        .pop_ready(tm_gmem_resp_ready[62]),
+        .pop_data(tm_gmem_resp_data[38555:37944])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm63_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm63_gmem_resp_push_valid),
+        .push_ready(tm63_gmem_resp_push_ready),
+        .push_data(tm63_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[63]),
+        .pop_ready(tm_gmem_resp_ready[63]),
+        .pop_data(tm_gmem_resp_data[39167:38556])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm64_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm64_gmem_resp_push_valid),
+        .push_ready(tm64_gmem_resp_push_ready),
+        .push_data(tm64_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[64]),
+        .pop_ready(tm_gmem_resp_ready[64]),
+        .pop_data(tm_gmem_resp_data[39779:39168])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm65_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm65_gmem_resp_push_valid),
+        .push_ready(tm65_gmem_resp_push_ready),
+        .push_data(tm65_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[65]),
+        .pop_ready(tm_gmem_resp_ready[65]),
+        .pop_data(tm_gmem_resp_data[40391:39780])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm66_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm66_gmem_resp_push_valid),
+        .push_ready(tm66_gmem_resp_push_ready),
+        .push_data(tm66_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[66]),
+        .pop_ready(tm_gmem_resp_ready[66]),
+        .pop_data(tm_gmem_resp_data[41003:40392])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm67_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm67_gmem_resp_push_valid),
+        .push_ready(tm67_gmem_resp_push_ready),
+        .push_data(tm67_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[67]),
+        .pop_ready(tm_gmem_resp_ready[67]),
+        .pop_data(tm_gmem_resp_data[41615:41004])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm68_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm68_gmem_resp_push_valid),
+        .push_ready(tm68_gmem_resp_push_ready),
+        .push_data(tm68_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[68]),
+        .pop_ready(tm_gmem_resp_ready[68]),
+        .pop_data(tm_gmem_resp_data[42227:41616])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm69_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm69_gmem_resp_push_valid),
+        .push_ready(tm69_gmem_resp_push_ready),
+        .push_data(tm69_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[69]),
+        .pop_ready(tm_gmem_resp_ready[69]),
+        .pop_data(tm_gmem_resp_data[42839:42228])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm70_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm70_gmem_resp_push_valid),
+        .push_ready(tm70_gmem_resp_push_ready),
+        .push_data(tm70_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[70]),
+        .pop_ready(tm_gmem_resp_ready[70]),
+        .pop_data(tm_gmem_resp_data[43451:42840])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm71_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm71_gmem_resp_push_valid),
+        .push_ready(tm71_gmem_resp_push_ready),
+        .push_data(tm71_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[71]),
+        .pop_ready(tm_gmem_resp_ready[71]),
+        .pop_data(tm_gmem_resp_data[44063:43452])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm72_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm72_gmem_resp_push_valid),
+        .push_ready(tm72_gmem_resp_push_ready),
+        .push_data(tm72_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[72]),
+        .pop_ready(tm_gmem_resp_ready[72]),
+        .pop_data(tm_gmem_resp_data[44675:44064])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm73_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm73_gmem_resp_push_valid),
+        .push_ready(tm73_gmem_resp_push_ready),
+        .push_data(tm73_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[73]),
+        .pop_ready(tm_gmem_resp_ready[73]),
+        .pop_data(tm_gmem_resp_data[45287:44676])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm74_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm74_gmem_resp_push_valid),
+        .push_ready(tm74_gmem_resp_push_ready),
+        .push_data(tm74_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[74]),
+        .pop_ready(tm_gmem_resp_ready[74]),
+        .pop_data(tm_gmem_resp_data[45899:45288])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm75_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm75_gmem_resp_push_valid),
+        .push_ready(tm75_gmem_resp_push_ready),
+        .push_data(tm75_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[75]),
+        .pop_ready(tm_gmem_resp_ready[75]),
+        .pop_data(tm_gmem_resp_data[46511:45900])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm76_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm76_gmem_resp_push_valid),
+        .push_ready(tm76_gmem_resp_push_ready),
+        .push_data(tm76_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[76]),
+        .pop_ready(tm_gmem_resp_ready[76]),
+        .pop_data(tm_gmem_resp_data[47123:46512])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm77_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm77_gmem_resp_push_valid),
+        .push_ready(tm77_gmem_resp_push_ready),
+        .push_data(tm77_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[77]),
+        .pop_ready(tm_gmem_resp_ready[77]),
+        .pop_data(tm_gmem_resp_data[47735:47124])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm78_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm78_gmem_resp_push_valid),
+        .push_ready(tm78_gmem_resp_push_ready),
+        .push_data(tm78_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[78]),
+        .pop_ready(tm_gmem_resp_ready[78]),
+        .pop_data(tm_gmem_resp_data[48347:47736])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm79_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm79_gmem_resp_push_valid),
+        .push_ready(tm79_gmem_resp_push_ready),
+        .push_data(tm79_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[79]),
+        .pop_ready(tm_gmem_resp_ready[79]),
+        .pop_data(tm_gmem_resp_data[48959:48348])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm80_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm80_gmem_resp_push_valid),
+        .push_ready(tm80_gmem_resp_push_ready),
+        .push_data(tm80_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[80]),
+        .pop_ready(tm_gmem_resp_ready[80]),
+        .pop_data(tm_gmem_resp_data[49571:48960])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm81_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm81_gmem_resp_push_valid),
+        .push_ready(tm81_gmem_resp_push_ready),
+        .push_data(tm81_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[81]),
+        .pop_ready(tm_gmem_resp_ready[81]),
+        .pop_data(tm_gmem_resp_data[50183:49572])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm82_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm82_gmem_resp_push_valid),
+        .push_ready(tm82_gmem_resp_push_ready),
+        .push_data(tm82_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[82]),
+        .pop_ready(tm_gmem_resp_ready[82]),
+        .pop_data(tm_gmem_resp_data[50795:50184])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm83_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm83_gmem_resp_push_valid),
+        .push_ready(tm83_gmem_resp_push_ready),
+        .push_data(tm83_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[83]),
+        .pop_ready(tm_gmem_resp_ready[83]),
+        .pop_data(tm_gmem_resp_data[51407:50796])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm84_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm84_gmem_resp_push_valid),
+        .push_ready(tm84_gmem_resp_push_ready),
+        .push_data(tm84_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[84]),
+        .pop_ready(tm_gmem_resp_ready[84]),
+        .pop_data(tm_gmem_resp_data[52019:51408])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm85_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm85_gmem_resp_push_valid),
+        .push_ready(tm85_gmem_resp_push_ready),
+        .push_data(tm85_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[85]),
+        .pop_ready(tm_gmem_resp_ready[85]),
+        .pop_data(tm_gmem_resp_data[52631:52020])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm86_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm86_gmem_resp_push_valid),
+        .push_ready(tm86_gmem_resp_push_ready),
+        .push_data(tm86_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[86]),
+        .pop_ready(tm_gmem_resp_ready[86]),
+        .pop_data(tm_gmem_resp_data[53243:52632])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm87_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm87_gmem_resp_push_valid),
+        .push_ready(tm87_gmem_resp_push_ready),
+        .push_data(tm87_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[87]),
+        .pop_ready(tm_gmem_resp_ready[87]),
+        .pop_data(tm_gmem_resp_data[53855:53244])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm88_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm88_gmem_resp_push_valid),
+        .push_ready(tm88_gmem_resp_push_ready),
+        .push_data(tm88_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[88]),
+        .pop_ready(tm_gmem_resp_ready[88]),
+        .pop_data(tm_gmem_resp_data[54467:53856])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm89_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm89_gmem_resp_push_valid),
+        .push_ready(tm89_gmem_resp_push_ready),
+        .push_data(tm89_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[89]),
+        .pop_ready(tm_gmem_resp_ready[89]),
+        .pop_data(tm_gmem_resp_data[55079:54468])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm90_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm90_gmem_resp_push_valid),
+        .push_ready(tm90_gmem_resp_push_ready),
+        .push_data(tm90_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[90]),
+        .pop_ready(tm_gmem_resp_ready[90]),
+        .pop_data(tm_gmem_resp_data[55691:55080])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm91_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm91_gmem_resp_push_valid),
+        .push_ready(tm91_gmem_resp_push_ready),
+        .push_data(tm91_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[91]),
+        .pop_ready(tm_gmem_resp_ready[91]),
+        .pop_data(tm_gmem_resp_data[56303:55692])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm92_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm92_gmem_resp_push_valid),
+        .push_ready(tm92_gmem_resp_push_ready),
+        .push_data(tm92_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[92]),
+        .pop_ready(tm_gmem_resp_ready[92]),
+        .pop_data(tm_gmem_resp_data[56915:56304])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm93_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm93_gmem_resp_push_valid),
+        .push_ready(tm93_gmem_resp_push_ready),
+        .push_data(tm93_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[93]),
+        .pop_ready(tm_gmem_resp_ready[93]),
+        .pop_data(tm_gmem_resp_data[57527:56916])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm94_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm94_gmem_resp_push_valid),
+        .push_ready(tm94_gmem_resp_push_ready),
+        .push_data(tm94_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[94]),
+        .pop_ready(tm_gmem_resp_ready[94]),
+        .pop_data(tm_gmem_resp_data[58139:57528])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm95_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm95_gmem_resp_push_valid),
+        .push_ready(tm95_gmem_resp_push_ready),
+        .push_data(tm95_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[95]),
+        .pop_ready(tm_gmem_resp_ready[95]),
+        .pop_data(tm_gmem_resp_data[58751:58140])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm96_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm96_gmem_resp_push_valid),
+        .push_ready(tm96_gmem_resp_push_ready),
+        .push_data(tm96_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[96]),
+        .pop_ready(tm_gmem_resp_ready[96]),
+        .pop_data(tm_gmem_resp_data[59363:58752])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm97_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm97_gmem_resp_push_valid),
+        .push_ready(tm97_gmem_resp_push_ready),
+        .push_data(tm97_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[97]),
+        .pop_ready(tm_gmem_resp_ready[97]),
+        .pop_data(tm_gmem_resp_data[59975:59364])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm98_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm98_gmem_resp_push_valid),
+        .push_ready(tm98_gmem_resp_push_ready),
+        .push_data(tm98_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[98]),
+        .pop_ready(tm_gmem_resp_ready[98]),
+        .pop_data(tm_gmem_resp_data[60587:59976])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm99_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm99_gmem_resp_push_valid),
+        .push_ready(tm99_gmem_resp_push_ready),
+        .push_data(tm99_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[99]),
+        .pop_ready(tm_gmem_resp_ready[99]),
+        .pop_data(tm_gmem_resp_data[61199:60588])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm100_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm100_gmem_resp_push_valid),
+        .push_ready(tm100_gmem_resp_push_ready),
+        .push_data(tm100_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[100]),
+        .pop_ready(tm_gmem_resp_ready[100]),
+        .pop_data(tm_gmem_resp_data[61811:61200])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm101_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm101_gmem_resp_push_valid),
+        .push_ready(tm101_gmem_resp_push_ready),
+        .push_data(tm101_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[101]),
+        .pop_ready(tm_gmem_resp_ready[101]),
+        .pop_data(tm_gmem_resp_data[62423:61812])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm102_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm102_gmem_resp_push_valid),
+        .push_ready(tm102_gmem_resp_push_ready),
+        .push_data(tm102_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[102]),
+        .pop_ready(tm_gmem_resp_ready[102]),
+        .pop_data(tm_gmem_resp_data[63035:62424])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm103_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm103_gmem_resp_push_valid),
+        .push_ready(tm103_gmem_resp_push_ready),
+        .push_data(tm103_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[103]),
+        .pop_ready(tm_gmem_resp_ready[103]),
+        .pop_data(tm_gmem_resp_data[63647:63036])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm104_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm104_gmem_resp_push_valid),
+        .push_ready(tm104_gmem_resp_push_ready),
+        .push_data(tm104_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[104]),
+        .pop_ready(tm_gmem_resp_ready[104]),
+        .pop_data(tm_gmem_resp_data[64259:63648])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm105_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm105_gmem_resp_push_valid),
+        .push_ready(tm105_gmem_resp_push_ready),
+        .push_data(tm105_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[105]),
+        .pop_ready(tm_gmem_resp_ready[105]),
+        .pop_data(tm_gmem_resp_data[64871:64260])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm106_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm106_gmem_resp_push_valid),
+        .push_ready(tm106_gmem_resp_push_ready),
+        .push_data(tm106_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[106]),
+        .pop_ready(tm_gmem_resp_ready[106]),
+        .pop_data(tm_gmem_resp_data[65483:64872])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm107_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm107_gmem_resp_push_valid),
+        .push_ready(tm107_gmem_resp_push_ready),
+        .push_data(tm107_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[107]),
+        .pop_ready(tm_gmem_resp_ready[107]),
+        .pop_data(tm_gmem_resp_data[66095:65484])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm108_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm108_gmem_resp_push_valid),
+        .push_ready(tm108_gmem_resp_push_ready),
+        .push_data(tm108_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[108]),
+        .pop_ready(tm_gmem_resp_ready[108]),
+        .pop_data(tm_gmem_resp_data[66707:66096])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm109_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm109_gmem_resp_push_valid),
+        .push_ready(tm109_gmem_resp_push_ready),
+        .push_data(tm109_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[109]),
+        .pop_ready(tm_gmem_resp_ready[109]),
+        .pop_data(tm_gmem_resp_data[67319:66708])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm110_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm110_gmem_resp_push_valid),
+        .push_ready(tm110_gmem_resp_push_ready),
+        .push_data(tm110_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[110]),
+        .pop_ready(tm_gmem_resp_ready[110]),
+        .pop_data(tm_gmem_resp_data[67931:67320])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm111_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm111_gmem_resp_push_valid),
+        .push_ready(tm111_gmem_resp_push_ready),
+        .push_data(tm111_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[111]),
+        .pop_ready(tm_gmem_resp_ready[111]),
+        .pop_data(tm_gmem_resp_data[68543:67932])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm112_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm112_gmem_resp_push_valid),
+        .push_ready(tm112_gmem_resp_push_ready),
+        .push_data(tm112_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[112]),
+        .pop_ready(tm_gmem_resp_ready[112]),
+        .pop_data(tm_gmem_resp_data[69155:68544])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm113_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm113_gmem_resp_push_valid),
+        .push_ready(tm113_gmem_resp_push_ready),
+        .push_data(tm113_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[113]),
+        .pop_ready(tm_gmem_resp_ready[113]),
+        .pop_data(tm_gmem_resp_data[69767:69156])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm114_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm114_gmem_resp_push_valid),
+        .push_ready(tm114_gmem_resp_push_ready),
+        .push_data(tm114_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[114]),
+        .pop_ready(tm_gmem_resp_ready[114]),
+        .pop_data(tm_gmem_resp_data[70379:69768])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm115_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm115_gmem_resp_push_valid),
+        .push_ready(tm115_gmem_resp_push_ready),
+        .push_data(tm115_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[115]),
+        .pop_ready(tm_gmem_resp_ready[115]),
+        .pop_data(tm_gmem_resp_data[70991:70380])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm116_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm116_gmem_resp_push_valid),
+        .push_ready(tm116_gmem_resp_push_ready),
+        .push_data(tm116_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[116]),
+        .pop_ready(tm_gmem_resp_ready[116]),
+        .pop_data(tm_gmem_resp_data[71603:70992])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm117_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm117_gmem_resp_push_valid),
+        .push_ready(tm117_gmem_resp_push_ready),
+        .push_data(tm117_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[117]),
+        .pop_ready(tm_gmem_resp_ready[117]),
+        .pop_data(tm_gmem_resp_data[72215:71604])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm118_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm118_gmem_resp_push_valid),
+        .push_ready(tm118_gmem_resp_push_ready),
+        .push_data(tm118_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[118]),
+        .pop_ready(tm_gmem_resp_ready[118]),
+        .pop_data(tm_gmem_resp_data[72827:72216])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm119_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm119_gmem_resp_push_valid),
+        .push_ready(tm119_gmem_resp_push_ready),
+        .push_data(tm119_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[119]),
+        .pop_ready(tm_gmem_resp_ready[119]),
+        .pop_data(tm_gmem_resp_data[73439:72828])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm120_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm120_gmem_resp_push_valid),
+        .push_ready(tm120_gmem_resp_push_ready),
+        .push_data(tm120_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[120]),
+        .pop_ready(tm_gmem_resp_ready[120]),
+        .pop_data(tm_gmem_resp_data[74051:73440])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm121_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm121_gmem_resp_push_valid),
+        .push_ready(tm121_gmem_resp_push_ready),
+        .push_data(tm121_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[121]),
+        .pop_ready(tm_gmem_resp_ready[121]),
+        .pop_data(tm_gmem_resp_data[74663:74052])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm122_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm122_gmem_resp_push_valid),
+        .push_ready(tm122_gmem_resp_push_ready),
+        .push_data(tm122_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[122]),
+        .pop_ready(tm_gmem_resp_ready[122]),
+        .pop_data(tm_gmem_resp_data[75275:74664])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm123_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm123_gmem_resp_push_valid),
+        .push_ready(tm123_gmem_resp_push_ready),
+        .push_data(tm123_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[123]),
+        .pop_ready(tm_gmem_resp_ready[123]),
+        .pop_data(tm_gmem_resp_data[75887:75276])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm124_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm124_gmem_resp_push_valid),
+        .push_ready(tm124_gmem_resp_push_ready),
+        .push_data(tm124_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[124]),
+        .pop_ready(tm_gmem_resp_ready[124]),
+        .pop_data(tm_gmem_resp_data[76499:75888])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm125_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm125_gmem_resp_push_valid),
+        .push_ready(tm125_gmem_resp_push_ready),
+        .push_data(tm125_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[125]),
+        .pop_ready(tm_gmem_resp_ready[125]),
+        .pop_data(tm_gmem_resp_data[77111:76500])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm126_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm126_gmem_resp_push_valid),
+        .push_ready(tm126_gmem_resp_push_ready),
+        .push_data(tm126_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[126]),
+        .pop_ready(tm_gmem_resp_ready[126]),
+        .pop_data(tm_gmem_resp_data[77723:77112])
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tm127_gmem_resp (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(tm127_gmem_resp_push_valid),
+        .push_ready(tm127_gmem_resp_push_ready),
+        .push_data(tm127_gmem_resp_push_data),
+        .pop_valid(tm_gmem_resp_valid[127]),
+        .pop_ready(tm_gmem_resp_ready[127]),
+        .pop_data(tm_gmem_resp_data[78335:77724])
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req_l2_lane1 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req_l2_lane1_push_valid),
+        .push_ready(mem_req_l2_lane1_push_ready),
+        .push_data(mem_req_l2_lane1_push_data),
+        .pop_valid(mem_req_l2_lane1_pop_valid),
+        .pop_ready(mem_req_l2_lane1_pop_ready),
+        .pop_data(mem_req_l2_lane1_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp_l2_lane1 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp_l2_lane1_push_valid),
+        .push_ready(mem_resp_l2_lane1_push_ready),
+        .push_data(mem_resp_l2_lane1_push_data),
+        .pop_valid(mem_resp_l2_lane1_pop_valid),
+        .pop_ready(mem_resp_l2_lane1_pop_ready),
+        .pop_data(mem_resp_l2_lane1_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req_l2_lane2 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req_l2_lane2_push_valid),
+        .push_ready(mem_req_l2_lane2_push_ready),
+        .push_data(mem_req_l2_lane2_push_data),
+        .pop_valid(mem_req_l2_lane2_pop_valid),
+        .pop_ready(mem_req_l2_lane2_pop_ready),
+        .pop_data(mem_req_l2_lane2_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp_l2_lane2 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp_l2_lane2_push_valid),
+        .push_ready(mem_resp_l2_lane2_push_ready),
+        .push_data(mem_resp_l2_lane2_push_data),
+        .pop_valid(mem_resp_l2_lane2_pop_valid),
+        .pop_ready(mem_resp_l2_lane2_pop_ready),
+        .pop_data(mem_resp_l2_lane2_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_mem_req_l2_lane3 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_req_l2_lane3_push_valid),
+        .push_ready(mem_req_l2_lane3_push_ready),
+        .push_data(mem_req_l2_lane3_push_data),
+        .pop_valid(mem_req_l2_lane3_pop_valid),
+        .pop_ready(mem_req_l2_lane3_pop_ready),
+        .pop_data(mem_req_l2_lane3_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_mem_resp_l2_lane3 (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(mem_resp_l2_lane3_push_valid),
+        .push_ready(mem_resp_l2_lane3_push_ready),
+        .push_data(mem_resp_l2_lane3_push_data),
+        .pop_valid(mem_resp_l2_lane3_pop_valid),
+        .pop_ready(mem_resp_l2_lane3_pop_ready),
+        .pop_data(mem_resp_l2_lane3_pop_data)
+    );
+    ds_link #(.WIDTH(1), .DEPTH(2), .DELAY(1)) link_l2_flush (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(flush_valid),
+        .push_ready(flush_ready),
+        .push_data(flush_data),
+        .pop_valid(l2_flush_pop_valid),
+        .pop_ready(l2_flush_pop_ready),
+        .pop_data(l2_flush_pop_data)
+    );
+    ds_link #(.WIDTH(1), .DEPTH(2), .DELAY(1)) link_l2_flush_done (
+        .clk(clk_core),
+        .rst(rst),
+        .push_valid(l2_flush_done_push_valid),
+        .push_ready(l2_flush_done_push_ready),
+        .push_data(l2_flush_done_push_data),
+        .pop_valid(flush_done_valid),
+        .pop_ready(flush_done_ready),
+        .pop_data(flush_done_data)
     );
     wire _unused_ok = &{1'b0, TPS[0], 1'b0};
 endmodule

@@ -30,1335 +30,1977 @@ module tm
     output wire gmem_resp_ready,
     input  mem_line_resp_t gmem_resp_data
 );
-    wire ray0_valid;
-    wire ray0_ready;
-    wire [383:0] ray0_data;
-    wire ray1_valid;
-    wire ray1_ready;
-    wire [383:0] ray1_data;
-    wire ray2_valid;
-    wire ray2_ready;
-    wire [383:0] ray2_data;
-    wire ray3_valid;
-    wire ray3_ready;
-    wire [383:0] ray3_data;
-    wire ray4_valid;
-    wire ray4_ready;
-    wire [383:0] ray4_data;
-    wire ray5_valid;
-    wire ray5_ready;
-    wire [383:0] ray5_data;
-    wire ray6_valid;
-    wire ray6_ready;
-    wire [383:0] ray6_data;
-    wire ray7_valid;
-    wire ray7_ready;
-    wire [383:0] ray7_data;
-    wire ray8_valid;
-    wire ray8_ready;
-    wire [383:0] ray8_data;
-    wire ray9_valid;
-    wire ray9_ready;
-    wire [383:0] ray9_data;
-    wire ray10_valid;
-    wire ray10_ready;
-    wire [383:0] ray10_data;
-    wire ray11_valid;
-    wire ray11_ready;
-    wire [383:0] ray11_data;
-    wire ray12_valid;
-    wire ray12_ready;
-    wire [383:0] ray12_data;
-    wire ray13_valid;
-    wire ray13_ready;
-    wire [383:0] ray13_data;
-    wire ray14_valid;
-    wire ray14_ready;
-    wire [383:0] ray14_data;
-    wire ray15_valid;
-    wire ray15_ready;
-    wire [383:0] ray15_data;
-    wire tp_div_req0_valid;
-    wire tp_div_req0_ready;
-    wire [111:0] tp_div_req0_data;
-    wire tp_div_req1_valid;
-    wire tp_div_req1_ready;
-    wire [111:0] tp_div_req1_data;
-    wire tp_div_req2_valid;
-    wire tp_div_req2_ready;
-    wire [111:0] tp_div_req2_data;
-    wire tp_div_req3_valid;
-    wire tp_div_req3_ready;
-    wire [111:0] tp_div_req3_data;
-    wire tp_div_req4_valid;
-    wire tp_div_req4_ready;
-    wire [111:0] tp_div_req4_data;
-    wire tp_div_req5_valid;
-    wire tp_div_req5_ready;
-    wire [111:0] tp_div_req5_data;
-    wire tp_div_req6_valid;
-    wire tp_div_req6_ready;
-    wire [111:0] tp_div_req6_data;
-    wire tp_div_req7_valid;
-    wire tp_div_req7_ready;
-    wire [111:0] tp_div_req7_data;
-    wire tp_div_req8_valid;
-    wire tp_div_req8_ready;
-    wire [111:0] tp_div_req8_data;
-    wire tp_div_req9_valid;
-    wire tp_div_req9_ready;
-    wire [111:0] tp_div_req9_data;
-    wire tp_div_req10_valid;
-    wire tp_div_req10_ready;
-    wire [111:0] tp_div_req10_data;
-    wire tp_div_req11_valid;
-    wire tp_div_req11_ready;
-    wire [111:0] tp_div_req11_data;
-    wire tp_div_req12_valid;
-    wire tp_div_req12_ready;
-    wire [111:0] tp_div_req12_data;
-    wire tp_div_req13_valid;
-    wire tp_div_req13_ready;
-    wire [111:0] tp_div_req13_data;
-    wire tp_div_req14_valid;
-    wire tp_div_req14_ready;
-    wire [111:0] tp_div_req14_data;
-    wire tp_div_req15_valid;
-    wire tp_div_req15_ready;
-    wire [111:0] tp_div_req15_data;
-    wire tp_div_resp0_valid;
-    wire tp_div_resp0_ready;
-    wire [111:0] tp_div_resp0_data;
-    wire tp_div_resp1_valid;
-    wire tp_div_resp1_ready;
-    wire [111:0] tp_div_resp1_data;
-    wire tp_div_resp2_valid;
-    wire tp_div_resp2_ready;
-    wire [111:0] tp_div_resp2_data;
-    wire tp_div_resp3_valid;
-    wire tp_div_resp3_ready;
-    wire [111:0] tp_div_resp3_data;
-    wire tp_div_resp4_valid;
-    wire tp_div_resp4_ready;
-    wire [111:0] tp_div_resp4_data;
-    wire tp_div_resp5_valid;
-    wire tp_div_resp5_ready;
-    wire [111:0] tp_div_resp5_data;
-    wire tp_div_resp6_valid;
-    wire tp_div_resp6_ready;
-    wire [111:0] tp_div_resp6_data;
-    wire tp_div_resp7_valid;
-    wire tp_div_resp7_ready;
-    wire [111:0] tp_div_resp7_data;
-    wire tp_div_resp8_valid;
-    wire tp_div_resp8_ready;
-    wire [111:0] tp_div_resp8_data;
-    wire tp_div_resp9_valid;
-    wire tp_div_resp9_ready;
-    wire [111:0] tp_div_resp9_data;
-    wire tp_div_resp10_valid;
-    wire tp_div_resp10_ready;
-    wire [111:0] tp_div_resp10_data;
-    wire tp_div_resp11_valid;
-    wire tp_div_resp11_ready;
-    wire [111:0] tp_div_resp11_data;
-    wire tp_div_resp12_valid;
-    wire tp_div_resp12_ready;
-    wire [111:0] tp_div_resp12_data;
-    wire tp_div_resp13_valid;
-    wire tp_div_resp13_ready;
-    wire [111:0] tp_div_resp13_data;
-    wire tp_div_resp14_valid;
-    wire tp_div_resp14_ready;
-    wire [111:0] tp_div_resp14_data;
-    wire tp_div_resp15_valid;
-    wire tp_div_resp15_ready;
-    wire [111:0] tp_div_resp15_data;
-    wire tp_box_req0_valid;
-    wire tp_box_req0_ready;
-    wire [463:0] tp_box_req0_data;
-    wire tp_box_req1_valid;
-    wire tp_box_req1_ready;
-    wire [463:0] tp_box_req1_data;
-    wire tp_box_req2_valid;
-    wire tp_box_req2_ready;
-    wire [463:0] tp_box_req2_data;
-    wire tp_box_req3_valid;
-    wire tp_box_req3_ready;
-    wire [463:0] tp_box_req3_data;
-    wire tp_box_req4_valid;
-    wire tp_box_req4_ready;
-    wire [463:0] tp_box_req4_data;
-    wire tp_box_req5_valid;
-    wire tp_box_req5_ready;
-    wire [463:0] tp_box_req5_data;
-    wire tp_box_req6_valid;
-    wire tp_box_req6_ready;
-    wire [463:0] tp_box_req6_data;
-    wire tp_box_req7_valid;
-    wire tp_box_req7_ready;
-    wire [463:0] tp_box_req7_data;
-    wire tp_box_req8_valid;
-    wire tp_box_req8_ready;
-    wire [463:0] tp_box_req8_data;
-    wire tp_box_req9_valid;
-    wire tp_box_req9_ready;
-    wire [463:0] tp_box_req9_data;
-    wire tp_box_req10_valid;
-    wire tp_box_req10_ready;
-    wire [463:0] tp_box_req10_data;
-    wire tp_box_req11_valid;
-    wire tp_box_req11_ready;
-    wire [463:0] tp_box_req11_data;
-    wire tp_box_req12_valid;
-    wire tp_box_req12_ready;
-    wire [463:0] tp_box_req12_data;
-    wire tp_box_req13_valid;
-    wire tp_box_req13_ready;
-    wire [463:0] tp_box_req13_data;
-    wire tp_box_req14_valid;
-    wire tp_box_req14_ready;
-    wire [463:0] tp_box_req14_data;
-    wire tp_box_req15_valid;
-    wire tp_box_req15_ready;
-    wire [463:0] tp_box_req15_data;
-    wire tp_box_resp0_valid;
-    wire tp_box_resp0_ready;
-    wire [48:0] tp_box_resp0_data;
-    wire tp_box_resp1_valid;
-    wire tp_box_resp1_ready;
-    wire [48:0] tp_box_resp1_data;
-    wire tp_box_resp2_valid;
-    wire tp_box_resp2_ready;
-    wire [48:0] tp_box_resp2_data;
-    wire tp_box_resp3_valid;
-    wire tp_box_resp3_ready;
-    wire [48:0] tp_box_resp3_data;
-    wire tp_box_resp4_valid;
-    wire tp_box_resp4_ready;
-    wire [48:0] tp_box_resp4_data;
-    wire tp_box_resp5_valid;
-    wire tp_box_resp5_ready;
-    wire [48:0] tp_box_resp5_data;
-    wire tp_box_resp6_valid;
-    wire tp_box_resp6_ready;
-    wire [48:0] tp_box_resp6_data;
-    wire tp_box_resp7_valid;
-    wire tp_box_resp7_ready;
-    wire [48:0] tp_box_resp7_data;
-    wire tp_box_resp8_valid;
-    wire tp_box_resp8_ready;
-    wire [48:0] tp_box_resp8_data;
-    wire tp_box_resp9_valid;
-    wire tp_box_resp9_ready;
-    wire [48:0] tp_box_resp9_data;
-    wire tp_box_resp10_valid;
-    wire tp_box_resp10_ready;
-    wire [48:0] tp_box_resp10_data;
-    wire tp_box_resp11_valid;
-    wire tp_box_resp11_ready;
-    wire [48:0] tp_box_resp11_data;
-    wire tp_box_resp12_valid;
-    wire tp_box_resp12_ready;
-    wire [48:0] tp_box_resp12_data;
-    wire tp_box_resp13_valid;
-    wire tp_box_resp13_ready;
-    wire [48:0] tp_box_resp13_data;
-    wire tp_box_resp14_valid;
-    wire tp_box_resp14_ready;
-    wire [48:0] tp_box_resp14_data;
-    wire tp_box_resp15_valid;
-    wire tp_box_resp15_ready;
-    wire [48:0] tp_box_resp15_data;
-    wire tp_tri_req0_valid;
-    wire tp_tri_req0_ready;
-    wire [591:0] tp_tri_req0_data;
-    wire tp_tri_req1_valid;
-    wire tp_tri_req1_ready;
-    wire [591:0] tp_tri_req1_data;
-    wire tp_tri_req2_valid;
-    wire tp_tri_req2_ready;
-    wire [591:0] tp_tri_req2_data;
-    wire tp_tri_req3_valid;
-    wire tp_tri_req3_ready;
-    wire [591:0] tp_tri_req3_data;
-    wire tp_tri_req4_valid;
-    wire tp_tri_req4_ready;
-    wire [591:0] tp_tri_req4_data;
-    wire tp_tri_req5_valid;
-    wire tp_tri_req5_ready;
-    wire [591:0] tp_tri_req5_data;
-    wire tp_tri_req6_valid;
-    wire tp_tri_req6_ready;
-    wire [591:0] tp_tri_req6_data;
-    wire tp_tri_req7_valid;
-    wire tp_tri_req7_ready;
-    wire [591:0] tp_tri_req7_data;
-    wire tp_tri_req8_valid;
-    wire tp_tri_req8_ready;
-    wire [591:0] tp_tri_req8_data;
-    wire tp_tri_req9_valid;
-    wire tp_tri_req9_ready;
-    wire [591:0] tp_tri_req9_data;
-    wire tp_tri_req10_valid;
-    wire tp_tri_req10_ready;
-    wire [591:0] tp_tri_req10_data;
-    wire tp_tri_req11_valid;
-    wire tp_tri_req11_ready;
-    wire [591:0] tp_tri_req11_data;
-    wire tp_tri_req12_valid;
-    wire tp_tri_req12_ready;
-    wire [591:0] tp_tri_req12_data;
-    wire tp_tri_req13_valid;
-    wire tp_tri_req13_ready;
-    wire [591:0] tp_tri_req13_data;
-    wire tp_tri_req14_valid;
-    wire tp_tri_req14_ready;
-    wire [591:0] tp_tri_req14_data;
-    wire tp_tri_req15_valid;
-    wire tp_tri_req15_ready;
-    wire [591:0] tp_tri_req15_data;
-    wire tp_tri_resp0_valid;
-    wire tp_tri_resp0_ready;
-    wire [144:0] tp_tri_resp0_data;
-    wire tp_tri_resp1_valid;
-    wire tp_tri_resp1_ready;
-    wire [144:0] tp_tri_resp1_data;
-    wire tp_tri_resp2_valid;
-    wire tp_tri_resp2_ready;
-    wire [144:0] tp_tri_resp2_data;
-    wire tp_tri_resp3_valid;
-    wire tp_tri_resp3_ready;
-    wire [144:0] tp_tri_resp3_data;
-    wire tp_tri_resp4_valid;
-    wire tp_tri_resp4_ready;
-    wire [144:0] tp_tri_resp4_data;
-    wire tp_tri_resp5_valid;
-    wire tp_tri_resp5_ready;
-    wire [144:0] tp_tri_resp5_data;
-    wire tp_tri_resp6_valid;
-    wire tp_tri_resp6_ready;
-    wire [144:0] tp_tri_resp6_data;
-    wire tp_tri_resp7_valid;
-    wire tp_tri_resp7_ready;
-    wire [144:0] tp_tri_resp7_data;
-    wire tp_tri_resp8_valid;
-    wire tp_tri_resp8_ready;
-    wire [144:0] tp_tri_resp8_data;
-    wire tp_tri_resp9_valid;
-    wire tp_tri_resp9_ready;
-    wire [144:0] tp_tri_resp9_data;
-    wire tp_tri_resp10_valid;
-    wire tp_tri_resp10_ready;
-    wire [144:0] tp_tri_resp10_data;
-    wire tp_tri_resp11_valid;
-    wire tp_tri_resp11_ready;
-    wire [144:0] tp_tri_resp11_data;
-    wire tp_tri_resp12_valid;
-    wire tp_tri_resp12_ready;
-    wire [144:0] tp_tri_resp12_data;
-    wire tp_tri_resp13_valid;
-    wire tp_tri_resp13_ready;
-    wire [144:0] tp_tri_resp13_data;
-    wire tp_tri_resp14_valid;
-    wire tp_tri_resp14_ready;
-    wire [144:0] tp_tri_resp14_data;
-    wire tp_tri_resp15_valid;
-    wire tp_tri_resp15_ready;
-    wire [144:0] tp_tri_resp15_data;
-    wire tp_mem_req0_valid;
-    wire tp_mem_req0_ready;
-    wire [63:0] tp_mem_req0_data;
-    wire tp_mem_req1_valid;
-    wire tp_mem_req1_ready;
-    wire [63:0] tp_mem_req1_data;
-    wire tp_mem_req2_valid;
-    wire tp_mem_req2_ready;
-    wire [63:0] tp_mem_req2_data;
-    wire tp_mem_req3_valid;
-    wire tp_mem_req3_ready;
-    wire [63:0] tp_mem_req3_data;
-    wire tp_mem_req4_valid;
-    wire tp_mem_req4_ready;
-    wire [63:0] tp_mem_req4_data;
-    wire tp_mem_req5_valid;
-    wire tp_mem_req5_ready;
-    wire [63:0] tp_mem_req5_data;
-    wire tp_mem_req6_valid;
-    wire tp_mem_req6_ready;
-    wire [63:0] tp_mem_req6_data;
-    wire tp_mem_req7_valid;
-    wire tp_mem_req7_ready;
-    wire [63:0] tp_mem_req7_data;
-    wire tp_mem_req8_valid;
-    wire tp_mem_req8_ready;
-    wire [63:0] tp_mem_req8_data;
-    wire tp_mem_req9_valid;
-    wire tp_mem_req9_ready;
-    wire [63:0] tp_mem_req9_data;
-    wire tp_mem_req10_valid;
-    wire tp_mem_req10_ready;
-    wire [63:0] tp_mem_req10_data;
-    wire tp_mem_req11_valid;
-    wire tp_mem_req11_ready;
-    wire [63:0] tp_mem_req11_data;
-    wire tp_mem_req12_valid;
-    wire tp_mem_req12_ready;
-    wire [63:0] tp_mem_req12_data;
-    wire tp_mem_req13_valid;
-    wire tp_mem_req13_ready;
-    wire [63:0] tp_mem_req13_data;
-    wire tp_mem_req14_valid;
-    wire tp_mem_req14_ready;
-    wire [63:0] tp_mem_req14_data;
-    wire tp_mem_req15_valid;
-    wire tp_mem_req15_ready;
-    wire [63:0] tp_mem_req15_data;
-    wire tp_mem_resp0_valid;
-    wire tp_mem_resp0_ready;
-    wire [575:0] tp_mem_resp0_data;
-    wire tp_mem_resp1_valid;
-    wire tp_mem_resp1_ready;
-    wire [575:0] tp_mem_resp1_data;
-    wire tp_mem_resp2_valid;
-    wire tp_mem_resp2_ready;
-    wire [575:0] tp_mem_resp2_data;
-    wire tp_mem_resp3_valid;
-    wire tp_mem_resp3_ready;
-    wire [575:0] tp_mem_resp3_data;
-    wire tp_mem_resp4_valid;
-    wire tp_mem_resp4_ready;
-    wire [575:0] tp_mem_resp4_data;
-    wire tp_mem_resp5_valid;
-    wire tp_mem_resp5_ready;
-    wire [575:0] tp_mem_resp5_data;
-    wire tp_mem_resp6_valid;
-    wire tp_mem_resp6_ready;
-    wire [575:0] tp_mem_resp6_data;
-    wire tp_mem_resp7_valid;
-    wire tp_mem_resp7_ready;
-    wire [575:0] tp_mem_resp7_data;
-    wire tp_mem_resp8_valid;
-    wire tp_mem_resp8_ready;
-    wire [575:0] tp_mem_resp8_data;
-    wire tp_mem_resp9_valid;
-    wire tp_mem_resp9_ready;
-    wire [575:0] tp_mem_resp9_data;
-    wire tp_mem_resp10_valid;
-    wire tp_mem_resp10_ready;
-    wire [575:0] tp_mem_resp10_data;
-    wire tp_mem_resp11_valid;
-    wire tp_mem_resp11_ready;
-    wire [575:0] tp_mem_resp11_data;
-    wire tp_mem_resp12_valid;
-    wire tp_mem_resp12_ready;
-    wire [575:0] tp_mem_resp12_data;
-    wire tp_mem_resp13_valid;
-    wire tp_mem_resp13_ready;
-    wire [575:0] tp_mem_resp13_data;
-    wire tp_mem_resp14_valid;
-    wire tp_mem_resp14_ready;
-    wire [575:0] tp_mem_resp14_data;
-    wire tp_mem_resp15_valid;
-    wire tp_mem_resp15_ready;
-    wire [575:0] tp_mem_resp15_data;
-    wire tp_ray_write0_valid;
-    wire tp_ray_write0_ready;
-    wire [288:0] tp_ray_write0_data;
-    wire tp_ray_write1_valid;
-    wire tp_ray_write1_ready;
-    wire [288:0] tp_ray_write1_data;
-    wire tp_ray_write2_valid;
-    wire tp_ray_write2_ready;
-    wire [288:0] tp_ray_write2_data;
-    wire tp_ray_write3_valid;
-    wire tp_ray_write3_ready;
-    wire [288:0] tp_ray_write3_data;
-    wire tp_ray_write4_valid;
-    wire tp_ray_write4_ready;
-    wire [288:0] tp_ray_write4_data;
-    wire tp_ray_write5_valid;
-    wire tp_ray_write5_ready;
-    wire [288:0] tp_ray_write5_data;
-    wire tp_ray_write6_valid;
-    wire tp_ray_write6_ready;
-    wire [288:0] tp_ray_write6_data;
-    wire tp_ray_write7_valid;
-    wire tp_ray_write7_ready;
-    wire [288:0] tp_ray_write7_data;
-    wire tp_ray_write8_valid;
-    wire tp_ray_write8_ready;
-    wire [288:0] tp_ray_write8_data;
-    wire tp_ray_write9_valid;
-    wire tp_ray_write9_ready;
-    wire [288:0] tp_ray_write9_data;
-    wire tp_ray_write10_valid;
-    wire tp_ray_write10_ready;
-    wire [288:0] tp_ray_write10_data;
-    wire tp_ray_write11_valid;
-    wire tp_ray_write11_ready;
-    wire [288:0] tp_ray_write11_data;
-    wire tp_ray_write12_valid;
-    wire tp_ray_write12_ready;
-    wire [288:0] tp_ray_write12_data;
-    wire tp_ray_write13_valid;
-    wire tp_ray_write13_ready;
-    wire [288:0] tp_ray_write13_data;
-    wire tp_ray_write14_valid;
-    wire tp_ray_write14_ready;
-    wire [288:0] tp_ray_write14_data;
-    wire tp_ray_write15_valid;
-    wire tp_ray_write15_ready;
-    wire [288:0] tp_ray_write15_data;
-    wire tp_hit0_valid;
-    wire tp_hit0_ready;
-    wire [159:0] tp_hit0_data;
-    wire tp_hit1_valid;
-    wire tp_hit1_ready;
-    wire [159:0] tp_hit1_data;
-    wire tp_hit2_valid;
-    wire tp_hit2_ready;
-    wire [159:0] tp_hit2_data;
-    wire tp_hit3_valid;
-    wire tp_hit3_ready;
-    wire [159:0] tp_hit3_data;
-    wire tp_hit4_valid;
-    wire tp_hit4_ready;
-    wire [159:0] tp_hit4_data;
-    wire tp_hit5_valid;
-    wire tp_hit5_ready;
-    wire [159:0] tp_hit5_data;
-    wire tp_hit6_valid;
-    wire tp_hit6_ready;
-    wire [159:0] tp_hit6_data;
-    wire tp_hit7_valid;
-    wire tp_hit7_ready;
-    wire [159:0] tp_hit7_data;
-    wire tp_hit8_valid;
-    wire tp_hit8_ready;
-    wire [159:0] tp_hit8_data;
-    wire tp_hit9_valid;
-    wire tp_hit9_ready;
-    wire [159:0] tp_hit9_data;
-    wire tp_hit10_valid;
-    wire tp_hit10_ready;
-    wire [159:0] tp_hit10_data;
-    wire tp_hit11_valid;
-    wire tp_hit11_ready;
-    wire [159:0] tp_hit11_data;
-    wire tp_hit12_valid;
-    wire tp_hit12_ready;
-    wire [159:0] tp_hit12_data;
-    wire tp_hit13_valid;
-    wire tp_hit13_ready;
-    wire [159:0] tp_hit13_data;
-    wire tp_hit14_valid;
-    wire tp_hit14_ready;
-    wire [159:0] tp_hit14_data;
-    wire tp_hit15_valid;
-    wire tp_hit15_ready;
-    wire [159:0] tp_hit15_data;
-    wire tp_gmem_req0_valid;
-    wire tp_gmem_req0_ready;
-    wire [675:0] tp_gmem_req0_data;
-    wire tp_gmem_req1_valid;
-    wire tp_gmem_req1_ready;
-    wire [675:0] tp_gmem_req1_data;
-    wire tp_gmem_req2_valid;
-    wire tp_gmem_req2_ready;
-    wire [675:0] tp_gmem_req2_data;
-    wire tp_gmem_req3_valid;
-    wire tp_gmem_req3_ready;
-    wire [675:0] tp_gmem_req3_data;
-    wire tp_gmem_req4_valid;
-    wire tp_gmem_req4_ready;
-    wire [675:0] tp_gmem_req4_data;
-    wire tp_gmem_req5_valid;
-    wire tp_gmem_req5_ready;
-    wire [675:0] tp_gmem_req5_data;
-    wire tp_gmem_req6_valid;
-    wire tp_gmem_req6_ready;
-    wire [675:0] tp_gmem_req6_data;
-    wire tp_gmem_req7_valid;
-    wire tp_gmem_req7_ready;
-    wire [675:0] tp_gmem_req7_data;
-    wire tp_gmem_req8_valid;
-    wire tp_gmem_req8_ready;
-    wire [675:0] tp_gmem_req8_data;
-    wire tp_gmem_req9_valid;
-    wire tp_gmem_req9_ready;
-    wire [675:0] tp_gmem_req9_data;
-    wire tp_gmem_req10_valid;
-    wire tp_gmem_req10_ready;
-    wire [675:0] tp_gmem_req10_data;
-    wire tp_gmem_req11_valid;
-    wire tp_gmem_req11_ready;
-    wire [675:0] tp_gmem_req11_data;
-    wire tp_gmem_req12_valid;
-    wire tp_gmem_req12_ready;
-    wire [675:0] tp_gmem_req12_data;
-    wire tp_gmem_req13_valid;
-    wire tp_gmem_req13_ready;
-    wire [675:0] tp_gmem_req13_data;
-    wire tp_gmem_req14_valid;
-    wire tp_gmem_req14_ready;
-    wire [675:0] tp_gmem_req14_data;
-    wire tp_gmem_req15_valid;
-    wire tp_gmem_req15_ready;
-    wire [675:0] tp_gmem_req15_data;
-    wire tp_gmem_resp0_valid;
-    wire tp_gmem_resp0_ready;
-    wire [611:0] tp_gmem_resp0_data;
-    wire tp_gmem_resp1_valid;
-    wire tp_gmem_resp1_ready;
-    wire [611:0] tp_gmem_resp1_data;
-    wire tp_gmem_resp2_valid;
-    wire tp_gmem_resp2_ready;
-    wire [611:0] tp_gmem_resp2_data;
-    wire tp_gmem_resp3_valid;
-    wire tp_gmem_resp3_ready;
-    wire [611:0] tp_gmem_resp3_data;
-    wire tp_gmem_resp4_valid;
-    wire tp_gmem_resp4_ready;
-    wire [611:0] tp_gmem_resp4_data;
-    wire tp_gmem_resp5_valid;
-    wire tp_gmem_resp5_ready;
-    wire [611:0] tp_gmem_resp5_data;
-    wire tp_gmem_resp6_valid;
-    wire tp_gmem_resp6_ready;
-    wire [611:0] tp_gmem_resp6_data;
-    wire tp_gmem_resp7_valid;
-    wire tp_gmem_resp7_ready;
-    wire [611:0] tp_gmem_resp7_data;
-    wire tp_gmem_resp8_valid;
-    wire tp_gmem_resp8_ready;
-    wire [611:0] tp_gmem_resp8_data;
-    wire tp_gmem_resp9_valid;
-    wire tp_gmem_resp9_ready;
-    wire [611:0] tp_gmem_resp9_data;
-    wire tp_gmem_resp10_valid;
-    wire tp_gmem_resp10_ready;
-    wire [611:0] tp_gmem_resp10_data;
-    wire tp_gmem_resp11_valid;
-    wire tp_gmem_resp11_ready;
-    wire [611:0] tp_gmem_resp11_data;
-    wire tp_gmem_resp12_valid;
-    wire tp_gmem_resp12_ready;
-    wire [611:0] tp_gmem_resp12_data;
-    wire tp_gmem_resp13_valid;
-    wire tp_gmem_resp13_ready;
-    wire [611:0] tp_gmem_resp13_data;
-    wire tp_gmem_resp14_valid;
-    wire tp_gmem_resp14_ready;
-    wire [611:0] tp_gmem_resp14_data;
-    wire tp_gmem_resp15_valid;
-    wire tp_gmem_resp15_ready;
-    wire [611:0] tp_gmem_resp15_data;
-    wire tri_req0_valid;
-    wire tri_req0_ready;
-    wire [591:0] tri_req0_data;
-    wire tri_req1_valid;
-    wire tri_req1_ready;
-    wire [591:0] tri_req1_data;
-    wire tri_resp0_valid;
-    wire tri_resp0_ready;
-    wire [144:0] tri_resp0_data;
-    wire tri_resp1_valid;
-    wire tri_resp1_ready;
-    wire [144:0] tri_resp1_data;
-    wire div_req_valid;
-    wire div_req_ready;
-    wire [111:0] div_req_data;
-    wire div_resp_valid;
-    wire div_resp_ready;
-    wire [111:0] div_resp_data;
+    wire ray0_push_valid;
+    wire ray0_push_ready;
+    wire [383:0] ray0_push_data;
+    wire ray0_pop_valid;
+    wire ray0_pop_ready;
+    wire [383:0] ray0_pop_data;
+    wire ray1_push_valid;
+    wire ray1_push_ready;
+    wire [383:0] ray1_push_data;
+    wire ray1_pop_valid;
+    wire ray1_pop_ready;
+    wire [383:0] ray1_pop_data;
+    wire ray2_push_valid;
+    wire ray2_push_ready;
+    wire [383:0] ray2_push_data;
+    wire ray2_pop_valid;
+    wire ray2_pop_ready;
+    wire [383:0] ray2_pop_data;
+    wire ray3_push_valid;
+    wire ray3_push_ready;
+    wire [383:0] ray3_push_data;
+    wire ray3_pop_valid;
+    wire ray3_pop_ready;
+    wire [383:0] ray3_pop_data;
+    wire ray4_push_valid;
+    wire ray4_push_ready;
+    wire [383:0] ray4_push_data;
+    wire ray4_pop_valid;
+    wire ray4_pop_ready;
+    wire [383:0] ray4_pop_data;
+    wire ray5_push_valid;
+    wire ray5_push_ready;
+    wire [383:0] ray5_push_data;
+    wire ray5_pop_valid;
+    wire ray5_pop_ready;
+    wire [383:0] ray5_pop_data;
+    wire ray6_push_valid;
+    wire ray6_push_ready;
+    wire [383:0] ray6_push_data;
+    wire ray6_pop_valid;
+    wire ray6_pop_ready;
+    wire [383:0] ray6_pop_data;
+    wire ray7_push_valid;
+    wire ray7_push_ready;
+    wire [383:0] ray7_push_data;
+    wire ray7_pop_valid;
+    wire ray7_pop_ready;
+    wire [383:0] ray7_pop_data;
+    wire ray8_push_valid;
+    wire ray8_push_ready;
+    wire [383:0] ray8_push_data;
+    wire ray8_pop_valid;
+    wire ray8_pop_ready;
+    wire [383:0] ray8_pop_data;
+    wire ray9_push_valid;
+    wire ray9_push_ready;
+    wire [383:0] ray9_push_data;
+    wire ray9_pop_valid;
+    wire ray9_pop_ready;
+    wire [383:0] ray9_pop_data;
+    wire ray10_push_valid;
+    wire ray10_push_ready;
+    wire [383:0] ray10_push_data;
+    wire ray10_pop_valid;
+    wire ray10_pop_ready;
+    wire [383:0] ray10_pop_data;
+    wire ray11_push_valid;
+    wire ray11_push_ready;
+    wire [383:0] ray11_push_data;
+    wire ray11_pop_valid;
+    wire ray11_pop_ready;
+    wire [383:0] ray11_pop_data;
+    wire ray12_push_valid;
+    wire ray12_push_ready;
+    wire [383:0] ray12_push_data;
+    wire ray12_pop_valid;
+    wire ray12_pop_ready;
+    wire [383:0] ray12_pop_data;
+    wire ray13_push_valid;
+    wire ray13_push_ready;
+    wire [383:0] ray13_push_data;
+    wire ray13_pop_valid;
+    wire ray13_pop_ready;
+    wire [383:0] ray13_pop_data;
+    wire ray14_push_valid;
+    wire ray14_push_ready;
+    wire [383:0] ray14_push_data;
+    wire ray14_pop_valid;
+    wire ray14_pop_ready;
+    wire [383:0] ray14_pop_data;
+    wire ray15_push_valid;
+    wire ray15_push_ready;
+    wire [383:0] ray15_push_data;
+    wire ray15_pop_valid;
+    wire ray15_pop_ready;
+    wire [383:0] ray15_pop_data;
+    wire tp_div_req0_push_valid;
+    wire tp_div_req0_push_ready;
+    wire [111:0] tp_div_req0_push_data;
+    wire tp_div_req0_pop_valid;
+    wire tp_div_req0_pop_ready;
+    wire [111:0] tp_div_req0_pop_data;
+    wire tp_div_req1_push_valid;
+    wire tp_div_req1_push_ready;
+    wire [111:0] tp_div_req1_push_data;
+    wire tp_div_req1_pop_valid;
+    wire tp_div_req1_pop_ready;
+    wire [111:0] tp_div_req1_pop_data;
+    wire tp_div_req2_push_valid;
+    wire tp_div_req2_push_ready;
+    wire [111:0] tp_div_req2_push_data;
+    wire tp_div_req2_pop_valid;
+    wire tp_div_req2_pop_ready;
+    wire [111:0] tp_div_req2_pop_data;
+    wire tp_div_req3_push_valid;
+    wire tp_div_req3_push_ready;
+    wire [111:0] tp_div_req3_push_data;
+    wire tp_div_req3_pop_valid;
+    wire tp_div_req3_pop_ready;
+    wire [111:0] tp_div_req3_pop_data;
+    wire tp_div_req4_push_valid;
+    wire tp_div_req4_push_ready;
+    wire [111:0] tp_div_req4_push_data;
+    wire tp_div_req4_pop_valid;
+    wire tp_div_req4_pop_ready;
+    wire [111:0] tp_div_req4_pop_data;
+    wire tp_div_req5_push_valid;
+    wire tp_div_req5_push_ready;
+    wire [111:0] tp_div_req5_push_data;
+    wire tp_div_req5_pop_valid;
+    wire tp_div_req5_pop_ready;
+    wire [111:0] tp_div_req5_pop_data;
+    wire tp_div_req6_push_valid;
+    wire tp_div_req6_push_ready;
+    wire [111:0] tp_div_req6_push_data;
+    wire tp_div_req6_pop_valid;
+    wire tp_div_req6_pop_ready;
+    wire [111:0] tp_div_req6_pop_data;
+    wire tp_div_req7_push_valid;
+    wire tp_div_req7_push_ready;
+    wire [111:0] tp_div_req7_push_data;
+    wire tp_div_req7_pop_valid;
+    wire tp_div_req7_pop_ready;
+    wire [111:0] tp_div_req7_pop_data;
+    wire tp_div_req8_push_valid;
+    wire tp_div_req8_push_ready;
+    wire [111:0] tp_div_req8_push_data;
+    wire tp_div_req8_pop_valid;
+    wire tp_div_req8_pop_ready;
+    wire [111:0] tp_div_req8_pop_data;
+    wire tp_div_req9_push_valid;
+    wire tp_div_req9_push_ready;
+    wire [111:0] tp_div_req9_push_data;
+    wire tp_div_req9_pop_valid;
+    wire tp_div_req9_pop_ready;
+    wire [111:0] tp_div_req9_pop_data;
+    wire tp_div_req10_push_valid;
+    wire tp_div_req10_push_ready;
+    wire [111:0] tp_div_req10_push_data;
+    wire tp_div_req10_pop_valid;
+    wire tp_div_req10_pop_ready;
+    wire [111:0] tp_div_req10_pop_data;
+    wire tp_div_req11_push_valid;
+    wire tp_div_req11_push_ready;
+    wire [111:0] tp_div_req11_push_data;
+    wire tp_div_req11_pop_valid;
+    wire tp_div_req11_pop_ready;
+    wire [111:0] tp_div_req11_pop_data;
+    wire tp_div_req12_push_valid;
+    wire tp_div_req12_push_ready;
+    wire [111:0] tp_div_req12_push_data;
+    wire tp_div_req12_pop_valid;
+    wire tp_div_req12_pop_ready;
+    wire [111:0] tp_div_req12_pop_data;
+    wire tp_div_req13_push_valid;
+    wire tp_div_req13_push_ready;
+    wire [111:0] tp_div_req13_push_data;
+    wire tp_div_req13_pop_valid;
+    wire tp_div_req13_pop_ready;
+    wire [111:0] tp_div_req13_pop_data;
+    wire tp_div_req14_push_valid;
+    wire tp_div_req14_push_ready;
+    wire [111:0] tp_div_req14_push_data;
+    wire tp_div_req14_pop_valid;
+    wire tp_div_req14_pop_ready;
+    wire [111:0] tp_div_req14_pop_data;
+    wire tp_div_req15_push_valid;
+    wire tp_div_req15_push_ready;
+    wire [111:0] tp_div_req15_push_data;
+    wire tp_div_req15_pop_valid;
+    wire tp_div_req15_pop_ready;
+    wire [111:0] tp_div_req15_pop_data;
+    wire tp_div_resp0_push_valid;
+    wire tp_div_resp0_push_ready;
+    wire [111:0] tp_div_resp0_push_data;
+    wire tp_div_resp0_pop_valid;
+    wire tp_div_resp0_pop_ready;
+    wire [111:0] tp_div_resp0_pop_data;
+    wire tp_div_resp1_push_valid;
+    wire tp_div_resp1_push_ready;
+    wire [111:0] tp_div_resp1_push_data;
+    wire tp_div_resp1_pop_valid;
+    wire tp_div_resp1_pop_ready;
+    wire [111:0] tp_div_resp1_pop_data;
+    wire tp_div_resp2_push_valid;
+    wire tp_div_resp2_push_ready;
+    wire [111:0] tp_div_resp2_push_data;
+    wire tp_div_resp2_pop_valid;
+    wire tp_div_resp2_pop_ready;
+    wire [111:0] tp_div_resp2_pop_data;
+    wire tp_div_resp3_push_valid;
+    wire tp_div_resp3_push_ready;
+    wire [111:0] tp_div_resp3_push_data;
+    wire tp_div_resp3_pop_valid;
+    wire tp_div_resp3_pop_ready;
+    wire [111:0] tp_div_resp3_pop_data;
+    wire tp_div_resp4_push_valid;
+    wire tp_div_resp4_push_ready;
+    wire [111:0] tp_div_resp4_push_data;
+    wire tp_div_resp4_pop_valid;
+    wire tp_div_resp4_pop_ready;
+    wire [111:0] tp_div_resp4_pop_data;
+    wire tp_div_resp5_push_valid;
+    wire tp_div_resp5_push_ready;
+    wire [111:0] tp_div_resp5_push_data;
+    wire tp_div_resp5_pop_valid;
+    wire tp_div_resp5_pop_ready;
+    wire [111:0] tp_div_resp5_pop_data;
+    wire tp_div_resp6_push_valid;
+    wire tp_div_resp6_push_ready;
+    wire [111:0] tp_div_resp6_push_data;
+    wire tp_div_resp6_pop_valid;
+    wire tp_div_resp6_pop_ready;
+    wire [111:0] tp_div_resp6_pop_data;
+    wire tp_div_resp7_push_valid;
+    wire tp_div_resp7_push_ready;
+    wire [111:0] tp_div_resp7_push_data;
+    wire tp_div_resp7_pop_valid;
+    wire tp_div_resp7_pop_ready;
+    wire [111:0] tp_div_resp7_pop_data;
+    wire tp_div_resp8_push_valid;
+    wire tp_div_resp8_push_ready;
+    wire [111:0] tp_div_resp8_push_data;
+    wire tp_div_resp8_pop_valid;
+    wire tp_div_resp8_pop_ready;
+    wire [111:0] tp_div_resp8_pop_data;
+    wire tp_div_resp9_push_valid;
+    wire tp_div_resp9_push_ready;
+    wire [111:0] tp_div_resp9_push_data;
+    wire tp_div_resp9_pop_valid;
+    wire tp_div_resp9_pop_ready;
+    wire [111:0] tp_div_resp9_pop_data;
+    wire tp_div_resp10_push_valid;
+    wire tp_div_resp10_push_ready;
+    wire [111:0] tp_div_resp10_push_data;
+    wire tp_div_resp10_pop_valid;
+    wire tp_div_resp10_pop_ready;
+    wire [111:0] tp_div_resp10_pop_data;
+    wire tp_div_resp11_push_valid;
+    wire tp_div_resp11_push_ready;
+    wire [111:0] tp_div_resp11_push_data;
+    wire tp_div_resp11_pop_valid;
+    wire tp_div_resp11_pop_ready;
+    wire [111:0] tp_div_resp11_pop_data;
+    wire tp_div_resp12_push_valid;
+    wire tp_div_resp12_push_ready;
+    wire [111:0] tp_div_resp12_push_data;
+    wire tp_div_resp12_pop_valid;
+    wire tp_div_resp12_pop_ready;
+    wire [111:0] tp_div_resp12_pop_data;
+    wire tp_div_resp13_push_valid;
+    wire tp_div_resp13_push_ready;
+    wire [111:0] tp_div_resp13_push_data;
+    wire tp_div_resp13_pop_valid;
+    wire tp_div_resp13_pop_ready;
+    wire [111:0] tp_div_resp13_pop_data;
+    wire tp_div_resp14_push_valid;
+    wire tp_div_resp14_push_ready;
+    wire [111:0] tp_div_resp14_push_data;
+    wire tp_div_resp14_pop_valid;
+    wire tp_div_resp14_pop_ready;
+    wire [111:0] tp_div_resp14_pop_data;
+    wire tp_div_resp15_push_valid;
+    wire tp_div_resp15_push_ready;
+    wire [111:0] tp_div_resp15_push_data;
+    wire tp_div_resp15_pop_valid;
+    wire tp_div_resp15_pop_ready;
+    wire [111:0] tp_div_resp15_pop_data;
+    wire tp_box_req0_push_valid;
+    wire tp_box_req0_push_ready;
+    wire [463:0] tp_box_req0_push_data;
+    wire tp_box_req0_pop_valid;
+    wire tp_box_req0_pop_ready;
+    wire [463:0] tp_box_req0_pop_data;
+    wire tp_box_req1_push_valid;
+    wire tp_box_req1_push_ready;
+    wire [463:0] tp_box_req1_push_data;
+    wire tp_box_req1_pop_valid;
+    wire tp_box_req1_pop_ready;
+    wire [463:0] tp_box_req1_pop_data;
+    wire tp_box_req2_push_valid;
+    wire tp_box_req2_push_ready;
+    wire [463:0] tp_box_req2_push_data;
+    wire tp_box_req2_pop_valid;
+    wire tp_box_req2_pop_ready;
+    wire [463:0] tp_box_req2_pop_data;
+    wire tp_box_req3_push_valid;
+    wire tp_box_req3_push_ready;
+    wire [463:0] tp_box_req3_push_data;
+    wire tp_box_req3_pop_valid;
+    wire tp_box_req3_pop_ready;
+    wire [463:0] tp_box_req3_pop_data;
+    wire tp_box_req4_push_valid;
+    wire tp_box_req4_push_ready;
+    wire [463:0] tp_box_req4_push_data;
+    wire tp_box_req4_pop_valid;
+    wire tp_box_req4_pop_ready;
+    wire [463:0] tp_box_req4_pop_data;
+    wire tp_box_req5_push_valid;
+    wire tp_box_req5_push_ready;
+    wire [463:0] tp_box_req5_push_data;
+    wire tp_box_req5_pop_valid;
+    wire tp_box_req5_pop_ready;
+    wire [463:0] tp_box_req5_pop_data;
+    wire tp_box_req6_push_valid;
+    wire tp_box_req6_push_ready;
+    wire [463:0] tp_box_req6_push_data;
+    wire tp_box_req6_pop_valid;
+    wire tp_box_req6_pop_ready;
+    wire [463:0] tp_box_req6_pop_data;
+    wire tp_box_req7_push_valid;
+    wire tp_box_req7_push_ready;
+    wire [463:0] tp_box_req7_push_data;
+    wire tp_box_req7_pop_valid;
+    wire tp_box_req7_pop_ready;
+    wire [463:0] tp_box_req7_pop_data;
+    wire tp_box_req8_push_valid;
+    wire tp_box_req8_push_ready;
+    wire [463:0] tp_box_req8_push_data;
+    wire tp_box_req8_pop_valid;
+    wire tp_box_req8_pop_ready;
+    wire [463:0] tp_box_req8_pop_data;
+    wire tp_box_req9_push_valid;
+    wire tp_box_req9_push_ready;
+    wire [463:0] tp_box_req9_push_data;
+    wire tp_box_req9_pop_valid;
+    wire tp_box_req9_pop_ready;
+    wire [463:0] tp_box_req9_pop_data;
+    wire tp_box_req10_push_valid;
+    wire tp_box_req10_push_ready;
+    wire [463:0] tp_box_req10_push_data;
+    wire tp_box_req10_pop_valid;
+    wire tp_box_req10_pop_ready;
+    wire [463:0] tp_box_req10_pop_data;
+    wire tp_box_req11_push_valid;
+    wire tp_box_req11_push_ready;
+    wire [463:0] tp_box_req11_push_data;
+    wire tp_box_req11_pop_valid;
+    wire tp_box_req11_pop_ready;
+    wire [463:0] tp_box_req11_pop_data;
+    wire tp_box_req12_push_valid;
+    wire tp_box_req12_push_ready;
+    wire [463:0] tp_box_req12_push_data;
+    wire tp_box_req12_pop_valid;
+    wire tp_box_req12_pop_ready;
+    wire [463:0] tp_box_req12_pop_data;
+    wire tp_box_req13_push_valid;
+    wire tp_box_req13_push_ready;
+    wire [463:0] tp_box_req13_push_data;
+    wire tp_box_req13_pop_valid;
+    wire tp_box_req13_pop_ready;
+    wire [463:0] tp_box_req13_pop_data;
+    wire tp_box_req14_push_valid;
+    wire tp_box_req14_push_ready;
+    wire [463:0] tp_box_req14_push_data;
+    wire tp_box_req14_pop_valid;
+    wire tp_box_req14_pop_ready;
+    wire [463:0] tp_box_req14_pop_data;
+    wire tp_box_req15_push_valid;
+    wire tp_box_req15_push_ready;
+    wire [463:0] tp_box_req15_push_data;
+    wire tp_box_req15_pop_valid;
+    wire tp_box_req15_pop_ready;
+    wire [463:0] tp_box_req15_pop_data;
+    wire tp_box_resp0_push_valid;
+    wire tp_box_resp0_push_ready;
+    wire [48:0] tp_box_resp0_push_data;
+    wire tp_box_resp0_pop_valid;
+    wire tp_box_resp0_pop_ready;
+    wire [48:0] tp_box_resp0_pop_data;
+    wire tp_box_resp1_push_valid;
+    wire tp_box_resp1_push_ready;
+    wire [48:0] tp_box_resp1_push_data;
+    wire tp_box_resp1_pop_valid;
+    wire tp_box_resp1_pop_ready;
+    wire [48:0] tp_box_resp1_pop_data;
+    wire tp_box_resp2_push_valid;
+    wire tp_box_resp2_push_ready;
+    wire [48:0] tp_box_resp2_push_data;
+    wire tp_box_resp2_pop_valid;
+    wire tp_box_resp2_pop_ready;
+    wire [48:0] tp_box_resp2_pop_data;
+    wire tp_box_resp3_push_valid;
+    wire tp_box_resp3_push_ready;
+    wire [48:0] tp_box_resp3_push_data;
+    wire tp_box_resp3_pop_valid;
+    wire tp_box_resp3_pop_ready;
+    wire [48:0] tp_box_resp3_pop_data;
+    wire tp_box_resp4_push_valid;
+    wire tp_box_resp4_push_ready;
+    wire [48:0] tp_box_resp4_push_data;
+    wire tp_box_resp4_pop_valid;
+    wire tp_box_resp4_pop_ready;
+    wire [48:0] tp_box_resp4_pop_data;
+    wire tp_box_resp5_push_valid;
+    wire tp_box_resp5_push_ready;
+    wire [48:0] tp_box_resp5_push_data;
+    wire tp_box_resp5_pop_valid;
+    wire tp_box_resp5_pop_ready;
+    wire [48:0] tp_box_resp5_pop_data;
+    wire tp_box_resp6_push_valid;
+    wire tp_box_resp6_push_ready;
+    wire [48:0] tp_box_resp6_push_data;
+    wire tp_box_resp6_pop_valid;
+    wire tp_box_resp6_pop_ready;
+    wire [48:0] tp_box_resp6_pop_data;
+    wire tp_box_resp7_push_valid;
+    wire tp_box_resp7_push_ready;
+    wire [48:0] tp_box_resp7_push_data;
+    wire tp_box_resp7_pop_valid;
+    wire tp_box_resp7_pop_ready;
+    wire [48:0] tp_box_resp7_pop_data;
+    wire tp_box_resp8_push_valid;
+    wire tp_box_resp8_push_ready;
+    wire [48:0] tp_box_resp8_push_data;
+    wire tp_box_resp8_pop_valid;
+    wire tp_box_resp8_pop_ready;
+    wire [48:0] tp_box_resp8_pop_data;
+    wire tp_box_resp9_push_valid;
+    wire tp_box_resp9_push_ready;
+    wire [48:0] tp_box_resp9_push_data;
+    wire tp_box_resp9_pop_valid;
+    wire tp_box_resp9_pop_ready;
+    wire [48:0] tp_box_resp9_pop_data;
+    wire tp_box_resp10_push_valid;
+    wire tp_box_resp10_push_ready;
+    wire [48:0] tp_box_resp10_push_data;
+    wire tp_box_resp10_pop_valid;
+    wire tp_box_resp10_pop_ready;
+    wire [48:0] tp_box_resp10_pop_data;
+    wire tp_box_resp11_push_valid;
+    wire tp_box_resp11_push_ready;
+    wire [48:0] tp_box_resp11_push_data;
+    wire tp_box_resp11_pop_valid;
+    wire tp_box_resp11_pop_ready;
+    wire [48:0] tp_box_resp11_pop_data;
+    wire tp_box_resp12_push_valid;
+    wire tp_box_resp12_push_ready;
+    wire [48:0] tp_box_resp12_push_data;
+    wire tp_box_resp12_pop_valid;
+    wire tp_box_resp12_pop_ready;
+    wire [48:0] tp_box_resp12_pop_data;
+    wire tp_box_resp13_push_valid;
+    wire tp_box_resp13_push_ready;
+    wire [48:0] tp_box_resp13_push_data;
+    wire tp_box_resp13_pop_valid;
+    wire tp_box_resp13_pop_ready;
+    wire [48:0] tp_box_resp13_pop_data;
+    wire tp_box_resp14_push_valid;
+    wire tp_box_resp14_push_ready;
+    wire [48:0] tp_box_resp14_push_data;
+    wire tp_box_resp14_pop_valid;
+    wire tp_box_resp14_pop_ready;
+    wire [48:0] tp_box_resp14_pop_data;
+    wire tp_box_resp15_push_valid;
+    wire tp_box_resp15_push_ready;
+    wire [48:0] tp_box_resp15_push_data;
+    wire tp_box_resp15_pop_valid;
+    wire tp_box_resp15_pop_ready;
+    wire [48:0] tp_box_resp15_pop_data;
+    wire tp_tri_req0_push_valid;
+    wire tp_tri_req0_push_ready;
+    wire [591:0] tp_tri_req0_push_data;
+    wire tp_tri_req0_pop_valid;
+    wire tp_tri_req0_pop_ready;
+    wire [591:0] tp_tri_req0_pop_data;
+    wire tp_tri_req1_push_valid;
+    wire tp_tri_req1_push_ready;
+    wire [591:0] tp_tri_req1_push_data;
+    wire tp_tri_req1_pop_valid;
+    wire tp_tri_req1_pop_ready;
+    wire [591:0] tp_tri_req1_pop_data;
+    wire tp_tri_req2_push_valid;
+    wire tp_tri_req2_push_ready;
+    wire [591:0] tp_tri_req2_push_data;
+    wire tp_tri_req2_pop_valid;
+    wire tp_tri_req2_pop_ready;
+    wire [591:0] tp_tri_req2_pop_data;
+    wire tp_tri_req3_push_valid;
+    wire tp_tri_req3_push_ready;
+    wire [591:0] tp_tri_req3_push_data;
+    wire tp_tri_req3_pop_valid;
+    wire tp_tri_req3_pop_ready;
+    wire [591:0] tp_tri_req3_pop_data;
+    wire tp_tri_req4_push_valid;
+    wire tp_tri_req4_push_ready;
+    wire [591:0] tp_tri_req4_push_data;
+    wire tp_tri_req4_pop_valid;
+    wire tp_tri_req4_pop_ready;
+    wire [591:0] tp_tri_req4_pop_data;
+    wire tp_tri_req5_push_valid;
+    wire tp_tri_req5_push_ready;
+    wire [591:0] tp_tri_req5_push_data;
+    wire tp_tri_req5_pop_valid;
+    wire tp_tri_req5_pop_ready;
+    wire [591:0] tp_tri_req5_pop_data;
+    wire tp_tri_req6_push_valid;
+    wire tp_tri_req6_push_ready;
+    wire [591:0] tp_tri_req6_push_data;
+    wire tp_tri_req6_pop_valid;
+    wire tp_tri_req6_pop_ready;
+    wire [591:0] tp_tri_req6_pop_data;
+    wire tp_tri_req7_push_valid;
+    wire tp_tri_req7_push_ready;
+    wire [591:0] tp_tri_req7_push_data;
+    wire tp_tri_req7_pop_valid;
+    wire tp_tri_req7_pop_ready;
+    wire [591:0] tp_tri_req7_pop_data;
+    wire tp_tri_req8_push_valid;
+    wire tp_tri_req8_push_ready;
+    wire [591:0] tp_tri_req8_push_data;
+    wire tp_tri_req8_pop_valid;
+    wire tp_tri_req8_pop_ready;
+    wire [591:0] tp_tri_req8_pop_data;
+    wire tp_tri_req9_push_valid;
+    wire tp_tri_req9_push_ready;
+    wire [591:0] tp_tri_req9_push_data;
+    wire tp_tri_req9_pop_valid;
+    wire tp_tri_req9_pop_ready;
+    wire [591:0] tp_tri_req9_pop_data;
+    wire tp_tri_req10_push_valid;
+    wire tp_tri_req10_push_ready;
+    wire [591:0] tp_tri_req10_push_data;
+    wire tp_tri_req10_pop_valid;
+    wire tp_tri_req10_pop_ready;
+    wire [591:0] tp_tri_req10_pop_data;
+    wire tp_tri_req11_push_valid;
+    wire tp_tri_req11_push_ready;
+    wire [591:0] tp_tri_req11_push_data;
+    wire tp_tri_req11_pop_valid;
+    wire tp_tri_req11_pop_ready;
+    wire [591:0] tp_tri_req11_pop_data;
+    wire tp_tri_req12_push_valid;
+    wire tp_tri_req12_push_ready;
+    wire [591:0] tp_tri_req12_push_data;
+    wire tp_tri_req12_pop_valid;
+    wire tp_tri_req12_pop_ready;
+    wire [591:0] tp_tri_req12_pop_data;
+    wire tp_tri_req13_push_valid;
+    wire tp_tri_req13_push_ready;
+    wire [591:0] tp_tri_req13_push_data;
+    wire tp_tri_req13_pop_valid;
+    wire tp_tri_req13_pop_ready;
+    wire [591:0] tp_tri_req13_pop_data;
+    wire tp_tri_req14_push_valid;
+    wire tp_tri_req14_push_ready;
+    wire [591:0] tp_tri_req14_push_data;
+    wire tp_tri_req14_pop_valid;
+    wire tp_tri_req14_pop_ready;
+    wire [591:0] tp_tri_req14_pop_data;
+    wire tp_tri_req15_push_valid;
+    wire tp_tri_req15_push_ready;
+    wire [591:0] tp_tri_req15_push_data;
+    wire tp_tri_req15_pop_valid;
+    wire tp_tri_req15_pop_ready;
+    wire [591:0] tp_tri_req15_pop_data;
+    wire tp_tri_resp0_push_valid;
+    wire tp_tri_resp0_push_ready;
+    wire [144:0] tp_tri_resp0_push_data;
+    wire tp_tri_resp0_pop_valid;
+    wire tp_tri_resp0_pop_ready;
+    wire [144:0] tp_tri_resp0_pop_data;
+    wire tp_tri_resp1_push_valid;
+    wire tp_tri_resp1_push_ready;
+    wire [144:0] tp_tri_resp1_push_data;
+    wire tp_tri_resp1_pop_valid;
+    wire tp_tri_resp1_pop_ready;
+    wire [144:0] tp_tri_resp1_pop_data;
+    wire tp_tri_resp2_push_valid;
+    wire tp_tri_resp2_push_ready;
+    wire [144:0] tp_tri_resp2_push_data;
+    wire tp_tri_resp2_pop_valid;
+    wire tp_tri_resp2_pop_ready;
+    wire [144:0] tp_tri_resp2_pop_data;
+    wire tp_tri_resp3_push_valid;
+    wire tp_tri_resp3_push_ready;
+    wire [144:0] tp_tri_resp3_push_data;
+    wire tp_tri_resp3_pop_valid;
+    wire tp_tri_resp3_pop_ready;
+    wire [144:0] tp_tri_resp3_pop_data;
+    wire tp_tri_resp4_push_valid;
+    wire tp_tri_resp4_push_ready;
+    wire [144:0] tp_tri_resp4_push_data;
+    wire tp_tri_resp4_pop_valid;
+    wire tp_tri_resp4_pop_ready;
+    wire [144:0] tp_tri_resp4_pop_data;
+    wire tp_tri_resp5_push_valid;
+    wire tp_tri_resp5_push_ready;
+    wire [144:0] tp_tri_resp5_push_data;
+    wire tp_tri_resp5_pop_valid;
+    wire tp_tri_resp5_pop_ready;
+    wire [144:0] tp_tri_resp5_pop_data;
+    wire tp_tri_resp6_push_valid;
+    wire tp_tri_resp6_push_ready;
+    wire [144:0] tp_tri_resp6_push_data;
+    wire tp_tri_resp6_pop_valid;
+    wire tp_tri_resp6_pop_ready;
+    wire [144:0] tp_tri_resp6_pop_data;
+    wire tp_tri_resp7_push_valid;
+    wire tp_tri_resp7_push_ready;
+    wire [144:0] tp_tri_resp7_push_data;
+    wire tp_tri_resp7_pop_valid;
+    wire tp_tri_resp7_pop_ready;
+    wire [144:0] tp_tri_resp7_pop_data;
+    wire tp_tri_resp8_push_valid;
+    wire tp_tri_resp8_push_ready;
+    wire [144:0] tp_tri_resp8_push_data;
+    wire tp_tri_resp8_pop_valid;
+    wire tp_tri_resp8_pop_ready;
+    wire [144:0] tp_tri_resp8_pop_data;
+    wire tp_tri_resp9_push_valid;
+    wire tp_tri_resp9_push_ready;
+    wire [144:0] tp_tri_resp9_push_data;
+    wire tp_tri_resp9_pop_valid;
+    wire tp_tri_resp9_pop_ready;
+    wire [144:0] tp_tri_resp9_pop_data;
+    wire tp_tri_resp10_push_valid;
+    wire tp_tri_resp10_push_ready;
+    wire [144:0] tp_tri_resp10_push_data;
+    wire tp_tri_resp10_pop_valid;
+    wire tp_tri_resp10_pop_ready;
+    wire [144:0] tp_tri_resp10_pop_data;
+    wire tp_tri_resp11_push_valid;
+    wire tp_tri_resp11_push_ready;
+    wire [144:0] tp_tri_resp11_push_data;
+    wire tp_tri_resp11_pop_valid;
+    wire tp_tri_resp11_pop_ready;
+    wire [144:0] tp_tri_resp11_pop_data;
+    wire tp_tri_resp12_push_valid;
+    wire tp_tri_resp12_push_ready;
+    wire [144:0] tp_tri_resp12_push_data;
+    wire tp_tri_resp12_pop_valid;
+    wire tp_tri_resp12_pop_ready;
+    wire [144:0] tp_tri_resp12_pop_data;
+    wire tp_tri_resp13_push_valid;
+    wire tp_tri_resp13_push_ready;
+    wire [144:0] tp_tri_resp13_push_data;
+    wire tp_tri_resp13_pop_valid;
+    wire tp_tri_resp13_pop_ready;
+    wire [144:0] tp_tri_resp13_pop_data;
+    wire tp_tri_resp14_push_valid;
+    wire tp_tri_resp14_push_ready;
+    wire [144:0] tp_tri_resp14_push_data;
+    wire tp_tri_resp14_pop_valid;
+    wire tp_tri_resp14_pop_ready;
+    wire [144:0] tp_tri_resp14_pop_data;
+    wire tp_tri_resp15_push_valid;
+    wire tp_tri_resp15_push_ready;
+    wire [144:0] tp_tri_resp15_push_data;
+    wire tp_tri_resp15_pop_valid;
+    wire tp_tri_resp15_pop_ready;
+    wire [144:0] tp_tri_resp15_pop_data;
+    wire tp_mem_req0_push_valid;
+    wire tp_mem_req0_push_ready;
+    wire [63:0] tp_mem_req0_push_data;
+    wire tp_mem_req0_pop_valid;
+    wire tp_mem_req0_pop_ready;
+    wire [63:0] tp_mem_req0_pop_data;
+    wire tp_mem_req1_push_valid;
+    wire tp_mem_req1_push_ready;
+    wire [63:0] tp_mem_req1_push_data;
+    wire tp_mem_req1_pop_valid;
+    wire tp_mem_req1_pop_ready;
+    wire [63:0] tp_mem_req1_pop_data;
+    wire tp_mem_req2_push_valid;
+    wire tp_mem_req2_push_ready;
+    wire [63:0] tp_mem_req2_push_data;
+    wire tp_mem_req2_pop_valid;
+    wire tp_mem_req2_pop_ready;
+    wire [63:0] tp_mem_req2_pop_data;
+    wire tp_mem_req3_push_valid;
+    wire tp_mem_req3_push_ready;
+    wire [63:0] tp_mem_req3_push_data;
+    wire tp_mem_req3_pop_valid;
+    wire tp_mem_req3_pop_ready;
+    wire [63:0] tp_mem_req3_pop_data;
+    wire tp_mem_req4_push_valid;
+    wire tp_mem_req4_push_ready;
+    wire [63:0] tp_mem_req4_push_data;
+    wire tp_mem_req4_pop_valid;
+    wire tp_mem_req4_pop_ready;
+    wire [63:0] tp_mem_req4_pop_data;
+    wire tp_mem_req5_push_valid;
+    wire tp_mem_req5_push_ready;
+    wire [63:0] tp_mem_req5_push_data;
+    wire tp_mem_req5_pop_valid;
+    wire tp_mem_req5_pop_ready;
+    wire [63:0] tp_mem_req5_pop_data;
+    wire tp_mem_req6_push_valid;
+    wire tp_mem_req6_push_ready;
+    wire [63:0] tp_mem_req6_push_data;
+    wire tp_mem_req6_pop_valid;
+    wire tp_mem_req6_pop_ready;
+    wire [63:0] tp_mem_req6_pop_data;
+    wire tp_mem_req7_push_valid;
+    wire tp_mem_req7_push_ready;
+    wire [63:0] tp_mem_req7_push_data;
+    wire tp_mem_req7_pop_valid;
+    wire tp_mem_req7_pop_ready;
+    wire [63:0] tp_mem_req7_pop_data;
+    wire tp_mem_req8_push_valid;
+    wire tp_mem_req8_push_ready;
+    wire [63:0] tp_mem_req8_push_data;
+    wire tp_mem_req8_pop_valid;
+    wire tp_mem_req8_pop_ready;
+    wire [63:0] tp_mem_req8_pop_data;
+    wire tp_mem_req9_push_valid;
+    wire tp_mem_req9_push_ready;
+    wire [63:0] tp_mem_req9_push_data;
+    wire tp_mem_req9_pop_valid;
+    wire tp_mem_req9_pop_ready;
+    wire [63:0] tp_mem_req9_pop_data;
+    wire tp_mem_req10_push_valid;
+    wire tp_mem_req10_push_ready;
+    wire [63:0] tp_mem_req10_push_data;
+    wire tp_mem_req10_pop_valid;
+    wire tp_mem_req10_pop_ready;
+    wire [63:0] tp_mem_req10_pop_data;
+    wire tp_mem_req11_push_valid;
+    wire tp_mem_req11_push_ready;
+    wire [63:0] tp_mem_req11_push_data;
+    wire tp_mem_req11_pop_valid;
+    wire tp_mem_req11_pop_ready;
+    wire [63:0] tp_mem_req11_pop_data;
+    wire tp_mem_req12_push_valid;
+    wire tp_mem_req12_push_ready;
+    wire [63:0] tp_mem_req12_push_data;
+    wire tp_mem_req12_pop_valid;
+    wire tp_mem_req12_pop_ready;
+    wire [63:0] tp_mem_req12_pop_data;
+    wire tp_mem_req13_push_valid;
+    wire tp_mem_req13_push_ready;
+    wire [63:0] tp_mem_req13_push_data;
+    wire tp_mem_req13_pop_valid;
+    wire tp_mem_req13_pop_ready;
+    wire [63:0] tp_mem_req13_pop_data;
+    wire tp_mem_req14_push_valid;
+    wire tp_mem_req14_push_ready;
+    wire [63:0] tp_mem_req14_push_data;
+    wire tp_mem_req14_pop_valid;
+    wire tp_mem_req14_pop_ready;
+    wire [63:0] tp_mem_req14_pop_data;
+    wire tp_mem_req15_push_valid;
+    wire tp_mem_req15_push_ready;
+    wire [63:0] tp_mem_req15_push_data;
+    wire tp_mem_req15_pop_valid;
+    wire tp_mem_req15_pop_ready;
+    wire [63:0] tp_mem_req15_pop_data;
+    wire tp_mem_resp0_push_valid;
+    wire tp_mem_resp0_push_ready;
+    wire [575:0] tp_mem_resp0_push_data;
+    wire tp_mem_resp0_pop_valid;
+    wire tp_mem_resp0_pop_ready;
+    wire [575:0] tp_mem_resp0_pop_data;
+    wire tp_mem_resp1_push_valid;
+    wire tp_mem_resp1_push_ready;
+    wire [575:0] tp_mem_resp1_push_data;
+    wire tp_mem_resp1_pop_valid;
+    wire tp_mem_resp1_pop_ready;
+    wire [575:0] tp_mem_resp1_pop_data;
+    wire tp_mem_resp2_push_valid;
+    wire tp_mem_resp2_push_ready;
+    wire [575:0] tp_mem_resp2_push_data;
+    wire tp_mem_resp2_pop_valid;
+    wire tp_mem_resp2_pop_ready;
+    wire [575:0] tp_mem_resp2_pop_data;
+    wire tp_mem_resp3_push_valid;
+    wire tp_mem_resp3_push_ready;
+    wire [575:0] tp_mem_resp3_push_data;
+    wire tp_mem_resp3_pop_valid;
+    wire tp_mem_resp3_pop_ready;
+    wire [575:0] tp_mem_resp3_pop_data;
+    wire tp_mem_resp4_push_valid;
+    wire tp_mem_resp4_push_ready;
+    wire [575:0] tp_mem_resp4_push_data;
+    wire tp_mem_resp4_pop_valid;
+    wire tp_mem_resp4_pop_ready;
+    wire [575:0] tp_mem_resp4_pop_data;
+    wire tp_mem_resp5_push_valid;
+    wire tp_mem_resp5_push_ready;
+    wire [575:0] tp_mem_resp5_push_data;
+    wire tp_mem_resp5_pop_valid;
+    wire tp_mem_resp5_pop_ready;
+    wire [575:0] tp_mem_resp5_pop_data;
+    wire tp_mem_resp6_push_valid;
+    wire tp_mem_resp6_push_ready;
+    wire [575:0] tp_mem_resp6_push_data;
+    wire tp_mem_resp6_pop_valid;
+    wire tp_mem_resp6_pop_ready;
+    wire [575:0] tp_mem_resp6_pop_data;
+    wire tp_mem_resp7_push_valid;
+    wire tp_mem_resp7_push_ready;
+    wire [575:0] tp_mem_resp7_push_data;
+    wire tp_mem_resp7_pop_valid;
+    wire tp_mem_resp7_pop_ready;
+    wire [575:0] tp_mem_resp7_pop_data;
+    wire tp_mem_resp8_push_valid;
+    wire tp_mem_resp8_push_ready;
+    wire [575:0] tp_mem_resp8_push_data;
+    wire tp_mem_resp8_pop_valid;
+    wire tp_mem_resp8_pop_ready;
+    wire [575:0] tp_mem_resp8_pop_data;
+    wire tp_mem_resp9_push_valid;
+    wire tp_mem_resp9_push_ready;
+    wire [575:0] tp_mem_resp9_push_data;
+    wire tp_mem_resp9_pop_valid;
+    wire tp_mem_resp9_pop_ready;
+    wire [575:0] tp_mem_resp9_pop_data;
+    wire tp_mem_resp10_push_valid;
+    wire tp_mem_resp10_push_ready;
+    wire [575:0] tp_mem_resp10_push_data;
+    wire tp_mem_resp10_pop_valid;
+    wire tp_mem_resp10_pop_ready;
+    wire [575:0] tp_mem_resp10_pop_data;
+    wire tp_mem_resp11_push_valid;
+    wire tp_mem_resp11_push_ready;
+    wire [575:0] tp_mem_resp11_push_data;
+    wire tp_mem_resp11_pop_valid;
+    wire tp_mem_resp11_pop_ready;
+    wire [575:0] tp_mem_resp11_pop_data;
+    wire tp_mem_resp12_push_valid;
+    wire tp_mem_resp12_push_ready;
+    wire [575:0] tp_mem_resp12_push_data;
+    wire tp_mem_resp12_pop_valid;
+    wire tp_mem_resp12_pop_ready;
+    wire [575:0] tp_mem_resp12_pop_data;
+    wire tp_mem_resp13_push_valid;
+    wire tp_mem_resp13_push_ready;
+    wire [575:0] tp_mem_resp13_push_data;
+    wire tp_mem_resp13_pop_valid;
+    wire tp_mem_resp13_pop_ready;
+    wire [575:0] tp_mem_resp13_pop_data;
+    wire tp_mem_resp14_push_valid;
+    wire tp_mem_resp14_push_ready;
+    wire [575:0] tp_mem_resp14_push_data;
+    wire tp_mem_resp14_pop_valid;
+    wire tp_mem_resp14_pop_ready;
+    wire [575:0] tp_mem_resp14_pop_data;
+    wire tp_mem_resp15_push_valid;
+    wire tp_mem_resp15_push_ready;
+    wire [575:0] tp_mem_resp15_push_data;
+    wire tp_mem_resp15_pop_valid;
+    wire tp_mem_resp15_pop_ready;
+    wire [575:0] tp_mem_resp15_pop_data;
+    wire tp_ray_write0_push_valid;
+    wire tp_ray_write0_push_ready;
+    wire [288:0] tp_ray_write0_push_data;
+    wire tp_ray_write0_pop_valid;
+    wire tp_ray_write0_pop_ready;
+    wire [288:0] tp_ray_write0_pop_data;
+    wire tp_ray_write1_push_valid;
+    wire tp_ray_write1_push_ready;
+    wire [288:0] tp_ray_write1_push_data;
+    wire tp_ray_write1_pop_valid;
+    wire tp_ray_write1_pop_ready;
+    wire [288:0] tp_ray_write1_pop_data;
+    wire tp_ray_write2_push_valid;
+    wire tp_ray_write2_push_ready;
+    wire [288:0] tp_ray_write2_push_data;
+    wire tp_ray_write2_pop_valid;
+    wire tp_ray_write2_pop_ready;
+    wire [288:0] tp_ray_write2_pop_data;
+    wire tp_ray_write3_push_valid;
+    wire tp_ray_write3_push_ready;
+    wire [288:0] tp_ray_write3_push_data;
+    wire tp_ray_write3_pop_valid;
+    wire tp_ray_write3_pop_ready;
+    wire [288:0] tp_ray_write3_pop_data;
+    wire tp_ray_write4_push_valid;
+    wire tp_ray_write4_push_ready;
+    wire [288:0] tp_ray_write4_push_data;
+    wire tp_ray_write4_pop_valid;
+    wire tp_ray_write4_pop_ready;
+    wire [288:0] tp_ray_write4_pop_data;
+    wire tp_ray_write5_push_valid;
+    wire tp_ray_write5_push_ready;
+    wire [288:0] tp_ray_write5_push_data;
+    wire tp_ray_write5_pop_valid;
+    wire tp_ray_write5_pop_ready;
+    wire [288:0] tp_ray_write5_pop_data;
+    wire tp_ray_write6_push_valid;
+    wire tp_ray_write6_push_ready;
+    wire [288:0] tp_ray_write6_push_data;
+    wire tp_ray_write6_pop_valid;
+    wire tp_ray_write6_pop_ready;
+    wire [288:0] tp_ray_write6_pop_data;
+    wire tp_ray_write7_push_valid;
+    wire tp_ray_write7_push_ready;
+    wire [288:0] tp_ray_write7_push_data;
+    wire tp_ray_write7_pop_valid;
+    wire tp_ray_write7_pop_ready;
+    wire [288:0] tp_ray_write7_pop_data;
+    wire tp_ray_write8_push_valid;
+    wire tp_ray_write8_push_ready;
+    wire [288:0] tp_ray_write8_push_data;
+    wire tp_ray_write8_pop_valid;
+    wire tp_ray_write8_pop_ready;
+    wire [288:0] tp_ray_write8_pop_data;
+    wire tp_ray_write9_push_valid;
+    wire tp_ray_write9_push_ready;
+    wire [288:0] tp_ray_write9_push_data;
+    wire tp_ray_write9_pop_valid;
+    wire tp_ray_write9_pop_ready;
+    wire [288:0] tp_ray_write9_pop_data;
+    wire tp_ray_write10_push_valid;
+    wire tp_ray_write10_push_ready;
+    wire [288:0] tp_ray_write10_push_data;
+    wire tp_ray_write10_pop_valid;
+    wire tp_ray_write10_pop_ready;
+    wire [288:0] tp_ray_write10_pop_data;
+    wire tp_ray_write11_push_valid;
+    wire tp_ray_write11_push_ready;
+    wire [288:0] tp_ray_write11_push_data;
+    wire tp_ray_write11_pop_valid;
+    wire tp_ray_write11_pop_ready;
+    wire [288:0] tp_ray_write11_pop_data;
+    wire tp_ray_write12_push_valid;
+    wire tp_ray_write12_push_ready;
+    wire [288:0] tp_ray_write12_push_data;
+    wire tp_ray_write12_pop_valid;
+    wire tp_ray_write12_pop_ready;
+    wire [288:0] tp_ray_write12_pop_data;
+    wire tp_ray_write13_push_valid;
+    wire tp_ray_write13_push_ready;
+    wire [288:0] tp_ray_write13_push_data;
+    wire tp_ray_write13_pop_valid;
+    wire tp_ray_write13_pop_ready;
+    wire [288:0] tp_ray_write13_pop_data;
+    wire tp_ray_write14_push_valid;
+    wire tp_ray_write14_push_ready;
+    wire [288:0] tp_ray_write14_push_data;
+    wire tp_ray_write14_pop_valid;
+    wire tp_ray_write14_pop_ready;
+    wire [288:0] tp_ray_write14_pop_data;
+    wire tp_ray_write15_push_valid;
+    wire tp_ray_write15_push_ready;
+    wire [288:0] tp_ray_write15_push_data;
+    wire tp_ray_write15_pop_valid;
+    wire tp_ray_write15_pop_ready;
+    wire [288:0] tp_ray_write15_pop_data;
+    wire tp_hit0_push_valid;
+    wire tp_hit0_push_ready;
+    wire [159:0] tp_hit0_push_data;
+    wire tp_hit0_pop_valid;
+    wire tp_hit0_pop_ready;
+    wire [159:0] tp_hit0_pop_data;
+    wire tp_hit1_push_valid;
+    wire tp_hit1_push_ready;
+    wire [159:0] tp_hit1_push_data;
+    wire tp_hit1_pop_valid;
+    wire tp_hit1_pop_ready;
+    wire [159:0] tp_hit1_pop_data;
+    wire tp_hit2_push_valid;
+    wire tp_hit2_push_ready;
+    wire [159:0] tp_hit2_push_data;
+    wire tp_hit2_pop_valid;
+    wire tp_hit2_pop_ready;
+    wire [159:0] tp_hit2_pop_data;
+    wire tp_hit3_push_valid;
+    wire tp_hit3_push_ready;
+    wire [159:0] tp_hit3_push_data;
+    wire tp_hit3_pop_valid;
+    wire tp_hit3_pop_ready;
+    wire [159:0] tp_hit3_pop_data;
+    wire tp_hit4_push_valid;
+    wire tp_hit4_push_ready;
+    wire [159:0] tp_hit4_push_data;
+    wire tp_hit4_pop_valid;
+    wire tp_hit4_pop_ready;
+    wire [159:0] tp_hit4_pop_data;
+    wire tp_hit5_push_valid;
+    wire tp_hit5_push_ready;
+    wire [159:0] tp_hit5_push_data;
+    wire tp_hit5_pop_valid;
+    wire tp_hit5_pop_ready;
+    wire [159:0] tp_hit5_pop_data;
+    wire tp_hit6_push_valid;
+    wire tp_hit6_push_ready;
+    wire [159:0] tp_hit6_push_data;
+    wire tp_hit6_pop_valid;
+    wire tp_hit6_pop_ready;
+    wire [159:0] tp_hit6_pop_data;
+    wire tp_hit7_push_valid;
+    wire tp_hit7_push_ready;
+    wire [159:0] tp_hit7_push_data;
+    wire tp_hit7_pop_valid;
+    wire tp_hit7_pop_ready;
+    wire [159:0] tp_hit7_pop_data;
+    wire tp_hit8_push_valid;
+    wire tp_hit8_push_ready;
+    wire [159:0] tp_hit8_push_data;
+    wire tp_hit8_pop_valid;
+    wire tp_hit8_pop_ready;
+    wire [159:0] tp_hit8_pop_data;
+    wire tp_hit9_push_valid;
+    wire tp_hit9_push_ready;
+    wire [159:0] tp_hit9_push_data;
+    wire tp_hit9_pop_valid;
+    wire tp_hit9_pop_ready;
+    wire [159:0] tp_hit9_pop_data;
+    wire tp_hit10_push_valid;
+    wire tp_hit10_push_ready;
+    wire [159:0] tp_hit10_push_data;
+    wire tp_hit10_pop_valid;
+    wire tp_hit10_pop_ready;
+    wire [159:0] tp_hit10_pop_data;
+    wire tp_hit11_push_valid;
+    wire tp_hit11_push_ready;
+    wire [159:0] tp_hit11_push_data;
+    wire tp_hit11_pop_valid;
+    wire tp_hit11_pop_ready;
+    wire [159:0] tp_hit11_pop_data;
+    wire tp_hit12_push_valid;
+    wire tp_hit12_push_ready;
+    wire [159:0] tp_hit12_push_data;
+    wire tp_hit12_pop_valid;
+    wire tp_hit12_pop_ready;
+    wire [159:0] tp_hit12_pop_data;
+    wire tp_hit13_push_valid;
+    wire tp_hit13_push_ready;
+    wire [159:0] tp_hit13_push_data;
+    wire tp_hit13_pop_valid;
+    wire tp_hit13_pop_ready;
+    wire [159:0] tp_hit13_pop_data;
+    wire tp_hit14_push_valid;
+    wire tp_hit14_push_ready;
+    wire [159:0] tp_hit14_push_data;
+    wire tp_hit14_pop_valid;
+    wire tp_hit14_pop_ready;
+    wire [159:0] tp_hit14_pop_data;
+    wire tp_hit15_push_valid;
+    wire tp_hit15_push_ready;
+    wire [159:0] tp_hit15_push_data;
+    wire tp_hit15_pop_valid;
+    wire tp_hit15_pop_ready;
+    wire [159:0] tp_hit15_pop_data;
+    wire tp_gmem_req0_push_valid;
+    wire tp_gmem_req0_push_ready;
+    wire [675:0] tp_gmem_req0_push_data;
+    wire tp_gmem_req0_pop_valid;
+    wire tp_gmem_req0_pop_ready;
+    wire [675:0] tp_gmem_req0_pop_data;
+    wire tp_gmem_req1_push_valid;
+    wire tp_gmem_req1_push_ready;
+    wire [675:0] tp_gmem_req1_push_data;
+    wire tp_gmem_req1_pop_valid;
+    wire tp_gmem_req1_pop_ready;
+    wire [675:0] tp_gmem_req1_pop_data;
+    wire tp_gmem_req2_push_valid;
+    wire tp_gmem_req2_push_ready;
+    wire [675:0] tp_gmem_req2_push_data;
+    wire tp_gmem_req2_pop_valid;
+    wire tp_gmem_req2_pop_ready;
+    wire [675:0] tp_gmem_req2_pop_data;
+    wire tp_gmem_req3_push_valid;
+    wire tp_gmem_req3_push_ready;
+    wire [675:0] tp_gmem_req3_push_data;
+    wire tp_gmem_req3_pop_valid;
+    wire tp_gmem_req3_pop_ready;
+    wire [675:0] tp_gmem_req3_pop_data;
+    wire tp_gmem_req4_push_valid;
+    wire tp_gmem_req4_push_ready;
+    wire [675:0] tp_gmem_req4_push_data;
+    wire tp_gmem_req4_pop_valid;
+    wire tp_gmem_req4_pop_ready;
+    wire [675:0] tp_gmem_req4_pop_data;
+    wire tp_gmem_req5_push_valid;
+    wire tp_gmem_req5_push_ready;
+    wire [675:0] tp_gmem_req5_push_data;
+    wire tp_gmem_req5_pop_valid;
+    wire tp_gmem_req5_pop_ready;
+    wire [675:0] tp_gmem_req5_pop_data;
+    wire tp_gmem_req6_push_valid;
+    wire tp_gmem_req6_push_ready;
+    wire [675:0] tp_gmem_req6_push_data;
+    wire tp_gmem_req6_pop_valid;
+    wire tp_gmem_req6_pop_ready;
+    wire [675:0] tp_gmem_req6_pop_data;
+    wire tp_gmem_req7_push_valid;
+    wire tp_gmem_req7_push_ready;
+    wire [675:0] tp_gmem_req7_push_data;
+    wire tp_gmem_req7_pop_valid;
+    wire tp_gmem_req7_pop_ready;
+    wire [675:0] tp_gmem_req7_pop_data;
+    wire tp_gmem_req8_push_valid;
+    wire tp_gmem_req8_push_ready;
+    wire [675:0] tp_gmem_req8_push_data;
+    wire tp_gmem_req8_pop_valid;
+    wire tp_gmem_req8_pop_ready;
+    wire [675:0] tp_gmem_req8_pop_data;
+    wire tp_gmem_req9_push_valid;
+    wire tp_gmem_req9_push_ready;
+    wire [675:0] tp_gmem_req9_push_data;
+    wire tp_gmem_req9_pop_valid;
+    wire tp_gmem_req9_pop_ready;
+    wire [675:0] tp_gmem_req9_pop_data;
+    wire tp_gmem_req10_push_valid;
+    wire tp_gmem_req10_push_ready;
+    wire [675:0] tp_gmem_req10_push_data;
+    wire tp_gmem_req10_pop_valid;
+    wire tp_gmem_req10_pop_ready;
+    wire [675:0] tp_gmem_req10_pop_data;
+    wire tp_gmem_req11_push_valid;
+    wire tp_gmem_req11_push_ready;
+    wire [675:0] tp_gmem_req11_push_data;
+    wire tp_gmem_req11_pop_valid;
+    wire tp_gmem_req11_pop_ready;
+    wire [675:0] tp_gmem_req11_pop_data;
+    wire tp_gmem_req12_push_valid;
+    wire tp_gmem_req12_push_ready;
+    wire [675:0] tp_gmem_req12_push_data;
+    wire tp_gmem_req12_pop_valid;
+    wire tp_gmem_req12_pop_ready;
+    wire [675:0] tp_gmem_req12_pop_data;
+    wire tp_gmem_req13_push_valid;
+    wire tp_gmem_req13_push_ready;
+    wire [675:0] tp_gmem_req13_push_data;
+    wire tp_gmem_req13_pop_valid;
+    wire tp_gmem_req13_pop_ready;
+    wire [675:0] tp_gmem_req13_pop_data;
+    wire tp_gmem_req14_push_valid;
+    wire tp_gmem_req14_push_ready;
+    wire [675:0] tp_gmem_req14_push_data;
+    wire tp_gmem_req14_pop_valid;
+    wire tp_gmem_req14_pop_ready;
+    wire [675:0] tp_gmem_req14_pop_data;
+    wire tp_gmem_req15_push_valid;
+    wire tp_gmem_req15_push_ready;
+    wire [675:0] tp_gmem_req15_push_data;
+    wire tp_gmem_req15_pop_valid;
+    wire tp_gmem_req15_pop_ready;
+    wire [675:0] tp_gmem_req15_pop_data;
+    wire tp_gmem_resp0_push_valid;
+    wire tp_gmem_resp0_push_ready;
+    wire [611:0] tp_gmem_resp0_push_data;
+    wire tp_gmem_resp0_pop_valid;
+    wire tp_gmem_resp0_pop_ready;
+    wire [611:0] tp_gmem_resp0_pop_data;
+    wire tp_gmem_resp1_push_valid;
+    wire tp_gmem_resp1_push_ready;
+    wire [611:0] tp_gmem_resp1_push_data;
+    wire tp_gmem_resp1_pop_valid;
+    wire tp_gmem_resp1_pop_ready;
+    wire [611:0] tp_gmem_resp1_pop_data;
+    wire tp_gmem_resp2_push_valid;
+    wire tp_gmem_resp2_push_ready;
+    wire [611:0] tp_gmem_resp2_push_data;
+    wire tp_gmem_resp2_pop_valid;
+    wire tp_gmem_resp2_pop_ready;
+    wire [611:0] tp_gmem_resp2_pop_data;
+    wire tp_gmem_resp3_push_valid;
+    wire tp_gmem_resp3_push_ready;
+    wire [611:0] tp_gmem_resp3_push_data;
+    wire tp_gmem_resp3_pop_valid;
+    wire tp_gmem_resp3_pop_ready;
+    wire [611:0] tp_gmem_resp3_pop_data;
+    wire tp_gmem_resp4_push_valid;
+    wire tp_gmem_resp4_push_ready;
+    wire [611:0] tp_gmem_resp4_push_data;
+    wire tp_gmem_resp4_pop_valid;
+    wire tp_gmem_resp4_pop_ready;
+    wire [611:0] tp_gmem_resp4_pop_data;
+    wire tp_gmem_resp5_push_valid;
+    wire tp_gmem_resp5_push_ready;
+    wire [611:0] tp_gmem_resp5_push_data;
+    wire tp_gmem_resp5_pop_valid;
+    wire tp_gmem_resp5_pop_ready;
+    wire [611:0] tp_gmem_resp5_pop_data;
+    wire tp_gmem_resp6_push_valid;
+    wire tp_gmem_resp6_push_ready;
+    wire [611:0] tp_gmem_resp6_push_data;
+    wire tp_gmem_resp6_pop_valid;
+    wire tp_gmem_resp6_pop_ready;
+    wire [611:0] tp_gmem_resp6_pop_data;
+    wire tp_gmem_resp7_push_valid;
+    wire tp_gmem_resp7_push_ready;
+    wire [611:0] tp_gmem_resp7_push_data;
+    wire tp_gmem_resp7_pop_valid;
+    wire tp_gmem_resp7_pop_ready;
+    wire [611:0] tp_gmem_resp7_pop_data;
+    wire tp_gmem_resp8_push_valid;
+    wire tp_gmem_resp8_push_ready;
+    wire [611:0] tp_gmem_resp8_push_data;
+    wire tp_gmem_resp8_pop_valid;
+    wire tp_gmem_resp8_pop_ready;
+    wire [611:0] tp_gmem_resp8_pop_data;
+    wire tp_gmem_resp9_push_valid;
+    wire tp_gmem_resp9_push_ready;
+    wire [611:0] tp_gmem_resp9_push_data;
+    wire tp_gmem_resp9_pop_valid;
+    wire tp_gmem_resp9_pop_ready;
+    wire [611:0] tp_gmem_resp9_pop_data;
+    wire tp_gmem_resp10_push_valid;
+    wire tp_gmem_resp10_push_ready;
+    wire [611:0] tp_gmem_resp10_push_data;
+    wire tp_gmem_resp10_pop_valid;
+    wire tp_gmem_resp10_pop_ready;
+    wire [611:0] tp_gmem_resp10_pop_data;
+    wire tp_gmem_resp11_push_valid;
+    wire tp_gmem_resp11_push_ready;
+    wire [611:0] tp_gmem_resp11_push_data;
+    wire tp_gmem_resp11_pop_valid;
+    wire tp_gmem_resp11_pop_ready;
+    wire [611:0] tp_gmem_resp11_pop_data;
+    wire tp_gmem_resp12_push_valid;
+    wire tp_gmem_resp12_push_ready;
+    wire [611:0] tp_gmem_resp12_push_data;
+    wire tp_gmem_resp12_pop_valid;
+    wire tp_gmem_resp12_pop_ready;
+    wire [611:0] tp_gmem_resp12_pop_data;
+    wire tp_gmem_resp13_push_valid;
+    wire tp_gmem_resp13_push_ready;
+    wire [611:0] tp_gmem_resp13_push_data;
+    wire tp_gmem_resp13_pop_valid;
+    wire tp_gmem_resp13_pop_ready;
+    wire [611:0] tp_gmem_resp13_pop_data;
+    wire tp_gmem_resp14_push_valid;
+    wire tp_gmem_resp14_push_ready;
+    wire [611:0] tp_gmem_resp14_push_data;
+    wire tp_gmem_resp14_pop_valid;
+    wire tp_gmem_resp14_pop_ready;
+    wire [611:0] tp_gmem_resp14_pop_data;
+    wire tp_gmem_resp15_push_valid;
+    wire tp_gmem_resp15_push_ready;
+    wire [611:0] tp_gmem_resp15_push_data;
+    wire tp_gmem_resp15_pop_valid;
+    wire tp_gmem_resp15_pop_ready;
+    wire [611:0] tp_gmem_resp15_pop_data;
+    wire tri_req0_push_valid;
+    wire tri_req0_push_ready;
+    wire [591:0] tri_req0_push_data;
+    wire tri_req0_pop_valid;
+    wire tri_req0_pop_ready;
+    wire [591:0] tri_req0_pop_data;
+    wire tri_req1_push_valid;
+    wire tri_req1_push_ready;
+    wire [591:0] tri_req1_push_data;
+    wire tri_req1_pop_valid;
+    wire tri_req1_pop_ready;
+    wire [591:0] tri_req1_pop_data;
+    wire tri_resp0_push_valid;
+    wire tri_resp0_push_ready;
+    wire [144:0] tri_resp0_push_data;
+    wire tri_resp0_pop_valid;
+    wire tri_resp0_pop_ready;
+    wire [144:0] tri_resp0_pop_data;
+    wire tri_resp1_push_valid;
+    wire tri_resp1_push_ready;
+    wire [144:0] tri_resp1_push_data;
+    wire tri_resp1_pop_valid;
+    wire tri_resp1_pop_ready;
+    wire [144:0] tri_resp1_pop_data;
+    wire div_req_push_valid;
+    wire div_req_push_ready;
+    wire [111:0] div_req_push_data;
+    wire div_req_pop_valid;
+    wire div_req_pop_ready;
+    wire [111:0] div_req_pop_data;
+    wire div_resp_push_valid;
+    wire div_resp_push_ready;
+    wire [111:0] div_resp_push_data;
+    wire div_resp_pop_valid;
+    wire div_resp_pop_ready;
+    wire [111:0] div_resp_pop_data;
     tp #(.INDEX(0), .STACK_ENTRIES(42)) tp0 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray0_valid),
-        .ray_ready(ray0_ready),
-        .ray_data(ray0_data),
-        .div_resp_valid(tp_div_resp0_valid),
-        .div_resp_ready(tp_div_resp0_ready),
-        .div_resp_data(tp_div_resp0_data),
-        .box_resp_valid(tp_box_resp0_valid),
-        .box_resp_ready(tp_box_resp0_ready),
-        .box_resp_data(tp_box_resp0_data),
-        .tri_resp_valid(tp_tri_resp0_valid),
-        .tri_resp_ready(tp_tri_resp0_ready),
-        .tri_resp_data(tp_tri_resp0_data),
-        .mem_resp_valid(tp_mem_resp0_valid),
-        .mem_resp_ready(tp_mem_resp0_ready),
-        .mem_resp_data(tp_mem_resp0_data),
-        .gmem_resp_valid(tp_gmem_resp0_valid),
-        .gmem_resp_ready(tp_gmem_resp0_ready),
-        .gmem_resp_data(tp_gmem_resp0_data),
-        .div_req_valid(tp_div_req0_valid),
-        .div_req_ready(tp_div_req0_ready),
-        .div_req_data(tp_div_req0_data),
-        .box_req_valid(tp_box_req0_valid),
-        .box_req_ready(tp_box_req0_ready),
-        .box_req_data(tp_box_req0_data),
-        .tri_req_valid(tp_tri_req0_valid),
-        .tri_req_ready(tp_tri_req0_ready),
-        .tri_req_data(tp_tri_req0_data),
-        .mem_req_valid(tp_mem_req0_valid),
-        .mem_req_ready(tp_mem_req0_ready),
-        .mem_req_data(tp_mem_req0_data),
-        .ray_write_valid(tp_ray_write0_valid),
-        .ray_write_ready(tp_ray_write0_ready),
-        .ray_write_data(tp_ray_write0_data),
-        .hit_valid(tp_hit0_valid),
-        .hit_ready(tp_hit0_ready),
-        .hit_data(tp_hit0_data),
-        .gmem_req_valid(tp_gmem_req0_valid),
-        .gmem_req_ready(tp_gmem_req0_ready),
-        .gmem_req_data(tp_gmem_req0_data)
+        .ray_valid(ray0_pop_valid),
+        .ray_ready(ray0_pop_ready),
+        .ray_data(ray0_pop_data),
+        .div_resp_valid(tp_div_resp0_pop_valid),
+        .div_resp_ready(tp_div_resp0_pop_ready),
+        .div_resp_data(tp_div_resp0_pop_data),
+        .box_resp_valid(tp_box_resp0_pop_valid),
+        .box_resp_ready(tp_box_resp0_pop_ready),
+        .box_resp_data(tp_box_resp0_pop_data),
+        .tri_resp_valid(tp_tri_resp0_pop_valid),
+        .tri_resp_ready(tp_tri_resp0_pop_ready),
+        .tri_resp_data(tp_tri_resp0_pop_data),
+        .mem_resp_valid(tp_mem_resp0_pop_valid),
+        .mem_resp_ready(tp_mem_resp0_pop_ready),
+        .mem_resp_data(tp_mem_resp0_pop_data),
+        .gmem_resp_valid(tp_gmem_resp0_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp0_pop_ready),
+        .gmem_resp_data(tp_gmem_resp0_pop_data),
+        .div_req_valid(tp_div_req0_push_valid),
+        .div_req_ready(tp_div_req0_push_ready),
+        .div_req_data(tp_div_req0_push_data),
+        .box_req_valid(tp_box_req0_push_valid),
+        .box_req_ready(tp_box_req0_push_ready),
+        .box_req_data(tp_box_req0_push_data),
+        .tri_req_valid(tp_tri_req0_push_valid),
+        .tri_req_ready(tp_tri_req0_push_ready),
+        .tri_req_data(tp_tri_req0_push_data),
+        .mem_req_valid(tp_mem_req0_push_valid),
+        .mem_req_ready(tp_mem_req0_push_ready),
+        .mem_req_data(tp_mem_req0_push_data),
+        .ray_write_valid(tp_ray_write0_push_valid),
+        .ray_write_ready(tp_ray_write0_push_ready),
+        .ray_write_data(tp_ray_write0_push_data),
+        .hit_valid(tp_hit0_push_valid),
+        .hit_ready(tp_hit0_push_ready),
+        .hit_data(tp_hit0_push_data),
+        .gmem_req_valid(tp_gmem_req0_push_valid),
+        .gmem_req_ready(tp_gmem_req0_push_ready),
+        .gmem_req_data(tp_gmem_req0_push_data)
     );
     tp #(.INDEX(1), .STACK_ENTRIES(42)) tp1 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray1_valid),
-        .ray_ready(ray1_ready),
-        .ray_data(ray1_data),
-        .div_resp_valid(tp_div_resp1_valid),
-        .div_resp_ready(tp_div_resp1_ready),
-        .div_resp_data(tp_div_resp1_data),
-        .box_resp_valid(tp_box_resp1_valid),
-        .box_resp_ready(tp_box_resp1_ready),
-        .box_resp_data(tp_box_resp1_data),
-        .tri_resp_valid(tp_tri_resp1_valid),
-        .tri_resp_ready(tp_tri_resp1_ready),
-        .tri_resp_data(tp_tri_resp1_data),
-        .mem_resp_valid(tp_mem_resp1_valid),
-        .mem_resp_ready(tp_mem_resp1_ready),
-        .mem_resp_data(tp_mem_resp1_data),
-        .gmem_resp_valid(tp_gmem_resp1_valid),
-        .gmem_resp_ready(tp_gmem_resp1_ready),
-        .gmem_resp_data(tp_gmem_resp1_data),
-        .div_req_valid(tp_div_req1_valid),
-        .div_req_ready(tp_div_req1_ready),
-        .div_req_data(tp_div_req1_data),
-        .box_req_valid(tp_box_req1_valid),
-        .box_req_ready(tp_box_req1_ready),
-        .box_req_data(tp_box_req1_data),
-        .tri_req_valid(tp_tri_req1_valid),
-        .tri_req_ready(tp_tri_req1_ready),
-        .tri_req_data(tp_tri_req1_data),
-        .mem_req_valid(tp_mem_req1_valid),
-        .mem_req_ready(tp_mem_req1_ready),
-        .mem_req_data(tp_mem_req1_data),
-        .ray_write_valid(tp_ray_write1_valid),
-        .ray_write_ready(tp_ray_write1_ready),
-        .ray_write_data(tp_ray_write1_data),
-        .hit_valid(tp_hit1_valid),
-        .hit_ready(tp_hit1_ready),
-        .hit_data(tp_hit1_data),
-        .gmem_req_valid(tp_gmem_req1_valid),
-        .gmem_req_ready(tp_gmem_req1_ready),
-        .gmem_req_data(tp_gmem_req1_data)
+        .ray_valid(ray1_pop_valid),
+        .ray_ready(ray1_pop_ready),
+        .ray_data(ray1_pop_data),
+        .div_resp_valid(tp_div_resp1_pop_valid),
+        .div_resp_ready(tp_div_resp1_pop_ready),
+        .div_resp_data(tp_div_resp1_pop_data),
+        .box_resp_valid(tp_box_resp1_pop_valid),
+        .box_resp_ready(tp_box_resp1_pop_ready),
+        .box_resp_data(tp_box_resp1_pop_data),
+        .tri_resp_valid(tp_tri_resp1_pop_valid),
+        .tri_resp_ready(tp_tri_resp1_pop_ready),
+        .tri_resp_data(tp_tri_resp1_pop_data),
+        .mem_resp_valid(tp_mem_resp1_pop_valid),
+        .mem_resp_ready(tp_mem_resp1_pop_ready),
+        .mem_resp_data(tp_mem_resp1_pop_data),
+        .gmem_resp_valid(tp_gmem_resp1_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp1_pop_ready),
+        .gmem_resp_data(tp_gmem_resp1_pop_data),
+        .div_req_valid(tp_div_req1_push_valid),
+        .div_req_ready(tp_div_req1_push_ready),
+        .div_req_data(tp_div_req1_push_data),
+        .box_req_valid(tp_box_req1_push_valid),
+        .box_req_ready(tp_box_req1_push_ready),
+        .box_req_data(tp_box_req1_push_data),
+        .tri_req_valid(tp_tri_req1_push_valid),
+        .tri_req_ready(tp_tri_req1_push_ready),
+        .tri_req_data(tp_tri_req1_push_data),
+        .mem_req_valid(tp_mem_req1_push_valid),
+        .mem_req_ready(tp_mem_req1_push_ready),
+        .mem_req_data(tp_mem_req1_push_data),
+        .ray_write_valid(tp_ray_write1_push_valid),
+        .ray_write_ready(tp_ray_write1_push_ready),
+        .ray_write_data(tp_ray_write1_push_data),
+        .hit_valid(tp_hit1_push_valid),
+        .hit_ready(tp_hit1_push_ready),
+        .hit_data(tp_hit1_push_data),
+        .gmem_req_valid(tp_gmem_req1_push_valid),
+        .gmem_req_ready(tp_gmem_req1_push_ready),
+        .gmem_req_data(tp_gmem_req1_push_data)
     );
     tp #(.INDEX(2), .STACK_ENTRIES(42)) tp2 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray2_valid),
-        .ray_ready(ray2_ready),
-        .ray_data(ray2_data),
-        .div_resp_valid(tp_div_resp2_valid),
-        .div_resp_ready(tp_div_resp2_ready),
-        .div_resp_data(tp_div_resp2_data),
-        .box_resp_valid(tp_box_resp2_valid),
-        .box_resp_ready(tp_box_resp2_ready),
-        .box_resp_data(tp_box_resp2_data),
-        .tri_resp_valid(tp_tri_resp2_valid),
-        .tri_resp_ready(tp_tri_resp2_ready),
-        .tri_resp_data(tp_tri_resp2_data),
-        .mem_resp_valid(tp_mem_resp2_valid),
-        .mem_resp_ready(tp_mem_resp2_ready),
-        .mem_resp_data(tp_mem_resp2_data),
-        .gmem_resp_valid(tp_gmem_resp2_valid),
-        .gmem_resp_ready(tp_gmem_resp2_ready),
-        .gmem_resp_data(tp_gmem_resp2_data),
-        .div_req_valid(tp_div_req2_valid),
-        .div_req_ready(tp_div_req2_ready),
-        .div_req_data(tp_div_req2_data),
-        .box_req_valid(tp_box_req2_valid),
-        .box_req_ready(tp_box_req2_ready),
-        .box_req_data(tp_box_req2_data),
-        .tri_req_valid(tp_tri_req2_valid),
-        .tri_req_ready(tp_tri_req2_ready),
-        .tri_req_data(tp_tri_req2_data),
-        .mem_req_valid(tp_mem_req2_valid),
-        .mem_req_ready(tp_mem_req2_ready),
-        .mem_req_data(tp_mem_req2_data),
-        .ray_write_valid(tp_ray_write2_valid),
-        .ray_write_ready(tp_ray_write2_ready),
-        .ray_write_data(tp_ray_write2_data),
-        .hit_valid(tp_hit2_valid),
-        .hit_ready(tp_hit2_ready),
-        .hit_data(tp_hit2_data),
-        .gmem_req_valid(tp_gmem_req2_valid),
-        .gmem_req_ready(tp_gmem_req2_ready),
-        .gmem_req_data(tp_gmem_req2_data)
+        .ray_valid(ray2_pop_valid),
+        .ray_ready(ray2_pop_ready),
+        .ray_data(ray2_pop_data),
+        .div_resp_valid(tp_div_resp2_pop_valid),
+        .div_resp_ready(tp_div_resp2_pop_ready),
+        .div_resp_data(tp_div_resp2_pop_data),
+        .box_resp_valid(tp_box_resp2_pop_valid),
+        .box_resp_ready(tp_box_resp2_pop_ready),
+        .box_resp_data(tp_box_resp2_pop_data),
+        .tri_resp_valid(tp_tri_resp2_pop_valid),
+        .tri_resp_ready(tp_tri_resp2_pop_ready),
+        .tri_resp_data(tp_tri_resp2_pop_data),
+        .mem_resp_valid(tp_mem_resp2_pop_valid),
+        .mem_resp_ready(tp_mem_resp2_pop_ready),
+        .mem_resp_data(tp_mem_resp2_pop_data),
+        .gmem_resp_valid(tp_gmem_resp2_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp2_pop_ready),
+        .gmem_resp_data(tp_gmem_resp2_pop_data),
+        .div_req_valid(tp_div_req2_push_valid),
+        .div_req_ready(tp_div_req2_push_ready),
+        .div_req_data(tp_div_req2_push_data),
+        .box_req_valid(tp_box_req2_push_valid),
+        .box_req_ready(tp_box_req2_push_ready),
+        .box_req_data(tp_box_req2_push_data),
+        .tri_req_valid(tp_tri_req2_push_valid),
+        .tri_req_ready(tp_tri_req2_push_ready),
+        .tri_req_data(tp_tri_req2_push_data),
+        .mem_req_valid(tp_mem_req2_push_valid),
+        .mem_req_ready(tp_mem_req2_push_ready),
+        .mem_req_data(tp_mem_req2_push_data),
+        .ray_write_valid(tp_ray_write2_push_valid),
+        .ray_write_ready(tp_ray_write2_push_ready),
+        .ray_write_data(tp_ray_write2_push_data),
+        .hit_valid(tp_hit2_push_valid),
+        .hit_ready(tp_hit2_push_ready),
+        .hit_data(tp_hit2_push_data),
+        .gmem_req_valid(tp_gmem_req2_push_valid),
+        .gmem_req_ready(tp_gmem_req2_push_ready),
+        .gmem_req_data(tp_gmem_req2_push_data)
     );
     tp #(.INDEX(3), .STACK_ENTRIES(42)) tp3 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray3_valid),
-        .ray_ready(ray3_ready),
-        .ray_data(ray3_data),
-        .div_resp_valid(tp_div_resp3_valid),
-        .div_resp_ready(tp_div_resp3_ready),
-        .div_resp_data(tp_div_resp3_data),
-        .box_resp_valid(tp_box_resp3_valid),
-        .box_resp_ready(tp_box_resp3_ready),
-        .box_resp_data(tp_box_resp3_data),
-        .tri_resp_valid(tp_tri_resp3_valid),
-        .tri_resp_ready(tp_tri_resp3_ready),
-        .tri_resp_data(tp_tri_resp3_data),
-        .mem_resp_valid(tp_mem_resp3_valid),
-        .mem_resp_ready(tp_mem_resp3_ready),
-        .mem_resp_data(tp_mem_resp3_data),
-        .gmem_resp_valid(tp_gmem_resp3_valid),
-        .gmem_resp_ready(tp_gmem_resp3_ready),
-        .gmem_resp_data(tp_gmem_resp3_data),
-        .div_req_valid(tp_div_req3_valid),
-        .div_req_ready(tp_div_req3_ready),
-        .div_req_data(tp_div_req3_data),
-        .box_req_valid(tp_box_req3_valid),
-        .box_req_ready(tp_box_req3_ready),
-        .box_req_data(tp_box_req3_data),
-        .tri_req_valid(tp_tri_req3_valid),
-        .tri_req_ready(tp_tri_req3_ready),
-        .tri_req_data(tp_tri_req3_data),
-        .mem_req_valid(tp_mem_req3_valid),
-        .mem_req_ready(tp_mem_req3_ready),
-        .mem_req_data(tp_mem_req3_data),
-        .ray_write_valid(tp_ray_write3_valid),
-        .ray_write_ready(tp_ray_write3_ready),
-        .ray_write_data(tp_ray_write3_data),
-        .hit_valid(tp_hit3_valid),
-        .hit_ready(tp_hit3_ready),
-        .hit_data(tp_hit3_data),
-        .gmem_req_valid(tp_gmem_req3_valid),
-        .gmem_req_ready(tp_gmem_req3_ready),
-        .gmem_req_data(tp_gmem_req3_data)
+        .ray_valid(ray3_pop_valid),
+        .ray_ready(ray3_pop_ready),
+        .ray_data(ray3_pop_data),
+        .div_resp_valid(tp_div_resp3_pop_valid),
+        .div_resp_ready(tp_div_resp3_pop_ready),
+        .div_resp_data(tp_div_resp3_pop_data),
+        .box_resp_valid(tp_box_resp3_pop_valid),
+        .box_resp_ready(tp_box_resp3_pop_ready),
+        .box_resp_data(tp_box_resp3_pop_data),
+        .tri_resp_valid(tp_tri_resp3_pop_valid),
+        .tri_resp_ready(tp_tri_resp3_pop_ready),
+        .tri_resp_data(tp_tri_resp3_pop_data),
+        .mem_resp_valid(tp_mem_resp3_pop_valid),
+        .mem_resp_ready(tp_mem_resp3_pop_ready),
+        .mem_resp_data(tp_mem_resp3_pop_data),
+        .gmem_resp_valid(tp_gmem_resp3_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp3_pop_ready),
+        .gmem_resp_data(tp_gmem_resp3_pop_data),
+        .div_req_valid(tp_div_req3_push_valid),
+        .div_req_ready(tp_div_req3_push_ready),
+        .div_req_data(tp_div_req3_push_data),
+        .box_req_valid(tp_box_req3_push_valid),
+        .box_req_ready(tp_box_req3_push_ready),
+        .box_req_data(tp_box_req3_push_data),
+        .tri_req_valid(tp_tri_req3_push_valid),
+        .tri_req_ready(tp_tri_req3_push_ready),
+        .tri_req_data(tp_tri_req3_push_data),
+        .mem_req_valid(tp_mem_req3_push_valid),
+        .mem_req_ready(tp_mem_req3_push_ready),
+        .mem_req_data(tp_mem_req3_push_data),
+        .ray_write_valid(tp_ray_write3_push_valid),
+        .ray_write_ready(tp_ray_write3_push_ready),
+        .ray_write_data(tp_ray_write3_push_data),
+        .hit_valid(tp_hit3_push_valid),
+        .hit_ready(tp_hit3_push_ready),
+        .hit_data(tp_hit3_push_data),
+        .gmem_req_valid(tp_gmem_req3_push_valid),
+        .gmem_req_ready(tp_gmem_req3_push_ready),
+        .gmem_req_data(tp_gmem_req3_push_data)
     );
     tp #(.INDEX(4), .STACK_ENTRIES(42)) tp4 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray4_valid),
-        .ray_ready(ray4_ready),
-        .ray_data(ray4_data),
-        .div_resp_valid(tp_div_resp4_valid),
-        .div_resp_ready(tp_div_resp4_ready),
-        .div_resp_data(tp_div_resp4_data),
-        .box_resp_valid(tp_box_resp4_valid),
-        .box_resp_ready(tp_box_resp4_ready),
-        .box_resp_data(tp_box_resp4_data),
-        .tri_resp_valid(tp_tri_resp4_valid),
-        .tri_resp_ready(tp_tri_resp4_ready),
-        .tri_resp_data(tp_tri_resp4_data),
-        .mem_resp_valid(tp_mem_resp4_valid),
-        .mem_resp_ready(tp_mem_resp4_ready),
-        .mem_resp_data(tp_mem_resp4_data),
-        .gmem_resp_valid(tp_gmem_resp4_valid),
-        .gmem_resp_ready(tp_gmem_resp4_ready),
-        .gmem_resp_data(tp_gmem_resp4_data),
-        .div_req_valid(tp_div_req4_valid),
-        .div_req_ready(tp_div_req4_ready),
-        .div_req_data(tp_div_req4_data),
-        .box_req_valid(tp_box_req4_valid),
-        .box_req_ready(tp_box_req4_ready),
-        .box_req_data(tp_box_req4_data),
-        .tri_req_valid(tp_tri_req4_valid),
-        .tri_req_ready(tp_tri_req4_ready),
-        .tri_req_data(tp_tri_req4_data),
-        .mem_req_valid(tp_mem_req4_valid),
-        .mem_req_ready(tp_mem_req4_ready),
-        .mem_req_data(tp_mem_req4_data),
-        .ray_write_valid(tp_ray_write4_valid),
-        .ray_write_ready(tp_ray_write4_ready),
-        .ray_write_data(tp_ray_write4_data),
-        .hit_valid(tp_hit4_valid),
-        .hit_ready(tp_hit4_ready),
-        .hit_data(tp_hit4_data),
-        .gmem_req_valid(tp_gmem_req4_valid),
-        .gmem_req_ready(tp_gmem_req4_ready),
-        .gmem_req_data(tp_gmem_req4_data)
+        .ray_valid(ray4_pop_valid),
+        .ray_ready(ray4_pop_ready),
+        .ray_data(ray4_pop_data),
+        .div_resp_valid(tp_div_resp4_pop_valid),
+        .div_resp_ready(tp_div_resp4_pop_ready),
+        .div_resp_data(tp_div_resp4_pop_data),
+        .box_resp_valid(tp_box_resp4_pop_valid),
+        .box_resp_ready(tp_box_resp4_pop_ready),
+        .box_resp_data(tp_box_resp4_pop_data),
+        .tri_resp_valid(tp_tri_resp4_pop_valid),
+        .tri_resp_ready(tp_tri_resp4_pop_ready),
+        .tri_resp_data(tp_tri_resp4_pop_data),
+        .mem_resp_valid(tp_mem_resp4_pop_valid),
+        .mem_resp_ready(tp_mem_resp4_pop_ready),
+        .mem_resp_data(tp_mem_resp4_pop_data),
+        .gmem_resp_valid(tp_gmem_resp4_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp4_pop_ready),
+        .gmem_resp_data(tp_gmem_resp4_pop_data),
+        .div_req_valid(tp_div_req4_push_valid),
+        .div_req_ready(tp_div_req4_push_ready),
+        .div_req_data(tp_div_req4_push_data),
+        .box_req_valid(tp_box_req4_push_valid),
+        .box_req_ready(tp_box_req4_push_ready),
+        .box_req_data(tp_box_req4_push_data),
+        .tri_req_valid(tp_tri_req4_push_valid),
+        .tri_req_ready(tp_tri_req4_push_ready),
+        .tri_req_data(tp_tri_req4_push_data),
+        .mem_req_valid(tp_mem_req4_push_valid),
+        .mem_req_ready(tp_mem_req4_push_ready),
+        .mem_req_data(tp_mem_req4_push_data),
+        .ray_write_valid(tp_ray_write4_push_valid),
+        .ray_write_ready(tp_ray_write4_push_ready),
+        .ray_write_data(tp_ray_write4_push_data),
+        .hit_valid(tp_hit4_push_valid),
+        .hit_ready(tp_hit4_push_ready),
+        .hit_data(tp_hit4_push_data),
+        .gmem_req_valid(tp_gmem_req4_push_valid),
+        .gmem_req_ready(tp_gmem_req4_push_ready),
+        .gmem_req_data(tp_gmem_req4_push_data)
     );
     tp #(.INDEX(5), .STACK_ENTRIES(42)) tp5 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray5_valid),
-        .ray_ready(ray5_ready),
-        .ray_data(ray5_data),
-        .div_resp_valid(tp_div_resp5_valid),
-        .div_resp_ready(tp_div_resp5_ready),
-        .div_resp_data(tp_div_resp5_data),
-        .box_resp_valid(tp_box_resp5_valid),
-        .box_resp_ready(tp_box_resp5_ready),
-        .box_resp_data(tp_box_resp5_data),
-        .tri_resp_valid(tp_tri_resp5_valid),
-        .tri_resp_ready(tp_tri_resp5_ready),
-        .tri_resp_data(tp_tri_resp5_data),
-        .mem_resp_valid(tp_mem_resp5_valid),
-        .mem_resp_ready(tp_mem_resp5_ready),
-        .mem_resp_data(tp_mem_resp5_data),
-        .gmem_resp_valid(tp_gmem_resp5_valid),
-        .gmem_resp_ready(tp_gmem_resp5_ready),
-        .gmem_resp_data(tp_gmem_resp5_data),
-        .div_req_valid(tp_div_req5_valid),
-        .div_req_ready(tp_div_req5_ready),
-        .div_req_data(tp_div_req5_data),
-        .box_req_valid(tp_box_req5_valid),
-        .box_req_ready(tp_box_req5_ready),
-        .box_req_data(tp_box_req5_data),
-        .tri_req_valid(tp_tri_req5_valid),
-        .tri_req_ready(tp_tri_req5_ready),
-        .tri_req_data(tp_tri_req5_data),
-        .mem_req_valid(tp_mem_req5_valid),
-        .mem_req_ready(tp_mem_req5_ready),
-        .mem_req_data(tp_mem_req5_data),
-        .ray_write_valid(tp_ray_write5_valid),
-        .ray_write_ready(tp_ray_write5_ready),
-        .ray_write_data(tp_ray_write5_data),
-        .hit_valid(tp_hit5_valid),
-        .hit_ready(tp_hit5_ready),
-        .hit_data(tp_hit5_data),
-        .gmem_req_valid(tp_gmem_req5_valid),
-        .gmem_req_ready(tp_gmem_req5_ready),
-        .gmem_req_data(tp_gmem_req5_data)
+        .ray_valid(ray5_pop_valid),
+        .ray_ready(ray5_pop_ready),
+        .ray_data(ray5_pop_data),
+        .div_resp_valid(tp_div_resp5_pop_valid),
+        .div_resp_ready(tp_div_resp5_pop_ready),
+        .div_resp_data(tp_div_resp5_pop_data),
+        .box_resp_valid(tp_box_resp5_pop_valid),
+        .box_resp_ready(tp_box_resp5_pop_ready),
+        .box_resp_data(tp_box_resp5_pop_data),
+        .tri_resp_valid(tp_tri_resp5_pop_valid),
+        .tri_resp_ready(tp_tri_resp5_pop_ready),
+        .tri_resp_data(tp_tri_resp5_pop_data),
+        .mem_resp_valid(tp_mem_resp5_pop_valid),
+        .mem_resp_ready(tp_mem_resp5_pop_ready),
+        .mem_resp_data(tp_mem_resp5_pop_data),
+        .gmem_resp_valid(tp_gmem_resp5_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp5_pop_ready),
+        .gmem_resp_data(tp_gmem_resp5_pop_data),
+        .div_req_valid(tp_div_req5_push_valid),
+        .div_req_ready(tp_div_req5_push_ready),
+        .div_req_data(tp_div_req5_push_data),
+        .box_req_valid(tp_box_req5_push_valid),
+        .box_req_ready(tp_box_req5_push_ready),
+        .box_req_data(tp_box_req5_push_data),
+        .tri_req_valid(tp_tri_req5_push_valid),
+        .tri_req_ready(tp_tri_req5_push_ready),
+        .tri_req_data(tp_tri_req5_push_data),
+        .mem_req_valid(tp_mem_req5_push_valid),
+        .mem_req_ready(tp_mem_req5_push_ready),
+        .mem_req_data(tp_mem_req5_push_data),
+        .ray_write_valid(tp_ray_write5_push_valid),
+        .ray_write_ready(tp_ray_write5_push_ready),
+        .ray_write_data(tp_ray_write5_push_data),
+        .hit_valid(tp_hit5_push_valid),
+        .hit_ready(tp_hit5_push_ready),
+        .hit_data(tp_hit5_push_data),
+        .gmem_req_valid(tp_gmem_req5_push_valid),
+        .gmem_req_ready(tp_gmem_req5_push_ready),
+        .gmem_req_data(tp_gmem_req5_push_data)
     );
     tp #(.INDEX(6), .STACK_ENTRIES(42)) tp6 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray6_valid),
-        .ray_ready(ray6_ready),
-        .ray_data(ray6_data),
-        .div_resp_valid(tp_div_resp6_valid),
-        .div_resp_ready(tp_div_resp6_ready),
-        .div_resp_data(tp_div_resp6_data),
-        .box_resp_valid(tp_box_resp6_valid),
-        .box_resp_ready(tp_box_resp6_ready),
-        .box_resp_data(tp_box_resp6_data),
-        .tri_resp_valid(tp_tri_resp6_valid),
-        .tri_resp_ready(tp_tri_resp6_ready),
-        .tri_resp_data(tp_tri_resp6_data),
-        .mem_resp_valid(tp_mem_resp6_valid),
-        .mem_resp_ready(tp_mem_resp6_ready),
-        .mem_resp_data(tp_mem_resp6_data),
-        .gmem_resp_valid(tp_gmem_resp6_valid),
-        .gmem_resp_ready(tp_gmem_resp6_ready),
-        .gmem_resp_data(tp_gmem_resp6_data),
-        .div_req_valid(tp_div_req6_valid),
-        .div_req_ready(tp_div_req6_ready),
-        .div_req_data(tp_div_req6_data),
-        .box_req_valid(tp_box_req6_valid),
-        .box_req_ready(tp_box_req6_ready),
-        .box_req_data(tp_box_req6_data),
-        .tri_req_valid(tp_tri_req6_valid),
-        .tri_req_ready(tp_tri_req6_ready),
-        .tri_req_data(tp_tri_req6_data),
-        .mem_req_valid(tp_mem_req6_valid),
-        .mem_req_ready(tp_mem_req6_ready),
-        .mem_req_data(tp_mem_req6_data),
-        .ray_write_valid(tp_ray_write6_valid),
-        .ray_write_ready(tp_ray_write6_ready),
-        .ray_write_data(tp_ray_write6_data),
-        .hit_valid(tp_hit6_valid),
-        .hit_ready(tp_hit6_ready),
-        .hit_data(tp_hit6_data),
-        .gmem_req_valid(tp_gmem_req6_valid),
-        .gmem_req_ready(tp_gmem_req6_ready),
-        .gmem_req_data(tp_gmem_req6_data)
+        .ray_valid(ray6_pop_valid),
+        .ray_ready(ray6_pop_ready),
+        .ray_data(ray6_pop_data),
+        .div_resp_valid(tp_div_resp6_pop_valid),
+        .div_resp_ready(tp_div_resp6_pop_ready),
+        .div_resp_data(tp_div_resp6_pop_data),
+        .box_resp_valid(tp_box_resp6_pop_valid),
+        .box_resp_ready(tp_box_resp6_pop_ready),
+        .box_resp_data(tp_box_resp6_pop_data),
+        .tri_resp_valid(tp_tri_resp6_pop_valid),
+        .tri_resp_ready(tp_tri_resp6_pop_ready),
+        .tri_resp_data(tp_tri_resp6_pop_data),
+        .mem_resp_valid(tp_mem_resp6_pop_valid),
+        .mem_resp_ready(tp_mem_resp6_pop_ready),
+        .mem_resp_data(tp_mem_resp6_pop_data),
+        .gmem_resp_valid(tp_gmem_resp6_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp6_pop_ready),
+        .gmem_resp_data(tp_gmem_resp6_pop_data),
+        .div_req_valid(tp_div_req6_push_valid),
+        .div_req_ready(tp_div_req6_push_ready),
+        .div_req_data(tp_div_req6_push_data),
+        .box_req_valid(tp_box_req6_push_valid),
+        .box_req_ready(tp_box_req6_push_ready),
+        .box_req_data(tp_box_req6_push_data),
+        .tri_req_valid(tp_tri_req6_push_valid),
+        .tri_req_ready(tp_tri_req6_push_ready),
+        .tri_req_data(tp_tri_req6_push_data),
+        .mem_req_valid(tp_mem_req6_push_valid),
+        .mem_req_ready(tp_mem_req6_push_ready),
+        .mem_req_data(tp_mem_req6_push_data),
+        .ray_write_valid(tp_ray_write6_push_valid),
+        .ray_write_ready(tp_ray_write6_push_ready),
+        .ray_write_data(tp_ray_write6_push_data),
+        .hit_valid(tp_hit6_push_valid),
+        .hit_ready(tp_hit6_push_ready),
+        .hit_data(tp_hit6_push_data),
+        .gmem_req_valid(tp_gmem_req6_push_valid),
+        .gmem_req_ready(tp_gmem_req6_push_ready),
+        .gmem_req_data(tp_gmem_req6_push_data)
     );
     tp #(.INDEX(7), .STACK_ENTRIES(42)) tp7 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray7_valid),
-        .ray_ready(ray7_ready),
-        .ray_data(ray7_data),
-        .div_resp_valid(tp_div_resp7_valid),
-        .div_resp_ready(tp_div_resp7_ready),
-        .div_resp_data(tp_div_resp7_data),
-        .box_resp_valid(tp_box_resp7_valid),
-        .box_resp_ready(tp_box_resp7_ready),
-        .box_resp_data(tp_box_resp7_data),
-        .tri_resp_valid(tp_tri_resp7_valid),
-        .tri_resp_ready(tp_tri_resp7_ready),
-        .tri_resp_data(tp_tri_resp7_data),
-        .mem_resp_valid(tp_mem_resp7_valid),
-        .mem_resp_ready(tp_mem_resp7_ready),
-        .mem_resp_data(tp_mem_resp7_data),
-        .gmem_resp_valid(tp_gmem_resp7_valid),
-        .gmem_resp_ready(tp_gmem_resp7_ready),
-        .gmem_resp_data(tp_gmem_resp7_data),
-        .div_req_valid(tp_div_req7_valid),
-        .div_req_ready(tp_div_req7_ready),
-        .div_req_data(tp_div_req7_data),
-        .box_req_valid(tp_box_req7_valid),
-        .box_req_ready(tp_box_req7_ready),
-        .box_req_data(tp_box_req7_data),
-        .tri_req_valid(tp_tri_req7_valid),
-        .tri_req_ready(tp_tri_req7_ready),
-        .tri_req_data(tp_tri_req7_data),
-        .mem_req_valid(tp_mem_req7_valid),
-        .mem_req_ready(tp_mem_req7_ready),
-        .mem_req_data(tp_mem_req7_data),
-        .ray_write_valid(tp_ray_write7_valid),
-        .ray_write_ready(tp_ray_write7_ready),
-        .ray_write_data(tp_ray_write7_data),
-        .hit_valid(tp_hit7_valid),
-        .hit_ready(tp_hit7_ready),
-        .hit_data(tp_hit7_data),
-        .gmem_req_valid(tp_gmem_req7_valid),
-        .gmem_req_ready(tp_gmem_req7_ready),
-        .gmem_req_data(tp_gmem_req7_data)
+        .ray_valid(ray7_pop_valid),
+        .ray_ready(ray7_pop_ready),
+        .ray_data(ray7_pop_data),
+        .div_resp_valid(tp_div_resp7_pop_valid),
+        .div_resp_ready(tp_div_resp7_pop_ready),
+        .div_resp_data(tp_div_resp7_pop_data),
+        .box_resp_valid(tp_box_resp7_pop_valid),
+        .box_resp_ready(tp_box_resp7_pop_ready),
+        .box_resp_data(tp_box_resp7_pop_data),
+        .tri_resp_valid(tp_tri_resp7_pop_valid),
+        .tri_resp_ready(tp_tri_resp7_pop_ready),
+        .tri_resp_data(tp_tri_resp7_pop_data),
+        .mem_resp_valid(tp_mem_resp7_pop_valid),
+        .mem_resp_ready(tp_mem_resp7_pop_ready),
+        .mem_resp_data(tp_mem_resp7_pop_data),
+        .gmem_resp_valid(tp_gmem_resp7_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp7_pop_ready),
+        .gmem_resp_data(tp_gmem_resp7_pop_data),
+        .div_req_valid(tp_div_req7_push_valid),
+        .div_req_ready(tp_div_req7_push_ready),
+        .div_req_data(tp_div_req7_push_data),
+        .box_req_valid(tp_box_req7_push_valid),
+        .box_req_ready(tp_box_req7_push_ready),
+        .box_req_data(tp_box_req7_push_data),
+        .tri_req_valid(tp_tri_req7_push_valid),
+        .tri_req_ready(tp_tri_req7_push_ready),
+        .tri_req_data(tp_tri_req7_push_data),
+        .mem_req_valid(tp_mem_req7_push_valid),
+        .mem_req_ready(tp_mem_req7_push_ready),
+        .mem_req_data(tp_mem_req7_push_data),
+        .ray_write_valid(tp_ray_write7_push_valid),
+        .ray_write_ready(tp_ray_write7_push_ready),
+        .ray_write_data(tp_ray_write7_push_data),
+        .hit_valid(tp_hit7_push_valid),
+        .hit_ready(tp_hit7_push_ready),
+        .hit_data(tp_hit7_push_data),
+        .gmem_req_valid(tp_gmem_req7_push_valid),
+        .gmem_req_ready(tp_gmem_req7_push_ready),
+        .gmem_req_data(tp_gmem_req7_push_data)
     );
     tp #(.INDEX(8), .STACK_ENTRIES(42)) tp8 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray8_valid),
-        .ray_ready(ray8_ready),
-        .ray_data(ray8_data),
-        .div_resp_valid(tp_div_resp8_valid),
-        .div_resp_ready(tp_div_resp8_ready),
-        .div_resp_data(tp_div_resp8_data),
-        .box_resp_valid(tp_box_resp8_valid),
-        .box_resp_ready(tp_box_resp8_ready),
-        .box_resp_data(tp_box_resp8_data),
-        .tri_resp_valid(tp_tri_resp8_valid),
-        .tri_resp_ready(tp_tri_resp8_ready),
-        .tri_resp_data(tp_tri_resp8_data),
-        .mem_resp_valid(tp_mem_resp8_valid),
-        .mem_resp_ready(tp_mem_resp8_ready),
-        .mem_resp_data(tp_mem_resp8_data),
-        .gmem_resp_valid(tp_gmem_resp8_valid),
-        .gmem_resp_ready(tp_gmem_resp8_ready),
-        .gmem_resp_data(tp_gmem_resp8_data),
-        .div_req_valid(tp_div_req8_valid),
-        .div_req_ready(tp_div_req8_ready),
-        .div_req_data(tp_div_req8_data),
-        .box_req_valid(tp_box_req8_valid),
-        .box_req_ready(tp_box_req8_ready),
-        .box_req_data(tp_box_req8_data),
-        .tri_req_valid(tp_tri_req8_valid),
-        .tri_req_ready(tp_tri_req8_ready),
-        .tri_req_data(tp_tri_req8_data),
-        .mem_req_valid(tp_mem_req8_valid),
-        .mem_req_ready(tp_mem_req8_ready),
-        .mem_req_data(tp_mem_req8_data),
-        .ray_write_valid(tp_ray_write8_valid),
-        .ray_write_ready(tp_ray_write8_ready),
-        .ray_write_data(tp_ray_write8_data),
-        .hit_valid(tp_hit8_valid),
-        .hit_ready(tp_hit8_ready),
-        .hit_data(tp_hit8_data),
-        .gmem_req_valid(tp_gmem_req8_valid),
-        .gmem_req_ready(tp_gmem_req8_ready),
-        .gmem_req_data(tp_gmem_req8_data)
+        .ray_valid(ray8_pop_valid),
+        .ray_ready(ray8_pop_ready),
+        .ray_data(ray8_pop_data),
+        .div_resp_valid(tp_div_resp8_pop_valid),
+        .div_resp_ready(tp_div_resp8_pop_ready),
+        .div_resp_data(tp_div_resp8_pop_data),
+        .box_resp_valid(tp_box_resp8_pop_valid),
+        .box_resp_ready(tp_box_resp8_pop_ready),
+        .box_resp_data(tp_box_resp8_pop_data),
+        .tri_resp_valid(tp_tri_resp8_pop_valid),
+        .tri_resp_ready(tp_tri_resp8_pop_ready),
+        .tri_resp_data(tp_tri_resp8_pop_data),
+        .mem_resp_valid(tp_mem_resp8_pop_valid),
+        .mem_resp_ready(tp_mem_resp8_pop_ready),
+        .mem_resp_data(tp_mem_resp8_pop_data),
+        .gmem_resp_valid(tp_gmem_resp8_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp8_pop_ready),
+        .gmem_resp_data(tp_gmem_resp8_pop_data),
+        .div_req_valid(tp_div_req8_push_valid),
+        .div_req_ready(tp_div_req8_push_ready),
+        .div_req_data(tp_div_req8_push_data),
+        .box_req_valid(tp_box_req8_push_valid),
+        .box_req_ready(tp_box_req8_push_ready),
+        .box_req_data(tp_box_req8_push_data),
+        .tri_req_valid(tp_tri_req8_push_valid),
+        .tri_req_ready(tp_tri_req8_push_ready),
+        .tri_req_data(tp_tri_req8_push_data),
+        .mem_req_valid(tp_mem_req8_push_valid),
+        .mem_req_ready(tp_mem_req8_push_ready),
+        .mem_req_data(tp_mem_req8_push_data),
+        .ray_write_valid(tp_ray_write8_push_valid),
+        .ray_write_ready(tp_ray_write8_push_ready),
+        .ray_write_data(tp_ray_write8_push_data),
+        .hit_valid(tp_hit8_push_valid),
+        .hit_ready(tp_hit8_push_ready),
+        .hit_data(tp_hit8_push_data),
+        .gmem_req_valid(tp_gmem_req8_push_valid),
+        .gmem_req_ready(tp_gmem_req8_push_ready),
+        .gmem_req_data(tp_gmem_req8_push_data)
     );
     tp #(.INDEX(9), .STACK_ENTRIES(42)) tp9 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray9_valid),
-        .ray_ready(ray9_ready),
-        .ray_data(ray9_data),
-        .div_resp_valid(tp_div_resp9_valid),
-        .div_resp_ready(tp_div_resp9_ready),
-        .div_resp_data(tp_div_resp9_data),
-        .box_resp_valid(tp_box_resp9_valid),
-        .box_resp_ready(tp_box_resp9_ready),
-        .box_resp_data(tp_box_resp9_data),
-        .tri_resp_valid(tp_tri_resp9_valid),
-        .tri_resp_ready(tp_tri_resp9_ready),
-        .tri_resp_data(tp_tri_resp9_data),
-        .mem_resp_valid(tp_mem_resp9_valid),
-        .mem_resp_ready(tp_mem_resp9_ready),
-        .mem_resp_data(tp_mem_resp9_data),
-        .gmem_resp_valid(tp_gmem_resp9_valid),
-        .gmem_resp_ready(tp_gmem_resp9_ready),
-        .gmem_resp_data(tp_gmem_resp9_data),
-        .div_req_valid(tp_div_req9_valid),
-        .div_req_ready(tp_div_req9_ready),
-        .div_req_data(tp_div_req9_data),
-        .box_req_valid(tp_box_req9_valid),
-        .box_req_ready(tp_box_req9_ready),
-        .box_req_data(tp_box_req9_data),
-        .tri_req_valid(tp_tri_req9_valid),
-        .tri_req_ready(tp_tri_req9_ready),
-        .tri_req_data(tp_tri_req9_data),
-        .mem_req_valid(tp_mem_req9_valid),
-        .mem_req_ready(tp_mem_req9_ready),
-        .mem_req_data(tp_mem_req9_data),
-        .ray_write_valid(tp_ray_write9_valid),
-        .ray_write_ready(tp_ray_write9_ready),
-        .ray_write_data(tp_ray_write9_data),
-        .hit_valid(tp_hit9_valid),
-        .hit_ready(tp_hit9_ready),
-        .hit_data(tp_hit9_data),
-        .gmem_req_valid(tp_gmem_req9_valid),
-        .gmem_req_ready(tp_gmem_req9_ready),
-        .gmem_req_data(tp_gmem_req9_data)
+        .ray_valid(ray9_pop_valid),
+        .ray_ready(ray9_pop_ready),
+        .ray_data(ray9_pop_data),
+        .div_resp_valid(tp_div_resp9_pop_valid),
+        .div_resp_ready(tp_div_resp9_pop_ready),
+        .div_resp_data(tp_div_resp9_pop_data),
+        .box_resp_valid(tp_box_resp9_pop_valid),
+        .box_resp_ready(tp_box_resp9_pop_ready),
+        .box_resp_data(tp_box_resp9_pop_data),
+        .tri_resp_valid(tp_tri_resp9_pop_valid),
+        .tri_resp_ready(tp_tri_resp9_pop_ready),
+        .tri_resp_data(tp_tri_resp9_pop_data),
+        .mem_resp_valid(tp_mem_resp9_pop_valid),
+        .mem_resp_ready(tp_mem_resp9_pop_ready),
+        .mem_resp_data(tp_mem_resp9_pop_data),
+        .gmem_resp_valid(tp_gmem_resp9_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp9_pop_ready),
+        .gmem_resp_data(tp_gmem_resp9_pop_data),
+        .div_req_valid(tp_div_req9_push_valid),
+        .div_req_ready(tp_div_req9_push_ready),
+        .div_req_data(tp_div_req9_push_data),
+        .box_req_valid(tp_box_req9_push_valid),
+        .box_req_ready(tp_box_req9_push_ready),
+        .box_req_data(tp_box_req9_push_data),
+        .tri_req_valid(tp_tri_req9_push_valid),
+        .tri_req_ready(tp_tri_req9_push_ready),
+        .tri_req_data(tp_tri_req9_push_data),
+        .mem_req_valid(tp_mem_req9_push_valid),
+        .mem_req_ready(tp_mem_req9_push_ready),
+        .mem_req_data(tp_mem_req9_push_data),
+        .ray_write_valid(tp_ray_write9_push_valid),
+        .ray_write_ready(tp_ray_write9_push_ready),
+        .ray_write_data(tp_ray_write9_push_data),
+        .hit_valid(tp_hit9_push_valid),
+        .hit_ready(tp_hit9_push_ready),
+        .hit_data(tp_hit9_push_data),
+        .gmem_req_valid(tp_gmem_req9_push_valid),
+        .gmem_req_ready(tp_gmem_req9_push_ready),
+        .gmem_req_data(tp_gmem_req9_push_data)
     );
     tp #(.INDEX(10), .STACK_ENTRIES(42)) tp10 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray10_valid),
-        .ray_ready(ray10_ready),
-        .ray_data(ray10_data),
-        .div_resp_valid(tp_div_resp10_valid),
-        .div_resp_ready(tp_div_resp10_ready),
-        .div_resp_data(tp_div_resp10_data),
-        .box_resp_valid(tp_box_resp10_valid),
-        .box_resp_ready(tp_box_resp10_ready),
-        .box_resp_data(tp_box_resp10_data),
-        .tri_resp_valid(tp_tri_resp10_valid),
-        .tri_resp_ready(tp_tri_resp10_ready),
-        .tri_resp_data(tp_tri_resp10_data),
-        .mem_resp_valid(tp_mem_resp10_valid),
-        .mem_resp_ready(tp_mem_resp10_ready),
-        .mem_resp_data(tp_mem_resp10_data),
-        .gmem_resp_valid(tp_gmem_resp10_valid),
-        .gmem_resp_ready(tp_gmem_resp10_ready),
-        .gmem_resp_data(tp_gmem_resp10_data),
-        .div_req_valid(tp_div_req10_valid),
-        .div_req_ready(tp_div_req10_ready),
-        .div_req_data(tp_div_req10_data),
-        .box_req_valid(tp_box_req10_valid),
-        .box_req_ready(tp_box_req10_ready),
-        .box_req_data(tp_box_req10_data),
-        .tri_req_valid(tp_tri_req10_valid),
-        .tri_req_ready(tp_tri_req10_ready),
-        .tri_req_data(tp_tri_req10_data),
-        .mem_req_valid(tp_mem_req10_valid),
-        .mem_req_ready(tp_mem_req10_ready),
-        .mem_req_data(tp_mem_req10_data),
-        .ray_write_valid(tp_ray_write10_valid),
-        .ray_write_ready(tp_ray_write10_ready),
-        .ray_write_data(tp_ray_write10_data),
-        .hit_valid(tp_hit10_valid),
-        .hit_ready(tp_hit10_ready),
-        .hit_data(tp_hit10_data),
-        .gmem_req_valid(tp_gmem_req10_valid),
-        .gmem_req_ready(tp_gmem_req10_ready),
-        .gmem_req_data(tp_gmem_req10_data)
+        .ray_valid(ray10_pop_valid),
+        .ray_ready(ray10_pop_ready),
+        .ray_data(ray10_pop_data),
+        .div_resp_valid(tp_div_resp10_pop_valid),
+        .div_resp_ready(tp_div_resp10_pop_ready),
+        .div_resp_data(tp_div_resp10_pop_data),
+        .box_resp_valid(tp_box_resp10_pop_valid),
+        .box_resp_ready(tp_box_resp10_pop_ready),
+        .box_resp_data(tp_box_resp10_pop_data),
+        .tri_resp_valid(tp_tri_resp10_pop_valid),
+        .tri_resp_ready(tp_tri_resp10_pop_ready),
+        .tri_resp_data(tp_tri_resp10_pop_data),
+        .mem_resp_valid(tp_mem_resp10_pop_valid),
+        .mem_resp_ready(tp_mem_resp10_pop_ready),
+        .mem_resp_data(tp_mem_resp10_pop_data),
+        .gmem_resp_valid(tp_gmem_resp10_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp10_pop_ready),
+        .gmem_resp_data(tp_gmem_resp10_pop_data),
+        .div_req_valid(tp_div_req10_push_valid),
+        .div_req_ready(tp_div_req10_push_ready),
+        .div_req_data(tp_div_req10_push_data),
+        .box_req_valid(tp_box_req10_push_valid),
+        .box_req_ready(tp_box_req10_push_ready),
+        .box_req_data(tp_box_req10_push_data),
+        .tri_req_valid(tp_tri_req10_push_valid),
+        .tri_req_ready(tp_tri_req10_push_ready),
+        .tri_req_data(tp_tri_req10_push_data),
+        .mem_req_valid(tp_mem_req10_push_valid),
+        .mem_req_ready(tp_mem_req10_push_ready),
+        .mem_req_data(tp_mem_req10_push_data),
+        .ray_write_valid(tp_ray_write10_push_valid),
+        .ray_write_ready(tp_ray_write10_push_ready),
+        .ray_write_data(tp_ray_write10_push_data),
+        .hit_valid(tp_hit10_push_valid),
+        .hit_ready(tp_hit10_push_ready),
+        .hit_data(tp_hit10_push_data),
+        .gmem_req_valid(tp_gmem_req10_push_valid),
+        .gmem_req_ready(tp_gmem_req10_push_ready),
+        .gmem_req_data(tp_gmem_req10_push_data)
     );
     tp #(.INDEX(11), .STACK_ENTRIES(42)) tp11 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray11_valid),
-        .ray_ready(ray11_ready),
-        .ray_data(ray11_data),
-        .div_resp_valid(tp_div_resp11_valid),
-        .div_resp_ready(tp_div_resp11_ready),
-        .div_resp_data(tp_div_resp11_data),
-        .box_resp_valid(tp_box_resp11_valid),
-        .box_resp_ready(tp_box_resp11_ready),
-        .box_resp_data(tp_box_resp11_data),
-        .tri_resp_valid(tp_tri_resp11_valid),
-        .tri_resp_ready(tp_tri_resp11_ready),
-        .tri_resp_data(tp_tri_resp11_data),
-        .mem_resp_valid(tp_mem_resp11_valid),
-        .mem_resp_ready(tp_mem_resp11_ready),
-        .mem_resp_data(tp_mem_resp11_data),
-        .gmem_resp_valid(tp_gmem_resp11_valid),
-        .gmem_resp_ready(tp_gmem_resp11_ready),
-        .gmem_resp_data(tp_gmem_resp11_data),
-        .div_req_valid(tp_div_req11_valid),
-        .div_req_ready(tp_div_req11_ready),
-        .div_req_data(tp_div_req11_data),
-        .box_req_valid(tp_box_req11_valid),
-        .box_req_ready(tp_box_req11_ready),
-        .box_req_data(tp_box_req11_data),
-        .tri_req_valid(tp_tri_req11_valid),
-        .tri_req_ready(tp_tri_req11_ready),
-        .tri_req_data(tp_tri_req11_data),
-        .mem_req_valid(tp_mem_req11_valid),
-        .mem_req_ready(tp_mem_req11_ready),
-        .mem_req_data(tp_mem_req11_data),
-        .ray_write_valid(tp_ray_write11_valid),
-        .ray_write_ready(tp_ray_write11_ready),
-        .ray_write_data(tp_ray_write11_data),
-        .hit_valid(tp_hit11_valid),
-        .hit_ready(tp_hit11_ready),
-        .hit_data(tp_hit11_data),
-        .gmem_req_valid(tp_gmem_req11_valid),
-        .gmem_req_ready(tp_gmem_req11_ready),
-        .gmem_req_data(tp_gmem_req11_data)
+        .ray_valid(ray11_pop_valid),
+        .ray_ready(ray11_pop_ready),
+        .ray_data(ray11_pop_data),
+        .div_resp_valid(tp_div_resp11_pop_valid),
+        .div_resp_ready(tp_div_resp11_pop_ready),
+        .div_resp_data(tp_div_resp11_pop_data),
+        .box_resp_valid(tp_box_resp11_pop_valid),
+        .box_resp_ready(tp_box_resp11_pop_ready),
+        .box_resp_data(tp_box_resp11_pop_data),
+        .tri_resp_valid(tp_tri_resp11_pop_valid),
+        .tri_resp_ready(tp_tri_resp11_pop_ready),
+        .tri_resp_data(tp_tri_resp11_pop_data),
+        .mem_resp_valid(tp_mem_resp11_pop_valid),
+        .mem_resp_ready(tp_mem_resp11_pop_ready),
+        .mem_resp_data(tp_mem_resp11_pop_data),
+        .gmem_resp_valid(tp_gmem_resp11_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp11_pop_ready),
+        .gmem_resp_data(tp_gmem_resp11_pop_data),
+        .div_req_valid(tp_div_req11_push_valid),
+        .div_req_ready(tp_div_req11_push_ready),
+        .div_req_data(tp_div_req11_push_data),
+        .box_req_valid(tp_box_req11_push_valid),
+        .box_req_ready(tp_box_req11_push_ready),
+        .box_req_data(tp_box_req11_push_data),
+        .tri_req_valid(tp_tri_req11_push_valid),
+        .tri_req_ready(tp_tri_req11_push_ready),
+        .tri_req_data(tp_tri_req11_push_data),
+        .mem_req_valid(tp_mem_req11_push_valid),
+        .mem_req_ready(tp_mem_req11_push_ready),
+        .mem_req_data(tp_mem_req11_push_data),
+        .ray_write_valid(tp_ray_write11_push_valid),
+        .ray_write_ready(tp_ray_write11_push_ready),
+        .ray_write_data(tp_ray_write11_push_data),
+        .hit_valid(tp_hit11_push_valid),
+        .hit_ready(tp_hit11_push_ready),
+        .hit_data(tp_hit11_push_data),
+        .gmem_req_valid(tp_gmem_req11_push_valid),
+        .gmem_req_ready(tp_gmem_req11_push_ready),
+        .gmem_req_data(tp_gmem_req11_push_data)
     );
     tp #(.INDEX(12), .STACK_ENTRIES(42)) tp12 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray12_valid),
-        .ray_ready(ray12_ready),
-        .ray_data(ray12_data),
-        .div_resp_valid(tp_div_resp12_valid),
-        .div_resp_ready(tp_div_resp12_ready),
-        .div_resp_data(tp_div_resp12_data),
-        .box_resp_valid(tp_box_resp12_valid),
-        .box_resp_ready(tp_box_resp12_ready),
-        .box_resp_data(tp_box_resp12_data),
-        .tri_resp_valid(tp_tri_resp12_valid),
-        .tri_resp_ready(tp_tri_resp12_ready),
-        .tri_resp_data(tp_tri_resp12_data),
-        .mem_resp_valid(tp_mem_resp12_valid),
-        .mem_resp_ready(tp_mem_resp12_ready),
-        .mem_resp_data(tp_mem_resp12_data),
-        .gmem_resp_valid(tp_gmem_resp12_valid),
-        .gmem_resp_ready(tp_gmem_resp12_ready),
-        .gmem_resp_data(tp_gmem_resp12_data),
-        .div_req_valid(tp_div_req12_valid),
-        .div_req_ready(tp_div_req12_ready),
-        .div_req_data(tp_div_req12_data),
-        .box_req_valid(tp_box_req12_valid),
-        .box_req_ready(tp_box_req12_ready),
-        .box_req_data(tp_box_req12_data),
-        .tri_req_valid(tp_tri_req12_valid),
-        .tri_req_ready(tp_tri_req12_ready),
-        .tri_req_data(tp_tri_req12_data),
-        .mem_req_valid(tp_mem_req12_valid),
-        .mem_req_ready(tp_mem_req12_ready),
-        .mem_req_data(tp_mem_req12_data),
-        .ray_write_valid(tp_ray_write12_valid),
-        .ray_write_ready(tp_ray_write12_ready),
-        .ray_write_data(tp_ray_write12_data),
-        .hit_valid(tp_hit12_valid),
-        .hit_ready(tp_hit12_ready),
-        .hit_data(tp_hit12_data),
-        .gmem_req_valid(tp_gmem_req12_valid),
-        .gmem_req_ready(tp_gmem_req12_ready),
-        .gmem_req_data(tp_gmem_req12_data)
+        .ray_valid(ray12_pop_valid),
+        .ray_ready(ray12_pop_ready),
+        .ray_data(ray12_pop_data),
+        .div_resp_valid(tp_div_resp12_pop_valid),
+        .div_resp_ready(tp_div_resp12_pop_ready),
+        .div_resp_data(tp_div_resp12_pop_data),
+        .box_resp_valid(tp_box_resp12_pop_valid),
+        .box_resp_ready(tp_box_resp12_pop_ready),
+        .box_resp_data(tp_box_resp12_pop_data),
+        .tri_resp_valid(tp_tri_resp12_pop_valid),
+        .tri_resp_ready(tp_tri_resp12_pop_ready),
+        .tri_resp_data(tp_tri_resp12_pop_data),
+        .mem_resp_valid(tp_mem_resp12_pop_valid),
+        .mem_resp_ready(tp_mem_resp12_pop_ready),
+        .mem_resp_data(tp_mem_resp12_pop_data),
+        .gmem_resp_valid(tp_gmem_resp12_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp12_pop_ready),
+        .gmem_resp_data(tp_gmem_resp12_pop_data),
+        .div_req_valid(tp_div_req12_push_valid),
+        .div_req_ready(tp_div_req12_push_ready),
+        .div_req_data(tp_div_req12_push_data),
+        .box_req_valid(tp_box_req12_push_valid),
+        .box_req_ready(tp_box_req12_push_ready),
+        .box_req_data(tp_box_req12_push_data),
+        .tri_req_valid(tp_tri_req12_push_valid),
+        .tri_req_ready(tp_tri_req12_push_ready),
+        .tri_req_data(tp_tri_req12_push_data),
+        .mem_req_valid(tp_mem_req12_push_valid),
+        .mem_req_ready(tp_mem_req12_push_ready),
+        .mem_req_data(tp_mem_req12_push_data),
+        .ray_write_valid(tp_ray_write12_push_valid),
+        .ray_write_ready(tp_ray_write12_push_ready),
+        .ray_write_data(tp_ray_write12_push_data),
+        .hit_valid(tp_hit12_push_valid),
+        .hit_ready(tp_hit12_push_ready),
+        .hit_data(tp_hit12_push_data),
+        .gmem_req_valid(tp_gmem_req12_push_valid),
+        .gmem_req_ready(tp_gmem_req12_push_ready),
+        .gmem_req_data(tp_gmem_req12_push_data)
     );
     tp #(.INDEX(13), .STACK_ENTRIES(42)) tp13 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray13_valid),
-        .ray_ready(ray13_ready),
-        .ray_data(ray13_data),
-        .div_resp_valid(tp_div_resp13_valid),
-        .div_resp_ready(tp_div_resp13_ready),
-        .div_resp_data(tp_div_resp13_data),
-        .box_resp_valid(tp_box_resp13_valid),
-        .box_resp_ready(tp_box_resp13_ready),
-        .box_resp_data(tp_box_resp13_data),
-        .tri_resp_valid(tp_tri_resp13_valid),
-        .tri_resp_ready(tp_tri_resp13_ready),
-        .tri_resp_data(tp_tri_resp13_data),
-        .mem_resp_valid(tp_mem_resp13_valid),
-        .mem_resp_ready(tp_mem_resp13_ready),
-        .mem_resp_data(tp_mem_resp13_data),
-        .gmem_resp_valid(tp_gmem_resp13_valid),
-        .gmem_resp_ready(tp_gmem_resp13_ready),
-        .gmem_resp_data(tp_gmem_resp13_data),
-        .div_req_valid(tp_div_req13_valid),
-        .div_req_ready(tp_div_req13_ready),
-        .div_req_data(tp_div_req13_data),
-        .box_req_valid(tp_box_req13_valid),
-        .box_req_ready(tp_box_req13_ready),
-        .box_req_data(tp_box_req13_data),
-        .tri_req_valid(tp_tri_req13_valid),
-        .tri_req_ready(tp_tri_req13_ready),
-        .tri_req_data(tp_tri_req13_data),
-        .mem_req_valid(tp_mem_req13_valid),
-        .mem_req_ready(tp_mem_req13_ready),
-        .mem_req_data(tp_mem_req13_data),
-        .ray_write_valid(tp_ray_write13_valid),
-        .ray_write_ready(tp_ray_write13_ready),
-        .ray_write_data(tp_ray_write13_data),
-        .hit_valid(tp_hit13_valid),
-        .hit_ready(tp_hit13_ready),
-        .hit_data(tp_hit13_data),
-        .gmem_req_valid(tp_gmem_req13_valid),
-        .gmem_req_ready(tp_gmem_req13_ready),
-        .gmem_req_data(tp_gmem_req13_data)
+        .ray_valid(ray13_pop_valid),
+        .ray_ready(ray13_pop_ready),
+        .ray_data(ray13_pop_data),
+        .div_resp_valid(tp_div_resp13_pop_valid),
+        .div_resp_ready(tp_div_resp13_pop_ready),
+        .div_resp_data(tp_div_resp13_pop_data),
+        .box_resp_valid(tp_box_resp13_pop_valid),
+        .box_resp_ready(tp_box_resp13_pop_ready),
+        .box_resp_data(tp_box_resp13_pop_data),
+        .tri_resp_valid(tp_tri_resp13_pop_valid),
+        .tri_resp_ready(tp_tri_resp13_pop_ready),
+        .tri_resp_data(tp_tri_resp13_pop_data),
+        .mem_resp_valid(tp_mem_resp13_pop_valid),
+        .mem_resp_ready(tp_mem_resp13_pop_ready),
+        .mem_resp_data(tp_mem_resp13_pop_data),
+        .gmem_resp_valid(tp_gmem_resp13_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp13_pop_ready),
+        .gmem_resp_data(tp_gmem_resp13_pop_data),
+        .div_req_valid(tp_div_req13_push_valid),
+        .div_req_ready(tp_div_req13_push_ready),
+        .div_req_data(tp_div_req13_push_data),
+        .box_req_valid(tp_box_req13_push_valid),
+        .box_req_ready(tp_box_req13_push_ready),
+        .box_req_data(tp_box_req13_push_data),
+        .tri_req_valid(tp_tri_req13_push_valid),
+        .tri_req_ready(tp_tri_req13_push_ready),
+        .tri_req_data(tp_tri_req13_push_data),
+        .mem_req_valid(tp_mem_req13_push_valid),
+        .mem_req_ready(tp_mem_req13_push_ready),
+        .mem_req_data(tp_mem_req13_push_data),
+        .ray_write_valid(tp_ray_write13_push_valid),
+        .ray_write_ready(tp_ray_write13_push_ready),
+        .ray_write_data(tp_ray_write13_push_data),
+        .hit_valid(tp_hit13_push_valid),
+        .hit_ready(tp_hit13_push_ready),
+        .hit_data(tp_hit13_push_data),
+        .gmem_req_valid(tp_gmem_req13_push_valid),
+        .gmem_req_ready(tp_gmem_req13_push_ready),
+        .gmem_req_data(tp_gmem_req13_push_data)
     );
     tp #(.INDEX(14), .STACK_ENTRIES(42)) tp14 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray14_valid),
-        .ray_ready(ray14_ready),
-        .ray_data(ray14_data),
-        .div_resp_valid(tp_div_resp14_valid),
-        .div_resp_ready(tp_div_resp14_ready),
-        .div_resp_data(tp_div_resp14_data),
-        .box_resp_valid(tp_box_resp14_valid),
-        .box_resp_ready(tp_box_resp14_ready),
-        .box_resp_data(tp_box_resp14_data),
-        .tri_resp_valid(tp_tri_resp14_valid),
-        .tri_resp_ready(tp_tri_resp14_ready),
-        .tri_resp_data(tp_tri_resp14_data),
-        .mem_resp_valid(tp_mem_resp14_valid),
-        .mem_resp_ready(tp_mem_resp14_ready),
-        .mem_resp_data(tp_mem_resp14_data),
-        .gmem_resp_valid(tp_gmem_resp14_valid),
-        .gmem_resp_ready(tp_gmem_resp14_ready),
-        .gmem_resp_data(tp_gmem_resp14_data),
-        .div_req_valid(tp_div_req14_valid),
-        .div_req_ready(tp_div_req14_ready),
-        .div_req_data(tp_div_req14_data),
-        .box_req_valid(tp_box_req14_valid),
-        .box_req_ready(tp_box_req14_ready),
-        .box_req_data(tp_box_req14_data),
-        .tri_req_valid(tp_tri_req14_valid),
-        .tri_req_ready(tp_tri_req14_ready),
-        .tri_req_data(tp_tri_req14_data),
-        .mem_req_valid(tp_mem_req14_valid),
-        .mem_req_ready(tp_mem_req14_ready),
-        .mem_req_data(tp_mem_req14_data),
-        .ray_write_valid(tp_ray_write14_valid),
-        .ray_write_ready(tp_ray_write14_ready),
-        .ray_write_data(tp_ray_write14_data),
-        .hit_valid(tp_hit14_valid),
-        .hit_ready(tp_hit14_ready),
-        .hit_data(tp_hit14_data),
-        .gmem_req_valid(tp_gmem_req14_valid),
-        .gmem_req_ready(tp_gmem_req14_ready),
-        .gmem_req_data(tp_gmem_req14_data)
+        .ray_valid(ray14_pop_valid),
+        .ray_ready(ray14_pop_ready),
+        .ray_data(ray14_pop_data),
+        .div_resp_valid(tp_div_resp14_pop_valid),
+        .div_resp_ready(tp_div_resp14_pop_ready),
+        .div_resp_data(tp_div_resp14_pop_data),
+        .box_resp_valid(tp_box_resp14_pop_valid),
+        .box_resp_ready(tp_box_resp14_pop_ready),
+        .box_resp_data(tp_box_resp14_pop_data),
+        .tri_resp_valid(tp_tri_resp14_pop_valid),
+        .tri_resp_ready(tp_tri_resp14_pop_ready),
+        .tri_resp_data(tp_tri_resp14_pop_data),
+        .mem_resp_valid(tp_mem_resp14_pop_valid),
+        .mem_resp_ready(tp_mem_resp14_pop_ready),
+        .mem_resp_data(tp_mem_resp14_pop_data),
+        .gmem_resp_valid(tp_gmem_resp14_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp14_pop_ready),
+        .gmem_resp_data(tp_gmem_resp14_pop_data),
+        .div_req_valid(tp_div_req14_push_valid),
+        .div_req_ready(tp_div_req14_push_ready),
+        .div_req_data(tp_div_req14_push_data),
+        .box_req_valid(tp_box_req14_push_valid),
+        .box_req_ready(tp_box_req14_push_ready),
+        .box_req_data(tp_box_req14_push_data),
+        .tri_req_valid(tp_tri_req14_push_valid),
+        .tri_req_ready(tp_tri_req14_push_ready),
+        .tri_req_data(tp_tri_req14_push_data),
+        .mem_req_valid(tp_mem_req14_push_valid),
+        .mem_req_ready(tp_mem_req14_push_ready),
+        .mem_req_data(tp_mem_req14_push_data),
+        .ray_write_valid(tp_ray_write14_push_valid),
+        .ray_write_ready(tp_ray_write14_push_ready),
+        .ray_write_data(tp_ray_write14_push_data),
+        .hit_valid(tp_hit14_push_valid),
+        .hit_ready(tp_hit14_push_ready),
+        .hit_data(tp_hit14_push_data),
+        .gmem_req_valid(tp_gmem_req14_push_valid),
+        .gmem_req_ready(tp_gmem_req14_push_ready),
+        .gmem_req_data(tp_gmem_req14_push_data)
     );
     tp #(.INDEX(15), .STACK_ENTRIES(42)) tp15 (
         .clk(clk),
         .rst(rst),
-        .ray_valid(ray15_valid),
-        .ray_ready(ray15_ready),
-        .ray_data(ray15_data),
-        .div_resp_valid(tp_div_resp15_valid),
-        .div_resp_ready(tp_div_resp15_ready),
-        .div_resp_data(tp_div_resp15_data),
-        .box_resp_valid(tp_box_resp15_valid),
-        .box_resp_ready(tp_box_resp15_ready),
-        .box_resp_data(tp_box_resp15_data),
-        .tri_resp_valid(tp_tri_resp15_valid),
-        .tri_resp_ready(tp_tri_resp15_ready),
-        .tri_resp_data(tp_tri_resp15_data),
-        .mem_resp_valid(tp_mem_resp15_valid),
-        .mem_resp_ready(tp_mem_resp15_ready),
-        .mem_resp_data(tp_mem_resp15_data),
-        .gmem_resp_valid(tp_gmem_resp15_valid),
-        .gmem_resp_ready(tp_gmem_resp15_ready),
-        .gmem_resp_data(tp_gmem_resp15_data),
-        .div_req_valid(tp_div_req15_valid),
-        .div_req_ready(tp_div_req15_ready),
-        .div_req_data(tp_div_req15_data),
-        .box_req_valid(tp_box_req15_valid),
-        .box_req_ready(tp_box_req15_ready),
-        .box_req_data(tp_box_req15_data),
-        .tri_req_valid(tp_tri_req15_valid),
-        .tri_req_ready(tp_tri_req15_ready),
-        .tri_req_data(tp_tri_req15_data),
-        .mem_req_valid(tp_mem_req15_valid),
-        .mem_req_ready(tp_mem_req15_ready),
-        .mem_req_data(tp_mem_req15_data),
-        .ray_write_valid(tp_ray_write15_valid),
-        .ray_write_ready(tp_ray_write15_ready),
-        .ray_write_data(tp_ray_write15_data),
-        .hit_valid(tp_hit15_valid),
-        .hit_ready(tp_hit15_ready),
-        .hit_data(tp_hit15_data),
-        .gmem_req_valid(tp_gmem_req15_valid),
-        .gmem_req_ready(tp_gmem_req15_ready),
-        .gmem_req_data(tp_gmem_req15_data)
+        .ray_valid(ray15_pop_valid),
+        .ray_ready(ray15_pop_ready),
+        .ray_data(ray15_pop_data),
+        .div_resp_valid(tp_div_resp15_pop_valid),
+        .div_resp_ready(tp_div_resp15_pop_ready),
+        .div_resp_data(tp_div_resp15_pop_data),
+        .box_resp_valid(tp_box_resp15_pop_valid),
+        .box_resp_ready(tp_box_resp15_pop_ready),
+        .box_resp_data(tp_box_resp15_pop_data),
+        .tri_resp_valid(tp_tri_resp15_pop_valid),
+        .tri_resp_ready(tp_tri_resp15_pop_ready),
+        .tri_resp_data(tp_tri_resp15_pop_data),
+        .mem_resp_valid(tp_mem_resp15_pop_valid),
+        .mem_resp_ready(tp_mem_resp15_pop_ready),
+        .mem_resp_data(tp_mem_resp15_pop_data),
+        .gmem_resp_valid(tp_gmem_resp15_pop_valid),
+        .gmem_resp_ready(tp_gmem_resp15_pop_ready),
+        .gmem_resp_data(tp_gmem_resp15_pop_data),
+        .div_req_valid(tp_div_req15_push_valid),
+        .div_req_ready(tp_div_req15_push_ready),
+        .div_req_data(tp_div_req15_push_data),
+        .box_req_valid(tp_box_req15_push_valid),
+        .box_req_ready(tp_box_req15_push_ready),
+        .box_req_data(tp_box_req15_push_data),
+        .tri_req_valid(tp_tri_req15_push_valid),
+        .tri_req_ready(tp_tri_req15_push_ready),
+        .tri_req_data(tp_tri_req15_push_data),
+        .mem_req_valid(tp_mem_req15_push_valid),
+        .mem_req_ready(tp_mem_req15_push_ready),
+        .mem_req_data(tp_mem_req15_push_data),
+        .ray_write_valid(tp_ray_write15_push_valid),
+        .ray_write_ready(tp_ray_write15_push_ready),
+        .ray_write_data(tp_ray_write15_push_data),
+        .hit_valid(tp_hit15_push_valid),
+        .hit_ready(tp_hit15_push_ready),
+        .hit_data(tp_hit15_push_data),
+        .gmem_req_valid(tp_gmem_req15_push_valid),
+        .gmem_req_ready(tp_gmem_req15_push_ready),
+        .gmem_req_data(tp_gmem_req15_push_data)
     );
     staging_buffer #(.HALF_RAYS(64), .TPS(16)) staging_buffer (
         .clk(clk),
@@ -1366,54 +2008,54 @@ module tm
         .fill_valid(fill_valid),
         .fill_ready(fill_ready),
         .fill_data(fill_data),
-        .ray_0_valid(ray0_valid),
-        .ray_0_ready(ray0_ready),
-        .ray_0_data(ray0_data),
-        .ray_1_valid(ray1_valid),
-        .ray_1_ready(ray1_ready),
-        .ray_1_data(ray1_data),
-        .ray_2_valid(ray2_valid),
-        .ray_2_ready(ray2_ready),
-        .ray_2_data(ray2_data),
-        .ray_3_valid(ray3_valid),
-        .ray_3_ready(ray3_ready),
-        .ray_3_data(ray3_data),
-        .ray_4_valid(ray4_valid),
-        .ray_4_ready(ray4_ready),
-        .ray_4_data(ray4_data),
-        .ray_5_valid(ray5_valid),
-        .ray_5_ready(ray5_ready),
-        .ray_5_data(ray5_data),
-        .ray_6_valid(ray6_valid),
-        .ray_6_ready(ray6_ready),
-        .ray_6_data(ray6_data),
-        .ray_7_valid(ray7_valid),
-        .ray_7_ready(ray7_ready),
-        .ray_7_data(ray7_data),
-        .ray_8_valid(ray8_valid),
-        .ray_8_ready(ray8_ready),
-        .ray_8_data(ray8_data),
-        .ray_9_valid(ray9_valid),
-        .ray_9_ready(ray9_ready),
-        .ray_9_data(ray9_data),
-        .ray_10_valid(ray10_valid),
-        .ray_10_ready(ray10_ready),
-        .ray_10_data(ray10_data),
-        .ray_11_valid(ray11_valid),
-        .ray_11_ready(ray11_ready),
-        .ray_11_data(ray11_data),
-        .ray_12_valid(ray12_valid),
-        .ray_12_ready(ray12_ready),
-        .ray_12_data(ray12_data),
-        .ray_13_valid(ray13_valid),
-        .ray_13_ready(ray13_ready),
-        .ray_13_data(ray13_data),
-        .ray_14_valid(ray14_valid),
-        .ray_14_ready(ray14_ready),
-        .ray_14_data(ray14_data),
-        .ray_15_valid(ray15_valid),
-        .ray_15_ready(ray15_ready),
-        .ray_15_data(ray15_data)
+        .ray_0_valid(ray0_push_valid),
+        .ray_0_ready(ray0_push_ready),
+        .ray_0_data(ray0_push_data),
+        .ray_1_valid(ray1_push_valid),
+        .ray_1_ready(ray1_push_ready),
+        .ray_1_data(ray1_push_data),
+        .ray_2_valid(ray2_push_valid),
+        .ray_2_ready(ray2_push_ready),
+        .ray_2_data(ray2_push_data),
+        .ray_3_valid(ray3_push_valid),
+        .ray_3_ready(ray3_push_ready),
+        .ray_3_data(ray3_push_data),
+        .ray_4_valid(ray4_push_valid),
+        .ray_4_ready(ray4_push_ready),
+        .ray_4_data(ray4_push_data),
+        .ray_5_valid(ray5_push_valid),
+        .ray_5_ready(ray5_push_ready),
+        .ray_5_data(ray5_push_data),
+        .ray_6_valid(ray6_push_valid),
+        .ray_6_ready(ray6_push_ready),
+        .ray_6_data(ray6_push_data),
+        .ray_7_valid(ray7_push_valid),
+        .ray_7_ready(ray7_push_ready),
+        .ray_7_data(ray7_push_data),
+        .ray_8_valid(ray8_push_valid),
+        .ray_8_ready(ray8_push_ready),
+        .ray_8_data(ray8_push_data),
+        .ray_9_valid(ray9_push_valid),
+        .ray_9_ready(ray9_push_ready),
+        .ray_9_data(ray9_push_data),
+        .ray_10_valid(ray10_push_valid),
+        .ray_10_ready(ray10_push_ready),
+        .ray_10_data(ray10_push_data),
+        .ray_11_valid(ray11_push_valid),
+        .ray_11_ready(ray11_push_ready),
+        .ray_11_data(ray11_push_data),
+        .ray_12_valid(ray12_push_valid),
+        .ray_12_ready(ray12_push_ready),
+        .ray_12_data(ray12_push_data),
+        .ray_13_valid(ray13_push_valid),
+        .ray_13_ready(ray13_push_ready),
+        .ray_13_data(ray13_push_data),
+        .ray_14_valid(ray14_push_valid),
+        .ray_14_ready(ray14_push_ready),
+        .ray_14_data(ray14_push_data),
+        .ray_15_valid(ray15_push_valid),
+        .ray_15_ready(ray15_push_ready),
+        .ray_15_data(ray15_push_data)
     );
     l1 #(.BYTES(16384), .BANKS(8), .LINE_BYTES(64), .HIT_LATENCY(1), .MSHRS(8)) l1 (
         .clk(clk),
@@ -1424,115 +2066,115 @@ module tm
         .miss_req_valid(miss_req_valid),
         .miss_req_ready(miss_req_ready),
         .miss_req_data(miss_req_data),
-        .req_0_valid(tp_mem_req0_valid),
-        .req_0_ready(tp_mem_req0_ready),
-        .req_0_data(tp_mem_req0_data),
-        .req_1_valid(tp_mem_req1_valid),
-        .req_1_ready(tp_mem_req1_ready),
-        .req_1_data(tp_mem_req1_data),
-        .req_2_valid(tp_mem_req2_valid),
-        .req_2_ready(tp_mem_req2_ready),
-        .req_2_data(tp_mem_req2_data),
-        .req_3_valid(tp_mem_req3_valid),
-        .req_3_ready(tp_mem_req3_ready),
-        .req_3_data(tp_mem_req3_data),
-        .req_4_valid(tp_mem_req4_valid),
-        .req_4_ready(tp_mem_req4_ready),
-        .req_4_data(tp_mem_req4_data),
-        .req_5_valid(tp_mem_req5_valid),
-        .req_5_ready(tp_mem_req5_ready),
-        .req_5_data(tp_mem_req5_data),
-        .req_6_valid(tp_mem_req6_valid),
-        .req_6_ready(tp_mem_req6_ready),
-        .req_6_data(tp_mem_req6_data),
-        .req_7_valid(tp_mem_req7_valid),
-        .req_7_ready(tp_mem_req7_ready),
-        .req_7_data(tp_mem_req7_data),
-        .req_8_valid(tp_mem_req8_valid),
-        .req_8_ready(tp_mem_req8_ready),
-        .req_8_data(tp_mem_req8_data),
-        .req_9_valid(tp_mem_req9_valid),
-        .req_9_ready(tp_mem_req9_ready),
-        .req_9_data(tp_mem_req9_data),
-        .req_10_valid(tp_mem_req10_valid),
-        .req_10_ready(tp_mem_req10_ready),
-        .req_10_data(tp_mem_req10_data),
-        .req_11_valid(tp_mem_req11_valid),
-        .req_11_ready(tp_mem_req11_ready),
-        .req_11_data(tp_mem_req11_data),
-        .req_12_valid(tp_mem_req12_valid),
-        .req_12_ready(tp_mem_req12_ready),
-        .req_12_data(tp_mem_req12_data),
-        .req_13_valid(tp_mem_req13_valid),
-        .req_13_ready(tp_mem_req13_ready),
-        .req_13_data(tp_mem_req13_data),
-        .req_14_valid(tp_mem_req14_valid),
-        .req_14_ready(tp_mem_req14_ready),
-        .req_14_data(tp_mem_req14_data),
-        .req_15_valid(tp_mem_req15_valid),
-        .req_15_ready(tp_mem_req15_ready),
-        .req_15_data(tp_mem_req15_data),
-        .resp_0_valid(tp_mem_resp0_valid),
-        .resp_0_ready(tp_mem_resp0_ready),
-        .resp_0_data(tp_mem_resp0_data),
-        .resp_1_valid(tp_mem_resp1_valid),
-        .resp_1_ready(tp_mem_resp1_ready),
-        .resp_1_data(tp_mem_resp1_data),
-        .resp_2_valid(tp_mem_resp2_valid),
-        .resp_2_ready(tp_mem_resp2_ready),
-        .resp_2_data(tp_mem_resp2_data),
-        .resp_3_valid(tp_mem_resp3_valid),
-        .resp_3_ready(tp_mem_resp3_ready),
-        .resp_3_data(tp_mem_resp3_data),
-        .resp_4_valid(tp_mem_resp4_valid),
-        .resp_4_ready(tp_mem_resp4_ready),
-        .resp_4_data(tp_mem_resp4_data),
-        .resp_5_valid(tp_mem_resp5_valid),
-        .resp_5_ready(tp_mem_resp5_ready),
-        .resp_5_data(tp_mem_resp5_data),
-        .resp_6_valid(tp_mem_resp6_valid),
-        .resp_6_ready(tp_mem_resp6_ready),
-        .resp_6_data(tp_mem_resp6_data),
-        .resp_7_valid(tp_mem_resp7_valid),
-        .resp_7_ready(tp_mem_resp7_ready),
-        .resp_7_data(tp_mem_resp7_data),
-        .resp_8_valid(tp_mem_resp8_valid),
-        .resp_8_ready(tp_mem_resp8_ready),
-        .resp_8_data(tp_mem_resp8_data),
-        .resp_9_valid(tp_mem_resp9_valid),
-        .resp_9_ready(tp_mem_resp9_ready),
-        .resp_9_data(tp_mem_resp9_data),
-        .resp_10_valid(tp_mem_resp10_valid),
-        .resp_10_ready(tp_mem_resp10_ready),
-        .resp_10_data(tp_mem_resp10_data),
-        .resp_11_valid(tp_mem_resp11_valid),
-        .resp_11_ready(tp_mem_resp11_ready),
-        .resp_11_data(tp_mem_resp11_data),
-        .resp_12_valid(tp_mem_resp12_valid),
-        .resp_12_ready(tp_mem_resp12_ready),
-        .resp_12_data(tp_mem_resp12_data),
-        .resp_13_valid(tp_mem_resp13_valid),
-        .resp_13_ready(tp_mem_resp13_ready),
-        .resp_13_data(tp_mem_resp13_data),
-        .resp_14_valid(tp_mem_resp14_valid),
-        .resp_14_ready(tp_mem_resp14_ready),
-        .resp_14_data(tp_mem_resp14_data),
-        .resp_15_valid(tp_mem_resp15_valid),
-        .resp_15_ready(tp_mem_resp15_ready),
-        .resp_15_data(tp_mem_resp15_data)
+        .req_0_valid(tp_mem_req0_pop_valid),
+        .req_0_ready(tp_mem_req0_pop_ready),
+        .req_0_data(tp_mem_req0_pop_data),
+        .req_1_valid(tp_mem_req1_pop_valid),
+        .req_1_ready(tp_mem_req1_pop_ready),
+        .req_1_data(tp_mem_req1_pop_data),
+        .req_2_valid(tp_mem_req2_pop_valid),
+        .req_2_ready(tp_mem_req2_pop_ready),
+        .req_2_data(tp_mem_req2_pop_data),
+        .req_3_valid(tp_mem_req3_pop_valid),
+        .req_3_ready(tp_mem_req3_pop_ready),
+        .req_3_data(tp_mem_req3_pop_data),
+        .req_4_valid(tp_mem_req4_pop_valid),
+        .req_4_ready(tp_mem_req4_pop_ready),
+        .req_4_data(tp_mem_req4_pop_data),
+        .req_5_valid(tp_mem_req5_pop_valid),
+        .req_5_ready(tp_mem_req5_pop_ready),
+        .req_5_data(tp_mem_req5_pop_data),
+        .req_6_valid(tp_mem_req6_pop_valid),
+        .req_6_ready(tp_mem_req6_pop_ready),
+        .req_6_data(tp_mem_req6_pop_data),
+        .req_7_valid(tp_mem_req7_pop_valid),
+        .req_7_ready(tp_mem_req7_pop_ready),
+        .req_7_data(tp_mem_req7_pop_data),
+        .req_8_valid(tp_mem_req8_pop_valid),
+        .req_8_ready(tp_mem_req8_pop_ready),
+        .req_8_data(tp_mem_req8_pop_data),
+        .req_9_valid(tp_mem_req9_pop_valid),
+        .req_9_ready(tp_mem_req9_pop_ready),
+        .req_9_data(tp_mem_req9_pop_data),
+        .req_10_valid(tp_mem_req10_pop_valid),
+        .req_10_ready(tp_mem_req10_pop_ready),
+        .req_10_data(tp_mem_req10_pop_data),
+        .req_11_valid(tp_mem_req11_pop_valid),
+        .req_11_ready(tp_mem_req11_pop_ready),
+        .req_11_data(tp_mem_req11_pop_data),
+        .req_12_valid(tp_mem_req12_pop_valid),
+        .req_12_ready(tp_mem_req12_pop_ready),
+        .req_12_data(tp_mem_req12_pop_data),
+        .req_13_valid(tp_mem_req13_pop_valid),
+        .req_13_ready(tp_mem_req13_pop_ready),
+        .req_13_data(tp_mem_req13_pop_data),
+        .req_14_valid(tp_mem_req14_pop_valid),
+        .req_14_ready(tp_mem_req14_pop_ready),
+        .req_14_data(tp_mem_req14_pop_data),
+        .req_15_valid(tp_mem_req15_pop_valid),
+        .req_15_ready(tp_mem_req15_pop_ready),
+        .req_15_data(tp_mem_req15_pop_data),
+        .resp_0_valid(tp_mem_resp0_push_valid),
+        .resp_0_ready(tp_mem_resp0_push_ready),
+        .resp_0_data(tp_mem_resp0_push_data),
+        .resp_1_valid(tp_mem_resp1_push_valid),
+        .resp_1_ready(tp_mem_resp1_push_ready),
+        .resp_1_data(tp_mem_resp1_push_data),
+        .resp_2_valid(tp_mem_resp2_push_valid),
+        .resp_2_ready(tp_mem_resp2_push_ready),
+        .resp_2_data(tp_mem_resp2_push_data),
+        .resp_3_valid(tp_mem_resp3_push_valid),
+        .resp_3_ready(tp_mem_resp3_push_ready),
+        .resp_3_data(tp_mem_resp3_push_data),
+        .resp_4_valid(tp_mem_resp4_push_valid),
+        .resp_4_ready(tp_mem_resp4_push_ready),
+        .resp_4_data(tp_mem_resp4_push_data),
+        .resp_5_valid(tp_mem_resp5_push_valid),
+        .resp_5_ready(tp_mem_resp5_push_ready),
+        .resp_5_data(tp_mem_resp5_push_data),
+        .resp_6_valid(tp_mem_resp6_push_valid),
+        .resp_6_ready(tp_mem_resp6_push_ready),
+        .resp_6_data(tp_mem_resp6_push_data),
+        .resp_7_valid(tp_mem_resp7_push_valid),
+        .resp_7_ready(tp_mem_resp7_push_ready),
+        .resp_7_data(tp_mem_resp7_push_data),
+        .resp_8_valid(tp_mem_resp8_push_valid),
+        .resp_8_ready(tp_mem_resp8_push_ready),
+        .resp_8_data(tp_mem_resp8_push_data),
+        .resp_9_valid(tp_mem_resp9_push_valid),
+        .resp_9_ready(tp_mem_resp9_push_ready),
+        .resp_9_data(tp_mem_resp9_push_data),
+        .resp_10_valid(tp_mem_resp10_push_valid),
+        .resp_10_ready(tp_mem_resp10_push_ready),
+        .resp_10_data(tp_mem_resp10_push_data),
+        .resp_11_valid(tp_mem_resp11_push_valid),
+        .resp_11_ready(tp_mem_resp11_push_ready),
+        .resp_11_data(tp_mem_resp11_push_data),
+        .resp_12_valid(tp_mem_resp12_push_valid),
+        .resp_12_ready(tp_mem_resp12_push_ready),
+        .resp_12_data(tp_mem_resp12_push_data),
+        .resp_13_valid(tp_mem_resp13_push_valid),
+        .resp_13_ready(tp_mem_resp13_push_ready),
+        .resp_13_data(tp_mem_resp13_push_data),
+        .resp_14_valid(tp_mem_resp14_push_valid),
+        .resp_14_ready(tp_mem_resp14_push_ready),
+        .resp_14_data(tp_mem_resp14_push_data),
+        .resp_15_valid(tp_mem_resp15_push_valid),
+        .resp_15_ready(tp_mem_resp15_push_ready),
+        .resp_15_data(tp_mem_resp15_push_data)
     );
     tm_xbar #(.TPS(16), .TRI_PIPES(2), .BOX_LATENCY(8), .BOX_II(1)) xbar (
         .clk(clk),
         .rst(rst),
-        .div_resp_valid(div_resp_valid),
-        .div_resp_ready(div_resp_ready),
-        .div_resp_data(div_resp_data),
+        .div_resp_valid(div_resp_pop_valid),
+        .div_resp_ready(div_resp_pop_ready),
+        .div_resp_data(div_resp_pop_data),
         .gmem_resp_valid(gmem_resp_valid),
         .gmem_resp_ready(gmem_resp_ready),
         .gmem_resp_data(gmem_resp_data),
-        .div_req_valid(div_req_valid),
-        .div_req_ready(div_req_ready),
-        .div_req_data(div_req_data),
+        .div_req_valid(div_req_push_valid),
+        .div_req_ready(div_req_push_ready),
+        .div_req_data(div_req_push_data),
         .ray_write_valid(ray_write_valid),
         .ray_write_ready(ray_write_ready),
         .ray_write_data(ray_write_data),
@@ -1542,527 +2184,2667 @@ module tm
         .gmem_req_valid(gmem_req_valid),
         .gmem_req_ready(gmem_req_ready),
         .gmem_req_data(gmem_req_data),
-        .tp_div_req_0_valid(tp_div_req0_valid),
-        .tp_div_req_0_ready(tp_div_req0_ready),
-        .tp_div_req_0_data(tp_div_req0_data),
-        .tp_div_req_1_valid(tp_div_req1_valid),
-        .tp_div_req_1_ready(tp_div_req1_ready),
-        .tp_div_req_1_data(tp_div_req1_data),
-        .tp_div_req_2_valid(tp_div_req2_valid),
-        .tp_div_req_2_ready(tp_div_req2_ready),
-        .tp_div_req_2_data(tp_div_req2_data),
-        .tp_div_req_3_valid(tp_div_req3_valid),
-        .tp_div_req_3_ready(tp_div_req3_ready),
-        .tp_div_req_3_data(tp_div_req3_data),
-        .tp_div_req_4_valid(tp_div_req4_valid),
-        .tp_div_req_4_ready(tp_div_req4_ready),
-        .tp_div_req_4_data(tp_div_req4_data),
-        .tp_div_req_5_valid(tp_div_req5_valid),
-        .tp_div_req_5_ready(tp_div_req5_ready),
-        .tp_div_req_5_data(tp_div_req5_data),
-        .tp_div_req_6_valid(tp_div_req6_valid),
-        .tp_div_req_6_ready(tp_div_req6_ready),
-        .tp_div_req_6_data(tp_div_req6_data),
-        .tp_div_req_7_valid(tp_div_req7_valid),
-        .tp_div_req_7_ready(tp_div_req7_ready),
-        .tp_div_req_7_data(tp_div_req7_data),
-        .tp_div_req_8_valid(tp_div_req8_valid),
-        .tp_div_req_8_ready(tp_div_req8_ready),
-        .tp_div_req_8_data(tp_div_req8_data),
-        .tp_div_req_9_valid(tp_div_req9_valid),
-        .tp_div_req_9_ready(tp_div_req9_ready),
-        .tp_div_req_9_data(tp_div_req9_data),
-        .tp_div_req_10_valid(tp_div_req10_valid),
-        .tp_div_req_10_ready(tp_div_req10_ready),
-        .tp_div_req_10_data(tp_div_req10_data),
-        .tp_div_req_11_valid(tp_div_req11_valid),
-        .tp_div_req_11_ready(tp_div_req11_ready),
-        .tp_div_req_11_data(tp_div_req11_data),
-        .tp_div_req_12_valid(tp_div_req12_valid),
-        .tp_div_req_12_ready(tp_div_req12_ready),
-        .tp_div_req_12_data(tp_div_req12_data),
-        .tp_div_req_13_valid(tp_div_req13_valid),
-        .tp_div_req_13_ready(tp_div_req13_ready),
-        .tp_div_req_13_data(tp_div_req13_data),
-        .tp_div_req_14_valid(tp_div_req14_valid),
-        .tp_div_req_14_ready(tp_div_req14_ready),
-        .tp_div_req_14_data(tp_div_req14_data),
-        .tp_div_req_15_valid(tp_div_req15_valid),
-        .tp_div_req_15_ready(tp_div_req15_ready),
-        .tp_div_req_15_data(tp_div_req15_data),
-        .tp_box_req_0_valid(tp_box_req0_valid),
-        .tp_box_req_0_ready(tp_box_req0_ready),
-        .tp_box_req_0_data(tp_box_req0_data),
-        .tp_box_req_1_valid(tp_box_req1_valid),
-        .tp_box_req_1_ready(tp_box_req1_ready),
-        .tp_box_req_1_data(tp_box_req1_data),
-        .tp_box_req_2_valid(tp_box_req2_valid),
-        .tp_box_req_2_ready(tp_box_req2_ready),
-        .tp_box_req_2_data(tp_box_req2_data),
-        .tp_box_req_3_valid(tp_box_req3_valid),
-        .tp_box_req_3_ready(tp_box_req3_ready),
-        .tp_box_req_3_data(tp_box_req3_data),
-        .tp_box_req_4_valid(tp_box_req4_valid),
-        .tp_box_req_4_ready(tp_box_req4_ready),
-        .tp_box_req_4_data(tp_box_req4_data),
-        .tp_box_req_5_valid(tp_box_req5_valid),
-        .tp_box_req_5_ready(tp_box_req5_ready),
-        .tp_box_req_5_data(tp_box_req5_data),
-        .tp_box_req_6_valid(tp_box_req6_valid),
-        .tp_box_req_6_ready(tp_box_req6_ready),
-        .tp_box_req_6_data(tp_box_req6_data),
-        .tp_box_req_7_valid(tp_box_req7_valid),
-        .tp_box_req_7_ready(tp_box_req7_ready),
-        .tp_box_req_7_data(tp_box_req7_data),
-        .tp_box_req_8_valid(tp_box_req8_valid),
-        .tp_box_req_8_ready(tp_box_req8_ready),
-        .tp_box_req_8_data(tp_box_req8_data),
-        .tp_box_req_9_valid(tp_box_req9_valid),
-        .tp_box_req_9_ready(tp_box_req9_ready),
-        .tp_box_req_9_data(tp_box_req9_data),
-        .tp_box_req_10_valid(tp_box_req10_valid),
-        .tp_box_req_10_ready(tp_box_req10_ready),
-        .tp_box_req_10_data(tp_box_req10_data),
-        .tp_box_req_11_valid(tp_box_req11_valid),
-        .tp_box_req_11_ready(tp_box_req11_ready),
-        .tp_box_req_11_data(tp_box_req11_data),
-        .tp_box_req_12_valid(tp_box_req12_valid),
-        .tp_box_req_12_ready(tp_box_req12_ready),
-        .tp_box_req_12_data(tp_box_req12_data),
-        .tp_box_req_13_valid(tp_box_req13_valid),
-        .tp_box_req_13_ready(tp_box_req13_ready),
-        .tp_box_req_13_data(tp_box_req13_data),
-        .tp_box_req_14_valid(tp_box_req14_valid),
-        .tp_box_req_14_ready(tp_box_req14_ready),
-        .tp_box_req_14_data(tp_box_req14_data),
-        .tp_box_req_15_valid(tp_box_req15_valid),
-        .tp_box_req_15_ready(tp_box_req15_ready),
-        .tp_box_req_15_data(tp_box_req15_data),
-        .tp_tri_req_0_valid(tp_tri_req0_valid),
-        .tp_tri_req_0_ready(tp_tri_req0_ready),
-        .tp_tri_req_0_data(tp_tri_req0_data),
-        .tp_tri_req_1_valid(tp_tri_req1_valid),
-        .tp_tri_req_1_ready(tp_tri_req1_ready),
-        .tp_tri_req_1_data(tp_tri_req1_data),
-        .tp_tri_req_2_valid(tp_tri_req2_valid),
-        .tp_tri_req_2_ready(tp_tri_req2_ready),
-        .tp_tri_req_2_data(tp_tri_req2_data),
-        .tp_tri_req_3_valid(tp_tri_req3_valid),
-        .tp_tri_req_3_ready(tp_tri_req3_ready),
-        .tp_tri_req_3_data(tp_tri_req3_data),
-        .tp_tri_req_4_valid(tp_tri_req4_valid),
-        .tp_tri_req_4_ready(tp_tri_req4_ready),
-        .tp_tri_req_4_data(tp_tri_req4_data),
-        .tp_tri_req_5_valid(tp_tri_req5_valid),
-        .tp_tri_req_5_ready(tp_tri_req5_ready),
-        .tp_tri_req_5_data(tp_tri_req5_data),
-        .tp_tri_req_6_valid(tp_tri_req6_valid),
-        .tp_tri_req_6_ready(tp_tri_req6_ready),
-        .tp_tri_req_6_data(tp_tri_req6_data),
-        .tp_tri_req_7_valid(tp_tri_req7_valid),
-        .tp_tri_req_7_ready(tp_tri_req7_ready),
-        .tp_tri_req_7_data(tp_tri_req7_data),
-        .tp_tri_req_8_valid(tp_tri_req8_valid),
-        .tp_tri_req_8_ready(tp_tri_req8_ready),
-        .tp_tri_req_8_data(tp_tri_req8_data),
-        .tp_tri_req_9_valid(tp_tri_req9_valid),
-        .tp_tri_req_9_ready(tp_tri_req9_ready),
-        .tp_tri_req_9_data(tp_tri_req9_data),
-        .tp_tri_req_10_valid(tp_tri_req10_valid),
-        .tp_tri_req_10_ready(tp_tri_req10_ready),
-        .tp_tri_req_10_data(tp_tri_req10_data),
-        .tp_tri_req_11_valid(tp_tri_req11_valid),
-        .tp_tri_req_11_ready(tp_tri_req11_ready),
-        .tp_tri_req_11_data(tp_tri_req11_data),
-        .tp_tri_req_12_valid(tp_tri_req12_valid),
-        .tp_tri_req_12_ready(tp_tri_req12_ready),
-        .tp_tri_req_12_data(tp_tri_req12_data),
-        .tp_tri_req_13_valid(tp_tri_req13_valid),
-        .tp_tri_req_13_ready(tp_tri_req13_ready),
-        .tp_tri_req_13_data(tp_tri_req13_data),
-        .tp_tri_req_14_valid(tp_tri_req14_valid),
-        .tp_tri_req_14_ready(tp_tri_req14_ready),
-        .tp_tri_req_14_data(tp_tri_req14_data),
-        .tp_tri_req_15_valid(tp_tri_req15_valid),
-        .tp_tri_req_15_ready(tp_tri_req15_ready),
-        .tp_tri_req_15_data(tp_tri_req15_data),
-        .tp_ray_write_0_valid(tp_ray_write0_valid),
-        .tp_ray_write_0_ready(tp_ray_write0_ready),
-        .tp_ray_write_0_data(tp_ray_write0_data),
-        .tp_ray_write_1_valid(tp_ray_write1_valid),
-        .tp_ray_write_1_ready(tp_ray_write1_ready),
-        .tp_ray_write_1_data(tp_ray_write1_data),
-        .tp_ray_write_2_valid(tp_ray_write2_valid),
-        .tp_ray_write_2_ready(tp_ray_write2_ready),
-        .tp_ray_write_2_data(tp_ray_write2_data),
-        .tp_ray_write_3_valid(tp_ray_write3_valid),
-        .tp_ray_write_3_ready(tp_ray_write3_ready),
-        .tp_ray_write_3_data(tp_ray_write3_data),
-        .tp_ray_write_4_valid(tp_ray_write4_valid),
-        .tp_ray_write_4_ready(tp_ray_write4_ready),
-        .tp_ray_write_4_data(tp_ray_write4_data),
-        .tp_ray_write_5_valid(tp_ray_write5_valid),
-        .tp_ray_write_5_ready(tp_ray_write5_ready),
-        .tp_ray_write_5_data(tp_ray_write5_data),
-        .tp_ray_write_6_valid(tp_ray_write6_valid),
-        .tp_ray_write_6_ready(tp_ray_write6_ready),
-        .tp_ray_write_6_data(tp_ray_write6_data),
-        .tp_ray_write_7_valid(tp_ray_write7_valid),
-        .tp_ray_write_7_ready(tp_ray_write7_ready),
-        .tp_ray_write_7_data(tp_ray_write7_data),
-        .tp_ray_write_8_valid(tp_ray_write8_valid),
-        .tp_ray_write_8_ready(tp_ray_write8_ready),
-        .tp_ray_write_8_data(tp_ray_write8_data),
-        .tp_ray_write_9_valid(tp_ray_write9_valid),
-        .tp_ray_write_9_ready(tp_ray_write9_ready),
-        .tp_ray_write_9_data(tp_ray_write9_data),
-        .tp_ray_write_10_valid(tp_ray_write10_valid),
-        .tp_ray_write_10_ready(tp_ray_write10_ready),
-        .tp_ray_write_10_data(tp_ray_write10_data),
-        .tp_ray_write_11_valid(tp_ray_write11_valid),
-        .tp_ray_write_11_ready(tp_ray_write11_ready),
-        .tp_ray_write_11_data(tp_ray_write11_data),
-        .tp_ray_write_12_valid(tp_ray_write12_valid),
-        .tp_ray_write_12_ready(tp_ray_write12_ready),
-        .tp_ray_write_12_data(tp_ray_write12_data),
-        .tp_ray_write_13_valid(tp_ray_write13_valid),
-        .tp_ray_write_13_ready(tp_ray_write13_ready),
-        .tp_ray_write_13_data(tp_ray_write13_data),
-        .tp_ray_write_14_valid(tp_ray_write14_valid),
-        .tp_ray_write_14_ready(tp_ray_write14_ready),
-        .tp_ray_write_14_data(tp_ray_write14_data),
-        .tp_ray_write_15_valid(tp_ray_write15_valid),
-        .tp_ray_write_15_ready(tp_ray_write15_ready),
-        .tp_ray_write_15_data(tp_ray_write15_data),
-        .tp_hit_0_valid(tp_hit0_valid),
-        .tp_hit_0_ready(tp_hit0_ready),
-        .tp_hit_0_data(tp_hit0_data),
-        .tp_hit_1_valid(tp_hit1_valid),
-        .tp_hit_1_ready(tp_hit1_ready),
-        .tp_hit_1_data(tp_hit1_data),
-        .tp_hit_2_valid(tp_hit2_valid),
-        .tp_hit_2_ready(tp_hit2_ready),
-        .tp_hit_2_data(tp_hit2_data),
-        .tp_hit_3_valid(tp_hit3_valid),
-        .tp_hit_3_ready(tp_hit3_ready),
-        .tp_hit_3_data(tp_hit3_data),
-        .tp_hit_4_valid(tp_hit4_valid),
-        .tp_hit_4_ready(tp_hit4_ready),
-        .tp_hit_4_data(tp_hit4_data),
-        .tp_hit_5_valid(tp_hit5_valid),
-        .tp_hit_5_ready(tp_hit5_ready),
-        .tp_hit_5_data(tp_hit5_data),
-        .tp_hit_6_valid(tp_hit6_valid),
-        .tp_hit_6_ready(tp_hit6_ready),
-        .tp_hit_6_data(tp_hit6_data),
-        .tp_hit_7_valid(tp_hit7_valid),
-        .tp_hit_7_ready(tp_hit7_ready),
-        .tp_hit_7_data(tp_hit7_data),
-        .tp_hit_8_valid(tp_hit8_valid),
-        .tp_hit_8_ready(tp_hit8_ready),
-        .tp_hit_8_data(tp_hit8_data),
-        .tp_hit_9_valid(tp_hit9_valid),
-        .tp_hit_9_ready(tp_hit9_ready),
-        .tp_hit_9_data(tp_hit9_data),
-        .tp_hit_10_valid(tp_hit10_valid),
-        .tp_hit_10_ready(tp_hit10_ready),
-        .tp_hit_10_data(tp_hit10_data),
-        .tp_hit_11_valid(tp_hit11_valid),
-        .tp_hit_11_ready(tp_hit11_ready),
-        .tp_hit_11_data(tp_hit11_data),
-        .tp_hit_12_valid(tp_hit12_valid),
-        .tp_hit_12_ready(tp_hit12_ready),
-        .tp_hit_12_data(tp_hit12_data),
-        .tp_hit_13_valid(tp_hit13_valid),
-        .tp_hit_13_ready(tp_hit13_ready),
-        .tp_hit_13_data(tp_hit13_data),
-        .tp_hit_14_valid(tp_hit14_valid),
-        .tp_hit_14_ready(tp_hit14_ready),
-        .tp_hit_14_data(tp_hit14_data),
-        .tp_hit_15_valid(tp_hit15_valid),
-        .tp_hit_15_ready(tp_hit15_ready),
-        .tp_hit_15_data(tp_hit15_data),
-        .tp_gmem_req_0_valid(tp_gmem_req0_valid),
-        .tp_gmem_req_0_ready(tp_gmem_req0_ready),
-        .tp_gmem_req_0_data(tp_gmem_req0_data),
-        .tp_gmem_req_1_valid(tp_gmem_req1_valid),
-        .tp_gmem_req_1_ready(tp_gmem_req1_ready),
-        .tp_gmem_req_1_data(tp_gmem_req1_data),
-        .tp_gmem_req_2_valid(tp_gmem_req2_valid),
-        .tp_gmem_req_2_ready(tp_gmem_req2_ready),
-        .tp_gmem_req_2_data(tp_gmem_req2_data),
-        .tp_gmem_req_3_valid(tp_gmem_req3_valid),
-        .tp_gmem_req_3_ready(tp_gmem_req3_ready),
-        .tp_gmem_req_3_data(tp_gmem_req3_data),
-        .tp_gmem_req_4_valid(tp_gmem_req4_valid),
-        .tp_gmem_req_4_ready(tp_gmem_req4_ready),
-        .tp_gmem_req_4_data(tp_gmem_req4_data),
-        .tp_gmem_req_5_valid(tp_gmem_req5_valid),
-        .tp_gmem_req_5_ready(tp_gmem_req5_ready),
-        .tp_gmem_req_5_data(tp_gmem_req5_data),
-        .tp_gmem_req_6_valid(tp_gmem_req6_valid),
-        .tp_gmem_req_6_ready(tp_gmem_req6_ready),
-        .tp_gmem_req_6_data(tp_gmem_req6_data),
-        .tp_gmem_req_7_valid(tp_gmem_req7_valid),
-        .tp_gmem_req_7_ready(tp_gmem_req7_ready),
-        .tp_gmem_req_7_data(tp_gmem_req7_data),
-        .tp_gmem_req_8_valid(tp_gmem_req8_valid),
-        .tp_gmem_req_8_ready(tp_gmem_req8_ready),
-        .tp_gmem_req_8_data(tp_gmem_req8_data),
-        .tp_gmem_req_9_valid(tp_gmem_req9_valid),
-        .tp_gmem_req_9_ready(tp_gmem_req9_ready),
-        .tp_gmem_req_9_data(tp_gmem_req9_data),
-        .tp_gmem_req_10_valid(tp_gmem_req10_valid),
-        .tp_gmem_req_10_ready(tp_gmem_req10_ready),
-        .tp_gmem_req_10_data(tp_gmem_req10_data),
-        .tp_gmem_req_11_valid(tp_gmem_req11_valid),
-        .tp_gmem_req_11_ready(tp_gmem_req11_ready),
-        .tp_gmem_req_11_data(tp_gmem_req11_data),
-        .tp_gmem_req_12_valid(tp_gmem_req12_valid),
-        .tp_gmem_req_12_ready(tp_gmem_req12_ready),
-        .tp_gmem_req_12_data(tp_gmem_req12_data),
-        .tp_gmem_req_13_valid(tp_gmem_req13_valid),
-        .tp_gmem_req_13_ready(tp_gmem_req13_ready),
-        .tp_gmem_req_13_data(tp_gmem_req13_data),
-        .tp_gmem_req_14_valid(tp_gmem_req14_valid),
-        .tp_gmem_req_14_ready(tp_gmem_req14_ready),
-        .tp_gmem_req_14_data(tp_gmem_req14_data),
-        .tp_gmem_req_15_valid(tp_gmem_req15_valid),
-        .tp_gmem_req_15_ready(tp_gmem_req15_ready),
-        .tp_gmem_req_15_data(tp_gmem_req15_data),
-        .tri_resp_0_valid(tri_resp0_valid),
-        .tri_resp_0_ready(tri_resp0_ready),
-        .tri_resp_0_data(tri_resp0_data),
-        .tri_resp_1_valid(tri_resp1_valid),
-        .tri_resp_1_ready(tri_resp1_ready),
-        .tri_resp_1_data(tri_resp1_data),
-        .tp_div_resp_0_valid(tp_div_resp0_valid),
-        .tp_div_resp_0_ready(tp_div_resp0_ready),
-        .tp_div_resp_0_data(tp_div_resp0_data),
-        .tp_div_resp_1_valid(tp_div_resp1_valid),
-        .tp_div_resp_1_ready(tp_div_resp1_ready),
-        .tp_div_resp_1_data(tp_div_resp1_data),
-        .tp_div_resp_2_valid(tp_div_resp2_valid),
-        .tp_div_resp_2_ready(tp_div_resp2_ready),
-        .tp_div_resp_2_data(tp_div_resp2_data),
-        .tp_div_resp_3_valid(tp_div_resp3_valid),
-        .tp_div_resp_3_ready(tp_div_resp3_ready),
-        .tp_div_resp_3_data(tp_div_resp3_data),
-        .tp_div_resp_4_valid(tp_div_resp4_valid),
-        .tp_div_resp_4_ready(tp_div_resp4_ready),
-        .tp_div_resp_4_data(tp_div_resp4_data),
-        .tp_div_resp_5_valid(tp_div_resp5_valid),
-        .tp_div_resp_5_ready(tp_div_resp5_ready),
-        .tp_div_resp_5_data(tp_div_resp5_data),
-        .tp_div_resp_6_valid(tp_div_resp6_valid),
-        .tp_div_resp_6_ready(tp_div_resp6_ready),
-        .tp_div_resp_6_data(tp_div_resp6_data),
-        .tp_div_resp_7_valid(tp_div_resp7_valid),
-        .tp_div_resp_7_ready(tp_div_resp7_ready),
-        .tp_div_resp_7_data(tp_div_resp7_data),
-        .tp_div_resp_8_valid(tp_div_resp8_valid),
-        .tp_div_resp_8_ready(tp_div_resp8_ready),
-        .tp_div_resp_8_data(tp_div_resp8_data),
-        .tp_div_resp_9_valid(tp_div_resp9_valid),
-        .tp_div_resp_9_ready(tp_div_resp9_ready),
-        .tp_div_resp_9_data(tp_div_resp9_data),
-        .tp_div_resp_10_valid(tp_div_resp10_valid),
-        .tp_div_resp_10_ready(tp_div_resp10_ready),
-        .tp_div_resp_10_data(tp_div_resp10_data),
-        .tp_div_resp_11_valid(tp_div_resp11_valid),
-        .tp_div_resp_11_ready(tp_div_resp11_ready),
-        .tp_div_resp_11_data(tp_div_resp11_data),
-        .tp_div_resp_12_valid(tp_div_resp12_valid),
-        .tp_div_resp_12_ready(tp_div_resp12_ready),
-        .tp_div_resp_12_data(tp_div_resp12_data),
-        .tp_div_resp_13_valid(tp_div_resp13_valid),
-        .tp_div_resp_13_ready(tp_div_resp13_ready),
-        .tp_div_resp_13_data(tp_div_resp13_data),
-        .tp_div_resp_14_valid(tp_div_resp14_valid),
-        .tp_div_resp_14_ready(tp_div_resp14_ready),
-        .tp_div_resp_14_data(tp_div_resp14_data),
-        .tp_div_resp_15_valid(tp_div_resp15_valid),
-        .tp_div_resp_15_ready(tp_div_resp15_ready),
-        .tp_div_resp_15_data(tp_div_resp15_data),
-        .tp_box_resp_0_valid(tp_box_resp0_valid),
-        .tp_box_resp_0_ready(tp_box_resp0_ready),
-        .tp_box_resp_0_data(tp_box_resp0_data),
-        .tp_box_resp_1_valid(tp_box_resp1_valid),
-        .tp_box_resp_1_ready(tp_box_resp1_ready),
-        .tp_box_resp_1_data(tp_box_resp1_data),
-        .tp_box_resp_2_valid(tp_box_resp2_valid),
-        .tp_box_resp_2_ready(tp_box_resp2_ready),
-        .tp_box_resp_2_data(tp_box_resp2_data),
-        .tp_box_resp_3_valid(tp_box_resp3_valid),
-        .tp_box_resp_3_ready(tp_box_resp3_ready),
-        .tp_box_resp_3_data(tp_box_resp3_data),
-        .tp_box_resp_4_valid(tp_box_resp4_valid),
-        .tp_box_resp_4_ready(tp_box_resp4_ready),
-        .tp_box_resp_4_data(tp_box_resp4_data),
-        .tp_box_resp_5_valid(tp_box_resp5_valid),
-        .tp_box_resp_5_ready(tp_box_resp5_ready),
-        .tp_box_resp_5_data(tp_box_resp5_data),
-        .tp_box_resp_6_valid(tp_box_resp6_valid),
-        .tp_box_resp_6_ready(tp_box_resp6_ready),
-        .tp_box_resp_6_data(tp_box_resp6_data),
-        .tp_box_resp_7_valid(tp_box_resp7_valid),
-        .tp_box_resp_7_ready(tp_box_resp7_ready),
-        .tp_box_resp_7_data(tp_box_resp7_data),
-        .tp_box_resp_8_valid(tp_box_resp8_valid),
-        .tp_box_resp_8_ready(tp_box_resp8_ready),
-        .tp_box_resp_8_data(tp_box_resp8_data),
-        .tp_box_resp_9_valid(tp_box_resp9_valid),
-        .tp_box_resp_9_ready(tp_box_resp9_ready),
-        .tp_box_resp_9_data(tp_box_resp9_data),
-        .tp_box_resp_10_valid(tp_box_resp10_valid),
-        .tp_box_resp_10_ready(tp_box_resp10_ready),
-        .tp_box_resp_10_data(tp_box_resp10_data),
-        .tp_box_resp_11_valid(tp_box_resp11_valid),
-        .tp_box_resp_11_ready(tp_box_resp11_ready),
-        .tp_box_resp_11_data(tp_box_resp11_data),
-        .tp_box_resp_12_valid(tp_box_resp12_valid),
-        .tp_box_resp_12_ready(tp_box_resp12_ready),
-        .tp_box_resp_12_data(tp_box_resp12_data),
-        .tp_box_resp_13_valid(tp_box_resp13_valid),
-        .tp_box_resp_13_ready(tp_box_resp13_ready),
-        .tp_box_resp_13_data(tp_box_resp13_data),
-        .tp_box_resp_14_valid(tp_box_resp14_valid),
-        .tp_box_resp_14_ready(tp_box_resp14_ready),
-        .tp_box_resp_14_data(tp_box_resp14_data),
-        .tp_box_resp_15_valid(tp_box_resp15_valid),
-        .tp_box_resp_15_ready(tp_box_resp15_ready),
-        .tp_box_resp_15_data(tp_box_resp15_data),
-        .tp_tri_resp_0_valid(tp_tri_resp0_valid),
-        .tp_tri_resp_0_ready(tp_tri_resp0_ready),
-        .tp_tri_resp_0_data(tp_tri_resp0_data),
-        .tp_tri_resp_1_valid(tp_tri_resp1_valid),
-        .tp_tri_resp_1_ready(tp_tri_resp1_ready),
-        .tp_tri_resp_1_data(tp_tri_resp1_data),
-        .tp_tri_resp_2_valid(tp_tri_resp2_valid),
-        .tp_tri_resp_2_ready(tp_tri_resp2_ready),
-        .tp_tri_resp_2_data(tp_tri_resp2_data),
-        .tp_tri_resp_3_valid(tp_tri_resp3_valid),
-        .tp_tri_resp_3_ready(tp_tri_resp3_ready),
-        .tp_tri_resp_3_data(tp_tri_resp3_data),
-        .tp_tri_resp_4_valid(tp_tri_resp4_valid),
-        .tp_tri_resp_4_ready(tp_tri_resp4_ready),
-        .tp_tri_resp_4_data(tp_tri_resp4_data),
-        .tp_tri_resp_5_valid(tp_tri_resp5_valid),
-        .tp_tri_resp_5_ready(tp_tri_resp5_ready),
-        .tp_tri_resp_5_data(tp_tri_resp5_data),
-        .tp_tri_resp_6_valid(tp_tri_resp6_valid),
-        .tp_tri_resp_6_ready(tp_tri_resp6_ready),
-        .tp_tri_resp_6_data(tp_tri_resp6_data),
-        .tp_tri_resp_7_valid(tp_tri_resp7_valid),
-        .tp_tri_resp_7_ready(tp_tri_resp7_ready),
-        .tp_tri_resp_7_data(tp_tri_resp7_data),
-        .tp_tri_resp_8_valid(tp_tri_resp8_valid),
-        .tp_tri_resp_8_ready(tp_tri_resp8_ready),
-        .tp_tri_resp_8_data(tp_tri_resp8_data),
-        .tp_tri_resp_9_valid(tp_tri_resp9_valid),
-        .tp_tri_resp_9_ready(tp_tri_resp9_ready),
-        .tp_tri_resp_9_data(tp_tri_resp9_data),
-        .tp_tri_resp_10_valid(tp_tri_resp10_valid),
-        .tp_tri_resp_10_ready(tp_tri_resp10_ready),
-        .tp_tri_resp_10_data(tp_tri_resp10_data),
-        .tp_tri_resp_11_valid(tp_tri_resp11_valid),
-        .tp_tri_resp_11_ready(tp_tri_resp11_ready),
-        .tp_tri_resp_11_data(tp_tri_resp11_data),
-        .tp_tri_resp_12_valid(tp_tri_resp12_valid),
-        .tp_tri_resp_12_ready(tp_tri_resp12_ready),
-        .tp_tri_resp_12_data(tp_tri_resp12_data),
-        .tp_tri_resp_13_valid(tp_tri_resp13_valid),
-        .tp_tri_resp_13_ready(tp_tri_resp13_ready),
-        .tp_tri_resp_13_data(tp_tri_resp13_data),
-        .tp_tri_resp_14_valid(tp_tri_resp14_valid),
-        .tp_tri_resp_14_ready(tp_tri_resp14_ready),
-        .tp_tri_resp_14_data(tp_tri_resp14_data),
-        .tp_tri_resp_15_valid(tp_tri_resp15_valid),
-        .tp_tri_resp_15_ready(tp_tri_resp15_ready),
-        .tp_tri_resp_15_data(tp_tri_resp15_data),
-        .tp_gmem_resp_0_valid(tp_gmem_resp0_valid),
-        .tp_gmem_resp_0_ready(tp_gmem_resp0_ready),
-        .tp_gmem_resp_0_data(tp_gmem_resp0_data),
-        .tp_gmem_resp_1_valid(tp_gmem_resp1_valid),
-        .tp_gmem_resp_1_ready(tp_gmem_resp1_ready),
-        .tp_gmem_resp_1_data(tp_gmem_resp1_data),
-        .tp_gmem_resp_2_valid(tp_gmem_resp2_valid),
-        .tp_gmem_resp_2_ready(tp_gmem_resp2_ready),
-        .tp_gmem_resp_2_data(tp_gmem_resp2_data),
-        .tp_gmem_resp_3_valid(tp_gmem_resp3_valid),
-        .tp_gmem_resp_3_ready(tp_gmem_resp3_ready),
-        .tp_gmem_resp_3_data(tp_gmem_resp3_data),
-        .tp_gmem_resp_4_valid(tp_gmem_resp4_valid),
-        .tp_gmem_resp_4_ready(tp_gmem_resp4_ready),
-        .tp_gmem_resp_4_data(tp_gmem_resp4_data),
-        .tp_gmem_resp_5_valid(tp_gmem_resp5_valid),
-        .tp_gmem_resp_5_ready(tp_gmem_resp5_ready),
-        .tp_gmem_resp_5_data(tp_gmem_resp5_data),
-        .tp_gmem_resp_6_valid(tp_gmem_resp6_valid),
-        .tp_gmem_resp_6_ready(tp_gmem_resp6_ready),
-        .tp_gmem_resp_6_data(tp_gmem_resp6_data),
-        .tp_gmem_resp_7_valid(tp_gmem_resp7_valid),
-        .tp_gmem_resp_7_ready(tp_gmem_resp7_ready),
-        .tp_gmem_resp_7_data(tp_gmem_resp7_data),
-        .tp_gmem_resp_8_valid(tp_gmem_resp8_valid),
-        .tp_gmem_resp_8_ready(tp_gmem_resp8_ready),
-        .tp_gmem_resp_8_data(tp_gmem_resp8_data),
-        .tp_gmem_resp_9_valid(tp_gmem_resp9_valid),
-        .tp_gmem_resp_9_ready(tp_gmem_resp9_ready),
-        .tp_gmem_resp_9_data(tp_gmem_resp9_data),
-        .tp_gmem_resp_10_valid(tp_gmem_resp10_valid),
-        .tp_gmem_resp_10_ready(tp_gmem_resp10_ready),
-        .tp_gmem_resp_10_data(tp_gmem_resp10_data),
-        .tp_gmem_resp_11_valid(tp_gmem_resp11_valid),
-        .tp_gmem_resp_11_ready(tp_gmem_resp11_ready),
-        .tp_gmem_resp_11_data(tp_gmem_resp11_data),
-        .tp_gmem_resp_12_valid(tp_gmem_resp12_valid),
-        .tp_gmem_resp_12_ready(tp_gmem_resp12_ready),
-        .tp_gmem_resp_12_data(tp_gmem_resp12_data),
-        .tp_gmem_resp_13_valid(tp_gmem_resp13_valid),
-        .tp_gmem_resp_13_ready(tp_gmem_resp13_ready),
-        .tp_gmem_resp_13_data(tp_gmem_resp13_data),
-        .tp_gmem_resp_14_valid(tp_gmem_resp14_valid),
-        .tp_gmem_resp_14_ready(tp_gmem_resp14_ready),
-        .tp_gmem_resp_14_data(tp_gmem_resp14_data),
-        .tp_gmem_resp_15_valid(tp_gmem_resp15_valid),
-        .tp_gmem_resp_15_ready(tp_gmem_resp15_ready),
-        .tp_gmem_resp_15_data(tp_gmem_resp15_data),
-        .tri_req_0_valid(tri_req0_valid),
-        .tri_req_0_ready(tri_req0_ready),
-        .tri_req_0_data(tri_req0_data),
-        .tri_req_1_valid(tri_req1_valid),
-        .tri_req_1_ready(tri_req1_ready),
-        .tri_req_1_data(tri_req1_data)
+        .tp_div_req_0_valid(tp_div_req0_pop_valid),
+        .tp_div_req_0_ready(tp_div_req0_pop_ready),
+        .tp_div_req_0_data(tp_div_req0_pop_data),
+        .tp_div_req_1_valid(tp_div_req1_pop_valid),
+        .tp_div_req_1_ready(tp_div_req1_pop_ready),
+        .tp_div_req_1_data(tp_div_req1_pop_data),
+        .tp_div_req_2_valid(tp_div_req2_pop_valid),
+        .tp_div_req_2_ready(tp_div_req2_pop_ready),
+        .tp_div_req_2_data(tp_div_req2_pop_data),
+        .tp_div_req_3_valid(tp_div_req3_pop_valid),
+        .tp_div_req_3_ready(tp_div_req3_pop_ready),
+        .tp_div_req_3_data(tp_div_req3_pop_data),
+        .tp_div_req_4_valid(tp_div_req4_pop_valid),
+        .tp_div_req_4_ready(tp_div_req4_pop_ready),
+        .tp_div_req_4_data(tp_div_req4_pop_data),
+        .tp_div_req_5_valid(tp_div_req5_pop_valid),
+        .tp_div_req_5_ready(tp_div_req5_pop_ready),
+        .tp_div_req_5_data(tp_div_req5_pop_data),
+        .tp_div_req_6_valid(tp_div_req6_pop_valid),
+        .tp_div_req_6_ready(tp_div_req6_pop_ready),
+        .tp_div_req_6_data(tp_div_req6_pop_data),
+        .tp_div_req_7_valid(tp_div_req7_pop_valid),
+        .tp_div_req_7_ready(tp_div_req7_pop_ready),
+        .tp_div_req_7_data(tp_div_req7_pop_data),
+        .tp_div_req_8_valid(tp_div_req8_pop_valid),
+        .tp_div_req_8_ready(tp_div_req8_pop_ready),
+        .tp_div_req_8_data(tp_div_req8_pop_data),
+        .tp_div_req_9_valid(tp_div_req9_pop_valid),
+        .tp_div_req_9_ready(tp_div_req9_pop_ready),
+        .tp_div_req_9_data(tp_div_req9_pop_data),
+        .tp_div_req_10_valid(tp_div_req10_pop_valid),
+        .tp_div_req_10_ready(tp_div_req10_pop_ready),
+        .tp_div_req_10_data(tp_div_req10_pop_data),
+        .tp_div_req_11_valid(tp_div_req11_pop_valid),
+        .tp_div_req_11_ready(tp_div_req11_pop_ready),
+        .tp_div_req_11_data(tp_div_req11_pop_data),
+        .tp_div_req_12_valid(tp_div_req12_pop_valid),
+        .tp_div_req_12_ready(tp_div_req12_pop_ready),
+        .tp_div_req_12_data(tp_div_req12_pop_data),
+        .tp_div_req_13_valid(tp_div_req13_pop_valid),
+        .tp_div_req_13_ready(tp_div_req13_pop_ready),
+        .tp_div_req_13_data(tp_div_req13_pop_data),
+        .tp_div_req_14_valid(tp_div_req14_pop_valid),
+        .tp_div_req_14_ready(tp_div_req14_pop_ready),
+        .tp_div_req_14_data(tp_div_req14_pop_data),
+        .tp_div_req_15_valid(tp_div_req15_pop_valid),
+        .tp_div_req_15_ready(tp_div_req15_pop_ready),
+        .tp_div_req_15_data(tp_div_req15_pop_data),
+        .tp_box_req_0_valid(tp_box_req0_pop_valid),
+        .tp_box_req_0_ready(tp_box_req0_pop_ready),
+        .tp_box_req_0_data(tp_box_req0_pop_data),
+        .tp_box_req_1_valid(tp_box_req1_pop_valid),
+        .tp_box_req_1_ready(tp_box_req1_pop_ready),
+        .tp_box_req_1_data(tp_box_req1_pop_data),
+        .tp_box_req_2_valid(tp_box_req2_pop_valid),
+        .tp_box_req_2_ready(tp_box_req2_pop_ready),
+        .tp_box_req_2_data(tp_box_req2_pop_data),
+        .tp_box_req_3_valid(tp_box_req3_pop_valid),
+        .tp_box_req_3_ready(tp_box_req3_pop_ready),
+        .tp_box_req_3_data(tp_box_req3_pop_data),
+        .tp_box_req_4_valid(tp_box_req4_pop_valid),
+        .tp_box_req_4_ready(tp_box_req4_pop_ready),
+        .tp_box_req_4_data(tp_box_req4_pop_data),
+        .tp_box_req_5_valid(tp_box_req5_pop_valid),
+        .tp_box_req_5_ready(tp_box_req5_pop_ready),
+        .tp_box_req_5_data(tp_box_req5_pop_data),
+        .tp_box_req_6_valid(tp_box_req6_pop_valid),
+        .tp_box_req_6_ready(tp_box_req6_pop_ready),
+        .tp_box_req_6_data(tp_box_req6_pop_data),
+        .tp_box_req_7_valid(tp_box_req7_pop_valid),
+        .tp_box_req_7_ready(tp_box_req7_pop_ready),
+        .tp_box_req_7_data(tp_box_req7_pop_data),
+        .tp_box_req_8_valid(tp_box_req8_pop_valid),
+        .tp_box_req_8_ready(tp_box_req8_pop_ready),
+        .tp_box_req_8_data(tp_box_req8_pop_data),
+        .tp_box_req_9_valid(tp_box_req9_pop_valid),
+        .tp_box_req_9_ready(tp_box_req9_pop_ready),
+        .tp_box_req_9_data(tp_box_req9_pop_data),
+        .tp_box_req_10_valid(tp_box_req10_pop_valid),
+        .tp_box_req_10_ready(tp_box_req10_pop_ready),
+        .tp_box_req_10_data(tp_box_req10_pop_data),
+        .tp_box_req_11_valid(tp_box_req11_pop_valid),
+        .tp_box_req_11_ready(tp_box_req11_pop_ready),
+        .tp_box_req_11_data(tp_box_req11_pop_data),
+        .tp_box_req_12_valid(tp_box_req12_pop_valid),
+        .tp_box_req_12_ready(tp_box_req12_pop_ready),
+        .tp_box_req_12_data(tp_box_req12_pop_data),
+        .tp_box_req_13_valid(tp_box_req13_pop_valid),
+        .tp_box_req_13_ready(tp_box_req13_pop_ready),
+        .tp_box_req_13_data(tp_box_req13_pop_data),
+        .tp_box_req_14_valid(tp_box_req14_pop_valid),
+        .tp_box_req_14_ready(tp_box_req14_pop_ready),
+        .tp_box_req_14_data(tp_box_req14_pop_data),
+        .tp_box_req_15_valid(tp_box_req15_pop_valid),
+        .tp_box_req_15_ready(tp_box_req15_pop_ready),
+        .tp_box_req_15_data(tp_box_req15_pop_data),
+        .tp_tri_req_0_valid(tp_tri_req0_pop_valid),
+        .tp_tri_req_0_ready(tp_tri_req0_pop_ready),
+        .tp_tri_req_0_data(tp_tri_req0_pop_data),
+        .tp_tri_req_1_valid(tp_tri_req1_pop_valid),
+        .tp_tri_req_1_ready(tp_tri_req1_pop_ready),
+        .tp_tri_req_1_data(tp_tri_req1_pop_data),
+        .tp_tri_req_2_valid(tp_tri_req2_pop_valid),
+        .tp_tri_req_2_ready(tp_tri_req2_pop_ready),
+        .tp_tri_req_2_data(tp_tri_req2_pop_data),
+        .tp_tri_req_3_valid(tp_tri_req3_pop_valid),
+        .tp_tri_req_3_ready(tp_tri_req3_pop_ready),
+        .tp_tri_req_3_data(tp_tri_req3_pop_data),
+        .tp_tri_req_4_valid(tp_tri_req4_pop_valid),
+        .tp_tri_req_4_ready(tp_tri_req4_pop_ready),
+        .tp_tri_req_4_data(tp_tri_req4_pop_data),
+        .tp_tri_req_5_valid(tp_tri_req5_pop_valid),
+        .tp_tri_req_5_ready(tp_tri_req5_pop_ready),
+        .tp_tri_req_5_data(tp_tri_req5_pop_data),
+        .tp_tri_req_6_valid(tp_tri_req6_pop_valid),
+        .tp_tri_req_6_ready(tp_tri_req6_pop_ready),
+        .tp_tri_req_6_data(tp_tri_req6_pop_data),
+        .tp_tri_req_7_valid(tp_tri_req7_pop_valid),
+        .tp_tri_req_7_ready(tp_tri_req7_pop_ready),
+        .tp_tri_req_7_data(tp_tri_req7_pop_data),
+        .tp_tri_req_8_valid(tp_tri_req8_pop_valid),
+        .tp_tri_req_8_ready(tp_tri_req8_pop_ready),
+        .tp_tri_req_8_data(tp_tri_req8_pop_data),
+        .tp_tri_req_9_valid(tp_tri_req9_pop_valid),
+        .tp_tri_req_9_ready(tp_tri_req9_pop_ready),
+        .tp_tri_req_9_data(tp_tri_req9_pop_data),
+        .tp_tri_req_10_valid(tp_tri_req10_pop_valid),
+        .tp_tri_req_10_ready(tp_tri_req10_pop_ready),
+        .tp_tri_req_10_data(tp_tri_req10_pop_data),
+        .tp_tri_req_11_valid(tp_tri_req11_pop_valid),
+        .tp_tri_req_11_ready(tp_tri_req11_pop_ready),
+        .tp_tri_req_11_data(tp_tri_req11_pop_data),
+        .tp_tri_req_12_valid(tp_tri_req12_pop_valid),
+        .tp_tri_req_12_ready(tp_tri_req12_pop_ready),
+        .tp_tri_req_12_data(tp_tri_req12_pop_data),
+        .tp_tri_req_13_valid(tp_tri_req13_pop_valid),
+        .tp_tri_req_13_ready(tp_tri_req13_pop_ready),
+        .tp_tri_req_13_data(tp_tri_req13_pop_data),
+        .tp_tri_req_14_valid(tp_tri_req14_pop_valid),
+        .tp_tri_req_14_ready(tp_tri_req14_pop_ready),
+        .tp_tri_req_14_data(tp_tri_req14_pop_data),
+        .tp_tri_req_15_valid(tp_tri_req15_pop_valid),
+        .tp_tri_req_15_ready(tp_tri_req15_pop_ready),
+        .tp_tri_req_15_data(tp_tri_req15_pop_data),
+        .tp_ray_write_0_valid(tp_ray_write0_pop_valid),
+        .tp_ray_write_0_ready(tp_ray_write0_pop_ready),
+        .tp_ray_write_0_data(tp_ray_write0_pop_data),
+        .tp_ray_write_1_valid(tp_ray_write1_pop_valid),
+        .tp_ray_write_1_ready(tp_ray_write1_pop_ready),
+        .tp_ray_write_1_data(tp_ray_write1_pop_data),
+        .tp_ray_write_2_valid(tp_ray_write2_pop_valid),
+        .tp_ray_write_2_ready(tp_ray_write2_pop_ready),
+        .tp_ray_write_2_data(tp_ray_write2_pop_data),
+        .tp_ray_write_3_valid(tp_ray_write3_pop_valid),
+        .tp_ray_write_3_ready(tp_ray_write3_pop_ready),
+        .tp_ray_write_3_data(tp_ray_write3_pop_data),
+        .tp_ray_write_4_valid(tp_ray_write4_pop_valid),
+        .tp_ray_write_4_ready(tp_ray_write4_pop_ready),
+        .tp_ray_write_4_data(tp_ray_write4_pop_data),
+        .tp_ray_write_5_valid(tp_ray_write5_pop_valid),
+        .tp_ray_write_5_ready(tp_ray_write5_pop_ready),
+        .tp_ray_write_5_data(tp_ray_write5_pop_data),
+        .tp_ray_write_6_valid(tp_ray_write6_pop_valid),
+        .tp_ray_write_6_ready(tp_ray_write6_pop_ready),
+        .tp_ray_write_6_data(tp_ray_write6_pop_data),
+        .tp_ray_write_7_valid(tp_ray_write7_pop_valid),
+        .tp_ray_write_7_ready(tp_ray_write7_pop_ready),
+        .tp_ray_write_7_data(tp_ray_write7_pop_data),
+        .tp_ray_write_8_valid(tp_ray_write8_pop_valid),
+        .tp_ray_write_8_ready(tp_ray_write8_pop_ready),
+        .tp_ray_write_8_data(tp_ray_write8_pop_data),
+        .tp_ray_write_9_valid(tp_ray_write9_pop_valid),
+        .tp_ray_write_9_ready(tp_ray_write9_pop_ready),
+        .tp_ray_write_9_data(tp_ray_write9_pop_data),
+        .tp_ray_write_10_valid(tp_ray_write10_pop_valid),
+        .tp_ray_write_10_ready(tp_ray_write10_pop_ready),
+        .tp_ray_write_10_data(tp_ray_write10_pop_data),
+        .tp_ray_write_11_valid(tp_ray_write11_pop_valid),
+        .tp_ray_write_11_ready(tp_ray_write11_pop_ready),
+        .tp_ray_write_11_data(tp_ray_write11_pop_data),
+        .tp_ray_write_12_valid(tp_ray_write12_pop_valid),
+        .tp_ray_write_12_ready(tp_ray_write12_pop_ready),
+        .tp_ray_write_12_data(tp_ray_write12_pop_data),
+        .tp_ray_write_13_valid(tp_ray_write13_pop_valid),
+        .tp_ray_write_13_ready(tp_ray_write13_pop_ready),
+        .tp_ray_write_13_data(tp_ray_write13_pop_data),
+        .tp_ray_write_14_valid(tp_ray_write14_pop_valid),
+        .tp_ray_write_14_ready(tp_ray_write14_pop_ready),
+        .tp_ray_write_14_data(tp_ray_write14_pop_data),
+        .tp_ray_write_15_valid(tp_ray_write15_pop_valid),
+        .tp_ray_write_15_ready(tp_ray_write15_pop_ready),
+        .tp_ray_write_15_data(tp_ray_write15_pop_data),
+        .tp_hit_0_valid(tp_hit0_pop_valid),
+        .tp_hit_0_ready(tp_hit0_pop_ready),
+        .tp_hit_0_data(tp_hit0_pop_data),
+        .tp_hit_1_valid(tp_hit1_pop_valid),
+        .tp_hit_1_ready(tp_hit1_pop_ready),
+        .tp_hit_1_data(tp_hit1_pop_data),
+        .tp_hit_2_valid(tp_hit2_pop_valid),
+        .tp_hit_2_ready(tp_hit2_pop_ready),
+        .tp_hit_2_data(tp_hit2_pop_data),
+        .tp_hit_3_valid(tp_hit3_pop_valid),
+        .tp_hit_3_ready(tp_hit3_pop_ready),
+        .tp_hit_3_data(tp_hit3_pop_data),
+        .tp_hit_4_valid(tp_hit4_pop_valid),
+        .tp_hit_4_ready(tp_hit4_pop_ready),
+        .tp_hit_4_data(tp_hit4_pop_data),
+        .tp_hit_5_valid(tp_hit5_pop_valid),
+        .tp_hit_5_ready(tp_hit5_pop_ready),
+        .tp_hit_5_data(tp_hit5_pop_data),
+        .tp_hit_6_valid(tp_hit6_pop_valid),
+        .tp_hit_6_ready(tp_hit6_pop_ready),
+        .tp_hit_6_data(tp_hit6_pop_data),
+        .tp_hit_7_valid(tp_hit7_pop_valid),
+        .tp_hit_7_ready(tp_hit7_pop_ready),
+        .tp_hit_7_data(tp_hit7_pop_data),
+        .tp_hit_8_valid(tp_hit8_pop_valid),
+        .tp_hit_8_ready(tp_hit8_pop_ready),
+        .tp_hit_8_data(tp_hit8_pop_data),
+        .tp_hit_9_valid(tp_hit9_pop_valid),
+        .tp_hit_9_ready(tp_hit9_pop_ready),
+        .tp_hit_9_data(tp_hit9_pop_data),
+        .tp_hit_10_valid(tp_hit10_pop_valid),
+        .tp_hit_10_ready(tp_hit10_pop_ready),
+        .tp_hit_10_data(tp_hit10_pop_data),
+        .tp_hit_11_valid(tp_hit11_pop_valid),
+        .tp_hit_11_ready(tp_hit11_pop_ready),
+        .tp_hit_11_data(tp_hit11_pop_data),
+        .tp_hit_12_valid(tp_hit12_pop_valid),
+        .tp_hit_12_ready(tp_hit12_pop_ready),
+        .tp_hit_12_data(tp_hit12_pop_data),
+        .tp_hit_13_valid(tp_hit13_pop_valid),
+        .tp_hit_13_ready(tp_hit13_pop_ready),
+        .tp_hit_13_data(tp_hit13_pop_data),
+        .tp_hit_14_valid(tp_hit14_pop_valid),
+        .tp_hit_14_ready(tp_hit14_pop_ready),
+        .tp_hit_14_data(tp_hit14_pop_data),
+        .tp_hit_15_valid(tp_hit15_pop_valid),
+        .tp_hit_15_ready(tp_hit15_pop_ready),
+        .tp_hit_15_data(tp_hit15_pop_data),
+        .tp_gmem_req_0_valid(tp_gmem_req0_pop_valid),
+        .tp_gmem_req_0_ready(tp_gmem_req0_pop_ready),
+        .tp_gmem_req_0_data(tp_gmem_req0_pop_data),
+        .tp_gmem_req_1_valid(tp_gmem_req1_pop_valid),
+        .tp_gmem_req_1_ready(tp_gmem_req1_pop_ready),
+        .tp_gmem_req_1_data(tp_gmem_req1_pop_data),
+        .tp_gmem_req_2_valid(tp_gmem_req2_pop_valid),
+        .tp_gmem_req_2_ready(tp_gmem_req2_pop_ready),
+        .tp_gmem_req_2_data(tp_gmem_req2_pop_data),
+        .tp_gmem_req_3_valid(tp_gmem_req3_pop_valid),
+        .tp_gmem_req_3_ready(tp_gmem_req3_pop_ready),
+        .tp_gmem_req_3_data(tp_gmem_req3_pop_data),
+        .tp_gmem_req_4_valid(tp_gmem_req4_pop_valid),
+        .tp_gmem_req_4_ready(tp_gmem_req4_pop_ready),
+        .tp_gmem_req_4_data(tp_gmem_req4_pop_data),
+        .tp_gmem_req_5_valid(tp_gmem_req5_pop_valid),
+        .tp_gmem_req_5_ready(tp_gmem_req5_pop_ready),
+        .tp_gmem_req_5_data(tp_gmem_req5_pop_data),
+        .tp_gmem_req_6_valid(tp_gmem_req6_pop_valid),
+        .tp_gmem_req_6_ready(tp_gmem_req6_pop_ready),
+        .tp_gmem_req_6_data(tp_gmem_req6_pop_data),
+        .tp_gmem_req_7_valid(tp_gmem_req7_pop_valid),
+        .tp_gmem_req_7_ready(tp_gmem_req7_pop_ready),
+        .tp_gmem_req_7_data(tp_gmem_req7_pop_data),
+        .tp_gmem_req_8_valid(tp_gmem_req8_pop_valid),
+        .tp_gmem_req_8_ready(tp_gmem_req8_pop_ready),
+        .tp_gmem_req_8_data(tp_gmem_req8_pop_data),
+        .tp_gmem_req_9_valid(tp_gmem_req9_pop_valid),
+        .tp_gmem_req_9_ready(tp_gmem_req9_pop_ready),
+        .tp_gmem_req_9_data(tp_gmem_req9_pop_data),
+        .tp_gmem_req_10_valid(tp_gmem_req10_pop_valid),
+        .tp_gmem_req_10_ready(tp_gmem_req10_pop_ready),
+        .tp_gmem_req_10_data(tp_gmem_req10_pop_data),
+        .tp_gmem_req_11_valid(tp_gmem_req11_pop_valid),
+        .tp_gmem_req_11_ready(tp_gmem_req11_pop_ready),
+        .tp_gmem_req_11_data(tp_gmem_req11_pop_data),
+        .tp_gmem_req_12_valid(tp_gmem_req12_pop_valid),
+        .tp_gmem_req_12_ready(tp_gmem_req12_pop_ready),
+        .tp_gmem_req_12_data(tp_gmem_req12_pop_data),
+        .tp_gmem_req_13_valid(tp_gmem_req13_pop_valid),
+        .tp_gmem_req_13_ready(tp_gmem_req13_pop_ready),
+        .tp_gmem_req_13_data(tp_gmem_req13_pop_data),
+        .tp_gmem_req_14_valid(tp_gmem_req14_pop_valid),
+        .tp_gmem_req_14_ready(tp_gmem_req14_pop_ready),
+        .tp_gmem_req_14_data(tp_gmem_req14_pop_data),
+        .tp_gmem_req_15_valid(tp_gmem_req15_pop_valid),
+        .tp_gmem_req_15_ready(tp_gmem_req15_pop_ready),
+        .tp_gmem_req_15_data(tp_gmem_req15_pop_data),
+        .tri_resp_0_valid(tri_resp0_pop_valid),
+        .tri_resp_0_ready(tri_resp0_pop_ready),
+        .tri_resp_0_data(tri_resp0_pop_data),
+        .tri_resp_1_valid(tri_resp1_pop_valid),
+        .tri_resp_1_ready(tri_resp1_pop_ready),
+        .tri_resp_1_data(tri_resp1_pop_data),
+        .tp_div_resp_0_valid(tp_div_resp0_push_valid),
+        .tp_div_resp_0_ready(tp_div_resp0_push_ready),
+        .tp_div_resp_0_data(tp_div_resp0_push_data),
+        .tp_div_resp_1_valid(tp_div_resp1_push_valid),
+        .tp_div_resp_1_ready(tp_div_resp1_push_ready),
+        .tp_div_resp_1_data(tp_div_resp1_push_data),
+        .tp_div_resp_2_valid(tp_div_resp2_push_valid),
+        .tp_div_resp_2_ready(tp_div_resp2_push_ready),
+        .tp_div_resp_2_data(tp_div_resp2_push_data),
+        .tp_div_resp_3_valid(tp_div_resp3_push_valid),
+        .tp_div_resp_3_ready(tp_div_resp3_push_ready),
+        .tp_div_resp_3_data(tp_div_resp3_push_data),
+        .tp_div_resp_4_valid(tp_div_resp4_push_valid),
+        .tp_div_resp_4_ready(tp_div_resp4_push_ready),
+        .tp_div_resp_4_data(tp_div_resp4_push_data),
+        .tp_div_resp_5_valid(tp_div_resp5_push_valid),
+        .tp_div_resp_5_ready(tp_div_resp5_push_ready),
+        .tp_div_resp_5_data(tp_div_resp5_push_data),
+        .tp_div_resp_6_valid(tp_div_resp6_push_valid),
+        .tp_div_resp_6_ready(tp_div_resp6_push_ready),
+        .tp_div_resp_6_data(tp_div_resp6_push_data),
+        .tp_div_resp_7_valid(tp_div_resp7_push_valid),
+        .tp_div_resp_7_ready(tp_div_resp7_push_ready),
+        .tp_div_resp_7_data(tp_div_resp7_push_data),
+        .tp_div_resp_8_valid(tp_div_resp8_push_valid),
+        .tp_div_resp_8_ready(tp_div_resp8_push_ready),
+        .tp_div_resp_8_data(tp_div_resp8_push_data),
+        .tp_div_resp_9_valid(tp_div_resp9_push_valid),
+        .tp_div_resp_9_ready(tp_div_resp9_push_ready),
+        .tp_div_resp_9_data(tp_div_resp9_push_data),
+        .tp_div_resp_10_valid(tp_div_resp10_push_valid),
+        .tp_div_resp_10_ready(tp_div_resp10_push_ready),
+        .tp_div_resp_10_data(tp_div_resp10_push_data),
+        .tp_div_resp_11_valid(tp_div_resp11_push_valid),
+        .tp_div_resp_11_ready(tp_div_resp11_push_ready),
+        .tp_div_resp_11_data(tp_div_resp11_push_data),
+        .tp_div_resp_12_valid(tp_div_resp12_push_valid),
+        .tp_div_resp_12_ready(tp_div_resp12_push_ready),
+        .tp_div_resp_12_data(tp_div_resp12_push_data),
+        .tp_div_resp_13_valid(tp_div_resp13_push_valid),
+        .tp_div_resp_13_ready(tp_div_resp13_push_ready),
+        .tp_div_resp_13_data(tp_div_resp13_push_data),
+        .tp_div_resp_14_valid(tp_div_resp14_push_valid),
+        .tp_div_resp_14_ready(tp_div_resp14_push_ready),
+        .tp_div_resp_14_data(tp_div_resp14_push_data),
+        .tp_div_resp_15_valid(tp_div_resp15_push_valid),
+        .tp_div_resp_15_ready(tp_div_resp15_push_ready),
+        .tp_div_resp_15_data(tp_div_resp15_push_data),
+        .tp_box_resp_0_valid(tp_box_resp0_push_valid),
+        .tp_box_resp_0_ready(tp_box_resp0_push_ready),
+        .tp_box_resp_0_data(tp_box_resp0_push_data),
+        .tp_box_resp_1_valid(tp_box_resp1_push_valid),
+        .tp_box_resp_1_ready(tp_box_resp1_push_ready),
+        .tp_box_resp_1_data(tp_box_resp1_push_data),
+        .tp_box_resp_2_valid(tp_box_resp2_push_valid),
+        .tp_box_resp_2_ready(tp_box_resp2_push_ready),
+        .tp_box_resp_2_data(tp_box_resp2_push_data),
+        .tp_box_resp_3_valid(tp_box_resp3_push_valid),
+        .tp_box_resp_3_ready(tp_box_resp3_push_ready),
+        .tp_box_resp_3_data(tp_box_resp3_push_data),
+        .tp_box_resp_4_valid(tp_box_resp4_push_valid),
+        .tp_box_resp_4_ready(tp_box_resp4_push_ready),
+        .tp_box_resp_4_data(tp_box_resp4_push_data),
+        .tp_box_resp_5_valid(tp_box_resp5_push_valid),
+        .tp_box_resp_5_ready(tp_box_resp5_push_ready),
+        .tp_box_resp_5_data(tp_box_resp5_push_data),
+        .tp_box_resp_6_valid(tp_box_resp6_push_valid),
+        .tp_box_resp_6_ready(tp_box_resp6_push_ready),
+        .tp_box_resp_6_data(tp_box_resp6_push_data),
+        .tp_box_resp_7_valid(tp_box_resp7_push_valid),
+        .tp_box_resp_7_ready(tp_box_resp7_push_ready),
+        .tp_box_resp_7_data(tp_box_resp7_push_data),
+        .tp_box_resp_8_valid(tp_box_resp8_push_valid),
+        .tp_box_resp_8_ready(tp_box_resp8_push_ready),
+        .tp_box_resp_8_data(tp_box_resp8_push_data),
+        .tp_box_resp_9_valid(tp_box_resp9_push_valid),
+        .tp_box_resp_9_ready(tp_box_resp9_push_ready),
+        .tp_box_resp_9_data(tp_box_resp9_push_data),
+        .tp_box_resp_10_valid(tp_box_resp10_push_valid),
+        .tp_box_resp_10_ready(tp_box_resp10_push_ready),
+        .tp_box_resp_10_data(tp_box_resp10_push_data),
+        .tp_box_resp_11_valid(tp_box_resp11_push_valid),
+        .tp_box_resp_11_ready(tp_box_resp11_push_ready),
+        .tp_box_resp_11_data(tp_box_resp11_push_data),
+        .tp_box_resp_12_valid(tp_box_resp12_push_valid),
+        .tp_box_resp_12_ready(tp_box_resp12_push_ready),
+        .tp_box_resp_12_data(tp_box_resp12_push_data),
+        .tp_box_resp_13_valid(tp_box_resp13_push_valid),
+        .tp_box_resp_13_ready(tp_box_resp13_push_ready),
+        .tp_box_resp_13_data(tp_box_resp13_push_data),
+        .tp_box_resp_14_valid(tp_box_resp14_push_valid),
+        .tp_box_resp_14_ready(tp_box_resp14_push_ready),
+        .tp_box_resp_14_data(tp_box_resp14_push_data),
+        .tp_box_resp_15_valid(tp_box_resp15_push_valid),
+        .tp_box_resp_15_ready(tp_box_resp15_push_ready),
+        .tp_box_resp_15_data(tp_box_resp15_push_data),
+        .tp_tri_resp_0_valid(tp_tri_resp0_push_valid),
+        .tp_tri_resp_0_ready(tp_tri_resp0_push_ready),
+        .tp_tri_resp_0_data(tp_tri_resp0_push_data),
+        .tp_tri_resp_1_valid(tp_tri_resp1_push_valid),
+        .tp_tri_resp_1_ready(tp_tri_resp1_push_ready),
+        .tp_tri_resp_1_data(tp_tri_resp1_push_data),
+        .tp_tri_resp_2_valid(tp_tri_resp2_push_valid),
+        .tp_tri_resp_2_ready(tp_tri_resp2_push_ready),
+        .tp_tri_resp_2_data(tp_tri_resp2_push_data),
+        .tp_tri_resp_3_valid(tp_tri_resp3_push_valid),
+        .tp_tri_resp_3_ready(tp_tri_resp3_push_ready),
+        .tp_tri_resp_3_data(tp_tri_resp3_push_data),
+        .tp_tri_resp_4_valid(tp_tri_resp4_push_valid),
+        .tp_tri_resp_4_ready(tp_tri_resp4_push_ready),
+        .tp_tri_resp_4_data(tp_tri_resp4_push_data),
+        .tp_tri_resp_5_valid(tp_tri_resp5_push_valid),
+        .tp_tri_resp_5_ready(tp_tri_resp5_push_ready),
+        .tp_tri_resp_5_data(tp_tri_resp5_push_data),
+        .tp_tri_resp_6_valid(tp_tri_resp6_push_valid),
+        .tp_tri_resp_6_ready(tp_tri_resp6_push_ready),
+        .tp_tri_resp_6_data(tp_tri_resp6_push_data),
+        .tp_tri_resp_7_valid(tp_tri_resp7_push_valid),
+        .tp_tri_resp_7_ready(tp_tri_resp7_push_ready),
+        .tp_tri_resp_7_data(tp_tri_resp7_push_data),
+        .tp_tri_resp_8_valid(tp_tri_resp8_push_valid),
+        .tp_tri_resp_8_ready(tp_tri_resp8_push_ready),
+        .tp_tri_resp_8_data(tp_tri_resp8_push_data),
+        .tp_tri_resp_9_valid(tp_tri_resp9_push_valid),
+        .tp_tri_resp_9_ready(tp_tri_resp9_push_ready),
+        .tp_tri_resp_9_data(tp_tri_resp9_push_data),
+        .tp_tri_resp_10_valid(tp_tri_resp10_push_valid),
+        .tp_tri_resp_10_ready(tp_tri_resp10_push_ready),
+        .tp_tri_resp_10_data(tp_tri_resp10_push_data),
+        .tp_tri_resp_11_valid(tp_tri_resp11_push_valid),
+        .tp_tri_resp_11_ready(tp_tri_resp11_push_ready),
+        .tp_tri_resp_11_data(tp_tri_resp11_push_data),
+        .tp_tri_resp_12_valid(tp_tri_resp12_push_valid),
+        .tp_tri_resp_12_ready(tp_tri_resp12_push_ready),
+        .tp_tri_resp_12_data(tp_tri_resp12_push_data),
+        .tp_tri_resp_13_valid(tp_tri_resp13_push_valid),
+        .tp_tri_resp_13_ready(tp_tri_resp13_push_ready),
+        .tp_tri_resp_13_data(tp_tri_resp13_push_data),
+        .tp_tri_resp_14_valid(tp_tri_resp14_push_valid),
+        .tp_tri_resp_14_ready(tp_tri_resp14_push_ready),
+        .tp_tri_resp_14_data(tp_tri_resp14_push_data),
+        .tp_tri_resp_15_valid(tp_tri_resp15_push_valid),
+        .tp_tri_resp_15_ready(tp_tri_resp15_push_ready),
+        .tp_tri_resp_15_data(tp_tri_resp15_push_data),
+        .tp_gmem_resp_0_valid(tp_gmem_resp0_push_valid),
+        .tp_gmem_resp_0_ready(tp_gmem_resp0_push_ready),
+        .tp_gmem_resp_0_data(tp_gmem_resp0_push_data),
+        .tp_gmem_resp_1_valid(tp_gmem_resp1_push_valid),
+        .tp_gmem_resp_1_ready(tp_gmem_resp1_push_ready),
+        .tp_gmem_resp_1_data(tp_gmem_resp1_push_data),
+        .tp_gmem_resp_2_valid(tp_gmem_resp2_push_valid),
+        .tp_gmem_resp_2_ready(tp_gmem_resp2_push_ready),
+        .tp_gmem_resp_2_data(tp_gmem_resp2_push_data),
+        .tp_gmem_resp_3_valid(tp_gmem_resp3_push_valid),
+        .tp_gmem_resp_3_ready(tp_gmem_resp3_push_ready),
+        .tp_gmem_resp_3_data(tp_gmem_resp3_push_data),
+        .tp_gmem_resp_4_valid(tp_gmem_resp4_push_valid),
+        .tp_gmem_resp_4_ready(tp_gmem_resp4_push_ready),
+        .tp_gmem_resp_4_data(tp_gmem_resp4_push_data),
+        .tp_gmem_resp_5_valid(tp_gmem_resp5_push_valid),
+        .tp_gmem_resp_5_ready(tp_gmem_resp5_push_ready),
+        .tp_gmem_resp_5_data(tp_gmem_resp5_push_data),
+        .tp_gmem_resp_6_valid(tp_gmem_resp6_push_valid),
+        .tp_gmem_resp_6_ready(tp_gmem_resp6_push_ready),
+        .tp_gmem_resp_6_data(tp_gmem_resp6_push_data),
+        .tp_gmem_resp_7_valid(tp_gmem_resp7_push_valid),
+        .tp_gmem_resp_7_ready(tp_gmem_resp7_push_ready),
+        .tp_gmem_resp_7_data(tp_gmem_resp7_push_data),
+        .tp_gmem_resp_8_valid(tp_gmem_resp8_push_valid),
+        .tp_gmem_resp_8_ready(tp_gmem_resp8_push_ready),
+        .tp_gmem_resp_8_data(tp_gmem_resp8_push_data),
+        .tp_gmem_resp_9_valid(tp_gmem_resp9_push_valid),
+        .tp_gmem_resp_9_ready(tp_gmem_resp9_push_ready),
+        .tp_gmem_resp_9_data(tp_gmem_resp9_push_data),
+        .tp_gmem_resp_10_valid(tp_gmem_resp10_push_valid),
+        .tp_gmem_resp_10_ready(tp_gmem_resp10_push_ready),
+        .tp_gmem_resp_10_data(tp_gmem_resp10_push_data),
+        .tp_gmem_resp_11_valid(tp_gmem_resp11_push_valid),
+        .tp_gmem_resp_11_ready(tp_gmem_resp11_push_ready),
+        .tp_gmem_resp_11_data(tp_gmem_resp11_push_data),
+        .tp_gmem_resp_12_valid(tp_gmem_resp12_push_valid),
+        .tp_gmem_resp_12_ready(tp_gmem_resp12_push_ready),
+        .tp_gmem_resp_12_data(tp_gmem_resp12_push_data),
+        .tp_gmem_resp_13_valid(tp_gmem_resp13_push_valid),
+        .tp_gmem_resp_13_ready(tp_gmem_resp13_push_ready),
+        .tp_gmem_resp_13_data(tp_gmem_resp13_push_data),
+        .tp_gmem_resp_14_valid(tp_gmem_resp14_push_valid),
+        .tp_gmem_resp_14_ready(tp_gmem_resp14_push_ready),
+        .tp_gmem_resp_14_data(tp_gmem_resp14_push_data),
+        .tp_gmem_resp_15_valid(tp_gmem_resp15_push_valid),
+        .tp_gmem_resp_15_ready(tp_gmem_resp15_push_ready),
+        .tp_gmem_resp_15_data(tp_gmem_resp15_push_data),
+        .tri_req_0_valid(tri_req0_push_valid),
+        .tri_req_0_ready(tri_req0_push_ready),
+        .tri_req_0_data(tri_req0_push_data),
+        .tri_req_1_valid(tri_req1_push_valid),
+        .tri_req_1_ready(tri_req1_push_ready),
+        .tri_req_1_data(tri_req1_push_data)
     );
     tri_pipe #(.LATENCY(31), .II(18)) tri_pipe0 (
         .clk(clk),
         .rst(rst),
-        .req_valid(tri_req0_valid),
-        .req_ready(tri_req0_ready),
-        .req_data(tri_req0_data),
-        .resp_valid(tri_resp0_valid),
-        .resp_ready(tri_resp0_ready),
-        .resp_data(tri_resp0_data)
+        .req_valid(tri_req0_pop_valid),
+        .req_ready(tri_req0_pop_ready),
+        .req_data(tri_req0_pop_data),
+        .resp_valid(tri_resp0_push_valid),
+        .resp_ready(tri_resp0_push_ready),
+        .resp_data(tri_resp0_push_data)
     );
     tri_pipe #(.LATENCY(31), .II(18)) tri_pipe1 (
         .clk(clk),
         .rst(rst),
-        .req_valid(tri_req1_valid),
-        .req_ready(tri_req1_ready),
-        .req_data(tri_req1_data),
-        .resp_valid(tri_resp1_valid),
-        .resp_ready(tri_resp1_ready),
-        .resp_data(tri_resp1_data)
+        .req_valid(tri_req1_pop_valid),
+        .req_ready(tri_req1_pop_ready),
+        .req_data(tri_req1_pop_data),
+        .resp_valid(tri_resp1_push_valid),
+        .resp_ready(tri_resp1_push_ready),
+        .resp_data(tri_resp1_push_data)
     );
     divider #(.LATENCY(18), .II(3)) divider (
         .clk(clk),
         .rst(rst),
-        .req_valid(div_req_valid),
-        .req_ready(div_req_ready),
-        .req_data(div_req_data),
-        .resp_valid(div_resp_valid),
-        .resp_ready(div_resp_ready),
-        .resp_data(div_resp_data)
+        .req_valid(div_req_pop_valid),
+        .req_ready(div_req_pop_ready),
+        .req_data(div_req_pop_data),
+        .resp_valid(div_resp_push_valid),
+        .resp_ready(div_resp_push_ready),
+        .resp_data(div_resp_push_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray0_push_valid),
+        .push_ready(ray0_push_ready),
+        .push_data(ray0_push_data),
+        .pop_valid(ray0_pop_valid),
+        .pop_ready(ray0_pop_ready),
+        .pop_data(ray0_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray1_push_valid),
+        .push_ready(ray1_push_ready),
+        .push_data(ray1_push_data),
+        .pop_valid(ray1_pop_valid),
+        .pop_ready(ray1_pop_ready),
+        .pop_data(ray1_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray2_push_valid),
+        .push_ready(ray2_push_ready),
+        .push_data(ray2_push_data),
+        .pop_valid(ray2_pop_valid),
+        .pop_ready(ray2_pop_ready),
+        .pop_data(ray2_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray3_push_valid),
+        .push_ready(ray3_push_ready),
+        .push_data(ray3_push_data),
+        .pop_valid(ray3_pop_valid),
+        .pop_ready(ray3_pop_ready),
+        .pop_data(ray3_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray4_push_valid),
+        .push_ready(ray4_push_ready),
+        .push_data(ray4_push_data),
+        .pop_valid(ray4_pop_valid),
+        .pop_ready(ray4_pop_ready),
+        .pop_data(ray4_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray5_push_valid),
+        .push_ready(ray5_push_ready),
+        .push_data(ray5_push_data),
+        .pop_valid(ray5_pop_valid),
+        .pop_ready(ray5_pop_ready),
+        .pop_data(ray5_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray6_push_valid),
+        .push_ready(ray6_push_ready),
+        .push_data(ray6_push_data),
+        .pop_valid(ray6_pop_valid),
+        .pop_ready(ray6_pop_ready),
+        .pop_data(ray6_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray7_push_valid),
+        .push_ready(ray7_push_ready),
+        .push_data(ray7_push_data),
+        .pop_valid(ray7_pop_valid),
+        .pop_ready(ray7_pop_ready),
+        .pop_data(ray7_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray8_push_valid),
+        .push_ready(ray8_push_ready),
+        .push_data(ray8_push_data),
+        .pop_valid(ray8_pop_valid),
+        .pop_ready(ray8_pop_ready),
+        .pop_data(ray8_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray9_push_valid),
+        .push_ready(ray9_push_ready),
+        .push_data(ray9_push_data),
+        .pop_valid(ray9_pop_valid),
+        .pop_ready(ray9_pop_ready),
+        .pop_data(ray9_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray10_push_valid),
+        .push_ready(ray10_push_ready),
+        .push_data(ray10_push_data),
+        .pop_valid(ray10_pop_valid),
+        .pop_ready(ray10_pop_ready),
+        .pop_data(ray10_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray11_push_valid),
+        .push_ready(ray11_push_ready),
+        .push_data(ray11_push_data),
+        .pop_valid(ray11_pop_valid),
+        .pop_ready(ray11_pop_ready),
+        .pop_data(ray11_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray12_push_valid),
+        .push_ready(ray12_push_ready),
+        .push_data(ray12_push_data),
+        .pop_valid(ray12_pop_valid),
+        .pop_ready(ray12_pop_ready),
+        .pop_data(ray12_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray13_push_valid),
+        .push_ready(ray13_push_ready),
+        .push_data(ray13_push_data),
+        .pop_valid(ray13_pop_valid),
+        .pop_ready(ray13_pop_ready),
+        .pop_data(ray13_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray14_push_valid),
+        .push_ready(ray14_push_ready),
+        .push_data(ray14_push_data),
+        .pop_valid(ray14_pop_valid),
+        .pop_ready(ray14_pop_ready),
+        .pop_data(ray14_pop_data)
+    );
+    ds_link #(.WIDTH(384), .DEPTH(1), .DELAY(1)) link_ray15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(ray15_push_valid),
+        .push_ready(ray15_push_ready),
+        .push_data(ray15_push_data),
+        .pop_valid(ray15_pop_valid),
+        .pop_ready(ray15_pop_ready),
+        .pop_data(ray15_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req0_push_valid),
+        .push_ready(tp_div_req0_push_ready),
+        .push_data(tp_div_req0_push_data),
+        .pop_valid(tp_div_req0_pop_valid),
+        .pop_ready(tp_div_req0_pop_ready),
+        .pop_data(tp_div_req0_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req1_push_valid),
+        .push_ready(tp_div_req1_push_ready),
+        .push_data(tp_div_req1_push_data),
+        .pop_valid(tp_div_req1_pop_valid),
+        .pop_ready(tp_div_req1_pop_ready),
+        .pop_data(tp_div_req1_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req2_push_valid),
+        .push_ready(tp_div_req2_push_ready),
+        .push_data(tp_div_req2_push_data),
+        .pop_valid(tp_div_req2_pop_valid),
+        .pop_ready(tp_div_req2_pop_ready),
+        .pop_data(tp_div_req2_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req3_push_valid),
+        .push_ready(tp_div_req3_push_ready),
+        .push_data(tp_div_req3_push_data),
+        .pop_valid(tp_div_req3_pop_valid),
+        .pop_ready(tp_div_req3_pop_ready),
+        .pop_data(tp_div_req3_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req4_push_valid),
+        .push_ready(tp_div_req4_push_ready),
+        .push_data(tp_div_req4_push_data),
+        .pop_valid(tp_div_req4_pop_valid),
+        .pop_ready(tp_div_req4_pop_ready),
+        .pop_data(tp_div_req4_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req5_push_valid),
+        .push_ready(tp_div_req5_push_ready),
+        .push_data(tp_div_req5_push_data),
+        .pop_valid(tp_div_req5_pop_valid),
+        .pop_ready(tp_div_req5_pop_ready),
+        .pop_data(tp_div_req5_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req6_push_valid),
+        .push_ready(tp_div_req6_push_ready),
+        .push_data(tp_div_req6_push_data),
+        .pop_valid(tp_div_req6_pop_valid),
+        .pop_ready(tp_div_req6_pop_ready),
+        .pop_data(tp_div_req6_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req7_push_valid),
+        .push_ready(tp_div_req7_push_ready),
+        .push_data(tp_div_req7_push_data),
+        .pop_valid(tp_div_req7_pop_valid),
+        .pop_ready(tp_div_req7_pop_ready),
+        .pop_data(tp_div_req7_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req8_push_valid),
+        .push_ready(tp_div_req8_push_ready),
+        .push_data(tp_div_req8_push_data),
+        .pop_valid(tp_div_req8_pop_valid),
+        .pop_ready(tp_div_req8_pop_ready),
+        .pop_data(tp_div_req8_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req9_push_valid),
+        .push_ready(tp_div_req9_push_ready),
+        .push_data(tp_div_req9_push_data),
+        .pop_valid(tp_div_req9_pop_valid),
+        .pop_ready(tp_div_req9_pop_ready),
+        .pop_data(tp_div_req9_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req10_push_valid),
+        .push_ready(tp_div_req10_push_ready),
+        .push_data(tp_div_req10_push_data),
+        .pop_valid(tp_div_req10_pop_valid),
+        .pop_ready(tp_div_req10_pop_ready),
+        .pop_data(tp_div_req10_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req11_push_valid),
+        .push_ready(tp_div_req11_push_ready),
+        .push_data(tp_div_req11_push_data),
+        .pop_valid(tp_div_req11_pop_valid),
+        .pop_ready(tp_div_req11_pop_ready),
+        .pop_data(tp_div_req11_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req12_push_valid),
+        .push_ready(tp_div_req12_push_ready),
+        .push_data(tp_div_req12_push_data),
+        .pop_valid(tp_div_req12_pop_valid),
+        .pop_ready(tp_div_req12_pop_ready),
+        .pop_data(tp_div_req12_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req13_push_valid),
+        .push_ready(tp_div_req13_push_ready),
+        .push_data(tp_div_req13_push_data),
+        .pop_valid(tp_div_req13_pop_valid),
+        .pop_ready(tp_div_req13_pop_ready),
+        .pop_data(tp_div_req13_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req14_push_valid),
+        .push_ready(tp_div_req14_push_ready),
+        .push_data(tp_div_req14_push_data),
+        .pop_valid(tp_div_req14_pop_valid),
+        .pop_ready(tp_div_req14_pop_ready),
+        .pop_data(tp_div_req14_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_req15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_req15_push_valid),
+        .push_ready(tp_div_req15_push_ready),
+        .push_data(tp_div_req15_push_data),
+        .pop_valid(tp_div_req15_pop_valid),
+        .pop_ready(tp_div_req15_pop_ready),
+        .pop_data(tp_div_req15_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp0_push_valid),
+        .push_ready(tp_div_resp0_push_ready),
+        .push_data(tp_div_resp0_push_data),
+        .pop_valid(tp_div_resp0_pop_valid),
+        .pop_ready(tp_div_resp0_pop_ready),
+        .pop_data(tp_div_resp0_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp1_push_valid),
+        .push_ready(tp_div_resp1_push_ready),
+        .push_data(tp_div_resp1_push_data),
+        .pop_valid(tp_div_resp1_pop_valid),
+        .pop_ready(tp_div_resp1_pop_ready),
+        .pop_data(tp_div_resp1_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp2_push_valid),
+        .push_ready(tp_div_resp2_push_ready),
+        .push_data(tp_div_resp2_push_data),
+        .pop_valid(tp_div_resp2_pop_valid),
+        .pop_ready(tp_div_resp2_pop_ready),
+        .pop_data(tp_div_resp2_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp3_push_valid),
+        .push_ready(tp_div_resp3_push_ready),
+        .push_data(tp_div_resp3_push_data),
+        .pop_valid(tp_div_resp3_pop_valid),
+        .pop_ready(tp_div_resp3_pop_ready),
+        .pop_data(tp_div_resp3_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp4_push_valid),
+        .push_ready(tp_div_resp4_push_ready),
+        .push_data(tp_div_resp4_push_data),
+        .pop_valid(tp_div_resp4_pop_valid),
+        .pop_ready(tp_div_resp4_pop_ready),
+        .pop_data(tp_div_resp4_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp5_push_valid),
+        .push_ready(tp_div_resp5_push_ready),
+        .push_data(tp_div_resp5_push_data),
+        .pop_valid(tp_div_resp5_pop_valid),
+        .pop_ready(tp_div_resp5_pop_ready),
+        .pop_data(tp_div_resp5_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp6_push_valid),
+        .push_ready(tp_div_resp6_push_ready),
+        .push_data(tp_div_resp6_push_data),
+        .pop_valid(tp_div_resp6_pop_valid),
+        .pop_ready(tp_div_resp6_pop_ready),
+        .pop_data(tp_div_resp6_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp7_push_valid),
+        .push_ready(tp_div_resp7_push_ready),
+        .push_data(tp_div_resp7_push_data),
+        .pop_valid(tp_div_resp7_pop_valid),
+        .pop_ready(tp_div_resp7_pop_ready),
+        .pop_data(tp_div_resp7_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp8_push_valid),
+        .push_ready(tp_div_resp8_push_ready),
+        .push_data(tp_div_resp8_push_data),
+        .pop_valid(tp_div_resp8_pop_valid),
+        .pop_ready(tp_div_resp8_pop_ready),
+        .pop_data(tp_div_resp8_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp9_push_valid),
+        .push_ready(tp_div_resp9_push_ready),
+        .push_data(tp_div_resp9_push_data),
+        .pop_valid(tp_div_resp9_pop_valid),
+        .pop_ready(tp_div_resp9_pop_ready),
+        .pop_data(tp_div_resp9_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp10_push_valid),
+        .push_ready(tp_div_resp10_push_ready),
+        .push_data(tp_div_resp10_push_data),
+        .pop_valid(tp_div_resp10_pop_valid),
+        .pop_ready(tp_div_resp10_pop_ready),
+        .pop_data(tp_div_resp10_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp11_push_valid),
+        .push_ready(tp_div_resp11_push_ready),
+        .push_data(tp_div_resp11_push_data),
+        .pop_valid(tp_div_resp11_pop_valid),
+        .pop_ready(tp_div_resp11_pop_ready),
+        .pop_data(tp_div_resp11_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp12_push_valid),
+        .push_ready(tp_div_resp12_push_ready),
+        .push_data(tp_div_resp12_push_data),
+        .pop_valid(tp_div_resp12_pop_valid),
+        .pop_ready(tp_div_resp12_pop_ready),
+        .pop_data(tp_div_resp12_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp13_push_valid),
+        .push_ready(tp_div_resp13_push_ready),
+        .push_data(tp_div_resp13_push_data),
+        .pop_valid(tp_div_resp13_pop_valid),
+        .pop_ready(tp_div_resp13_pop_ready),
+        .pop_data(tp_div_resp13_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp14_push_valid),
+        .push_ready(tp_div_resp14_push_ready),
+        .push_data(tp_div_resp14_push_data),
+        .pop_valid(tp_div_resp14_pop_valid),
+        .pop_ready(tp_div_resp14_pop_ready),
+        .pop_data(tp_div_resp14_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_tp_div_resp15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_div_resp15_push_valid),
+        .push_ready(tp_div_resp15_push_ready),
+        .push_data(tp_div_resp15_push_data),
+        .pop_valid(tp_div_resp15_pop_valid),
+        .pop_ready(tp_div_resp15_pop_ready),
+        .pop_data(tp_div_resp15_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req0_push_valid),
+        .push_ready(tp_box_req0_push_ready),
+        .push_data(tp_box_req0_push_data),
+        .pop_valid(tp_box_req0_pop_valid),
+        .pop_ready(tp_box_req0_pop_ready),
+        .pop_data(tp_box_req0_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req1_push_valid),
+        .push_ready(tp_box_req1_push_ready),
+        .push_data(tp_box_req1_push_data),
+        .pop_valid(tp_box_req1_pop_valid),
+        .pop_ready(tp_box_req1_pop_ready),
+        .pop_data(tp_box_req1_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req2_push_valid),
+        .push_ready(tp_box_req2_push_ready),
+        .push_data(tp_box_req2_push_data),
+        .pop_valid(tp_box_req2_pop_valid),
+        .pop_ready(tp_box_req2_pop_ready),
+        .pop_data(tp_box_req2_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req3_push_valid),
+        .push_ready(tp_box_req3_push_ready),
+        .push_data(tp_box_req3_push_data),
+        .pop_valid(tp_box_req3_pop_valid),
+        .pop_ready(tp_box_req3_pop_ready),
+        .pop_data(tp_box_req3_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req4_push_valid),
+        .push_ready(tp_box_req4_push_ready),
+        .push_data(tp_box_req4_push_data),
+        .pop_valid(tp_box_req4_pop_valid),
+        .pop_ready(tp_box_req4_pop_ready),
+        .pop_data(tp_box_req4_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req5_push_valid),
+        .push_ready(tp_box_req5_push_ready),
+        .push_data(tp_box_req5_push_data),
+        .pop_valid(tp_box_req5_pop_valid),
+        .pop_ready(tp_box_req5_pop_ready),
+        .pop_data(tp_box_req5_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req6_push_valid),
+        .push_ready(tp_box_req6_push_ready),
+        .push_data(tp_box_req6_push_data),
+        .pop_valid(tp_box_req6_pop_valid),
+        .pop_ready(tp_box_req6_pop_ready),
+        .pop_data(tp_box_req6_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req7_push_valid),
+        .push_ready(tp_box_req7_push_ready),
+        .push_data(tp_box_req7_push_data),
+        .pop_valid(tp_box_req7_pop_valid),
+        .pop_ready(tp_box_req7_pop_ready),
+        .pop_data(tp_box_req7_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req8_push_valid),
+        .push_ready(tp_box_req8_push_ready),
+        .push_data(tp_box_req8_push_data),
+        .pop_valid(tp_box_req8_pop_valid),
+        .pop_ready(tp_box_req8_pop_ready),
+        .pop_data(tp_box_req8_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req9_push_valid),
+        .push_ready(tp_box_req9_push_ready),
+        .push_data(tp_box_req9_push_data),
+        .pop_valid(tp_box_req9_pop_valid),
+        .pop_ready(tp_box_req9_pop_ready),
+        .pop_data(tp_box_req9_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req10_push_valid),
+        .push_ready(tp_box_req10_push_ready),
+        .push_data(tp_box_req10_push_data),
+        .pop_valid(tp_box_req10_pop_valid),
+        .pop_ready(tp_box_req10_pop_ready),
+        .pop_data(tp_box_req10_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req11_push_valid),
+        .push_ready(tp_box_req11_push_ready),
+        .push_data(tp_box_req11_push_data),
+        .pop_valid(tp_box_req11_pop_valid),
+        .pop_ready(tp_box_req11_pop_ready),
+        .pop_data(tp_box_req11_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req12_push_valid),
+        .push_ready(tp_box_req12_push_ready),
+        .push_data(tp_box_req12_push_data),
+        .pop_valid(tp_box_req12_pop_valid),
+        .pop_ready(tp_box_req12_pop_ready),
+        .pop_data(tp_box_req12_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req13_push_valid),
+        .push_ready(tp_box_req13_push_ready),
+        .push_data(tp_box_req13_push_data),
+        .pop_valid(tp_box_req13_pop_valid),
+        .pop_ready(tp_box_req13_pop_ready),
+        .pop_data(tp_box_req13_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req14_push_valid),
+        .push_ready(tp_box_req14_push_ready),
+        .push_data(tp_box_req14_push_data),
+        .pop_valid(tp_box_req14_pop_valid),
+        .pop_ready(tp_box_req14_pop_ready),
+        .pop_data(tp_box_req14_pop_data)
+    );
+    ds_link #(.WIDTH(464), .DEPTH(2), .DELAY(1)) link_tp_box_req15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_req15_push_valid),
+        .push_ready(tp_box_req15_push_ready),
+        .push_data(tp_box_req15_push_data),
+        .pop_valid(tp_box_req15_pop_valid),
+        .pop_ready(tp_box_req15_pop_ready),
+        .pop_data(tp_box_req15_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp0_push_valid),
+        .push_ready(tp_box_resp0_push_ready),
+        .push_data(tp_box_resp0_push_data),
+        .pop_valid(tp_box_resp0_pop_valid),
+        .pop_ready(tp_box_resp0_pop_ready),
+        .pop_data(tp_box_resp0_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp1_push_valid),
+        .push_ready(tp_box_resp1_push_ready),
+        .push_data(tp_box_resp1_push_data),
+        .pop_valid(tp_box_resp1_pop_valid),
+        .pop_ready(tp_box_resp1_pop_ready),
+        .pop_data(tp_box_resp1_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp2_push_valid),
+        .push_ready(tp_box_resp2_push_ready),
+        .push_data(tp_box_resp2_push_data),
+        .pop_valid(tp_box_resp2_pop_valid),
+        .pop_ready(tp_box_resp2_pop_ready),
+        .pop_data(tp_box_resp2_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp3_push_valid),
+        .push_ready(tp_box_resp3_push_ready),
+        .push_data(tp_box_resp3_push_data),
+        .pop_valid(tp_box_resp3_pop_valid),
+        .pop_ready(tp_box_resp3_pop_ready),
+        .pop_data(tp_box_resp3_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp4_push_valid),
+        .push_ready(tp_box_resp4_push_ready),
+        .push_data(tp_box_resp4_push_data),
+        .pop_valid(tp_box_resp4_pop_valid),
+        .pop_ready(tp_box_resp4_pop_ready),
+        .pop_data(tp_box_resp4_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp5_push_valid),
+        .push_ready(tp_box_resp5_push_ready),
+        .push_data(tp_box_resp5_push_data),
+        .pop_valid(tp_box_resp5_pop_valid),
+        .pop_ready(tp_box_resp5_pop_ready),
+        .pop_data(tp_box_resp5_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp6_push_valid),
+        .push_ready(tp_box_resp6_push_ready),
+        .push_data(tp_box_resp6_push_data),
+        .pop_valid(tp_box_resp6_pop_valid),
+        .pop_ready(tp_box_resp6_pop_ready),
+        .pop_data(tp_box_resp6_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp7_push_valid),
+        .push_ready(tp_box_resp7_push_ready),
+        .push_data(tp_box_resp7_push_data),
+        .pop_valid(tp_box_resp7_pop_valid),
+        .pop_ready(tp_box_resp7_pop_ready),
+        .pop_data(tp_box_resp7_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp8_push_valid),
+        .push_ready(tp_box_resp8_push_ready),
+        .push_data(tp_box_resp8_push_data),
+        .pop_valid(tp_box_resp8_pop_valid),
+        .pop_ready(tp_box_resp8_pop_ready),
+        .pop_data(tp_box_resp8_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp9_push_valid),
+        .push_ready(tp_box_resp9_push_ready),
+        .push_data(tp_box_resp9_push_data),
+        .pop_valid(tp_box_resp9_pop_valid),
+        .pop_ready(tp_box_resp9_pop_ready),
+        .pop_data(tp_box_resp9_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp10_push_valid),
+        .push_ready(tp_box_resp10_push_ready),
+        .push_data(tp_box_resp10_push_data),
+        .pop_valid(tp_box_resp10_pop_valid),
+        .pop_ready(tp_box_resp10_pop_ready),
+        .pop_data(tp_box_resp10_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp11_push_valid),
+        .push_ready(tp_box_resp11_push_ready),
+        .push_data(tp_box_resp11_push_data),
+        .pop_valid(tp_box_resp11_pop_valid),
+        .pop_ready(tp_box_resp11_pop_ready),
+        .pop_data(tp_box_resp11_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp12_push_valid),
+        .push_ready(tp_box_resp12_push_ready),
+        .push_data(tp_box_resp12_push_data),
+        .pop_valid(tp_box_resp12_pop_valid),
+        .pop_ready(tp_box_resp12_pop_ready),
+        .pop_data(tp_box_resp12_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp13_push_valid),
+        .push_ready(tp_box_resp13_push_ready),
+        .push_data(tp_box_resp13_push_data),
+        .pop_valid(tp_box_resp13_pop_valid),
+        .pop_ready(tp_box_resp13_pop_ready),
+        .pop_data(tp_box_resp13_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp14_push_valid),
+        .push_ready(tp_box_resp14_push_ready),
+        .push_data(tp_box_resp14_push_data),
+        .pop_valid(tp_box_resp14_pop_valid),
+        .pop_ready(tp_box_resp14_pop_ready),
+        .pop_data(tp_box_resp14_pop_data)
+    );
+    ds_link #(.WIDTH(49), .DEPTH(2), .DELAY(1)) link_tp_box_resp15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_box_resp15_push_valid),
+        .push_ready(tp_box_resp15_push_ready),
+        .push_data(tp_box_resp15_push_data),
+        .pop_valid(tp_box_resp15_pop_valid),
+        .pop_ready(tp_box_resp15_pop_ready),
+        .pop_data(tp_box_resp15_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req0_push_valid),
+        .push_ready(tp_tri_req0_push_ready),
+        .push_data(tp_tri_req0_push_data),
+        .pop_valid(tp_tri_req0_pop_valid),
+        .pop_ready(tp_tri_req0_pop_ready),
+        .pop_data(tp_tri_req0_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req1_push_valid),
+        .push_ready(tp_tri_req1_push_ready),
+        .push_data(tp_tri_req1_push_data),
+        .pop_valid(tp_tri_req1_pop_valid),
+        .pop_ready(tp_tri_req1_pop_ready),
+        .pop_data(tp_tri_req1_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req2_push_valid),
+        .push_ready(tp_tri_req2_push_ready),
+        .push_data(tp_tri_req2_push_data),
+        .pop_valid(tp_tri_req2_pop_valid),
+        .pop_ready(tp_tri_req2_pop_ready),
+        .pop_data(tp_tri_req2_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req3_push_valid),
+        .push_ready(tp_tri_req3_push_ready),
+        .push_data(tp_tri_req3_push_data),
+        .pop_valid(tp_tri_req3_pop_valid),
+        .pop_ready(tp_tri_req3_pop_ready),
+        .pop_data(tp_tri_req3_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req4_push_valid),
+        .push_ready(tp_tri_req4_push_ready),
+        .push_data(tp_tri_req4_push_data),
+        .pop_valid(tp_tri_req4_pop_valid),
+        .pop_ready(tp_tri_req4_pop_ready),
+        .pop_data(tp_tri_req4_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req5_push_valid),
+        .push_ready(tp_tri_req5_push_ready),
+        .push_data(tp_tri_req5_push_data),
+        .pop_valid(tp_tri_req5_pop_valid),
+        .pop_ready(tp_tri_req5_pop_ready),
+        .pop_data(tp_tri_req5_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req6_push_valid),
+        .push_ready(tp_tri_req6_push_ready),
+        .push_data(tp_tri_req6_push_data),
+        .pop_valid(tp_tri_req6_pop_valid),
+        .pop_ready(tp_tri_req6_pop_ready),
+        .pop_data(tp_tri_req6_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req7_push_valid),
+        .push_ready(tp_tri_req7_push_ready),
+        .push_data(tp_tri_req7_push_data),
+        .pop_valid(tp_tri_req7_pop_valid),
+        .pop_ready(tp_tri_req7_pop_ready),
+        .pop_data(tp_tri_req7_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req8_push_valid),
+        .push_ready(tp_tri_req8_push_ready),
+        .push_data(tp_tri_req8_push_data),
+        .pop_valid(tp_tri_req8_pop_valid),
+        .pop_ready(tp_tri_req8_pop_ready),
+        .pop_data(tp_tri_req8_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req9_push_valid),
+        .push_ready(tp_tri_req9_push_ready),
+        .push_data(tp_tri_req9_push_data),
+        .pop_valid(tp_tri_req9_pop_valid),
+        .pop_ready(tp_tri_req9_pop_ready),
+        .pop_data(tp_tri_req9_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req10_push_valid),
+        .push_ready(tp_tri_req10_push_ready),
+        .push_data(tp_tri_req10_push_data),
+        .pop_valid(tp_tri_req10_pop_valid),
+        .pop_ready(tp_tri_req10_pop_ready),
+        .pop_data(tp_tri_req10_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req11_push_valid),
+        .push_ready(tp_tri_req11_push_ready),
+        .push_data(tp_tri_req11_push_data),
+        .pop_valid(tp_tri_req11_pop_valid),
+        .pop_ready(tp_tri_req11_pop_ready),
+        .pop_data(tp_tri_req11_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req12_push_valid),
+        .push_ready(tp_tri_req12_push_ready),
+        .push_data(tp_tri_req12_push_data),
+        .pop_valid(tp_tri_req12_pop_valid),
+        .pop_ready(tp_tri_req12_pop_ready),
+        .pop_data(tp_tri_req12_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req13_push_valid),
+        .push_ready(tp_tri_req13_push_ready),
+        .push_data(tp_tri_req13_push_data),
+        .pop_valid(tp_tri_req13_pop_valid),
+        .pop_ready(tp_tri_req13_pop_ready),
+        .pop_data(tp_tri_req13_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req14_push_valid),
+        .push_ready(tp_tri_req14_push_ready),
+        .push_data(tp_tri_req14_push_data),
+        .pop_valid(tp_tri_req14_pop_valid),
+        .pop_ready(tp_tri_req14_pop_ready),
+        .pop_data(tp_tri_req14_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tp_tri_req15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_req15_push_valid),
+        .push_ready(tp_tri_req15_push_ready),
+        .push_data(tp_tri_req15_push_data),
+        .pop_valid(tp_tri_req15_pop_valid),
+        .pop_ready(tp_tri_req15_pop_ready),
+        .pop_data(tp_tri_req15_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp0_push_valid),
+        .push_ready(tp_tri_resp0_push_ready),
+        .push_data(tp_tri_resp0_push_data),
+        .pop_valid(tp_tri_resp0_pop_valid),
+        .pop_ready(tp_tri_resp0_pop_ready),
+        .pop_data(tp_tri_resp0_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp1_push_valid),
+        .push_ready(tp_tri_resp1_push_ready),
+        .push_data(tp_tri_resp1_push_data),
+        .pop_valid(tp_tri_resp1_pop_valid),
+        .pop_ready(tp_tri_resp1_pop_ready),
+        .pop_data(tp_tri_resp1_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp2_push_valid),
+        .push_ready(tp_tri_resp2_push_ready),
+        .push_data(tp_tri_resp2_push_data),
+        .pop_valid(tp_tri_resp2_pop_valid),
+        .pop_ready(tp_tri_resp2_pop_ready),
+        .pop_data(tp_tri_resp2_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp3_push_valid),
+        .push_ready(tp_tri_resp3_push_ready),
+        .push_data(tp_tri_resp3_push_data),
+        .pop_valid(tp_tri_resp3_pop_valid),
+        .pop_ready(tp_tri_resp3_pop_ready),
+        .pop_data(tp_tri_resp3_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp4_push_valid),
+        .push_ready(tp_tri_resp4_push_ready),
+        .push_data(tp_tri_resp4_push_data),
+        .pop_valid(tp_tri_resp4_pop_valid),
+        .pop_ready(tp_tri_resp4_pop_ready),
+        .pop_data(tp_tri_resp4_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp5_push_valid),
+        .push_ready(tp_tri_resp5_push_ready),
+        .push_data(tp_tri_resp5_push_data),
+        .pop_valid(tp_tri_resp5_pop_valid),
+        .pop_ready(tp_tri_resp5_pop_ready),
+        .pop_data(tp_tri_resp5_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp6_push_valid),
+        .push_ready(tp_tri_resp6_push_ready),
+        .push_data(tp_tri_resp6_push_data),
+        .pop_valid(tp_tri_resp6_pop_valid),
+        .pop_ready(tp_tri_resp6_pop_ready),
+        .pop_data(tp_tri_resp6_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp7_push_valid),
+        .push_ready(tp_tri_resp7_push_ready),
+        .push_data(tp_tri_resp7_push_data),
+        .pop_valid(tp_tri_resp7_pop_valid),
+        .pop_ready(tp_tri_resp7_pop_ready),
+        .pop_data(tp_tri_resp7_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp8_push_valid),
+        .push_ready(tp_tri_resp8_push_ready),
+        .push_data(tp_tri_resp8_push_data),
+        .pop_valid(tp_tri_resp8_pop_valid),
+        .pop_ready(tp_tri_resp8_pop_ready),
+        .pop_data(tp_tri_resp8_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp9_push_valid),
+        .push_ready(tp_tri_resp9_push_ready),
+        .push_data(tp_tri_resp9_push_data),
+        .pop_valid(tp_tri_resp9_pop_valid),
+        .pop_ready(tp_tri_resp9_pop_ready),
+        .pop_data(tp_tri_resp9_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp10_push_valid),
+        .push_ready(tp_tri_resp10_push_ready),
+        .push_data(tp_tri_resp10_push_data),
+        .pop_valid(tp_tri_resp10_pop_valid),
+        .pop_ready(tp_tri_resp10_pop_ready),
+        .pop_data(tp_tri_resp10_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp11_push_valid),
+        .push_ready(tp_tri_resp11_push_ready),
+        .push_data(tp_tri_resp11_push_data),
+        .pop_valid(tp_tri_resp11_pop_valid),
+        .pop_ready(tp_tri_resp11_pop_ready),
+        .pop_data(tp_tri_resp11_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp12_push_valid),
+        .push_ready(tp_tri_resp12_push_ready),
+        .push_data(tp_tri_resp12_push_data),
+        .pop_valid(tp_tri_resp12_pop_valid),
+        .pop_ready(tp_tri_resp12_pop_ready),
+        .pop_data(tp_tri_resp12_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp13_push_valid),
+        .push_ready(tp_tri_resp13_push_ready),
+        .push_data(tp_tri_resp13_push_data),
+        .pop_valid(tp_tri_resp13_pop_valid),
+        .pop_ready(tp_tri_resp13_pop_ready),
+        .pop_data(tp_tri_resp13_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp14_push_valid),
+        .push_ready(tp_tri_resp14_push_ready),
+        .push_data(tp_tri_resp14_push_data),
+        .pop_valid(tp_tri_resp14_pop_valid),
+        .pop_ready(tp_tri_resp14_pop_ready),
+        .pop_data(tp_tri_resp14_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tp_tri_resp15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_tri_resp15_push_valid),
+        .push_ready(tp_tri_resp15_push_ready),
+        .push_data(tp_tri_resp15_push_data),
+        .pop_valid(tp_tri_resp15_pop_valid),
+        .pop_ready(tp_tri_resp15_pop_ready),
+        .pop_data(tp_tri_resp15_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req0_push_valid),
+        .push_ready(tp_mem_req0_push_ready),
+        .push_data(tp_mem_req0_push_data),
+        .pop_valid(tp_mem_req0_pop_valid),
+        .pop_ready(tp_mem_req0_pop_ready),
+        .pop_data(tp_mem_req0_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req1_push_valid),
+        .push_ready(tp_mem_req1_push_ready),
+        .push_data(tp_mem_req1_push_data),
+        .pop_valid(tp_mem_req1_pop_valid),
+        .pop_ready(tp_mem_req1_pop_ready),
+        .pop_data(tp_mem_req1_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req2_push_valid),
+        .push_ready(tp_mem_req2_push_ready),
+        .push_data(tp_mem_req2_push_data),
+        .pop_valid(tp_mem_req2_pop_valid),
+        .pop_ready(tp_mem_req2_pop_ready),
+        .pop_data(tp_mem_req2_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req3_push_valid),
+        .push_ready(tp_mem_req3_push_ready),
+        .push_data(tp_mem_req3_push_data),
+        .pop_valid(tp_mem_req3_pop_valid),
+        .pop_ready(tp_mem_req3_pop_ready),
+        .pop_data(tp_mem_req3_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req4_push_valid),
+        .push_ready(tp_mem_req4_push_ready),
+        .push_data(tp_mem_req4_push_data),
+        .pop_valid(tp_mem_req4_pop_valid),
+        .pop_ready(tp_mem_req4_pop_ready),
+        .pop_data(tp_mem_req4_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req5_push_valid),
+        .push_ready(tp_mem_req5_push_ready),
+        .push_data(tp_mem_req5_push_data),
+        .pop_valid(tp_mem_req5_pop_valid),
+        .pop_ready(tp_mem_req5_pop_ready),
+        .pop_data(tp_mem_req5_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req6_push_valid),
+        .push_ready(tp_mem_req6_push_ready),
+        .push_data(tp_mem_req6_push_data),
+        .pop_valid(tp_mem_req6_pop_valid),
+        .pop_ready(tp_mem_req6_pop_ready),
+        .pop_data(tp_mem_req6_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req7_push_valid),
+        .push_ready(tp_mem_req7_push_ready),
+        .push_data(tp_mem_req7_push_data),
+        .pop_valid(tp_mem_req7_pop_valid),
+        .pop_ready(tp_mem_req7_pop_ready),
+        .pop_data(tp_mem_req7_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req8_push_valid),
+        .push_ready(tp_mem_req8_push_ready),
+        .push_data(tp_mem_req8_push_data),
+        .pop_valid(tp_mem_req8_pop_valid),
+        .pop_ready(tp_mem_req8_pop_ready),
+        .pop_data(tp_mem_req8_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req9_push_valid),
+        .push_ready(tp_mem_req9_push_ready),
+        .push_data(tp_mem_req9_push_data),
+        .pop_valid(tp_mem_req9_pop_valid),
+        .pop_ready(tp_mem_req9_pop_ready),
+        .pop_data(tp_mem_req9_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req10_push_valid),
+        .push_ready(tp_mem_req10_push_ready),
+        .push_data(tp_mem_req10_push_data),
+        .pop_valid(tp_mem_req10_pop_valid),
+        .pop_ready(tp_mem_req10_pop_ready),
+        .pop_data(tp_mem_req10_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req11_push_valid),
+        .push_ready(tp_mem_req11_push_ready),
+        .push_data(tp_mem_req11_push_data),
+        .pop_valid(tp_mem_req11_pop_valid),
+        .pop_ready(tp_mem_req11_pop_ready),
+        .pop_data(tp_mem_req11_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req12_push_valid),
+        .push_ready(tp_mem_req12_push_ready),
+        .push_data(tp_mem_req12_push_data),
+        .pop_valid(tp_mem_req12_pop_valid),
+        .pop_ready(tp_mem_req12_pop_ready),
+        .pop_data(tp_mem_req12_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req13_push_valid),
+        .push_ready(tp_mem_req13_push_ready),
+        .push_data(tp_mem_req13_push_data),
+        .pop_valid(tp_mem_req13_pop_valid),
+        .pop_ready(tp_mem_req13_pop_ready),
+        .pop_data(tp_mem_req13_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req14_push_valid),
+        .push_ready(tp_mem_req14_push_ready),
+        .push_data(tp_mem_req14_push_data),
+        .pop_valid(tp_mem_req14_pop_valid),
+        .pop_ready(tp_mem_req14_pop_ready),
+        .pop_data(tp_mem_req14_pop_data)
+    );
+    ds_link #(.WIDTH(64), .DEPTH(2), .DELAY(1)) link_tp_mem_req15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_req15_push_valid),
+        .push_ready(tp_mem_req15_push_ready),
+        .push_data(tp_mem_req15_push_data),
+        .pop_valid(tp_mem_req15_pop_valid),
+        .pop_ready(tp_mem_req15_pop_ready),
+        .pop_data(tp_mem_req15_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp0_push_valid),
+        .push_ready(tp_mem_resp0_push_ready),
+        .push_data(tp_mem_resp0_push_data),
+        .pop_valid(tp_mem_resp0_pop_valid),
+        .pop_ready(tp_mem_resp0_pop_ready),
+        .pop_data(tp_mem_resp0_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp1_push_valid),
+        .push_ready(tp_mem_resp1_push_ready),
+        .push_data(tp_mem_resp1_push_data),
+        .pop_valid(tp_mem_resp1_pop_valid),
+        .pop_ready(tp_mem_resp1_pop_ready),
+        .pop_data(tp_mem_resp1_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp2_push_valid),
+        .push_ready(tp_mem_resp2_push_ready),
+        .push_data(tp_mem_resp2_push_data),
+        .pop_valid(tp_mem_resp2_pop_valid),
+        .pop_ready(tp_mem_resp2_pop_ready),
+        .pop_data(tp_mem_resp2_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp3_push_valid),
+        .push_ready(tp_mem_resp3_push_ready),
+        .push_data(tp_mem_resp3_push_data),
+        .pop_valid(tp_mem_resp3_pop_valid),
+        .pop_ready(tp_mem_resp3_pop_ready),
+        .pop_data(tp_mem_resp3_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp4_push_valid),
+        .push_ready(tp_mem_resp4_push_ready),
+        .push_data(tp_mem_resp4_push_data),
+        .pop_valid(tp_mem_resp4_pop_valid),
+        .pop_ready(tp_mem_resp4_pop_ready),
+        .pop_data(tp_mem_resp4_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp5_push_valid),
+        .push_ready(tp_mem_resp5_push_ready),
+        .push_data(tp_mem_resp5_push_data),
+        .pop_valid(tp_mem_resp5_pop_valid),
+        .pop_ready(tp_mem_resp5_pop_ready),
+        .pop_data(tp_mem_resp5_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp6_push_valid),
+        .push_ready(tp_mem_resp6_push_ready),
+        .push_data(tp_mem_resp6_push_data),
+        .pop_valid(tp_mem_resp6_pop_valid),
+        .pop_ready(tp_mem_resp6_pop_ready),
+        .pop_data(tp_mem_resp6_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp7_push_valid),
+        .push_ready(tp_mem_resp7_push_ready),
+        .push_data(tp_mem_resp7_push_data),
+        .pop_valid(tp_mem_resp7_pop_valid),
+        .pop_ready(tp_mem_resp7_pop_ready),
+        .pop_data(tp_mem_resp7_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp8_push_valid),
+        .push_ready(tp_mem_resp8_push_ready),
+        .push_data(tp_mem_resp8_push_data),
+        .pop_valid(tp_mem_resp8_pop_valid),
+        .pop_ready(tp_mem_resp8_pop_ready),
+        .pop_data(tp_mem_resp8_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp9_push_valid),
+        .push_ready(tp_mem_resp9_push_ready),
+        .push_data(tp_mem_resp9_push_data),
+        .pop_valid(tp_mem_resp9_pop_valid),
+        .pop_ready(tp_mem_resp9_pop_ready),
+        .pop_data(tp_mem_resp9_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp10_push_valid),
+        .push_ready(tp_mem_resp10_push_ready),
+        .push_data(tp_mem_resp10_push_data),
+        .pop_valid(tp_mem_resp10_pop_valid),
+        .pop_ready(tp_mem_resp10_pop_ready),
+        .pop_data(tp_mem_resp10_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp11_push_valid),
+        .push_ready(tp_mem_resp11_push_ready),
+        .push_data(tp_mem_resp11_push_data),
+        .pop_valid(tp_mem_resp11_pop_valid),
+        .pop_ready(tp_mem_resp11_pop_ready),
+        .pop_data(tp_mem_resp11_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp12_push_valid),
+        .push_ready(tp_mem_resp12_push_ready),
+        .push_data(tp_mem_resp12_push_data),
+        .pop_valid(tp_mem_resp12_pop_valid),
+        .pop_ready(tp_mem_resp12_pop_ready),
+        .pop_data(tp_mem_resp12_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp13_push_valid),
+        .push_ready(tp_mem_resp13_push_ready),
+        .push_data(tp_mem_resp13_push_data),
+        .pop_valid(tp_mem_resp13_pop_valid),
+        .pop_ready(tp_mem_resp13_pop_ready),
+        .pop_data(tp_mem_resp13_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp14_push_valid),
+        .push_ready(tp_mem_resp14_push_ready),
+        .push_data(tp_mem_resp14_push_data),
+        .pop_valid(tp_mem_resp14_pop_valid),
+        .pop_ready(tp_mem_resp14_pop_ready),
+        .pop_data(tp_mem_resp14_pop_data)
+    );
+    ds_link #(.WIDTH(576), .DEPTH(2), .DELAY(1)) link_tp_mem_resp15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_mem_resp15_push_valid),
+        .push_ready(tp_mem_resp15_push_ready),
+        .push_data(tp_mem_resp15_push_data),
+        .pop_valid(tp_mem_resp15_pop_valid),
+        .pop_ready(tp_mem_resp15_pop_ready),
+        .pop_data(tp_mem_resp15_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write0_push_valid),
+        .push_ready(tp_ray_write0_push_ready),
+        .push_data(tp_ray_write0_push_data),
+        .pop_valid(tp_ray_write0_pop_valid),
+        .pop_ready(tp_ray_write0_pop_ready),
+        .pop_data(tp_ray_write0_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write1_push_valid),
+        .push_ready(tp_ray_write1_push_ready),
+        .push_data(tp_ray_write1_push_data),
+        .pop_valid(tp_ray_write1_pop_valid),
+        .pop_ready(tp_ray_write1_pop_ready),
+        .pop_data(tp_ray_write1_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write2_push_valid),
+        .push_ready(tp_ray_write2_push_ready),
+        .push_data(tp_ray_write2_push_data),
+        .pop_valid(tp_ray_write2_pop_valid),
+        .pop_ready(tp_ray_write2_pop_ready),
+        .pop_data(tp_ray_write2_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write3_push_valid),
+        .push_ready(tp_ray_write3_push_ready),
+        .push_data(tp_ray_write3_push_data),
+        .pop_valid(tp_ray_write3_pop_valid),
+        .pop_ready(tp_ray_write3_pop_ready),
+        .pop_data(tp_ray_write3_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write4_push_valid),
+        .push_ready(tp_ray_write4_push_ready),
+        .push_data(tp_ray_write4_push_data),
+        .pop_valid(tp_ray_write4_pop_valid),
+        .pop_ready(tp_ray_write4_pop_ready),
+        .pop_data(tp_ray_write4_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write5_push_valid),
+        .push_ready(tp_ray_write5_push_ready),
+        .push_data(tp_ray_write5_push_data),
+        .pop_valid(tp_ray_write5_pop_valid),
+        .pop_ready(tp_ray_write5_pop_ready),
+        .pop_data(tp_ray_write5_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write6_push_valid),
+        .push_ready(tp_ray_write6_push_ready),
+        .push_data(tp_ray_write6_push_data),
+        .pop_valid(tp_ray_write6_pop_valid),
+        .pop_ready(tp_ray_write6_pop_ready),
+        .pop_data(tp_ray_write6_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write7_push_valid),
+        .push_ready(tp_ray_write7_push_ready),
+        .push_data(tp_ray_write7_push_data),
+        .pop_valid(tp_ray_write7_pop_valid),
+        .pop_ready(tp_ray_write7_pop_ready),
+        .pop_data(tp_ray_write7_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write8_push_valid),
+        .push_ready(tp_ray_write8_push_ready),
+        .push_data(tp_ray_write8_push_data),
+        .pop_valid(tp_ray_write8_pop_valid),
+        .pop_ready(tp_ray_write8_pop_ready),
+        .pop_data(tp_ray_write8_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write9_push_valid),
+        .push_ready(tp_ray_write9_push_ready),
+        .push_data(tp_ray_write9_push_data),
+        .pop_valid(tp_ray_write9_pop_valid),
+        .pop_ready(tp_ray_write9_pop_ready),
+        .pop_data(tp_ray_write9_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write10_push_valid),
+        .push_ready(tp_ray_write10_push_ready),
+        .push_data(tp_ray_write10_push_data),
+        .pop_valid(tp_ray_write10_pop_valid),
+        .pop_ready(tp_ray_write10_pop_ready),
+        .pop_data(tp_ray_write10_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write11_push_valid),
+        .push_ready(tp_ray_write11_push_ready),
+        .push_data(tp_ray_write11_push_data),
+        .pop_valid(tp_ray_write11_pop_valid),
+        .pop_ready(tp_ray_write11_pop_ready),
+        .pop_data(tp_ray_write11_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write12_push_valid),
+        .push_ready(tp_ray_write12_push_ready),
+        .push_data(tp_ray_write12_push_data),
+        .pop_valid(tp_ray_write12_pop_valid),
+        .pop_ready(tp_ray_write12_pop_ready),
+        .pop_data(tp_ray_write12_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write13_push_valid),
+        .push_ready(tp_ray_write13_push_ready),
+        .push_data(tp_ray_write13_push_data),
+        .pop_valid(tp_ray_write13_pop_valid),
+        .pop_ready(tp_ray_write13_pop_ready),
+        .pop_data(tp_ray_write13_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write14_push_valid),
+        .push_ready(tp_ray_write14_push_ready),
+        .push_data(tp_ray_write14_push_data),
+        .pop_valid(tp_ray_write14_pop_valid),
+        .pop_ready(tp_ray_write14_pop_ready),
+        .pop_data(tp_ray_write14_pop_data)
+    );
+    ds_link #(.WIDTH(289), .DEPTH(2), .DELAY(1)) link_tp_ray_write15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_ray_write15_push_valid),
+        .push_ready(tp_ray_write15_push_ready),
+        .push_data(tp_ray_write15_push_data),
+        .pop_valid(tp_ray_write15_pop_valid),
+        .pop_ready(tp_ray_write15_pop_ready),
+        .pop_data(tp_ray_write15_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit0_push_valid),
+        .push_ready(tp_hit0_push_ready),
+        .push_data(tp_hit0_push_data),
+        .pop_valid(tp_hit0_pop_valid),
+        .pop_ready(tp_hit0_pop_ready),
+        .pop_data(tp_hit0_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit1_push_valid),
+        .push_ready(tp_hit1_push_ready),
+        .push_data(tp_hit1_push_data),
+        .pop_valid(tp_hit1_pop_valid),
+        .pop_ready(tp_hit1_pop_ready),
+        .pop_data(tp_hit1_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit2_push_valid),
+        .push_ready(tp_hit2_push_ready),
+        .push_data(tp_hit2_push_data),
+        .pop_valid(tp_hit2_pop_valid),
+        .pop_ready(tp_hit2_pop_ready),
+        .pop_data(tp_hit2_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit3_push_valid),
+        .push_ready(tp_hit3_push_ready),
+        .push_data(tp_hit3_push_data),
+        .pop_valid(tp_hit3_pop_valid),
+        .pop_ready(tp_hit3_pop_ready),
+        .pop_data(tp_hit3_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit4_push_valid),
+        .push_ready(tp_hit4_push_ready),
+        .push_data(tp_hit4_push_data),
+        .pop_valid(tp_hit4_pop_valid),
+        .pop_ready(tp_hit4_pop_ready),
+        .pop_data(tp_hit4_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit5_push_valid),
+        .push_ready(tp_hit5_push_ready),
+        .push_data(tp_hit5_push_data),
+        .pop_valid(tp_hit5_pop_valid),
+        .pop_ready(tp_hit5_pop_ready),
+        .pop_data(tp_hit5_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit6_push_valid),
+        .push_ready(tp_hit6_push_ready),
+        .push_data(tp_hit6_push_data),
+        .pop_valid(tp_hit6_pop_valid),
+        .pop_ready(tp_hit6_pop_ready),
+        .pop_data(tp_hit6_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit7_push_valid),
+        .push_ready(tp_hit7_push_ready),
+        .push_data(tp_hit7_push_data),
+        .pop_valid(tp_hit7_pop_valid),
+        .pop_ready(tp_hit7_pop_ready),
+        .pop_data(tp_hit7_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit8_push_valid),
+        .push_ready(tp_hit8_push_ready),
+        .push_data(tp_hit8_push_data),
+        .pop_valid(tp_hit8_pop_valid),
+        .pop_ready(tp_hit8_pop_ready),
+        .pop_data(tp_hit8_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit9_push_valid),
+        .push_ready(tp_hit9_push_ready),
+        .push_data(tp_hit9_push_data),
+        .pop_valid(tp_hit9_pop_valid),
+        .pop_ready(tp_hit9_pop_ready),
+        .pop_data(tp_hit9_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit10_push_valid),
+        .push_ready(tp_hit10_push_ready),
+        .push_data(tp_hit10_push_data),
+        .pop_valid(tp_hit10_pop_valid),
+        .pop_ready(tp_hit10_pop_ready),
+        .pop_data(tp_hit10_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit11_push_valid),
+        .push_ready(tp_hit11_push_ready),
+        .push_data(tp_hit11_push_data),
+        .pop_valid(tp_hit11_pop_valid),
+        .pop_ready(tp_hit11_pop_ready),
+        .pop_data(tp_hit11_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit12_push_valid),
+        .push_ready(tp_hit12_push_ready),
+        .push_data(tp_hit12_push_data),
+        .pop_valid(tp_hit12_pop_valid),
+        .pop_ready(tp_hit12_pop_ready),
+        .pop_data(tp_hit12_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit13_push_valid),
+        .push_ready(tp_hit13_push_ready),
+        .push_data(tp_hit13_push_data),
+        .pop_valid(tp_hit13_pop_valid),
+        .pop_ready(tp_hit13_pop_ready),
+        .pop_data(tp_hit13_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit14_push_valid),
+        .push_ready(tp_hit14_push_ready),
+        .push_data(tp_hit14_push_data),
+        .pop_valid(tp_hit14_pop_valid),
+        .pop_ready(tp_hit14_pop_ready),
+        .pop_data(tp_hit14_pop_data)
+    );
+    ds_link #(.WIDTH(160), .DEPTH(2), .DELAY(1)) link_tp_hit15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_hit15_push_valid),
+        .push_ready(tp_hit15_push_ready),
+        .push_data(tp_hit15_push_data),
+        .pop_valid(tp_hit15_pop_valid),
+        .pop_ready(tp_hit15_pop_ready),
+        .pop_data(tp_hit15_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req0_push_valid),
+        .push_ready(tp_gmem_req0_push_ready),
+        .push_data(tp_gmem_req0_push_data),
+        .pop_valid(tp_gmem_req0_pop_valid),
+        .pop_ready(tp_gmem_req0_pop_ready),
+        .pop_data(tp_gmem_req0_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req1_push_valid),
+        .push_ready(tp_gmem_req1_push_ready),
+        .push_data(tp_gmem_req1_push_data),
+        .pop_valid(tp_gmem_req1_pop_valid),
+        .pop_ready(tp_gmem_req1_pop_ready),
+        .pop_data(tp_gmem_req1_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req2_push_valid),
+        .push_ready(tp_gmem_req2_push_ready),
+        .push_data(tp_gmem_req2_push_data),
+        .pop_valid(tp_gmem_req2_pop_valid),
+        .pop_ready(tp_gmem_req2_pop_ready),
+        .pop_data(tp_gmem_req2_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req3_push_valid),
+        .push_ready(tp_gmem_req3_push_ready),
+        .push_data(tp_gmem_req3_push_data),
+        .pop_valid(tp_gmem_req3_pop_valid),
+        .pop_ready(tp_gmem_req3_pop_ready),
+        .pop_data(tp_gmem_req3_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req4_push_valid),
+        .push_ready(tp_gmem_req4_push_ready),
+        .push_data(tp_gmem_req4_push_data),
+        .pop_valid(tp_gmem_req4_pop_valid),
+        .pop_ready(tp_gmem_req4_pop_ready),
+        .pop_data(tp_gmem_req4_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req5_push_valid),
+        .push_ready(tp_gmem_req5_push_ready),
+        .push_data(tp_gmem_req5_push_data),
+        .pop_valid(tp_gmem_req5_pop_valid),
+        .pop_ready(tp_gmem_req5_pop_ready),
+        .pop_data(tp_gmem_req5_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req6_push_valid),
+        .push_ready(tp_gmem_req6_push_ready),
+        .push_data(tp_gmem_req6_push_data),
+        .pop_valid(tp_gmem_req6_pop_valid),
+        .pop_ready(tp_gmem_req6_pop_ready),
+        .pop_data(tp_gmem_req6_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req7_push_valid),
+        .push_ready(tp_gmem_req7_push_ready),
+        .push_data(tp_gmem_req7_push_data),
+        .pop_valid(tp_gmem_req7_pop_valid),
+        .pop_ready(tp_gmem_req7_pop_ready),
+        .pop_data(tp_gmem_req7_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req8_push_valid),
+        .push_ready(tp_gmem_req8_push_ready),
+        .push_data(tp_gmem_req8_push_data),
+        .pop_valid(tp_gmem_req8_pop_valid),
+        .pop_ready(tp_gmem_req8_pop_ready),
+        .pop_data(tp_gmem_req8_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req9_push_valid),
+        .push_ready(tp_gmem_req9_push_ready),
+        .push_data(tp_gmem_req9_push_data),
+        .pop_valid(tp_gmem_req9_pop_valid),
+        .pop_ready(tp_gmem_req9_pop_ready),
+        .pop_data(tp_gmem_req9_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req10_push_valid),
+        .push_ready(tp_gmem_req10_push_ready),
+        .push_data(tp_gmem_req10_push_data),
+        .pop_valid(tp_gmem_req10_pop_valid),
+        .pop_ready(tp_gmem_req10_pop_ready),
+        .pop_data(tp_gmem_req10_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req11_push_valid),
+        .push_ready(tp_gmem_req11_push_ready),
+        .push_data(tp_gmem_req11_push_data),
+        .pop_valid(tp_gmem_req11_pop_valid),
+        .pop_ready(tp_gmem_req11_pop_ready),
+        .pop_data(tp_gmem_req11_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req12_push_valid),
+        .push_ready(tp_gmem_req12_push_ready),
+        .push_data(tp_gmem_req12_push_data),
+        .pop_valid(tp_gmem_req12_pop_valid),
+        .pop_ready(tp_gmem_req12_pop_ready),
+        .pop_data(tp_gmem_req12_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req13_push_valid),
+        .push_ready(tp_gmem_req13_push_ready),
+        .push_data(tp_gmem_req13_push_data),
+        .pop_valid(tp_gmem_req13_pop_valid),
+        .pop_ready(tp_gmem_req13_pop_ready),
+        .pop_data(tp_gmem_req13_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req14_push_valid),
+        .push_ready(tp_gmem_req14_push_ready),
+        .push_data(tp_gmem_req14_push_data),
+        .pop_valid(tp_gmem_req14_pop_valid),
+        .pop_ready(tp_gmem_req14_pop_ready),
+        .pop_data(tp_gmem_req14_pop_data)
+    );
+    ds_link #(.WIDTH(676), .DEPTH(2), .DELAY(1)) link_tp_gmem_req15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_req15_push_valid),
+        .push_ready(tp_gmem_req15_push_ready),
+        .push_data(tp_gmem_req15_push_data),
+        .pop_valid(tp_gmem_req15_pop_valid),
+        .pop_ready(tp_gmem_req15_pop_ready),
+        .pop_data(tp_gmem_req15_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp0_push_valid),
+        .push_ready(tp_gmem_resp0_push_ready),
+        .push_data(tp_gmem_resp0_push_data),
+        .pop_valid(tp_gmem_resp0_pop_valid),
+        .pop_ready(tp_gmem_resp0_pop_ready),
+        .pop_data(tp_gmem_resp0_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp1_push_valid),
+        .push_ready(tp_gmem_resp1_push_ready),
+        .push_data(tp_gmem_resp1_push_data),
+        .pop_valid(tp_gmem_resp1_pop_valid),
+        .pop_ready(tp_gmem_resp1_pop_ready),
+        .pop_data(tp_gmem_resp1_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp2 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp2_push_valid),
+        .push_ready(tp_gmem_resp2_push_ready),
+        .push_data(tp_gmem_resp2_push_data),
+        .pop_valid(tp_gmem_resp2_pop_valid),
+        .pop_ready(tp_gmem_resp2_pop_ready),
+        .pop_data(tp_gmem_resp2_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp3 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp3_push_valid),
+        .push_ready(tp_gmem_resp3_push_ready),
+        .push_data(tp_gmem_resp3_push_data),
+        .pop_valid(tp_gmem_resp3_pop_valid),
+        .pop_ready(tp_gmem_resp3_pop_ready),
+        .pop_data(tp_gmem_resp3_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp4 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp4_push_valid),
+        .push_ready(tp_gmem_resp4_push_ready),
+        .push_data(tp_gmem_resp4_push_data),
+        .pop_valid(tp_gmem_resp4_pop_valid),
+        .pop_ready(tp_gmem_resp4_pop_ready),
+        .pop_data(tp_gmem_resp4_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp5 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp5_push_valid),
+        .push_ready(tp_gmem_resp5_push_ready),
+        .push_data(tp_gmem_resp5_push_data),
+        .pop_valid(tp_gmem_resp5_pop_valid),
+        .pop_ready(tp_gmem_resp5_pop_ready),
+        .pop_data(tp_gmem_resp5_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp6 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp6_push_valid),
+        .push_ready(tp_gmem_resp6_push_ready),
+        .push_data(tp_gmem_resp6_push_data),
+        .pop_valid(tp_gmem_resp6_pop_valid),
+        .pop_ready(tp_gmem_resp6_pop_ready),
+        .pop_data(tp_gmem_resp6_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp7 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp7_push_valid),
+        .push_ready(tp_gmem_resp7_push_ready),
+        .push_data(tp_gmem_resp7_push_data),
+        .pop_valid(tp_gmem_resp7_pop_valid),
+        .pop_ready(tp_gmem_resp7_pop_ready),
+        .pop_data(tp_gmem_resp7_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp8 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp8_push_valid),
+        .push_ready(tp_gmem_resp8_push_ready),
+        .push_data(tp_gmem_resp8_push_data),
+        .pop_valid(tp_gmem_resp8_pop_valid),
+        .pop_ready(tp_gmem_resp8_pop_ready),
+        .pop_data(tp_gmem_resp8_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp9 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp9_push_valid),
+        .push_ready(tp_gmem_resp9_push_ready),
+        .push_data(tp_gmem_resp9_push_data),
+        .pop_valid(tp_gmem_resp9_pop_valid),
+        .pop_ready(tp_gmem_resp9_pop_ready),
+        .pop_data(tp_gmem_resp9_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp10 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp10_push_valid),
+        .push_ready(tp_gmem_resp10_push_ready),
+        .push_data(tp_gmem_resp10_push_data),
+        .pop_valid(tp_gmem_resp10_pop_valid),
+        .pop_ready(tp_gmem_resp10_pop_ready),
+        .pop_data(tp_gmem_resp10_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp11 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp11_push_valid),
+        .push_ready(tp_gmem_resp11_push_ready),
+        .push_data(tp_gmem_resp11_push_data),
+        .pop_valid(tp_gmem_resp11_pop_valid),
+        .pop_ready(tp_gmem_resp11_pop_ready),
+        .pop_data(tp_gmem_resp11_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp12 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp12_push_valid),
+        .push_ready(tp_gmem_resp12_push_ready),
+        .push_data(tp_gmem_resp12_push_data),
+        .pop_valid(tp_gmem_resp12_pop_valid),
+        .pop_ready(tp_gmem_resp12_pop_ready),
+        .pop_data(tp_gmem_resp12_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp13 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp13_push_valid),
+        .push_ready(tp_gmem_resp13_push_ready),
+        .push_data(tp_gmem_resp13_push_data),
+        .pop_valid(tp_gmem_resp13_pop_valid),
+        .pop_ready(tp_gmem_resp13_pop_ready),
+        .pop_data(tp_gmem_resp13_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp14 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp14_push_valid),
+        .push_ready(tp_gmem_resp14_push_ready),
+        .push_data(tp_gmem_resp14_push_data),
+        .pop_valid(tp_gmem_resp14_pop_valid),
+        .pop_ready(tp_gmem_resp14_pop_ready),
+        .pop_data(tp_gmem_resp14_pop_data)
+    );
+    ds_link #(.WIDTH(612), .DEPTH(2), .DELAY(1)) link_tp_gmem_resp15 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tp_gmem_resp15_push_valid),
+        .push_ready(tp_gmem_resp15_push_ready),
+        .push_data(tp_gmem_resp15_push_data),
+        .pop_valid(tp_gmem_resp15_pop_valid),
+        .pop_ready(tp_gmem_resp15_pop_ready),
+        .pop_data(tp_gmem_resp15_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tri_req0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tri_req0_push_valid),
+        .push_ready(tri_req0_push_ready),
+        .push_data(tri_req0_push_data),
+        .pop_valid(tri_req0_pop_valid),
+        .pop_ready(tri_req0_pop_ready),
+        .pop_data(tri_req0_pop_data)
+    );
+    ds_link #(.WIDTH(592), .DEPTH(2), .DELAY(1)) link_tri_req1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tri_req1_push_valid),
+        .push_ready(tri_req1_push_ready),
+        .push_data(tri_req1_push_data),
+        .pop_valid(tri_req1_pop_valid),
+        .pop_ready(tri_req1_pop_ready),
+        .pop_data(tri_req1_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tri_resp0 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tri_resp0_push_valid),
+        .push_ready(tri_resp0_push_ready),
+        .push_data(tri_resp0_push_data),
+        .pop_valid(tri_resp0_pop_valid),
+        .pop_ready(tri_resp0_pop_ready),
+        .pop_data(tri_resp0_pop_data)
+    );
+    ds_link #(.WIDTH(145), .DEPTH(2), .DELAY(1)) link_tri_resp1 (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(tri_resp1_push_valid),
+        .push_ready(tri_resp1_push_ready),
+        .push_data(tri_resp1_push_data),
+        .pop_valid(tri_resp1_pop_valid),
+        .pop_ready(tri_resp1_pop_ready),
+        .pop_data(tri_resp1_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_div_req (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(div_req_push_valid),
+        .push_ready(div_req_push_ready),
+        .push_data(div_req_push_data),
+        .pop_valid(div_req_pop_valid),
+        .pop_ready(div_req_pop_ready),
+        .pop_data(div_req_pop_data)
+    );
+    ds_link #(.WIDTH(112), .DEPTH(2), .DELAY(1)) link_div_resp (
+        .clk(clk),
+        .rst(rst),
+        .push_valid(div_resp_push_valid),
+        .push_ready(div_resp_push_ready),
+        .push_data(div_resp_push_data),
+        .pop_valid(div_resp_pop_valid),
+        .pop_ready(div_resp_pop_ready),
+        .pop_data(div_resp_pop_data)
     );
 endmodule

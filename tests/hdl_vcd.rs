@@ -33,13 +33,16 @@ fn committed_hdl_matches_what_the_code_emits() {
         .map(|p| p.file_name().unwrap().to_string_lossy().into())
         .collect();
     want.sort();
-    // hdl/ref/ is hand-written reference RTL (tests/rtl_ref.rs checks it), not emitted.
+    // hdl/ref/ is hand-written reference RTL (tests/rtl_ref.rs checks it);
+    // the emitter copies only the link module the netlists instantiate
+    // (ref/ds_link.sv) from it.
     let mut have: Vec<String> = std::fs::read_dir(repo().join("hdl"))
         .unwrap()
         .map(|e| e.unwrap())
         .filter(|e| e.file_type().is_ok_and(|t| t.is_file()))
         .map(|e| e.file_name().to_string_lossy().into())
         .filter(|n: &String| n.ends_with(".v") || n.ends_with(".sv"))
+        .chain(["ds_link.sv".to_string()])
         .collect();
     have.sort();
     assert_eq!(
@@ -48,7 +51,8 @@ fn committed_hdl_matches_what_the_code_emits() {
     );
     for p in written {
         let committed =
-            std::fs::read_to_string(repo().join("hdl").join(p.file_name().unwrap())).unwrap();
+            std::fs::read_to_string(repo().join("hdl").join(p.strip_prefix(&*out).unwrap()))
+                .unwrap();
         let fresh = std::fs::read_to_string(&p).unwrap();
         assert_eq!(
             committed,
@@ -251,8 +255,9 @@ fn verilog_passes_verilator_iverilog_and_yosys() {
             let all: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
             let top = f.file_stem().unwrap().to_string_lossy();
             let script = format!(
-                "read_verilog -sv {} {}; hierarchy -check -top {top}; check -assert",
+                "read_verilog -sv {} {} {}; hierarchy -check -top {top}; check -assert",
                 repo().join("hdl/ds_pkg.sv").display(),
+                repo().join("hdl/ref/ds_link.sv").display(),
                 all.join(" ")
             );
             succeeds(Command::new("yosys").args(["-q", "-p", &script]), "yosys");
@@ -314,10 +319,29 @@ fn chip_top_wires_every_unit_and_lints() {
     assert!(committed.contains(&format!("memory #(.PORTS({ports}),")));
     assert_eq!(memory.matches("input  wire req_").count() as u32, ports);
     assert!(committed.contains(&format!(".req_{}_valid(", ports - 1)));
-    // Every scheduler fill port drives its TM's slice.
+    // Every scheduler fill port drives its TM's link, which drives the TM's
+    // slice.
     for k in [0, cfg.chip.tms - 1] {
-        assert!(committed.contains(&format!(".fill_{k}_valid(tm_fill_valid[{k}])")));
+        assert!(committed.contains(&format!(".fill_{k}_valid(tm{k}_fill_push_valid)")));
+        assert!(committed.contains(&format!(".push_valid(tm{k}_fill_push_valid)")));
+        assert!(committed.contains(&format!(".pop_valid(tm_fill_valid[{k}])")));
     }
+    // Every link is a ds_link (with its depth and delay) but the clock
+    // crossings; each TM's internal links are in tm.v.
+    let tm_v = std::fs::read_to_string(repo().join("hdl/tm.v")).unwrap();
+    let tm_links = tm_v.matches("    ds_link #(").count();
+    let chip_links = committed.matches("    ds_link #(").count();
+    let crossings = if cfg.chip.memory.model == dualstream::units::memory::MemoryModel::Gddr5 {
+        2 * cfg.mem.geometry.channels as usize
+    } else {
+        0
+    };
+    assert_eq!(
+        chip_links + crossings + cfg.chip.tms as usize * tm_links,
+        dualstream::machine::hdl::link_count(&cfg).unwrap(),
+        "one ds_link per link of the model"
+    );
+    assert!(committed.contains("ds_link #(.WIDTH("));
 
     for (name, toml) in [
         (
@@ -359,9 +383,10 @@ fn chip_top_wires_every_unit_and_lints() {
                 .filter(|p| p.ends_with(".v") && !p.ends_with("chip.v"))
                 .collect();
             let script = format!(
-                "read_verilog -sv -lib {} {}; read_verilog -sv {}; hierarchy -check -top chip; check -assert chip",
+                "read_verilog -sv -lib {} {}; read_verilog -sv {} {}; hierarchy -check -top chip; check -assert chip",
                 dir.join("ds_pkg.sv").display(),
                 lib.join(" "),
+                dir.join("ref/ds_link.sv").display(),
                 top.display()
             );
             succeeds(
@@ -378,11 +403,16 @@ fn chip_top_wires_every_unit_and_lints() {
 /// missing; `have` requires it under CI).
 fn lint_with_library(lib: &std::path::Path, file: &std::path::Path, what: &str) {
     let pkg = lib.join("ds_pkg.sv");
+    // The link module the netlists instantiate: found by Verilator in ref/,
+    // given to Icarus (whose -y looks for `.v` files).
+    let link = lib.join("ref/ds_link.sv");
     if have("verilator") {
         succeeds(
             Command::new("verilator")
                 .args(["--lint-only", "-Wall", "-y"])
                 .arg(lib)
+                .arg("-y")
+                .arg(lib.join("ref"))
                 .arg(&pkg)
                 .arg(file),
             &format!("verilator{what}"),
@@ -394,6 +424,7 @@ fn lint_with_library(lib: &std::path::Path, file: &std::path::Path, what: &str) 
                 .args(["-g2012", "-o", "/dev/null", "-y"])
                 .arg(lib)
                 .arg(&pkg)
+                .arg(&link)
                 .arg(file),
             &format!("iverilog{what}"),
         );

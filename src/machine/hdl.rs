@@ -48,6 +48,12 @@ fn elaborate(cfg: &Config) -> Result<Chip, ChipError> {
     Chip::new(cfg, &map, 1, &shade, SimOptions::default())
 }
 
+/// How many links the chip elaborated for `cfg` has (each is a `ds_link`
+/// instance in `chip.v` or `tm.v`, or a clock crossing).
+pub fn link_count(cfg: &Config) -> Result<usize, ChipError> {
+    Ok(elaborate(cfg)?.sim.link_count())
+}
+
 /// The declarations of the chip's own units (not the TMs' insides, not the host),
 /// one per module, as the chip instantiates them (e.g. the memory unit with a
 /// port per requester).
@@ -140,6 +146,8 @@ struct Top {
     /// Numbered instances whose links are vectors (see [`families`]).
     families: BTreeMap<String, Vec<usize>>,
     link_names: Vec<String>,
+    /// Each link's depth and delay, from the simulator.
+    link_cfgs: Vec<crate::rtl::LinkCfg>,
 }
 
 /// What the chip's module declares and connects: its ports (the host's links
@@ -149,6 +157,8 @@ struct Wiring {
     wires: Vec<String>,
     /// (instance, port) -> (valid, ready, data) expressions.
     conn: BTreeMap<(String, &'static str), [String; 3]>,
+    /// One `ds_link` instance per link (not the crossings'), as text.
+    links: Vec<String>,
 }
 
 /// The clock net of a clock domain, named as the waveform's (`clk_core`,
@@ -232,11 +242,15 @@ impl Top {
                 }
             }
         }
+        let link_cfgs = (0..sim.link_count() as u32)
+            .map(|l| sim.link_cfg(LinkId(l)))
+            .collect();
         Ok(Top {
             insts,
             nets,
             families,
             link_names,
+            link_cfgs,
         })
     }
 
@@ -294,6 +308,7 @@ impl Top {
                 wires.push(format!("    wire [{n}*{w}-1:0] {s}_data;"));
             }
         }
+        let mut links = Vec::new();
         for (id, p, c) in &self.nets {
             let pf = self.in_family(&p.top);
             let cf = self.in_family(&c.top);
@@ -303,8 +318,10 @@ impl Top {
                     self.link_names[*id as usize]
                 )));
             }
-            let (ps, cs) = (self.signal(p, *id), self.signal(c, *id));
-            if p.top == "host" || c.top == "host" {
+            let local = self.link_names[*id as usize].trim_start_matches("chip.");
+            let n = local.replace('.', "_");
+            let host = p.top == "host" || c.top == "host";
+            if host {
                 // The host's side is the chip's port, named after the host's port.
                 let (h, other, dir, ddir) = if p.top == "host" {
                     (p, c, ("input ", "output"), PortDir::In)
@@ -324,23 +341,67 @@ impl Top {
                     &h.ty,
                     &format!("{}_data", h.port),
                 ));
-                conn.insert(
-                    (other.top.clone(), other.port),
-                    ["valid", "ready", "data"].map(|s| format!("{}_{s}", h.port)),
-                );
+            }
+            let (pclk, cclk) = (&insts[&p.top].clock, &insts[&c.top].clock);
+            if pclk != cclk && !host {
+                // A clock-domain crossing: wired straight (see docs/rtl.md,
+                // "Netlists and ds_link").
+                if !pf && !cf {
+                    wires.push(format!("    wire {n}_valid;"));
+                    wires.push(format!("    wire {n}_ready;"));
+                    wires.push(format!("    wire {}{n}_data;", range(p.width)));
+                }
+                let s = if pf {
+                    self.signal(p, *id)
+                } else if cf {
+                    self.signal(c, *id)
+                } else {
+                    ["valid", "ready", "data"].map(|x| format!("{n}_{x}"))
+                };
+                conn.insert((p.top.clone(), p.port), s.clone());
+                conn.insert((c.top.clone(), c.port), s);
                 continue;
             }
-            if !pf && !cf {
-                wires.push(format!("    wire {};", ps[0]));
-                wires.push(format!("    wire {};", ps[1]));
-                wires.push(format!("    wire {}{};", range(p.width), ps[2]));
+            // The producer's net, the link (ds_link, on the producer's clock,
+            // or the chip's unit's for the host's links), the consumer's net:
+            // a family member's is its slice of the family's vectors, the
+            // host's is the chip's port.
+            let mut side = |end: &End, s: &str| -> [String; 3] {
+                if end.top == "host" {
+                    return ["valid", "ready", "data"].map(|x| format!("{}_{x}", end.port));
+                }
+                if self.in_family(&end.top) {
+                    return self.signal(end, *id);
+                }
+                wires.push(format!("    wire {n}_{s}_valid;"));
+                wires.push(format!("    wire {n}_{s}_ready;"));
+                wires.push(format!("    wire {}{n}_{s}_data;", range(end.width)));
+                ["valid", "ready", "data"].map(|x| format!("{n}_{s}_{x}"))
+            };
+            let push = side(p, "push");
+            let pop = side(c, "pop");
+            let clock = if p.top == "host" { cclk } else { pclk };
+            links.push(crate::rtl::verilog::link_instance(
+                local,
+                p.width,
+                self.link_cfgs[*id as usize],
+                clock,
+                &push,
+                &pop,
+            ));
+            if p.top != "host" {
+                conn.insert((p.top.clone(), p.port), push);
             }
-            // The family side names the net; the other end indexes it.
-            let s = if pf { ps } else { cs };
-            conn.insert((p.top.clone(), p.port), s.clone());
-            conn.insert((c.top.clone(), c.port), s);
+            if c.top != "host" {
+                conn.insert((c.top.clone(), c.port), pop);
+            }
         }
-        Ok(Wiring { ports, wires, conn })
+        Ok(Wiring {
+            ports,
+            wires,
+            conn,
+            links,
+        })
     }
 
     /// An instance's parameter list, its declared values.
@@ -437,6 +498,9 @@ pub fn emit_chip(cfg: &Config) -> Result<String, ChipError> {
         let _ = writeln!(v, "{l}");
     }
     top.write_instances(&mut v, &w);
+    for l in &w.links {
+        v.push_str(l);
+    }
     let _ = writeln!(v, "    wire _unused_ok = &{{1'b0, TPS[0], 1'b0}};");
     let _ = writeln!(v, "endmodule");
     Ok(v)
@@ -608,7 +672,8 @@ pub fn emit_package(cfg: &Config) -> Result<String, ChipError> {
     Ok(pkg.emit(&header, &params))
 }
 
-/// Writes `ds_pkg.sv` and one `<module>.v` per unit into `dir` (created if
+/// Writes `ds_pkg.sv`, one `<module>.v` per unit, `tm.v`, `chip.v` and the
+/// link module they instantiate (`ref/ds_link.sv`) into `dir` (created if
 /// missing); returns the paths.
 pub fn write_hdl(
     cfg: &Config,
@@ -638,6 +703,13 @@ pub fn write_hdl(
         std::fs::write(&p, crate::rtl::verilog::emit_module(&d)).map_err(|e| unwritable(&p, e))?;
         out.push(p);
     }
+    // The link module the netlists instantiate: hand-written (hdl/ref/),
+    // copied so that an emitted directory is complete.
+    let r = dir.join("ref");
+    std::fs::create_dir_all(&r).map_err(|e| unwritable(&r, e))?;
+    let p = r.join("ds_link.sv");
+    std::fs::write(&p, crate::rtl::verilog::LINK_RTL).map_err(|e| unwritable(&p, e))?;
+    out.push(p);
     // The TM is structural: instances of the units above, wired as simulated.
     let p = dir.join("tm.v");
     std::fs::write(&p, units::tm::emit_verilog(&cfg.tm_spec())).map_err(|e| unwritable(&p, e))?;
@@ -697,7 +769,8 @@ mod tests {
                 );
             }
         }
-        assert!(v.contains(".fill_2_valid(tm_fill_valid[2])"));
+        assert!(v.contains(".fill_2_valid(tm2_fill_push_valid)"));
+        assert!(v.contains(".pop_valid(tm_fill_valid[2])"));
         // TM 2's other ends are wired to some global unit's port.
         for p in [
             "miss_req",

@@ -185,3 +185,43 @@ pub fn emit_module(d: &UnitDecl) -> String {
     let _ = writeln!(w, "endmodule");
     v
 }
+
+/// The module every same-clock link of a netlist is an instance of: the
+/// hand-written `hdl/ref/ds_link.sv` (the model's link as RTL; its text is
+/// written beside an emitted netlist, `ref/ds_link.sv`, so the netlist is
+/// complete).
+pub const LINK_MODULE: &str = "ds_link";
+/// The text of `hdl/ref/ds_link.sv`.
+pub const LINK_RTL: &str = include_str!("../../hdl/ref/ds_link.sv");
+
+/// The instance name of a link in a netlist: `link_` and the link's name
+/// below the netlist's root, dots as `_` (`tm.ray0` in `tm.v` is `link_ray0`).
+pub fn link_instance_name(local: &str) -> String {
+    format!("link_{}", local.replace('.', "_"))
+}
+
+/// One link as an instance of [`LINK_MODULE`] with the model's width, depth
+/// and delay: `push` is the producer's (valid, ready, data) net, `pop` the
+/// consumer's.
+pub fn link_instance(
+    local: &str,
+    width: u32,
+    cfg: super::LinkCfg,
+    clk: &str,
+    push: &[String; 3],
+    pop: &[String; 3],
+) -> String {
+    let mut cs = vec![format!(".clk({clk})"), ".rst(rst)".to_string()];
+    for (side, s) in [("push", push), ("pop", pop)] {
+        for (k, suf) in ["valid", "ready", "data"].iter().enumerate() {
+            cs.push(format!(".{side}_{suf}({})", s[k]));
+        }
+    }
+    format!(
+        "    {LINK_MODULE} #(.WIDTH({width}), .DEPTH({}), .DELAY({})) {} (\n        {}\n    );\n",
+        cfg.depth,
+        cfg.delay,
+        link_instance_name(local),
+        cs.join(",\n        ")
+    )
+}

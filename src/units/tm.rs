@@ -621,12 +621,14 @@ pub fn build(sim: &mut Sim, clock: ClockId, cfg: &TmSpec, path: &str, ports: TmP
 
 /// The structural Verilog of the TM: one instance per unit, named as the unit's
 /// instance in the model (`tp5`, `l1`, `xbar`: a waveform's `chip.tm3.tp5` is the
-/// netlist's `chip.tm3.tp5`), one valid/ready/data wire triple per internal link,
-/// and the outside links as module ports. Built from a TM elaborated in a scratch
+/// netlist's `chip.tm3.tp5`), each internal link an instance of `ds_link`
+/// (`link_<name>`, the model's width, depth and delay) between the producer's
+/// and the consumer's valid/ready/data nets (`<name>_push_*`, `<name>_pop_*`),
+/// and the outside links as module ports (their `ds_link` is in `chip.v`). Built from a TM elaborated in a scratch
 /// simulator, so it is exactly the simulated netlist.
 pub fn emit_verilog(cfg: &TmSpec) -> String {
     use crate::rtl::decl::PortDir;
-    use crate::rtl::verilog::{IMPORT, port_decl};
+    use crate::rtl::verilog::{IMPORT, link_instance, port_decl};
     use std::collections::BTreeMap;
     use std::fmt::Write;
     let mut sim = Sim::default();
@@ -681,6 +683,7 @@ pub fn emit_verilog(cfg: &TmSpec) -> String {
     );
     let mut ports = vec!["input  wire clk".to_string(), "input  wire rst".to_string()];
     let mut wires = Vec::new();
+    let mut links = Vec::new();
     // (inst, port) -> signal prefix
     let mut conn: BTreeMap<(String, &'static str), String> = BTreeMap::new();
     for (id, e) in &ends {
@@ -693,14 +696,25 @@ pub fn emit_verilog(cfg: &TmSpec) -> String {
         };
         match e {
             [Some(p), Some(c)] => {
-                let w = names[*id as usize]
-                    .trim_start_matches("tm.")
-                    .replace('.', "_");
-                wires.push(format!("    wire {w}_valid;"));
-                wires.push(format!("    wire {w}_ready;"));
-                wires.push(format!("    wire {}{w}_data;", rng(p.2.width())));
-                conn.insert((p.0.clone(), p.1), w.clone());
-                conn.insert((c.0.clone(), c.1), w);
+                // The producer's net, the link (ds_link), the consumer's net.
+                let local = names[*id as usize].trim_start_matches("tm.");
+                let w = local.replace('.', "_");
+                let side = |s: &str| ["valid", "ready", "data"].map(|x| format!("{w}_{s}_{x}"));
+                for s in ["push", "pop"] {
+                    wires.push(format!("    wire {w}_{s}_valid;"));
+                    wires.push(format!("    wire {w}_{s}_ready;"));
+                    wires.push(format!("    wire {}{w}_{s}_data;", rng(p.2.width())));
+                }
+                links.push(link_instance(
+                    local,
+                    p.2.width(),
+                    sim.link_cfg(crate::rtl::LinkId(*id)),
+                    "clk",
+                    &side("push"),
+                    &side("pop"),
+                ));
+                conn.insert((p.0.clone(), p.1), format!("{w}_push"));
+                conn.insert((c.0.clone(), c.1), format!("{w}_pop"));
             }
             [Some(p), None] => {
                 ports.push(format!("output wire {}_valid", p.1));
@@ -744,6 +758,10 @@ pub fn emit_verilog(cfg: &TmSpec) -> String {
             "a TM's units sit directly in it: {inst}"
         );
         let _ = writeln!(v, " {inst} (\n        {}\n    );", cs.join(",\n        "));
+    }
+    // Each internal link: the model's FIFO with its depth and delay.
+    for l in links {
+        v.push_str(&l);
     }
     let _ = writeln!(v, "endmodule");
     v

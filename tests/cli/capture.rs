@@ -68,8 +68,14 @@ fn stats_without_times(p: &Path) -> String {
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
     v.as_object_mut().unwrap().remove("header");
-    let lanes = v["chip"].as_object_mut().unwrap().remove("sim_steps_by_lanes");
-    assert!(lanes.is_some(), "the lanes figure moved: update this filter");
+    let lanes = v["chip"]
+        .as_object_mut()
+        .unwrap()
+        .remove("sim_steps_by_lanes");
+    assert!(
+        lanes.is_some(),
+        "the lanes figure moved: update this filter"
+    );
     let s = serde_json::to_string_pretty(&v).unwrap();
     s.lines()
         .filter(|l| !l.contains("_s\":") && !l.contains("wall"))

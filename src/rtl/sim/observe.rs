@@ -122,6 +122,17 @@ impl Sim {
             .collect()
     }
 
+    /// A link's configured depth and delay (its producer's cycles), as the
+    /// netlists' `ds_link` instances take them.
+    pub fn link_cfg(&self, id: LinkId) -> crate::rtl::LinkCfg {
+        self.links[id.0 as usize].cfg()
+    }
+
+    /// How many links the netlist has.
+    pub fn link_count(&self) -> usize {
+        self.links.len()
+    }
+
     pub fn link_occupancy(&self, id: LinkId) -> u32 {
         self.links[id.0 as usize].occupancy()
     }
