@@ -80,12 +80,18 @@ module staging_buffer
     // slot is read only after it was written.
     // (A vector, not ray_rec_t: Yosys 0.23 sizes an array of a struct type as
     // one bit per word.)
+`ifdef YOSYS
+    // Yosys 0.23 takes no $bits of a type; Icarus 11 sizes a port member as 0.
     localparam integer RW = $bits(fill_data.ray);
+    localparam integer HW = $bits(fill_data.hdr);
+`else
+    localparam integer RW = $bits(ray_rec_t);
+    localparam integer HW = $bits(sb_header_t);
+`endif
     logic [RW-1:0] rays [0:2*HALF_RAYS-1];
     logic drain_half;
     logic [15:0] count0, count1;
     logic sealed0, sealed1;
-    localparam integer HW = $bits(fill_data.hdr);
     logic [HW-1:0] hdr0, hdr1;
     // The fill's members as slices of the packed vector (ray lowest, then hdr,
     // then last: ds_pkg.sv's layout); Yosys 0.23 reads a nested member such as
