@@ -81,9 +81,13 @@ module staging_buffer
     // (A vector, not ray_rec_t: Yosys 0.23 sizes an array of a struct type as
     // one bit per word.)
 `ifdef YOSYS
-    // Yosys 0.23 takes no $bits of a type; Icarus 11 sizes a port member as 0.
-    localparam integer RW = $bits(fill_data.ray);
-    localparam integer HW = $bits(fill_data.hdr);
+    // Yosys 0.23 takes no $bits of a type and sizes a member of a struct port
+    // as the whole port; Icarus 11 sizes a port member as 0. A variable of
+    // each type gives Yosys the width.
+    ray_rec_t ray_w;
+    sb_header_t hdr_w;
+    localparam integer RW = $bits(ray_w);
+    localparam integer HW = $bits(hdr_w);
 `else
     localparam integer RW = $bits(ray_rec_t);
     localparam integer HW = $bits(sb_header_t);
