@@ -32,6 +32,7 @@ fn modes() -> Vec<SimOptions> {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         },
         SimOptions {
             sleep: false,
@@ -40,6 +41,7 @@ fn modes() -> Vec<SimOptions> {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         },
         SimOptions {
             sleep: true,
@@ -48,6 +50,7 @@ fn modes() -> Vec<SimOptions> {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         },
         SimOptions {
             sleep: false,
@@ -56,6 +59,7 @@ fn modes() -> Vec<SimOptions> {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         },
     ]
 }

@@ -179,6 +179,7 @@ fn order_and_sleeping_change_nothing() {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         },
         SimOptions {
             sleep: false,
@@ -187,6 +188,7 @@ fn order_and_sleeping_change_nothing() {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         },
         SimOptions {
             sleep: true,
@@ -195,6 +197,7 @@ fn order_and_sleeping_change_nothing() {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         },
         SimOptions {
             sleep: true,
@@ -203,6 +206,7 @@ fn order_and_sleeping_change_nothing() {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         },
         SimOptions {
             sleep: false,
@@ -211,6 +215,7 @@ fn order_and_sleeping_change_nothing() {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         },
     ];
     for m in modes {
@@ -340,6 +345,7 @@ fn shadow_evaluation_catches_a_sleep_bug() {
             threads: 1,
             auto_lanes: false,
             check_ready: true,
+            capture: None,
         });
         let c = sim.clock("core", 1000).unwrap();
         sim.add("s", c, Sleeper::new(SleeperPorts {}));

@@ -321,6 +321,7 @@ mod unit {
                 threads: 1,
                 auto_lanes: false,
                 check_ready: true,
+                capture: None,
             },
             SimOptions {
                 sleep: false,
@@ -329,6 +330,7 @@ mod unit {
                 threads: 1,
                 auto_lanes: false,
                 check_ready: true,
+                capture: None,
             },
             SimOptions {
                 sleep: true,
@@ -337,6 +339,7 @@ mod unit {
                 threads: 1,
                 auto_lanes: false,
                 check_ready: true,
+                capture: None,
             },
         ] {
             assert!(run(opts.clone()) == base, "{opts:?} changed the outcome");

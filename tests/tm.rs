@@ -433,6 +433,7 @@ fn other_orders() -> [SimOptions; 3] {
         threads: 1,
         auto_lanes: false,
         check_ready: true,
+        capture: None,
     };
     [o(false, None), o(true, Some(7)), o(false, Some(8))]
 }

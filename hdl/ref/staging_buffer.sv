@@ -78,11 +78,31 @@ module staging_buffer
 
     // The rays of both halves: half h, slot s at h * HALF_RAYS + s. Not reset: a
     // slot is read only after it was written.
-    ray_rec_t rays [0:2*HALF_RAYS-1];
+    // (A vector, not ray_rec_t: Yosys 0.23 sizes an array of a struct type as
+    // one bit per word.)
+`ifdef YOSYS
+    // Yosys 0.23 takes no $bits of a type and sizes a member of a struct port
+    // as the whole port; Icarus 11 sizes a port member as 0. A variable of
+    // each type gives Yosys the width.
+    ray_rec_t ray_w;
+    sb_header_t hdr_w;
+    localparam integer RW = $bits(ray_w);
+    localparam integer HW = $bits(hdr_w);
+`else
+    localparam integer RW = $bits(ray_rec_t);
+    localparam integer HW = $bits(sb_header_t);
+`endif
+    logic [RW-1:0] rays [0:2*HALF_RAYS-1];
     logic drain_half;
     logic [15:0] count0, count1;
     logic sealed0, sealed1;
-    sb_header_t hdr0, hdr1;
+    logic [HW-1:0] hdr0, hdr1;
+    // The fill's members as slices of the packed vector (ray lowest, then hdr,
+    // then last: ds_pkg.sv's layout); Yosys 0.23 reads a nested member such as
+    // fill_data.hdr as zeros.
+    wire [RW-1:0] fill_ray = fill_data[RW-1:0];
+    wire [HW-1:0] fill_hdr = fill_data[RW+HW-1:RW];
+    wire fill_last = fill_data[RW+HW];
     logic [15:0] read_idx;
     // The cycle mod TPS: where the round-robin search starts.
     logic [PW-1:0] rr;
@@ -135,8 +155,11 @@ module staging_buffer
     endfunction
 
     // The ray at the head of the drained half, with its header (hdr is the MSB member).
+    // (Through vectors: Yosys 0.23 sizes a struct-typed conditional wrongly.)
+    wire [HW-1:0] hdr_d = drain_half ? hdr1 : hdr0;
+    wire [RW-1:0] ray_d = rays[slot(drain_half, AW'(read_idx))];
     sb_ray_t out;
-    assign out = {drain_half ? hdr1 : hdr0, rays[slot(drain_half, AW'(read_idx))]};
+    assign out = {hdr_d, ray_d};
 
     assign ray_0_valid = push && sel == 0;
     assign ray_0_data = out;
@@ -172,7 +195,7 @@ module staging_buffer
     assign ray_15_data = out;
 
     always_ff @(posedge clk) begin
-        if (fill_fire) rays[slot(fill_half, AW'(cnt_f))] <= fill_data.ray;
+        if (fill_fire) rays[slot(fill_half, AW'(cnt_f))] <= fill_ray;
     end
 
     always_ff @(posedge clk) begin
@@ -191,12 +214,12 @@ module staging_buffer
             if (fill_fire) begin
                 if (fill_half) begin
                     count1 <= cnt_f_next;
-                    sealed1 <= fill_data.last || cnt_f_next == HALF;
-                    hdr1 <= fill_data.hdr;
+                    sealed1 <= fill_last || cnt_f_next == HALF;
+                    hdr1 <= fill_hdr;
                 end else begin
                     count0 <= cnt_f_next;
-                    sealed0 <= fill_data.last || cnt_f_next == HALF;
-                    hdr0 <= fill_data.hdr;
+                    sealed0 <= fill_last || cnt_f_next == HALF;
+                    hdr0 <= fill_hdr;
                 end
             end
             if (push) begin
