@@ -350,6 +350,15 @@ fn bits(h: &HitRec) -> [u32; 4] {
     [h.t.to_bits(), h.tri_id, h.u.to_bits(), h.v.to_bits()]
 }
 
+/// What the default bench sends (`tb`'s report and errors).
+pub fn workload() -> String {
+    let b = HruTbCfg::default();
+    format!(
+        "at most {} updates per TM from {} TMs on {} records",
+        b.updates_per_tm, b.tms, b.indices
+    )
+}
+
 /// `dualstream tb hit_record_updater` with the default bench knobs.
 pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     run_with(opts, &HruTbCfg::default())

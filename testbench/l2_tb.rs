@@ -88,6 +88,15 @@ pub fn unit_config(base: &crate::config::Config, b: &L2TbCfg) -> crate::config::
 
 const BASE: u64 = 0x4_0000;
 
+/// What the default bench sends (`tb`'s report and errors).
+pub fn workload() -> String {
+    let b = L2TbCfg::default();
+    format!(
+        "at most {} accesses from each of {} clients",
+        b.requests_per_client, b.clients
+    )
+}
+
 /// `dualstream tb l2` with the default bench knobs.
 pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     run_with(opts, &L2TbCfg::default())

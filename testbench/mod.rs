@@ -57,8 +57,9 @@ pub struct Bench {
     /// reads; `tb` refuses the others rather than ignore them.
     pub knobs: &'static [Knob],
     /// What it runs when `--cycles` is not among its knobs, or what bounds
-    /// it besides `--cycles` (its fixed workload), as `tb` reports it.
-    pub workload: &'static str,
+    /// it besides `--cycles` (its fixed workload), as `tb` reports it; from
+    /// the bench's own defaults, so it cannot go stale.
+    pub workload: fn() -> String,
     pub runner: Runner,
 }
 
@@ -120,7 +121,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["box_pipe"],
         clock: BenchClock::Core,
         knobs: RANDOM,
-        workload: "",
+        workload: String::new,
         runner: Runner::Unit(pipe_tb::run_random::<box_pipe_tb::BoxKind>),
     },
     Bench {
@@ -130,7 +131,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["tri_pipe"],
         clock: BenchClock::Core,
         knobs: RANDOM,
-        workload: "",
+        workload: String::new,
         runner: Runner::Unit(pipe_tb::run_random::<tri_pipe_tb::TriKind>),
     },
     Bench {
@@ -140,7 +141,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["divider"],
         clock: BenchClock::Core,
         knobs: RANDOM,
-        workload: "",
+        workload: String::new,
         runner: Runner::Unit(pipe_tb::run_random::<divider_tb::DivKind>),
     },
     Bench {
@@ -150,7 +151,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["l1"],
         clock: BenchClock::Core,
         knobs: &[],
-        workload: "a directed script: a line requested behind a blocked fill",
+        workload: || "a directed script: a line requested behind a blocked fill".into(),
         runner: Runner::Unit(l1_tb::run),
     },
     Bench {
@@ -160,7 +161,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["mem_ctrl"],
         clock: BenchClock::Dram,
         knobs: RANDOM,
-        workload: "",
+        workload: String::new,
         runner: Runner::Unit(mem_ctrl_tb::run_random),
     },
     Bench {
@@ -170,7 +171,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["memory"],
         clock: BenchClock::Core,
         knobs: &[],
-        workload: "a directed script: reads and masked writes on every port",
+        workload: || "a directed script: reads and masked writes on every port".into(),
         runner: Runner::Unit(memory_tb::run),
     },
     Bench {
@@ -180,7 +181,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["staging_buffer"],
         clock: BenchClock::Core,
         knobs: &[Knob::Ready],
-        workload: "a directed script: three ray buckets (4, 2 and 3 rays) through halves of 4",
+        workload: staging_buffer_tb::workload,
         runner: Runner::Unit(staging_buffer_tb::run),
     },
     Bench {
@@ -190,7 +191,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["hit_record_updater"],
         clock: BenchClock::Core,
         knobs: RANDOM,
-        workload: "at most 400 updates per TM from 4 TMs on 48 records",
+        workload: hit_record_updater_tb::workload,
         runner: Runner::Unit(hit_record_updater_tb::run),
     },
     Bench {
@@ -200,7 +201,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["scene_buffer"],
         clock: BenchClock::Core,
         knobs: &[Knob::Ready],
-        workload: "a fixed script: 150 line requests from each of 6 TMs over two phases of segment maps",
+        workload: scene_buffer_tb::workload,
         runner: Runner::Unit(scene_buffer_tb::run),
     },
     Bench {
@@ -210,7 +211,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["l2"],
         clock: BenchClock::Core,
         knobs: RANDOM,
-        workload: "at most 500 accesses from each of 4 clients",
+        workload: l2_tb::workload,
         runner: Runner::Unit(l2_tb::run),
     },
     Bench {
@@ -220,7 +221,7 @@ pub const BENCHES: &[Bench] = &[
         units: &["stream_scheduler"],
         clock: BenchClock::Core,
         knobs: &[Knob::Ready],
-        workload: "a real scene's segments and ray buckets, until every ray is done",
+        workload: || "a real scene's segments and ray buckets, until every ray is done".into(),
         runner: Runner::Unit(stream_scheduler_tb::run),
     },
     Bench {
@@ -237,7 +238,7 @@ pub const BENCHES: &[Bench] = &[
         ],
         clock: BenchClock::Core,
         knobs: &[],
-        workload: "the primary rays of one treelet (--scene, --treelet, --rays, --res)",
+        workload: || "the primary rays of one treelet (--scene, --treelet, --rays, --res)".into(),
         runner: Runner::Treelet,
     },
 ];

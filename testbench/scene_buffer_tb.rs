@@ -103,6 +103,15 @@ pub fn unit_config(base: &crate::config::Config, b: &SceneBufferTbCfg) -> crate:
     c
 }
 
+/// What the default bench runs (`tb`'s report and errors).
+pub fn workload() -> String {
+    let b = SceneBufferTbCfg::default();
+    format!(
+        "a fixed script: {} line requests from each of {} TMs over two phases of segment maps",
+        b.requests_per_tm, b.tms
+    )
+}
+
 pub fn run(opts: &TbOptions) -> Result<TbReport, TbError> {
     run_with(opts, &SceneBufferTbCfg::default())
 }

@@ -22,6 +22,16 @@ pub const BUCKETS: [(u32, u32); 3] = [(11, 4), (12, 2), (13, 3)];
 /// Rays a half holds.
 pub const HALF_RAYS: u32 = 4;
 
+/// What the bench runs (`tb`'s report and errors).
+pub fn workload() -> String {
+    let rays: Vec<String> = BUCKETS.iter().map(|(_, n)| n.to_string()).collect();
+    format!(
+        "a directed script: {} ray buckets ({} rays) through halves of {HALF_RAYS}",
+        BUCKETS.len(),
+        rays.join(", ")
+    )
+}
+
 /// The header of segment `seg`'s bucket.
 pub fn header(seg: u32) -> SbHeader {
     SbHeader {

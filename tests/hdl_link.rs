@@ -319,23 +319,10 @@ fn reference_link_lints_and_synthesizes() {
         );
     }
     if have("yosys") {
-        let o = common::succeeds(
-            Command::new("yosys").args([
-                "-p",
-                &format!(
-                    "read_verilog -sv {}; chparam -set WIDTH 64 ds_link; synth -top ds_link; stat",
-                    link.display()
-                ),
-            ]),
-            "yosys synth",
-        );
-        let out = String::from_utf8_lossy(&o.stdout);
-        let cells: u64 = out
-            .lines()
-            .rev()
-            .find_map(|l| l.trim().strip_prefix("Number of cells:"))
-            .and_then(|n| n.trim().parse().ok())
-            .expect("yosys stat prints the cells");
+        let cells = common::yosys_cells(&format!(
+            "read_verilog -sv {}; chparam -set WIDTH 64 ds_link; synth -top ds_link; stat",
+            link.display()
+        ));
         // 128 storage flops, 64 output multiplexers and the control.
         assert!((200..400).contains(&cells), "{cells} cells");
     }

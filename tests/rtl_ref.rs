@@ -241,14 +241,7 @@ fn staging_buffer_rtl_lints_and_synthesizes() {
             p.display(),
             r.display()
         );
-        let o = common::succeeds(Command::new("yosys").args(["-p", &script]), "yosys synth");
-        let out = String::from_utf8_lossy(&o.stdout);
-        let cells: u64 = out
-            .lines()
-            .rev()
-            .find_map(|l| l.trim().strip_prefix("Number of cells:"))
-            .and_then(|n| n.trim().parse().ok())
-            .expect("yosys reports cells");
+        let cells = common::yosys_cells(&script);
         assert!(
             cells > 500,
             "a real netlist, not a skeleton's: {cells} cells"

@@ -111,7 +111,9 @@ fn unit_long_help() -> String {
 pub fn tb(config: Config, mut a: TbArgs) -> Result<(), CliError> {
     let bench = testbench::find(&a.unit)?;
     if let Some(w) = &a.trace_window {
-        (a.trace_from, a.trace_to) = dualstream::machine::trace::parse_window(w)?;
+        let what = format!("cycles of the {} clock", bench.clock.name());
+        (a.trace_from, a.trace_to) =
+            dualstream::machine::trace::parse_window_of(w, "--trace-window", &what)?;
     }
     check_knobs(bench, &a)?;
     let cycles = a.cycles.unwrap_or(10_000);
@@ -199,7 +201,7 @@ pub fn tb(config: Config, mut a: TbArgs) -> Result<(), CliError> {
         };
         let rep = testbench::tm_tb::run(&topts)?;
         print!("{rep}");
-        println!("  stimulus: {}", bench.workload);
+        println!("  stimulus: {}", (bench.workload)());
         println!("  wall time {:.3} s", start.elapsed().as_secs_f64());
         print_waveform(&a.vcd);
         print_vectors(&a, start_time);
@@ -265,7 +267,7 @@ fn check_knobs(bench: &testbench::Bench, a: &TbArgs) -> Result<(), CliError> {
             return Err(CliError::Usage(format!(
                 "tb {} runs {}; {} does not apply to it (it reads {reads}); drop it, or use a bench that takes it: {}",
                 bench.name,
-                bench.workload,
+                (bench.workload)(),
                 k.flag(),
                 takers.join(", ")
             )));
@@ -284,12 +286,13 @@ fn stimulus(bench: &testbench::Bench, opts: &TbOptions) -> String {
             bench.clock.name(),
             opts.load
         );
-        if !bench.workload.is_empty() {
-            s.push_str(&format!(" ({}; --cycles ends it sooner)", bench.workload));
+        let w = (bench.workload)();
+        if !w.is_empty() {
+            s.push_str(&format!(" ({w}; --cycles ends it sooner)"));
         }
         s
     } else {
-        bench.workload.to_string()
+        (bench.workload)()
     };
     if bench.knobs.contains(&Knob::Ready) {
         s.push_str(&format!(", sinks ready with probability {}", opts.ready_p));

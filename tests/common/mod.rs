@@ -73,3 +73,19 @@ pub fn succeeds(cmd: &mut std::process::Command, what: &str) -> std::process::Ou
     );
     o
 }
+
+/// Runs a yosys script that ends in `stat` and returns the design's cell
+/// count (the last `Number of cells:` it prints: the top's).
+#[allow(dead_code)] // not every test binary synthesizes
+pub fn yosys_cells(script: &str) -> u64 {
+    let o = succeeds(
+        std::process::Command::new("yosys").args(["-p", script]),
+        "yosys synth",
+    );
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .rev()
+        .find_map(|l| l.trim().strip_prefix("Number of cells:"))
+        .and_then(|n| n.trim().parse().ok())
+        .expect("yosys stat prints the cells")
+}
