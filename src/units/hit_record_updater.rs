@@ -111,6 +111,9 @@ crate::unit! {
         }
         params {
             tms: u32 = tms as u32 => "TMS",
+            // The hit-record region's base address (the memory map's; in
+            // hardware a register the host sets per frame).
+            hits_base: u64 = hits_base => "HITS_BASE",
             queue_n: u32 = cfg.queue => "QUEUE",
             in_flight_n: u32 = cfg.in_flight => "IN_FLIGHT"
         }
@@ -119,7 +122,6 @@ crate::unit! {
         in_arrays { hit: HitUpdate }
         state { st: Model<HruState> = HruState::default() }
         extra {
-            hits_base: u64 = hits_base,
             updates: u64 = 0,
             merged: u64 = 0,
             reads: u64 = 0,
