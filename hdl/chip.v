@@ -2915,7 +2915,7 @@ module chip
     wire l2_flush_done_push_valid;
     wire l2_flush_done_push_ready;
     wire l2_flush_done_push_data;
-    hit_record_updater #(.TMS(128), .QUEUE(64), .IN_FLIGHT(32)) hit_updater (
+    hit_record_updater #(.TMS(128), .HITS_BASE(1122304), .QUEUE(64), .IN_FLIGHT(32)) hit_updater (
         .clk(clk_core),
         .rst(rst),
         .hit_0_valid(tm0_hit_pop_valid),

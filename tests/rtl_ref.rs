@@ -26,17 +26,16 @@ fn ds(args: &[&str]) -> Output {
     o
 }
 
-/// The staging buffer of TM 0 over the first 5,000 cycles of the builtin
-/// Cornell box (no mesh files needed: CI has none) at 64x64 on the default
-/// chip, and
-/// the testbenches of both modes: (vectors, cycle-mode tb, order-mode tb).
-fn capture(t: &Scratch) -> (PathBuf, PathBuf, PathBuf) {
+/// Vectors of `instance` (module `module`) over cycles 0..`cycles` of the
+/// builtin Cornell box (no mesh files needed: CI has none) at 64x64 on the
+/// default chip, and the testbenches of both modes: (vectors, cycle-mode tb,
+/// order-mode tb).
+fn capture(t: &Scratch, instance: &str, module: &str, cycles: u64) -> (PathBuf, PathBuf, PathBuf) {
     let s = |p: &Path| p.to_str().unwrap().to_string();
-    let scene = PathBuf::from("cornell");
     ds(&[
         "render",
         "--scene",
-        &s(&scene),
+        "cornell",
         "--mode",
         "cycle",
         "--res",
@@ -44,18 +43,18 @@ fn capture(t: &Scratch) -> (PathBuf, PathBuf, PathBuf) {
         "--out",
         &s(&t.join("f.png")),
         "--capture",
-        "tm0.staging_buffer",
+        instance,
         "--capture-window",
-        "0..5000",
+        &format!("0..{cycles}"),
         "--capture-dir",
         &s(&t.join("vec")),
     ]);
-    let v = t.join("vec/chip.tm0.staging_buffer.vec");
+    let v = t.join(format!("vec/chip.{instance}.vec"));
     for (mode, dir) in [("cycle", "tbc"), ("order", "tbo")] {
         let o = ds(&[
             "hdl",
             "--testbench",
-            "staging_buffer",
+            module,
             "--vectors",
             &s(&v),
             "--out",
@@ -63,20 +62,33 @@ fn capture(t: &Scratch) -> (PathBuf, PathBuf, PathBuf) {
             "--mode",
             mode,
         ]);
-        assert!(String::from_utf8_lossy(&o.stdout).contains("5000 cycles"));
+        assert!(String::from_utf8_lossy(&o.stdout).contains(&format!("{cycles} cycles")));
     }
-    let tb = |d: &str| t.join(d).join("tb_staging_buffer.sv");
+    let tb = |d: &str| t.join(d).join(format!("tb_{module}.sv"));
     (v, tb("tbc"), tb("tbo"))
+}
+
+/// The staging buffer of TM 0 over the first 5,000 cycles.
+fn capture_sb(t: &Scratch) -> (PathBuf, PathBuf, PathBuf) {
+    capture(t, "tm0.staging_buffer", "staging_buffer", SB_CYCLES)
+}
+const SB_CYCLES: u64 = 5000;
+
+/// The hit record updater over the first `cycles` cycles: its first
+/// updates arrive near cycle 6,400, and near 18,000 the first merge whose
+/// order matters (a closer hit over a farther one of the same ray).
+fn capture_hru(t: &Scratch, cycles: u64) -> (PathBuf, PathBuf, PathBuf) {
+    capture(t, "hit_updater", "hit_record_updater", cycles)
 }
 
 fn pkg() -> PathBuf {
     repo().join("hdl/ds_pkg.sv")
 }
-fn reference() -> PathBuf {
-    repo().join("hdl/ref/staging_buffer.sv")
+fn reference(module: &str) -> PathBuf {
+    repo().join(format!("hdl/ref/{module}.sv"))
 }
-fn skeleton() -> PathBuf {
-    repo().join("hdl/staging_buffer.v")
+fn skeleton(module: &str) -> PathBuf {
+    repo().join(format!("hdl/{module}.v"))
 }
 
 /// Compiles and runs `tb` with `dut` under Icarus (with `-D` defines).
@@ -92,38 +104,34 @@ fn icarus(t: &Scratch, dut: &Path, tb: &Path, defines: &[&str]) -> Output {
 }
 
 /// Builds and runs `tb` with `dut` under `verilator --binary -Wall`.
-fn verilator(t: &Scratch, dut: &Path, tb: &Path, defines: &[&str], name: &str) -> Output {
+fn verilator(t: &Scratch, module: &str, tb: &Path, defines: &[&str], name: &str) -> Output {
     let dir = t.join(format!("obj_{name}"));
+    let top = format!("tb_{module}");
+    let dut = reference(module);
     let mut c = Command::new("verilator");
-    c.args([
-        "--binary",
-        "-j",
-        "1",
-        "-Wall",
-        "--top-module",
-        "tb_staging_buffer",
-    ])
-    .arg("--Mdir")
-    .arg(&dir)
-    .args(["-o", "tb"]);
+    c.args(["--binary", "-j", "1", "-Wall", "--top-module", &top])
+        .arg("--Mdir")
+        .arg(&dir)
+        .args(["-o", "tb"]);
     for d in defines {
         c.arg(format!("+define+{d}"));
     }
-    common::succeeds(c.arg(pkg()).arg(dut).arg(tb), "verilator --binary");
+    common::succeeds(c.arg(pkg()).arg(&dut).arg(tb), "verilator --binary");
     Command::new(dir.join("tb")).output().unwrap()
 }
 
-fn passes(o: &Output, what: &str) -> String {
+/// `o` passed every one of `rows` cycles, with more than `min` transfers.
+fn passes(o: &Output, module: &str, rows: u64, min: u64, what: &str) -> String {
     let out = String::from_utf8_lossy(&o.stdout).to_string();
     assert!(
-        o.status.success() && out.contains("tb_staging_buffer: PASS"),
+        o.status.success() && out.contains(&format!("tb_{module}: PASS")),
         "{what} should pass: {out}{}",
         String::from_utf8_lossy(&o.stderr)
     );
     // Every cycle checked, and rays moved in them.
     let line = out
         .lines()
-        .find(|l| l.contains("5000 vectors checked, "))
+        .find(|l| l.contains(&format!("{rows} vectors checked, ")))
         .unwrap_or_else(|| panic!("{out}"));
     let transfers: u64 = line
         .split("checked, ")
@@ -131,14 +139,14 @@ fn passes(o: &Output, what: &str) -> String {
         .and_then(|r| r.split_whitespace().next())
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("{line}"));
-    assert!(transfers > 10 && line.ends_with(" 0 mismatches"), "{line}");
+    assert!(transfers > min && line.ends_with(" 0 mismatches"), "{line}");
     out
 }
 
-fn fails(o: &Output, what: &str, needles: &[&str]) -> String {
+fn fails(o: &Output, module: &str, what: &str, needles: &[&str]) -> String {
     let out = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{what} should fail: {out}");
-    assert!(out.contains("tb_staging_buffer: FAIL"), "{what}: {out}");
+    assert!(out.contains(&format!("tb_{module}: FAIL")), "{what}: {out}");
     for n in needles {
         assert!(out.contains(n), "{what}: no '{n}' in {out}");
     }
@@ -151,18 +159,21 @@ fn staging_buffer_rtl_passes_under_icarus_where_the_skeleton_and_a_late_swap_fai
         return;
     }
     let t = Scratch::new("rtl-ref-icarus");
-    let (v, tbc, tbo) = capture(&t);
-    passes(
-        &icarus(&t, &reference(), &tbc, &[]),
+    let (v, tbc, tbo) = capture_sb(&t);
+    let sb = "staging_buffer";
+    let pass = |o: &Output, what: &str| passes(o, sb, SB_CYCLES, 10, what);
+    pass(
+        &icarus(&t, &reference(sb), &tbc, &[]),
         "the reference, cycle mode",
     );
-    passes(
-        &icarus(&t, &reference(), &tbo, &[]),
+    pass(
+        &icarus(&t, &reference(sb), &tbo, &[]),
         "the reference, order mode",
     );
     // The skeleton (outputs tied low): never ready, never a ray.
     fails(
-        &icarus(&t, &skeleton(), &tbc, &[]),
+        &icarus(&t, &skeleton(sb), &tbc, &[]),
+        sb,
         "the skeleton, cycle mode",
         &[
             "cycle 0 port fill: expected ready=1 got 0",
@@ -170,14 +181,21 @@ fn staging_buffer_rtl_passes_under_icarus_where_the_skeleton_and_a_late_swap_fai
         ],
     );
     fails(
-        &icarus(&t, &skeleton(), &tbo, &[]),
+        &icarus(&t, &skeleton(sb), &tbo, &[]),
+        sb,
         "the skeleton, order mode",
         &["port ray_0: ", "transfers not delivered within"],
     );
     // Swapping a cycle late: the first bucket's rays leave a cycle late, and
     // the report says which field of which ray differs.
     fails(
-        &icarus(&t, &reference(), &tbc, &["STAGING_BUFFER_WRONG_LATE_SWAP"]),
+        &icarus(
+            &t,
+            &reference(sb),
+            &tbc,
+            &["STAGING_BUFFER_WRONG_LATE_SWAP"],
+        ),
+        sb,
         "the late swap, cycle mode",
         &[": expected valid=1 got 0", "expected .ray.dir.x="],
     );
@@ -203,19 +221,18 @@ fn staging_buffer_rtl_passes_under_verilator_where_a_late_swap_fails() {
         return;
     }
     let t = Scratch::new("rtl-ref-verilator");
-    let (_, tbc, _) = capture(&t);
+    let (_, tbc, _) = capture_sb(&t);
+    let sb = "staging_buffer";
     passes(
-        &verilator(&t, &reference(), &tbc, &[], "ref"),
+        &verilator(&t, sb, &tbc, &[], "ref"),
+        sb,
+        SB_CYCLES,
+        10,
         "the reference under Verilator",
     );
     fails(
-        &verilator(
-            &t,
-            &reference(),
-            &tbc,
-            &["STAGING_BUFFER_WRONG_LATE_SWAP"],
-            "late",
-        ),
+        &verilator(&t, sb, &tbc, &["STAGING_BUFFER_WRONG_LATE_SWAP"], "late"),
+        sb,
         "the late swap under Verilator",
         &[": expected valid=1 got 0"],
     );
@@ -223,7 +240,7 @@ fn staging_buffer_rtl_passes_under_verilator_where_a_late_swap_fails() {
 
 #[test]
 fn staging_buffer_rtl_lints_and_synthesizes() {
-    let (p, r) = (pkg(), reference());
+    let (p, r) = (pkg(), reference("staging_buffer"));
     if have("verilator") {
         common::succeeds(
             Command::new("verilator")
@@ -244,6 +261,101 @@ fn staging_buffer_rtl_lints_and_synthesizes() {
         let cells = common::yosys_cells(&script);
         assert!(
             cells > 500,
+            "a real netlist, not a skeleton's: {cells} cells"
+        );
+    }
+}
+
+const HRU: &str = "hit_record_updater";
+
+#[test]
+fn hit_record_updater_rtl_passes_under_icarus_where_the_skeleton_and_a_late_request_fail() {
+    if !have("iverilog") {
+        return;
+    }
+    let t = Scratch::new("rtl-ref-hru-icarus");
+    // 10,000 cycles: Icarus takes about 3 ms a cycle once updates flow.
+    let (_, tbc, _) = capture_hru(&t, 10_000);
+    passes(
+        &icarus(&t, &reference(HRU), &tbc, &[]),
+        HRU,
+        10_000,
+        1000,
+        "the reference, cycle mode",
+    );
+    fails(
+        &icarus(&t, &skeleton(HRU), &tbc, &[]),
+        HRU,
+        "the skeleton",
+        &[
+            "cycle 0 port hit_0: expected ready=1 got 0",
+            "stopped after 128 mismatches",
+        ],
+    );
+    // One cycle more latency on the memory request: the first read is late.
+    fails(
+        &icarus(&t, &reference(HRU), &tbc, &["HRU_WRONG_LATENCY"]),
+        HRU,
+        "one cycle more latency",
+        &["port mem_req: expected valid=1 got 0"],
+    );
+}
+
+#[test]
+fn hit_record_updater_rtl_passes_under_verilator_where_a_merge_keeping_the_farther_hit_fails() {
+    if !have("verilator") {
+        return;
+    }
+    let t = Scratch::new("rtl-ref-hru-verilator");
+    let cycles = 20_000;
+    let (_, tbc, tbo) = capture_hru(&t, cycles);
+    passes(
+        &verilator(&t, HRU, &tbc, &[], "ref"),
+        HRU,
+        cycles,
+        5000,
+        "the reference, cycle mode",
+    );
+    passes(
+        &verilator(&t, HRU, &tbo, &[], "ref_order"),
+        HRU,
+        cycles,
+        5000,
+        "the reference, order mode",
+    );
+    // A merge that keeps the farther hit writes the wrong record: the
+    // report names the request's data field.
+    fails(
+        &verilator(&t, HRU, &tbc, &["HRU_WRONG_MERGE"], "merge"),
+        HRU,
+        "a merge keeping the farther hit",
+        &["port mem_req: expected .data="],
+    );
+}
+
+#[test]
+fn hit_record_updater_rtl_lints_and_synthesizes() {
+    let (p, r) = (pkg(), reference(HRU));
+    if have("verilator") {
+        common::succeeds(
+            Command::new("verilator")
+                .args(["--lint-only", "-Wall", "--top-module", HRU])
+                .arg(&p)
+                .arg(&r),
+            "verilator --lint-only",
+        );
+    }
+    if have("yosys") {
+        // Four ports, four queue entries, two in flight: the same logic,
+        // small enough for the suite (the full size is in docs/rtl.md).
+        let script = format!(
+            "read_verilog -sv {} {}; chparam -set TMS 4 -set QUEUE 4 -set IN_FLIGHT 2 {HRU}; synth -top {HRU}; stat",
+            p.display(),
+            r.display()
+        );
+        let cells = common::yosys_cells(&script);
+        assert!(
+            cells > 5000,
             "a real netlist, not a skeleton's: {cells} cells"
         );
     }

@@ -638,14 +638,20 @@ module hit_record_updater
     assign rsp_addr = mem_resp_data.addr;
     assign rsp_line = mem_resp_data.data >> {rec_off(mem_resp_data.id[1:0]), 3'b000};
     assign rsp_cur = rsp_line[63:0];
-    always_comb begin
-        rs = 0;
-        rsp_upd = '0;
+    // Each combinational block computes in locals and writes its outputs
+    // once: no intermediate values for an event-driven simulator to chase.
+    always_comb begin : p_rsp
+        int r;
+        logic [127:0] u;
+        r = 0;
+        u = '0;
         for (int s = 0; s < IN_FLIGHT; s++)
             if (f_val[s] && f_idx[s] == rsp_id) begin
-                rs = s;
-                rsp_upd = f_hit[s];
+                r = s;
+                u = f_hit[s];
             end
+        rs = r;
+        rsp_upd = u;
     end
     assign decided = mem_resp_valid && !rsp_write && key_closer(rsp_upd[63:0], rsp_cur);
     assign retire = mem_resp_valid && !decided;
@@ -665,16 +671,22 @@ module hit_record_updater
     logic [15:0] in_flight_left; // after the retirement
     assign nq = {16'd0, queued};
     assign in_flight_left = in_flight - {15'd0, retire};
-    always_comb begin
-        kp = 0;
-        cand = 1'b0;
+    always_comb begin : p_pick
+        logic [QUEUE-1:0] b;
+        int k;
+        logic c;
+        k = 0;
+        c = 1'b0;
         for (int m = QUEUE - 1; m >= 0; m--) begin
-            blk[m] = q_blk[m] && !(retire && q_idx[m] == rsp_id);
-            if (m < nq && !blk[m]) begin
-                kp = m;
-                cand = 1'b1;
+            b[m] = q_blk[m] && !(retire && q_idx[m] == rsp_id);
+            if (m < nq && !b[m]) begin
+                k = m;
+                c = 1'b1;
             end
         end
+        blk = b;
+        kp = k;
+        cand = c;
     end
     assign wr_now = mem_req_ready && (w_cnt != 16'd0 || decided);
     assign wr_bypass = w_cnt == 16'd0;
@@ -725,42 +737,52 @@ module hit_record_updater
     assign rr_i = {{(32 - RRW) {1'b0}}, rr};
     assign nl = nq - (rd_now ? 1 : 0);
     assign full = nl >= QUEUE;
-    always_comb begin
+    always_comb begin : p_live
+        logic [QUEUE-1:0] l;
         for (int m = 0; m < QUEUE; m++)
-            live[m] = m < nq && !(rd_now && m == kp);
+            l[m] = m < nq && !(rd_now && m == kp);
+        live = l;
     end
-    always_comb begin
+    always_comb begin : p_elig
+        logic [PORTS-1:0] e;
         for (int j = 0; j < PORTS; j++) begin
-            elig[j] = 1'b0;
+            e[j] = 1'b0;
             if (j < TMS && hv[j]) begin
-                elig[j] = !full;
-                for (int m = 0; m < QUEUE; m++)
-                    if (live[m] && q_idx[m] == hidx[j]) elig[j] = 1'b1;
+                e[j] = !full;
+                // The index match matters only with the queue full (and
+                // skipping it then keeps event-driven simulators fast).
+                if (full)
+                    for (int m = 0; m < QUEUE; m++)
+                        if (live[m] && q_idx[m] == hidx[j]) e[j] = 1'b1;
             end
         end
+        elig = e;
     end
     // Round-robin: the first eligible port at or after rr, else the first.
-    always_comb begin
-        g = 0;
-        granted = 1'b0;
+    always_comb begin : p_grant
+        int k;
+        k = 0;
         for (int j = PORTS - 1; j >= 0; j--)
-            if (elig[j]) begin
-                g = j;
-                granted = 1'b1;
-            end
+            if (elig[j]) k = j;
         for (int j = PORTS - 1; j >= 0; j--)
-            if (elig[j] && j >= rr_i) g = j;
+            if (elig[j] && j >= rr_i) k = j;
+        g = k;
+        granted = elig != '0;
     end
     assign u_idx = hd[g][31:0];
     assign u_hit = hd[g][159:32];
-    always_comb begin
-        mp = 0;
-        merge = 1'b0;
+    always_comb begin : p_merge
+        int k;
+        logic f;
+        k = 0;
+        f = 1'b0;
         for (int m = 0; m < QUEUE; m++)
             if (granted && live[m] && q_idx[m] == u_idx) begin
-                mp = m;
-                merge = 1'b1;
+                k = m;
+                f = 1'b1;
             end
+        mp = k;
+        merge = f;
     end
     assign append = granted && !merge;
 `ifdef HRU_WRONG_MERGE
@@ -768,21 +790,27 @@ module hit_record_updater
 `else
     assign merged = key_closer(u_hit[63:0], q_hit[mp][63:0]) ? u_hit : q_hit[mp];
 `endif
-    always_comb begin
-        u_blk = rd_now && rd_idx == u_idx;
+    always_comb begin : p_ublk
+        logic b;
+        b = rd_now && rd_idx == u_idx;
         for (int s = 0; s < IN_FLIGHT; s++)
-            if (f_val[s] && f_idx[s] == u_idx && !(retire && s == rs)) u_blk = 1'b1;
+            if (f_val[s] && f_idx[s] == u_idx && !(retire && s == rs)) b = 1'b1;
+        u_blk = b;
     end
-    always_comb begin
-        for (int j = 0; j < PORTS; j++) hr[j] = !hv[j] || (granted && g == j);
+    always_comb begin : p_ready
+        logic [PORTS-1:0] r;
+        for (int j = 0; j < PORTS; j++) r[j] = !hv[j] || (granted && g == j);
+        hr = r;
     end
 
     // A free in-flight slot for the read (the retired one counts as free).
     logic [WPW-1:0] fs;
-    always_comb begin
-        fs = '0;
+    always_comb begin : p_free
+        logic [WPW-1:0] f;
+        f = '0;
         for (int s = IN_FLIGHT - 1; s >= 0; s--)
-            if (!f_val[s] || (retire && s == rs)) fs = WPW'(s);
+            if (!f_val[s] || (retire && s == rs)) f = WPW'(s);
+        fs = f;
     end
 
     // ---- The clock edge ----

@@ -88,6 +88,7 @@ fn testbench(config: &Config, unit: &str, a: &HdlArgs) -> Result<(), CliError> {
         vectors: abs.display().to_string(),
         max_mismatches: a.max_mismatches,
         timeout: a.timeout,
+        params: h.params.clone(),
     };
     let sv = tbgen::emit_testbench(d, &g);
     std::fs::create_dir_all(&a.out)
