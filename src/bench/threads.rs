@@ -124,12 +124,12 @@ pub fn busy() -> ! {
 }
 
 /// Runs every case on one lane, on `cores` lanes and on auto, idle and busy,
-/// calling `progress` before each run.
+/// calling `progress` before each run (its index, the runs, what it is).
 pub fn run(
     scene: &str,
     config: &Config,
     cases: &[Case],
-    progress: &mut dyn FnMut(&str),
+    progress: &mut dyn FnMut(usize, usize, &str),
 ) -> Result<Vec<Run>, BenchError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let choices = [
@@ -138,8 +138,10 @@ pub fn run(
         Threads::auto(),
     ];
     let mut runs = Vec::new();
+    let loads = ["idle", "busy"];
+    let total = cases.len() * loads.len() * choices.len();
     for case in cases {
-        for load in ["idle", "busy"] {
+        for load in loads {
             let mut child = if load == "busy" {
                 Some(start_busy()?)
             } else {
@@ -147,7 +149,11 @@ pub fn run(
             };
             let mut res = Ok(());
             for &t in &choices {
-                progress(&format!("{} {load} --threads {t}", case.name));
+                progress(
+                    runs.len(),
+                    total,
+                    &format!("{} {load} --threads {t}", case.name),
+                );
                 match time_one(scene, config, case, t) {
                     Ok((wall_s, by)) => runs.push(Run {
                         case: case.name.into(),

@@ -282,12 +282,13 @@ impl FrameChip {
         mem: &mut crate::contract::SparseMem,
         pixels: u32,
         first: bool,
+        tick: &mut dyn FnMut(u64),
     ) -> Result<crate::machine::WaveCycles, RenderError> {
         if self.tp_shading && !first {
-            Ok(self.chip.shade_and_trace(mem, pixels)?)
+            Ok(self.chip.shade_and_trace_ticking(mem, pixels, tick)?)
         } else {
             let rays = q.take_diverted();
-            Ok(self.chip.trace_wave(mem, &rays)?)
+            Ok(self.chip.trace_wave_ticking(mem, &rays, tick)?)
         }
     }
 

@@ -19,6 +19,8 @@ pub struct Progress {
     /// Ray-segment traversals done and known so far in this wavefront.
     pub done: u64,
     pub known: u64,
+    /// Cycle mode: the chip's core cycles so far in the frame.
+    pub cycles: u64,
 }
 
 /// Counts of one wavefront (or of a frame, summed).

@@ -307,6 +307,7 @@ impl<'a> FrameRun<'a> {
             rays: self.st.rays,
             done: 0,
             known: self.st.enqueues,
+            cycles: self.chip.as_ref().map_or(0, |c| c.chip.total_cycles),
         };
         progress(&prog);
         let t0 = Instant::now();
@@ -317,7 +318,7 @@ impl<'a> FrameRun<'a> {
             }
             Mode::Reference => trace_reference(&mut self.p, &mut self.q, self.scene, &mut self.st),
             Mode::Cycle => {
-                if self.trace_on_chip()? {
+                if self.trace_on_chip(&mut prog, progress)? {
                     // The shading pass of the last wavefront emitted nothing.
                     self.trace_s += t0.elapsed().as_secs_f64();
                     return Ok(false);
@@ -369,10 +370,18 @@ impl<'a> FrameRun<'a> {
     /// Cycle mode: one chip run (the last wavefront's shading on the TPs, if
     /// there, then this wavefront's trace) and its counts; `true` if it was
     /// the last (its shading emitted nothing).
-    fn trace_on_chip(&mut self) -> Result<bool, RenderError> {
+    fn trace_on_chip(
+        &mut self,
+        prog: &mut Progress,
+        progress: &mut dyn FnMut(&Progress),
+    ) -> Result<bool, RenderError> {
         let chip = self.chip.as_mut().expect("built for cycle mode");
         let first = self.waves.is_empty();
-        let w = chip.run(&mut self.q, &mut self.p.mem, self.pixels, first)?;
+        let mut tick = |cycles| {
+            prog.cycles = cycles;
+            progress(prog)
+        };
+        let w = chip.run(&mut self.q, &mut self.p.mem, self.pixels, first, &mut tick)?;
         let rpb = self.cfg.memory.rays_per_bucket();
         if chip.tp_shading {
             if self.keep {
