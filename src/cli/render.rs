@@ -43,6 +43,11 @@ pub struct RenderArgs {
     /// statistics, bit for bit.
     #[arg(long)]
     seed: Option<u64>,
+    /// Paths per pixel (1..=4096): each pixel traces N paths, as N times
+    /// the rays; the image (and --hdr) is their average in linear radiance.
+    /// 1 (the default) is the frame without samples, bit for bit.
+    #[arg(long, default_value_t = 1)]
+    spp: u32,
     /// Output image (PNG).
     #[arg(long, default_value = "render.png")]
     out: PathBuf,
@@ -261,6 +266,7 @@ fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(),
         mode: Some(a.mode.clone()),
         seed: Some(sc.settings.seed),
         bounces: Some(sc.settings.bounces),
+        spp: Some(sc.settings.spp),
         threads: Some(a.threads.threads.clone()),
     };
     let header = RunHeader::new(&config, run, started.elapsed().as_secs_f64());
@@ -282,6 +288,7 @@ fn load_scene(a: &RenderArgs) -> Result<Scene, CliError> {
     if let Some(s) = a.seed {
         sc.settings.seed = s;
     }
+    sc.settings.spp = a.spp;
     sc.settings.validate()?;
     Ok(sc)
 }
@@ -366,7 +373,11 @@ fn run_frame(
     // (known before it starts: a steady ETA); the others wavefronts and the
     // ray-segment traversals of each.
     let cycles = (mode == Mode::Cycle).then(|| {
-        render::estimated_frame_cycles(s.width as u64 * s.height as u64, s.bounces, config.chip.tms)
+        render::estimated_frame_cycles(
+            s.width as u64 * s.height as u64 * s.spp as u64,
+            s.bounces,
+            config.chip.tms,
+        )
     });
     let mut bar = Meter::new("render", cycles.unwrap_or(waves * 1000));
     let f = render::render(sc, mode, &rc, &mut |p: &render::Progress| {

@@ -53,7 +53,7 @@ pub const WALL_S_PER_PIXEL_HIT: (f64, f64) = (0.17e-3, 0.45e-3);
 /// Before a cycle-mode frame of more than five minutes: how long it takes,
 /// and the faster mode.
 pub fn long_frame_note(s: &crate::scene::RenderSettings, tms: u32) -> Option<String> {
-    let pixels = s.width as f64 * s.height as f64;
+    let pixels = s.width as f64 * s.height as f64 * s.spp as f64;
     let hits = s.bounces as f64;
     let (lo, hi) = WALL_S_PER_PIXEL_HIT;
     let (lo, hi) = (pixels * hits * lo, pixels * hits * hi);

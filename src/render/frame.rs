@@ -114,6 +114,8 @@ pub struct Frame {
     pub mode: Mode,
     pub width: u32,
     pub height: u32,
+    /// Paths per pixel: the rays and every count are of all of them.
+    pub spp: u32,
     #[serde(skip)]
     pub radiance: Vec<Vec3>,
     pub accel: AccelInfo,

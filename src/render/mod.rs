@@ -199,8 +199,11 @@ struct FrameRun<'a> {
     cfg: &'a RenderCfg,
     p: Prepared,
     q: RayQueues,
-    /// Ray and path `i` are pixel `sample[i]` (raster index).
+    /// Path `i` (and its rays) is path `i % spp` of pixel `sample[i / spp]`
+    /// (raster index).
     sample: Vec<u32>,
+    spp: u32,
+    /// Paths (the sample's pixels times `spp`).
     pixels: u32,
     /// Cycle mode.
     chip: Option<cycle::FrameChip>,
@@ -224,7 +227,14 @@ impl<'a> FrameRun<'a> {
     fn new(scene: &'a Scene, mode: Mode, cfg: &'a RenderCfg) -> Result<FrameRun<'a>, RenderError> {
         let p = prepare(scene, cfg)?;
         let sample = pixel_sample(cfg, scene.settings.width, scene.settings.height)?;
-        let pixels = sample.len() as u32;
+        let spp = scene.settings.spp;
+        let pixels = sample.len() as u32 * spp;
+        if spp > 1 && cfg.chip.as_ref().is_some_and(|r| r.follow.is_some()) {
+            return Err(RenderError::Invalid(
+                "following a ray names it by pixel; render with one path per pixel (--spp 1)"
+                    .into(),
+            ));
+        }
         if mode != Mode::Cycle && cfg.chip.as_ref().is_some_and(|r| r.follow.is_some()) {
             return Err(RenderError::Invalid(
                 "following a ray records the chip's events: render in cycle mode".into(),
@@ -245,6 +255,7 @@ impl<'a> FrameRun<'a> {
             p,
             q,
             sample,
+            spp,
             pixels,
             chip,
             waves: Vec::new(),
@@ -269,8 +280,10 @@ impl<'a> FrameRun<'a> {
         let (scene, p) = (self.scene, &mut self.p);
         let (w, h) = (scene.settings.width, scene.settings.height);
         let root_entry = p.image.root_entry.encode();
-        for (pix, &real) in (0..self.pixels).zip(&self.sample) {
-            let (o, d, path) = shade::primary_path(&scene.camera, scene.settings.seed, real, w, h);
+        for pix in 0..self.pixels {
+            let (real, k) = (self.sample[(pix / self.spp) as usize], pix % self.spp);
+            let seed = shade::sample_seed(scene.settings.seed, k);
+            let (o, d, path) = shade::primary_path(&scene.camera, seed, real, w, h);
             let ray = RayRec {
                 origin: o,
                 dir: d,
@@ -483,8 +496,16 @@ impl<'a> FrameRun<'a> {
         let (w, h) = (self.scene.settings.width, self.scene.settings.height);
         let p = &self.p;
         let mut radiance = vec![Vec3::ZERO; (w * h) as usize];
-        for (pix, &real) in (0..self.pixels).zip(&self.sample) {
-            radiance[real as usize] = PathRec::read(&p.mem, p.map.path_addr(pix as u64)).radiance;
+        let spp = self.spp;
+        for (i, &real) in self.sample.iter().enumerate() {
+            // The pixel's paths averaged in linear radiance (one: as it is).
+            let first = i as u64 * spp as u64;
+            let path = |k: u64| PathRec::read(&p.mem, p.map.path_addr(first + k)).radiance;
+            radiance[real as usize] = if spp == 1 {
+                path(0)
+            } else {
+                (0..spp as u64).map(path).sum::<Vec3>() / spp as f32
+            };
         }
         Ok(Frame {
             passes: self.passes,
@@ -492,6 +513,7 @@ impl<'a> FrameRun<'a> {
             mode: self.mode,
             width: w,
             height: h,
+            spp,
             radiance,
             accel: p.info.clone(),
             duplication: total.duplication(),

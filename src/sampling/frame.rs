@@ -182,6 +182,12 @@ impl Sampling<'_> {
     /// The frame is laid out: checks the plan and builds the windows' chip.
     fn start(&mut self, scene: &Scene, p: &Prepared, pixels: u32) -> Result<(), SamplingError> {
         self.plan.validate()?;
+        if scene.settings.spp != 1 {
+            return Err(SamplingError::Invalid(format!(
+                "time sampling traces one path per pixel, not spp {}; use --spp 1, or --mode cycle for several",
+                scene.settings.spp
+            )));
+        }
         let run = self.rc.chip.as_deref().cloned().unwrap_or_default();
         let mut c = run.config;
         c.accel = self.rc.accel.clone();

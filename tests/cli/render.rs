@@ -438,3 +438,40 @@ fn render_writes_a_linear_hdr_image() {
     );
     assert!(!t.join("r.exr").exists());
 }
+
+#[test]
+fn render_spp_traces_more_paths_and_says_so() {
+    let t = Scratch::new("cli-render-spp");
+    let (png, json) = (t.join("s.png"), t.join("s.json"));
+    let o = run(&[
+        "render",
+        "--scene",
+        "tiny",
+        "--res",
+        "8x8",
+        "--spp",
+        "3",
+        "--out",
+        png.to_str().unwrap(),
+        "--stats",
+        json.to_str().unwrap(),
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("paths per pixel 3"), "{out}");
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(stats["spp"], 3);
+    assert_eq!(stats["header"]["run"]["spp"], 3);
+    assert_eq!(stats["waves"][0]["rays"], 3 * 64);
+    fails_with(
+        &["render", "--scene", "tiny", "--res", "8x8", "--spp", "0"],
+        &["spp = 0", "1..="],
+    );
+    fails_with(
+        &[
+            "render", "--scene", "tiny", "--res", "8x8", "--spp", "2", "--mode", "windows",
+        ],
+        &["one path per pixel", "--spp 1"],
+    );
+}
