@@ -72,7 +72,8 @@ pub struct Run {
     pub load: &'static str,
     pub threads: String,
     pub wall_s: f64,
-    /// Cycle mode: the share of the simulator's steps on each lane count.
+    /// Cycle mode: the simulator's steps on each lane count (`lanes_1`, ...).
+    #[serde(serialize_with = "crate::render::by_lanes")]
     pub steps_by_lanes: Vec<u64>,
 }
 

@@ -128,8 +128,20 @@ pub struct ChipFrame {
     /// (where its time went; they depend on the kernel, not the chip's results).
     pub evals_by_module: Vec<crate::rtl::ModuleEvals>,
     /// Simulator steps taken with 1, 2, ... evaluation lanes (`--threads`; how
-    /// the run spent its time, not a result).
+    /// the run spent its time, not a result); in the JSON an object,
+    /// `{"lanes_1": .., "lanes_2": ..}`.
+    #[serde(serialize_with = "by_lanes")]
     pub sim_steps_by_lanes: Vec<u64>,
+}
+
+/// `[a, b]` as `{"lanes_1": a, "lanes_2": b}`.
+pub fn by_lanes<S: serde::Serializer>(v: &[u64], s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut m = s.serialize_map(Some(v.len()))?;
+    for (k, n) in v.iter().enumerate() {
+        m.serialize_entry(&format!("lanes_{}", k + 1), n)?;
+    }
+    m.end()
 }
 
 impl ChipFrame {

@@ -22,7 +22,7 @@ mod trace;
 pub mod traverse;
 
 pub use cycle::{
-    ChipFrame, ChipRun, ChipTrace, VcdInfo, WALL_S_PER_PIXEL_HIT, estimated_frame_cycles,
+    ChipFrame, ChipRun, ChipTrace, VcdInfo, WALL_S_PER_PIXEL_HIT, by_lanes, estimated_frame_cycles,
     long_frame_note,
 };
 pub use error::RenderError;
