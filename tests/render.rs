@@ -220,6 +220,27 @@ fn paper_comparison_rows() {
     let dup = rows.iter().find(|r| r.metric == "ray duplication").unwrap();
     assert_eq!(dup.paper, TABLE2[1].duplication);
     assert!((dup.ratio.unwrap() - f.duplication / TABLE2[1].duplication).abs() < 1e-12);
+    // At 16x16, not the paper's 1024x1024: a rate or ratio keeps its ratio, a
+    // frame's total (it scales with the pixels) has none, and the table says so.
+    assert!(dup.scale_free && !dup.at_paper_resolution);
+    let lines = rows.iter().find(|r| r.key == "lines_millions").unwrap();
+    assert!(!lines.scale_free && lines.ours.is_some() && lines.ratio.is_none());
+    let text = table(&rows);
+    let line = text
+        .lines()
+        .find(|l| l.contains("$ lines transferred"))
+        .unwrap();
+    assert!(
+        line.contains("scales with resolution; paper at 1024x1024"),
+        "{line}"
+    );
+    // At the paper's resolution every figure has its ratio.
+    let mut big = f.clone();
+    (big.width, big.height) = (1024, 1024);
+    let at = compare(&TABLE2[1], &big);
+    let lines = at.iter().find(|r| r.key == "lines_millions").unwrap();
+    assert!(lines.at_paper_resolution && lines.ratio.is_some());
+    assert!(!table(&at).contains("scales with resolution"));
     let time = rows
         .iter()
         .find(|r| r.metric == "render time (ms)")

@@ -142,6 +142,11 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Cli
         rows.extend(paper::compare(row, &frame));
     }
     bar.finish("every scene done");
+    if (w, h) != paper::PAPER_RES {
+        println!(
+            "at {w}x{h}, not the paper's 1024x1024: a frame's totals (time, rays, energy, lines) grow with its pixels and get no ratio (\"scale_free\": false in the JSON); rates and ratios compare"
+        );
+    }
     print!("{}", paper::table(&rows));
     let run = RunParams {
         resolution: Some([w, h]),
