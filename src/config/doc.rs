@@ -130,10 +130,9 @@ impl Structs {
 /// The name of a field's type: its last capitalized identifier, inside
 /// `Option<..>` or `Vec<..>`.
 fn type_name(ty: &str) -> String {
-    ty.split(|c: char| !(c.is_alphanumeric() || c == '_'))
+    ty.rsplit(|c: char| !(c.is_alphanumeric() || c == '_'))
         .filter(|t| t.starts_with(|c: char| c.is_ascii_uppercase()))
-        .filter(|t| !matches!(*t, "Option" | "Vec" | "Box"))
-        .last()
+        .find(|t| !matches!(*t, "Option" | "Vec" | "Box"))
         .unwrap_or("")
         .to_string()
 }
