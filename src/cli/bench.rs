@@ -374,7 +374,14 @@ fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(
         windows: a.windows.plan(),
         window_log: a.windows.window_log,
     };
-    let rows = speed_error::run(&sc, config, &opts)?;
+    let mut bar: Option<Meter> = None;
+    let rows = speed_error::run_progress(&sc, config, &opts, &mut |k, n, what| {
+        bar.get_or_insert_with(|| Meter::new("bench speed-error", n as u64))
+            .set(k as u64, || format!("run {}/{n}: {what}", k + 1));
+    })?;
+    if let Some(b) = bar {
+        b.finish("done");
+    }
     println!(
         "speed against error: {} {}x{} on {} x {} TPs (reference: cycle mode, GDDR5)",
         sc.name, sc.settings.width, sc.settings.height, config.chip.tms, config.tm.tps
