@@ -98,6 +98,11 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Cli
             cfg.chip.memory.model = MemoryModel::Gddr5;
         }
         let t0 = std::time::Instant::now();
+        let est = dualstream::render::estimated_frame_cycles(
+            w as u64 * h as u64,
+            sc.settings.bounces,
+            cfg.chip.tms,
+        );
         if sampled {
             let plan = sampling::default_windows();
             let ts = sampling::time_sampled_progress(
@@ -131,8 +136,13 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Cli
         }
         let mut frame =
             dualstream::render::render(&sc, mode, &render_cfg(&cfg, threads), &mut |p| {
-                let f = (p.wave as u64 * 1000 + (p.done * 1000).checked_div(p.known).unwrap_or(0))
-                    / p.waves_max.max(1) as u64;
+                // Cycle mode: simulated cycles against the frame's estimate.
+                let f = if mode == Mode::Cycle {
+                    (p.cycles * 1000 / est.max(1)).min(999)
+                } else {
+                    (p.wave as u64 * 1000 + (p.done * 1000).checked_div(p.known).unwrap_or(0))
+                        / p.waves_max.max(1) as u64
+                };
                 bar.set(done + f, || {
                     format!("{what}: wavefront {}/{}", p.wave, p.waves_max)
                 });
