@@ -266,10 +266,35 @@ impl std::ops::AddAssign for Instructions {
 pub struct Energy {
     pub compute_j: f64,
     pub onchip_j: f64,
+    /// Each component's joules, in the JSON an object keyed by its name in
+    /// snake case with the unit (`"box_tests_j": ...`).
+    #[serde(serialize_with = "parts_by_name")]
     pub parts: Vec<(&'static str, f64)>,
     /// SRAM leakage over the render time (`energy.leakage`, cycle mode), not
     /// part of `compute_j` or `onchip_j`.
     pub leakage_j: Option<f64>,
+}
+
+/// `[("box tests", 1e-4), ..]` as `{"box_tests_j": 1e-4, ..}`, in order.
+fn parts_by_name<S: serde::Serializer>(
+    parts: &[(&'static str, f64)],
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut m = s.serialize_map(Some(parts.len()))?;
+    for (name, j) in parts {
+        m.serialize_entry(&format!("{}_j", part_key(name)), j)?;
+    }
+    m.end()
+}
+
+/// A component's name as a JSON key: `"TP arithmetic"` is `tp_arithmetic`.
+pub fn part_key(name: &str) -> String {
+    name.to_ascii_lowercase()
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .filter(|w| !w.is_empty())
+        .collect::<Vec<_>>()
+        .join("_")
 }
 
 /// Charges `a` with the per-event energies of `c`.

@@ -28,6 +28,10 @@ struct Cli {
     /// $DUALSTREAM_SCENES). A mesh is found by its file name.
     #[arg(long = "scenes-dir", global = true, value_name = "DIR")]
     scenes_dir: Vec<PathBuf>,
+    /// No progress on stderr (bars, or the plain lines every few seconds
+    /// when stderr is not a terminal); warnings and errors still show.
+    #[arg(long, short, global = true)]
+    quiet: bool,
     #[command(subcommand)]
     cmd: Cmd,
 }
@@ -61,6 +65,7 @@ enum Cmd {
 
 fn run(cli: Cli) -> Result<(), cli::CliError> {
     dualstream::scene::search::set_dirs(cli.scenes_dir.clone());
+    cli::progress::set_quiet(cli.quiet);
     let mut config = cli::load_config(&cli.config)?;
     if let Some(m) = &cli.memory {
         config.chip.memory.model = dualstream::units::memory::MemoryModel::parse(m)?;

@@ -220,6 +220,27 @@ fn paper_comparison_rows() {
     let dup = rows.iter().find(|r| r.metric == "ray duplication").unwrap();
     assert_eq!(dup.paper, TABLE2[1].duplication);
     assert!((dup.ratio.unwrap() - f.duplication / TABLE2[1].duplication).abs() < 1e-12);
+    // At 16x16, not the paper's 1024x1024: a rate or ratio keeps its ratio, a
+    // frame's total (it scales with the pixels) has none, and the table says so.
+    assert!(dup.scale_free && !dup.at_paper_resolution);
+    let lines = rows.iter().find(|r| r.key == "lines_millions").unwrap();
+    assert!(!lines.scale_free && lines.ours.is_some() && lines.ratio.is_none());
+    let text = table(&rows);
+    let line = text
+        .lines()
+        .find(|l| l.contains("$ lines transferred"))
+        .unwrap();
+    assert!(
+        line.contains("scales with resolution; paper at 1024x1024"),
+        "{line}"
+    );
+    // At the paper's resolution every figure has its ratio.
+    let mut big = f.clone();
+    (big.width, big.height) = (1024, 1024);
+    let at = compare(&TABLE2[1], &big);
+    let lines = at.iter().find(|r| r.key == "lines_millions").unwrap();
+    assert!(lines.at_paper_resolution && lines.ratio.is_some());
+    assert!(!table(&at).contains("scales with resolution"));
     let time = rows
         .iter()
         .find(|r| r.metric == "render time (ms)")
@@ -306,4 +327,102 @@ fn long_cycle_frames_are_announced() {
     assert!((100_000..250_000).contains(&c), "{c}");
     assert_eq!(estimated_frame_cycles(64 * 64, 5, 64), 2 * c);
     assert_eq!(estimated_frame_cycles(64 * 64, 1, 128) * 5, c);
+}
+
+/// FNV-1a over the bits of a frame's linear radiance.
+fn radiance_hash(r: &[Vec3]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in r
+        .iter()
+        .flat_map(|v| v.to_array())
+        .flat_map(|x| x.to_bits().to_le_bytes())
+    {
+        h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
+fn mse(a: &[Vec3], b: &[Vec3]) -> f64 {
+    let d: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length_squared() as f64)
+        .sum();
+    d / a.len() as f64
+}
+
+fn with_spp(name: &str, res: u32, spp: u32) -> Scene {
+    let mut s = small(name, res);
+    s.settings.spp = spp;
+    s
+}
+
+#[test]
+fn one_path_per_pixel_is_the_frame_without_samples() {
+    // The hash of the 16x16 Cornell box's radiance as the tracer gave it before
+    // paths per pixel existed: main at 751863a, `render --res 16x16 --hdr`, its
+    // PFM's rows in raster order. A change to the path tracer that means to
+    // change the image updates it.
+    let s = with_spp("cornell", 16, 1);
+    let f = render(&s, Mode::Functional, &cfg(8), &mut |_| {}).unwrap();
+    assert_eq!(f.spp, 1);
+    assert_eq!(
+        radiance_hash(&f.radiance),
+        3_729_596_587_598_536_822,
+        "spp 1 changed the image"
+    );
+}
+
+#[test]
+fn more_paths_per_pixel_are_less_noisy_deterministic_and_counted() {
+    let run = |spp: u32, seed: u64| {
+        // The Cornell box's point light near the ceiling makes fireflies
+        // that a few paths do not average out; the tiny scene has none.
+        let mut s = with_spp("tiny", 24, spp);
+        s.settings.seed = seed;
+        render(&s, Mode::Functional, &RenderCfg::default(), &mut |_| {}).unwrap()
+    };
+    // The reference on another seed: its noise is not the samples'.
+    let reference = run(64, 7).radiance;
+    let (one, four) = (run(1, 1), run(4, 1));
+    let (e1, e4) = (
+        mse(&one.radiance, &reference),
+        mse(&four.radiance, &reference),
+    );
+    assert!(e4 < 0.5 * e1, "spp 4 MSE {e4} not well below spp 1's {e1}");
+    // Four paths a pixel: about four times the rays, all counted.
+    assert_eq!(four.spp, 4);
+    assert!(
+        four.total.rays > 3 * one.total.rays,
+        "{} vs {}",
+        four.total.rays,
+        one.total.rays
+    );
+    // The same seed, the same image and counts, bit for bit.
+    let again = run(4, 1);
+    assert_eq!(again.radiance, four.radiance);
+    assert_eq!(again.waves, four.waves);
+    assert_ne!(run(4, 2).radiance, four.radiance);
+}
+
+#[test]
+fn paths_per_pixel_on_the_chip_match_the_functional_frame() {
+    // The chip traces a pixel's paths as rays of their own: the same image as
+    // the functional model's (every ray verified), twice the primary rays.
+    let s = with_spp("tiny", 8, 2);
+    let mut rc = cfg(8);
+    rc.chip = RenderCfg::for_chip(&dualstream::config::Config::default(), Default::default()).chip;
+    let chip = render(&s, Mode::Cycle, &rc, &mut |_| {}).unwrap();
+    let func = render(&s, Mode::Functional, &cfg(8), &mut |_| {}).unwrap();
+    assert_eq!(chip.radiance, func.radiance);
+    assert_eq!(chip.waves[0].rays, 2 * 64);
+}
+
+#[test]
+fn paths_per_pixel_out_of_range_are_named() {
+    for spp in [0, 5000] {
+        let s = with_spp("tiny", 8, spp);
+        let e = render(&s, Mode::Functional, &cfg(8), &mut |_| {}).unwrap_err();
+        assert!(e.to_string().contains("spp"), "{e}");
+    }
 }

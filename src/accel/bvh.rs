@@ -30,6 +30,8 @@ pub enum BuildPreset {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BvhCfg {
+    /// obvhs build preset: fastest_build, very_fast_build, fast_build,
+    /// medium_build (default), slow_build, ...: build time against tree quality.
     pub preset: BuildPreset,
     /// Triangles per leaf (1 as in the paper's TRaX BVHs).
     pub max_prims_per_leaf: u32,

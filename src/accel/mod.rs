@@ -15,6 +15,7 @@ pub use treelet::{Segment, Segmentation};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct AccelCfg {
+    /// The BVH build (obvhs's PLOC; a binned-SAH fallback where it stalls).
     pub bvh: BvhCfg,
     /// Segment (treelet) budget: 64 KB [DS17 §5.1], a multiple of the DRAM row.
     pub segment_bytes: u32,

@@ -72,7 +72,8 @@ pub struct Run {
     pub load: &'static str,
     pub threads: String,
     pub wall_s: f64,
-    /// Cycle mode: the share of the simulator's steps on each lane count.
+    /// Cycle mode: the simulator's steps on each lane count (`lanes_1`, ...).
+    #[serde(serialize_with = "crate::render::by_lanes")]
     pub steps_by_lanes: Vec<u64>,
 }
 
@@ -124,12 +125,12 @@ pub fn busy() -> ! {
 }
 
 /// Runs every case on one lane, on `cores` lanes and on auto, idle and busy,
-/// calling `progress` before each run.
+/// calling `progress` before each run (its index, the runs, what it is).
 pub fn run(
     scene: &str,
     config: &Config,
     cases: &[Case],
-    progress: &mut dyn FnMut(&str),
+    progress: &mut dyn FnMut(usize, usize, &str),
 ) -> Result<Vec<Run>, BenchError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let choices = [
@@ -138,8 +139,10 @@ pub fn run(
         Threads::auto(),
     ];
     let mut runs = Vec::new();
+    let loads = ["idle", "busy"];
+    let total = cases.len() * loads.len() * choices.len();
     for case in cases {
-        for load in ["idle", "busy"] {
+        for load in loads {
             let mut child = if load == "busy" {
                 Some(start_busy()?)
             } else {
@@ -147,7 +150,11 @@ pub fn run(
             };
             let mut res = Ok(());
             for &t in &choices {
-                progress(&format!("{} {load} --threads {t}", case.name));
+                progress(
+                    runs.len(),
+                    total,
+                    &format!("{} {load} --threads {t}", case.name),
+                );
                 match time_one(scene, config, case, t) {
                     Ok((wall_s, by)) => runs.push(Run {
                         case: case.name.into(),

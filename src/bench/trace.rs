@@ -54,9 +54,10 @@ pub fn run(
     config: &Config,
     from: u64,
     to: u64,
-    progress: &mut dyn FnMut(&str),
+    progress: &mut dyn FnMut(usize, usize, &str),
 ) -> Result<Vec<TraceRun>, BenchError> {
-    progress("untraced");
+    let total = 1 + CASES.len() * 2;
+    progress(0, total, "untraced");
     let (base, _) = frame(scene, config, None)?;
     let mut runs = vec![TraceRun {
         case: "untraced".into(),
@@ -71,7 +72,7 @@ pub fn run(
     }];
     for (filter, name) in CASES {
         for format in ["vcd", "fst"] {
-            progress(&format!("{name} {format}"));
+            progress(runs.len(), total, &format!("{name} {format}"));
             let path = std::env::temp_dir().join(format!(
                 "dualstream-bench-trace-{}.{format}",
                 std::process::id()

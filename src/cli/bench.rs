@@ -11,6 +11,7 @@ use dualstream::render::header::{HeadedList, RunHeader, RunParams};
 use dualstream::rtl::Threads;
 use dualstream::sampling::{self, WindowPlan, speed_error};
 
+use super::progress::Meter;
 use super::{CliError, parse_res, write_file};
 
 #[derive(Subcommand)]
@@ -277,9 +278,14 @@ fn threads_bench(config: &Config, a: ThreadsArgs) -> Result<(), CliError> {
     let started = std::time::Instant::now();
     use dualstream::bench::threads as bt;
     let cases = bt::cases(a.modes.as_deref())?;
-    let runs = bt::run(&a.scene, config, &cases, &mut |what| {
-        eprintln!("bench threads: {what}")
+    let mut bar: Option<Meter> = None;
+    let runs = bt::run(&a.scene, config, &cases, &mut |k, n, what| {
+        bar.get_or_insert_with(|| Meter::new("bench threads", n as u64))
+            .set(k as u64, || format!("run {}/{n}: {what}", k + 1));
     })?;
+    if let Some(b) = bar {
+        b.finish("done");
+    }
     println!(
         "bench threads: {} on {} x {} TPs, memory {}, {} core(s); wall time of each frame",
         a.scene,
@@ -312,9 +318,14 @@ fn trace_bench(config: &Config, a: TraceArgs) -> Result<(), CliError> {
     let mut sc = dualstream::scene::load(&a.scene)?;
     (sc.settings.width, sc.settings.height) = parse_res(&a.res)?;
     sc.settings.validate()?;
-    let runs = bt::run(&sc, config, a.from, a.to, &mut |what| {
-        eprintln!("bench trace: {what}")
+    let mut bar: Option<Meter> = None;
+    let runs = bt::run(&sc, config, a.from, a.to, &mut |k, n, what| {
+        bar.get_or_insert_with(|| Meter::new("bench trace", n as u64))
+            .set(k as u64, || format!("run {}/{n}: {what}", k + 1));
     })?;
+    if let Some(b) = bar {
+        b.finish("done");
+    }
     println!(
         "bench trace: {} {} on {} TMs, core cycles {}..{} traced; ratio: wall time over the untraced frame's; changes/s: over the tracing's own time (traced minus untraced)",
         a.scene, a.res, config.chip.tms, a.from, a.to
@@ -363,7 +374,14 @@ fn speed_error(config: &Config, threads: Threads, a: SpeedErrorArgs) -> Result<(
         windows: a.windows.plan(),
         window_log: a.windows.window_log,
     };
-    let rows = speed_error::run(&sc, config, &opts)?;
+    let mut bar: Option<Meter> = None;
+    let rows = speed_error::run_progress(&sc, config, &opts, &mut |k, n, what| {
+        bar.get_or_insert_with(|| Meter::new("bench speed-error", n as u64))
+            .set(k as u64, || format!("run {}/{n}: {what}", k + 1));
+    })?;
+    if let Some(b) = bar {
+        b.finish("done");
+    }
     println!(
         "speed against error: {} {}x{} on {} x {} TPs (reference: cycle mode, GDDR5)",
         sc.name, sc.settings.width, sc.settings.height, config.chip.tms, config.tm.tps

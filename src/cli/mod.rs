@@ -12,6 +12,7 @@ pub mod config;
 pub mod dram;
 mod error;
 pub mod hdl;
+pub mod progress;
 pub mod render;
 pub mod report;
 pub mod scene;

@@ -11,6 +11,7 @@ use dualstream::render::{self, Frame, Mode, RenderCfg, output};
 use dualstream::rtl::Threads;
 use dualstream::scene::Scene;
 
+use super::progress::Meter;
 use super::{
     CliError, WaveArgs, bvh_fallback_warning, parse_res, parse_size, render_cfg, unwritable,
 };
@@ -42,6 +43,11 @@ pub struct RenderArgs {
     /// statistics, bit for bit.
     #[arg(long)]
     seed: Option<u64>,
+    /// Paths per pixel (1..=4096): each pixel traces N paths, as N times
+    /// the rays; the image (and --hdr) is their average in linear radiance.
+    /// 1 (the default) is the frame without samples, bit for bit.
+    #[arg(long, default_value_t = 1)]
+    spp: u32,
     /// Output image (PNG).
     #[arg(long, default_value = "render.png")]
     out: PathBuf,
@@ -260,6 +266,7 @@ fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(),
         mode: Some(a.mode.clone()),
         seed: Some(sc.settings.seed),
         bounces: Some(sc.settings.bounces),
+        spp: Some(sc.settings.spp),
         threads: Some(a.threads.threads.clone()),
     };
     let header = RunHeader::new(&config, run, started.elapsed().as_secs_f64());
@@ -281,6 +288,7 @@ fn load_scene(a: &RenderArgs) -> Result<Scene, CliError> {
     if let Some(s) = a.seed {
         sc.settings.seed = s;
     }
+    sc.settings.spp = a.spp;
     sc.settings.validate()?;
     Ok(sc)
 }
@@ -350,29 +358,64 @@ fn run_frame(
     sampled: bool,
     rc: RenderCfg,
 ) -> Result<(Frame, Option<WindowEstimate>), CliError> {
-    let bar = indicatif::ProgressBar::new((sc.settings.bounces as u64 + 1) * 1000);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {msg} (ETA {eta})")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
     if sampled {
-        bar.finish_and_clear();
-        eprintln!("time sampling (windows of the chip with GDDR5)...");
         let plan = sampling::default_windows();
-        let ts = sampling::time_sampled_with(sc, config, rc, &plan)?;
+        let mut bar = windows_meter(sc);
+        let ts = sampling::time_sampled_progress(sc, config, rc, &plan, &mut |p| {
+            windows_progress(&mut bar, p)
+        })?;
+        bar.finish(&format!("done, {} windows measured", ts.estimate.windows));
         return Ok((ts.frame, Some(ts.estimate)));
     }
+    let s = &sc.settings;
+    let waves = s.bounces as u64 + 1;
+    // Cycle mode counts simulated core cycles against the frame's estimate
+    // (known before it starts: a steady ETA); the others wavefronts and the
+    // ray-segment traversals of each.
+    let cycles = (mode == Mode::Cycle).then(|| {
+        render::estimated_frame_cycles(
+            s.width as u64 * s.height as u64 * s.spp as u64,
+            s.bounces,
+            config.chip.tms,
+        )
+    });
+    let mut bar = Meter::new("render", cycles.unwrap_or(waves * 1000));
     let f = render::render(sc, mode, &rc, &mut |p: &render::Progress| {
-        let frac = (p.done * 1000).checked_div(p.known).unwrap_or(0);
-        bar.set_position(p.wave as u64 * 1000 + frac);
-        bar.set_message(format!(
-            "wavefront {}/{}: {} rays",
-            p.wave, p.waves_max, p.rays
-        ));
+        let msg = || format!("wavefront {}/{}: {} rays", p.wave, p.waves_max, p.rays);
+        if cycles.is_some() {
+            // Past the estimate: keep the bar short of its end.
+            if p.cycles >= bar.len() {
+                bar.set_len(p.cycles + p.cycles / 20);
+            }
+            bar.set(p.cycles, || {
+                format!("{} cycles, wavefront {}/{}", p.cycles, p.wave, p.waves_max)
+            });
+        } else {
+            let frac = (p.done * 1000).checked_div(p.known).unwrap_or(0);
+            bar.set(p.wave as u64 * 1000 + frac, msg);
+        }
     })?;
-    bar.finish_and_clear();
+    bar.finish(&format!("{} wavefronts done", f.waves.len()));
     Ok((f, None))
+}
+
+/// Time sampling's meter: the functional frame's wavefronts, 1000 steps each.
+pub fn windows_meter(sc: &Scene) -> Meter {
+    Meter::new("windows", (sc.settings.bounces as u64 + 1) * 1000)
+}
+
+/// Moves a [`windows_meter`] to `p`: how far the functional frame is, and
+/// the windows answered.
+pub fn windows_progress(bar: &mut Meter, p: &sampling::WindowsProgress) {
+    let frac = (p.segment as u64 * 1000)
+        .checked_div(p.segments as u64)
+        .unwrap_or(0);
+    bar.set(p.wave as u64 * 1000 + frac, || {
+        format!(
+            "wavefront {}/{}, {} windows done of {} taken",
+            p.wave, p.waves_max, p.windows_done, p.windows_taken
+        )
+    });
 }
 
 /// Core cycles traced before a followed ray's first event and after its last

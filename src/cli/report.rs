@@ -13,6 +13,7 @@ use dualstream::rtl::Threads;
 use dualstream::units::memory::MemoryModel;
 use dualstream::util::FileError;
 
+use super::progress::{Meter, quiet};
 use super::{CliError, parse_res, render_cfg, unwritable};
 use dualstream::sampling;
 
@@ -62,7 +63,9 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Cli
     }
     let (w, h) = parse_res(&a.res)?;
     let mut rows = Vec::new();
-    for row in paper::TABLE2.iter() {
+    // One step per scene (in this command's one mode).
+    let mut bar = Meter::new("report", paper::TABLE2.len() as u64 * 1000);
+    for (k, row) in paper::TABLE2.iter().enumerate() {
         // The scene files: in the search path (--scenes-dir,
         // $DUALSTREAM_SCENES), else the repository's scenes/.
         let path = dualstream::scene::search::dirs()
@@ -86,33 +89,73 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Cli
         } else {
             format!("{mode:?}")
         };
-        eprintln!("rendering {} at {w}x{h} ({how})...", row.scene);
+        let what = format!("{} at {w}x{h} ({how})", row.scene);
+        let done = k as u64 * 1000;
+        bar.set(done, || what.clone());
         let mut cfg = config.clone();
         if mode == Mode::Cycle {
             // Time, bandwidth and DRAM energy need the GDDR5 model.
             cfg.chip.memory.model = MemoryModel::Gddr5;
         }
         let t0 = std::time::Instant::now();
+        let est = dualstream::render::estimated_frame_cycles(
+            w as u64 * h as u64,
+            sc.settings.bounces,
+            cfg.chip.tms,
+        );
         if sampled {
             let plan = sampling::default_windows();
-            let ts = sampling::time_sampled(&sc, &cfg, threads, &plan)?;
+            let ts = sampling::time_sampled_progress(
+                &sc,
+                &cfg,
+                render_cfg(&cfg, threads),
+                &plan,
+                &mut |p| {
+                    let f = (p.wave as u64 * 1000
+                        + p.segment as u64 * 1000 / p.segments.max(1) as u64)
+                        / p.waves_max.max(1) as u64;
+                    bar.set(done + f, || {
+                        format!(
+                            "{what}: wavefront {}/{}, {} windows done",
+                            p.wave, p.waves_max, p.windows_done
+                        )
+                    });
+                },
+            )?;
             let e = &ts.estimate;
-            eprintln!(
-                "  {:.1} s ({} windows, {:.0} s in the chips: {}){}",
+            say(format!(
+                "{what}: {:.1} s ({} windows, {:.0} s in the chips: {}){}",
                 t0.elapsed().as_secs_f64(),
                 e.windows,
                 e.chip_s,
                 sampling::kind_times_text(&e.chip_s_by_kind),
                 e.se_text().map(|t| format!("; {t}")).unwrap_or_default()
-            );
+            ));
             rows.extend(paper::compare_sampled(row, &ts.frame, e));
             continue;
         }
         let mut frame =
-            dualstream::render::render(&sc, mode, &render_cfg(&cfg, threads), &mut |_| {})?;
-        eprintln!("  {:.1} s", t0.elapsed().as_secs_f64());
+            dualstream::render::render(&sc, mode, &render_cfg(&cfg, threads), &mut |p| {
+                // Cycle mode: simulated cycles against the frame's estimate.
+                let f = if mode == Mode::Cycle {
+                    (p.cycles * 1000 / est.max(1)).min(999)
+                } else {
+                    (p.wave as u64 * 1000 + (p.done * 1000).checked_div(p.known).unwrap_or(0))
+                        / p.waves_max.max(1) as u64
+                };
+                bar.set(done + f, || {
+                    format!("{what}: wavefront {}/{}", p.wave, p.waves_max)
+                });
+            })?;
+        say(format!("{what}: {:.1} s", t0.elapsed().as_secs_f64()));
         frame.energy = Some(dualstream::render::energy::frame_energy(&cfg, &frame));
         rows.extend(paper::compare(row, &frame));
+    }
+    bar.finish("every scene done");
+    if (w, h) != paper::PAPER_RES {
+        println!(
+            "at {w}x{h}, not the paper's 1024x1024: a frame's totals (time, rays, energy, lines) grow with its pixels and get no ratio (\"scale_free\": false in the JSON); rates and ratios compare"
+        );
     }
     print!("{}", paper::table(&rows));
     let run = RunParams {
@@ -123,6 +166,13 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Cli
     };
     let header = RunHeader::new(&config, run, started.elapsed().as_secs_f64());
     write_outputs(&rows, &header, a.json, a.plots)
+}
+
+/// A scene's time on stderr, unless `--quiet`.
+fn say(s: String) {
+    if !quiet() {
+        eprintln!("{s}");
+    }
 }
 
 /// The comparison as JSON and the figures as SVG, if asked for.

@@ -33,6 +33,9 @@ pub struct ChipCfg {
     pub links: LinkCfg,
     /// A run with no progress for this many cycles stops with a report.
     pub watchdog_cycles: u64,
+    /// The chip's memory unit: which timing model serves its lines in cycle
+    /// mode (the GDDR5 of `[mem]`, or a fixed latency configured here). The
+    /// image's layout is `[memory]`.
     pub memory: MemoryUnitCfg,
     pub scene_buffer: SceneBufferCfg,
     pub scheduler: SchedulerCfg,

@@ -3,6 +3,7 @@
 //! default names its source. Loaded from TOML; unknown keys are errors.
 
 mod chip;
+mod doc;
 mod error;
 
 pub use chip::{ChipCfg, Shading};
@@ -69,9 +70,13 @@ pub struct Config {
     pub divider: PipeCfg,
     /// BVH build and segment (treelet) formation.
     pub accel: crate::accel::AccelCfg,
-    /// The DRAM image: capacity, row, buckets.
+    /// The DRAM image's layout (the data contract): what lies where, its
+    /// capacity and row (both must match `[mem.geometry]`), ray buckets. Not
+    /// timing: that is `[mem]`.
     pub memory: crate::contract::MemoryMapCfg,
-    /// The GDDR5 memory system (geometry, timing, mapping, controller, energy).
+    /// The GDDR5 device and its controllers (geometry, timing, address
+    /// mapping, FR-FCFS controller, energy), used when `[chip.memory] model =
+    /// "gddr5"` and by `dualstream dram`.
     pub mem: crate::mem::MemCfg,
     /// The thread multiprocessor: TPs and their cost table, L1, staging buffer.
     pub tm: crate::units::tm::TmCfg,
@@ -144,6 +149,12 @@ impl Config {
 
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).expect("config serialises")
+    }
+
+    /// [`Config::to_toml`] with every key's doc comment (its meaning, unit
+    /// and source, from the struct that holds it) above it.
+    pub fn to_commented_toml(&self) -> String {
+        doc::commented(&self.to_toml()).0
     }
 
     /// Rejects impossible configurations with a message naming the key and the fix.

@@ -7,6 +7,10 @@ use crate::contract::{RayRec, SparseMem};
 
 use super::{Chip, ChipError, WaveCycles};
 
+/// Core cycles between two progress ticks of a chip run: a few a second
+/// at the chip's simulated speed (about 50 K cycles/s on the paper's 128 TMs).
+pub const TICK_CYCLES: u64 = 10_000;
+
 impl Chip {
     /// Records every segment pass's admission and retirement (see
     /// `take_pass_log`).
@@ -34,7 +38,18 @@ impl Chip {
         mem: &mut SparseMem,
         rays: &[RayRec],
     ) -> Result<WaveCycles, ChipError> {
-        self.run_wave(mem, rays, 0)
+        self.run_wave(mem, rays, 0, &mut |_| {})
+    }
+
+    /// [`Chip::trace_wave`], calling `tick` with the core cycle reached
+    /// about every [`TICK_CYCLES`] (progress; the run is the same).
+    pub fn trace_wave_ticking(
+        &mut self,
+        mem: &mut SparseMem,
+        rays: &[RayRec],
+        tick: &mut dyn FnMut(u64),
+    ) -> Result<WaveCycles, ChipError> {
+        self.run_wave(mem, rays, 0, tick)
     }
 
     /// The shading pass of the finished wavefront over pixels `0..pixels` on the
@@ -44,7 +59,17 @@ impl Chip {
         mem: &mut SparseMem,
         pixels: u32,
     ) -> Result<WaveCycles, ChipError> {
-        self.run_wave(mem, &[], pixels)
+        self.run_wave(mem, &[], pixels, &mut |_| {})
+    }
+
+    /// [`Chip::shade_and_trace`], calling `tick` as [`Chip::trace_wave_ticking`].
+    pub fn shade_and_trace_ticking(
+        &mut self,
+        mem: &mut SparseMem,
+        pixels: u32,
+        tick: &mut dyn FnMut(u64),
+    ) -> Result<WaveCycles, ChipError> {
+        self.run_wave(mem, &[], pixels, tick)
     }
 
     fn run_wave(
@@ -52,6 +77,7 @@ impl Chip {
         mem: &mut SparseMem,
         rays: &[RayRec],
         shade_pixels: u32,
+        tick: &mut dyn FnMut(u64),
     ) -> Result<WaveCycles, ChipError> {
         let t0 = Instant::now();
         self.memory_unit_mut().swap_image(mem);
@@ -65,7 +91,7 @@ impl Chip {
         self.host_mut().load(rays.to_vec(), wave, shade_pixels);
         self.sim.wake(self.host);
         self.wave += 1;
-        let mut res = self.run_until_idle();
+        let mut res = self.run_until_idle(tick);
         if res.is_ok() && self.l2.is_some() {
             // The host reads DRAM next: write the L2's dirty lines back (its
             // cycles count in the run).
@@ -73,7 +99,7 @@ impl Chip {
             let c0 = self.sim.cycle(self.clock);
             self.host_mut().request_flush(inv);
             self.sim.wake(self.host);
-            res = self.run_until_idle();
+            res = self.run_until_idle(tick);
             self.flush_cycles += self.sim.cycle(self.clock) - c0;
         }
         self.memory_unit_mut().swap_image(mem);
@@ -95,12 +121,16 @@ impl Chip {
         Ok(w)
     }
 
-    /// Runs in watchdog windows until every unit sleeps with nothing scheduled.
-    fn run_until_idle(&mut self) -> Result<(), ChipError> {
+    /// Runs until every unit sleeps with nothing scheduled, in steps of
+    /// [`TICK_CYCLES`] (each calls `tick`), checking for progress every
+    /// watchdog window. Stopping at a step's end and going on is the same
+    /// run as not stopping (`docs/kernel.md`).
+    fn run_until_idle(&mut self, tick: &mut dyn FnMut(u64)) -> Result<(), ChipError> {
         let period = self.sim.clocks()[self.clock.0 as usize].period_ps;
         let mut last_progress = self.progress();
+        let mut window_end = self.sim.now() + self.watchdog * period;
         loop {
-            let limit = self.sim.now() + self.watchdog * period;
+            let limit = (self.sim.now() + TICK_CYCLES * period).min(window_end);
             let end = self
                 .sim
                 .run_to_idle(limit)
@@ -115,6 +145,11 @@ impl Chip {
             if end {
                 return Ok(());
             }
+            tick(self.sim.cycle(self.clock));
+            if self.sim.now() < window_end {
+                continue;
+            }
+            window_end = self.sim.now() + self.watchdog * period;
             let p = self.progress();
             if p == last_progress {
                 return Err(self.stuck(

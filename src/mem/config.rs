@@ -446,11 +446,17 @@ impl CtrlCfg {
 pub struct EnergyCfg {
     /// Name printed in every report ("paper", "physical", "dramsim3", or yours).
     pub preset: String,
+    /// Supply voltage (V).
     pub vdd: f64,
+    /// Activate-precharge current (IDD0, mA).
     pub idd0: f64,
+    /// Precharge standby current (IDD2N, mA).
     pub idd2n: f64,
+    /// Active standby current (IDD3N, mA).
     pub idd3n: f64,
+    /// Burst read current (IDD4R, mA).
     pub idd4r: f64,
+    /// Burst write current (IDD4W, mA).
     pub idd4w: f64,
     /// All-bank refresh current (IDD5 / IDD5AB).
     pub idd5: f64,

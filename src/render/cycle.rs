@@ -53,7 +53,7 @@ pub const WALL_S_PER_PIXEL_HIT: (f64, f64) = (0.17e-3, 0.45e-3);
 /// Before a cycle-mode frame of more than five minutes: how long it takes,
 /// and the faster mode.
 pub fn long_frame_note(s: &crate::scene::RenderSettings, tms: u32) -> Option<String> {
-    let pixels = s.width as f64 * s.height as f64;
+    let pixels = s.width as f64 * s.height as f64 * s.spp as f64;
     let hits = s.bounces as f64;
     let (lo, hi) = WALL_S_PER_PIXEL_HIT;
     let (lo, hi) = (pixels * hits * lo, pixels * hits * hi);
@@ -128,8 +128,20 @@ pub struct ChipFrame {
     /// (where its time went; they depend on the kernel, not the chip's results).
     pub evals_by_module: Vec<crate::rtl::ModuleEvals>,
     /// Simulator steps taken with 1, 2, ... evaluation lanes (`--threads`; how
-    /// the run spent its time, not a result).
+    /// the run spent its time, not a result); in the JSON an object,
+    /// `{"lanes_1": .., "lanes_2": ..}`.
+    #[serde(serialize_with = "by_lanes")]
     pub sim_steps_by_lanes: Vec<u64>,
+}
+
+/// `[a, b]` as `{"lanes_1": a, "lanes_2": b}`.
+pub fn by_lanes<S: serde::Serializer>(v: &[u64], s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut m = s.serialize_map(Some(v.len()))?;
+    for (k, n) in v.iter().enumerate() {
+        m.serialize_entry(&format!("lanes_{}", k + 1), n)?;
+    }
+    m.end()
 }
 
 impl ChipFrame {
@@ -282,12 +294,13 @@ impl FrameChip {
         mem: &mut crate::contract::SparseMem,
         pixels: u32,
         first: bool,
+        tick: &mut dyn FnMut(u64),
     ) -> Result<crate::machine::WaveCycles, RenderError> {
         if self.tp_shading && !first {
-            Ok(self.chip.shade_and_trace(mem, pixels)?)
+            Ok(self.chip.shade_and_trace_ticking(mem, pixels, tick)?)
         } else {
             let rays = q.take_diverted();
-            Ok(self.chip.trace_wave(mem, &rays)?)
+            Ok(self.chip.trace_wave_ticking(mem, &rays, tick)?)
         }
     }
 

@@ -19,6 +19,8 @@ pub struct Progress {
     /// Ray-segment traversals done and known so far in this wavefront.
     pub done: u64,
     pub known: u64,
+    /// Cycle mode: the chip's core cycles so far in the frame.
+    pub cycles: u64,
 }
 
 /// Counts of one wavefront (or of a frame, summed).
@@ -112,6 +114,8 @@ pub struct Frame {
     pub mode: Mode,
     pub width: u32,
     pub height: u32,
+    /// Paths per pixel: the rays and every count are of all of them.
+    pub spp: u32,
     #[serde(skip)]
     pub radiance: Vec<Vec3>,
     pub accel: AccelInfo,

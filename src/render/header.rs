@@ -42,6 +42,8 @@ pub struct RunParams {
     pub seed: Option<u64>,
     /// Hit points per path.
     pub bounces: Option<u32>,
+    /// Paths per pixel (`render --spp`).
+    pub spp: Option<u32>,
     /// `--threads` as given (`auto` or N).
     pub threads: Option<String>,
 }

@@ -22,7 +22,7 @@ mod trace;
 pub mod traverse;
 
 pub use cycle::{
-    ChipFrame, ChipRun, ChipTrace, VcdInfo, WALL_S_PER_PIXEL_HIT, estimated_frame_cycles,
+    ChipFrame, ChipRun, ChipTrace, VcdInfo, WALL_S_PER_PIXEL_HIT, by_lanes, estimated_frame_cycles,
     long_frame_note,
 };
 pub use error::RenderError;
@@ -199,8 +199,11 @@ struct FrameRun<'a> {
     cfg: &'a RenderCfg,
     p: Prepared,
     q: RayQueues,
-    /// Ray and path `i` are pixel `sample[i]` (raster index).
+    /// Path `i` (and its rays) is path `i % spp` of pixel `sample[i / spp]`
+    /// (raster index).
     sample: Vec<u32>,
+    spp: u32,
+    /// Paths (the sample's pixels times `spp`).
     pixels: u32,
     /// Cycle mode.
     chip: Option<cycle::FrameChip>,
@@ -224,7 +227,14 @@ impl<'a> FrameRun<'a> {
     fn new(scene: &'a Scene, mode: Mode, cfg: &'a RenderCfg) -> Result<FrameRun<'a>, RenderError> {
         let p = prepare(scene, cfg)?;
         let sample = pixel_sample(cfg, scene.settings.width, scene.settings.height)?;
-        let pixels = sample.len() as u32;
+        let spp = scene.settings.spp;
+        let pixels = sample.len() as u32 * spp;
+        if spp > 1 && cfg.chip.as_ref().is_some_and(|r| r.follow.is_some()) {
+            return Err(RenderError::Invalid(
+                "following a ray names it by pixel; render with one path per pixel (--spp 1)"
+                    .into(),
+            ));
+        }
         if mode != Mode::Cycle && cfg.chip.as_ref().is_some_and(|r| r.follow.is_some()) {
             return Err(RenderError::Invalid(
                 "following a ray records the chip's events: render in cycle mode".into(),
@@ -245,6 +255,7 @@ impl<'a> FrameRun<'a> {
             p,
             q,
             sample,
+            spp,
             pixels,
             chip,
             waves: Vec::new(),
@@ -269,8 +280,10 @@ impl<'a> FrameRun<'a> {
         let (scene, p) = (self.scene, &mut self.p);
         let (w, h) = (scene.settings.width, scene.settings.height);
         let root_entry = p.image.root_entry.encode();
-        for (pix, &real) in (0..self.pixels).zip(&self.sample) {
-            let (o, d, path) = shade::primary_path(&scene.camera, scene.settings.seed, real, w, h);
+        for pix in 0..self.pixels {
+            let (real, k) = (self.sample[(pix / self.spp) as usize], pix % self.spp);
+            let seed = shade::sample_seed(scene.settings.seed, k);
+            let (o, d, path) = shade::primary_path(&scene.camera, seed, real, w, h);
             let ray = RayRec {
                 origin: o,
                 dir: d,
@@ -307,6 +320,7 @@ impl<'a> FrameRun<'a> {
             rays: self.st.rays,
             done: 0,
             known: self.st.enqueues,
+            cycles: self.chip.as_ref().map_or(0, |c| c.chip.total_cycles),
         };
         progress(&prog);
         let t0 = Instant::now();
@@ -317,7 +331,7 @@ impl<'a> FrameRun<'a> {
             }
             Mode::Reference => trace_reference(&mut self.p, &mut self.q, self.scene, &mut self.st),
             Mode::Cycle => {
-                if self.trace_on_chip()? {
+                if self.trace_on_chip(&mut prog, progress)? {
                     // The shading pass of the last wavefront emitted nothing.
                     self.trace_s += t0.elapsed().as_secs_f64();
                     return Ok(false);
@@ -369,10 +383,18 @@ impl<'a> FrameRun<'a> {
     /// Cycle mode: one chip run (the last wavefront's shading on the TPs, if
     /// there, then this wavefront's trace) and its counts; `true` if it was
     /// the last (its shading emitted nothing).
-    fn trace_on_chip(&mut self) -> Result<bool, RenderError> {
+    fn trace_on_chip(
+        &mut self,
+        prog: &mut Progress,
+        progress: &mut dyn FnMut(&Progress),
+    ) -> Result<bool, RenderError> {
         let chip = self.chip.as_mut().expect("built for cycle mode");
         let first = self.waves.is_empty();
-        let w = chip.run(&mut self.q, &mut self.p.mem, self.pixels, first)?;
+        let mut tick = |cycles| {
+            prog.cycles = cycles;
+            progress(prog)
+        };
+        let w = chip.run(&mut self.q, &mut self.p.mem, self.pixels, first, &mut tick)?;
         let rpb = self.cfg.memory.rays_per_bucket();
         if chip.tp_shading {
             if self.keep {
@@ -474,8 +496,16 @@ impl<'a> FrameRun<'a> {
         let (w, h) = (self.scene.settings.width, self.scene.settings.height);
         let p = &self.p;
         let mut radiance = vec![Vec3::ZERO; (w * h) as usize];
-        for (pix, &real) in (0..self.pixels).zip(&self.sample) {
-            radiance[real as usize] = PathRec::read(&p.mem, p.map.path_addr(pix as u64)).radiance;
+        let spp = self.spp;
+        for (i, &real) in self.sample.iter().enumerate() {
+            // The pixel's paths averaged in linear radiance (one: as it is).
+            let first = i as u64 * spp as u64;
+            let path = |k: u64| PathRec::read(&p.mem, p.map.path_addr(first + k)).radiance;
+            radiance[real as usize] = if spp == 1 {
+                path(0)
+            } else {
+                (0..spp as u64).map(path).sum::<Vec3>() / spp as f32
+            };
         }
         Ok(Frame {
             passes: self.passes,
@@ -483,6 +513,7 @@ impl<'a> FrameRun<'a> {
             mode: self.mode,
             width: w,
             height: h,
+            spp,
             radiance,
             accel: p.info.clone(),
             duplication: total.duplication(),

@@ -152,6 +152,13 @@ pub fn summary(f: &Frame) -> String {
         f.accel.children_max
     );
     s += &format!("  wavefronts {}\n", f.waves.len());
+    if f.spp > 1 {
+        s += &format!(
+            "  paths per pixel {} (rays and every count below are of all {} paths)\n",
+            f.spp,
+            f.width as u64 * f.height as u64 * f.spp as u64
+        );
+    }
     s += &format!("  {:<34} {:>12}\n", "rays traced (M)", m(t.rays));
     s += &format!(
         "  {:<34} {:>12}\n",

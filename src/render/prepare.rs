@@ -26,14 +26,16 @@ pub fn prepare(scene: &Scene, cfg: &RenderCfg) -> Result<Prepared, RenderError> 
     let seg = Segmentation::build(&bvh, cfg.accel.segment_bytes)?;
     let segment_build_s = t0.elapsed().as_secs_f64();
     let bytes: Vec<u32> = seg.segments.iter().map(|s| s.bytes).collect();
-    let pixels = scene.settings.width as u64 * scene.settings.height as u64;
+    // A path record and two hit records per path (`spp` per pixel).
+    let paths =
+        scene.settings.width as u64 * scene.settings.height as u64 * scene.settings.spp as u64;
     let map = MemoryMap::new(
         &cfg.memory,
         &bytes,
         SceneImage::children_total(&seg),
         scene.triangles.len() as u64,
         scene.materials.len() as u64,
-        pixels,
+        paths,
     )?;
     let mut mem = SparseMem::new(map.capacity);
     let image = SceneImage::write(

@@ -95,55 +95,106 @@ pub struct Compared {
     pub metric: &'static str,
     pub ours: Option<f64>,
     pub paper: f64,
-    /// ours / paper.
+    /// ours / paper; none for a figure that scales with resolution on a frame
+    /// of another resolution than the paper's (`scale_free`).
     pub ratio: Option<f64>,
+    /// Whether the figure is a rate or a ratio (rays per second, bandwidth,
+    /// duplication), comparable at any resolution; the others are totals of a
+    /// frame (time, rays, energy, lines) that grow with its pixels.
+    pub scale_free: bool,
+    /// Whether our frame is the paper's [`PAPER_RES`].
+    pub at_paper_resolution: bool,
     /// Why a figure is missing or what it covers.
     pub note: &'static str,
 }
 
+/// The paper's frames: 1024x1024 [DS17 §5.2].
+pub const PAPER_RES: (u32, u32) = (1024, 1024);
+
+/// What the table says of a total compared at another resolution.
+pub const SCALES_NOTE: &str = "scales with resolution; paper at 1024x1024";
+
 /// A compared metric's name as the table shows it, its key in the JSON
-/// (snake case, the unit last: `_ms`, `_j`, `_millions`), and its figure in a
-/// paper row.
-type Metric = (&'static str, &'static str, fn(&PaperRow) -> f64);
+/// (snake case, the unit last: `_ms`, `_j`, `_millions`), its figure in a
+/// paper row, and whether it is scale-free (a rate or a ratio).
+type Metric = (&'static str, &'static str, fn(&PaperRow) -> f64, bool);
 
 /// The compared metrics, in table order.
 const METRICS: [Metric; 14] = [
-    ("render time (ms)", "render_time_ms", |r| r.render_ms),
-    ("rays traced per second (M)", "rays_per_s_millions", |r| {
-        r.mrays_per_s
-    }),
-    ("rays traced (M)", "rays_traced_millions", |r| {
-        r.render_ms * r.mrays_per_s / 1000.0
-    }),
-    ("DRAM energy (J)", "dram_energy_j", |r| r.dram_j),
+    ("render time (ms)", "render_time_ms", |r| r.render_ms, false),
+    (
+        "rays traced per second (M)",
+        "rays_per_s_millions",
+        |r| r.mrays_per_s,
+        true,
+    ),
+    (
+        "rays traced (M)",
+        "rays_traced_millions",
+        |r| r.render_ms * r.mrays_per_s / 1000.0,
+        false,
+    ),
+    ("DRAM energy (J)", "dram_energy_j", |r| r.dram_j, false),
     (
         "DRAM energy, physical preset (J)",
         "dram_energy_physical_j",
         |r| r.dram_j,
+        false,
     ),
-    ("on-chip memory energy (J)", "onchip_energy_j", |r| {
-        r.onchip_j
-    }),
-    ("compute energy (J)", "compute_energy_j", |r| r.compute_j),
-    ("average bandwidth (GB/s)", "bandwidth_gb_per_s", |r| {
-        r.bandwidth_gbs
-    }),
-    ("$ lines transferred (M)", "lines_millions", |r| r.lines_m),
-    ("ray stream $ lines (M)", "ray_stream_lines_millions", |r| {
-        r.ray_lines_m
-    }),
+    (
+        "on-chip memory energy (J)",
+        "onchip_energy_j",
+        |r| r.onchip_j,
+        false,
+    ),
+    (
+        "compute energy (J)",
+        "compute_energy_j",
+        |r| r.compute_j,
+        false,
+    ),
+    (
+        "average bandwidth (GB/s)",
+        "bandwidth_gb_per_s",
+        |r| r.bandwidth_gbs,
+        true,
+    ),
+    (
+        "$ lines transferred (M)",
+        "lines_millions",
+        |r| r.lines_m,
+        false,
+    ),
+    (
+        "ray stream $ lines (M)",
+        "ray_stream_lines_millions",
+        |r| r.ray_lines_m,
+        false,
+    ),
     (
         "scene stream $ lines (M)",
         "scene_stream_lines_millions",
         |r| r.scene_lines_m,
+        false,
     ),
-    ("shading $ lines (M)", "shading_lines_millions", |r| {
-        r.shading_lines_m
-    }),
-    ("hit record $ lines (M)", "hit_record_lines_millions", |r| {
-        r.hit_lines_m
-    }),
-    ("ray duplication", "ray_duplication", |r| r.duplication),
+    (
+        "shading $ lines (M)",
+        "shading_lines_millions",
+        |r| r.shading_lines_m,
+        false,
+    ),
+    (
+        "hit record $ lines (M)",
+        "hit_record_lines_millions",
+        |r| r.hit_lines_m,
+        false,
+    ),
+    (
+        "ray duplication",
+        "ray_duplication",
+        |r| r.duplication,
+        true,
+    ),
 ];
 
 /// Our figure for each of [`METRICS`] (none where this frame cannot give it)
@@ -195,7 +246,7 @@ pub fn compare(row: &PaperRow, f: &Frame) -> Vec<Compared> {
         (m(t.hit_lines()), ""),
         (Some(f.duplication), ""),
     ];
-    to_compared(row, ours)
+    to_compared(row, f, ours)
 }
 
 /// [`compare`] for a frame rendered with time sampling (`--mode windows`): the
@@ -229,14 +280,15 @@ pub fn compare_sampled(row: &PaperRow, f: &Frame, w: &WindowEstimate) -> Vec<Com
         (m(w.hit_lines), est),
         (Some(f.duplication), ""),
     ];
-    to_compared(row, ours)
+    to_compared(row, f, ours)
 }
 
-fn to_compared(row: &PaperRow, ours: Ours) -> Vec<Compared> {
+fn to_compared(row: &PaperRow, f: &Frame, ours: Ours) -> Vec<Compared> {
+    let at_paper_resolution = (f.width, f.height) == PAPER_RES;
     METRICS
         .iter()
         .zip(ours)
-        .map(|(&(metric, key, paper), (ours, note))| {
+        .map(|(&(metric, key, paper, scale_free), (ours, note))| {
             let paper = paper(row);
             Compared {
                 scene: row.scene.to_string(),
@@ -244,7 +296,11 @@ fn to_compared(row: &PaperRow, ours: Ours) -> Vec<Compared> {
                 metric,
                 ours,
                 paper,
-                ratio: ours.map(|o| o / paper),
+                ratio: ours
+                    .filter(|_| scale_free || at_paper_resolution)
+                    .map(|o| o / paper),
+                scale_free,
+                at_paper_resolution,
                 note,
             }
         })
@@ -265,11 +321,18 @@ pub fn table(rows: &[Compared]) -> String {
         }
         let (o, q) = match (r.ours, r.ratio) {
             (Some(o), Some(q)) => (format!("{o:.3}"), format!("{q:.2}")),
+            (Some(o), None) => (format!("{o:.3}"), "-".to_string()),
             _ => ("-".to_string(), "-".to_string()),
+        };
+        // A total at another resolution: no ratio, and the table says why.
+        let note = match (r.ours, r.scale_free || r.at_paper_resolution) {
+            (Some(_), false) if r.note.is_empty() => SCALES_NOTE.to_string(),
+            (Some(_), false) => format!("{SCALES_NOTE}; {}", r.note),
+            _ => r.note.to_string(),
         };
         s += &format!(
             "  {:<30} {:>12} {:>12.3} {:>10}  {}\n",
-            r.metric, o, r.paper, q, r.note
+            r.metric, o, r.paper, q, note
         );
     }
     s

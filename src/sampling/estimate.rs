@@ -8,7 +8,9 @@ use super::analytic::{FrameParts, line_write_j};
 use super::counts::Count::*;
 use super::counts::Counts;
 use super::parts::Parts;
-use super::{KindTime, WindowPlan, WindowRecord, render_cfg, render_windows};
+use super::{
+    KindTime, WindowPlan, WindowRecord, WindowsProgress, render_cfg, render_windows_progress,
+};
 use crate::config::Config;
 use crate::render::{self, Frame, RenderCfg};
 use crate::rtl::Threads;
@@ -230,8 +232,19 @@ pub fn time_sampled(
 pub fn time_sampled_with(
     scene: &Scene,
     config: &Config,
+    rc: RenderCfg,
+    plan: &WindowPlan,
+) -> Result<TimeSampled, SamplingError> {
+    time_sampled_progress(scene, config, rc, plan, &mut |_| {})
+}
+
+/// [`time_sampled_with`], calling `progress` as [`render_windows_progress`].
+pub fn time_sampled_progress(
+    scene: &Scene,
+    config: &Config,
     mut rc: RenderCfg,
     plan: &WindowPlan,
+    progress: &mut dyn FnMut(&WindowsProgress),
 ) -> Result<TimeSampled, SamplingError> {
     plan.validate()?;
     let mut gddr5 = config.clone();
@@ -240,7 +253,7 @@ pub fn time_sampled_with(
         Some(ch) => ch.config = gddr5.clone(),
         None => rc.chip = render_cfg(&gddr5, None, Threads::fixed(1)).chip,
     }
-    let (frame, record) = render_windows(scene, &rc, plan)?;
+    let (frame, record) = render_windows_progress(scene, &rc, plan, progress)?;
     let w = windowed_parts(&gddr5, &frame, &record)?;
     Ok(TimeSampled {
         frame,

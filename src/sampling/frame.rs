@@ -25,11 +25,35 @@ pub fn render_windows(
     rc: &RenderCfg,
     plan: &WindowPlan,
 ) -> Result<(Frame, WindowRecord), SamplingError> {
+    render_windows_progress(scene, rc, plan, &mut |_| {})
+}
+
+/// How far time sampling is: the functional frame's wavefront and segment
+/// pass (segments go in depth-first id order), the windows answered and taken.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct WindowsProgress {
+    pub wave: usize,
+    /// Wavefronts at most (hit points per path + 1).
+    pub waves_max: usize,
+    pub segment: u32,
+    pub segments: u32,
+    pub windows_done: usize,
+    pub windows_taken: usize,
+}
+
+/// [`render_windows`], calling `progress` before each segment pass.
+pub fn render_windows_progress(
+    scene: &Scene,
+    rc: &RenderCfg,
+    plan: &WindowPlan,
+    progress: &mut dyn FnMut(&WindowsProgress),
+) -> Result<(Frame, WindowRecord), SamplingError> {
     let mut hooks = Sampling {
         plan,
         rc,
         run: None,
         record: None,
+        progress,
     };
     let frame = render::render_with_hooks(scene, rc, &mut |_| {}, &mut hooks)?;
     let record = hooks.record.ok_or_else(|| {
@@ -46,6 +70,7 @@ struct Sampling<'a> {
     run: Option<Run>,
     /// What the windows recorded, once the frame is traced.
     record: Option<WindowRecord>,
+    progress: &'a mut dyn FnMut(&WindowsProgress),
 }
 
 /// Time sampling under way.
@@ -117,10 +142,19 @@ impl FunctionalHooks for Sampling<'_> {
         q: &RayQueues,
         st: &WaveStats,
     ) -> Result<(), RenderError> {
-        match self.run.as_mut() {
-            Some(r) => r.segment(wave, s, p, q, st).map_err(hook),
-            None => Ok(()),
-        }
+        let Some(r) = self.run.as_mut() else {
+            return Ok(());
+        };
+        let (windows_done, windows_taken) = r.windows.counts();
+        (self.progress)(&WindowsProgress {
+            wave,
+            waves_max: r.last + 1,
+            segment: s.min(p.seg.segments.len() as u32),
+            segments: p.seg.segments.len() as u32,
+            windows_done,
+            windows_taken,
+        });
+        r.segment(wave, s, p, q, st).map_err(hook)
     }
 
     fn traced(&mut self, wave: usize, p: &Prepared, q: &RayQueues) -> Result<(), RenderError> {
@@ -148,6 +182,12 @@ impl Sampling<'_> {
     /// The frame is laid out: checks the plan and builds the windows' chip.
     fn start(&mut self, scene: &Scene, p: &Prepared, pixels: u32) -> Result<(), SamplingError> {
         self.plan.validate()?;
+        if scene.settings.spp != 1 {
+            return Err(SamplingError::Invalid(format!(
+                "time sampling traces one path per pixel, not spp {}; use --spp 1, or --mode cycle for several",
+                scene.settings.spp
+            )));
+        }
         let run = self.rc.chip.as_deref().cloned().unwrap_or_default();
         let mut c = run.config;
         c.accel = self.rc.accel.clone();

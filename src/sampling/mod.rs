@@ -38,8 +38,10 @@ mod windows;
 pub use analytic::{Estimate, dram_energy_estimate, estimate};
 pub use counts::root_between;
 pub use error::SamplingError;
-pub use estimate::{TimeSampled, WindowEstimate, WindowPart, time_sampled, time_sampled_with};
-pub use frame::render_windows;
+pub use estimate::{
+    TimeSampled, WindowEstimate, WindowPart, time_sampled, time_sampled_progress, time_sampled_with,
+};
+pub use frame::{WindowsProgress, render_windows, render_windows_progress};
 pub use output::{window_summary, write_json_estimated};
 pub use plan::{BORROW_ALIKE, ROOT_STEADY_TENTHS, SAMPLE_BORROW_FROM, WindowPlan, default_windows};
 pub use record::{KindTime, SampleKind, SegWork, WindowRecord, WindowSample, kind_times_text};

@@ -228,6 +228,11 @@ impl Windows {
         })
     }
 
+    /// Windows answered and windows taken so far.
+    pub(super) fn counts(&self) -> (usize, usize) {
+        (self.answered, self.sent)
+    }
+
     /// Takes window `spec` on a snapshot of the image now and records what it
     /// measures.
     pub(super) fn run(&mut self, p: &Prepared, spec: WindowSpec) -> Result<(), SamplingError> {

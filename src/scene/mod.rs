@@ -51,9 +51,15 @@ pub struct RenderSettings {
     /// Hit points per path (the paper renders 5), 1..=MAX_BOUNCES.
     pub bounces: u32,
     pub seed: u64,
+    /// Paths per pixel (1..=MAX_SPP): each traced as rays of its own, the
+    /// pixel their average in linear radiance.
+    pub spp: u32,
 }
 
 pub const MAX_BOUNCES: u32 = 16;
+pub const MAX_SPP: u32 = 4096;
+/// Paths a frame may hold: ray ids are path ids below the shadow bit (bit 31).
+pub const MAX_PATHS: u64 = 1 << 31;
 pub const MAX_IMAGE_SIZE: u32 = 16384;
 
 impl Default for RenderSettings {
@@ -63,6 +69,7 @@ impl Default for RenderSettings {
             height: 256,
             bounces: 5,
             seed: 1,
+            spp: 1,
         }
     }
 }
@@ -81,6 +88,19 @@ impl RenderSettings {
                 "render bounces = {} is outside 1..={MAX_BOUNCES} (hit points per path); \
                  use e.g. 5 as in the paper",
                 self.bounces
+            )));
+        }
+        if !(1..=MAX_SPP).contains(&self.spp) {
+            return Err(SceneError::Invalid(format!(
+                "spp = {} is outside 1..={MAX_SPP} (paths per pixel); use e.g. 1 or 16",
+                self.spp
+            )));
+        }
+        let paths = self.width as u64 * self.height as u64 * self.spp as u64;
+        if paths > MAX_PATHS {
+            return Err(SceneError::Invalid(format!(
+                "{}x{} at spp {} is {paths} paths, more than a frame's {MAX_PATHS} (ray ids); lower --spp or the resolution",
+                self.width, self.height, self.spp
             )));
         }
         Ok(())

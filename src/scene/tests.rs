@@ -302,7 +302,8 @@ fn toml_good_file() {
             width: 64,
             height: 32,
             bounces: 3,
-            seed: 9
+            seed: 9,
+            spp: 1,
         }
     );
     assert_eq!(s.camera.up, Vec3::Y, "up defaults to +y");

@@ -61,6 +61,9 @@ pub enum MemoryModel {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MemoryUnitCfg {
+    /// The timing model in cycle mode: "gddr5" (the paper's 16 channels, as
+    /// `[mem]` configures them; default) or "fixed" (`latency` and
+    /// `bytes_per_cycle` below; `--memory` overrides it).
     pub model: MemoryModel,
     /// `fixed`: cycles from acceptance of a line request to its response being
     /// visible to the requester (response link included). Assumption: 100 core

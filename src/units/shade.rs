@@ -24,6 +24,16 @@ pub fn pixel_seed(seed: u64, pixel: u32) -> u64 {
     mix64(seed ^ mix64(pixel as u64 + 0x9E37_79B9_7F4A_7C15))
 }
 
+/// The seed of a pixel's path `sample` (of its `spp`): the frame's own for
+/// the first, so one path per pixel is the frame without samples.
+pub fn sample_seed(seed: u64, sample: u32) -> u64 {
+    if sample == 0 {
+        seed
+    } else {
+        mix64(seed ^ mix64(0xD1B5_4A32_D192_ED03 ^ sample as u64))
+    }
+}
+
 /// Next uniform number in [0, 1) from a path's state (SplitMix64 stream).
 #[inline]
 pub fn next_f32(state: &mut u64) -> f32 {

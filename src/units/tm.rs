@@ -122,6 +122,7 @@ impl Payload for HitRec {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct StateCost {
+    /// Core cycles the state occupies its TP.
     pub cycles: u32,
     /// INTADD, BITWISE, moves (1 cycle each).
     pub int: u32,

@@ -38,6 +38,23 @@ fn prints_the_default_config() {
         out.contains("[box_pipe]") && out.contains("latency = 8"),
         "{out}"
     );
+    // Every key with its comment, the three memory sections told apart.
+    assert!(
+        out.contains("# Thread multiprocessors: 128 [DS17 §5.1]"),
+        "{out}"
+    );
+    assert!(out.contains("[memory] is the DRAM image's layout"), "{out}");
+    // Given back as --config, it is the default: the same as no file.
+    let t = Scratch::new("cli-config-default");
+    let p = t.join("default.toml");
+    std::fs::write(&p, out.as_bytes()).unwrap();
+    let loaded = run(&["--config", p.to_str().unwrap(), "config"]);
+    assert!(
+        loaded.status.success(),
+        "{}",
+        String::from_utf8_lossy(&loaded.stderr)
+    );
+    assert_eq!(loaded.stdout, run(&["config"]).stdout);
 }
 
 #[test]

@@ -11,6 +11,7 @@ mod bench;
 mod capture;
 mod config;
 mod dram;
+mod progress;
 mod render;
 mod report;
 mod scene;

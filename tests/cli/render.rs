@@ -438,3 +438,99 @@ fn render_writes_a_linear_hdr_image() {
     );
     assert!(!t.join("r.exr").exists());
 }
+
+#[test]
+fn render_spp_traces_more_paths_and_says_so() {
+    let t = Scratch::new("cli-render-spp");
+    let (png, json) = (t.join("s.png"), t.join("s.json"));
+    let o = run(&[
+        "render",
+        "--scene",
+        "tiny",
+        "--res",
+        "8x8",
+        "--spp",
+        "3",
+        "--out",
+        png.to_str().unwrap(),
+        "--stats",
+        json.to_str().unwrap(),
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("paths per pixel 3"), "{out}");
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(stats["spp"], 3);
+    assert_eq!(stats["header"]["run"]["spp"], 3);
+    assert_eq!(stats["waves"][0]["rays"], 3 * 64);
+    fails_with(
+        &["render", "--scene", "tiny", "--res", "8x8", "--spp", "0"],
+        &["spp = 0", "1..="],
+    );
+    fails_with(
+        &[
+            "render", "--scene", "tiny", "--res", "8x8", "--spp", "2", "--mode", "windows",
+        ],
+        &["one path per pixel", "--spp 1"],
+    );
+}
+
+/// Every array in `v` below `path`, other than lists of objects: positional
+/// figures a reader would have to count to name.
+fn positional(v: &serde_json::Value, path: &str, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::Array(a) => {
+            if a.iter().any(|x| !x.is_object()) {
+                out.push(path.to_string());
+            }
+            for (i, x) in a.iter().enumerate() {
+                positional(x, &format!("{path}[{i}]"), out);
+            }
+        }
+        serde_json::Value::Object(m) => {
+            for (k, x) in m {
+                positional(x, &format!("{path}.{k}"), out);
+            }
+        }
+        _ => {}
+    }
+}
+
+#[test]
+fn render_stats_name_every_figure() {
+    let t = Scratch::new("cli-render-named");
+    let (png, json) = (t.join("n.png"), t.join("n.json"));
+    let o = run(&[
+        "render",
+        "--scene",
+        "tiny",
+        "--res",
+        "8x8",
+        "--mode",
+        "cycle",
+        "--threads",
+        "1",
+        "--out",
+        png.to_str().unwrap(),
+        "--stats",
+        json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let mut arrays = Vec::new();
+    positional(&v, "", &mut arrays);
+    // The command line's words, and the resolution as [width, height].
+    assert_eq!(arrays, [".header.command", ".header.run.resolution"]);
+    let parts = v["energy"]["parts"].as_object().unwrap();
+    assert!(parts["box_tests_j"].as_f64().unwrap() > 0.0, "{parts:?}");
+    assert!(parts.keys().all(|k| k.ends_with("_j")), "{parts:?}");
+    let sum: f64 = parts.values().map(|x| x.as_f64().unwrap()).sum();
+    let total =
+        v["energy"]["compute_j"].as_f64().unwrap() + v["energy"]["onchip_j"].as_f64().unwrap();
+    assert!((sum - total).abs() <= 1e-9 * total, "{sum} vs {total}");
+    // Counted when lanes run side by side: on one lane, none.
+    assert!(v["chip"]["sim_steps_by_lanes"].is_object(), "{}", v["chip"]);
+    assert!(v["chip"]["waves"][0]["lines_read"]["ray"].as_u64().unwrap() > 0);
+}

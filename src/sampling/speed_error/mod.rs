@@ -143,6 +143,17 @@ pub fn run(
     config: &Config,
     o: &SpeedErrorOpts,
 ) -> Result<Vec<ModeResult>, SamplingError> {
+    run_progress(scene, config, o, &mut |_, _, _| {})
+}
+
+/// [`run`], calling `progress` before each run of the study (its index, the
+/// runs, what it is).
+pub fn run_progress(
+    scene: &Scene,
+    config: &Config,
+    o: &SpeedErrorOpts,
+    progress: &mut dyn FnMut(usize, usize, &str),
+) -> Result<Vec<ModeResult>, SamplingError> {
     if let Some(m) = &o.modes {
         for x in m {
             if !MODES.contains(&x.as_str()) {
@@ -172,27 +183,49 @@ pub fn run(
     } else {
         Vec::new()
     };
+    let steps = [
+        true,
+        want("cycle-fixed"),
+        want("functional+estimate") || want("sampled"),
+        want("small-chip") || want("small-chips-fit"),
+        want("quarter-pixels"),
+        want("sampled"),
+        want("windows"),
+    ];
+    let total = steps.iter().filter(|&&x| x).count();
+    let mut k = 0;
+    let mut step = |what: &str| {
+        progress(k, total, what);
+        k += 1;
+    };
     // The reference: rendered here, or read back from a finished run.
+    step("reference");
     let mut s = Study::new(scene, config, o)?;
     if want("cycle-fixed") {
+        step("cycle-fixed");
         s.cycle_fixed()?;
     }
     // The functional frame and its estimate (also the sampled modes' auxiliary).
     let functional = if want("functional+estimate") || want("sampled") {
+        step("functional+estimate");
         Some(s.functional(want("functional+estimate"))?)
     } else {
         None
     };
     if want("small-chip") || want("small-chips-fit") {
+        step("small chips");
         s.small_chips(want("small-chip"), want("small-chips-fit"))?;
     }
     if want("quarter-pixels") {
+        step("quarter-pixels");
         s.quarter_pixels()?;
     }
     if let Some(f) = functional.filter(|_| want("sampled")) {
+        step("sampled");
         s.sampled(f, &samples)?;
     }
     if want("windows") {
+        step("windows");
         s.windows()?;
     }
     Ok(s.out)
