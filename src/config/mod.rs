@@ -19,8 +19,9 @@ use crate::rtl::{LinkCfg, PipeCfg};
 pub struct ClockCfg {
     /// Core clock period: 1 GHz [DS17 Table 1].
     pub core_ps: u64,
-    /// DRAM command clock period: GDDR5 at 8 Gb/s per pin has CK = 2 GHz
-    /// (hardware reference sheet, conventions). tCK = 0.667 ns is 667.
+    /// DRAM command clock period, ps: GDDR5 at 8 Gb/s per pin has CK = 2 GHz,
+    /// 500 ps (hardware reference sheet, conventions); the DRAMsim3 preset's
+    /// tCK = 0.667 ns is 667.
     pub dram_ps: u64,
 }
 
