@@ -32,9 +32,14 @@ module divider
             pipe_stage_valid <= '0;
             pipe_frozen <= '0;
             pipe_ii_count <= 2'h3;
-            for (int i = 0; i < 17; i++) pipe_stage_data[i] <= '0;
+            // pipe_stage_data: a memory, not reset (the model's words start as '0)
         end
     end
+    localparam integer PIPE_STAGE_DATA_AW = (17 > 1) ? $clog2(17) : 1;
+    wire pipe_stage_data_we = 1'b0;
+    wire [PIPE_STAGE_DATA_AW-1:0] pipe_stage_data_wa = '0;
+    wire [111:0] pipe_stage_data_wd = '0;
+    always_ff @(posedge clk) if (pipe_stage_data_we) pipe_stage_data[pipe_stage_data_wa] <= pipe_stage_data_wd;
 
     assign req_ready = 1'b0;
     assign resp_valid = 1'b0;

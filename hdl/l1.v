@@ -120,9 +120,9 @@ module l1
     output l1_resp_t resp_15_data
 );
 
-    reg [63:0] tags [0:255];
-    reg [511:0] data [0:255];
-    reg [129:0] mshr [0:7];
+    reg [63:0] tags [0:BYTES / LINE_BYTES - 1];
+    reg [511:0] data [0:BYTES / LINE_BYTES - 1];
+    reg [129:0] mshr [0:MSHRS - 1];
     reg [128:0] pending [0:15];
     reg [511:0] pending_line [0:15];
     reg [31:0] next_seq;
@@ -130,14 +130,39 @@ module l1
     // Skeleton behaviour: state resets and holds; outputs are tied low.
     always_ff @(posedge clk) begin
         if (rst) begin
-            for (int i = 0; i < 256; i++) tags[i] <= '0;
-            for (int i = 0; i < 256; i++) data[i] <= '0;
-            for (int i = 0; i < 8; i++) mshr[i] <= '0;
-            for (int i = 0; i < 16; i++) pending[i] <= '0;
-            for (int i = 0; i < 16; i++) pending_line[i] <= '0;
+            // tags: a memory, not reset (the model's words start as '0)
+            // data: a memory, not reset (the model's words start as '0)
+            // mshr: a memory, not reset (the model's words start as '0)
+            // pending: a memory, not reset (the model's words start as '0)
+            // pending_line: a memory, not reset (the model's words start as '0)
             next_seq <= '0;
         end
     end
+    localparam integer TAGS_AW = ((BYTES / LINE_BYTES) > 1) ? $clog2((BYTES / LINE_BYTES)) : 1;
+    wire tags_we = 1'b0;
+    wire [TAGS_AW-1:0] tags_wa = '0;
+    wire [63:0] tags_wd = '0;
+    always_ff @(posedge clk) if (tags_we) tags[tags_wa] <= tags_wd;
+    localparam integer DATA_AW = ((BYTES / LINE_BYTES) > 1) ? $clog2((BYTES / LINE_BYTES)) : 1;
+    wire data_we = 1'b0;
+    wire [DATA_AW-1:0] data_wa = '0;
+    wire [511:0] data_wd = '0;
+    always_ff @(posedge clk) if (data_we) data[data_wa] <= data_wd;
+    localparam integer MSHR_AW = (MSHRS > 1) ? $clog2(MSHRS) : 1;
+    wire mshr_we = 1'b0;
+    wire [MSHR_AW-1:0] mshr_wa = '0;
+    wire [129:0] mshr_wd = '0;
+    always_ff @(posedge clk) if (mshr_we) mshr[mshr_wa] <= mshr_wd;
+    localparam integer PENDING_AW = (16 > 1) ? $clog2(16) : 1;
+    wire pending_we = 1'b0;
+    wire [PENDING_AW-1:0] pending_wa = '0;
+    wire [128:0] pending_wd = '0;
+    always_ff @(posedge clk) if (pending_we) pending[pending_wa] <= pending_wd;
+    localparam integer PENDING_LINE_AW = (16 > 1) ? $clog2(16) : 1;
+    wire pending_line_we = 1'b0;
+    wire [PENDING_LINE_AW-1:0] pending_line_wa = '0;
+    wire [511:0] pending_line_wd = '0;
+    always_ff @(posedge clk) if (pending_line_we) pending_line[pending_line_wa] <= pending_line_wd;
 
     assign miss_resp_ready = 1'b0;
     assign miss_req_valid = 1'b0;

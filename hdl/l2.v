@@ -837,12 +837,17 @@ module l2
     // Skeleton behaviour: state resets and holds; outputs are tied low.
     always_ff @(posedge clk) begin
         if (rst) begin
-            for (int i = 0; i < 64; i++) mshr_addr[i] <= '0;
+            // mshr_addr: a memory, not reset (the model's words start as '0)
             mshrs_live <= '0;
             mem_queued <= '0;
             flushing <= '0;
         end
     end
+    localparam integer MSHR_ADDR_AW = (64 > 1) ? $clog2(64) : 1;
+    wire mshr_addr_we = 1'b0;
+    wire [MSHR_ADDR_AW-1:0] mshr_addr_wa = '0;
+    wire [63:0] mshr_addr_wd = '0;
+    always_ff @(posedge clk) if (mshr_addr_we) mshr_addr[mshr_addr_wa] <= mshr_addr_wd;
 
     assign flush_ready = 1'b0;
     assign flush_done_valid = 1'b0;

@@ -49,12 +49,32 @@ module mem_ctrl
             cmd_bank <= '0;
             cmd_row <= '0;
             cmd_col <= '0;
-            for (int i = 0; i < 64; i++) rd_queue[i] <= '0;
-            for (int i = 0; i < 96; i++) wr_queue[i] <= '0;
-            for (int i = 0; i < 32; i++) done_buf[i] <= '0;
-            for (int i = 0; i < 16; i++) open_row[i] <= '0;
+            // rd_queue: a memory, not reset (the model's words start as '0)
+            // wr_queue: a memory, not reset (the model's words start as '0)
+            // done_buf: a memory, not reset (the model's words start as '0)
+            // open_row: a memory, not reset (the model's words start as '0)
         end
     end
+    localparam integer RD_QUEUE_AW = (64 > 1) ? $clog2(64) : 1;
+    wire rd_queue_we = 1'b0;
+    wire [RD_QUEUE_AW-1:0] rd_queue_wa = '0;
+    wire [99:0] rd_queue_wd = '0;
+    always_ff @(posedge clk) if (rd_queue_we) rd_queue[rd_queue_wa] <= rd_queue_wd;
+    localparam integer WR_QUEUE_AW = (96 > 1) ? $clog2(96) : 1;
+    wire wr_queue_we = 1'b0;
+    wire [WR_QUEUE_AW-1:0] wr_queue_wa = '0;
+    wire [99:0] wr_queue_wd = '0;
+    always_ff @(posedge clk) if (wr_queue_we) wr_queue[wr_queue_wa] <= wr_queue_wd;
+    localparam integer DONE_BUF_AW = (32 > 1) ? $clog2(32) : 1;
+    wire done_buf_we = 1'b0;
+    wire [DONE_BUF_AW-1:0] done_buf_wa = '0;
+    wire [35:0] done_buf_wd = '0;
+    always_ff @(posedge clk) if (done_buf_we) done_buf[done_buf_wa] <= done_buf_wd;
+    localparam integer OPEN_ROW_AW = (16 > 1) ? $clog2(16) : 1;
+    wire open_row_we = 1'b0;
+    wire [OPEN_ROW_AW-1:0] open_row_wa = '0;
+    wire [11:0] open_row_wd = '0;
+    always_ff @(posedge clk) if (open_row_we) open_row[open_row_wa] <= open_row_wd;
 
     assign req_ready = 1'b0;
     assign resp_valid = 1'b0;

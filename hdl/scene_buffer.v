@@ -809,10 +809,20 @@ module scene_buffer
     always_ff @(posedge clk) begin
         if (rst) begin
             waiting <= '0;
-            for (int i = 0; i < 64; i++) slot_table[i] <= '0;
-            for (int i = 0; i < 64; i++) line_valid[i] <= '0;
+            // slot_table: a memory, not reset (the model's words start as '0)
+            // line_valid: a memory, not reset (the model's words start as '0)
         end
     end
+    localparam integer SLOT_TABLE_AW = (64 > 1) ? $clog2(64) : 1;
+    wire slot_table_we = 1'b0;
+    wire [SLOT_TABLE_AW-1:0] slot_table_wa = '0;
+    wire [119:0] slot_table_wd = '0;
+    always_ff @(posedge clk) if (slot_table_we) slot_table[slot_table_wa] <= slot_table_wd;
+    localparam integer LINE_VALID_AW = (64 > 1) ? $clog2(64) : 1;
+    wire line_valid_we = 1'b0;
+    wire [LINE_VALID_AW-1:0] line_valid_wa = '0;
+    wire [1023:0] line_valid_wd = '0;
+    always_ff @(posedge clk) if (line_valid_we) line_valid[line_valid_wa] <= line_valid_wd;
 
     assign slot_map_ready = 1'b0;
     assign req_0_ready = 1'b0;

@@ -66,7 +66,7 @@ module staging_buffer
     output sb_ray_t ray_15_data
 );
 
-    reg [255:0] rays [0:127];
+    reg [255:0] rays [0:2 * HALF_RAYS - 1];
     reg drain_half;
     reg [15:0] count0;
     reg [15:0] count1;
@@ -79,7 +79,7 @@ module staging_buffer
     // Skeleton behaviour: state resets and holds; outputs are tied low.
     always_ff @(posedge clk) begin
         if (rst) begin
-            for (int i = 0; i < 128; i++) rays[i] <= '0;
+            // rays: a memory, not reset (the model's words start as '0)
             drain_half <= '0;
             count0 <= '0;
             count1 <= '0;
@@ -90,6 +90,11 @@ module staging_buffer
             read_idx <= '0;
         end
     end
+    localparam integer RAYS_AW = ((2 * HALF_RAYS) > 1) ? $clog2((2 * HALF_RAYS)) : 1;
+    wire rays_we = 1'b0;
+    wire [RAYS_AW-1:0] rays_wa = '0;
+    wire [255:0] rays_wd = '0;
+    always_ff @(posedge clk) if (rays_we) rays[rays_wa] <= rays_wd;
 
     assign fill_ready = 1'b0;
     assign ray_0_valid = 1'b0;

@@ -855,10 +855,20 @@ module stream_scheduler
             mem_queued <= '0;
             next_eligible <= 32'hffffffff;
             next_tm <= '0;
-            for (int i = 0; i < 1024; i++) dest_table[i] <= '0;
-            for (int i = 0; i < 8; i++) stream_table[i] <= '0;
+            // dest_table: a memory, not reset (the model's words start as '0)
+            // stream_table: a memory, not reset (the model's words start as '0)
         end
     end
+    localparam integer DEST_TABLE_AW = (1024 > 1) ? $clog2(1024) : 1;
+    wire dest_table_we = 1'b0;
+    wire [DEST_TABLE_AW-1:0] dest_table_wa = '0;
+    wire [223:0] dest_table_wd = '0;
+    always_ff @(posedge clk) if (dest_table_we) dest_table[dest_table_wa] <= dest_table_wd;
+    localparam integer STREAM_TABLE_AW = (8 > 1) ? $clog2(8) : 1;
+    wire stream_table_we = 1'b0;
+    wire [STREAM_TABLE_AW-1:0] stream_table_wa = '0;
+    wire [151:0] stream_table_wd = '0;
+    always_ff @(posedge clk) if (stream_table_we) stream_table[stream_table_wa] <= stream_table_wd;
 
     assign emit_ready = 1'b0;
     assign start_ready = 1'b0;

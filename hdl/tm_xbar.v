@@ -527,7 +527,7 @@ module tm_xbar
     output tri_req_t tri_req_1_data
 );
 
-    reg [15:0] tri_outstanding [0:1];
+    reg [15:0] tri_outstanding [0:TRI_PIPES - 1];
     reg [1:0] box_req_q_count;
     reg box_req_q_valid;
     reg [463:0] box_req_q_data;
@@ -544,21 +544,41 @@ module tm_xbar
     // Skeleton behaviour: state resets and holds; outputs are tied low.
     always_ff @(posedge clk) begin
         if (rst) begin
-            for (int i = 0; i < 2; i++) tri_outstanding[i] <= '0;
+            // tri_outstanding: a memory, not reset (the model's words start as '0)
             box_req_q_count <= '0;
             box_req_q_valid <= '0;
             box_req_q_data <= '0;
-            for (int i = 0; i < 2; i++) box_req_q_mem[i] <= '0;
+            // box_req_q_mem: a memory, not reset (the model's words start as '0)
             box_pipe_stage_valid <= '0;
             box_pipe_frozen <= '0;
             box_pipe_ii_count <= 1'h1;
-            for (int i = 0; i < 7; i++) box_pipe_stage_data[i] <= '0;
+            // box_pipe_stage_data: a memory, not reset (the model's words start as '0)
             box_resp_q_count <= '0;
             box_resp_q_valid <= '0;
             box_resp_q_data <= '0;
-            for (int i = 0; i < 2; i++) box_resp_q_mem[i] <= '0;
+            // box_resp_q_mem: a memory, not reset (the model's words start as '0)
         end
     end
+    localparam integer TRI_OUTSTANDING_AW = (TRI_PIPES > 1) ? $clog2(TRI_PIPES) : 1;
+    wire tri_outstanding_we = 1'b0;
+    wire [TRI_OUTSTANDING_AW-1:0] tri_outstanding_wa = '0;
+    wire [15:0] tri_outstanding_wd = '0;
+    always_ff @(posedge clk) if (tri_outstanding_we) tri_outstanding[tri_outstanding_wa] <= tri_outstanding_wd;
+    localparam integer BOX_REQ_Q_MEM_AW = (2 > 1) ? $clog2(2) : 1;
+    wire box_req_q_mem_we = 1'b0;
+    wire [BOX_REQ_Q_MEM_AW-1:0] box_req_q_mem_wa = '0;
+    wire [463:0] box_req_q_mem_wd = '0;
+    always_ff @(posedge clk) if (box_req_q_mem_we) box_req_q_mem[box_req_q_mem_wa] <= box_req_q_mem_wd;
+    localparam integer BOX_PIPE_STAGE_DATA_AW = (7 > 1) ? $clog2(7) : 1;
+    wire box_pipe_stage_data_we = 1'b0;
+    wire [BOX_PIPE_STAGE_DATA_AW-1:0] box_pipe_stage_data_wa = '0;
+    wire [463:0] box_pipe_stage_data_wd = '0;
+    always_ff @(posedge clk) if (box_pipe_stage_data_we) box_pipe_stage_data[box_pipe_stage_data_wa] <= box_pipe_stage_data_wd;
+    localparam integer BOX_RESP_Q_MEM_AW = (2 > 1) ? $clog2(2) : 1;
+    wire box_resp_q_mem_we = 1'b0;
+    wire [BOX_RESP_Q_MEM_AW-1:0] box_resp_q_mem_wa = '0;
+    wire [48:0] box_resp_q_mem_wd = '0;
+    always_ff @(posedge clk) if (box_resp_q_mem_we) box_resp_q_mem[box_resp_q_mem_wa] <= box_resp_q_mem_wd;
 
     assign div_resp_ready = 1'b0;
     assign gmem_resp_ready = 1'b0;

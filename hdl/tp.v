@@ -83,7 +83,7 @@ module tp
     reg [256:0] sh_bounce;
     reg [31:0] sh_emitted;
     reg [31:0] sh_acks;
-    reg [95:0] stack [0:41];
+    reg [95:0] stack [0:STACK_ENTRIES - 1];
 
     // Skeleton behaviour: state resets and holds; outputs are tied low.
     always_ff @(posedge clk) begin
@@ -117,9 +117,14 @@ module tp
             sh_bounce <= '0;
             sh_emitted <= '0;
             sh_acks <= '0;
-            for (int i = 0; i < 42; i++) stack[i] <= '0;
+            // stack: a memory, not reset (the model's words start as '0)
         end
     end
+    localparam integer STACK_AW = (STACK_ENTRIES > 1) ? $clog2(STACK_ENTRIES) : 1;
+    wire stack_we = 1'b0;
+    wire [STACK_AW-1:0] stack_wa = '0;
+    wire [95:0] stack_wd = '0;
+    always_ff @(posedge clk) if (stack_we) stack[stack_wa] <= stack_wd;
 
     assign ray_ready = 1'b0;
     assign div_resp_ready = 1'b0;

@@ -735,6 +735,44 @@ mod tests {
         assert_eq!(top_of("chip.tm3.l1"), "tm3");
     }
 
+    /// Every memory sized by a parameter expression is that big, on the
+    /// default chip and on one whose sizes all differ; a wrong bound is
+    /// caught and named.
+    #[test]
+    fn memories_are_sized_by_their_parameters() {
+        let mut other = Config::default();
+        other.tm.scratchpad_bytes /= 2;
+        other.tm.staging_half_bytes *= 2;
+        other.tm.l1.bytes /= 4;
+        other.tm.l1.mshrs += 3;
+        for cfg in [Config::default(), other] {
+            let decls = catalog_checked(&cfg).unwrap();
+            let sized: usize = decls
+                .iter()
+                .map(|d| d.state.iter().filter(|s| s.depth_expr.is_some()).count())
+                .sum();
+            assert!(sized >= 6, "{sized}");
+            for d in &decls {
+                assert_eq!(d.depth_mismatches(), Vec::<String>::new());
+            }
+            let tp = decls.iter().find(|d| d.module == "tp").unwrap();
+            let v = crate::rtl::verilog::emit_module(tp);
+            assert!(v.contains(" stack [0:STACK_ENTRIES - 1];"), "{v}");
+            assert!(!v.contains("for (int i"), "memories are not reset: {v}");
+            // A bound that is not the depth.
+            let mut bad = tp.clone();
+            let k = bad.state.iter().position(|s| s.name == "stack").unwrap();
+            bad.state[k].depth_expr = Some("2 * STACK_ENTRIES");
+            let m = bad.depth_mismatches();
+            assert!(
+                m.len() == 1 && m[0].contains("tp.stack") && m[0].contains("'2 * STACK_ENTRIES'"),
+                "{m:?}"
+            );
+            bad.state[k].depth_expr = Some("STACK_ENTRIE");
+            assert!(bad.depth_mismatches()[0].contains("'STACK_ENTRIE' is no parameter of tp"));
+        }
+    }
+
     #[test]
     fn the_top_instantiates_every_unit_of_a_small_chip() {
         let mut cfg = Config::default();

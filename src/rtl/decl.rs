@@ -37,6 +37,9 @@ pub struct StateDecl {
     /// array (`reg [w-1:0] name [0:depth-1]`), which is not traced: a waveform of a
     /// 4 MB buffer helps nobody and costs everything.
     pub depth: Option<u32>,
+    /// A memory's depth as an expression of the unit's parameters
+    /// ([`super::Ram::sized_by`]; `None`: the literal depth).
+    pub depth_expr: Option<&'static str>,
     /// FSM encodings, for the VCD header comment.
     pub enum_names: Option<&'static [&'static str]>,
     /// The value at reset, packed LSB-first (empty: all zeros): what the model
@@ -57,6 +60,7 @@ impl StateDecl {
             name: name.into(),
             width,
             depth: None,
+            depth_expr: None,
             enum_names: None,
             reset: super::bits::Bits::new(),
             fields: Vec::new(),
@@ -68,6 +72,7 @@ impl StateDecl {
             name: name.into(),
             width,
             depth: Some(depth),
+            depth_expr: None,
             enum_names: None,
             reset: super::bits::Bits::new(),
             fields: Vec::new(),
@@ -134,6 +139,74 @@ pub struct SignalDecl {
 }
 
 impl UnitDecl {
+    /// The value of a parameter expression: integers and parameter names
+    /// joined by `+`, `*` and `/`, products before sums, left to right
+    /// (`"2 * HALF_RAYS"`, `"BYTES / LINE_BYTES"`); an error names what it
+    /// cannot read.
+    pub fn eval_param_expr(&self, expr: &str) -> Result<u64, String> {
+        let atom = |t: &str| -> Result<u64, String> {
+            let t = t.trim();
+            t.parse::<u64>().or_else(|_| {
+                self.params
+                    .iter()
+                    .find(|p| p.name == t)
+                    .map(|p| p.value)
+                    .ok_or_else(|| format!("'{t}' is no parameter of {}", self.module))
+            })
+        };
+        let mut sum = 0u64;
+        for term in expr.split('+') {
+            let mut v: Option<u64> = None;
+            let mut op = '*';
+            let mut rest = term;
+            loop {
+                let at = rest.find(['*', '/']);
+                let (a, tail) = match at {
+                    Some(i) => (
+                        &rest[..i],
+                        Some((rest.as_bytes()[i] as char, &rest[i + 1..])),
+                    ),
+                    None => (rest, None),
+                };
+                let x = atom(a)?;
+                v = Some(match (v, op) {
+                    (None, _) => x,
+                    (Some(v), '*') => v * x,
+                    (Some(_), _) if x == 0 => return Err(format!("'{expr}' divides by zero")),
+                    (Some(v), _) => v / x,
+                });
+                match tail {
+                    Some((o, t)) => {
+                        op = o;
+                        rest = t;
+                    }
+                    None => break,
+                }
+            }
+            sum += v.unwrap_or(0);
+        }
+        Ok(sum)
+    }
+
+    /// Each memory sized by a parameter expression whose value is not its
+    /// depth, as a message (empty: all agree).
+    pub fn depth_mismatches(&self) -> Vec<String> {
+        self.state
+            .iter()
+            .filter_map(|s| {
+                let (e, d) = (s.depth_expr?, s.depth?);
+                match self.eval_param_expr(e) {
+                    Ok(v) if v == d as u64 => None,
+                    Ok(v) => Some(format!(
+                        "{}.{}: depth {d}, but its bound '{e}' is {v}",
+                        self.module, s.name
+                    )),
+                    Err(m) => Some(format!("{}.{}: bound '{e}': {m}", self.module, s.name)),
+                }
+            })
+            .collect()
+    }
+
     /// Bits of clocked state (registers and memories), excluding link FIFOs, which
     /// belong to the interconnect.
     pub fn state_bits(&self) -> u64 {

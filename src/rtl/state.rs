@@ -157,9 +157,19 @@ pub struct Ram<T: Payload> {
     init: T,
     writes: Vec<(u32, T)>,
     write_ports: u32,
+    /// The depth as an expression of the unit's parameters (`"STACK_ENTRIES"`,
+    /// `"2 * HALF_RAYS"`), for the Verilog's array bound.
+    sized_by: Option<&'static str>,
 }
 
 impl<T: Payload> Ram<T> {
+    /// Names the parameter expression the depth is (`"BYTES / LINE_BYTES"`):
+    /// the skeleton sizes its array with it, and `rtl::decl` checks that it
+    /// evaluates to the depth.
+    pub fn sized_by(mut self, expr: &'static str) -> Self {
+        self.sized_by = Some(expr);
+        self
+    }
     pub fn new(depth: u32, write_ports: u32, init: T) -> Self {
         assert!(
             depth > 0 && write_ports > 0,
@@ -170,6 +180,7 @@ impl<T: Payload> Ram<T> {
             init,
             writes: Vec::with_capacity(write_ports as usize),
             write_ports,
+            sized_by: None,
         }
     }
     pub fn depth(&self) -> u32 {
@@ -204,6 +215,7 @@ impl<T: Payload> State for Ram<T> {
     fn declare(&self, name: &str, out: &mut StateList) {
         let mut d = StateDecl::array(name, T::BITS, self.depth());
         d.reset = super::bits::packed(&self.init);
+        d.depth_expr = self.sized_by;
         out.items.push(d);
     }
     fn sample(&self, _cycle: u64, _out: &mut Samples) {}

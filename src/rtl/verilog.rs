@@ -121,7 +121,10 @@ pub fn emit_module(d: &UnitDecl) -> String {
                 used.push(s.name.clone());
             }
             Some(depth) => {
-                let _ = writeln!(w, "    reg {}{} [0:{}];", range(s.width), s.name, depth - 1);
+                let bound = s
+                    .depth_expr
+                    .map_or_else(|| (depth - 1).to_string(), |e| format!("{e} - 1"));
+                let _ = writeln!(w, "    reg {}{} [0:{bound}];", range(s.width), s.name);
                 // One element marks the array used (no per-element loop: deep
                 // arrays exceed the tools' unroll limits).
                 used.push(format!("^{}[0]", s.name));
@@ -150,10 +153,13 @@ pub fn emit_module(d: &UnitDecl) -> String {
                 let reset = enum_reg(s).map_or_else(|| s.reset_literal(), |(_, lit)| lit);
                 let _ = writeln!(w, "            {} <= {reset};", s.name);
             }
-            Some(depth) => {
+            // Memories are not reset word by word (a RAM has no reset;
+            // yosys then infers one): the model's words start as the
+            // literal in the comment.
+            Some(_) => {
                 let _ = writeln!(
                     w,
-                    "            for (int i = 0; i < {depth}; i++) {}[i] <= {};",
+                    "            // {}: a memory, not reset (the model's words start as {})",
                     s.name,
                     s.reset_literal()
                 );
@@ -162,6 +168,32 @@ pub fn emit_module(d: &UnitDecl) -> String {
     }
     let _ = writeln!(w, "        end");
     let _ = writeln!(w, "    end");
+    // Each memory's write port, tied off as the outputs are: an
+    // implementation drives it.
+    for s in &d.state {
+        let Some(depth) = s.depth else { continue };
+        let depth_v = match s.depth_expr {
+            Some(e) if e.contains(' ') => format!("({e})"),
+            Some(e) => e.to_string(),
+            None => depth.to_string(),
+        };
+        let aw = format!("{}_AW", s.name.to_uppercase());
+        let _ = writeln!(
+            w,
+            "    localparam integer {aw} = ({depth_v} > 1) ? $clog2({depth_v}) : 1;"
+        );
+        let _ = writeln!(
+            w,
+            "    wire {n}_we = 1'b0;\n    wire [{aw}-1:0] {n}_wa = '0;\n    wire {r}{n}_wd = '0;",
+            n = s.name,
+            r = range(s.width)
+        );
+        let _ = writeln!(
+            w,
+            "    always_ff @(posedge clk) if ({n}_we) {n}[{n}_wa] <= {n}_wd;",
+            n = s.name
+        );
+    }
     let _ = writeln!(w);
     for p in &d.ports {
         match p.dir {

@@ -109,9 +109,9 @@ crate::unit! {
         out_arrays { resp: L1Resp }
         state {
             // Tag = line address + 1; 0 is an invalid slot.
-            tags: Ram<u64> = Ram::new(lines, 1, 0),
-            data: Ram<Line> = Ram::new(lines, 1, Line::default()),
-            mshr: Ram<Mshr> = Ram::new(cfg.mshrs, cfg.mshrs, Mshr::default()),
+            tags: Ram<u64> = Ram::new(lines, 1, 0).sized_by("BYTES / LINE_BYTES"),
+            data: Ram<Line> = Ram::new(lines, 1, Line::default()).sized_by("BYTES / LINE_BYTES"),
+            mshr: Ram<Mshr> = Ram::new(cfg.mshrs, cfg.mshrs, Mshr::default()).sized_by("MSHRS"),
             pending: Ram<Pending> = Ram::new(n, n, Pending::default()),
             pending_line: Ram<Line> = Ram::new(n, n, Line::default()),
             next_seq: crate::rtl::Reg<u32> = 0

@@ -53,7 +53,7 @@ crate::unit! {
         outputs { }
         out_arrays { ray: SbRay }
         state {
-            rays: Ram<RayRec> = Ram::new(2 * half, 1, NO_RAY),
+            rays: Ram<RayRec> = Ram::new(2 * half, 1, NO_RAY).sized_by("2 * HALF_RAYS"),
             drain_half: Reg<bool> = false,
             count0: Reg<u16> = 0,
             count1: Reg<u16> = 0,

@@ -65,7 +65,7 @@ crate::unit! {
             tri_req: TriReq
         }
         state {
-            tri_outstanding: Ram<u16> = Ram::new(np, np, 0),
+            tri_outstanding: Ram<u16> = Ram::new(np, np, 0).sized_by("TRI_PIPES"),
             box_req_q: LocalLink<BoxReq> = LocalLink::new(l),
             box_pipe: FixedPipe<BoxReq> =
                 FixedPipe::new(cfg.box_pipe.latency - l.delay, cfg.box_pipe.interval),

@@ -151,7 +151,7 @@ crate::unit! {
             sh_emitted: Reg<u32> = 0,
             sh_acks: Reg<u32> = 0,
             // Two write ports: a node pushes both children in one action.
-            stack: Ram<StackEntry> = Ram::new(entries, 2, NO_ENTRY)
+            stack: Ram<StackEntry> = Ram::new(entries, 2, NO_ENTRY).sized_by("STACK_ENTRIES")
         }
         extra {
             costs: TpCosts = cfg.tm.costs.clone(),
