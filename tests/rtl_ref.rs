@@ -170,6 +170,21 @@ fn staging_buffer_rtl_passes_under_icarus_where_the_skeleton_and_a_late_swap_fai
         &icarus(&t, &reference(sb), &tbo, &[]),
         "the reference, order mode",
     );
+    // +wave=FILE: the unit's waveform, for side-by-side debugging.
+    let wave = t.join("rtl.vcd");
+    let o = Command::new("vvp")
+        .arg("-n")
+        .arg(t.join("sim.vvp"))
+        .arg(format!("+wave={}", wave.display()))
+        .output()
+        .unwrap();
+    passes(&o, sb, SB_CYCLES, 10, "the reference with a waveform");
+    let vcd = std::fs::read_to_string(&wave).unwrap();
+    assert!(
+        vcd.contains("$scope module dut $end") && vcd.contains(" fill_valid $end"),
+        "{}",
+        &vcd[..vcd.len().min(2000)]
+    );
     // The skeleton (outputs tied low): never ready, never a ray.
     fails(
         &icarus(&t, &skeleton(sb), &tbc, &[]),

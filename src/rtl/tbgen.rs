@@ -265,6 +265,7 @@ pub fn emit_testbench(d: &UnitDecl, g: &TbGen) -> String {
     logic tr;
     logic [MAXW-1:0] td;
     logic [8*1024-1:0] path;
+    logic [8*1024-1:0] wave;
     logic [8*1024-1:0] line;
     integer max_mismatches;
     integer timeout;
@@ -478,7 +479,7 @@ pub fn emit_testbench(d: &UnitDecl, g: &TbGen) -> String {
     // Verilator's unused check: the bits of the rows a mode does not read.
     let _ = writeln!(
         w,
-        "    wire _unused_ok = &{{1'b0, ^line, ^timeout, 1'b0}};\nendmodule"
+        "    wire _unused_ok = &{{1'b0, ^line, ^timeout, ^wave, 1'b0}};\nendmodule"
     );
     v
 }
@@ -498,6 +499,13 @@ fn emit_init(w: &mut String, g: &TbGen, d: &UnitDecl) {
         w,
         "        if (!$value$plusargs(\"timeout=%d\", timeout)) timeout = {};",
         g.timeout
+    );
+    // A waveform of the unit under test (+wave=FILE; Verilator needs
+    // --trace or --trace-fst): vector cycle n is the clock period from
+    // time 10n + 25 (three reset periods first).
+    let _ = writeln!(
+        w,
+        "        if ($value$plusargs(\"wave=%s\", wave)) begin\n            $dumpfile(wave);\n            $dumpvars(0, dut);\n        end"
     );
     let _ = writeln!(
         w,
