@@ -230,7 +230,7 @@ fn hairball() -> Scene {
         Vec3::new(0.8, 0.75, 0.6),
     ];
     let ids = PALETTE.map(|a| b.material(a));
-    let mut rng = Rng::new(0x4A1B_A11_5EED);
+    let mut rng = Rng::new(0x04A1_BA11_5EED);
     // Uniform in [-1, 1) (f64 from 53 random bits).
     let mut uni = move || (rng.next_u64() >> 11) as f64 * (2.0 / (1u64 << 53) as f64) - 1.0;
     let len = |a: [f64; 3]| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
