@@ -5,6 +5,7 @@
 // order (`pack` puts the first field in the lowest bits). Read it before the
 // modules: `verilator ... hdl/ds_pkg.sv hdl/<unit>.v`.
 // Configured, not numbers:
+//   CHIP_EARLY_TERMINATION = "none"
 //   CHIP_MEMORY_MODEL = "gddr5"
 //   CHIP_SHADING = "tps"
 //   MEM_CTRL_POLICY = "frfcfs"

@@ -189,7 +189,7 @@ pub fn treelet_rays(p: &Prepared, scene: &Scene, upto: u32) -> Vec<Vec<RayRec>> 
         let rays = std::mem::take(&mut lists[s as usize]);
         let mut counts = TraversalCounts::default();
         for ray in &rays {
-            traverse_segment(&view, ray, &mut stack, &mut counts, |cs, entry| {
+            traverse_segment(&view, ray, &mut stack, &mut counts, |cs, entry, _| {
                 lists[cs as usize].push(RayRec { entry, ..*ray })
             });
         }
@@ -213,7 +213,7 @@ pub fn expected(
     let mut counts = TraversalCounts::default();
     let mut stack = Vec::new();
     for ray in rays {
-        let best = traverse_segment(view, ray, &mut stack, &mut counts, |seg, entry| {
+        let best = traverse_segment(view, ray, &mut stack, &mut counts, |seg, entry, _| {
             writes.push(RayWrite {
                 seg,
                 ray: RayRec { entry, ..*ray },

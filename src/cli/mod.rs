@@ -197,6 +197,34 @@ pub fn parse_size(s: &str, flag: &str) -> Result<u64, CliError> {
 /// `--threads`, on the commands that simulate (render, report, scene info,
 /// bench speed-error): not a global flag, so `config`, `hdl` and `tb` (one
 /// thread, always) neither list nor take it.
+/// `--early-termination`: overrides `[chip] early_termination`.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum EarlyTermArg {
+    /// No shared-record test (the paper's Table 2).
+    None,
+    /// Read the hit record before a segment; drop rays whose hit is closer.
+    Pre,
+    /// Read it before enqueueing into child segments; skip farther exits.
+    Post,
+    /// Both tests.
+    Both,
+}
+
+impl EarlyTermArg {
+    /// Sets the choice in `config`, if one was given.
+    pub fn apply(arg: Option<EarlyTermArg>, config: &mut Config) {
+        use dualstream::config::EarlyTermination as E;
+        if let Some(a) = arg {
+            config.chip.early_termination = match a {
+                EarlyTermArg::None => E::None,
+                EarlyTermArg::Pre => E::Pre,
+                EarlyTermArg::Post => E::Post,
+                EarlyTermArg::Both => E::Both,
+            };
+        }
+    }
+}
+
 #[derive(clap::Args)]
 pub struct ThreadsArg {
     /// Simulator threads: `auto` (the default) or 1 up to the machine's cores.

@@ -35,6 +35,13 @@ pub struct RenderArgs {
     #[arg(long, default_value = "functional",
           value_parser = ["functional", "reference", "cycle", "windows"])]
     mode: String,
+    /// Early ray termination across segments (overrides `[chip]
+    /// early_termination`): none, pre (read the ray's hit record before a
+    /// segment, drop it if the hit is closer than its entry), post (read it
+    /// before enqueueing into child segments, skip the farther ones) or both.
+    /// Functional mode only so far.
+    #[arg(long, value_enum, value_name = "CHOICE")]
+    early_termination: Option<super::EarlyTermArg>,
     /// Hit points per path (default: the scene's, 5 as in the paper).
     #[arg(long)]
     bounces: Option<u32>,
@@ -167,8 +174,9 @@ fn follow_out(a: &RenderArgs) -> Option<PathBuf> {
     }
 }
 
-fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(), CliError> {
+fn render_checked(mut config: Config, threads: Threads, a: RenderArgs) -> Result<(), CliError> {
     let started = std::time::Instant::now();
+    super::EarlyTermArg::apply(a.early_termination, &mut config);
     let sampled = a.mode == "windows";
     let mode = match a.mode.as_str() {
         "functional" | "windows" => Mode::Functional,
@@ -180,6 +188,10 @@ fn render_checked(config: Config, threads: Threads, a: RenderArgs) -> Result<(),
             )));
         }
     };
+    let et = config.chip.early_termination;
+    if (mode != Mode::Functional || sampled) && et != dualstream::config::EarlyTermination::None {
+        return Err(CliError::Usage(render::only_functional(et)));
+    }
     if let Some(p) = &a.hdr
         && !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("pfm"))
     {

@@ -39,12 +39,17 @@ pub struct ReportArgs {
     /// on these scenes (docs/speed-error.md), in minutes; same image).
     #[arg(long, default_value = "functional", value_parser = ["functional", "cycle", "windows"])]
     mode: String,
+    /// Early ray termination (overrides `[chip] early_termination`): none,
+    /// pre, post or both, as for render. Functional mode only so far.
+    #[arg(long, value_enum, value_name = "CHOICE")]
+    early_termination: Option<super::EarlyTermArg>,
 }
 
 /// `dualstream report paper`: renders the three paper scenes and prints the
 /// comparison table.
-pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), CliError> {
+pub fn report(mut config: Config, threads: Threads, a: ReportArgs) -> Result<(), CliError> {
     let started = std::time::Instant::now();
+    super::EarlyTermArg::apply(a.early_termination, &mut config);
     let sampled = a.mode == "windows";
     let mode = match a.mode.as_str() {
         "functional" | "windows" => Mode::Functional,
@@ -55,6 +60,10 @@ pub fn report(config: Config, threads: Threads, a: ReportArgs) -> Result<(), Cli
             )));
         }
     };
+    let et = config.chip.early_termination;
+    if (mode != Mode::Functional || sampled) && et != dualstream::config::EarlyTermination::None {
+        return Err(CliError::Usage(dualstream::render::only_functional(et)));
+    }
     if a.what != "paper" {
         return Err(CliError::Usage(format!(
             "unknown report '{}'; available: paper",

@@ -23,6 +23,60 @@ pub enum Shading {
     Host,
 }
 
+/// Early ray termination across segments [DS17 §3, §5.4]: a ray's copies share
+/// one hit record in DRAM, and reading it tells a copy that a closer hit was
+/// already found elsewhere. Within a segment a ray always stops at its own hits
+/// (local early termination); these read the shared record too.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EarlyTermination {
+    /// No shared-record test (the paper's Table 2; the default).
+    #[default]
+    None,
+    /// Pre-test: before a ray traverses a segment its record is read; a ray
+    /// whose recorded hit is closer than its entry into the segment is dropped.
+    Pre,
+    /// Post-test: after a ray traverses a segment, before it is enqueued into
+    /// the child segments it exits into, its record is read; exits farther
+    /// than the recorded hit are not enqueued.
+    Post,
+    /// Both tests.
+    Both,
+}
+
+impl EarlyTermination {
+    pub const ALL: [EarlyTermination; 4] = [
+        EarlyTermination::None,
+        EarlyTermination::Pre,
+        EarlyTermination::Post,
+        EarlyTermination::Both,
+    ];
+
+    /// The name in the configuration and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            EarlyTermination::None => "none",
+            EarlyTermination::Pre => "pre",
+            EarlyTermination::Post => "post",
+            EarlyTermination::Both => "both",
+        }
+    }
+
+    pub fn pre(self) -> bool {
+        matches!(self, EarlyTermination::Pre | EarlyTermination::Both)
+    }
+
+    pub fn post(self) -> bool {
+        matches!(self, EarlyTermination::Post | EarlyTermination::Both)
+    }
+}
+
+impl std::fmt::Display for EarlyTermination {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// The chip top.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -43,6 +97,9 @@ pub struct ChipCfg {
     pub l2: L2Cfg,
     /// `tps` (default) or `host`.
     pub shading: Shading,
+    /// `none` (default), `pre`, `post` or `both`; functional mode only so far
+    /// (cycle and time-sampled modes refuse another choice).
+    pub early_termination: EarlyTermination,
 }
 
 impl Default for ChipCfg {
@@ -57,6 +114,7 @@ impl Default for ChipCfg {
             hit_updater: HitUpdaterCfg::default(),
             l2: L2Cfg::default(),
             shading: Shading::Tps,
+            early_termination: EarlyTermination::None,
         }
     }
 }

@@ -6,7 +6,7 @@ mod chip;
 mod doc;
 mod error;
 
-pub use chip::{ChipCfg, Shading};
+pub use chip::{ChipCfg, EarlyTermination, Shading};
 pub use error::ConfigError;
 
 use serde::{Deserialize, Serialize};
@@ -264,5 +264,28 @@ mod tests {
             "{e:?}"
         );
         assert!(e.to_string().contains("latncy"), "{e}");
+    }
+
+    #[test]
+    fn early_termination_is_chosen_by_name_and_others_refused() {
+        assert_eq!(
+            Config::default().chip.early_termination,
+            EarlyTermination::None
+        );
+        for e in EarlyTermination::ALL {
+            let c = Config::from_toml(&format!("[chip]\nearly_termination = \"{e}\"\n")).unwrap();
+            assert_eq!(c.chip.early_termination, e);
+            assert_eq!(Config::from_toml(&c.to_toml()).unwrap(), c);
+        }
+        let e = Config::from_toml("[chip]\nearly_termination = \"always\"\n").unwrap_err();
+        assert!(matches!(e, ConfigError::Toml(_)), "{e:?}");
+        let m = e.to_string();
+        assert!(
+            m.contains("early_termination") && m.contains("always"),
+            "{m}"
+        );
+        for v in ["none", "pre", "post", "both"] {
+            assert!(m.contains(&format!("`{v}`")), "{m}");
+        }
     }
 }

@@ -180,6 +180,82 @@ pub fn icosphere(center: Vec3, radius: f32, subdivisions: u32) -> Vec<Triangle> 
         .collect()
 }
 
+/// A closed tube (a generalised cylinder) along the polyline `points` (f64, at
+/// least 2 distinct consecutive points): a ring of `sides` vertices (at least 3)
+/// around every point, each ring perpendicular to the polyline's mean tangent
+/// there and turned from the last by parallel transport (no twist), quads
+/// between neighbouring rings and a fan capping each end. Vertices are computed
+/// once in f64 and rounded once, so neighbours share them bit for bit. Produces
+/// `2 * sides * (points - 1) + 2 * sides` triangles, outward.
+pub fn tube(points: &[[f64; 3]], radius: f32, sides: u32) -> Vec<Triangle> {
+    type V = [f64; 3];
+    let sub = |a: V, b: V| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: V, b: V| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let cross = |a: V, b: V| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let unit = |a: V| {
+        let l = dot(a, a).sqrt();
+        [a[0] / l, a[1] / l, a[2] / l]
+    };
+    let n = points.len();
+    assert!(n >= 2, "a tube needs two points");
+    let sides = sides.max(3) as usize;
+    let angles: Vec<(f64, f64)> = (0..sides)
+        .map(|j| sin_cos(2.0 * std::f64::consts::PI * j as f64 / sides as f64))
+        .collect();
+    let to_f32 = |a: V| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32);
+    let mut rings: Vec<Vec<Vec3>> = Vec::with_capacity(n);
+    let mut u: V = [0.0; 3];
+    for i in 0..n {
+        let t = unit(sub(points[(i + 1).min(n - 1)], points[i.saturating_sub(1)]));
+        u = if i == 0 {
+            // Any perpendicular: across the axis least aligned with the tangent.
+            let k = (0..3)
+                .min_by(|&a, &b| t[a].abs().total_cmp(&t[b].abs()))
+                .expect("three axes");
+            let mut a = [0.0; 3];
+            a[k] = 1.0;
+            unit(cross(t, a))
+        } else {
+            // Parallel transport: last ring's u, made perpendicular to this tangent.
+            let d = dot(u, t);
+            unit([u[0] - d * t[0], u[1] - d * t[1], u[2] - d * t[2]])
+        };
+        // w = t x u, so u x w = t: angles increase counter-clockwise seen from +t.
+        let w = cross(t, u);
+        let (p, r) = (points[i], radius as f64);
+        rings.push(
+            angles
+                .iter()
+                .map(|&(s, c)| {
+                    to_f32([
+                        p[0] + r * (c * u[0] + s * w[0]),
+                        p[1] + r * (c * u[1] + s * w[1]),
+                        p[2] + r * (c * u[2] + s * w[2]),
+                    ])
+                })
+                .collect(),
+        );
+    }
+    let mut tris = Vec::with_capacity(2 * sides * n);
+    let (first, last) = (to_f32(points[0]), to_f32(points[n - 1]));
+    for j in 0..sides {
+        let jn = (j + 1) % sides;
+        tris.push(Triangle::new(first, rings[0][jn], rings[0][j]));
+        for i in 0..n - 1 {
+            let (a, b) = (&rings[i], &rings[i + 1]);
+            tris.extend(quad(a[j], a[jn], b[jn], b[j]));
+        }
+        tris.push(Triangle::new(last, rings[n - 1][j], rings[n - 1][jn]));
+    }
+    tris
+}
+
 /// Two triangles `(a, b, c)` and `(a, c, d)` split along the a-c diagonal; the
 /// diagonal's endpoints are the same values in both.
 pub fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> [Triangle; 2] {
@@ -310,6 +386,50 @@ mod tests {
             .fold((f32::MAX, 0.0f32), |(l, h), &a| (l.min(a), h.max(a)));
         assert!(hi / lo < 1.6, "{lo} {hi}");
         assert_closed(&icosphere(Vec3::new(148376.0, 1234.0, -223423.0), 1.0, 3));
+    }
+
+    #[test]
+    fn tube_is_closed_and_outward() {
+        // A bent polyline: the rings turn with it.
+        let pts = [
+            [0.0, 0.0, 0.0],
+            [0.1, 0.02, 0.0],
+            [0.18, 0.08, 0.03],
+            [0.2, 0.17, 0.09],
+            [0.15, 0.25, 0.12],
+        ];
+        let r = 0.01;
+        let t = tube(&pts, r, 5);
+        assert_eq!(t.len(), 2 * 5 * 4 + 2 * 5);
+        assert_closed(&t);
+        // Outward: each side triangle faces away from its segment's axis.
+        for (k, tri) in t.iter().enumerate() {
+            let (j, i) = (k / 10, k % 10);
+            if i == 0 || i == 9 {
+                continue; // caps
+            }
+            let seg = (i - 1) / 2;
+            let (a, b) = (pts[seg], pts[seg + 1]);
+            let mid = Vec3::new(
+                ((a[0] + b[0]) / 2.0) as f32,
+                ((a[1] + b[1]) / 2.0) as f32,
+                ((a[2] + b[2]) / 2.0) as f32,
+            );
+            assert_outward(std::slice::from_ref(tri), mid);
+            for v in [tri.v0, tri.v1, tri.v2] {
+                assert!((v - mid).length() < 0.1, "side {j}: {v}");
+            }
+        }
+        // Every ring vertex lies at the radius from its point.
+        for tri in &t {
+            for v in [tri.v0, tri.v1, tri.v2] {
+                let d = pts
+                    .iter()
+                    .map(|p| (v - Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)).length())
+                    .fold(f32::MAX, f32::min);
+                assert!(d < 1e-6 || (d - r).abs() < 1e-6, "{v} at {d}");
+            }
+        }
     }
 
     #[test]

@@ -41,6 +41,8 @@ pub struct WaveStats {
     pub shading_lines: u64,
     pub hits: u64,
     pub occluded: u64,
+    /// Early ray termination's reads and savings (zero with `none`).
+    pub early: super::early_term::EarlyTermCounts,
 }
 
 impl WaveStats {
@@ -59,6 +61,7 @@ impl WaveStats {
         self.shading_lines += o.shading_lines;
         self.hits += o.hits;
         self.occluded += o.occluded;
+        self.early += o.early;
     }
     /// Enqueues per unique ray (the paper's ray duplication).
     pub fn duplication(&self) -> f64 {
@@ -112,6 +115,8 @@ pub struct AccelInfo {
 pub struct Frame {
     pub scene: String,
     pub mode: Mode,
+    /// Early ray termination across segments (its counts: `total.early`).
+    pub early_termination: crate::config::EarlyTermination,
     pub width: u32,
     pub height: u32,
     /// Paths per pixel: the rays and every count are of all of them.

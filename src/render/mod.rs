@@ -11,6 +11,7 @@
 //! data contract; traffic is counted per stream in 64 B lines.
 
 mod cycle;
+pub mod early_term;
 pub mod energy;
 mod error;
 mod frame;
@@ -82,6 +83,13 @@ pub struct RenderCfg {
 }
 
 impl RenderCfg {
+    /// Early ray termination: the chip configuration's choice (`none` without one).
+    pub fn early_termination(&self) -> crate::config::EarlyTermination {
+        self.chip
+            .as_ref()
+            .map_or(Default::default(), |r| r.config.chip.early_termination)
+    }
+
     /// A frame of `config`'s chip (its `accel` and `memory` too) with the
     /// simulator options `sim`: nothing checked, dumped or logged.
     pub fn for_chip(config: &crate::config::Config, sim: crate::rtl::SimOptions) -> RenderCfg {
@@ -240,6 +248,10 @@ impl<'a> FrameRun<'a> {
                 "following a ray records the chip's events: render in cycle mode".into(),
             ));
         }
+        let et = cfg.early_termination();
+        if mode != Mode::Functional && et != crate::config::EarlyTermination::None {
+            return Err(RenderError::Invalid(only_functional(et)));
+        }
         let mut q = RayQueues::new(&p.map, p.seg.segments.len());
         let chip = if mode == Mode::Cycle {
             let c = cycle::FrameChip::new(scene, cfg, &p, pixels)?;
@@ -367,6 +379,8 @@ impl<'a> FrameRun<'a> {
             &mut self.p,
             &mut self.q,
             &mut self.st,
+            self.cfg.early_termination(),
+            &early_term::Rules::EXACT,
             &mut |done, known| {
                 prog.done = done;
                 prog.known = known;
@@ -511,6 +525,7 @@ impl<'a> FrameRun<'a> {
             passes: self.passes,
             scene: self.scene.name.clone(),
             mode: self.mode,
+            early_termination: self.cfg.early_termination(),
             width: w,
             height: h,
             spp,
@@ -528,6 +543,13 @@ impl<'a> FrameRun<'a> {
             chip: self.chip.map(|c| c.frame(vcd)),
         })
     }
+}
+
+/// Why a mode other than functional refuses early termination `et`.
+pub fn only_functional(et: crate::config::EarlyTermination) -> String {
+    format!(
+        "early termination `{et}` is in functional mode only so far; use --mode functional or early_termination = \"none\""
+    )
 }
 
 /// The pixels a frame renders (ray and path `i` is the `i`-th): all of them,

@@ -208,6 +208,9 @@ pub fn summary(f: &Frame) -> String {
         "  {:<34} {:>12}\n",
         "max traversal stack (entries)", t.traversal.max_stack
     );
+    if f.early_termination != crate::config::EarlyTermination::None {
+        s += &early_summary(f);
+    }
     s += &format!(
         "  wall {:.2} s (tracing {:.2} s), DRAM image {:.1} MB resident\n",
         f.wall_s, f.trace_s, f.dram_resident_mb
@@ -224,6 +227,58 @@ pub fn summary(f: &Frame) -> String {
     if let Some(c) = &f.chip {
         s += &chip_summary(c);
         s += &frame_headline(f, c);
+    }
+    s
+}
+
+/// The early-termination rows of [`summary`]: what the tests read and stopped,
+/// and each stream's lines with the tests and without them.
+fn early_summary(f: &Frame) -> String {
+    let (t, e) = (&f.total, &f.total.early);
+    let mut s = format!(
+        "  {:<34} {:>12}\n",
+        "early termination", f.early_termination
+    );
+    for (name, v) in [
+        ("  hit records read", e.records_read.to_string()),
+        ("  rays dropped, pre-test", e.rays_dropped.to_string()),
+        (
+            "  enqueues avoided, post-test",
+            e.enqueues_avoided.to_string(),
+        ),
+        (
+            "  box tests avoided, net",
+            (e.box_tests_avoided as i64 - e.pre_box_tests as i64).to_string(),
+        ),
+        ("  triangle tests avoided", e.tri_tests_avoided.to_string()),
+        ("  segment loads avoided", e.segments_removed.to_string()),
+    ] {
+        s += &format!("  {name:<34} {v:>12}\n");
+    }
+    s += &format!(
+        "  {:<34} {:>12} {:>12}\n",
+        "  $ lines (M), with / without:", "with", "without"
+    );
+    let hit_without = t.hit_lines() + e.hit_lines_removed - e.records_read - e.hit_lines_added;
+    for (name, with, without) in [
+        (
+            "ray stream",
+            t.ray_lines(),
+            t.ray_lines() + e.ray_lines_removed,
+        ),
+        (
+            "scene stream",
+            t.scene_lines,
+            t.scene_lines + e.scene_lines_removed,
+        ),
+        ("hit record", t.hit_lines(), hit_without),
+    ] {
+        s += &format!(
+            "  {:<34} {:>12} {:>12}\n",
+            format!("    {name}"),
+            m(with),
+            m(without)
+        );
     }
     s
 }

@@ -471,6 +471,15 @@ pub fn queue_lines_written(n: u64, rays_per_bucket: u32) -> u64 {
     full * (line(rpb) + 1) + if rest > 0 { line(rest) + 1 } else { 0 }
 }
 
+/// Lines the functional model reads for a queue of `n` rays: each bucket's
+/// header and rays, buckets starting on a line.
+pub fn queue_lines_read(n: u64, rays_per_bucket: u32) -> u64 {
+    let rpb = rays_per_bucket as u64;
+    let bucket = |m: u64| lines_touched(0, BUCKET_HEADER_BYTES as u64 + m * RAY_BYTES as u64);
+    let (full, rest) = (n / rpb, n % rpb);
+    full * bucket(rpb) + if rest > 0 { bucket(rest) } else { 0 }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

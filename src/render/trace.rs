@@ -2,12 +2,15 @@
 //! plain reference traversal; putting rays into the root queue; checking and
 //! dumping what was traced.
 
-use super::queues::RayQueues;
-use super::traverse::{self, SegmentView, reference_trace, traverse_segment};
+use super::early_term::{self, EarlyTermCounts, Rules};
+use super::queues::{RayQueues, queue_lines_read, queue_lines_written};
+use super::traverse::{self, SegmentView, TraversalCounts, reference_trace, traverse_segment};
 use super::{Mode, Prepared, RenderCfg, RenderError, WaveStats, prepare};
+use crate::config::EarlyTermination;
 use crate::contract::{HitRec, MemoryMap, RayRec, SHADOW_BIT, SegEntry, SparseMem, lines_touched};
 use crate::scene::Scene;
 use glam::Vec3;
+use std::collections::HashMap;
 
 /// Reads and updates a hit record with atomic-min semantics on (t, id).
 pub(super) fn update_hit(
@@ -16,14 +19,16 @@ pub(super) fn update_hit(
     idx: u64,
     h: HitRec,
     st: &mut WaveStats,
-) {
+) -> bool {
     let a = map.hit_addr(idx);
     let cur = HitRec::read(mem, a);
     st.hit_lines_read += 1;
-    if h.closer_than(&cur) {
+    let closer = h.closer_than(&cur);
+    if closer {
         h.write(mem, a);
         st.hit_lines_written += 1;
     }
+    closer
 }
 
 /// Puts a new ray into the root segment's queue and resets its hit record.
@@ -54,50 +59,124 @@ pub(super) fn emit(
 /// Dual streaming, functional: segments in depth-first order, each loaded once if
 /// its queue has rays; every ray of the queue traverses the segment locally and is
 /// duplicated into the queue of each child segment it exits into.
+/// With early termination `et`, the pre-test reads a ray's hit record before it
+/// traverses and may drop it, the post-test reads it before the ray's exits are
+/// enqueued and may skip them (`rules` decide; see `early_term`); the copies they
+/// stop go on as ghosts whose work is counted apart (`st.early`).
 /// `hook` is called before each segment that holds rays (with its id) and once at
 /// the end (with `u32::MAX`).
 pub(super) fn trace_functional(
     p: &mut Prepared,
     q: &mut RayQueues,
     st: &mut WaveStats,
+    et: EarlyTermination,
+    rules: &Rules,
     progress: &mut dyn FnMut(u64, u64),
     hook: &mut SegHook,
 ) -> Result<(), RenderError> {
     let mut done = 0u64;
     let mut rays = Vec::new();
     let mut stack = Vec::new();
-    let mut exits: Vec<(u32, u32)> = Vec::new();
-    for s in 0..p.seg.segments.len() as u32 {
-        if q.is_empty(s) {
+    let mut exits: Vec<(u32, u32, f32)> = Vec::new();
+    let n = p.seg.segments.len();
+    // Early termination: the copies stopped, per segment, and the copies each
+    // queue took (for the ray-stream lines with and without).
+    let mut ghosts: Vec<Vec<RayRec>> = Vec::new();
+    let (mut real_in, mut ghost_in) = (Vec::new(), Vec::new());
+    if et != EarlyTermination::None {
+        ghosts = vec![Vec::new(); n];
+        real_in = vec![0u64; n];
+        ghost_in = vec![0u64; n];
+    }
+    let mut ghost_work = TraversalCounts::default();
+    // The hit records as they would stand without early termination (a shadow
+    // ray's differs: it stops on any hit, not the closest).
+    let mut none_recs: HashMap<u64, HitRec> = HashMap::new();
+    for s in 0..n as u32 {
+        let real = !q.is_empty(s);
+        let ghost = ghosts.get(s as usize).is_some_and(|g| !g.is_empty());
+        if !real && !ghost {
             // No rays: the segment and (since rays come only from parents) its whole
             // subtree are skipped.
             continue;
         }
-        hook(s, p, q, st)?;
         let e = SegEntry::read(&p.mem, p.map.seg_entry_addr(s));
         let view = SegmentView::load(&p.mem, e.base, s, e.nodes, e.tris);
-        st.segments_loaded += 1;
-        st.scene_lines += lines_touched(e.base, e.bytes as u64);
+        let seg_lines = lines_touched(e.base, e.bytes as u64);
+        if real {
+            hook(s, p, q, st)?;
+            st.segments_loaded += 1;
+            st.scene_lines += seg_lines;
+        } else {
+            st.early.segments_removed += 1;
+            st.early.scene_lines_removed += seg_lines;
+        }
         while {
             rays.clear();
             q.pop_bucket(&p.mem, &p.map, s, &mut rays)
         } {
             for ray in &rays {
-                exits.clear();
-                let best =
-                    traverse_segment(&view, ray, &mut stack, &mut st.traversal, |seg, entry| {
-                        exits.push((seg, entry))
-                    });
-                for &(cs, entry) in &exits {
-                    q.push(&mut p.mem, &p.map, cs, &RayRec { entry, ..*ray })?;
-                    st.enqueues += 1;
+                let idx = ray.hit_index();
+                if et.pre() {
+                    let rec = read_record(p, idx, st);
+                    st.early.pre_box_tests += 1;
+                    st.traversal.box_tests += 1;
+                    if early_term::pre_test(rules, &view, ray, &rec) {
+                        st.early.rays_dropped += 1;
+                        ghosts[s as usize].push(*ray);
+                        continue;
+                    }
                 }
+                exits.clear();
+                let best = traverse_segment(
+                    &view,
+                    ray,
+                    &mut stack,
+                    &mut st.traversal,
+                    |seg, entry, t| exits.push((seg, entry, t)),
+                );
                 if best.is_hit() {
-                    update_hit(&mut p.mem, &p.map, ray.hit_index(), best, st);
+                    let wrote = update_hit(&mut p.mem, &p.map, idx, best, st);
+                    if et != EarlyTermination::None {
+                        none_update(&mut none_recs, idx, best, Some(wrote), &mut st.early);
+                    }
+                }
+                // The record after this ray's own update: the closest hit of all
+                // its copies so far.
+                let rec = (et.post() && !exits.is_empty()).then(|| read_record(p, idx, st));
+                for &(cs, entry, t) in &exits {
+                    let copy = RayRec { entry, ..*ray };
+                    if rec.is_some_and(|r| (rules.post)(t, &r, ray.is_shadow())) {
+                        st.early.enqueues_avoided += 1;
+                        ghosts[cs as usize].push(copy);
+                        ghost_in[cs as usize] += 1;
+                        continue;
+                    }
+                    q.push(&mut p.mem, &p.map, cs, &copy)?;
+                    st.enqueues += 1;
+                    if let Some(r) = real_in.get_mut(cs as usize) {
+                        *r += 1;
+                    }
                 }
             }
             done += rays.len() as u64;
             progress(done, st.enqueues);
+        }
+        // The stopped copies here do what they would have done without early
+        // termination: traverse, and go on into the children they exit into.
+        // (The pre-test may have stopped copies here itself.)
+        if ghosts.get(s as usize).is_some_and(|g| !g.is_empty()) {
+            let here = std::mem::take(&mut ghosts[s as usize]);
+            for ray in &here {
+                let best =
+                    traverse_segment(&view, ray, &mut stack, &mut ghost_work, |cs, entry, _| {
+                        ghosts[cs as usize].push(RayRec { entry, ..*ray });
+                        ghost_in[cs as usize] += 1;
+                    });
+                if best.is_hit() {
+                    none_update(&mut none_recs, ray.hit_index(), best, None, &mut st.early);
+                }
+            }
         }
         for k in 0..e.child_count {
             let c = p
@@ -106,7 +185,49 @@ pub(super) fn trace_functional(
             q.close(&mut p.mem, &p.map, c);
         }
     }
+    if et != EarlyTermination::None {
+        st.early.box_tests_avoided += ghost_work.box_tests;
+        st.early.tri_tests_avoided += ghost_work.tri_tests;
+        let rpb = q.rays_per_bucket();
+        let lines = |n: u64| queue_lines_written(n, rpb) + queue_lines_read(n, rpb);
+        for s in 0..n {
+            let (r, g) = (real_in[s], ghost_in[s]);
+            st.early.ghost_enqueues += g;
+            st.early.ray_lines_removed += lines(r + g) - lines(r);
+        }
+    }
     hook(u32::MAX, p, q, st)
+}
+
+/// Hit record `idx` without early termination (`recs`) takes the update `h`:
+/// counts the hit-record lines that run would move and this one does not
+/// (`wrote`: whether this run's update wrote; `None` for a stopped copy's,
+/// which this run does not make) and the reverse.
+fn none_update(
+    recs: &mut HashMap<u64, HitRec>,
+    idx: u64,
+    h: HitRec,
+    wrote: Option<bool>,
+    e: &mut EarlyTermCounts,
+) {
+    let cur = recs.entry(idx).or_insert(HitRec::NONE);
+    let writes = h.closer_than(cur);
+    if writes {
+        *cur = h;
+    }
+    match wrote {
+        None => e.hit_lines_removed += 1 + writes as u64,
+        Some(w) if writes && !w => e.hit_lines_removed += 1,
+        Some(w) if w && !writes => e.hit_lines_added += 1,
+        Some(_) => {}
+    }
+}
+
+/// An early-termination test's read of a ray's hit record (one line).
+fn read_record(p: &Prepared, idx: u64, st: &mut WaveStats) -> HitRec {
+    st.early.records_read += 1;
+    st.hit_lines_read += 1;
+    HitRec::read(&p.mem, p.map.hit_addr(idx))
 }
 
 pub(super) type SegHook<'a> =
@@ -173,6 +294,18 @@ pub fn trace_rays(
     mode: Mode,
     rays: &[(Vec3, Vec3, bool)],
 ) -> Result<(Vec<HitRec>, WaveStats), RenderError> {
+    trace_rays_ruled(scene, cfg, mode, rays, &Rules::EXACT)
+}
+
+/// [`trace_rays`] with early termination decided by `rules` (a test plants
+/// wrong ones).
+pub(crate) fn trace_rays_ruled(
+    scene: &Scene,
+    cfg: &RenderCfg,
+    mode: Mode,
+    rays: &[(Vec3, Vec3, bool)],
+    rules: &Rules,
+) -> Result<(Vec<HitRec>, WaveStats), RenderError> {
     let mut sc = scene.clone();
     // Room for one hit-record pair per ray.
     sc.settings.width = rays.len().max(1) as u32;
@@ -201,6 +334,8 @@ pub fn trace_rays(
             &mut p,
             &mut q,
             &mut st,
+            cfg.early_termination(),
+            rules,
             &mut |_, _| {},
             &mut |_, _, _, _| Ok(()),
         )?,

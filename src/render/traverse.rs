@@ -82,8 +82,8 @@ impl SegmentView {
 
 /// Traverses one ray through one segment from its entry reference: returns the best
 /// hit found here (local early termination: nothing farther is visited or enqueued) and calls
-/// `exit(segment, entry)` for every exit into a child segment that is not culled,
-/// in discovery order. A shadow ray stops at its first hit. The stack holds
+/// `exit(segment, entry, t)` for every exit into a child segment that is not
+/// culled, in discovery order, `t` the distance at which the ray enters it. A shadow ray stops at its first hit. The stack holds
 /// (reference, segment or `SEG_SAME`, entry distance); an entry with a segment is an
 /// exit.
 pub fn traverse_segment(
@@ -91,7 +91,7 @@ pub fn traverse_segment(
     ray: &RayRec,
     stack: &mut Vec<(u32, u32, f32)>,
     counts: &mut TraversalCounts,
-    exit: impl FnMut(u32, u32),
+    exit: impl FnMut(u32, u32, f32),
 ) -> HitRec {
     // The box test's input screen, once for the whole traversal when it passes
     // (a loop of its own: a branch per test kept most of the cost).
@@ -110,7 +110,7 @@ fn traverse_in<const SCREENED: bool>(
     inv: Vec3,
     stack: &mut Vec<(u32, u32, f32)>,
     counts: &mut TraversalCounts,
-    mut exit: impl FnMut(u32, u32),
+    mut exit: impl FnMut(u32, u32, f32),
 ) -> HitRec {
     let (origin, dir, shadow, entry) = (ray.origin, ray.dir, ray.is_shadow(), ray.entry);
     let t_ray = ray.t_max();
@@ -125,7 +125,7 @@ fn traverse_in<const SCREENED: bool>(
         }
         if s != SEG_SAME {
             counts.exits += 1;
-            exit(s, r);
+            exit(s, r, te);
             continue;
         }
         match Ref::decode(r) {

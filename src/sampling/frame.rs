@@ -48,6 +48,11 @@ pub fn render_windows_progress(
     plan: &WindowPlan,
     progress: &mut dyn FnMut(&WindowsProgress),
 ) -> Result<(Frame, WindowRecord), SamplingError> {
+    let et = rc.early_termination();
+    if et != crate::config::EarlyTermination::None {
+        // The windows run the chip, which has no early termination yet.
+        return Err(SamplingError::Invalid(render::only_functional(et)));
+    }
     let mut hooks = Sampling {
         plan,
         rc,

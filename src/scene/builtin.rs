@@ -1,6 +1,6 @@
 //! Builtin procedural scenes: deterministic, no files. Every one is a closed
 //! room (rays from inside never escape) built from `geom::shapes`, whose shared
-//! vertices are bit-identical.
+//! vertices are bit-identical; the objects in it are closed meshes too.
 //!
 //! Light intensities: a Lambertian surface at distance D from the light reflects
 //! albedo/pi * I/D^2 directly; I ~ 1.5 D^2 for the typical light-to-wall
@@ -12,16 +12,17 @@ use glam::Vec3;
 
 use super::{Builder, Camera, PointLight, RenderSettings, Scene, Xform};
 use crate::geom::Triangle;
-use crate::geom::shapes::{box_mesh, uv_sphere};
+use crate::geom::shapes::{box_mesh, tube, uv_sphere};
 use crate::util::rng::Rng;
 
-pub(crate) const NAMES: &[&str] = &["cornell", "spheres", "tiny"];
+pub(crate) const NAMES: &[&str] = &["cornell", "spheres", "tiny", "hairball"];
 
 pub(crate) fn build(name: &str) -> Option<Scene> {
     match name {
         "cornell" => Some(cornell()),
         "spheres" => Some(spheres()),
         "tiny" => Some(tiny()),
+        "hairball" => Some(hairball()),
         _ => None,
     }
 }
@@ -199,4 +200,98 @@ fn tiny() -> Scene {
         ..RenderSettings::default()
     };
     finish("tiny", b, camera, light, settings)
+}
+
+/// Hairs in the hairball: [`HAIR_POINTS`] points each, [`HAIR_SIDES`] sides.
+const HAIRS: usize = 2500;
+const HAIR_POINTS: usize = 12;
+const HAIR_SIDES: u32 = 5;
+/// Radius of the ball the hairs stay in, and of a hair.
+const BALL_RADIUS: f64 = 1.0;
+const HAIR_RADIUS: f32 = 0.005;
+
+/// High depth complexity, like the paper's Hairball: 2,500 thin capped tubes
+/// (random walks of 11 steps of 0.12, each step's direction the last one's
+/// jittered, turned back towards the centre at the ball's surface) filling a ball of radius 1 at the origin,
+/// in a closed room. A ray through the ball crosses about a dozen hairs, so
+/// most rays pass many segments behind their closest hit. 300,000 triangles.
+fn hairball() -> Scene {
+    let mut b = Builder::default();
+    add_room(
+        &mut b,
+        Vec3::new(-3.0, -2.0, -3.0),
+        Vec3::new(3.0, 3.0, 5.0),
+        [WHITE, WHITE, Vec3::splat(0.5), WHITE, WHITE, WHITE],
+    );
+    const PALETTE: [Vec3; 4] = [
+        Vec3::new(0.55, 0.35, 0.2),
+        Vec3::new(0.7, 0.55, 0.3),
+        Vec3::new(0.35, 0.2, 0.12),
+        Vec3::new(0.8, 0.75, 0.6),
+    ];
+    let ids = PALETTE.map(|a| b.material(a));
+    let mut rng = Rng::new(0x04A1_BA11_5EED);
+    // Uniform in [-1, 1) (f64 from 53 random bits).
+    let mut uni = move || (rng.next_u64() >> 11) as f64 * (2.0 / (1u64 << 53) as f64) - 1.0;
+    let len = |a: [f64; 3]| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    let inside = BALL_RADIUS - 2.0 * HAIR_RADIUS as f64;
+    for h in 0..HAIRS {
+        // A start in the ball and a direction, both by rejection.
+        let mut p = loop {
+            let c = [uni(), uni(), uni()];
+            if len(c) < 0.95 * inside {
+                break c;
+            }
+        };
+        let mut d = loop {
+            let c = [uni(), uni(), uni()];
+            let l = len(c);
+            if l > 0.1 && l < 1.0 {
+                break c.map(|x| x / l);
+            }
+        };
+        let mut pts = vec![p];
+        while pts.len() < HAIR_POINTS {
+            let j = [uni(), uni(), uni()];
+            let mut e = [0.0; 3];
+            for k in 0..3 {
+                e[k] = d[k] + 0.6 * j[k];
+            }
+            let l = len(e);
+            if l < 1e-3 {
+                continue;
+            }
+            d = e.map(|x| x / l);
+            let mut q = [0.0; 3];
+            for k in 0..3 {
+                q[k] = p[k] + 0.12 * d[k];
+            }
+            if len(q) > inside {
+                // Turn back into the ball: point the walk at its centre.
+                let l = len(p);
+                d = p.map(|x| -x / l);
+                continue;
+            }
+            p = q;
+            pts.push(p);
+        }
+        let m = ids[h % PALETTE.len()];
+        b.add(
+            "hair",
+            tube(&pts, HAIR_RADIUS, HAIR_SIDES)
+                .into_iter()
+                .map(|t| (t, m)),
+        );
+    }
+    let camera = Camera {
+        eye: Vec3::new(0.0, 0.3, 3.2),
+        look_at: Vec3::ZERO,
+        up: Vec3::Y,
+        vfov_deg: 42.0,
+    };
+    let light = PointLight {
+        position: Vec3::new(1.5, 2.6, 3.0),
+        intensity: Vec3::splat(30.0),
+    };
+    finish("hairball", b, camera, light, RenderSettings::default())
 }

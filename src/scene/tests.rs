@@ -99,6 +99,7 @@ fn builtins_load_with_expected_sizes() {
         ("cornell", 1000, 5000),
         ("spheres", 50_000, 200_000),
         ("tiny", 20, 100),
+        ("hairball", 200_000, 500_000),
     ];
     assert_eq!(BUILTINS.len(), want.len());
     for (name, lo, hi) in want {
@@ -112,6 +113,7 @@ fn builtins_load_with_expected_sizes() {
     }
     assert_eq!(load("tiny").unwrap().triangles.len(), 48);
     assert_eq!(load("cornell").unwrap().triangles.len(), 2232);
+    assert_eq!(load("hairball").unwrap().triangles.len(), 300_012);
 }
 
 #[test]
@@ -142,6 +144,16 @@ fn builtins_are_closed() {
         12,
         300,
     );
+    // hairball: the room (its first 12 triangles) holds every ray; each hair is
+    // a closed tube (`geom::shapes::tube`'s test), so none leaks into a hair.
+    let h = load("hairball").unwrap();
+    assert_closed(
+        &h,
+        Vec3::new(-3.0, -2.0, -3.0),
+        Vec3::new(3.0, 3.0, 5.0),
+        12,
+        300,
+    );
     // And the test can fail: without one wall triangle rays escape.
     let mut open = c.clone();
     open.triangles.remove(6); // half of the ceiling
@@ -166,10 +178,32 @@ fn builtins_are_reasonably_exposed() {
 #[test]
 #[ignore = "slow in debug builds; run with --release to tune light intensities"]
 fn spheres_exposure() {
-    let s = load("spheres").unwrap();
-    let m = mean_direct(&s, 24);
-    println!("spheres mean direct radiance {m}");
-    assert!((0.05..0.6).contains(&m), "{m}");
+    for (name, n) in [("spheres", 24), ("hairball", 16)] {
+        let s = load(name).unwrap();
+        let m = mean_direct(&s, n);
+        println!("{name} mean direct radiance {m}");
+        assert!((0.05..0.6).contains(&m), "{name}: {m}");
+    }
+}
+
+/// The hairball is what the paper's Hairball is for: depth. Rays from the
+/// camera through the ball's middle cross many hair surfaces.
+#[test]
+fn hairball_has_high_depth_complexity() {
+    let s = load("hairball").unwrap();
+    let ball = s.triangles.len() - 12;
+    let mut crossings = 0usize;
+    let n = 16;
+    for k in 0..n {
+        let o = s.camera.eye;
+        let d = Vec3::new(0.02 * k as f32 - 0.16, 0.01 * k as f32 - 0.18, 0.0) - o;
+        crossings += s.triangles[12..12 + ball]
+            .iter()
+            .filter(|t| ray_triangle(o, d, 0.0, f32::INFINITY, t).is_some())
+            .count();
+    }
+    let mean = crossings as f32 / n as f32;
+    assert!(mean > 10.0, "{mean} hair surfaces per ray");
 }
 
 #[test]

@@ -534,3 +534,66 @@ fn render_stats_name_every_figure() {
     assert!(v["chip"]["sim_steps_by_lanes"].is_object(), "{}", v["chip"]);
     assert!(v["chip"]["waves"][0]["lines_read"]["ray"].as_u64().unwrap() > 0);
 }
+
+#[test]
+fn render_early_termination_flag_counts_and_refusals() {
+    let t = Scratch::new("cli-render-et");
+    let (png, json) = (t.join("r.png"), t.join("r.json"));
+    let o = run(&[
+        "render",
+        "--scene",
+        "cornell",
+        "--res",
+        "16x16",
+        "--early-termination",
+        "both",
+        "--out",
+        png.to_str().unwrap(),
+        "--stats",
+        json.to_str().unwrap(),
+        "--verify",
+    ]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        out.contains("early termination") && out.contains("rays dropped, pre-test"),
+        "{out}"
+    );
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(stats["early_termination"], "both");
+    let e = &stats["total"]["early"];
+    assert!(e["records_read"].as_u64().unwrap() > 0, "{e}");
+    assert!(e.get("enqueues_avoided").is_some() && e.get("ray_lines_removed").is_some());
+    assert_eq!(
+        stats["header"]["config"]["chip"]["early_termination"], "both",
+        "{}",
+        stats["header"]
+    );
+    // A value that is not a choice, and the modes without it.
+    fails_with(
+        &["render", "--scene", "tiny", "--early-termination", "always"],
+        &["always", "none, pre, post, both"],
+    );
+    for mode in ["cycle", "windows", "reference"] {
+        fails_with(
+            &[
+                "render",
+                "--scene",
+                "tiny",
+                "--mode",
+                mode,
+                "--early-termination",
+                "pre",
+            ],
+            &[
+                "early termination `pre` is in functional mode only so far",
+                "--mode functional",
+            ],
+        );
+    }
+}
