@@ -392,6 +392,16 @@ fn an_rtl_trace_lines_up_with_the_model_trace() {
     succeeds(Command::new("vvp").arg("-n").arg(&sim), "vvp");
     let model = Scopes::of_model(&model_trace(&d));
     let rtl = Scopes::of_rtl(&read::vcd(&rtl_vcd));
-    assert_eq!(mismatches(&model, &rtl), Vec::<String>::new());
+    // A memory's write port (`<mem>_we`, `_wa`, `_wd`, tied off in the
+    // skeletons) is the netlist's only: the model traces no memories.
+    let only: Vec<String> = mismatches(&model, &rtl)
+        .into_iter()
+        .filter(|m| {
+            !["_we", "_wa", "_wd"]
+                .iter()
+                .any(|w| m.ends_with(&format!("{w} only in the netlist")))
+        })
+        .collect();
+    assert_eq!(only, Vec::<String>::new());
     assert_eq!(rtl.0["chip.tm5.tp9"].vars["ray_index"], (32, "reg".into()));
 }
