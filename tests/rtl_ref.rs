@@ -253,32 +253,38 @@ fn staging_buffer_rtl_passes_under_verilator_where_a_late_swap_fails() {
     );
 }
 
-#[test]
-fn staging_buffer_rtl_lints_and_synthesizes() {
-    let (p, r) = (pkg(), reference("staging_buffer"));
+/// `module`'s reference lints clean under `verilator -Wall`, and `yosys
+/// synth` with `chparam` (a small size: the same logic, small memories;
+/// the full sizes are in docs/rtl.md) gives more than `min_cells` cells.
+fn lints_and_synthesizes(module: &str, chparam: &str, min_cells: u64) {
+    let (p, r) = (pkg(), reference(module));
     if have("verilator") {
         common::succeeds(
             Command::new("verilator")
-                .args(["--lint-only", "-Wall", "--top-module", "staging_buffer"])
+                .args(["--lint-only", "-Wall", "--top-module", module])
                 .arg(&p)
                 .arg(&r),
             "verilator --lint-only",
         );
     }
     if have("yosys") {
-        // Two rays a half: the same logic, a small memory (the full size is
-        // in docs/rtl.md).
         let script = format!(
-            "read_verilog -sv {} {}; chparam -set HALF_RAYS 2 staging_buffer; synth -top staging_buffer; stat",
+            "read_verilog -sv {} {}; chparam {chparam} {module}; synth -top {module}; stat",
             p.display(),
             r.display()
         );
         let cells = common::yosys_cells(&script);
         assert!(
-            cells > 500,
+            cells > min_cells,
             "a real netlist, not a skeleton's: {cells} cells"
         );
     }
+}
+
+#[test]
+fn staging_buffer_rtl_lints_and_synthesizes() {
+    // Two rays a half.
+    lints_and_synthesizes("staging_buffer", "-set HALF_RAYS 2", 500);
 }
 
 const HRU: &str = "hit_record_updater";
@@ -350,28 +356,6 @@ fn hit_record_updater_rtl_passes_under_verilator_where_a_merge_keeping_the_farth
 
 #[test]
 fn hit_record_updater_rtl_lints_and_synthesizes() {
-    let (p, r) = (pkg(), reference(HRU));
-    if have("verilator") {
-        common::succeeds(
-            Command::new("verilator")
-                .args(["--lint-only", "-Wall", "--top-module", HRU])
-                .arg(&p)
-                .arg(&r),
-            "verilator --lint-only",
-        );
-    }
-    if have("yosys") {
-        // Four ports, four queue entries, two in flight: the same logic,
-        // small enough for the suite (the full size is in docs/rtl.md).
-        let script = format!(
-            "read_verilog -sv {} {}; chparam -set TMS 4 -set QUEUE 4 -set IN_FLIGHT 2 {HRU}; synth -top {HRU}; stat",
-            p.display(),
-            r.display()
-        );
-        let cells = common::yosys_cells(&script);
-        assert!(
-            cells > 5000,
-            "a real netlist, not a skeleton's: {cells} cells"
-        );
-    }
+    // Four ports, four queue entries, two in flight.
+    lints_and_synthesizes(HRU, "-set TMS 4 -set QUEUE 4 -set IN_FLIGHT 2", 5000);
 }
